@@ -1,0 +1,217 @@
+"""The containers that flow between the stages: EchoData (recorded cube + geometry) and Image.
+
+Ground floor: imports nothing of clsas but the scenario types it records.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from .scene.scenario import Medium, Waveform
+
+
+def _geometry(name: str, value, shape: tuple) -> np.ndarray:
+    arr = np.array(value, dtype=np.float64)
+    if arr.shape != shape:
+        raise ValueError(f"EchoData.{name} must have shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"EchoData.{name} must be finite everywhere; it has NaN or inf")
+    arr.flags.writeable = False
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class EchoData:
+    """Recorded echoes with the geometry that produced them.
+
+    Attributes
+    ----------
+    data : complex64 array (n_rx, n_pulses, n_samples)
+        Baseband samples; ``dims = ("rx", "pulse", "sample")``. Sample k of receiver r
+        and pulse p was taken at fast time ``t0[r] + k / fs`` after the emission ``eta[p]``.
+    eta : float64 (n_pulses,)
+        Emission times, s.
+    t0 : float64 (n_rx,)
+        Fast time of sample 0 for each receiver, s.
+    fs : float
+        Sampling rate of the fast-time axis, Hz.
+    tx_pos : float64 (n_pulses, 3)
+        Transmitter phase centre at each emission, m.
+    rx_pos : float64 (n_rx, n_pulses, n_nodes, 3)
+        Receiver phase centres at the times ``eta[p] + rx_tau[r, k]``, m: nodes spanning the
+        recording window; between nodes the position is linear (exact for uniform motion; the
+        simulator picks enough nodes for motion errors). One node = a stationary receiver.
+    rx_tau : float64 (n_rx, n_nodes)
+        Fast times of the nodes, s, strictly increasing along the node axis.
+    waveform, medium : the pulse and the water of the recording.
+    receivers : tuple of str
+        Receiver names.
+    compressed : bool
+        False for raw echoes, True after range compression.
+    provenance : dict
+        How the data was made (simulator or processing step and its parameters).
+    """
+
+    data: np.ndarray
+    eta: np.ndarray
+    t0: np.ndarray
+    fs: float
+    tx_pos: np.ndarray
+    rx_pos: np.ndarray
+    rx_tau: np.ndarray
+    waveform: Waveform
+    medium: Medium
+    receivers: tuple
+    compressed: bool = False
+    provenance: dict = field(default_factory=dict)
+
+    dims: ClassVar[tuple] = ("rx", "pulse", "sample")
+
+    def __post_init__(self):
+        data = np.asarray(self.data)
+        if data.ndim != 3:
+            raise ValueError(f"EchoData.data must be 3-D (rx, pulse, sample), got shape {data.shape}")
+        if not np.iscomplexobj(data):
+            raise TypeError(f"EchoData.data must be complex baseband samples, got dtype {data.dtype}")
+        data = data.astype(np.complex64, copy=False)
+        n_rx, n_p, _ = data.shape
+        object.__setattr__(self, "data", data)
+        object.__setattr__(self, "eta", _geometry("eta", self.eta, (n_p,)))
+        object.__setattr__(self, "t0", _geometry("t0", self.t0, (n_rx,)))
+        fs = float(self.fs)
+        if not (np.isfinite(fs) and fs > 0):
+            raise ValueError(f"EchoData.fs must be a positive sampling rate in Hz, got {self.fs}")
+        object.__setattr__(self, "fs", fs)
+        object.__setattr__(self, "tx_pos", _geometry("tx_pos", self.tx_pos, (n_p, 3)))
+        rx_tau = np.asarray(self.rx_tau, dtype=np.float64)
+        if rx_tau.ndim != 2 or rx_tau.shape[0] != n_rx or rx_tau.shape[1] < 1:
+            raise ValueError(f"EchoData.rx_tau must have shape ({n_rx}, n_nodes >= 1), got {rx_tau.shape}")
+        object.__setattr__(self, "rx_tau", _geometry("rx_tau", rx_tau, rx_tau.shape))
+        if rx_tau.shape[1] > 1 and np.any(np.diff(rx_tau, axis=1) <= 0):
+            raise ValueError("EchoData.rx_tau must increase strictly along the node axis")
+        object.__setattr__(self, "rx_pos", _geometry("rx_pos", self.rx_pos, (n_rx, n_p, rx_tau.shape[1], 3)))
+        if not isinstance(self.waveform, Waveform) or not isinstance(self.medium, Medium):
+            raise TypeError("EchoData.waveform must be a Waveform and EchoData.medium a Medium")
+        receivers = tuple(self.receivers)
+        if len(receivers) != n_rx:
+            raise ValueError(f"EchoData.receivers must name {n_rx} receivers, got {len(receivers)}")
+        object.__setattr__(self, "receivers", receivers)
+        object.__setattr__(self, "compressed", bool(self.compressed))
+        object.__setattr__(self, "provenance", dict(self.provenance))
+
+    @property
+    def n_rx(self) -> int:
+        return self.data.shape[0]
+
+    @property
+    def n_pulses(self) -> int:
+        return self.data.shape[1]
+
+    @property
+    def n_samples(self) -> int:
+        return self.data.shape[2]
+
+    def fast_time(self, rx: int) -> np.ndarray:
+        """Fast times of receiver ``rx``'s samples, s, shape (n_samples,)."""
+        return self.t0[rx] + np.arange(self.n_samples) / self.fs
+
+    def rx_position(self, rx: int, tau) -> np.ndarray:
+        """Receiver ``rx`` at fast times ``tau`` after each emission.
+
+        ``tau`` has shape (n_pulses, ...) (row p belongs to pulse p); returns
+        ``tau.shape + (3,)``. Linear between nodes, and linear beyond the first and last
+        node (the nodes span the recording window, so this only serves delays outside it).
+        """
+        tau = np.asarray(tau, dtype=np.float64)
+        if tau.ndim == 0 or tau.shape[0] != self.n_pulses:
+            raise ValueError(f"tau must have shape (n_pulses={self.n_pulses}, ...), got {tau.shape}")
+        nodes = self.rx_tau[rx]
+        pos = self.rx_pos[rx]  # (n_pulses, n_nodes, 3)
+        if nodes.size == 1:
+            return np.broadcast_to(pos[:, 0, :].reshape((self.n_pulses,) + (1,) * (tau.ndim - 1) + (3,)),
+                                   tau.shape + (3,)).copy()
+        seg = np.clip(np.searchsorted(nodes, tau) - 1, 0, nodes.size - 2)
+        w = ((tau - nodes[seg]) / (nodes[seg + 1] - nodes[seg]))[..., None]
+        rows = np.arange(self.n_pulses).reshape((-1,) + (1,) * (tau.ndim - 1))
+        return pos[rows, seg] * (1 - w) + pos[rows, seg + 1] * w
+
+    def replace(self, **changes) -> "EchoData":
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True, eq=False)
+class Image:
+    """A complex image with named axes and the record of how it was formed.
+
+    Attributes
+    ----------
+    data : complex64 array
+        Pixel values; its axes are named by ``dims`` (e.g. ``("y", "x")``: along track by
+        across track; ``("eta", "tau")`` for an image in slow/fast time).
+    dims : tuple of str
+    axes : dict name -> 1-D float64 array
+        Coordinate of each dim (m, or s for time axes); one entry per dim, of matching length.
+    provenance : dict
+        Algorithm and parameters.
+    positions : float64 array ``data.shape + (3,)``, optional
+        World positions of the pixels (m) when they do not follow from the axes alone
+        (slant planes, arbitrary 3-D pixel sets).
+    """
+
+    data: np.ndarray
+    dims: tuple
+    axes: dict
+    provenance: dict = field(default_factory=dict)
+    positions: np.ndarray | None = None
+
+    def __post_init__(self):
+        data = np.asarray(self.data)
+        if not np.iscomplexobj(data):
+            data = data.astype(np.complex64)
+        data = data.astype(np.complex64, copy=False)
+        dims = tuple(self.dims)
+        if len(dims) != data.ndim or len(set(dims)) != len(dims):
+            raise ValueError(f"Image.dims must name each of the {data.ndim} axes once, got {dims}")
+        axes = {}
+        for name, n in zip(dims, data.shape):
+            if name not in self.axes:
+                raise ValueError(f"Image.axes lacks the coordinate of dim {name!r}")
+            ax = np.asarray(self.axes[name], dtype=np.float64)
+            if ax.shape != (n,) or not np.all(np.isfinite(ax)):
+                raise ValueError(f"Image.axes[{name!r}] must be {n} finite values, got shape {ax.shape}")
+            axes[name] = ax
+        extra = set(self.axes) - set(dims)
+        if extra:
+            raise ValueError(f"Image.axes has coordinates for unknown dims {sorted(extra)}")
+        if self.positions is not None:
+            pos = np.asarray(self.positions, dtype=np.float64)
+            if pos.shape != data.shape + (3,) or not np.all(np.isfinite(pos)):
+                raise ValueError(f"Image.positions must be finite with shape {data.shape + (3,)}, got {pos.shape}")
+            object.__setattr__(self, "positions", pos)
+        object.__setattr__(self, "data", data)
+        object.__setattr__(self, "dims", dims)
+        object.__setattr__(self, "axes", axes)
+        object.__setattr__(self, "provenance", dict(self.provenance))
+
+    @property
+    def shape(self) -> tuple:
+        return self.data.shape
+
+    def db(self, floor_db: float | None = None) -> np.ndarray:
+        """20 log10 |data| normalised to the peak (0 dB), optionally clipped below at ``floor_db``."""
+        mag = np.abs(self.data).astype(np.float64)
+        peak = mag.max() if mag.size else 0.0
+        if peak == 0:
+            raise ValueError("Image.db: the image is all zeros")
+        with np.errstate(divide="ignore"):
+            out = 20 * np.log10(mag / peak)
+        return out if floor_db is None else np.maximum(out, floor_db)
+
+    def replace(self, **changes) -> "Image":
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)

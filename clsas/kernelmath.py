@@ -1,0 +1,81 @@
+"""The maths of ``kernels/common.h`` in NumPy, beside launchers that run the OpenCL helpers.
+
+The NumPy functions are the definitions the kernels are held to (and are reused by the
+NumPy references of the imaging kernels); ``rotate_phase`` and ``kaiser_sinc_taps`` run
+``kernels/kernelmath.cl`` so that the tests can compare the two element by element.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import backend as _backend
+from . import opencl
+
+
+def expj_cycles(cycles):
+    """exp(j 2 pi cycles), with the phase reduced to its fractional part first (as the kernels do)."""
+    cycles = np.asarray(cycles, dtype=np.float64)
+    return np.exp(2j * np.pi * (cycles - np.trunc(cycles)))
+
+
+def kaiser_sinc_tap(x, half_width: float, beta: float):
+    """Kaiser-windowed sinc tap for a sample ``x`` samples away from the interpolation point.
+
+    sinc(x) I0(beta sqrt(1 - (x / half_width)^2)) / I0(beta) inside ``|x| < half_width``,
+    0 outside; an N-tap interpolator uses ``half_width = N / 2``.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    u = x / half_width
+    inside = np.abs(u) < 1
+    window = np.i0(beta * np.sqrt(np.clip(1 - u * u, 0, None))) / np.i0(beta)
+    return np.where(inside, np.sinc(x) * window, 0.0)
+
+
+def _dtypes(double: bool):
+    return (np.float64, np.complex128) if double else (np.float32, np.complex64)
+
+
+def rotate_phase(x, cycles, backend: str | None = None, precision: str = "single"):
+    """x * exp(j 2 pi cycles), element-wise, on the chosen backend (1-D arrays of equal length)."""
+    x = np.asarray(x)
+    cycles = np.asarray(cycles)
+    if x.ndim != 1 or x.shape != cycles.shape:
+        raise ValueError(f"x and cycles must be 1-D of equal length, got {x.shape} and {cycles.shape}")
+    double = _backend.check_precision(precision)
+    if _backend.resolve(backend) == "numpy":
+        return x.astype(np.complex128) * expj_cycles(cycles)
+    import pyopencl.array as cla
+
+    real, cplx = _dtypes(double)
+    rt = opencl.runtime()
+    x_d = cla.to_device(rt.queue, np.ascontiguousarray(x, dtype=cplx))
+    c_d = cla.to_device(rt.queue, np.ascontiguousarray(cycles, dtype=real))
+    y_d = cla.empty_like(x_d)
+    knl = opencl.kernel("kernelmath", "rotate_phase", double=double)
+    knl(rt.queue, (x.size,), None, x_d.data, c_d.data, y_d.data)
+    return y_d.get()
+
+
+def kaiser_sinc_taps(offsets, half_width: float, beta: float, backend: str | None = None,
+                     precision: str = "single"):
+    """:func:`kaiser_sinc_tap` for every offset, on the chosen backend (1-D array)."""
+    offsets = np.asarray(offsets)
+    if offsets.ndim != 1:
+        raise ValueError(f"offsets must be 1-D, got shape {offsets.shape}")
+    if not (np.isfinite(half_width) and half_width > 0):
+        raise ValueError(f"half_width must be a positive finite number of samples, got {half_width}")
+    if not (np.isfinite(beta) and 0 <= beta <= 40):
+        raise ValueError(f"beta must be in [0, 40], got {beta}")
+    double = _backend.check_precision(precision)
+    if _backend.resolve(backend) == "numpy":
+        return kaiser_sinc_tap(offsets, half_width, beta)
+    import pyopencl.array as cla
+
+    real, _ = _dtypes(double)
+    rt = opencl.runtime()
+    o_d = cla.to_device(rt.queue, np.ascontiguousarray(offsets, dtype=real))
+    t_d = cla.empty_like(o_d)
+    knl = opencl.kernel("kernelmath", "kaiser_sinc_taps", double=double)
+    knl(rt.queue, (offsets.size,), None, o_d.data, real(half_width), real(beta), t_d.data)
+    return t_d.get()

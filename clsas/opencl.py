@@ -1,0 +1,221 @@
+"""OpenCL plumbing: device discovery, one context and queue per device, a program cache.
+
+Nothing here runs at import: the first call to :func:`runtime` picks the device. The device
+is chosen by, in order, the ``device=`` argument, the ``CLSAS_DEVICE`` environment variable,
+pyopencl's ``PYOPENCL_CTX``, and otherwise the first device of the first platform. A device
+spec is ``"P"`` or ``"P:D"`` (platform and device indices, as ``clinfo -l`` lists them) or a
+case-insensitive substring of the platform or device name (``"pocl"``, ``"avx512"``).
+
+Kernel sources live in ``kernels/NAME.cl`` (shipped in the wheel as ``clsas/kernels``) and may
+``#include "common.h"``. :func:`program` builds a source once per (device, source text,
+build options) and caches it; structural constants are passed as ``defines``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+INSTALL_HINT = (
+    "Install an OpenCL driver for the CPU: on Debian/Ubuntu `sudo apt-get install "
+    "pocl-opencl-icd` (or run `make setup`, which does it), then `clinfo -l` should list a "
+    "device. To run without OpenCL, use clsas.use_backend('numpy') or CLSAS_BACKEND=numpy."
+)
+
+
+class OpenCLUnavailable(RuntimeError):
+    """No usable OpenCL platform/device (or the requested one does not exist)."""
+
+
+class KernelBuildError(RuntimeError):
+    """An OpenCL kernel failed to compile; the message carries the build log."""
+
+
+@dataclass(frozen=True)
+class Runtime:
+    """The OpenCL objects clsas uses for one device."""
+
+    device: "object"  # pyopencl.Device
+    context: "object"  # pyopencl.Context
+    queue: "object"  # pyopencl.CommandQueue (profiling enabled, for the benchmarks)
+
+
+_runtimes: dict[str, Runtime] = {}
+_programs: dict[tuple, object] = {}
+
+
+def _import_pyopencl():
+    try:
+        import pyopencl as cl
+    except ImportError as err:  # pragma: no cover - pyopencl is a hard dependency
+        raise OpenCLUnavailable(f"pyopencl cannot be imported ({err}). {INSTALL_HINT}") from err
+    return cl
+
+
+def _all_devices():
+    cl = _import_pyopencl()
+    try:
+        platforms = cl.get_platforms()
+    except cl.Error as err:
+        raise OpenCLUnavailable(f"no OpenCL platform found ({err}). {INSTALL_HINT}") from err
+    found = [(ip, idev, dev) for ip, p in enumerate(platforms) for idev, dev in enumerate(p.get_devices())]
+    if not found:
+        raise OpenCLUnavailable(f"OpenCL platforms exist but none has a device. {INSTALL_HINT}")
+    return found
+
+
+def _device_spec(spec: str | None) -> str | None:
+    if spec is not None:
+        return str(spec)
+    return os.environ.get("CLSAS_DEVICE") or os.environ.get("PYOPENCL_CTX") or None
+
+
+def select_device(spec: str | None = None):
+    """The pyopencl.Device that ``spec`` (or the environment) names; see the module docstring."""
+    devices = _all_devices()
+    spec = _device_spec(spec)
+    if spec is None or spec.strip() == "":
+        return devices[0][2]
+    spec = spec.strip()
+    parts = spec.split(":")
+    if all(p.strip().isdigit() for p in parts if p.strip()) and 1 <= len(parts) <= 2:
+        ip = int(parts[0])
+        idev = int(parts[1]) if len(parts) == 2 and parts[1].strip() else 0
+        for p, d, dev in devices:
+            if (p, d) == (ip, idev):
+                return dev
+    else:
+        needle = spec.lower()
+        for _, _, dev in devices:
+            if needle in dev.name.lower() or needle in dev.platform.name.lower():
+                return dev
+    listing = "; ".join(f"{p}:{d} {dev.platform.name} / {dev.name}" for p, d, dev in devices)
+    raise OpenCLUnavailable(
+        f"OpenCL device spec {spec!r} (from the device argument, CLSAS_DEVICE or PYOPENCL_CTX) "
+        f"matches no device; available: {listing}"
+    )
+
+
+def _device_key(device) -> str:
+    return f"{device.platform.name}|{device.name}|{device.int_ptr}"
+
+
+def runtime(device: str | None = None) -> Runtime:
+    """The (device, context, queue) for ``device`` (a spec; None = the default device)."""
+    cl = _import_pyopencl()
+    dev = select_device(device)
+    key = _device_key(dev)
+    rt = _runtimes.get(key)
+    if rt is None:
+        ctx = cl.Context([dev])
+        queue = cl.CommandQueue(ctx, properties=cl.command_queue_properties.PROFILING_ENABLE)
+        rt = Runtime(device=dev, context=ctx, queue=queue)
+        _runtimes[key] = rt
+    return rt
+
+
+def available(device: str | None = None) -> bool:
+    """True when an OpenCL device can be used."""
+    try:
+        runtime(device)
+    except OpenCLUnavailable:
+        return False
+    return True
+
+
+def has_fp64(device) -> bool:
+    """True when the device supports double precision (PoCL CPU devices do)."""
+    return "cl_khr_fp64" in device.extensions or bool(getattr(device, "double_fp_config", 0))
+
+
+def device_info(device) -> dict:
+    """Platform, device, OpenCL version, compute units, fp64 support of ``device``."""
+    return {
+        "platform": device.platform.name,
+        "device": device.name,
+        "opencl_version": device.version,
+        "driver_version": device.driver_version,
+        "compute_units": int(device.max_compute_units),
+        "fp64": has_fp64(device),
+        "max_work_group_size": int(device.max_work_group_size),
+        "global_mem_bytes": int(device.global_mem_size),
+    }
+
+
+def kernels_dir() -> Path:
+    """The folder holding ``common.h`` and the ``*.cl`` sources.
+
+    In an installed wheel it is ``clsas/kernels`` (the build maps the top-level ``kernels/``
+    there); in a source checkout (editable install) it is the top-level ``kernels/``.
+    """
+    packaged = Path(str(resources.files("clsas"))) / "kernels"
+    if (packaged / "common.h").is_file():
+        return packaged
+    checkout = Path(__file__).resolve().parent.parent / "kernels"
+    if (checkout / "common.h").is_file():
+        return checkout
+    raise FileNotFoundError(
+        f"clsas kernel sources not found: looked in {packaged} (installed wheel) and {checkout} "
+        "(source checkout); reinstall clsas"
+    )
+
+
+def _source(name: str) -> tuple[str, str]:
+    """(source text, digest of it and of every header in kernels/) for kernels/NAME.cl."""
+    kdir = kernels_dir()
+    path = kdir / f"{name}.cl"
+    if not path.is_file():
+        known = sorted(p.stem for p in kdir.glob("*.cl"))
+        raise ValueError(f"kernel source {name!r} not found in {kdir}; known: {known}")
+    text = path.read_text()
+    digest = hashlib.sha256(text.encode())
+    for header in sorted(kdir.glob("*.h")):
+        digest.update(header.read_bytes())
+    return text, digest.hexdigest()
+
+
+def program(name: str, defines: dict | None = None, device: str | None = None, double: bool = False):
+    """The built pyopencl.Program for ``kernels/NAME.cl``.
+
+    Parameters
+    ----------
+    name : str
+        Source file stem under :func:`kernels_dir`.
+    defines : dict, optional
+        ``-D KEY=VALUE`` structural constants (tap counts, block sizes).
+    double : bool
+        Build with ``-D CLSAS_DOUBLE`` so that ``real_t``/``complex_t`` of ``common.h`` are
+        double precision; refused when the device has no fp64.
+    """
+    cl = _import_pyopencl()
+    rt = runtime(device)
+    if double and not has_fp64(rt.device):
+        raise RuntimeError(f"precision='double' needs fp64, which device {rt.device.name!r} lacks")
+    text, digest = _source(name)
+    options = [f"-I{kernels_dir()}"]
+    if double:
+        options.append("-DCLSAS_DOUBLE=1")
+    for key, value in sorted((defines or {}).items()):
+        options.append(f"-D{key}={value}")
+    cache_key = (_device_key(rt.device), digest, tuple(options))
+    prg = _programs.get(cache_key)
+    if prg is None:
+        try:
+            prg = cl.Program(rt.context, text).build(options=options)
+        except cl.RuntimeError as err:
+            raise KernelBuildError(
+                f"building kernels/{name}.cl with options {options} failed on "
+                f"{rt.device.name}:\n{err}"
+            ) from err
+        _programs[cache_key] = prg
+    return prg
+
+
+def kernel(name: str, kernel_name: str, defines: dict | None = None, device: str | None = None,
+           double: bool = False):
+    """A fresh pyopencl.Kernel ``kernel_name`` from ``kernels/NAME.cl`` (see :func:`program`)."""
+    cl = _import_pyopencl()
+    return cl.Kernel(program(name, defines=defines, device=device, double=double), kernel_name)

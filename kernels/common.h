@@ -1,0 +1,91 @@
+/* clsas kernels: shared helpers (OpenCL C 1.2).
+ *
+ * NumPy twins: clsas/kernelmath.py (expj_cycles, sinc, kaiser_sinc_tap), checked by
+ * tests/test_kernelmath.py through kernels/kernelmath.cl.
+ *
+ * Precision: build with -DCLSAS_DOUBLE=1 to make real_t / complex_t double precision
+ * (clsas.opencl.program(..., double=True)); the default is float.
+ */
+#ifndef CLSAS_COMMON_H
+#define CLSAS_COMMON_H
+
+#ifdef CLSAS_DOUBLE
+#pragma OPENCL EXTENSION cl_khr_fp64 : enable
+#define PYOPENCL_DEFINE_CDOUBLE
+#endif
+#include <pyopencl-complex.h>
+
+#ifdef CLSAS_DOUBLE
+typedef double real_t;
+typedef cdouble_t complex_t;
+#define complex_new cdouble_new
+#define complex_add cdouble_add
+#define complex_mul cdouble_mul
+#define complex_rmul cdouble_rmul
+#define complex_conj cdouble_conj
+#define REAL_PI M_PI
+#define REAL_EPS DBL_EPSILON
+#else
+typedef float real_t;
+typedef cfloat_t complex_t;
+#define complex_new cfloat_new
+#define complex_add cfloat_add
+#define complex_mul cfloat_mul
+#define complex_rmul cfloat_rmul
+#define complex_conj cfloat_conj
+#define REAL_PI M_PI_F
+#define REAL_EPS FLT_EPSILON
+#endif
+
+/* Fractional part of a phase given in cycles, in (-1, 1): truncation by conversion
+ * (PoCL's floor/rint are slow emulations); |cycles| < 2^31 in float builds.
+ * Never take sin/cos of a large radian argument: reduce the cycles first, then use
+ * sinpi/cospi. */
+inline real_t reduce_cycles(real_t cycles)
+{
+#ifdef CLSAS_DOUBLE
+    return cycles - (real_t)convert_long(cycles);
+#else
+    return cycles - (real_t)convert_int(cycles);
+#endif
+}
+
+/* exp(j 2 pi cycles) */
+inline complex_t expj_cycles(real_t cycles)
+{
+    real_t f = reduce_cycles(cycles);
+    return complex_new(cospi((real_t)2 * f), sinpi((real_t)2 * f));
+}
+
+/* sinc(x) = sin(pi x) / (pi x), sinc(0) = 1 */
+inline real_t sinc(real_t x)
+{
+    return x == (real_t)0 ? (real_t)1 : sinpi(x) / (REAL_PI * x);
+}
+
+/* Modified Bessel function I0 by its power series (converges for the window betas used,
+ * |x| <= 40, to the working precision). */
+inline real_t bessel_i0(real_t x)
+{
+    real_t q = (real_t)0.25 * x * x;
+    real_t term = (real_t)1;
+    real_t sum = (real_t)1;
+    for (int k = 1; k < 64; ++k) {
+        term *= q / (real_t)(k * k);
+        sum += term;
+        if (term < sum * REAL_EPS) break;
+    }
+    return sum;
+}
+
+/* Kaiser-windowed sinc interpolation tap for a sample at offset x (samples) from the
+ * interpolation point: sinc(x) * I0(beta sqrt(1 - (x/half_width)^2)) / I0(beta) for
+ * |x| < half_width, else 0. An N-tap interpolator uses half_width = N/2. */
+inline real_t kaiser_sinc_tap(real_t x, real_t half_width, real_t beta)
+{
+    real_t u = x / half_width;
+    if (fabs(u) >= (real_t)1) return (real_t)0;
+    return sinc(x) * bessel_i0(beta * sqrt((real_t)1 - u * u)) / bessel_i0(beta);
+}
+
+#endif /* CLSAS_COMMON_H */
