@@ -1,0 +1,144 @@
+"""Backend choice (call, context manager, CLSAS_BACKEND, auto fallback) and OpenCL plumbing."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import clsas
+from clsas import backend, opencl
+
+
+@pytest.fixture(autouse=True)
+def _restore_choice(monkeypatch):
+    monkeypatch.setattr(backend, "_choice", None)
+    monkeypatch.setattr(backend, "_auto_warned", False)
+    monkeypatch.delenv("CLSAS_BACKEND", raising=False)
+    yield
+
+
+def test_use_backend_as_call_persists():
+    clsas.use_backend("numpy")
+    assert backend.default() == "numpy"
+    assert backend.resolve() == "numpy"
+
+
+def test_use_backend_as_context_manager_restores():
+    clsas.use_backend("numpy")
+    with clsas.use_backend("auto"):
+        assert backend.default() == "auto"
+    assert backend.default() == "numpy"
+
+
+def test_environment_variable(monkeypatch):
+    monkeypatch.setenv("CLSAS_BACKEND", "numpy")
+    assert backend.default() == "numpy"
+    assert backend.resolve(None) == "numpy"
+    monkeypatch.setenv("CLSAS_BACKEND", "cuda")
+    with pytest.raises(ValueError, match="CLSAS_BACKEND"):
+        backend.default()
+
+
+def test_use_backend_overrides_environment(monkeypatch):
+    monkeypatch.setenv("CLSAS_BACKEND", "opencl")
+    with clsas.use_backend("numpy"):
+        assert backend.resolve() == "numpy"
+
+
+@pytest.mark.parametrize("bad", ["cuda", "", None, 3])
+def test_unknown_backend_names_the_parameter(bad):
+    with pytest.raises(ValueError, match="backend must be one of"):
+        clsas.use_backend(bad)
+    if bad is not None:
+        with pytest.raises(ValueError, match="backend must be one of"):
+            backend.resolve(bad)
+
+
+def _no_device(monkeypatch):
+    def fail(*_args, **_kwargs):
+        raise opencl.OpenCLUnavailable(f"no OpenCL platform found (test). {opencl.INSTALL_HINT}")
+
+    monkeypatch.setattr(opencl, "_all_devices", fail)
+    monkeypatch.setattr(opencl, "_runtimes", {})
+
+
+def test_opencl_without_device_raises_with_install_hint(monkeypatch):
+    _no_device(monkeypatch)
+    with pytest.raises(RuntimeError, match="pocl-opencl-icd"):
+        backend.resolve("opencl")
+
+
+def test_auto_without_device_falls_back_with_one_warning(monkeypatch):
+    _no_device(monkeypatch)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert backend.resolve("auto") == "numpy"
+        assert backend.resolve("auto") == "numpy"
+        assert backend.resolve(None) == "numpy"
+    relevant = [w for w in caught if issubclass(w.category, RuntimeWarning) and "auto" in str(w.message)]
+    assert len(relevant) == 1
+
+
+def test_numpy_path_works_without_device(monkeypatch):
+    _no_device(monkeypatch)
+    from clsas import kernelmath
+
+    y = kernelmath.rotate_phase(np.ones(3, np.complex64), np.array([0.0, 0.25, 0.5]), backend="numpy")
+    np.testing.assert_allclose(y, [1, 1j, -1], atol=1e-12)
+    assert "opencl_error" in backend.info()
+
+
+def test_info_reports_device(opencl_device):
+    info = backend.info()
+    for key in ("platform", "device", "opencl_version", "compute_units", "fp64"):
+        assert key in info
+    assert info["compute_units"] >= 1
+    assert isinstance(info["fp64"], bool)
+
+
+def test_device_selection_by_index_and_name(opencl_device):
+    dev = opencl_device.device
+    assert opencl.select_device("0:0") is not None
+    assert opencl.select_device(dev.name[:6]).name == dev.name
+    with pytest.raises(opencl.OpenCLUnavailable, match="matches no device"):
+        opencl.select_device("no-such-device-xyz")
+
+
+def test_clsas_device_environment(monkeypatch, opencl_device):
+    monkeypatch.setenv("CLSAS_DEVICE", "no-such-device-xyz")
+    with pytest.raises(opencl.OpenCLUnavailable, match="CLSAS_DEVICE"):
+        opencl.select_device()
+
+
+def test_one_runtime_per_device(opencl_device):
+    assert opencl.runtime() is opencl.runtime()
+
+
+def test_program_cache_keyed_by_options(opencl_device):
+    a = opencl.program("kernelmath")
+    assert opencl.program("kernelmath") is a
+    b = opencl.program("kernelmath", defines={"UNUSED_CONSTANT": 3})
+    assert b is not a
+    if opencl.has_fp64(opencl_device.device):
+        assert opencl.program("kernelmath", double=True) is not a
+
+
+def test_build_error_shows_log(opencl_device, tmp_path, monkeypatch):
+    (tmp_path / "common.h").write_text((opencl.kernels_dir() / "common.h").read_text())
+    (tmp_path / "broken.cl").write_text(
+        '#include "common.h"\n__kernel void broken(__global float *x) { x[0] = undefined_symbol_q; }\n')
+    monkeypatch.setattr(opencl, "kernels_dir", lambda: tmp_path)
+    with pytest.raises(opencl.KernelBuildError, match="undefined_symbol_q"):
+        opencl.program("broken")
+
+
+def test_unknown_kernel_source_lists_known(opencl_device):
+    with pytest.raises(ValueError, match="kernelmath"):
+        opencl.program("no_such_kernel")
+
+
+def test_bad_precision():
+    with pytest.raises(ValueError, match="precision"):
+        backend.check_precision("half")
