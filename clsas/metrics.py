@@ -42,6 +42,8 @@ class PointResponse:
 
 def _zero_pad_middle(spec: np.ndarray, factor: int) -> np.ndarray:
     n = spec.size
+    if factor == 1:  # nothing to insert; splitting the Nyquist bin would halve it
+        return spec.astype(np.complex128, copy=True)
     out = np.zeros(n * factor, dtype=np.complex128)
     pos = (n + 1) // 2
     out[:pos] = spec[:pos]
@@ -98,7 +100,8 @@ def _first_minimum(mag: np.ndarray, start: int, step: int) -> int:
     return j
 
 
-def point_response(x, axis=None, upsample: int = 16, extent: float = 10.0) -> PointResponse:
+def point_response(x, axis=None, upsample: int = 16, extent: float = 10.0, near: float | None = None,
+                   radius: float = 1.0) -> PointResponse:
     """Metrics of the strongest peak of the 1-D complex cut ``x`` (see the module docstring).
 
     Parameters
@@ -110,8 +113,19 @@ def point_response(x, axis=None, upsample: int = 16, extent: float = 10.0) -> Po
         FFT interpolation factor before measuring.
     extent : float
         Half-width of the side-lobe region, in IRWs.
+    near, radius : float, optional
+        Measure the strongest peak within ``radius`` samples of sample index ``near``
+        (default: the strongest peak of the whole cut).
     """
     x = np.asarray(x)
+    if x.ndim != 1 or x.size < 4:
+        raise ValueError(f"x must be a 1-D cut with >= 4 samples, got shape {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("x must be finite everywhere; it has NaN or inf")
+    if not np.any(x):
+        raise ValueError("x is all zeros: there is no peak to measure")
+    if isinstance(upsample, bool) or not isinstance(upsample, (int, np.integer)) or upsample < 1:
+        raise ValueError(f"upsample must be an integer >= 1, got {upsample!r}")
     n = x.size
     coords = np.arange(n, dtype=np.float64) if axis is None else np.asarray(axis, dtype=np.float64)
     if coords.shape != (n,):
@@ -123,7 +137,14 @@ def point_response(x, axis=None, upsample: int = 16, extent: float = 10.0) -> Po
         raise ValueError(f"extent must be > 1 IRW, got {extent}")
     y = upsample_cut(x, upsample)
     mag = np.abs(y)
-    i = int(np.argmax(mag))
+    if near is None:
+        i = int(np.argmax(mag))
+    else:
+        lo_s = max(0, int(np.floor((near - radius) * upsample)))
+        hi_s = min(mag.size, int(np.ceil((near + radius) * upsample)) + 1)
+        if lo_s >= hi_s:
+            raise ValueError(f"near={near} with radius={radius} lies outside the cut of {n} samples")
+        i = lo_s + int(np.argmax(mag[lo_s:hi_s]))
     if 0 < i < mag.size - 1:
         a, b, c = mag[i - 1], mag[i], mag[i + 1]
         denom = a - 2 * b + c
@@ -166,7 +187,12 @@ def peak_index(data, near=None, radius=None) -> tuple:
         return np.unravel_index(int(np.argmax(mag)), data.shape)
     if radius is None or len(near) != data.ndim:
         raise ValueError(f"near must give one index per axis ({data.ndim}) together with radius")
+    near = tuple(int(c) for c in near)
+    if any(not 0 <= c < s for c, s in zip(near, data.shape)):
+        raise ValueError(f"near={near} lies outside the array of shape {data.shape}")
     radii = np.broadcast_to(np.asarray(radius, dtype=int), (data.ndim,))
+    if np.any(radii < 0):
+        raise ValueError(f"radius must be >= 0, got {radius}")
     lo = [max(0, int(c) - int(r)) for c, r in zip(near, radii)]
     hi = [min(s, int(c) + int(r) + 1) for c, r, s in zip(near, radii, data.shape)]
     window = mag[tuple(slice(a, b) for a, b in zip(lo, hi))]
@@ -179,7 +205,9 @@ def peak_index(data, near=None, radius=None) -> tuple:
 def cuts(data, index=None) -> list:
     """1-D cuts through ``index`` (default: the peak) of an N-D array, one per axis."""
     data = np.asarray(data)
-    index = peak_index(data) if index is None else tuple(index)
+    index = peak_index(data) if index is None else tuple(int(i) for i in index)
+    if len(index) != data.ndim or any(not 0 <= i < s for i, s in zip(index, data.shape)):
+        raise ValueError(f"index must give one in-range index per axis of shape {data.shape}, got {index}")
     out = []
     for ax in range(data.ndim):
         sl = list(index)
@@ -207,7 +235,8 @@ def analyse_point(image, near=None, radius: float | None = None, upsample: int =
         radii = [max(1, int(np.ceil(radius / abs(ax[1] - ax[0])))) if ax.size > 1 else 0 for ax in axes]
         idx = peak_index(image.data, near=centre, radius=radii)
     result = {}
-    for dim, ax, cut in zip(dims, axes, cuts(image.data, idx)):
-        result[dim] = point_response(cut, ax, upsample=upsample, extent=extent)
+    for k, (dim, ax, cut) in enumerate(zip(dims, axes, cuts(image.data, idx))):
+        # the peak found above, not the strongest peak elsewhere on the same line
+        result[dim] = point_response(cut, ax, upsample=upsample, extent=extent, near=idx[k], radius=1.0)
     result["location"] = tuple(result[d].location for d in dims)
     return result

@@ -52,8 +52,8 @@ def taylor_coefficients(nbar: int, sll_db: float) -> np.ndarray:
     F_m = (-1)^(m+1) prod_{n=1}^{nbar-1} (1 - m^2 / (sigma^2 (A^2 + (n - 1/2)^2)))
           / (2 prod_{n != m} (1 - m^2 / n^2)).
     """
-    if nbar < 1:
-        raise ValueError(f"taylor nbar must be >= 1, got {nbar}")
+    if isinstance(nbar, bool) or not isinstance(nbar, (int, np.integer)) or nbar < 1:
+        raise ValueError(f"taylor nbar must be an integer >= 1, got {nbar!r}")
     if not sll_db > 0:
         raise ValueError(f"taylor sidelobe level must be a positive number of dB below the peak, got {sll_db}")
     a = np.arccosh(10 ** (sll_db / 20)) / np.pi
@@ -159,6 +159,8 @@ def range_compress(echo: EchoData, window: str = "none", upsample: int = 1, work
         raise ValueError(f"window must be one of {WINDOWS}, got {window!r}")
     if isinstance(upsample, bool) or not isinstance(upsample, (int, np.integer)) or not 1 <= upsample <= 64:
         raise ValueError(f"upsample must be an integer in [1, 64], got {upsample!r}")
+    if echo.n_samples < 1:
+        raise ValueError("echo has no fast-time samples (n_samples = 0)")
     workers = os.cpu_count() if workers is None else int(workers)
 
     n = echo.n_samples

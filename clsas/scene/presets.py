@@ -73,6 +73,8 @@ def wu2018(n_pulses: int = 128) -> Scenario:
     Hydrophones at d_i = [i - (N + 1)] 0.08 m for i = 1..32 with N = 15 (section 2.1: the
     (N+1)th shares the transmitter's position; 32 hydrophones make the array one element
     longer ahead). V / PRF = 1.28 m = 32 x 0.04 m phase-centre spacing: critically sampled.
+    The table prints PRF 2.3436 Hz; 3 / 1.28 = 2.34375 Hz is used so that V / PRF is exactly
+    1.28 m (the printed value gives a 40.08 mm gap against D/2 = 40 mm and would warn).
     Assumed: c = 1500 m/s, platform at depth 0. Yaw/pitch errors are added by the caller
     (the paper draws them at random in 1-2 degrees).
     """
@@ -82,7 +84,7 @@ def wu2018(n_pulses: int = 128) -> Scenario:
         waveform=Waveform(f0=70e3, bandwidth=10e3, duration=20e-3, fs=20e3),
         platform=Platform(speed=3.0),
         array=array,
-        schedule=PulseSchedule(prf=2.3436, n_pulses=n_pulses),
+        schedule=PulseSchedule(prf=3.0 / 1.28, n_pulses=n_pulses),
     )
 
 

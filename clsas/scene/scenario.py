@@ -164,6 +164,8 @@ class Platform:
         if component not in MOTION_COMPONENTS:
             raise ValueError(f"component must be one of {MOTION_COMPONENTS}, got {component!r}")
         t = np.asarray(t, dtype=np.float64)
+        if not np.all(np.isfinite(t)):
+            raise ValueError(f"Platform.{component} asked at non-finite times (NaN or inf)")
         source = getattr(self, component)
         if source is None:
             return np.zeros_like(t)
@@ -230,7 +232,7 @@ class Array:
         object.__setattr__(self, "rx_offsets", rx)
         object.__setattr__(self, "tx_offset", v.vector3("Array.tx_offset", self.tx_offset))
         object.__setattr__(self, "tx_length", v.scalar("Array.tx_length", self.tx_length, low=0.0))
-        lengths = np.broadcast_to(np.asarray(self.rx_length, dtype=np.float64), (rx.shape[0],))
+        lengths = np.full(rx.shape[0], self.rx_length) if np.ndim(self.rx_length) == 0 else self.rx_length
         object.__setattr__(self, "rx_length", v.array("Array.rx_length", lengths, (rx.shape[0],), nonnegative=True))
         names = tuple(f"h{i}" for i in range(rx.shape[0])) if self.names is None else tuple(self.names)
         if len(names) != rx.shape[0] or not all(isinstance(n, str) and n for n in names):
@@ -355,8 +357,8 @@ def phase_centre_gap(array: Array, step: float) -> float:
 class Scenario:
     """A complete sonar set-up: medium, waveform, platform with its array, sonobuoys, schedule.
 
-    Receivers are numbered array hydrophones first, then sonobuoys. Targets are added by the
-    echo-synthesis stage.
+    Receivers are numbered array hydrophones first, then sonobuoys. ``targets`` is a tuple of
+    target objects (:mod:`clsas.scene.targets`: point scatterers, meshes), empty by default.
 
     On construction, the along-track sampling of the array is checked against the D/2 rule:
     the largest gap between phase centres over consecutive pings (:func:`phase_centre_gap`)
@@ -373,6 +375,7 @@ class Scenario:
     schedule: PulseSchedule
     sonobuoys: tuple = ()
     recording: Recording | None = None
+    targets: tuple = ()
 
     def __post_init__(self):
         for name, cls in (("medium", Medium), ("waveform", Waveform), ("platform", Platform),
@@ -383,6 +386,12 @@ class Scenario:
         if not all(isinstance(b, Sonobuoy) for b in buoys):
             raise TypeError("Scenario.sonobuoys must hold Sonobuoy objects")
         object.__setattr__(self, "sonobuoys", buoys)
+        targets = (self.targets,) if hasattr(self.targets, "scatterers") else tuple(self.targets)
+        for i, target in enumerate(targets):
+            if not hasattr(target, "scatterers"):
+                raise TypeError(f"Scenario.targets[{i}] ({type(target).__name__}) is not a target: give "
+                                "PointTargets or mesh targets")
+        object.__setattr__(self, "targets", targets)
         if self.n_receivers == 0:
             raise ValueError("Scenario has no receivers: give Array.rx_offsets or at least one Sonobuoy")
         names = self.receiver_names
@@ -430,16 +439,35 @@ class Scenario:
         """Transmitter phase centre at emission times ``eta`` (s): ``eta.shape + (3,)``."""
         return self.platform.locate(self.array.tx_offset, eta)
 
-    def receiver_position(self, index: int, t) -> np.ndarray:
-        """Receiver ``index`` at times ``t`` (s): ``t.shape + (3,)``."""
+    def _check_receiver(self, index) -> None:
         n = self.n_receivers
         if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not 0 <= index < n:
             raise ValueError(f"receiver index must be an integer in [0, {n - 1}], got {index!r}")
+
+    def receiver_position(self, index: int, t) -> np.ndarray:
+        """Receiver ``index`` at times ``t`` (s): ``t.shape + (3,)``."""
+        self._check_receiver(index)
         t = np.asarray(t, dtype=np.float64)
         if index < self.array.n_receivers:
             return self.platform.locate(self.array.rx_offsets[index], t)
         buoy = self.sonobuoys[index - self.array.n_receivers]
         return np.broadcast_to(buoy.position, t.shape + (3,)).copy()
+
+    def receiver_axis(self, index: int, t) -> np.ndarray:
+        """World direction of receiver ``index``'s element axis (body y) at times ``t``: ``t.shape + (3,)``.
+
+        Sonobuoys are omnidirectional; their axis is +y and unused (element length 0).
+        """
+        self._check_receiver(index)
+        t = np.asarray(t, dtype=np.float64)
+        if index < self.array.n_receivers:
+            return self.platform.rotation(t)[..., :, 1]
+        return np.broadcast_to(np.array([0.0, 1.0, 0.0]), t.shape + (3,)).copy()
+
+    @property
+    def receiver_lengths(self) -> np.ndarray:
+        """Along-track element length of every receiver, m (sonobuoys: 0, omnidirectional)."""
+        return np.concatenate([self.array.rx_length, np.zeros(len(self.sonobuoys))])
 
     def rx_positions(self, t) -> np.ndarray:
         """Every receiver at times ``t``: shape ``(n_receivers,) + t.shape + (3,)``."""
