@@ -57,6 +57,27 @@ inline complex_t expj_cycles(real_t cycles)
     return complex_new(cospi((real_t)2 * f), sinpi((real_t)2 * f));
 }
 
+/* exp(j 2 pi r) in float for a phase r in (-1, 1) cycles (already reduced by truncation), as
+ * (cos, sin): r is folded into [-1/2, 1/2]; with s = pi r in [-pi/2, pi/2], sin s and cos s are
+ * their Taylor series to s^11 and s^12 (truncation error < 6e-8), then sin 2s = 2 sin s cos s
+ * and cos 2s = 1 - 2 sin^2 s. Faster than sinpi/cospi on PoCL and vectorisable; works for
+ * float and floatN (T). NumPy twin: clsas.kernelmath.expj_cycles. */
+#define CLSAS_EXPJ_FRACTION(T, r_in, cs_out, sn_out)                                              \
+    do {                                                                                          \
+        T r_ = (r_in);                                                                            \
+        r_ = r_ - select((T)0.0f, (T)1.0f, r_ > 0.5f) + select((T)0.0f, (T)1.0f, r_ < -0.5f);     \
+        const T s_ = M_PI_F * r_, q_ = s_ * s_;                                                   \
+        const T sin_ = s_ * (1.0f + q_ * (-1.6666667e-1f + q_ * (8.3333333e-3f + q_ * (-1.9841270e-4f \
+                       + q_ * (2.7557319e-6f + q_ * -2.5052108e-8f)))));                          \
+        const T cos_ = 1.0f + q_ * (-0.5f + q_ * (4.1666667e-2f + q_ * (-1.3888889e-3f            \
+                       + q_ * (2.4801587e-5f + q_ * (-2.7557319e-7f + q_ * 2.0876757e-9f)))));    \
+        *(sn_out) = 2.0f * sin_ * cos_;                                                           \
+        *(cs_out) = 1.0f - 2.0f * sin_ * sin_;                                                    \
+    } while (0)
+
+inline void expj_fraction(float r, float *cs, float *sn) { CLSAS_EXPJ_FRACTION(float, r, cs, sn); }
+inline void expj_fraction16(float16 r, float16 *cs, float16 *sn) { CLSAS_EXPJ_FRACTION(float16, r, cs, sn); }
+
 /* sinc(x) = sin(pi x) / (pi x), sinc(0) = 1 */
 inline real_t sinc(real_t x)
 {

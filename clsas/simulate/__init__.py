@@ -1,0 +1,5 @@
+"""Scene -> EchoData: echo synthesis (and, with meshes, hull occlusion)."""
+
+from .echo import delays, simulate
+
+__all__ = ["delays", "simulate"]

@@ -1,0 +1,140 @@
+"""Exact two-way delays and echo amplitudes (NumPy, float64): the reference geometry of echo synthesis.
+
+Delay (DESIGN.md, non-stop-and-go). A pulse is emitted at slow time ``eta`` from the
+transmitter at T = T(eta). Scatterer n moves, Q(t) = p0 + v t. The outgoing wave meets it
+at ``eta + t1`` where
+
+    c t1 = | Q(eta + t1) - T |                                            (1a)
+
+and the echo reaches receiver h at ``eta + t1 + t2`` where
+
+    c t2 = | R_h(eta + t1 + t2) - Q(eta + t1) |                           (1b)
+
+(the receiver moves while the echo travels). Both are solved by fixed-point iteration,
+``t <- |...(t)| / c``, a contraction with ratio |speed| / c (~2e-3); the iteration stops when
+an update is below ``1e-6 / f0`` (a millionth of a carrier period), so the remaining error is
+below 1e-8 of a period. The two-way delay is ``tau = t1 + t2``. For a straight track and a
+stationary target this is Zhang et al. 2019 eq. (1) (checked by the tests):
+
+    tau_i = [b + sqrt(b^2 + (c^2 - v^2)(2 v t d_i + d_i^2))] / (c^2 - v^2),
+    b = v (v t + d_i) + c sqrt(v^2 t^2 + r^2),
+
+obtained by squaring (c tau - c t1)^2 = r^2 + (v t + d_i + v tau)^2 with c t1 = sqrt(r^2 + v^2 t^2).
+``stop_and_go=True`` freezes everything at ``eta``: t1 = |Q(eta) - T| / c, t2 = |R_h(eta) - Q(eta)| / c.
+
+Amplitude of the path (Kiang & Kiang 2022 signal model; Heremans et al. 2009 eq. 33):
+
+    a = reflectivity * sinc(L_tx sin(theta_tx) / lambda) * sinc(L_h sin(theta_h) / lambda)
+        [* 1 / (R1 R2) with spreading]
+
+with ``sinc(x) = sin(pi x)/(pi x)``, lambda = c / f0 and theta the angle off broadside: sin(theta)
+is the component, along the element's axis (body y at the emission / reception time), of the
+unit vector from the element to the scatterer. Heremans eq. (33) gives the transmit pattern
+in the Doppler domain as D sinc(D k_u / 2 pi) (its integrand lost the ``l`` of exp(i k_u l)
+in the extraction); with k_u = k sin(theta) = 2 pi sin(theta) / lambda this is
+D sinc(D sin(theta) / lambda), normalised here to 1 at broadside. The same law holds on receive.
+R1 = c t1 and R2 = c t2 are the path lengths.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..scene.targets import Scatterers
+
+MAX_ITERATIONS = 60
+
+
+def iteration_tolerance(f0: float) -> float:
+    """Stop the fixed point when an update is below a millionth of a carrier period, s."""
+    return 1e-6 / f0
+
+
+def _fixed_point(update, t, tol: float, what: str):
+    for _ in range(MAX_ITERATIONS):
+        new = update(t)
+        if np.max(np.abs(new - t), initial=0.0) < tol:
+            return new
+        t = new
+    raise RuntimeError(f"{what}: the delay fixed point did not converge in {MAX_ITERATIONS} iterations "
+                       "(a speed close to the sound speed?)")
+
+
+def outgoing(tx: np.ndarray, eta: np.ndarray, scat: Scatterers, c: float, tol: float, stop_and_go: bool):
+    """t1 (P, N) s and the scatterer positions Q (P, N, 3) at the scattering times (eq. 1a).
+
+    ``tx`` (P, 3) transmitter at emission, ``eta`` (P,) emission times.
+    """
+    q_emit = scat.p0[None, :, :] + scat.vel[None, :, :] * eta[:, None, None]
+    t1 = np.linalg.norm(q_emit - tx[:, None, :], axis=-1) / c
+    if stop_and_go:
+        return t1, q_emit
+    t1 = _fixed_point(lambda t: np.linalg.norm(q_emit + scat.vel[None] * t[..., None] - tx[:, None, :], axis=-1) / c,
+                      t1, tol, "outgoing path")
+    return t1, q_emit + scat.vel[None] * t1[..., None]
+
+
+def incoming(receiver, eta: np.ndarray, t1: np.ndarray, q: np.ndarray, c: float, tol: float, stop_and_go: bool):
+    """t2 (P, N) s and the receiver positions (P, N, 3) at reception (eq. 1b).
+
+    ``receiver(t)`` gives the receiver's position at absolute times ``t`` (any shape + (3,)).
+    """
+    if stop_and_go:
+        r = np.broadcast_to(receiver(eta)[:, None, :], q.shape)
+        return np.linalg.norm(r - q, axis=-1) / c, r
+    t_scatter = eta[:, None] + t1
+    t2 = np.linalg.norm(receiver(t_scatter) - q, axis=-1) / c
+    t2 = _fixed_point(lambda t: np.linalg.norm(receiver(t_scatter + t) - q, axis=-1) / c, t2, tol, "incoming path")
+    return t2, receiver(t_scatter + t2)
+
+
+def element_gain(length: float, direction: np.ndarray, axis: np.ndarray, wavelength: float) -> np.ndarray:
+    """sinc(L sin(theta) / lambda): ``direction`` unit vectors element -> scatterer, ``axis`` the element axis."""
+    if length == 0:
+        return np.ones(direction.shape[:-1])
+    sin_theta = np.sum(direction * axis, axis=-1)
+    return np.sinc(length * sin_theta / wavelength)
+
+
+def paths(scenario, eta: np.ndarray, scat: Scatterers, receivers, stop_and_go: bool = False,
+          spreading: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Exact delays and amplitudes of every (receiver, pulse, scatterer) path.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    eta : (P,) emission times, s
+    scat : Scatterers (N)
+    receivers : sequence of receiver indices (H)
+
+    Returns
+    -------
+    tau : float64 (H, P, N), two-way delays, s
+    amp : complex128 (H, P, N), path amplitudes (reflectivity x patterns [x spreading]),
+        without the carrier phase and without occlusion.
+    """
+    c = scenario.medium.sound_speed
+    wavelength = scenario.waveform.wavelength(scenario.medium)
+    tol = iteration_tolerance(scenario.waveform.f0)
+    eta = np.asarray(eta, dtype=np.float64)
+    tx = scenario.tx_position(eta)
+    t1, q = outgoing(tx, eta, scat, c, tol, stop_and_go)
+    out_dir = q - tx[:, None, :]
+    r1 = np.linalg.norm(out_dir, axis=-1)
+    tx_axis = scenario.platform.rotation(eta)[..., :, 1]
+    amp_tx = scat.refl[None, :] * element_gain(scenario.array.tx_length, out_dir / r1[..., None],
+                                               tx_axis[:, None, :], wavelength)
+    lengths = scenario.receiver_lengths
+    taus, amps = [], []
+    for h in receivers:
+        t2, r = incoming(lambda t, h=h: scenario.receiver_position(h, t), eta, t1, q, c, tol, stop_and_go)
+        back = q - r
+        r2 = np.linalg.norm(back, axis=-1)
+        t_rx = eta[:, None] + (0.0 if stop_and_go else t1 + t2)
+        axis = scenario.receiver_axis(h, np.broadcast_to(t_rx, t2.shape))
+        amp = amp_tx * element_gain(lengths[h], back / r2[..., None], axis, wavelength)
+        if spreading:
+            amp = amp / (r1 * r2)
+        taus.append(t1 + t2)
+        amps.append(amp)
+    return np.stack(taus), np.stack(amps)

@@ -1,0 +1,62 @@
+"""Recording windows, receiver position nodes and the memory budget of echo synthesis."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..scene.scenario import MOTION_COMPONENTS
+
+DEFAULT_MAX_BYTES = 8 * 2**30
+
+
+def has_motion_errors(platform) -> bool:
+    return any(getattr(platform, c) is not None for c in MOTION_COMPONENTS)
+
+
+def receiver_nodes(scenario, eta: np.ndarray, tau_hi: float, max_error: float | None = None):
+    """Receiver positions and element axes at uniformly spaced fast times 0 .. ``tau_hi``.
+
+    Between nodes the receiver is taken to move linearly (the OpenCL kernels and
+    :meth:`clsas.data.EchoData.rx_position` interpolate). Two nodes are exact for a straight
+    track without motion errors; with motion errors the node count doubles until linear
+    interpolation is within ``max_error`` (default lambda / 10^4, i.e. 6e-4 rad of two-way
+    phase) of the exact position at every segment midpoint of every pulse.
+
+    Returns ``rx_tau`` (K,) s, ``positions`` (H, P, K, 3) m and ``axes`` (H, P, K, 3).
+    """
+    eta = np.asarray(eta, dtype=np.float64)
+    if max_error is None:
+        max_error = scenario.waveform.wavelength(scenario.medium) * 1e-4
+    n_nodes = 2
+
+    def sample(taus):
+        t = eta[:, None] + taus[None, :]
+        pos = np.stack([scenario.receiver_position(h, t) for h in range(scenario.n_receivers)])
+        axes = np.stack([scenario.receiver_axis(h, t) for h in range(scenario.n_receivers)])
+        return pos, axes
+
+    while True:
+        taus = np.linspace(0.0, tau_hi, n_nodes)
+        pos, axes = sample(taus)
+        if not has_motion_errors(scenario.platform):
+            return taus, pos, axes
+        mid_pos, _ = sample(0.5 * (taus[1:] + taus[:-1]))
+        error = np.max(np.linalg.norm(0.5 * (pos[:, :, 1:] + pos[:, :, :-1]) - mid_pos, axis=-1))
+        if error <= max_error:
+            return taus, pos, axes
+        if n_nodes >= 4096:
+            raise ValueError(f"the platform's motion errors vary too fast: 4096 nodes over {tau_hi:.3g} s still leave "
+                             f"{error:.3g} m of interpolation error (allowed {max_error:.3g} m)")
+        n_nodes = 2 * n_nodes - 1
+
+
+def check_cube_size(n_rx: int, n_pulses: int, n_samples: int, max_bytes: int, origin: str) -> None:
+    """Refuse an echo cube larger than ``max_bytes`` before allocating it."""
+    need = 8 * n_rx * n_pulses * n_samples
+    if need > max_bytes:
+        raise ValueError(
+            f"the echo cube would need {need / 2**30:.2f} GiB ({n_rx} receivers x {n_pulses} pulses x "
+            f"{n_samples} samples of complex64; window {origin}) but max_bytes allows "
+            f"{max_bytes / 2**30:.2f} GiB. Reduce it: fewer pulses (PulseSchedule), fewer receivers, a "
+            "shorter recording window (Scenario.recording), a more compact scene, or raise max_bytes."
+        )
