@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from .scenario import Array, Medium, Platform, PulseSchedule, Scenario, Sonobuoy, Waveform
+from .targets import PointTargets
 
 
 def kiang2022(n_pulses: int | None = None) -> Scenario:
@@ -142,3 +143,42 @@ def sonar(name: str = "kiang2022", **options) -> Scenario:
     if name not in SONARS:
         raise ValueError(f"unknown sonar preset {name!r}; known: {sorted(SONARS)}")
     return SONARS[name](**options)
+
+
+def _grid(ranges, along) -> np.ndarray:
+    return np.array([[x, y, 0.0] for x in ranges for y in along])
+
+
+# Point-target layouts (x across track, y along track, z = 0 at the platform's depth), m.
+POINT_LAYOUTS = {
+    # Huang & Yang 2022 Fig. 4 shows six points T1..T6 but the text gives no coordinates:
+    # assumed two along-track rows (y = -2, +2 m) at ranges 40, 60, 80 m.
+    "huang2022": _grid([40.0, 60.0, 80.0], [-2.0, 2.0]),
+    # Zhang et al. 2019 Fig. 7: 18 points in three range sub-blocks centred on the reference
+    # ranges of the text (53, 143, 194 m), six per block (T1-T6 close, T7-T12 medium, T13-T18
+    # far); the coordinates are not in the text: assumed r_ref - 6, r_ref, r_ref + 6 m at
+    # y = -3 and +3 m.
+    "zhang2019": np.concatenate([_grid([r - 6.0, r, r + 6.0], [-3.0, 3.0]) for r in (53.0, 143.0, 194.0)]),
+    # Wu et al. 2018 section 4: P1(297, -3), P2(303, -3), P3(303, 3), P4(297, 3), P5(300, 0) m.
+    "wu2018": np.array([[297.0, -3.0, 0.0], [303.0, -3.0, 0.0], [303.0, 3.0, 0.0], [297.0, 3.0, 0.0],
+                        [300.0, 0.0, 0.0]]),
+    # Heremans et al. 2009 Fig. 10: nine points around the scene centre r0 = 100 m; offsets not
+    # in the text: assumed a 3 x 3 grid, r = 95, 100, 105 m, u = -5, 0, 5 m.
+    "heremans2009": _grid([95.0, 100.0, 105.0], [-5.0, 0.0, 5.0]),
+}
+
+
+def point_scene(name: str, n_pulses: int | None = None, **options) -> Scenario:
+    """The named paper's sonar with its point targets (stationary, reflectivity 1).
+
+    ``name`` is one of :data:`POINT_LAYOUTS` (huang2022: 6 points, 32 receivers; zhang2019:
+    18 points; wu2018: 5 points; heremans2009: 9 points around r0 = 100 m, 15 hydrophones).
+    ``n_pulses`` and ``options`` go to the sonar preset.
+    """
+    if name not in POINT_LAYOUTS:
+        raise ValueError(f"unknown point scene {name!r}; known: {sorted(POINT_LAYOUTS)}")
+    if n_pulses is not None:
+        options["n_pulses"] = n_pulses
+    scenario = SONARS[name](**options)
+    layout = POINT_LAYOUTS[name] + np.array([0.0, 0.0, scenario.platform.start[2]])
+    return scenario.replace(targets=(PointTargets(layout),))
