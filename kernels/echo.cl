@@ -219,14 +219,18 @@ __kernel void echo_accumulate(__global const path_t *paths, __global const int2 
             const path_t v = rp[j];
             const int s = PATH_START(v) - sh;
             if (s + span < k0 || s - span > k_last) continue;
-            const realv_t d0 = lane + (realv_t)((real_t)(k0 - s) - v.y);
+            const real_t first = (real_t)(k0 - s) - v.y;  /* d of the work-item's first sample */
             for (int r = 0; r < ROWS; ++r) {
-                const realv_t d = d0 + (real_t)(16 * r);
+                const real_t lo = first + (real_t)(16 * r), hi = lo + (real_t)15;
+                if (hi < -half_len || lo > half_len) continue;  /* the pulse misses this row */
+                const realv_t d = lane + lo;
                 realv_t cs, sn;
                 expj_cycles_v(alpha * d * d, &cs, &sn);
-                const realv_t m = select((realv_t)0, (realv_t)1, fabs(d) <= half_len);
-                cs *= m;
-                sn *= m;
+                if (lo < -half_len || hi > half_len) {  /* a pulse edge inside the row: mask */
+                    const realv_t m = select((realv_t)0, (realv_t)1, fabs(d) <= half_len);
+                    cs *= m;
+                    sn *= m;
+                }
                 acc_re[r] += v.z * cs - v.w * sn;
                 acc_im[r] += v.z * sn + v.w * cs;
             }

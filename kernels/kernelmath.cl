@@ -18,3 +18,12 @@ __kernel void kaiser_sinc_taps(__global const real_t *offsets, const real_t half
     size_t i = get_global_id(0);
     taps[i] = kaiser_sinc_tap(offsets[i], half_width, beta);
 }
+
+/* (cs[i], sn[i]) = exp(j 2 pi r[i]) by the float polynomial of common.h, r in (-1, 1) */
+__kernel void expj_fractions(__global const float *r, __global float2 *out)
+{
+    size_t i = get_global_id(0);
+    float cs, sn;
+    expj_fraction(r[i], &cs, &sn);
+    out[i] = (float2)(cs, sn);
+}

@@ -70,3 +70,16 @@ def test_kaiser_taps_bad_input(kwargs, match):
 def test_rotate_phase_bad_shapes():
     with pytest.raises(ValueError, match="equal length"):
         kernelmath.rotate_phase(np.ones(3), np.ones(4), backend="numpy")
+
+
+def test_expj_fraction_polynomial(backend, rng):
+    r = np.concatenate([rng.uniform(-0.999, 0.999, 50_000), [-0.75, -0.5, -0.25, 0.0, 0.25, 0.5, 0.75]])
+    r32 = r.astype(np.float32).astype(np.float64)  # the kernel's input
+    got = kernelmath.expj_fractions(r32, backend=backend)
+    # the polynomial's own error is < 2.5e-6 (common.h); float32 arithmetic adds ~1e-7
+    assert max_abs(got, np.exp(2j * np.pi * r32)) < 3e-6
+
+
+def test_expj_fraction_rejects_unreduced_phases():
+    with pytest.raises(ValueError, match="cycles"):
+        kernelmath.expj_fractions(np.array([1.5]), backend="numpy")
