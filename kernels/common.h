@@ -59,25 +59,27 @@ inline complex_t expj_cycles(real_t cycles)
 
 /* exp(j 2 pi r) in float for a phase r in (-1, 1) cycles (already reduced by truncation), as
  * (cos, sin): r is folded into [-1/2, 1/2]; with s = pi r in [-pi/2, pi/2], sin s = s P(s^2) and
- * cos s = Q(s^2) with P of degree 3 and Q of degree 4, least-squares fits on Chebyshev nodes
- * (max errors 6e-7 and 5e-8), then sin 2s = 2 sin s cos s and cos 2s = 1 - 2 sin^2 s:
- * |error| < 2.5e-6 (phase and relative amplitude), 4000x below the 0.01 rad budget and cheaper
- * than sinpi/cospi on PoCL. Works for float and floatN (T). Checked against NumPy by
+ * cos s = Q(s^2) with P of degree 4 and Q of degree 5, least-squares fits on Chebyshev nodes
+ * (max errors 3.4e-9 and 2.2e-10), then sin 2s = 2 sin s cos s and cos 2s = 1 - 2 sin^2 s:
+ * |error| < 1.4e-8 before float32 rounding (so the result is as good as float allows: the
+ * echo kernel's row recurrence multiplies these values up to ROWS times), and cheaper than
+ * sinpi/cospi on PoCL. Works for float and floatN (T). Checked against NumPy by
  * tests/test_kernelmath.py (kernels/kernelmath.cl: expj_fractions). */
 #define CLSAS_EXPJ_FRACTION(T, r_in, cs_out, sn_out)                                              \
     do {                                                                                          \
         T r_ = (r_in);                                                                            \
         r_ = r_ - select((T)0.0f, (T)1.0f, r_ > 0.5f) + select((T)0.0f, (T)1.0f, r_ < -0.5f);     \
         const T s_ = M_PI_F * r_, q_ = s_ * s_;                                                   \
-        const T sin_ = s_ * (9.999966003e-01f + q_ * (-1.666482326e-01f + q_ * (8.306283207e-03f  \
-                       + q_ * -1.836266929e-04f)));                                               \
-        const T cos_ = 9.999999532e-01f + q_ * (-4.999990504e-01f + q_ * (4.166357848e-02f        \
-                       + q_ * (-1.385366349e-03f + q_ * 2.315309436e-05f)));                      \
+        const T sin_ = s_ * (9.999999765e-01f + q_ * (-1.666664759e-01f + q_ * (8.332899165e-03f  \
+                       + q_ * (-1.980086171e-04f + q_ * 2.590422739e-06f))));                     \
+        const T cos_ = 9.999999998e-01f + q_ * (-4.999999936e-01f + q_ * (4.166663620e-02f        \
+                       + q_ * (-1.388836078e-03f + q_ * (2.476013213e-05f + q_ * -2.605101538e-07f)))); \
         *(sn_out) = 2.0f * sin_ * cos_;                                                           \
         *(cs_out) = 1.0f - 2.0f * sin_ * sin_;                                                    \
     } while (0)
 
 inline void expj_fraction(float r, float *cs, float *sn) { CLSAS_EXPJ_FRACTION(float, r, cs, sn); }
+inline void expj_fraction8(float8 r, float8 *cs, float8 *sn) { CLSAS_EXPJ_FRACTION(float8, r, cs, sn); }
 inline void expj_fraction16(float16 r, float16 *cs, float16 *sn) { CLSAS_EXPJ_FRACTION(float16, r, cs, sn); }
 
 /* sinc(x) = sin(pi x) / (pi x), sinc(0) = 1 */

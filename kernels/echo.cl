@@ -12,12 +12,15 @@
  *                centre as sample u = (tau - t0_h) fs split into an integer start = floor(u) and
  *                a fraction frac = u - start (so float32 keeps 1e-7 of a sample at any range);
  *   echo_bounds  min/max start of each CHUNK consecutive (delay-sorted) scatterers;
- *   echo_accumulate  one work-item per 16 output samples of one (receiver, pulse) record:
- *                loops over the chunks whose samples can reach the block and adds
+ *   echo_accumulate  one work-item per ROWS x 16 output samples of one (receiver, pulse)
+ *                record: loops over the chunks whose samples can reach it and adds
  *                a exp(j 2 pi alpha d^2) for |d| <= half_len, d = k - u (samples),
  *                alpha = K / (2 fs^2) cycles per sample^2. Explicit 16-wide vectors (PoCL does
- *                not vectorise across work-items of a kernel with loops); in float the chirp
- *                phase uses a polynomial sin/cos of the phase reduced to [-1/2, 1/2] cycle.
+ *                not vectorise across work-items of a kernel with loops). The chirp of a path's
+ *                first row is evaluated (polynomial sin/cos in float), the following rows by
+ *                the exact recurrence z(d + 16) = z(d) w(d), w(d + 16) = w(d) rho with
+ *                w(d) = exp(j 2 pi alpha (32 d + 256)), rho = exp(j 2 pi alpha 512): two complex
+ *                vector products a row instead of a sin/cos (rounding grows by ~1e-7 a row).
  *
  * Defines: N_NODES (>= 2), SEGMENT_PASSES (node segment re-choices), CHUNK, ROWS (16-sample
  * blocks per work-item),
@@ -47,28 +50,23 @@ typedef float4 path_t;
 #define P_LTX(pr) ((pr).s4)
 #define P_DTAU(pr) ((pr).s5)
 
-inline double element_gain(double length, double3 unit_dir, double3 axis, double wavelength)
-{
-    if (length == 0.0) return 1.0;
-    double x = length * dot(unit_dir, axis) / wavelength;
-    return x == 0.0 ? 1.0 : sinpi(x) / (M_PI * x);
-}
+/* Eight paths per work-item as double8 lanes (PoCL does not vectorise this kernel across
+ * work-items by itself): a 3-vector of lanes is three double8. */
+typedef struct { double8 x, y, z; } vec8;
 
-/* Linear interpolation of node field (s012 position or s345 axis) at fast time tau. */
-inline double3 node_position(__global const double8 *nodes, double tau, double dtau)
-{
-    double x = tau / dtau;
-    int seg = clamp(convert_int(x), 0, N_NODES - 2);
-    double w = x - (double)seg;
-    return mix(nodes[seg].s012, nodes[seg + 1].s012, w);
-}
+inline vec8 v8(double8 x, double8 y, double8 z) { vec8 r = {x, y, z}; return r; }
+inline vec8 v8_add(vec8 a, vec8 b) { return v8(a.x + b.x, a.y + b.y, a.z + b.z); }
+inline vec8 v8_sub(vec8 a, vec8 b) { return v8(a.x - b.x, a.y - b.y, a.z - b.z); }
+inline vec8 v8_scale(vec8 a, double8 k) { return v8(a.x * k, a.y * k, a.z * k); }
+inline double8 v8_dot(vec8 a, vec8 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline vec8 v8_splat(double3 a) { return v8((double8)a.x, (double8)a.y, (double8)a.z); }
 
-inline double3 node_axis(__global const double8 *nodes, double tau, double dtau)
+/* sinc(L sin(theta) / lambda) with sin(theta) = dir . axis / |dir| (Heremans 2009 eq. 33) */
+inline double8 element_gain8(double length, vec8 dir, double8 dist, vec8 axis, double wavelength)
 {
-    double x = tau / dtau;
-    int seg = clamp(convert_int(x), 0, N_NODES - 2);
-    double w = x - (double)seg;
-    return mix(nodes[seg].s345, nodes[seg + 1].s345, w);
+    if (length == 0.0) return (double8)1.0;
+    const double8 x = length * v8_dot(dir, axis) / (dist * wavelength);
+    return select(sinpi(x) / (M_PI * x), (double8)1.0, x == 0.0);
 }
 
 /* The time t > 0 at which a wave leaving point A at t = 0 with speed c meets a point moving
@@ -76,83 +74,146 @@ inline double3 node_axis(__global const double8 *nodes, double tau, double dtau)
  * root is t = [D.W + sqrt((D.W)^2 + (c^2 - |W|^2) |D|^2)] / (c^2 - |W|^2). Exact for uniform
  * motion; no cancellation since |D.W| <= |W||D| << c |D|. (For a straight track and a stationary
  * target, applied to both legs, this is Zhang et al. 2019 eq. (1).) */
-inline double meet_time(double3 d, double3 w, double c)
+inline double8 meet_time8(vec8 d, vec8 w, double c)
 {
-    const double a = c * c - dot(w, w), b = dot(d, w);
-    return (b + sqrt(b * b + a * dot(d, d))) / a;
+    const double8 a = c * c - v8_dot(w, w), b = v8_dot(d, w);
+    return (b + sqrt(b * b + a * v8_dot(d, d))) / a;
 }
 
-/* scat[n]: p0.xyz, vel.xyz, refl (re, im); pulse[p]: tx.xyz, eta, tx axis.xyz;
- * nodes[(h P + p) N_NODES + k]: position.xyz, axis.xyz at fast time k dtau;
- * rx[h]: t0_h fs (window start in samples, the echo centre is u = tau fs - t0_h fs), element length; order[h N + j]: scatterer at sorted position j;
- * weights[(h P + p) N + n] (PATH_WEIGHTS only). Outputs at (h P + p) N + j.
- *
- * Outgoing leg: the scatterer moves uniformly, so t1 = meet_time(Q(eta) - T, v) exactly.
- * Incoming leg: the receiver moves linearly within a node segment [k dtau, (k+1) dtau] with
- * velocity W_k, so for that segment t2 = meet_time(R_k(eta + t1) - Q, W_k) with R_k extended
- * linearly; the segment is taken where t1 + |R(t1) - Q| / c falls and re-chosen (SEGMENT_PASSES
- * times at most) if the solution lands in another one. With two nodes (uniform motion) this is
- * exact in one pass. */
-__kernel void echo_paths(__global const double8 *scat, __global const double8 *pulse,
+/* Receiver node field (position: offset 0, element axis: offset 3) at fast times tau, linear
+ * between nodes k dtau; with two nodes the single segment serves every lane. */
+inline vec8 node_field(__global const double8 *nd, double8 tau, double dtau, int field)
+{
+#if N_NODES == 2
+    const double8 w = tau / dtau;
+    const double3 a = field == 0 ? nd[0].s012 : nd[0].s345, b = field == 0 ? nd[1].s012 : nd[1].s345;
+    return v8(a.x + (b.x - a.x) * w, a.y + (b.y - a.y) * w, a.z + (b.z - a.z) * w);
+#else
+    double t[8], x[8], y[8], z[8];
+    vstore8(tau, 0, t);
+    for (int l = 0; l < 8; ++l) {
+        const int seg = clamp(convert_int(t[l] / dtau), 0, N_NODES - 2);
+        const double w = t[l] / dtau - (double)seg;
+        const double3 a = field == 0 ? nd[seg].s012 : nd[seg].s345;
+        const double3 b = field == 0 ? nd[seg + 1].s012 : nd[seg + 1].s345;
+        const double3 r = mix(a, b, w);
+        x[l] = r.x; y[l] = r.y; z[l] = r.z;
+    }
+    return v8(vload8(0, x), vload8(0, y), vload8(0, z));
+#endif
+}
+
+/* The receiver at reception, eta + t1 + t2: the receiver moves linearly within a node segment
+ * [k dtau, (k+1) dtau] with velocity W_k, so for that segment t2 = meet_time(R_k(t1) - Q, W_k)
+ * with R_k extended linearly; the segment is taken where t1 + |R(t1) - Q| / c falls and
+ * re-chosen (SEGMENT_PASSES times) if the solution lands in another one. Exact in one pass
+ * for two nodes (uniform motion). Returns the fast time of reception t1 + t2. */
+inline double8 reception8(__global const double8 *nd, double8 t1, vec8 q, double c, double dtau)
+{
+    const vec8 r_t1 = node_field(nd, t1, dtau, 0);
+#if N_NODES == 2
+    const double3 w3 = (nd[1].s012 - nd[0].s012) / dtau;
+    const vec8 w = v8_splat(w3);
+    return t1 + meet_time8(v8_sub(r_t1, q), w, c);
+#else
+    double8 t_rx = t1 + sqrt(v8_dot(v8_sub(r_t1, q), v8_sub(r_t1, q))) / c;
+    for (int pass = 0; pass < SEGMENT_PASSES; ++pass) {
+        double tr[8], wx[8], wy[8], wz[8], rx_[8], ry[8], rz[8], t1s[8];
+        vstore8(t_rx, 0, tr);
+        vstore8(t1, 0, t1s);
+        for (int l = 0; l < 8; ++l) {
+            const int seg = clamp(convert_int(tr[l] / dtau), 0, N_NODES - 2);
+            const double3 w3 = (nd[seg + 1].s012 - nd[seg].s012) / dtau;
+            const double3 r3 = nd[seg].s012 + w3 * (t1s[l] - (double)seg * dtau);
+            wx[l] = w3.x; wy[l] = w3.y; wz[l] = w3.z;
+            rx_[l] = r3.x; ry[l] = r3.y; rz[l] = r3.z;
+        }
+        const vec8 w = v8(vload8(0, wx), vload8(0, wy), vload8(0, wz));
+        const vec8 r = v8(vload8(0, rx_), vload8(0, ry), vload8(0, rz));
+        t_rx = t1 + meet_time8(v8_sub(r, q), w, c);
+    }
+    return t_rx;
+#endif
+}
+
+/* soa[((h * 8 + field) * n_pad + j]: the scatterers in receiver h's delay order j (padded to a
+ * multiple of 8 with zero-reflectivity copies), fields p0.xyz, vel.xyz, refl re, im;
+ * order[h n_pad + j]: their original index (for the occlusion weights);
+ * pulse[p]: tx.xyz, eta, tx axis.xyz; nodes[(h P + p) N_NODES + k]: position.xyz, axis.xyz at
+ * fast time k dtau; rx[h]: t0_h fs (window start in samples: the echo centre is
+ * u = tau fs - t0_h fs), element length; weights[(h P + p) N + n] (PATH_WEIGHTS only).
+ * One work-item: paths j = 8 g .. 8 g + 7 of (pulse p, receiver h); output at (h P + p) n_pad + j. */
+__kernel void echo_paths(__global const double *soa, __global const double8 *pulse,
                          __global const double8 *nodes, __global const double2 *rx,
                          __global const int *order, __global const float *weights,
-                         const double8 params, const int n_scat, const int n_pulses,
+                         const double8 params, const int n_scat, const int n_pad, const int n_pulses,
                          __global path_t *paths)
 {
-    const int j = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
-    if (j >= n_scat) return;
-    const int n = order[h * n_scat + j];
+    const int g = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
+    const int j0 = 8 * g;
     const double c = P_C(params), dtau = P_DTAU(params);
-    const double8 s = scat[n];
+    __global const double *f = soa + (size_t)h * 8 * n_pad + j0;
+    const vec8 p0 = v8(vload8(0, f), vload8(0, f + n_pad), vload8(0, f + 2 * n_pad));
+    const vec8 vel = v8(vload8(0, f + 3 * n_pad), vload8(0, f + 4 * n_pad), vload8(0, f + 5 * n_pad));
+    const double8 refl_re = vload8(0, f + 6 * n_pad), refl_im = vload8(0, f + 7 * n_pad);
     const double8 pl = pulse[p];
-    const double3 tx = pl.s012, vel = s.s345;
-    const double3 q_emit = s.s012 + vel * pl.s3;
+    const vec8 tx = v8_splat(pl.s012);
+    const vec8 q_emit = v8_add(p0, v8_scale(vel, (double8)pl.s3));
     __global const double8 *nd = nodes + ((size_t)h * n_pulses + p) * N_NODES;
 #ifndef STOP_AND_GO
-    const double t1 = meet_time(q_emit - tx, vel, c);
-    const double3 q = q_emit + vel * t1;
-    double t_rx = t1 + length(node_position(nd, t1, dtau) - q) / c;
-    for (int pass = 0; pass < SEGMENT_PASSES; ++pass) {
-        const int seg = clamp(convert_int(t_rx / dtau), 0, N_NODES - 2);
-        const double3 w = (nd[seg + 1].s012 - nd[seg].s012) / dtau;
-        const double3 r_t1 = nd[seg].s012 + w * (t1 - (double)seg * dtau);
-        t_rx = t1 + meet_time(r_t1 - q, w, c);
-    }
+    const double8 t1 = meet_time8(v8_sub(q_emit, tx), vel, c);
+    const vec8 q = v8_add(q_emit, v8_scale(vel, t1));
+    const double8 t_rx = reception8(nd, t1, q, c, dtau);
+    const vec8 r = node_field(nd, t_rx, dtau, 0);
 #else
-    const double3 q = q_emit;
-    const double t_rx = 0.0;
+    const vec8 q = q_emit;
+    const double8 t_rx = (double8)0.0;
+    const vec8 r = node_field(nd, t_rx, dtau, 0);
 #endif
-    const double3 r = node_position(nd, t_rx, dtau);
-    const double r1 = length(q - tx), r2 = length(q - r);
+    const vec8 out_dir = v8_sub(q, tx), back_dir = v8_sub(q, r);
+    const double8 r1 = sqrt(v8_dot(out_dir, out_dir)), r2 = sqrt(v8_dot(back_dir, back_dir));
 #ifndef STOP_AND_GO
-    const double tau = t_rx;
+    const double8 tau = t_rx;
 #else
-    const double tau = (r1 + r2) / c;
+    const double8 tau = (r1 + r2) / c;
 #endif
     const double2 rxh = rx[h];
-    double gain = element_gain(P_LTX(params), (q - tx) / r1, pl.s456, P_LAMBDA(params))
-                * element_gain(rxh.s1, (q - r) / r2, node_axis(nd, t_rx, dtau), P_LAMBDA(params));
+    double8 gain = element_gain8(P_LTX(params), out_dir, r1, v8_splat(pl.s456), P_LAMBDA(params))
+                 * element_gain8(rxh.s1, back_dir, r2, node_field(nd, t_rx, dtau, 3), P_LAMBDA(params));
 #ifdef SPREADING
     gain /= r1 * r2;
 #endif
 #ifdef PATH_WEIGHTS
-    gain *= (double)weights[((size_t)h * n_pulses + p) * n_scat + n];
+    {
+        double wl[8];
+        for (int l = 0; l < 8; ++l)
+            wl[l] = (double)weights[((size_t)h * n_pulses + p) * n_scat + order[h * n_pad + j0 + l]];
+        gain *= vload8(0, wl);
+    }
 #endif
     /* carrier exp(-j 2 pi f0 tau): cycles reduced in double, then sin/cos of the fraction */
-    double cyc = -P_F0(params) * tau;
-    cyc -= (double)convert_long(cyc);
+    double8 cyc = -P_F0(params) * tau;
+    cyc -= convert_double8(convert_long8(cyc));
 #ifdef CLSAS_DOUBLE
-    const double cs = cospi(2.0 * cyc), sn = sinpi(2.0 * cyc);
+    const double8 cs = cospi(2.0 * cyc), sn = sinpi(2.0 * cyc);
 #else
-    float csf, snf;
-    expj_fraction((float)cyc, &csf, &snf);
-    const double cs = csf, sn = snf;
+    float8 csf, snf;
+    expj_fraction8(convert_float8(cyc), &csf, &snf);
+    const double8 cs = convert_double8(csf), sn = convert_double8(snf);
 #endif
-    const double re = gain * (s.s6 * cs - s.s7 * sn), im = gain * (s.s6 * sn + s.s7 * cs);
-    const double u = tau * P_FS(params) - rxh.s0;
-    long fl = convert_long(u);
-    fl -= (u < (double)fl);  /* floor by truncation and fix-up (PoCL's floor is slow) */
-    paths[((size_t)h * n_pulses + p) * n_scat + j] = MAKE_PATH((int)fl, u - (double)fl, re, im);
+    const double8 re = gain * (refl_re * cs - refl_im * sn), im = gain * (refl_re * sn + refl_im * cs);
+    const double8 u = tau * P_FS(params) - rxh.s0;
+    long8 fl = convert_long8(u);
+    fl += (u < convert_double8(fl));  /* floor by truncation and fix-up (a true compare is -1) */
+    const double8 fr = u - convert_double8(fl);
+    double a_re[8], a_im[8], a_fr[8];
+    long a_fl[8];
+    vstore8(re, 0, a_re);
+    vstore8(im, 0, a_im);
+    vstore8(fr, 0, a_fr);
+    vstore8(fl, 0, a_fl);
+    __global path_t *o = paths + ((size_t)h * n_pulses + p) * n_pad + j0;
+    for (int l = 0; l < 8; ++l) o[l] = MAKE_PATH((int)a_fl[l], a_fr[l], a_re[l], a_im[l]);
 }
 
 /* bounds[(h P + p) n_chunks + c] = (min, max) of start over the chunk's CHUNK scatterers. */
@@ -208,6 +269,13 @@ __kernel void echo_accumulate(__global const path_t *paths, __global const int2 
     const int span = (int)half_len + 2;  /* a path reaches samples start - span .. start + span */
     const int sh = shift[h];
     const realv_t lane = (realv_t)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    real_t rho_c, rho_s;  /* exp(j 2 pi alpha 512): the row step's own step */
+    {
+        real_t r512 = alpha * (real_t)512;
+        r512 -= (real_t)convert_int(r512);
+        rho_c = cospi((real_t)2 * r512);
+        rho_s = sinpi((real_t)2 * r512);
+    }
     realv_t acc_re[ROWS], acc_im[ROWS];
     for (int r = 0; r < ROWS; ++r) acc_re[r] = acc_im[r] = (realv_t)0;
     __global const path_t *rp = paths + rec * n_scat;
@@ -220,19 +288,36 @@ __kernel void echo_accumulate(__global const path_t *paths, __global const int2 
             const int s = PATH_START(v) - sh;
             if (s + span < k0 || s - span > k_last) continue;
             const real_t first = (real_t)(k0 - s) - v.y;  /* d of the work-item's first sample */
+            /* rows r_lo..r_hi hold the samples s - span .. s + span (integer arithmetic: PoCL's
+             * floor/ceil are slow); rows with a pulse edge are masked below */
+            const int a = s - span - k0, e = s + span - k0;
+            const int r_lo = a <= 0 ? 0 : a / 16;
+            const int r_hi = min(ROWS - 1, e / 16);
+            if (r_lo > r_hi) continue;
+            /* chirp of the first row, and its step to the next row: alpha ((d + 16)^2 - d^2)
+             * = alpha (32 d + 256) cycles; the step itself advances by alpha 512 cycles a row */
+            realv_t d = lane + (first + (real_t)(16 * r_lo));
+            realv_t zc, zs, wc, ws;
+            expj_cycles_v(alpha * d * d, &zc, &zs);
+            expj_cycles_v(alpha * ((real_t)32 * d + (real_t)256), &wc, &ws);
             for (int r = 0; r < ROWS; ++r) {
-                const real_t lo = first + (real_t)(16 * r), hi = lo + (real_t)15;
-                if (hi < -half_len || lo > half_len) continue;  /* the pulse misses this row */
-                const realv_t d = lane + lo;
-                realv_t cs, sn;
-                expj_cycles_v(alpha * d * d, &cs, &sn);
-                if (lo < -half_len || hi > half_len) {  /* a pulse edge inside the row: mask */
-                    const realv_t m = select((realv_t)0, (realv_t)1, fabs(d) <= half_len);
+                if (r < r_lo) continue;
+                if (r > r_hi) break;
+                realv_t cs = zc, sn = zs;
+                const real_t lo = first + (real_t)(16 * r);
+                if (lo < -half_len || lo + (real_t)15 > half_len) {  /* a pulse edge in the row */
+                    const realv_t m = select((realv_t)0, (realv_t)1, fabs(lane + lo) <= half_len);
                     cs *= m;
                     sn *= m;
                 }
                 acc_re[r] += v.z * cs - v.w * sn;
                 acc_im[r] += v.z * sn + v.w * cs;
+                const realv_t nc = zc * wc - zs * ws;  /* z <- z w, w <- w rho */
+                zs = zc * ws + zs * wc;
+                zc = nc;
+                const realv_t mc = wc * rho_c - ws * rho_s;
+                ws = wc * rho_s + ws * rho_c;
+                wc = mc;
             }
         }
     }

@@ -233,7 +233,10 @@ def test_recording_window_drops_samples_never_wraps(backend):
     n = full.n_samples
     t0 = full.t0 + 40 / full.fs
     cut = simulate(sc.replace(recording=Recording(t0=t0, n_samples=n - 80)), backend=backend, progress=False)
-    np.testing.assert_allclose(cut.data, full.data[:, :, 40:n - 40], atol=1e-6)
+    # the same samples, up to the float kernel's rounding: its chirp phases (up to BT/8 = 12.5
+    # cycles) carry ~1e-6 cycle of float32 error and the rows start at other samples in the two
+    # runs, so the two roundings differ by up to a few 1e-5 of the unit amplitude
+    np.testing.assert_allclose(cut.data, full.data[:, :, 40:n - 40], atol=5e-5)
 
 
 def test_echo_data_geometry(backend):

@@ -49,7 +49,7 @@ from . import geometry
 from .window import DEFAULT_MAX_BYTES, check_cube_size, receiver_nodes
 
 CHUNK_SCATTERERS = 16  # scatterers per bounds chunk in the OpenCL accumulation
-ROWS = 2  # 16-sample blocks per work-item of the OpenCL accumulation
+ROWS = 8  # 16-sample rows per work-item of the OpenCL accumulation
 
 
 def accumulate_reference(start, frac, amp, alpha: float, half_len: float, n_samples: int) -> np.ndarray:
@@ -159,14 +159,16 @@ class _OpenCLSynth(_Synth):
         c = sc.medium.sound_speed
         self.rx_tau, self.rx_pos, self.rx_axis = nodes
         n = scat.count
-        packed = np.zeros((n, 8))
-        packed[:, 0:3], packed[:, 3:6] = scat.p0, scat.vel
-        packed[:, 6], packed[:, 7] = scat.refl.real, scat.refl.imag
+        self.n_pad = -(-n // 8) * 8  # the paths kernel takes eight scatterers a work-item
+        self.order = self._delay_order()
+        padded = np.concatenate([self.order, np.repeat(self.order[:, -1:], self.n_pad - n, axis=1)], axis=1)
+        fields = np.concatenate([scat.p0, scat.vel, scat.refl.real[:, None], scat.refl.imag[:, None]], axis=1)
+        soa = np.ascontiguousarray(np.transpose(fields[padded], (0, 2, 1)))  # (H, 8 fields, n_pad)
+        soa[:, 6:, n:] = 0.0  # padding scatterers reflect nothing
         mf = cl.mem_flags
         ctx = self.rt.context
-        self.scat_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=packed)
-        self.order = self._delay_order()
-        self.order_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=self.order.astype(np.int32))
+        self.soa_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=soa)
+        self.order_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=padded.astype(np.int32))
         self.tx = sc.tx_position(self.eta)
         self.tx_axis = sc.platform.rotation(self.eta)[..., :, 1]
         defines = {
@@ -201,7 +203,7 @@ class _OpenCLSynth(_Synth):
         cl, q, ctx = self.cl, self.rt.queue, self.rt.context
         mf = cl.mem_flags
         idx = np.arange(self.eta.size)[pulses]
-        pc, h, n = idx.size, self.n_rx, self.scat.count
+        pc, h, n = idx.size, self.n_rx, self.n_pad
         pulse = np.zeros((pc, 8))
         pulse[:, 0:3], pulse[:, 3], pulse[:, 4:7] = self.tx[idx], self.eta[idx], self.tx_axis[idx]
         nodes = np.zeros((h, pc, self.rx_tau.size, 8))
@@ -212,8 +214,9 @@ class _OpenCLSynth(_Synth):
         bufs = [cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
                 for a in (pulse, nodes, rx, w)]
         paths = cl.Buffer(ctx, mf.READ_WRITE, 4 * np.dtype(self.real).itemsize * h * pc * n)
-        self.k_paths(q, (n, pc, h), None, self.scat_buf, bufs[0], bufs[1], bufs[2], self.order_buf, bufs[3],
-                     self.params.view(cl.cltypes.double8)[0], np.int32(n), np.int32(pc), paths)
+        self.k_paths(q, (n // 8, pc, h), None, self.soa_buf, bufs[0], bufs[1], bufs[2], self.order_buf, bufs[3],
+                     self.params.view(cl.cltypes.double8)[0], np.int32(self.scat.count), np.int32(n), np.int32(pc),
+                     paths)
         return paths, pc
 
     def delays(self, pulses: slice) -> np.ndarray:
@@ -222,11 +225,12 @@ class _OpenCLSynth(_Synth):
         cl, q = self.cl, self.rt.queue
         h, n = self.n_rx, self.scat.count
         paths, pc = self._run_paths(pulses, np.zeros(h))
-        host = np.empty((h, pc, n, 4), self.real)
+        host = np.empty((h, pc, self.n_pad, 4), self.real)
         cl.enqueue_copy(q, host, paths)
         if self.cached_bytes + host.nbytes <= self.cache_bytes:
             self.cache[(pulses.start, pulses.stop)] = (paths, pc)
             self.cached_bytes += host.nbytes
+        host = host[:, :, :n]
         start = host[..., 0].view(np.int32) if self.real == np.float32 else host[..., 0]
         tau = np.empty((h, pc, n))
         tau[np.arange(h)[:, None, None], np.arange(pc)[None, :, None], self.order[:, None, :]] = \
@@ -236,7 +240,7 @@ class _OpenCLSynth(_Synth):
     def records(self, pulses: slice, t0: np.ndarray, n_samples: int) -> np.ndarray:
         """The block's records; reuses the paths of extents() when the window starts on a whole sample."""
         cl, q = self.cl, self.rt.queue
-        h, n = self.n_rx, self.scat.count
+        h, n = self.n_rx, self.n_pad
         first = t0 * self.scenario.waveform.fs
         whole = np.all(first == np.round(first)) and np.all(np.abs(first) < 2**31)
         cached = self.cache.pop((pulses.start, pulses.stop), None) if whole else None
