@@ -216,6 +216,22 @@ __kernel void echo_paths(__global const double *soa, __global const double8 *pul
     for (int l = 0; l < 8; ++l) o[l] = MAKE_PATH((int)a_fl[l], a_fr[l], a_re[l], a_im[l]);
 }
 
+/* extent[h n_pad + j] = (min, max) over the block's pulses of the start sample of path j
+ * (the host turns them into the recording window without copying every path back). */
+__kernel void echo_extents(__global const path_t *paths, const int n_pad, const int n_pulses,
+                           __global int2 *extent)
+{
+    const int j = get_global_id(0), h = get_global_id(1);
+    __global const path_t *col = paths + (size_t)h * n_pulses * n_pad + j;
+    int lo = PATH_START(col[0]), hi = lo;
+    for (int p = 1; p < n_pulses; ++p) {
+        const int v = PATH_START(col[(size_t)p * n_pad]);
+        lo = min(lo, v);
+        hi = max(hi, v);
+    }
+    extent[(size_t)h * n_pad + j] = (int2)(lo, hi);
+}
+
 /* bounds[(h P + p) n_chunks + c] = (min, max) of start over the chunk's CHUNK scatterers. */
 __kernel void echo_bounds(__global const path_t *paths, const int n_scat, const int n_pulses,
                           __global int2 *bounds)

@@ -129,6 +129,9 @@ class _NumpySynth(_Synth):
     def delays(self, pulses: slice) -> np.ndarray:
         return self.paths(pulses)[0]
 
+    def extents(self, pulses: slice):
+        return sample_extents(self.delays(pulses) * self.scenario.waveform.fs)
+
     def records(self, pulses: slice, t0: np.ndarray, n_samples: int) -> np.ndarray:
         wf = self.scenario.waveform
         tau, amp = self.paths(pulses)
@@ -184,6 +187,7 @@ class _OpenCLSynth(_Synth):
         prg = opencl.program("echo", defines=defines, double=double)
         self.k_paths = cl.Kernel(prg, "echo_paths")
         self.k_bounds = cl.Kernel(prg, "echo_bounds")
+        self.k_extents = cl.Kernel(prg, "echo_extents")
         self.k_acc = cl.Kernel(prg, "echo_accumulate")
         wf = sc.waveform
         self.params = np.array([c, wf.f0, wf.fs, wf.wavelength(sc.medium), sc.array.tx_length,
@@ -220,22 +224,36 @@ class _OpenCLSynth(_Synth):
         return paths, pc
 
     def delays(self, pulses: slice) -> np.ndarray:
-        """Two-way delays (H, P, N) of the block from the kernel, in scatterer order; the path
-        buffers are kept on the device for records() while they fit in the cache."""
-        cl, q = self.cl, self.rt.queue
+        """Two-way delays (H, P, N) of the block from the kernel, in scatterer order."""
         h, n = self.n_rx, self.scat.count
         paths, pc = self._run_paths(pulses, np.zeros(h))
         host = np.empty((h, pc, self.n_pad, 4), self.real)
-        cl.enqueue_copy(q, host, paths)
-        if self.cached_bytes + host.nbytes <= self.cache_bytes:
-            self.cache[(pulses.start, pulses.stop)] = (paths, pc)
-            self.cached_bytes += host.nbytes
+        self.cl.enqueue_copy(self.rt.queue, host, paths)
         host = host[:, :, :n]
         start = host[..., 0].view(np.int32) if self.real == np.float32 else host[..., 0]
+        frac = host[..., 1]
         tau = np.empty((h, pc, n))
         tau[np.arange(h)[:, None, None], np.arange(pc)[None, :, None], self.order[:, None, :]] = \
-            (start + host[..., 1].astype(np.float64)) / self.scenario.waveform.fs
+            (start + frac.astype(np.float64)) / self.scenario.waveform.fs
         return tau
+
+    def extents(self, pulses: slice):
+        """(floor(min u), floor(max u) + 1) per (receiver, scatterer), reduced on the device."""
+        cl, q = self.cl, self.rt.queue
+        h, n = self.n_rx, self.scat.count
+        paths, pc = self._run_paths(pulses, np.zeros(h))
+        if self.cached_bytes + 4 * np.dtype(self.real).itemsize * h * pc * self.n_pad <= self.cache_bytes:
+            self.cache[(pulses.start, pulses.stop)] = (paths, pc)
+            self.cached_bytes += 4 * np.dtype(self.real).itemsize * h * pc * self.n_pad
+        ext = cl.Buffer(self.rt.context, cl.mem_flags.WRITE_ONLY, 8 * h * self.n_pad)
+        self.k_extents(q, (self.n_pad, h), None, paths, np.int32(self.n_pad), np.int32(pc), ext)
+        host = np.empty((h, self.n_pad, 2), np.int32)
+        cl.enqueue_copy(q, host, ext)
+        lo, hi = np.empty((h, n)), np.empty((h, n))
+        rows = np.arange(h)[:, None]
+        lo[rows, self.order] = host[:, :n, 0]
+        hi[rows, self.order] = host[:, :n, 1] + 1.0
+        return lo, hi
 
     def records(self, pulses: slice, t0: np.ndarray, n_samples: int) -> np.ndarray:
         """The block's records; reuses the paths of extents() when the window starts on a whole sample."""
@@ -263,6 +281,14 @@ class _OpenCLSynth(_Synth):
         host = np.empty((h, pc, n_pad), self.cplx)
         cl.enqueue_copy(q, host, out)
         return host[:, :, :n_samples]
+
+
+def sample_extents(u: np.ndarray):
+    """Echo-centre extents per (receiver, scatterer) over the pulses of ``u`` (H, P, N), in samples
+    from t = 0, rounded outwards to whole samples: (floor(min u), floor(max u) + 1). Both
+    backends report extents this way (the OpenCL kernel returns floor(u) directly), so that
+    they derive the same recording window."""
+    return np.floor(u.min(axis=1)), np.floor(u.max(axis=1)) + 1
 
 
 def _pulse_blocks(n_pulses: int, per_pulse_bytes: int, chunk_bytes: int) -> list[slice]:
@@ -354,7 +380,7 @@ def _make_synth(scenario: Scenario, name: str, double: bool, occlusion, stop_and
     else:
         tau_hi = _delay_bound(scenario, scat)
         synth = _OpenCLSynth(*args, double=double, nodes=receiver_nodes(scenario, scenario.eta, tau_hi))
-        per_pulse = n_rx * scat.count * 48
+        per_pulse = n_rx * scat.count * 4 * 8  # path records (float4 or double4) on the device
     return synth, _pulse_blocks(n_pulses, per_pulse, int(chunk_bytes))
 
 
@@ -380,8 +406,9 @@ def _synthesize(scenario: Scenario, name: str, double: bool, stop_and_go: bool, 
     lo = np.full((n_rx, n_scat), np.inf)
     hi = np.full((n_rx, n_scat), -np.inf)
     for sl in tqdm(blocks, desc="echo delays", disable=not progress, leave=False):
-        tau = synth.delays(sl)
-        lo, hi = np.minimum(lo, tau.min(axis=1)), np.maximum(hi, tau.max(axis=1))
+        a, b = synth.extents(sl)
+        lo, hi = np.minimum(lo, a), np.maximum(hi, b)
+    lo, hi = lo / scenario.waveform.fs, hi / scenario.waveform.fs  # s, whole samples
     tau_span = 1.2 * hi.max() + scenario.waveform.duration
     if name == "opencl" and hi.max() > synth.rx_tau[-1]:
         synth = _OpenCLSynth(*synth.args, double=double, nodes=receiver_nodes(scenario, scenario.eta, tau_span))
