@@ -313,21 +313,22 @@ __kernel void echo_accumulate(__global const path_t *paths, __global const int2 
             /* chirp of the first row, and its step to the next row: alpha ((d + 16)^2 - d^2)
              * = alpha (32 d + 256) cycles; the step itself advances by alpha 512 cycles a row */
             realv_t d = lane + (first + (real_t)(16 * r_lo));
-            realv_t zc, zs, wc, ws;
-            expj_cycles_v(alpha * d * d, &zc, &zs);
+            realv_t c0, s0, wc, ws;
+            expj_cycles_v(alpha * d * d, &c0, &s0);
             expj_cycles_v(alpha * ((real_t)32 * d + (real_t)256), &wc, &ws);
+            realv_t zc = v.z * c0 - v.w * s0, zs = v.z * s0 + v.w * c0;  /* amplitude folded in */
             for (int r = 0; r < ROWS; ++r) {
                 if (r < r_lo) continue;
                 if (r > r_hi) break;
-                realv_t cs = zc, sn = zs;
                 const real_t lo = first + (real_t)(16 * r);
                 if (lo < -half_len || lo + (real_t)15 > half_len) {  /* a pulse edge in the row */
                     const realv_t m = select((realv_t)0, (realv_t)1, fabs(lane + lo) <= half_len);
-                    cs *= m;
-                    sn *= m;
+                    acc_re[r] += m * zc;
+                    acc_im[r] += m * zs;
+                } else {
+                    acc_re[r] += zc;
+                    acc_im[r] += zs;
                 }
-                acc_re[r] += v.z * cs - v.w * sn;
-                acc_im[r] += v.z * sn + v.w * cs;
                 const realv_t nc = zc * wc - zs * ws;  /* z <- z w, w <- w rho */
                 zs = zc * ws + zs * wc;
                 zc = nc;
