@@ -6,9 +6,11 @@ from .image.rangecomp import range_compress
 from .io import load, save
 from .scene.scenario import (Array, Medium, Platform, PulseSchedule, Recording, Scenario, Sonobuoy,
                              Waveform)
+from .scene.targets import PointTargets
+from .simulate import simulate
 
 __all__ = [
     "Array", "EchoData", "Image", "Medium", "Platform", "PulseSchedule", "Recording", "Scenario",
-    "Sonobuoy", "Waveform", "load", "range_compress", "save", "use_backend",
+    "PointTargets", "Sonobuoy", "Waveform", "load", "range_compress", "save", "simulate", "use_backend",
 ]
 __version__ = "0.1.0"
