@@ -119,24 +119,26 @@ class EchoData:
         """Fast times of receiver ``rx``'s samples, s, shape (n_samples,)."""
         return self.t0[rx] + np.arange(self.n_samples) / self.fs
 
-    def rx_position(self, rx: int, tau) -> np.ndarray:
+    def rx_position(self, rx: int, tau, pulses=None) -> np.ndarray:
         """Receiver ``rx`` at fast times ``tau`` after each emission.
 
-        ``tau`` has shape (n_pulses, ...) (row p belongs to pulse p); returns
-        ``tau.shape + (3,)``. Linear between nodes, and linear beyond the first and last
-        node (the nodes span the recording window, so this only serves delays outside it).
+        ``tau`` has shape (n, ...) where row i belongs to pulse ``pulses[i]`` (default: all
+        pulses, n = n_pulses); returns ``tau.shape + (3,)``. Linear between nodes, and linear
+        beyond the first and last node (the nodes span the recording window, so this only
+        serves delays outside it).
         """
         tau = np.asarray(tau, dtype=np.float64)
-        if tau.ndim == 0 or tau.shape[0] != self.n_pulses:
-            raise ValueError(f"tau must have shape (n_pulses={self.n_pulses}, ...), got {tau.shape}")
+        rows_of = np.arange(self.n_pulses) if pulses is None else np.arange(self.n_pulses)[pulses]
+        if tau.ndim == 0 or tau.shape[0] != rows_of.size:
+            raise ValueError(f"tau must have shape (n_pulses={rows_of.size}, ...), got {tau.shape}")
         nodes = self.rx_tau[rx]
-        pos = self.rx_pos[rx]  # (n_pulses, n_nodes, 3)
+        pos = self.rx_pos[rx][rows_of]  # (n, n_nodes, 3)
         if nodes.size == 1:
-            return np.broadcast_to(pos[:, 0, :].reshape((self.n_pulses,) + (1,) * (tau.ndim - 1) + (3,)),
+            return np.broadcast_to(pos[:, 0, :].reshape((rows_of.size,) + (1,) * (tau.ndim - 1) + (3,)),
                                    tau.shape + (3,)).copy()
         seg = np.clip(np.searchsorted(nodes, tau) - 1, 0, nodes.size - 2)
         w = ((tau - nodes[seg]) / (nodes[seg + 1] - nodes[seg]))[..., None]
-        rows = np.arange(self.n_pulses).reshape((-1,) + (1,) * (tau.ndim - 1))
+        rows = np.arange(rows_of.size).reshape((-1,) + (1,) * (tau.ndim - 1))
         return pos[rows, seg] * (1 - w) + pos[rows, seg + 1] * w
 
     def replace(self, **changes) -> "EchoData":
@@ -215,3 +217,89 @@ class Image:
     def replace(self, **changes) -> "Image":
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True, eq=False)
+class Grid:
+    """Pixel positions to image on: any array of 3-D points with named axes.
+
+    Build one with :meth:`plane` (a horizontal plane at a depth), :meth:`slant` (a plane spanned
+    by two direction vectors, e.g. a slant-range plane) or :meth:`points` (any ``(..., 3)``
+    array, e.g. a 3-D volume).
+
+    Attributes
+    ----------
+    positions : float64 ``shape + (3,)``, m
+    dims : tuple of str, one name per axis of ``shape``
+    axes : dict name -> 1-D float64 coordinate (m, or the index for :meth:`points`)
+    """
+
+    positions: np.ndarray
+    dims: tuple
+    axes: dict
+
+    def __post_init__(self):
+        pos = np.asarray(self.positions, dtype=np.float64)
+        if pos.ndim < 2 or pos.shape[-1] != 3:
+            raise ValueError(f"Grid.positions must have shape (..., 3), got {pos.shape}")
+        if pos.size == 0:
+            raise ValueError("Grid is empty: give at least one pixel")
+        if not np.all(np.isfinite(pos)):
+            raise ValueError("Grid.positions must be finite (it has NaN or inf)")
+        dims = tuple(self.dims)
+        if len(dims) != pos.ndim - 1:
+            raise ValueError(f"Grid.dims must name the {pos.ndim - 1} pixel axes, got {dims}")
+        axes = {}
+        for name, n in zip(dims, pos.shape[:-1]):
+            ax = np.asarray(self.axes.get(name, np.arange(n)), dtype=np.float64)
+            if ax.shape != (n,):
+                raise ValueError(f"Grid.axes[{name!r}] must have {n} values, got shape {ax.shape}")
+            axes[name] = ax
+        pos.flags.writeable = False
+        object.__setattr__(self, "positions", pos)
+        object.__setattr__(self, "dims", dims)
+        object.__setattr__(self, "axes", axes)
+
+    @property
+    def shape(self) -> tuple:
+        return self.positions.shape[:-1]
+
+    @property
+    def size(self) -> int:
+        return int(np.prod(self.shape))
+
+    @classmethod
+    def plane(cls, x, y, z: float) -> "Grid":
+        """Horizontal plane z = ``z`` (m, negative below the surface) on the x (across-track) and
+        y (along-track) coordinates given; dims ``("y", "x")``."""
+        x = np.atleast_1d(np.asarray(x, dtype=np.float64))
+        y = np.atleast_1d(np.asarray(y, dtype=np.float64))
+        if x.ndim != 1 or y.ndim != 1 or x.size == 0 or y.size == 0:
+            raise ValueError(f"Grid.plane needs non-empty 1-D x and y, got shapes {x.shape} and {y.shape}")
+        if not np.isfinite(z):
+            raise ValueError(f"Grid.plane z must be finite, got {z}")
+        yy, xx = np.meshgrid(y, x, indexing="ij")
+        return cls(np.stack([xx, yy, np.full_like(xx, z)], axis=-1), ("y", "x"), {"y": y, "x": x})
+
+    @classmethod
+    def slant(cls, origin, u_direction, v_direction, u, v, dims=("v", "u")) -> "Grid":
+        """Plane ``origin + u_i u_direction + v_j v_direction`` (unit directions, m); shape (len(v), len(u))."""
+        origin = np.asarray(origin, dtype=np.float64)
+        du = np.asarray(u_direction, dtype=np.float64)
+        dv = np.asarray(v_direction, dtype=np.float64)
+        for name, vec in (("u_direction", du), ("v_direction", dv)):
+            if vec.shape != (3,) or not np.isclose(np.linalg.norm(vec), 1.0):
+                raise ValueError(f"Grid.slant {name} must be a unit 3-vector, got {vec}")
+        u = np.atleast_1d(np.asarray(u, dtype=np.float64))
+        v = np.atleast_1d(np.asarray(v, dtype=np.float64))
+        pos = origin + v[:, None, None] * dv + u[None, :, None] * du
+        return cls(pos, tuple(dims), {dims[0]: v, dims[1]: u})
+
+    @classmethod
+    def points(cls, positions, dims=None) -> "Grid":
+        """Any ``(..., 3)`` array of pixel positions (m); dims default to ``("i0", "i1", ...)``."""
+        pos = np.asarray(positions, dtype=np.float64)
+        if pos.ndim == 1:
+            pos = pos[None]
+        dims = tuple(dims) if dims is not None else tuple(f"i{k}" for k in range(pos.ndim - 1))
+        return cls(pos, dims, {})

@@ -127,6 +127,25 @@ def _upsample_spectrum(spec: np.ndarray, factor: int) -> np.ndarray:
     return out
 
 
+def upsample_records(records: np.ndarray, factor: int, workers: int | None = None) -> np.ndarray:
+    """FFT (band-limited) interpolation of complex records along the last axis by ``factor``.
+
+    Output sample j sits at input position j / factor. The records are zero-padded before the
+    FFT (by a quarter of their length, at least 16 samples) so that nothing wraps around from
+    one end of a record to the other. Returns complex64 ``records.shape[:-1] + (n * factor,)``.
+    """
+    if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or not 1 <= factor <= 64:
+        raise ValueError(f"upsample factor must be an integer in [1, 64], got {factor!r}")
+    n = records.shape[-1]
+    if factor == 1:
+        return np.asarray(records, dtype=np.complex64)
+    workers = os.cpu_count() if workers is None else int(workers)
+    n_fft = scipy.fft.next_fast_len(n + max(16, n // 4), real=False)
+    spec = scipy.fft.fft(records, n=n_fft, axis=-1, workers=workers)
+    out = scipy.fft.ifft(_upsample_spectrum(spec, factor), axis=-1, workers=workers)[..., :n * factor]
+    return (out * factor).astype(np.complex64)
+
+
 def range_compress(echo: EchoData, window: str = "none", upsample: int = 1, workers: int | None = None,
                    block_bytes: int = 256 * 2**20, **window_options) -> EchoData:
     """Matched-filter every fast-time record of ``echo``; returns range-compressed EchoData.
