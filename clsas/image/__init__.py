@@ -1,5 +1,7 @@
 """EchoData -> Image: range compression and the imaging algorithms."""
 
-from .rangecomp import WINDOWS, lfm_replica, matched_filter, range_compress, spectral_window
+from .backprojection import backproject
+from .rangecomp import WINDOWS, lfm_replica, matched_filter, range_compress, spectral_window, upsample_records
 
-__all__ = ["WINDOWS", "lfm_replica", "matched_filter", "range_compress", "spectral_window"]
+__all__ = ["WINDOWS", "backproject", "lfm_replica", "matched_filter", "range_compress", "spectral_window",
+           "upsample_records"]
