@@ -86,3 +86,144 @@ def scatterers_of(targets) -> Scatterers:
             raise TypeError(f"targets[{i}] ({type(target).__name__}) is not a target (it has no scatterers())")
         parts.append(target.scatterers())
     return Scatterers.concatenate(parts)
+
+
+def pose_rotation(heading: float, pitch: float, roll: float) -> np.ndarray:
+    """Body-to-world rotation of a target: R = R_z(heading) R_y(-pitch) R_x(roll).
+
+    Body frame: x_b the bow, y_b port, z_b up. ``heading`` turns the bow from world +x towards
+    +y (counter-clockwise seen from above), ``pitch`` raises the bow, ``roll`` turns the sail
+    from up towards starboard; radians.
+    """
+    ch, sh = np.cos(heading), np.sin(heading)
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    cr, sr = np.cos(roll), np.sin(roll)
+    rz = np.array([[ch, -sh, 0.0], [sh, ch, 0.0], [0.0, 0.0, 1.0]])
+    ry = np.array([[cp, 0.0, -sp], [0.0, 1.0, 0.0], [sp, 0.0, cp]])
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, sr], [0.0, -sr, cr]])
+    return rz @ ry @ rx
+
+
+REFLECTIVITY_LAWS = ("lambertian", "specular")
+
+
+@dataclass(frozen=True, eq=False)
+class MeshTarget:
+    """A rigid target made of flat facets, each a scatterer at its centroid.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh, or a path of any file trimesh loads (STL, OBJ, PLY, GLB, ...)
+        In the body frame (x_b bow, y_b port, z_b up), m.
+    position : (3,) world position of the body origin at t = 0, m.
+    heading, pitch, roll : float, radians (see :func:`pose_rotation`).
+    velocity : (3,) constant velocity, m/s (< 100).
+    max_facet : float, optional
+        Subdivide until no facet edge is longer than this, m. Rule of thumb: a facet should not
+        be larger than about half the finest resolution cell (c / 2B in range, D / 2 along
+        track), so that each cell holds several independent scatterers; larger facets image as
+        sparse bright points.
+    law : {"lambertian", "specular"}
+        Angular law of a facet's echo towards the bistatic bisector b (the unit sum of the
+        directions to transmitter and receiver): ``max(0, n.b)`` (Lambertian) or
+        ``max(0, n.b) ** exponent`` (a specular lobe); applied per path by the echo synthesis.
+    exponent : float
+        Sharpness of the specular lobe.
+    speckle_seed : int, optional
+        Give each facet a random phase (seeded): rough-surface speckle.
+    gain : float
+        Overall amplitude; a facet reflects ``gain x area`` (x the angular law).
+
+    Meshes with degenerate (zero-area) faces are cleaned with a warning; a mesh that is not
+    watertight gives a warning (occlusion then has holes); an empty mesh raises.
+    """
+
+    mesh: object
+    position: np.ndarray = (0.0, 0.0, 0.0)
+    heading: float = 0.0
+    pitch: float = 0.0
+    roll: float = 0.0
+    velocity: np.ndarray = (0.0, 0.0, 0.0)
+    max_facet: float | None = None
+    law: str = "lambertian"
+    exponent: float = 10.0
+    speckle_seed: int | None = None
+    gain: float = 1.0
+
+    def __post_init__(self):
+        import warnings
+
+        import trimesh
+
+        from . import _validate as v
+
+        mesh = self.mesh
+        if not isinstance(mesh, trimesh.Trimesh):
+            try:
+                mesh = trimesh.load(mesh, force="mesh")
+            except Exception as err:  # trimesh raises many types for unreadable files
+                raise ValueError(f"MeshTarget.mesh: cannot load {self.mesh!r} as a triangle mesh ({err})") from err
+        mesh = mesh.copy()
+        if len(mesh.faces) == 0:
+            raise ValueError("MeshTarget.mesh is empty: it has no faces")
+        areas = mesh.area_faces
+        degenerate = ~(areas > 1e-12 * max(1.0, float(areas.max())))
+        if degenerate.any():
+            warnings.warn(f"MeshTarget.mesh: removed {int(degenerate.sum())} degenerate (zero-area) faces",
+                          UserWarning, stacklevel=3)
+            mesh.update_faces(~degenerate)
+            mesh.remove_unreferenced_vertices()
+        if len(mesh.faces) == 0:
+            raise ValueError("MeshTarget.mesh has only degenerate faces")
+        if self.max_facet is not None:
+            edge = v.positive("MeshTarget.max_facet", self.max_facet)
+            verts, faces = trimesh.remesh.subdivide_to_size(mesh.vertices, mesh.faces, max_edge=edge, max_iter=20)
+            mesh = trimesh.Trimesh(verts, faces, process=False)
+        if not mesh.is_watertight:
+            warnings.warn("MeshTarget.mesh is not watertight: hull occlusion will let rays through its holes",
+                          UserWarning, stacklevel=3)
+        if self.law not in REFLECTIVITY_LAWS:
+            raise ValueError(f"MeshTarget.law must be one of {REFLECTIVITY_LAWS}, got {self.law!r}")
+        object.__setattr__(self, "mesh", mesh)
+        object.__setattr__(self, "position", v.vector3("MeshTarget.position", self.position))
+        for name in ("heading", "pitch", "roll"):
+            object.__setattr__(self, name, v.scalar(f"MeshTarget.{name}", getattr(self, name)))
+        vel = v.vector3("MeshTarget.velocity", self.velocity)
+        if np.linalg.norm(vel) >= 100:
+            raise ValueError(f"MeshTarget.velocity must be slower than 100 m/s, got {vel}")
+        object.__setattr__(self, "velocity", vel)
+        object.__setattr__(self, "exponent", v.positive("MeshTarget.exponent", self.exponent))
+        object.__setattr__(self, "gain", v.positive("MeshTarget.gain", self.gain))
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """Body-to-world rotation (3, 3)."""
+        return pose_rotation(self.heading, self.pitch, self.roll)
+
+    @property
+    def n_facets(self) -> int:
+        return len(self.mesh.faces)
+
+    def to_body(self, points: np.ndarray, t) -> np.ndarray:
+        """World points (..., 3) at times t (broadcast to points[..., 0]) in the body frame."""
+        origin = self.position + np.asarray(t, dtype=np.float64)[..., None] * self.velocity
+        return (np.asarray(points) - origin) @ self.rotation
+
+    def facets_world(self) -> tuple[np.ndarray, np.ndarray]:
+        """Facet centroids at t = 0 (N, 3) and unit normals (N, 3) in the world frame."""
+        rot = self.rotation
+        return self.mesh.triangles_center @ rot.T + self.position, self.mesh.face_normals @ rot.T
+
+    def angular_gain(self, normals: np.ndarray, to_tx: np.ndarray, to_rx: np.ndarray) -> np.ndarray:
+        """The angular law for unit normals and unit directions facet -> transmitter / receiver (..., 3)."""
+        bisector = to_tx + to_rx
+        bisector /= np.maximum(np.linalg.norm(bisector, axis=-1, keepdims=True), 1e-300)
+        cos = np.maximum(np.sum(normals * bisector, axis=-1), 0.0)
+        return cos if self.law == "lambertian" else cos ** self.exponent
+
+    def scatterers(self) -> Scatterers:
+        centres, _ = self.facets_world()
+        refl = self.gain * self.mesh.area_faces.astype(np.complex128)
+        if self.speckle_seed is not None:
+            refl = refl * np.exp(2j * np.pi * np.random.default_rng(self.speckle_seed).random(refl.size))
+        return Scatterers(centres, np.broadcast_to(self.velocity, centres.shape).copy(), refl)

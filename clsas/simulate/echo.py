@@ -46,6 +46,7 @@ from ..data import EchoData
 from ..scene.scenario import Scenario
 from ..scene.targets import Scatterers, scatterers_of
 from . import geometry
+from .occlusion import PathWeights, has_meshes
 from .window import DEFAULT_MAX_BYTES, check_cube_size, receiver_nodes
 
 CHUNK_SCATTERERS = 16  # scatterers per bounds chunk in the OpenCL accumulation
@@ -360,8 +361,21 @@ def add_noise(data: np.ndarray, snr_db: float, seed, block: int = 64) -> np.ndar
     return data
 
 
+def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_occlusion: bool):
+    """The user's occlusion factor times the mesh targets' path weights (hull visibility and
+    angular law, :class:`clsas.simulate.occlusion.PathWeights`) when the scene has meshes."""
+    if not has_meshes(scenario):
+        return occlusion
+    mesh = PathWeights(scenario, stop_and_go=stop_and_go, hull_occlusion=hull_occlusion)
+    if occlusion is None:
+        return mesh
+    if callable(occlusion):
+        return lambda pulses: mesh(pulses) * np.asarray(occlusion(pulses), dtype=np.float64)
+    return lambda pulses: mesh(pulses) * occlusion[:, pulses]
+
+
 def _make_synth(scenario: Scenario, name: str, double: bool, occlusion, stop_and_go: bool, spreading: bool,
-                chunk_bytes: int):
+                chunk_bytes: int, hull_occlusion: bool = True):
     """The backend's synthesizer and the pulse blocks that keep its working memory under ``chunk_bytes``."""
     scat = scatterers_of(scenario.targets)
     if scat.count == 0:
@@ -372,6 +386,7 @@ def _make_synth(scenario: Scenario, name: str, double: bool, occlusion, stop_and
         if occlusion.shape != (n_rx, n_pulses, scat.count):
             raise ValueError(f"occlusion must have shape (n_rx, n_pulses, n_scatterers) = "
                              f"{(n_rx, n_pulses, scat.count)}, got {occlusion.shape}")
+    occlusion = _with_mesh_weights(scenario, occlusion, stop_and_go, hull_occlusion)
     args = (scenario, scat, occlusion, stop_and_go, spreading)
     if name == "numpy":
         span = int(0.5 * scenario.waveform.duration * scenario.waveform.fs) + 2
@@ -398,10 +413,11 @@ def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = F
 
 
 def _synthesize(scenario: Scenario, name: str, double: bool, stop_and_go: bool, progress: bool, spreading: bool,
-                occlusion, max_bytes: int, chunk_bytes: int) -> dict:
+                occlusion, max_bytes: int, chunk_bytes: int, hull_occlusion: bool = True) -> dict:
     """Both passes; returns the cube in the backend's own precision (complex128 for NumPy and
     precision="double", complex64 otherwise) with its window and receiver nodes."""
-    synth, blocks = _make_synth(scenario, name, double, occlusion, stop_and_go, spreading, chunk_bytes)
+    synth, blocks = _make_synth(scenario, name, double, occlusion, stop_and_go, spreading, chunk_bytes,
+                                hull_occlusion)
     n_rx, n_pulses, n_scat = scenario.n_receivers, scenario.eta.size, synth.scat.count
     lo = np.full((n_rx, n_scat), np.inf)
     hi = np.full((n_rx, n_scat), -np.inf)
@@ -430,7 +446,8 @@ def _synthesize(scenario: Scenario, name: str, double: bool, stop_and_go: bool, 
 
 def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False, snr_db: float | None = None,
              seed=None, precision: str = "single", progress: bool = True, spreading: bool = False,
-             occlusion=None, max_bytes: int = DEFAULT_MAX_BYTES, chunk_bytes: int = 256 * 2**20) -> EchoData:
+             occlusion=None, max_bytes: int = DEFAULT_MAX_BYTES, chunk_bytes: int = 256 * 2**20,
+             hull_occlusion: bool = True) -> EchoData:
     """Synthesize the raw echoes of ``scenario`` (see the module docstring for the model).
 
     Parameters
@@ -451,7 +468,12 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         Include the spherical spreading 1 / (R1 R2).
     occlusion : None, array (n_rx, n_pulses, n_scatterers) or callable
         Factor per path (1 = seen, 0 = hidden); a callable ``occlusion(pulses: slice)`` returns
-        the block (n_rx, len(pulses), n_scatterers), so that memory stays bounded.
+        the block (n_rx, len(pulses), n_scatterers), so that memory stays bounded. Mesh targets
+        multiply it by their own path weights (hull visibility by Embree ray casting and the
+        facets' angular law, :mod:`clsas.simulate.occlusion`).
+    hull_occlusion : bool
+        Cast rays for the hull occlusion of mesh targets (False keeps only back-facing
+        darkness and the angular law).
     max_bytes : int
         Largest echo cube allowed (complex64); larger requests are refused before allocation.
     chunk_bytes : int
@@ -477,7 +499,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         check_cube_size(scenario.n_receivers, scenario.eta.size, int(np.max(n_valid)), max_bytes,
                         "given by Scenario.recording")
     out = _synthesize(scenario, name, double, stop_and_go, progress, spreading, occlusion, int(max_bytes),
-                      int(chunk_bytes))
+                      int(chunk_bytes), hull_occlusion)
     data = out["data"].astype(np.complex64, copy=False)
     if snr_db is not None:
         add_noise(data, float(snr_db), seed)
@@ -491,5 +513,6 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
                     "stop_and_go": bool(stop_and_go), "spreading": bool(spreading), "snr_db": snr_db,
                     "seed": seed if seed is None or isinstance(seed, int) else str(seed),
                     "n_scatterers": out["n_scatterers"], "occlusion": occlusion is not None,
+                    "hull_occlusion": bool(hull_occlusion and has_meshes(scenario)),
                     "window": out["origin"], "n_valid": out["n_valid"].tolist()},
     )

@@ -1,0 +1,158 @@
+"""Hull occlusion of scattered paths by ray casting (Embree through embreex), with a brute-force
+Moller-Trumbore reference, and the per-path weights of mesh targets.
+
+For every pulse and facet of a :class:`clsas.scene.targets.MeshTarget`: the facet is lit when
+it faces the transmitter (at its emission position) and the segment from the facet to the
+transmitter is free of the hull; it is heard by receiver h when it faces the receiver (at its
+reception position) and that segment is free too (Kiang & Kiang 2022, section VI and Fig. 17:
+the hull blocks scattered waves). The target moves: the rays are cast in its body frame at the
+facet's scattering time (eta + t1 of :mod:`clsas.simulate.geometry`), where the hull is fixed.
+Back-facing facets are dark without casting a ray. A path's weight is
+lit x heard x the target's angular law (:meth:`MeshTarget.angular_gain`).
+
+Rays start a small distance (1e-5 of the hull's size) off the facet along its normal, so that
+a facet does not shadow itself; rays end at the transmitter / receiver.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..scene.targets import MeshTarget
+from . import geometry
+
+METHODS = ("embree", "reference")
+
+
+def occluded_reference(triangles: np.ndarray, origins: np.ndarray, directions: np.ndarray,
+                       tfar: np.ndarray, eps: float = 1e-9) -> np.ndarray:
+    """Brute-force Moller-Trumbore: does each ray hit any triangle at 0 < t < tfar? (small meshes)
+
+    ``triangles`` (F, 3, 3), ``origins`` / ``directions`` (K, 3) (directions unit), ``tfar`` (K,).
+    Returns bool (K,). float64.
+    """
+    v0, v1, v2 = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    e1, e2 = v1 - v0, v2 - v0
+    out = np.zeros(origins.shape[0], dtype=bool)
+    step = max(1, int(2**22 // max(1, triangles.shape[0])))
+    for s in range(0, origins.shape[0], step):
+        o, d, tf = origins[s:s + step, None, :], directions[s:s + step, None, :], tfar[s:s + step, None]
+        p = np.cross(d, e2[None])
+        det = np.sum(e1[None] * p, axis=-1)
+        ok = np.abs(det) > eps
+        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+        tv = o - v0[None]
+        u = np.sum(tv * p, axis=-1) * inv
+        q = np.cross(tv, e1[None])
+        w = np.sum(d * q, axis=-1) * inv
+        t = np.sum(e2[None] * q, axis=-1) * inv
+        hit = ok & (u >= 0) & (w >= 0) & (u + w <= 1) & (t > 0) & (t < tf)
+        out[s:s + step] = hit.any(axis=1)
+    return out
+
+
+class RayCaster:
+    """Occlusion queries against one mesh (body frame) with Embree or the reference."""
+
+    def __init__(self, mesh, method: str = "embree"):
+        if method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        self.method = method
+        self.triangles = np.asarray(mesh.triangles, dtype=np.float64)
+        if method == "embree":
+            from embreex import rtcore_scene
+            from embreex.mesh_construction import TriangleMesh
+
+            self.scene = rtcore_scene.EmbreeScene()
+            TriangleMesh(self.scene, np.asarray(mesh.vertices, dtype=np.float32),
+                         np.asarray(mesh.faces, dtype=np.int32))
+
+    def occluded(self, origins: np.ndarray, directions: np.ndarray, tfar: np.ndarray) -> np.ndarray:
+        """bool (K,): the segment origin + t direction, 0 < t < tfar, hits the mesh."""
+        if origins.shape[0] == 0:
+            return np.zeros(0, dtype=bool)
+        if self.method == "reference":
+            return occluded_reference(self.triangles, origins, directions, tfar)
+        res = self.scene.run(np.ascontiguousarray(origins, dtype=np.float32),
+                             np.ascontiguousarray(directions, dtype=np.float32),
+                             dists=np.ascontiguousarray(tfar, dtype=np.float32), query="OCCLUDED")
+        return np.asarray(res) != -1
+
+
+def facet_visibility(target: MeshTarget, caster: RayCaster, facet_body: np.ndarray, normal_body: np.ndarray,
+                     points_body: np.ndarray) -> np.ndarray:
+    """Facets that face ``points_body`` (..., N, 3) and see them unobstructed: bool (..., N)."""
+    size = float(np.linalg.norm(np.ptp(target.mesh.vertices, axis=0)))
+    start = facet_body + 1e-5 * size * normal_body
+    d = points_body - start
+    dist = np.linalg.norm(d, axis=-1)
+    unit = d / np.maximum(dist, 1e-300)[..., None]
+    facing = np.sum(unit * normal_body, axis=-1) > 0
+    visible = facing.copy()
+    idx = np.nonzero(facing)
+    if idx[0].size:
+        starts = np.broadcast_to(start, d.shape)[idx]
+        visible[idx] = ~caster.occluded(starts, unit[idx], dist[idx])
+    return visible
+
+
+class PathWeights:
+    """The per-path weights of a scenario's targets: a callable ``weights(pulses) -> (H, P, N)``
+    that :func:`clsas.simulate` takes as its ``occlusion`` (mesh facets: visibility x angular
+    law; point scatterers: 1).
+
+    ``hull_occlusion=False`` keeps only the angular law (and back-facing darkness).
+    """
+
+    def __init__(self, scenario, stop_and_go: bool = False, hull_occlusion: bool = True, method: str = "embree",
+                 pulses_per_call: int = 8):
+        self.scenario, self.stop_and_go, self.hull_occlusion = scenario, stop_and_go, hull_occlusion
+        self.pulses_per_call = max(1, int(pulses_per_call))
+        self.parts = []  # (first scatterer index, count, target or None, caster)
+        start = 0
+        for target in scenario.targets:
+            n = target.scatterers().count
+            caster = RayCaster(target.mesh, method) if isinstance(target, MeshTarget) and hull_occlusion else None
+            self.parts.append((start, n, target if isinstance(target, MeshTarget) else None, caster))
+            start += n
+        self.n_scatterers = start
+
+    def _mesh_weights(self, target: MeshTarget, caster, eta: np.ndarray) -> np.ndarray:
+        sc = self.scenario
+        c = sc.medium.sound_speed
+        tol = geometry.iteration_tolerance(sc.waveform.f0)
+        scat = target.scatterers()
+        tx = sc.tx_position(eta)
+        t1, q = geometry.outgoing(tx, eta, scat, c, tol, self.stop_and_go)
+        t_scatter = eta[:, None] + (0.0 if self.stop_and_go else t1)  # the hull's pose time
+        facet_b = target.mesh.triangles_center
+        normal_b = target.mesh.face_normals
+        tx_b = target.to_body(np.broadcast_to(tx[:, None, :], q.shape), np.broadcast_to(t_scatter, t1.shape))
+        to_tx = tx_b - facet_b
+        to_tx /= np.linalg.norm(to_tx, axis=-1, keepdims=True)
+        lit = (facet_visibility(target, caster, facet_b, normal_b, tx_b) if caster is not None
+               else np.sum(to_tx * normal_b, axis=-1) > 0)
+        out = np.empty((sc.n_receivers,) + t1.shape)
+        for h in range(sc.n_receivers):
+            _, r = geometry.incoming(lambda t, h=h: sc.receiver_position(h, t), eta, t1, q, c, tol, self.stop_and_go)
+            r_b = target.to_body(r, np.broadcast_to(t_scatter, t1.shape))
+            to_rx = r_b - facet_b
+            to_rx /= np.linalg.norm(to_rx, axis=-1, keepdims=True)
+            heard = (facet_visibility(target, caster, facet_b, normal_b, r_b) if caster is not None
+                     else np.sum(to_rx * normal_b, axis=-1) > 0)
+            out[h] = lit * heard * target.angular_gain(normal_b, to_tx, to_rx)
+        return out
+
+    def __call__(self, pulses: slice) -> np.ndarray:
+        eta_all = self.scenario.eta[pulses]
+        out = np.ones((self.scenario.n_receivers, eta_all.size, self.n_scatterers))
+        for s in range(0, eta_all.size, self.pulses_per_call):
+            eta = eta_all[s:s + self.pulses_per_call]
+            for first, n, target, caster in self.parts:
+                if target is not None:
+                    out[:, s:s + eta.size, first:first + n] = self._mesh_weights(target, caster, eta)
+        return out
+
+
+def has_meshes(scenario) -> bool:
+    return any(isinstance(t, MeshTarget) for t in scenario.targets)
