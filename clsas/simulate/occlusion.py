@@ -25,11 +25,12 @@ METHODS = ("embree", "reference")
 
 
 def occluded_reference(triangles: np.ndarray, origins: np.ndarray, directions: np.ndarray,
-                       tfar: np.ndarray, eps: float = 1e-9) -> np.ndarray:
+                       tfar: np.ndarray, margin: float = 0.0, eps: float = 1e-12) -> np.ndarray:
     """Brute-force Moller-Trumbore: does each ray hit any triangle at 0 < t < tfar? (small meshes)
 
     ``triangles`` (F, 3, 3), ``origins`` / ``directions`` (K, 3) (directions unit), ``tfar`` (K,).
-    Returns bool (K,). float64.
+    ``margin`` grows (> 0) or shrinks (< 0) every triangle by that much in barycentric terms
+    and the segment by that much in t, to tell grazing rays apart. Returns bool (K,). float64.
     """
     v0, v1, v2 = triangles[:, 0], triangles[:, 1], triangles[:, 2]
     e1, e2 = v1 - v0, v2 - v0
@@ -46,7 +47,8 @@ def occluded_reference(triangles: np.ndarray, origins: np.ndarray, directions: n
         q = np.cross(tv, e1[None])
         w = np.sum(d * q, axis=-1) * inv
         t = np.sum(e2[None] * q, axis=-1) * inv
-        hit = ok & (u >= 0) & (w >= 0) & (u + w <= 1) & (t > 0) & (t < tf)
+        hit = (ok & (u >= -margin) & (w >= -margin) & (u + w <= 1 + margin) & (t > -margin)
+               & (t < tf + margin))
         out[s:s + step] = hit.any(axis=1)
     return out
 
