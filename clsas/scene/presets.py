@@ -182,3 +182,33 @@ def point_scene(name: str, n_pulses: int | None = None, **options) -> Scenario:
     scenario = SONARS[name](**options)
     layout = POINT_LAYOUTS[name] + np.array([0.0, 0.0, scenario.platform.start[2]])
     return scenario.replace(targets=(PointTargets(layout),))
+
+
+# Kiang & Kiang 2022 Table II: the submarine's velocity vector (m/s) in the eight cases.
+KIANG_CASES = {
+    1: (0.0, -4.0, 0.0), 2: (0.0, 4.0, 0.0), 3: (0.0, -5.0, 3.0), 4: (0.0, -5.0, -3.0),
+    5: (1.5, 8.0, 1.0), 6: (3.0, -5.0, 3.0), 7: (0.0, 3.0, 0.0), 8: (3.0, 0.0, 0.0),
+}
+
+
+def kiang2022_case(case: int, n_pulses: int | None = None, max_facet: float | None = None,
+                   sections: int = 64, stations: int = 80) -> Scenario:
+    """Kiang & Kiang 2022 case ``case`` (1-8, Table II): the Table I sonar (transceiver A, towed
+    receiver B, sonobuoy C at (-500, 0, -150) m) and the submarine centred at (1989, 0, -350) m at
+    eta = 0, moving with the case's velocity vector.
+
+    The bow points along the velocity (the paper: "the bow is oriented toward" the motion):
+    heading = atan2(v_y, v_x), pitch = atan2(v_z, |v_xy|) (assumed; the paper shows the
+    orientation only in its figures). ``max_facet`` subdivides the hull (m); ``sections`` and
+    ``stations`` set its base facet count (:func:`clsas.scene.hulls.submarine`).
+    """
+    from .hulls import submarine
+    from .targets import MeshTarget
+
+    if case not in KIANG_CASES:
+        raise ValueError(f"case must be one of {sorted(KIANG_CASES)} (Kiang & Kiang 2022 Table II), got {case!r}")
+    v = np.array(KIANG_CASES[case])
+    hull = MeshTarget(submarine(sections=sections, stations=stations), position=(1989.0, 0.0, -350.0),
+                      heading=float(np.arctan2(v[1], v[0])), pitch=float(np.arctan2(v[2], np.hypot(v[0], v[1]))),
+                      velocity=v, max_facet=max_facet)
+    return kiang2022(n_pulses=n_pulses).replace(targets=(hull,))

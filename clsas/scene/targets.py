@@ -217,8 +217,8 @@ class MeshTarget:
     def angular_gain(self, normals: np.ndarray, to_tx: np.ndarray, to_rx: np.ndarray) -> np.ndarray:
         """The angular law for unit normals and unit directions facet -> transmitter / receiver (..., 3)."""
         bisector = to_tx + to_rx
-        bisector /= np.maximum(np.linalg.norm(bisector, axis=-1, keepdims=True), 1e-300)
-        cos = np.maximum(np.sum(normals * bisector, axis=-1), 0.0)
+        size = np.sqrt(np.einsum("...i,...i->...", bisector, bisector))
+        cos = np.maximum(np.einsum("...i,...i->...", normals, bisector) / np.maximum(size, 1e-300), 0.0)
         return cos if self.law == "lambertian" else cos ** self.exponent
 
     def scatterers(self) -> Scatterers:

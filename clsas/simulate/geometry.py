@@ -88,6 +88,18 @@ def incoming(receiver, eta: np.ndarray, t1: np.ndarray, q: np.ndarray, c: float,
     return t2, receiver(t_scatter + t2)
 
 
+def meet_time(d: np.ndarray, w: np.ndarray, c: float) -> np.ndarray:
+    """Closed form of the fixed points above for uniform motion: the t > 0 with |d + w t| = c t.
+
+    (c^2 - |w|^2) t^2 - 2 (d.w) t - |d|^2 = 0 has the positive root
+    t = [d.w + sqrt((d.w)^2 + (c^2 - |w|^2) |d|^2)] / (c^2 - |w|^2) (no cancellation: |d.w| << c |d|).
+    ``d`` and ``w`` broadcast (..., 3). The OpenCL kernels use the same formula (geometry8.h).
+    """
+    a = c * c - np.sum(w * w, axis=-1)
+    b = np.sum(d * w, axis=-1)
+    return (b + np.sqrt(b * b + a * np.sum(d * d, axis=-1))) / a
+
+
 def element_gain(length: float, direction: np.ndarray, axis: np.ndarray, wavelength: float) -> np.ndarray:
     """sinc(L sin(theta) / lambda): ``direction`` unit vectors element -> scatterer, ``axis`` the element axis."""
     if length == 0:

@@ -11,7 +11,8 @@ Back-facing facets are dark without casting a ray. A path's weight is
 lit x heard x the target's angular law (:meth:`MeshTarget.angular_gain`).
 
 Rays start a small distance (1e-5 of the hull's size) off the facet along its normal, so that
-a facet does not shadow itself; rays end at the transmitter / receiver.
+a facet does not shadow itself; rays end at the transmitter / receiver. Outgoing and incoming
+legs are solved in closed form when the motion is uniform (:func:`geometry.meet_time`).
 """
 
 from __future__ import annotations
@@ -20,8 +21,10 @@ import numpy as np
 
 from ..scene.targets import MeshTarget
 from . import geometry
+from .window import has_motion_errors
 
 METHODS = ("embree", "reference")
+THREADS = 2  # pulse groups computed at once (the machine has two cores)
 
 
 def occluded_reference(triangles: np.ndarray, origins: np.ndarray, directions: np.ndarray,
@@ -81,21 +84,28 @@ class RayCaster:
         return np.asarray(res) != -1
 
 
-def facet_visibility(target: MeshTarget, caster: RayCaster, facet_body: np.ndarray, normal_body: np.ndarray,
-                     points_body: np.ndarray) -> np.ndarray:
-    """Facets that face ``points_body`` (..., N, 3) and see them unobstructed: bool (..., N)."""
-    size = float(np.linalg.norm(np.ptp(target.mesh.vertices, axis=0)))
-    start = facet_body + 1e-5 * size * normal_body
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("...i,...i->...", a, b)
+
+
+def facet_visibility(caster: "RayCaster | None", facet_body: np.ndarray, normal_body: np.ndarray,
+                     points_body: np.ndarray, offset: float):
+    """Which facets face ``points_body`` (..., N, 3) and see them unobstructed.
+
+    Returns (visible bool (..., N), unit directions facet -> point (..., N, 3)). Rays start
+    ``offset`` (m) off the facet along its normal; ``caster=None`` checks facing only.
+    """
+    start = facet_body + offset * normal_body
     d = points_body - start
-    dist = np.linalg.norm(d, axis=-1)
-    unit = d / np.maximum(dist, 1e-300)[..., None]
-    facing = np.sum(unit * normal_body, axis=-1) > 0
-    visible = facing.copy()
-    idx = np.nonzero(facing)
-    if idx[0].size:
-        starts = np.broadcast_to(start, d.shape)[idx]
-        visible[idx] = ~caster.occluded(starts, unit[idx], dist[idx])
-    return visible
+    dist = np.sqrt(_dot(d, d))
+    unit = d / dist[..., None]
+    visible = _dot(unit, normal_body) > 0
+    if caster is not None:
+        idx = np.nonzero(visible)
+        if idx[0].size:
+            starts = np.broadcast_to(start, d.shape)[idx]
+            visible[idx] = ~caster.occluded(starts, unit[idx], dist[idx])
+    return visible, unit
 
 
 class PathWeights:
@@ -107,7 +117,7 @@ class PathWeights:
     """
 
     def __init__(self, scenario, stop_and_go: bool = False, hull_occlusion: bool = True, method: str = "embree",
-                 pulses_per_call: int = 8):
+                 pulses_per_call: int = 4):
         self.scenario, self.stop_and_go, self.hull_occlusion = scenario, stop_and_go, hull_occlusion
         self.pulses_per_call = max(1, int(pulses_per_call))
         self.parts = []  # (first scatterer index, count, target or None, caster)
@@ -119,40 +129,61 @@ class PathWeights:
             start += n
         self.n_scatterers = start
 
+    def _receiver_at_reception(self, h: int, eta, t1, q, c, tol):
+        """Receiver h where the echo of each facet arrives (P, N, 3): in closed form
+        (:func:`geometry.meet_time`) when the receiver moves uniformly (a sonobuoy, or a platform
+        without motion errors), else by the fixed point of :func:`geometry.incoming`."""
+        sc = self.scenario
+        if self.stop_and_go or (h < sc.array.n_receivers and has_motion_errors(sc.platform)):
+            return geometry.incoming(lambda t: sc.receiver_position(h, t), eta, t1, q, c, tol, self.stop_and_go)[1]
+        r0 = sc.receiver_position(h, eta)  # (P, 3)
+        w = sc.receiver_position(h, eta + 1.0) - r0  # velocity over one second: uniform motion
+        r_t1 = r0[:, None, :] + w[:, None, :] * t1[..., None]
+        t2 = geometry.meet_time(r_t1 - q, w[:, None, :], c)
+        return r_t1 + w[:, None, :] * t2[..., None]
+
     def _mesh_weights(self, target: MeshTarget, caster, eta: np.ndarray) -> np.ndarray:
         sc = self.scenario
         c = sc.medium.sound_speed
         tol = geometry.iteration_tolerance(sc.waveform.f0)
-        scat = target.scatterers()
         tx = sc.tx_position(eta)
-        t1, q = geometry.outgoing(tx, eta, scat, c, tol, self.stop_and_go)
+        p0 = target.facets_world()[0]
+        q_emit = p0[None] + target.velocity * eta[:, None, None]
+        if self.stop_and_go:
+            t1, q = np.linalg.norm(q_emit - tx[:, None, :], axis=-1) / c, q_emit
+        else:
+            t1 = geometry.meet_time(q_emit - tx[:, None, :], target.velocity, c)
+            q = q_emit + target.velocity * t1[..., None]
         t_scatter = eta[:, None] + (0.0 if self.stop_and_go else t1)  # the hull's pose time
         facet_b = target.mesh.triangles_center
         normal_b = target.mesh.face_normals
+        offset = 1e-5 * float(np.linalg.norm(np.ptp(target.mesh.vertices, axis=0)))
         tx_b = target.to_body(np.broadcast_to(tx[:, None, :], q.shape), np.broadcast_to(t_scatter, t1.shape))
-        to_tx = tx_b - facet_b
-        to_tx /= np.linalg.norm(to_tx, axis=-1, keepdims=True)
-        lit = (facet_visibility(target, caster, facet_b, normal_b, tx_b) if caster is not None
-               else np.sum(to_tx * normal_b, axis=-1) > 0)
+        lit, to_tx = facet_visibility(caster, facet_b, normal_b, tx_b, offset)
         out = np.empty((sc.n_receivers,) + t1.shape)
         for h in range(sc.n_receivers):
-            _, r = geometry.incoming(lambda t, h=h: sc.receiver_position(h, t), eta, t1, q, c, tol, self.stop_and_go)
+            r = self._receiver_at_reception(h, eta, t1, q, c, tol)
             r_b = target.to_body(r, np.broadcast_to(t_scatter, t1.shape))
-            to_rx = r_b - facet_b
-            to_rx /= np.linalg.norm(to_rx, axis=-1, keepdims=True)
-            heard = (facet_visibility(target, caster, facet_b, normal_b, r_b) if caster is not None
-                     else np.sum(to_rx * normal_b, axis=-1) > 0)
-            out[h] = lit * heard * target.angular_gain(normal_b, to_tx, to_rx)
+            heard, to_rx = facet_visibility(caster, facet_b, normal_b, r_b, offset)
+            out[h] = (lit & heard) * target.angular_gain(normal_b, to_tx, to_rx)
         return out
 
     def __call__(self, pulses: slice) -> np.ndarray:
+        """Weights (n_rx, len(pulses), n_scatterers); pulse groups run on two threads (Embree's
+        queries and NumPy's array operations release the GIL)."""
+        from concurrent.futures import ThreadPoolExecutor
+
         eta_all = self.scenario.eta[pulses]
         out = np.ones((self.scenario.n_receivers, eta_all.size, self.n_scatterers))
-        for s in range(0, eta_all.size, self.pulses_per_call):
+
+        def fill(s):
             eta = eta_all[s:s + self.pulses_per_call]
             for first, n, target, caster in self.parts:
                 if target is not None:
                     out[:, s:s + eta.size, first:first + n] = self._mesh_weights(target, caster, eta)
+
+        with ThreadPoolExecutor(max_workers=THREADS) as pool:
+            list(pool.map(fill, range(0, eta_all.size, self.pulses_per_call)))
         return out
 
 
