@@ -137,3 +137,19 @@ def test_bad_meshes():
         MeshTarget(box(), law="phong")
     with pytest.raises(ValueError, match="method"):
         RayCaster(box(), "optix")
+
+
+def test_scan_image_projects_the_lit_face():
+    from clsas.simulate.occlusion import scan_image
+
+    sc, _ = shadow_scene(4)
+    sc = sc.replace(targets=(MeshTarget(box((1.0, 4.0, 4.0)), position=(100.0, 0.0, 0.0)),))
+    img = scan_image(sc, r=np.arange(95.0, 105.0, 0.1), y=np.arange(-5.0, 5.0, 0.1))
+    assert img.dims == ("y", "r")
+    values = img.data.real
+    lit_r = img.axes["r"][np.nonzero(values.sum(axis=0))[0]]
+    assert lit_r.min() >= 99.4 and lit_r.max() <= 99.7  # only the face at x = 99.5 m
+    assert 15.9 < values.sum() <= 16.0  # its area (16 m^2) x the Lambertian law (~1 at broadside)
+    with pytest.raises(ValueError, match="mesh"):
+        scan_image(shadow_scene(2)[0].replace(targets=(clsas.PointTargets([[100.0, 0, 0]]),)), np.arange(3.0),
+                   np.arange(3.0))

@@ -1,0 +1,75 @@
+"""Hull occlusion throughput: useful rays per second (rays actually cast: back-facing facets need
+none), Embree (embreex, two threads over pulse groups) vs the Moller-Trumbore reference, direct
+embreex vs trimesh's Embree interface, and the share of occlusion in simulating Kiang case 8.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from _harness import arguments, measure, report
+
+import clsas
+from clsas.scene import presets
+from clsas.scene.hulls import sphere
+from clsas.simulate.occlusion import PathWeights, RayCaster
+
+
+def rays(rng, n):
+    origins = rng.uniform(-3, 3, (n, 3))
+    d = rng.normal(size=(n, 3))
+    return origins, d / np.linalg.norm(d, axis=1, keepdims=True), rng.uniform(0.5, 6.0, n)
+
+
+def main() -> None:
+    args = arguments(__doc__.splitlines()[0])
+    n_pulses = 32 if args.quick else 256
+    scene = presets.kiang2022_case(8, n_pulses=n_pulses, max_facet=0.6 if not args.quick else 0.9)
+    facets = scene.targets[0].n_facets
+    weights = PathWeights(scene)
+    caster = weights.parts[0][3]
+    seconds = measure(lambda: weights(slice(None)), repeats=args.repeats or 1, warmup=0)
+    n_rays = caster.rays_cast  # one run (no warm-up)
+    report(args, "occlusion", "embree", {"facets": facets, "pulses": n_pulses, "receivers": 3},
+           n_rays / seconds / 1e6, "M useful rays/s", seconds, rays=n_rays, threads=2,
+           case="PathWeights, Kiang case 8 submarine")
+
+    rng = np.random.default_rng(0)
+    small = sphere(1.0, 2)  # 320 facets: the brute-force reference's scale
+    o, d, t = rays(rng, 20_000)
+    for method in ("embree", "reference"):
+        rc = RayCaster(small, method)
+        seconds = measure(lambda: rc.occluded(o, d, t), repeats=args.repeats or 3)
+        report(args, "occlusion", "numpy" if method == "reference" else "embree",
+               {"facets": len(small.faces), "rays": len(o)}, len(o) / seconds / 1e6, "M rays/s", seconds,
+               case=f"{method} occlusion query, one thread")
+
+    from trimesh.ray.ray_pyembree import RayMeshIntersector
+
+    hull = scene.targets[0].mesh
+    o, d, t = rays(rng, 1_000_000 if not args.quick else 200_000)
+    o = o * 10
+    direct = RayCaster(hull)
+    seconds = measure(lambda: direct.occluded(o, d, np.full(len(o), 1e3)), repeats=args.repeats or 3)
+    report(args, "occlusion", "embree", {"facets": len(hull.faces), "rays": len(o)}, len(o) / seconds / 1e6,
+           "M rays/s", seconds, case="embreex directly (occluded query), one thread")
+    via_trimesh = RayMeshIntersector(hull)
+    seconds = measure(lambda: via_trimesh.intersects_any(o, d), repeats=args.repeats or 3)
+    report(args, "occlusion", "embree", {"facets": len(hull.faces), "rays": len(o)}, len(o) / seconds / 1e6,
+           "M rays/s", seconds, case="trimesh RayMeshIntersector.intersects_any, one thread")
+
+    case8 = presets.kiang2022_case(8, n_pulses=64 if not args.quick else 16)
+    start = time.perf_counter()
+    clsas.simulate(case8, backend="opencl", progress=False)
+    total = time.perf_counter() - start
+    start = time.perf_counter()
+    PathWeights(case8)(slice(None))
+    occl = time.perf_counter() - start
+    report(args, "occlusion", "opencl", {"facets": case8.targets[0].n_facets, "pulses": case8.eta.size,
+                                          "receivers": 3}, occl / total, "share of simulate time", total,
+           case="Kiang case 8: occlusion time / whole simulate time")
+
+
+if __name__ == "__main__":
+    main()
