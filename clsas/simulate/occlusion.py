@@ -95,17 +95,20 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def facet_visibility(caster: "RayCaster | None", facet_body: np.ndarray, normal_body: np.ndarray,
-                     points_body: np.ndarray, offset: float):
+                     points_body: np.ndarray, offset: float, need: np.ndarray | None = None):
     """Which facets face ``points_body`` (..., N, 3) and see them unobstructed.
 
     Returns (visible bool (..., N), unit directions facet -> point (..., N, 3)). Rays start
-    ``offset`` (m) off the facet along its normal; ``caster=None`` checks facing only.
+    ``offset`` (m) off the facet along its normal; ``caster=None`` checks facing only; rays
+    are cast only where ``need`` (bool (..., N)) is true (elsewhere the answer is "not visible").
     """
     start = facet_body + offset * normal_body
     d = points_body - start
     dist = np.sqrt(_dot(d, d))
     unit = d / dist[..., None]
     visible = _dot(unit, normal_body) > 0
+    if need is not None:
+        visible &= need
     if caster is not None:
         idx = np.nonzero(visible)
         if idx[0].size:
@@ -170,7 +173,7 @@ class PathWeights:
         for h in range(sc.n_receivers):
             r = self._receiver_at_reception(h, eta, t1, q, c, tol)
             r_b = target.to_body(r, np.broadcast_to(t_scatter, t1.shape))
-            heard, to_rx = facet_visibility(caster, facet_b, normal_b, r_b, offset)
+            heard, to_rx = facet_visibility(caster, facet_b, normal_b, r_b, offset, need=lit)
             out[h] = (lit & heard) * target.angular_gain(normal_b, to_tx, to_rx)
         return out
 
