@@ -51,13 +51,15 @@ typedef float16 realv16_t;
  * pulse[p]: tx.xyz, eta, t0 fs (window start in samples of the data);
  * nodes[p N_NODES + k]: receiver position.xyz (and axis) at fast time k dtau;
  * data[p n + i]: the receiver's range-compressed record of pulse p;
+ * pulses p_first .. p_first + p_count - 1 of the buffers are summed by this launch;
  * taps[r * 8 + j]: sinc8 taps for fractional offset r / (TAP_ROWS - 1), sample i - 3 + j (the
  * row nearest to the pixel's offset is used);
  * image[m] += the block's sum. */
 __kernel void bp_block(__global const double *pix, __global const double8 *pulse,
                        __global const double8 *nodes, __global const sample_t *data,
                        __global const float *taps, const double8 params,
-                       const int n_pulses, const int n, const int m_pad, __global double2 *image)
+                       const int p_first, const int p_count, const int n, const int m_pad,
+                       __global double2 *image)
 {
     const int g = get_global_id(0);
     const int m0 = 8 * g;
@@ -65,7 +67,7 @@ __kernel void bp_block(__global const double *pix, __global const double8 *pulse
     const vec8 p0 = v8(vload8(0, pix + m0), vload8(0, pix + m_pad + m0), vload8(0, pix + 2 * m_pad + m0));
     const vec8 vel = v8_splat(params.s456);
     realv8 acc_re = (realv8)0, acc_im = (realv8)0;
-    for (int p = 0; p < n_pulses; ++p) {
+    for (int p = p_first; p < p_first + p_count; ++p) {
         const double8 pl = pulse[p];
         const vec8 tx = v8_splat(pl.s012);
         const vec8 q_emit = v8_add(p0, v8_scale(vel, (double8)pl.s3));

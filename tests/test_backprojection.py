@@ -114,6 +114,22 @@ def test_huang_six_points_focus_with_32_receivers(opencl_device):
         assert abs(res["x"].location - p[0]) < 0.1 * rres
 
 
+@pytest.mark.filterwarnings("ignore::clsas.scene.scenario.SamplingWarning")  # Zhang's table as printed
+def test_zhang_eighteen_points_focus(opencl_device):
+    sc = oversampled(presets.point_scene("zhang2019", n_pulses=64))
+    echo = clsas.range_compress(clsas.simulate(sc, backend="opencl", progress=False), upsample=8)
+    rres = sc.medium.sound_speed / (2 * sc.waveform.bandwidth)
+    cell = sc.array.tx_length / 2
+    aperture = sc.waveform.wavelength(sc.medium) / sc.array.tx_length  # see the Huang test
+    assert len(sc.targets[0].positions) == 18
+    for p in sc.targets[0].positions:
+        img = backproject(echo, around(p, rres / 8, cell / 8, 24, 48), backend="opencl", aperture=aperture,
+                          upsample=1, progress=False)  # upsampled once, by range_compress
+        res = metrics.analyse_point(img, near=(p[1], p[0]), radius=cell)
+        assert abs(res["y"].location - p[1]) < 0.1 * cell
+        assert abs(res["x"].location - p[0]) < 0.1 * rres
+
+
 @pytest.mark.parametrize("receiver", ["A", "B", "C"])
 def test_multistatic_point_focuses_from_each_receiver(opencl_device, receiver):
     p = (1989.0, 0.0, -350.0)

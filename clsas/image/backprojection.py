@@ -46,6 +46,7 @@ from .rangecomp import upsample_records
 INTERPOLATORS = ("linear", "sinc8")
 SINC_BETA = 5.0
 TAP_ROWS = 2049  # sinc8 tap table rows over the fractional offset [0, 1] (nearest row is used)
+UPLOAD_BYTES = 64 * 2**20  # upsampled records prepared and uploaded at once
 PULSE_BLOCK = 8  # pulses a kernel launch: their records stay in cache while every pixel reads them
 
 
@@ -198,8 +199,12 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
     taps_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=_tap_table())
     factor = upsample if interp == "linear" else 1
     fs = echo.fs * factor
-    jobs = [(h, np.arange(s, min(s + PULSE_BLOCK, echo.n_pulses))) for h in receivers
-            for s in range(0, echo.n_pulses, PULSE_BLOCK)]
+    # records are upsampled and uploaded a large block at a time (few host round trips); the
+    # kernel then sums PULSE_BLOCK pulses a launch so that their records stay in cache
+    per_pulse = 16 * echo.n_samples * factor
+    upload = max(PULSE_BLOCK, int(UPLOAD_BYTES // per_pulse) // PULSE_BLOCK * PULSE_BLOCK)
+    jobs = [(h, np.arange(s, min(s + upload, echo.n_pulses))) for h in receivers
+            for s in range(0, echo.n_pulses, upload)]
     kernels = {}
     for h, pulses in tqdm(jobs, desc="back-projection (opencl)", disable=not progress):
         dtau, pos = _uniform_nodes(echo, h)
@@ -221,9 +226,11 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
                 for a in (pulse, nodes, records)]
         params = np.array([echo.medium.sound_speed, echo.waveform.f0, fs, dtau, *velocity,
                            np.sin(aperture / 2) if aperture is not None else 1.0])
-        kernels[n_nodes](q, (m_pad // 8,), None, pix_buf, bufs[0], bufs[1], bufs[2], taps_buf,
-                         params.view(cl.cltypes.double8)[0], np.int32(pulses.size), np.int32(records.shape[1]),
-                         np.int32(m_pad), image_buf)
+        for first in range(0, pulses.size, PULSE_BLOCK):
+            kernels[n_nodes](q, (m_pad // 8,), None, pix_buf, bufs[0], bufs[1], bufs[2], taps_buf,
+                             params.view(cl.cltypes.double8)[0], np.int32(first),
+                             np.int32(min(PULSE_BLOCK, pulses.size - first)), np.int32(records.shape[1]),
+                             np.int32(m_pad), image_buf)
     cl.enqueue_copy(q, image, image_buf)
     return image[:m]
 
@@ -241,7 +248,9 @@ def backproject(echo: EchoData, grid: Grid, backend: str | None = None, receiver
     receivers : indices or names of the receivers to sum coherently (default: all).
     interp : {"linear", "sinc8"}
         Linear interpolation of data FFT-upsampled by ``upsample``, or an 8-tap windowed sinc
-        on the original samples.
+        on the original samples. The upsampling is redone at every call: to image many grids
+        from one echo, upsample once with ``range_compress(echo, upsample=8)`` and pass
+        ``upsample=1`` here.
     aperture : float, optional
         Full integration angle, radians.
     target_velocity : 3-vector, optional
