@@ -23,6 +23,12 @@ from .scenario import Array, Medium, Platform, PulseSchedule, Scenario, Sonobuoy
 from .targets import PointTargets
 
 
+def _line_array_sonar(array: Array, waveform: Waveform, speed: float, prf: float, n_pulses: int) -> Scenario:
+    """A straight-track sonar at depth 0 in water of 1500 m/s (the 2-D papers' set-up)."""
+    return Scenario(medium=Medium(1500.0), waveform=waveform, platform=Platform(speed=speed), array=array,
+                    schedule=PulseSchedule(prf=prf, n_pulses=n_pulses))
+
+
 def kiang2022(n_pulses: int | None = None) -> Scenario:
     """Kiang & Kiang 2022, Table I, and section II.
 
@@ -57,14 +63,9 @@ def huang2022(n_pulses: int = 256) -> Scenario:
     V PRI = 0.64 m = 32 x 0.02 m: critically sampled. Assumed (not in the paper): pulse length
     10 ms, sampling rate 25 kHz (1.25 B), c = 1500 m/s, platform at depth 0 (2-D geometry).
     """
-    array = Array.uniform_line(32, 0.04, first=0.06, tx_length=0.08, rx_length=0.04)
-    return Scenario(
-        medium=Medium(1500.0),
-        waveform=Waveform(f0=150e3, bandwidth=20e3, duration=10e-3, fs=25e3),
-        platform=Platform(speed=2.0),
-        array=array,
-        schedule=PulseSchedule(prf=1 / 0.32, n_pulses=n_pulses),
-    )
+    return _line_array_sonar(Array.uniform_line(32, 0.04, first=0.06, tx_length=0.08, rx_length=0.04),
+                             Waveform(f0=150e3, bandwidth=20e3, duration=10e-3, fs=25e3),
+                             speed=2.0, prf=1 / 0.32, n_pulses=n_pulses)
 
 
 def wu2018(n_pulses: int = 128) -> Scenario:
@@ -79,14 +80,9 @@ def wu2018(n_pulses: int = 128) -> Scenario:
     Assumed: c = 1500 m/s, platform at depth 0. Yaw/pitch errors are added by the caller
     (the paper draws them at random in 1-2 degrees).
     """
-    array = Array.uniform_line(32, 0.08, first=-15 * 0.08, tx_length=0.16, rx_length=0.08)
-    return Scenario(
-        medium=Medium(1500.0),
-        waveform=Waveform(f0=70e3, bandwidth=10e3, duration=20e-3, fs=20e3),
-        platform=Platform(speed=3.0),
-        array=array,
-        schedule=PulseSchedule(prf=3.0 / 1.28, n_pulses=n_pulses),
-    )
+    return _line_array_sonar(Array.uniform_line(32, 0.08, first=-15 * 0.08, tx_length=0.16, rx_length=0.08),
+                             Waveform(f0=70e3, bandwidth=10e3, duration=20e-3, fs=20e3),
+                             speed=3.0, prf=3.0 / 1.28, n_pulses=n_pulses)
 
 
 def zhang2019(n_pulses: int = 256) -> Scenario:
@@ -99,14 +95,9 @@ def zhang2019(n_pulses: int = 256) -> Scenario:
     transmitter at d_i = 0.03 + 0.02 (i - 1) m (contiguous). Assumed: pulse 10 ms, sampling
     rate 25 kHz, c = 1500 m/s, platform at depth 0.
     """
-    array = Array.uniform_line(30, 0.02, first=0.03, tx_length=0.04, rx_length=0.02)
-    return Scenario(
-        medium=Medium(1500.0),
-        waveform=Waveform(f0=150e3, bandwidth=20e3, duration=10e-3, fs=25e3),
-        platform=Platform(speed=2.0),
-        array=array,
-        schedule=PulseSchedule(prf=1 / 0.3, n_pulses=n_pulses),
-    )
+    return _line_array_sonar(Array.uniform_line(30, 0.02, first=0.03, tx_length=0.04, rx_length=0.02),
+                             Waveform(f0=150e3, bandwidth=20e3, duration=10e-3, fs=25e3),
+                             speed=2.0, prf=1 / 0.3, n_pulses=n_pulses)
 
 
 def heremans2009(n_pulses: int = 128) -> Scenario:
@@ -119,14 +110,9 @@ def heremans2009(n_pulses: int = 128) -> Scenario:
     element lengths 21.88 cm (contiguous), c = 1500 m/s, platform at depth 0.
     """
     spacing = 0.2188
-    array = Array.uniform_line(15, spacing, first=-7 * spacing, tx_length=spacing, rx_length=spacing)
-    return Scenario(
-        medium=Medium(1500.0),
-        waveform=Waveform(f0=50e3, bandwidth=10e3, duration=10e-3, fs=12.5e3),
-        platform=Platform(speed=1.2763),
-        array=array,
-        schedule=PulseSchedule(prf=1 / 0.6, n_pulses=n_pulses),
-    )
+    return _line_array_sonar(Array.uniform_line(15, spacing, first=-7 * spacing, tx_length=spacing, rx_length=spacing),
+                             Waveform(f0=50e3, bandwidth=10e3, duration=10e-3, fs=12.5e3),
+                             speed=1.2763, prf=1 / 0.6, n_pulses=n_pulses)
 
 
 SONARS = {
