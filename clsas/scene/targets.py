@@ -215,10 +215,12 @@ class MeshTarget:
         return self.mesh.triangles_center @ rot.T + self.position, self.mesh.face_normals @ rot.T
 
     def angular_gain(self, normals: np.ndarray, to_tx: np.ndarray, to_rx: np.ndarray) -> np.ndarray:
-        """The angular law for unit normals and unit directions facet -> transmitter / receiver (..., 3)."""
+        """The angular law for unit normals and unit directions facet -> transmitter / receiver (..., 3)
+        (0 where the directions cancel or are zero)."""
         bisector = to_tx + to_rx
         size = np.sqrt(np.einsum("...i,...i->...", bisector, bisector))
-        cos = np.maximum(np.einsum("...i,...i->...", normals, bisector) / np.maximum(size, 1e-300), 0.0)
+        dot = np.einsum("...i,...i->...", normals, bisector)
+        cos = np.maximum(np.divide(dot, size, out=np.zeros_like(dot), where=size > 0), 0.0)
         return cos if self.law == "lambertian" else cos ** self.exponent
 
     def scatterers(self) -> Scatterers:

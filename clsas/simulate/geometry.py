@@ -95,9 +95,9 @@ def meet_time(d: np.ndarray, w: np.ndarray, c: float) -> np.ndarray:
     t = [d.w + sqrt((d.w)^2 + (c^2 - |w|^2) |d|^2)] / (c^2 - |w|^2) (no cancellation: |d.w| << c |d|).
     ``d`` and ``w`` broadcast (..., 3). The OpenCL kernels use the same formula (geometry8.h).
     """
-    a = c * c - np.sum(w * w, axis=-1)
-    b = np.sum(d * w, axis=-1)
-    return (b + np.sqrt(b * b + a * np.sum(d * d, axis=-1))) / a
+    a = c * c - np.einsum("...i,...i->...", w, w)
+    b = np.einsum("...i,...i->...", d, w)
+    return (b + np.sqrt(b * b + a * np.einsum("...i,...i->...", d, d))) / a
 
 
 def element_gain(length: float, direction: np.ndarray, axis: np.ndarray, wavelength: float) -> np.ndarray:

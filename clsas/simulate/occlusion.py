@@ -98,22 +98,24 @@ def facet_visibility(caster: "RayCaster | None", facet_body: np.ndarray, normal_
                      points_body: np.ndarray, offset: float, need: np.ndarray | None = None):
     """Which facets face ``points_body`` (..., N, 3) and see them unobstructed.
 
-    Returns (visible bool (..., N), unit directions facet -> point (..., N, 3)). Rays start
-    ``offset`` (m) off the facet along its normal; ``caster=None`` checks facing only; rays
-    are cast only where ``need`` (bool (..., N)) is true (elsewhere the answer is "not visible").
+    Returns (visible bool (..., N), unit directions facet -> point (..., N, 3), zero where the
+    facet does not face the point). Rays start ``offset`` (m) off the facet along its normal and
+    are cast only for facing facets where ``need`` (bool (..., N)) holds; ``caster=None`` checks
+    facing only.
     """
     start = facet_body + offset * normal_body
     d = points_body - start
-    dist = np.sqrt(_dot(d, d))
-    unit = d / dist[..., None]
-    visible = _dot(unit, normal_body) > 0
+    visible = _dot(d, normal_body) > 0
     if need is not None:
         visible &= need
-    if caster is not None:
-        idx = np.nonzero(visible)
-        if idx[0].size:
-            starts = np.broadcast_to(start, d.shape)[idx]
-            visible[idx] = ~caster.occluded(starts, unit[idx], dist[idx])
+    idx = np.nonzero(visible)
+    d_idx = d[idx]
+    dist = np.sqrt(_dot(d_idx, d_idx))
+    unit_idx = d_idx / dist[:, None]
+    unit = np.zeros_like(d)
+    unit[idx] = unit_idx
+    if caster is not None and dist.size:
+        visible[idx] = ~caster.occluded(start[idx[-1]], unit_idx, dist)
     return visible, unit
 
 
@@ -151,7 +153,45 @@ class PathWeights:
         t2 = geometry.meet_time(r_t1 - q, w[:, None, :], c)
         return r_t1 + w[:, None, :] * t2[..., None]
 
+    def _uniform_motion(self) -> bool:
+        return not self.stop_and_go and not (self.scenario.array.n_receivers and has_motion_errors(self.scenario.platform))
+
+    def _mesh_weights_uniform(self, target: MeshTarget, caster, eta: np.ndarray) -> np.ndarray:
+        """:meth:`_mesh_weights` when every receiver moves uniformly, computed in the body frame.
+
+        With x_b = (x - position - v t) R (R body-to-world, v the target velocity), a point moving
+        uniformly is affine in time in the body frame, so the transmitter as seen from facet n at
+        its scattering time eta + t1_n is tx_b(eta) - v_b t1_n, and receiver h at reception is
+        r_b(eta) + (w_b - v_b) t1_n + w_b t2_n: broadcasts instead of a rotation per path. The legs
+        are the closed forms of :func:`geometry.meet_time` (distances and dot products do not
+        change under the rotation). Computed in float32: these delays only place the hull and the
+        receivers (an error of 1e-7 s moves them by under a micrometre), and the rays are float32.
+        """
+        sc = self.scenario
+        f32 = np.float32
+        c = float(sc.medium.sound_speed)
+        rot, v = target.rotation, target.velocity
+        v_b = (v @ rot).astype(f32)
+        facet_b, normal_b = target.mesh.triangles_center.astype(f32), target.mesh.face_normals.astype(f32)
+        offset = 1e-5 * float(np.linalg.norm(np.ptp(target.mesh.vertices, axis=0)))
+        tx0_b = target.to_body(sc.tx_position(eta), eta).astype(f32)  # (P, 3), the pose at emission
+        t1 = geometry.meet_time(facet_b[None] - tx0_b[:, None, :], v_b, c)  # (P, N)
+        tx_b = tx0_b[:, None, :] - v_b * t1[..., None]
+        lit, to_tx = facet_visibility(caster, facet_b, normal_b, tx_b, offset)
+        out = np.empty((sc.n_receivers,) + t1.shape)
+        for h in range(sc.n_receivers):
+            r0 = sc.receiver_position(h, eta)
+            w_b = ((sc.receiver_position(h, eta + 1.0) - r0) @ rot).astype(f32)[:, None, :]  # uniform velocity
+            r_t1 = target.to_body(r0, eta).astype(f32)[:, None, :] + (w_b - v_b) * t1[..., None]
+            t2 = geometry.meet_time(r_t1 - facet_b[None], w_b, c)
+            r_b = r_t1 + w_b * t2[..., None]
+            heard, to_rx = facet_visibility(caster, facet_b, normal_b, r_b, offset, need=lit)
+            out[h] = (lit & heard) * target.angular_gain(normal_b, to_tx, to_rx)
+        return out
+
     def _mesh_weights(self, target: MeshTarget, caster, eta: np.ndarray) -> np.ndarray:
+        if self._uniform_motion():
+            return self._mesh_weights_uniform(target, caster, eta)
         sc = self.scenario
         c = sc.medium.sound_speed
         tol = geometry.iteration_tolerance(sc.waveform.f0)
