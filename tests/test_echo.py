@@ -221,10 +221,13 @@ def test_measured_snr_matches(backend):
     again = simulate(sc, backend=backend, snr_db=-5.0, seed=7, progress=False)
     np.testing.assert_array_equal(noisy.data, again.data)
     noise = noisy.data - clean.data
+    n_valid = noisy.provenance["n_valid"]
     for h in range(3):
         on = np.abs(clean.data[h]) > 0
-        snr = 10 * np.log10(np.mean(np.abs(clean.data[h][on]) ** 2) / np.mean(np.abs(noise[h]) ** 2))
+        recorded = noise[h, :, :n_valid[h]]
+        snr = 10 * np.log10(np.mean(np.abs(clean.data[h][on]) ** 2) / np.mean(np.abs(recorded) ** 2))
         assert abs(snr - (-5.0)) < 0.2
+        assert not np.any(noise[h, :, n_valid[h]:])  # nothing is recorded beyond the window
 
 
 def test_recording_window_drops_samples_never_wraps(backend):

@@ -47,7 +47,7 @@ from ..scene.scenario import Scenario
 from ..scene.targets import Scatterers, scatterers_of
 from . import geometry
 from .occlusion import PathWeights, has_meshes
-from .window import DEFAULT_MAX_BYTES, check_cube_size, receiver_nodes
+from .window import DEFAULT_MAX_BYTES, check_cube_size, node_span, receiver_nodes
 
 CHUNK_SCATTERERS = 16  # scatterers per bounds chunk in the OpenCL accumulation
 ROWS = 8  # 16-sample rows per work-item of the OpenCL accumulation
@@ -128,7 +128,11 @@ class _NumpySynth(_Synth):
         return tau, amp if w is None else amp * w
 
     def delays(self, pulses: slice) -> np.ndarray:
-        return self.paths(pulses)[0]
+        return geometry.paths(self.scenario, self.eta[pulses], self.scat, range(self.n_rx), self.stop_and_go,
+                              self.spreading)[0]
+
+    def release(self) -> None:
+        """Nothing is cached by the reference."""
 
     def extents(self, pulses: slice):
         return sample_extents(self.delays(pulses) * self.scenario.waveform.fs)
@@ -161,7 +165,7 @@ class _OpenCLSynth(_Synth):
         self.cplx = np.complex128 if double else np.complex64
         sc, scat = self.scenario, self.scat
         c = sc.medium.sound_speed
-        self.rx_tau, self.rx_pos, self.rx_axis = nodes
+        self.rx_tau, self.rx_pos, self.rx_axis, self.rx_node_error = nodes
         n = scat.count
         self.n_pad = -(-n // 8) * 8  # the paths kernel takes eight scatterers a work-item
         self.order = self._delay_order()
@@ -224,6 +228,11 @@ class _OpenCLSynth(_Synth):
                      paths)
         return paths, pc
 
+    def release(self) -> None:
+        """Drop the cached path buffers (after pass B)."""
+        self.cache.clear()
+        self.cached_bytes = 0
+
     def delays(self, pulses: slice) -> np.ndarray:
         """Two-way delays (H, P, N) of the block from the kernel, in scatterer order."""
         h, n = self.n_rx, self.scat.count
@@ -261,7 +270,7 @@ class _OpenCLSynth(_Synth):
         cl, q = self.cl, self.rt.queue
         h, n = self.n_rx, self.n_pad
         first = t0 * self.scenario.waveform.fs
-        whole = np.all(first == np.round(first)) and np.all(np.abs(first) < 2**31)
+        whole = np.all(np.abs(first - np.round(first)) < 1e-6) and np.all(np.abs(first) < 2**31)
         cached = self.cache.pop((pulses.start, pulses.stop), None) if whole else None
         if cached is not None:
             paths, pc = cached
@@ -337,18 +346,20 @@ def _check_targets_in_windows(scenario: Scenario, lo, hi, t0, n_valid) -> None:
         )
 
 
-def add_noise(data: np.ndarray, snr_db: float, seed, block: int = 64) -> np.ndarray:
+def add_noise(data: np.ndarray, snr_db: float, seed, n_valid=None, block: int = 64) -> np.ndarray:
     """Add complex white Gaussian noise in place at ``snr_db`` per receiver (see the module docstring).
 
-    ``data`` is (n_rx, n_pulses, n_samples); noise is drawn pulse block by pulse block (same
-    draws for the same ``seed`` whatever the backend).
+    ``data`` is (n_rx, n_pulses, n_samples); receiver h records only its first ``n_valid[h]``
+    samples (default all), and only those get noise. Noise is drawn pulse block by pulse block
+    (same draws for the same ``seed`` whatever the backend).
     """
     if not np.isfinite(snr_db):
         raise ValueError(f"snr_db must be a finite number of dB, got {snr_db}")
+    n_valid = np.full(data.shape[0], data.shape[2]) if n_valid is None else np.asarray(n_valid)
     rng = np.random.default_rng(seed)
     power = np.empty(data.shape[0])
     for h in range(data.shape[0]):
-        mag2 = np.abs(data[h]) ** 2
+        mag2 = np.abs(data[h, :, :n_valid[h]]) ** 2
         on = mag2 > 0
         if not on.any():
             raise ValueError(f"receiver {h} recorded no echo: its SNR is undefined")
@@ -357,7 +368,9 @@ def add_noise(data: np.ndarray, snr_db: float, seed, block: int = 64) -> np.ndar
     for s in range(0, data.shape[1], block):
         part = data[:, s:s + block]
         noise = rng.standard_normal(part.shape + (2,), dtype=np.float32)
-        part += (noise[..., 0] + 1j * noise[..., 1]) * sigma[:, None, None]
+        noise = (noise[..., 0] + 1j * noise[..., 1]) * sigma[:, None, None]
+        for h in range(part.shape[0]):
+            part[h, :, :n_valid[h]] += noise[h, :, :n_valid[h]]
     return data
 
 
@@ -393,8 +406,9 @@ def _make_synth(scenario: Scenario, name: str, double: bool, occlusion, stop_and
         synth = _NumpySynth(*args)
         per_pulse = n_rx * scat.count * (16 * 8 + 48 * span)
     else:
-        tau_hi = _delay_bound(scenario, scat)
-        synth = _OpenCLSynth(*args, double=double, nodes=receiver_nodes(scenario, scenario.eta, tau_hi))
+        tau_hi = node_span(scenario, scenario.eta, _delay_bound(scenario, scat))
+        synth = _OpenCLSynth(*args, double=double,
+                             nodes=receiver_nodes(scenario, scenario.eta, tau_hi, strict=not stop_and_go))
         per_pulse = n_rx * scat.count * 4 * 8  # path records (float4 or double4) on the device
     return synth, _pulse_blocks(n_pulses, per_pulse, int(chunk_bytes))
 
@@ -413,35 +427,44 @@ def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = F
 
 
 def _synthesize(scenario: Scenario, name: str, double: bool, stop_and_go: bool, progress: bool, spreading: bool,
-                occlusion, max_bytes: int, chunk_bytes: int, hull_occlusion: bool = True) -> dict:
-    """Both passes; returns the cube in the backend's own precision (complex128 for NumPy and
-    precision="double", complex64 otherwise) with its window and receiver nodes."""
+                occlusion, max_bytes: int, chunk_bytes: int, hull_occlusion: bool = True, dtype=None) -> dict:
+    """Both passes; returns the cube in ``dtype`` (default: the backend's own precision,
+    complex128 for NumPy and precision="double", complex64 otherwise) with its window and
+    receiver nodes."""
     synth, blocks = _make_synth(scenario, name, double, occlusion, stop_and_go, spreading, chunk_bytes,
                                 hull_occlusion)
+    wf = scenario.waveform
     n_rx, n_pulses, n_scat = scenario.n_receivers, scenario.eta.size, synth.scat.count
     lo = np.full((n_rx, n_scat), np.inf)
     hi = np.full((n_rx, n_scat), -np.inf)
     for sl in tqdm(blocks, desc="echo delays", disable=not progress, leave=False):
         a, b = synth.extents(sl)
         lo, hi = np.minimum(lo, a), np.maximum(hi, b)
-    lo, hi = lo / scenario.waveform.fs, hi / scenario.waveform.fs  # s, whole samples
-    tau_span = 1.2 * hi.max() + scenario.waveform.duration
+    lo, hi = lo / wf.fs, hi / wf.fs  # s, whole samples
+    # the nodes span the recording window (and not beyond sampled motion errors)
+    tau_span = node_span(scenario, scenario.eta, hi.max() + 0.5 * wf.duration + 2 / wf.fs)
     if name == "opencl" and hi.max() > synth.rx_tau[-1]:
-        synth = _OpenCLSynth(*synth.args, double=double, nodes=receiver_nodes(scenario, scenario.eta, tau_span))
+        synth = _OpenCLSynth(*synth.args, double=double,
+                             nodes=receiver_nodes(scenario, scenario.eta, tau_span, strict=not stop_and_go))
     t0, n_valid, origin = _window(scenario, lo, hi)
     _check_targets_in_windows(scenario, lo, hi, t0, n_valid)
     n_samples = int(n_valid.max())
-    check_cube_size(n_rx, n_pulses, n_samples, max_bytes, origin)
-    dtype = np.complex64 if name == "opencl" and not double else np.complex128
-    data = np.zeros((n_rx, n_pulses, n_samples), dtype=dtype)
-    for sl in tqdm(blocks, desc=f"echo synthesis ({name})", disable=not progress):
+    nodes = (synth.rx_tau, synth.rx_pos, synth.rx_node_error) if name == "opencl" else \
+        (lambda n: (n[0], n[1], n[3]))(receiver_nodes(scenario, scenario.eta, tau_span, strict=False))
+    check_cube_size(n_rx, n_pulses, n_samples, max_bytes, origin, n_nodes=nodes[0].size)
+    native = np.complex64 if name == "opencl" and not double else np.complex128
+    data = np.zeros((n_rx, n_pulses, n_samples), dtype=dtype or native)
+    # pass B in blocks that also bound the records' memory (complex128 on the host, the
+    # kernel's output buffer and its copy)
+    per_pulse = n_rx * (synth.scat.count * 32 + 3 * 16 * n_samples)
+    for sl in tqdm(_pulse_blocks(n_pulses, per_pulse, chunk_bytes), desc=f"echo synthesis ({name})",
+                   disable=not progress):
         data[:, sl] = synth.records(sl, t0, n_samples)
+    synth.release()
     for h in range(n_rx):
         data[h, :, n_valid[h]:] = 0
-    nodes = (synth.rx_tau, synth.rx_pos) if name == "opencl" else \
-        receiver_nodes(scenario, scenario.eta, tau_span)[:2]
-    return {"data": data, "t0": t0, "n_valid": n_valid, "origin": origin, "nodes": nodes,
-            "n_scatterers": n_scat}
+    return {"data": data, "t0": t0, "n_valid": n_valid, "origin": origin, "nodes": nodes[:2],
+            "node_error_m": float(nodes[2]), "n_scatterers": n_scat}
 
 
 def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False, snr_db: float | None = None,
@@ -499,10 +522,10 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         check_cube_size(scenario.n_receivers, scenario.eta.size, int(np.max(n_valid)), max_bytes,
                         "given by Scenario.recording")
     out = _synthesize(scenario, name, double, stop_and_go, progress, spreading, occlusion, int(max_bytes),
-                      int(chunk_bytes), hull_occlusion)
-    data = out["data"].astype(np.complex64, copy=False)
+                      int(chunk_bytes), hull_occlusion, dtype=np.complex64)
+    data = out["data"]
     if snr_db is not None:
-        add_noise(data, float(snr_db), seed)
+        add_noise(data, float(snr_db), seed, out["n_valid"])
     rx_tau, rx_pos = out["nodes"]
     n_rx = scenario.n_receivers
     return EchoData(
@@ -514,5 +537,6 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
                     "seed": seed if seed is None or isinstance(seed, int) else str(seed),
                     "n_scatterers": out["n_scatterers"], "occlusion": occlusion is not None,
                     "hull_occlusion": bool(hull_occlusion and has_meshes(scenario)),
-                    "window": out["origin"], "n_valid": out["n_valid"].tolist()},
+                    "window": out["origin"], "n_valid": out["n_valid"].tolist(),
+                    "rx_node_error_m": out["node_error_m"]},
     )

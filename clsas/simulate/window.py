@@ -13,16 +13,28 @@ def has_motion_errors(platform) -> bool:
     return any(getattr(platform, c) is not None for c in MOTION_COMPONENTS)
 
 
-def receiver_nodes(scenario, eta: np.ndarray, tau_hi: float, max_error: float | None = None):
+def node_span(scenario, eta: np.ndarray, tau_hi: float) -> float:
+    """``tau_hi`` clamped so that eta + tau_hi stays within sampled motion errors (which are not
+    extrapolated): the nodes never ask the platform outside ``Platform.error_times``."""
+    times = scenario.platform.error_times
+    if times is None:
+        return float(tau_hi)
+    return float(max(min(tau_hi, times[-1] - np.max(eta)), 1e-6))
+
+
+def receiver_nodes(scenario, eta: np.ndarray, tau_hi: float, max_error: float | None = None, strict: bool = True):
     """Receiver positions and element axes at uniformly spaced fast times 0 .. ``tau_hi``.
 
     Between nodes the receiver is taken to move linearly (the OpenCL kernels and
     :meth:`clsas.data.EchoData.rx_position` interpolate). Two nodes are exact for a straight
     track without motion errors; with motion errors the node count doubles until linear
     interpolation is within ``max_error`` (default lambda / 10^4, i.e. 6e-4 rad of two-way
-    phase) of the exact position at every segment midpoint of every pulse.
+    phase) of the exact position at every segment midpoint of every pulse, up to 4097 nodes;
+    beyond that ``strict`` raises, otherwise the 4097-node grid is returned as it is (for
+    uses that do not need the accuracy: the NumPy reference evaluates exact trajectories).
 
-    Returns ``rx_tau`` (K,) s, ``positions`` (H, P, K, 3) m and ``axes`` (H, P, K, 3).
+    Returns ``rx_tau`` (K,) s, ``positions`` (H, P, K, 3) m, ``axes`` (H, P, K, 3) and the
+    largest midpoint interpolation error, m.
     """
     eta = np.asarray(eta, dtype=np.float64)
     if max_error is None:
@@ -39,24 +51,28 @@ def receiver_nodes(scenario, eta: np.ndarray, tau_hi: float, max_error: float | 
         taus = np.linspace(0.0, tau_hi, n_nodes)
         pos, axes = sample(taus)
         if not has_motion_errors(scenario.platform):
-            return taus, pos, axes
+            return taus, pos, axes, 0.0
         mid_pos, _ = sample(0.5 * (taus[1:] + taus[:-1]))
-        error = np.max(np.linalg.norm(0.5 * (pos[:, :, 1:] + pos[:, :, :-1]) - mid_pos, axis=-1))
+        error = float(np.max(np.linalg.norm(0.5 * (pos[:, :, 1:] + pos[:, :, :-1]) - mid_pos, axis=-1)))
         if error <= max_error:
-            return taus, pos, axes
+            return taus, pos, axes, error
         if n_nodes >= 4096:
-            raise ValueError(f"the platform's motion errors vary too fast: 4096 nodes over {tau_hi:.3g} s still leave "
-                             f"{error:.3g} m of interpolation error (allowed {max_error:.3g} m)")
+            if not strict:
+                return taus, pos, axes, error
+            raise ValueError(f"the platform's motion errors vary too fast for the OpenCL kernel: 4097 receiver nodes "
+                             f"over {tau_hi:.3g} s still leave {error:.3g} m of interpolation error (allowed "
+                             f"{max_error:.3g} m); use backend='numpy' (exact trajectories)")
         n_nodes = 2 * n_nodes - 1
 
 
-def check_cube_size(n_rx: int, n_pulses: int, n_samples: int, max_bytes: int, origin: str) -> None:
-    """Refuse an echo cube larger than ``max_bytes`` before allocating it."""
-    need = 8 * n_rx * n_pulses * n_samples
+def check_cube_size(n_rx: int, n_pulses: int, n_samples: int, max_bytes: int, origin: str, n_nodes: int = 2) -> None:
+    """Refuse an echo cube (complex64) and its receiver nodes (float64) larger than ``max_bytes``
+    before allocating them."""
+    need = 8 * n_rx * n_pulses * n_samples + 24 * n_rx * n_pulses * n_nodes
     if need > max_bytes:
         raise ValueError(
             f"the echo cube would need {need / 2**30:.2f} GiB ({n_rx} receivers x {n_pulses} pulses x "
-            f"{n_samples} samples of complex64; window {origin}) but max_bytes allows "
+            f"{n_samples} samples of complex64 and {n_nodes} receiver nodes a pulse; window {origin}) but max_bytes allows "
             f"{max_bytes / 2**30:.2f} GiB. Reduce it: fewer pulses (PulseSchedule), fewer receivers, a "
             "shorter recording window (Scenario.recording), a more compact scene, or raise max_bytes."
         )
