@@ -294,5 +294,12 @@ def test_bad_input_is_refused():
         simulate(sc, backend="numpy", progress=False, snr_db=np.nan)
     with pytest.raises(TypeError, match="scenario"):
         simulate("kiang", backend="numpy")
+
     with pytest.raises(TypeError, match="targets"):
         sc.replace(targets=(np.zeros(3),))
+
+
+def test_scatterer_on_a_receiver_is_refused(backend):
+    at_buoy = kiang(4).replace(targets=(PointTargets([[-500.0, 0.0, -150.0]]),))  # on sonobuoy C
+    with pytest.raises(ValueError, match="coincides"), np.errstate(all="ignore"):
+        simulate(at_buoy, backend=backend, progress=False, spreading=True)

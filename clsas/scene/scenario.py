@@ -313,8 +313,9 @@ class PulseSchedule:
 class Recording:
     """Fast-time recording window per receiver: ``n_samples`` samples from ``t0`` s after emission.
 
-    ``t0`` (s, >= 0) and ``n_samples`` (>= 1) are scalars (same for every receiver) or one
-    value per receiver.
+    ``t0`` (s, finite; fast time is measured from the centre of the transmitted pulse, so an
+    echo from very close by starts at a negative fast time) and ``n_samples`` (>= 1) are
+    scalars (same for every receiver) or one value per receiver.
     """
 
     t0: float | np.ndarray
@@ -322,7 +323,7 @@ class Recording:
 
     def __post_init__(self):
         t0 = np.atleast_1d(np.asarray(self.t0, dtype=np.float64))
-        object.__setattr__(self, "t0", v.array("Recording.t0", t0, (-1,), nonnegative=True))
+        object.__setattr__(self, "t0", v.array("Recording.t0", t0, (-1,)))
         n = np.atleast_1d(np.asarray(self.n_samples))
         if n.dtype.kind not in "iu" or np.any(n < 1) or n.ndim != 1:
             raise ValueError(f"Recording.n_samples must be integers >= 1, got {self.n_samples!r}")

@@ -459,7 +459,11 @@ def _synthesize(scenario: Scenario, name: str, double: bool, stop_and_go: bool, 
     per_pulse = n_rx * (synth.scat.count * 32 + 3 * 16 * n_samples)
     for sl in tqdm(_pulse_blocks(n_pulses, per_pulse, chunk_bytes), desc=f"echo synthesis ({name})",
                    disable=not progress):
-        data[:, sl] = synth.records(sl, t0, n_samples)
+        block = synth.records(sl, t0, n_samples)
+        if not np.all(np.isfinite(block)):
+            raise ValueError("the echo has non-finite samples: a scatterer coincides with the transmitter or a "
+                             "receiver (zero path length); move it away")
+        data[:, sl] = block
     synth.release()
     for h in range(n_rx):
         data[h, :, n_valid[h]:] = 0
