@@ -94,6 +94,18 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("...i,...i->...", a, b)
 
 
+def _unit(d: np.ndarray) -> np.ndarray:
+    return d / np.sqrt(_dot(d, d))[:, None]
+
+
+def _cast(caster: "RayCaster | None", start: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Unobstructed segments start -> start + d (K, 3): bool (K,) (all True without a caster)."""
+    if caster is None or start.shape[0] == 0:
+        return np.ones(start.shape[0], dtype=bool)
+    dist = np.sqrt(_dot(d, d))
+    return ~caster.occluded(start, d / dist[:, None], dist)
+
+
 def facet_visibility(caster: "RayCaster | None", facet_body: np.ndarray, normal_body: np.ndarray,
                      points_body: np.ndarray, offset: float, need: np.ndarray | None = None):
     """Which facets face ``points_body`` (..., N, 3) and see them unobstructed.
@@ -164,29 +176,39 @@ class PathWeights:
         its scattering time eta + t1_n is tx_b(eta) - v_b t1_n, and receiver h at reception is
         r_b(eta) + (w_b - v_b) t1_n + w_b t2_n: broadcasts instead of a rotation per path. The legs
         are the closed forms of :func:`geometry.meet_time` (distances and dot products do not
-        change under the rotation). Computed in float32: these delays only place the hull and the
-        receivers (an error of 1e-7 s moves them by under a micrometre), and the rays are float32.
+        change under the rotation). The receivers' legs are solved only for lit facets. Computed in
+        float32: these delays only place the hull and the receivers (an error of 1e-7 s moves them
+        by under a micrometre), and the rays are float32.
         """
         sc = self.scenario
         f32 = np.float32
         c = float(sc.medium.sound_speed)
-        rot, v = target.rotation, target.velocity
-        v_b = (v @ rot).astype(f32)
+        rot = target.rotation
+        v_b = (target.velocity @ rot).astype(f32)
         facet_b, normal_b = target.mesh.triangles_center.astype(f32), target.mesh.face_normals.astype(f32)
         offset = 1e-5 * float(np.linalg.norm(np.ptp(target.mesh.vertices, axis=0)))
+        start = facet_b + f32(offset) * normal_b
         tx0_b = target.to_body(sc.tx_position(eta), eta).astype(f32)  # (P, 3), the pose at emission
         t1 = geometry.meet_time(facet_b[None] - tx0_b[:, None, :], v_b, c)  # (P, N)
-        tx_b = tx0_b[:, None, :] - v_b * t1[..., None]
-        lit, to_tx = facet_visibility(caster, facet_b, normal_b, tx_b, offset)
-        out = np.empty((sc.n_receivers,) + t1.shape)
+        d_tx = (tx0_b[:, None, :] - v_b * t1[..., None] - start).reshape(-1, 3)
+        flat = np.flatnonzero(_dot(d_tx, np.tile(normal_b, (eta.size, 1))) > 0)  # facing the transmitter
+        n_facets = facet_b.shape[0]
+        lit = _cast(caster, start[flat % n_facets], d_tx[flat])
+        flat = flat[lit]
+        pi, ni = np.divmod(flat, n_facets)
+        u_tx = _unit(d_tx[flat])
+        out = np.zeros((sc.n_receivers,) + t1.shape)
         for h in range(sc.n_receivers):
             r0 = sc.receiver_position(h, eta)
-            w_b = ((sc.receiver_position(h, eta + 1.0) - r0) @ rot).astype(f32)[:, None, :]  # uniform velocity
-            r_t1 = target.to_body(r0, eta).astype(f32)[:, None, :] + (w_b - v_b) * t1[..., None]
-            t2 = geometry.meet_time(r_t1 - facet_b[None], w_b, c)
-            r_b = r_t1 + w_b * t2[..., None]
-            heard, to_rx = facet_visibility(caster, facet_b, normal_b, r_b, offset, need=lit)
-            out[h] = (lit & heard) * target.angular_gain(normal_b, to_tx, to_rx)
+            w_b = ((sc.receiver_position(h, eta + 1.0) - r0) @ rot).astype(f32)[pi]  # uniform velocity
+            r_t1 = target.to_body(r0, eta).astype(f32)[pi] + (w_b - v_b) * t1.reshape(-1)[flat][:, None]
+            t2 = geometry.meet_time(r_t1 - facet_b[ni], w_b, c)
+            d_rx = r_t1 + w_b * t2[:, None] - start[ni]
+            facing = _dot(d_rx, normal_b[ni]) > 0
+            heard = np.zeros(pi.size, dtype=bool)
+            heard[facing] = _cast(caster, start[ni[facing]], d_rx[facing])
+            gain = target.angular_gain(normal_b[ni[heard]], u_tx[heard], _unit(d_rx[heard]))
+            out[h].reshape(-1)[flat[heard]] = gain
         return out
 
     def _mesh_weights(self, target: MeshTarget, caster, eta: np.ndarray) -> np.ndarray:
