@@ -12,9 +12,10 @@ sampled at 4 F_r (400 samples in a pulse, the configuration of the POCL_NOTES an
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from _harness import arguments, measure, report
-import dataclasses
 
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets

@@ -5,8 +5,16 @@ from .data import EchoData, Grid, Image
 from .image.backprojection import backproject
 from .image.rangecomp import range_compress
 from .io import load, save
-from .scene.scenario import (Array, Medium, Platform, PulseSchedule, Recording, Scenario, Sonobuoy,
-                             Waveform)
+from .scene.scenario import (
+                             Array,
+                             Medium,
+                             Platform,
+                             PulseSchedule,
+                             Recording,
+                             Scenario,
+                             Sonobuoy,
+                             Waveform,
+)
 from .scene.targets import PointTargets
 from .simulate import simulate
 

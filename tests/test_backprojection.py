@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import dataclasses
-import warnings
 
 import numpy as np
 import pytest
+from _tolerances import phase_error, rel_l2
 
 import clsas
 from clsas import metrics
@@ -14,8 +14,6 @@ from clsas.data import Grid
 from clsas.image.backprojection import backproject
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets
-
-from _tolerances import phase_error, rel_l2
 
 
 def oversampled(scenario, factor=2.0):

@@ -6,15 +6,22 @@ import dataclasses
 
 import numpy as np
 import pytest
+from _tolerances import phase_error, rel_l2
 
 from clsas import metrics
 from clsas.image import range_compress
 from clsas.scene import presets
-from clsas.scene.scenario import Array, Medium, Platform, PulseSchedule, Recording, Scenario, Waveform
+from clsas.scene.scenario import (
+    Array,
+    Medium,
+    Platform,
+    PulseSchedule,
+    Recording,
+    Scenario,
+    Waveform,
+)
 from clsas.scene.targets import PointTargets
 from clsas.simulate import delays, echo, simulate
-
-from _tolerances import phase_error, rel_l2
 
 
 def kiang(n_pulses=8, fs_factor=1.0, **changes):

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _tolerances import FLOAT32_EPS, max_abs
 
 from clsas import kernelmath
 from clsas.backend import check_precision
-
-from _tolerances import FLOAT32_EPS, max_abs
 
 
 @pytest.mark.parametrize("precision", ["single", "double"])

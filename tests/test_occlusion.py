@@ -2,17 +2,27 @@
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 import trimesh
 
 import clsas
 from clsas.scene.hulls import box, sphere
-from clsas.scene.scenario import Array, Medium, Platform, PulseSchedule, Scenario, Waveform
+from clsas.scene.scenario import (
+    Array,
+    Medium,
+    Platform,
+    PulseSchedule,
+    Scenario,
+    Waveform,
+)
 from clsas.scene.targets import MeshTarget
-from clsas.simulate.occlusion import PathWeights, RayCaster, facet_visibility, occluded_reference
+from clsas.simulate.occlusion import (
+    PathWeights,
+    RayCaster,
+    facet_visibility,
+    occluded_reference,
+)
 
 
 def random_soup(rng, n):

@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 import scipy.fft
 import scipy.signal.windows
-
 from _tolerances import phase_error, rel_l2
+
 from clsas import metrics
 from clsas.data import EchoData
 from clsas.image.rangecomp import (

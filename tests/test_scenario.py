@@ -8,8 +8,18 @@ import warnings
 import numpy as np
 import pytest
 
-from clsas.scene.scenario import (Array, Medium, Platform, PulseSchedule, Recording, SamplingWarning, Scenario,
-                                  Sonobuoy, Waveform, phase_centre_gap)
+from clsas.scene.scenario import (
+    Array,
+    Medium,
+    Platform,
+    PulseSchedule,
+    Recording,
+    SamplingWarning,
+    Scenario,
+    Sonobuoy,
+    Waveform,
+    phase_centre_gap,
+)
 
 NAN, INF = float("nan"), float("inf")
 

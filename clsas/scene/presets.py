@@ -19,7 +19,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .scenario import Array, Medium, Platform, PulseSchedule, Scenario, Sonobuoy, Waveform
+from .scenario import (
+    Array,
+    Medium,
+    Platform,
+    PulseSchedule,
+    Scenario,
+    Sonobuoy,
+    Waveform,
+)
 from .targets import PointTargets
 
 
