@@ -240,3 +240,14 @@ def analyse_point(image, near=None, radius: float | None = None, upsample: int =
         result[dim] = point_response(cut, ax, upsample=upsample, extent=extent, near=idx[k], radius=1.0)
     result["location"] = tuple(result[d].location for d in dims)
     return result
+
+
+def entropy(data) -> float:
+    """Image entropy -sum(p log p) with p = |x|^2 / sum |x|^2 (nats): lower when the energy is
+    concentrated, i.e. when the image is better focused (the autofocus criterion)."""
+    power = np.abs(np.asarray(data.data if hasattr(data, "data") else data)) ** 2
+    total = power.sum()
+    if not total > 0:
+        raise ValueError("entropy of an all-zero image is undefined")
+    p = power[power > 0] / total
+    return float(-np.sum(p * np.log(p)))

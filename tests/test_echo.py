@@ -310,3 +310,16 @@ def test_scatterer_on_a_receiver_is_refused(backend):
     at_buoy = kiang(4).replace(targets=(PointTargets([[-500.0, 0.0, -150.0]]),))  # on sonobuoy C
     with pytest.raises(ValueError, match="coincides"), np.errstate(all="ignore"):
         simulate(at_buoy, backend=backend, progress=False, spreading=True)
+
+
+@pytest.mark.slow
+def test_scales_to_1e5_scatterers_with_bounded_memory(opencl_device):
+    import resource
+
+    rng = np.random.default_rng(3)
+    pos = np.array([1989.0, 0.0, -350.0]) + rng.uniform(-0.5, 0.5, (100_000, 3)) * [8.0, 62.0, 8.0]
+    sc = kiang(1024, targets=(PointTargets(pos, velocity=(0, -4, 0)),))
+    out = simulate(sc, backend="opencl", progress=False, chunk_bytes=64 * 2**20)
+    assert out.data.shape[:2] == (3, 1024) and np.all(np.abs(out.data).max(axis=2) > 0)
+    # 3 x 1024 x ~600 samples of complex64 is 15 MB; the path records of all pulses would be 4.9 GB
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 < 4 * 2**30

@@ -273,3 +273,14 @@ def test_point_response_rejects_bad_parameters():
     # a cut that holds only the main lobe has no side lobes to measure
     with pytest.raises(ValueError, match="longer cut"):
         metrics.point_response(np.sinc((np.arange(6) - 2.5) / 4))
+
+
+def test_entropy_prefers_concentrated_energy():
+    from clsas.metrics import entropy
+
+    point = np.zeros((8, 8)); point[3, 4] = 2.0
+    flat = np.ones((8, 8))
+    assert entropy(point) == pytest.approx(0.0)
+    assert entropy(flat) == pytest.approx(np.log(64))
+    with pytest.raises(ValueError, match="all-zero"):
+        entropy(np.zeros(3))
