@@ -1,7 +1,7 @@
 /* Echo synthesis: exact two-way delays, path amplitudes, and accumulation of the LFM echoes.
  *
- * NumPy twin: clsas/simulate/echo.py (accumulate_reference) and clsas/simulate/geometry.py
- * (paths); the launcher is clsas/simulate/echo.py (_OpenCLSynth).
+ * NumPy twin: clsas/simulate/echo/synth.py (accumulate_reference) and clsas/simulate/geometry.py
+ * (paths); the launcher is clsas/simulate/echo/synth.py (_OpenCLSynth).
  *
  * Three kernels per chunk of pulses:
  *   echo_paths   one work-item per (sorted scatterer j, pulse p, receiver h): the delay

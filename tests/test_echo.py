@@ -21,7 +21,8 @@ from clsas.scene.scenario import (
     Waveform,
 )
 from clsas.scene.targets import PointTargets
-from clsas.simulate import delays, echo, simulate
+from clsas.simulate import delays, simulate
+from clsas.simulate.echo import pipeline
 
 
 def kiang(n_pulses=8, fs_factor=1.0, **changes):
@@ -32,10 +33,10 @@ def kiang(n_pulses=8, fs_factor=1.0, **changes):
 
 
 def reference_and_kernel(sc, precision="single", **kw):
-    ref = echo._synthesize(sc, "numpy", False, progress=False, max_bytes=2**31, chunk_bytes=2**26,
+    ref = pipeline._synthesize(sc, "numpy", False, progress=False, max_bytes=2**31, chunk_bytes=2**26,
                            stop_and_go=kw.get("stop_and_go", False), spreading=kw.get("spreading", False),
                            occlusion=kw.get("occlusion"))
-    got = echo._synthesize(sc, "opencl", precision == "double", progress=False, max_bytes=2**31,
+    got = pipeline._synthesize(sc, "opencl", precision == "double", progress=False, max_bytes=2**31,
                            chunk_bytes=2**26, stop_and_go=kw.get("stop_and_go", False),
                            spreading=kw.get("spreading", False), occlusion=kw.get("occlusion"))
     np.testing.assert_array_equal(ref["t0"], got["t0"])

@@ -1,0 +1,273 @@
+"""Echo synthesis: ``simulate(scenario) -> EchoData`` and ``delays(scenario)``.
+
+Pass A computes every path's delay (the recording window follows from them), pass B the
+records, a block of pulses at a time so that memory stays bounded; the backends are in
+:mod:`.synth`.
+
+Noise (``snr_db``): Kiang & Kiang 2022 section VII-C adds white Gaussian noise "at a given
+level" to the received signal s_rb1(tau, eta) of its eq. (7) without defining the SNR further;
+clsas defines it per receiver as
+
+    SNR = P_s / sigma^2,  P_s = mean of |s|^2 over the samples where the noise-free echo is nonzero,
+
+with complex circular noise of variance sigma^2 (sigma^2 / 2 per real component) added to
+every recorded sample. Seeded by ``seed``; the same seed gives the same noise on either backend.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from ... import backend as _backend
+from ...data import EchoData
+from ...scene.scenario import Scenario
+from ...scene.targets import Scatterers, scatterers_of
+from ..occlusion import PathWeights, has_meshes
+from ..window import DEFAULT_MAX_BYTES, check_cube_size, node_span, receiver_nodes
+from .synth import _NumpySynth, _OpenCLSynth
+
+
+def _pulse_blocks(n_pulses: int, per_pulse_bytes: int, chunk_bytes: int) -> list[slice]:
+    size = int(max(1, min(n_pulses, chunk_bytes // max(1, per_pulse_bytes))))
+    return [slice(s, min(s + size, n_pulses)) for s in range(0, n_pulses, size)]
+
+
+def _delay_bound(scenario: Scenario, scat: Scatterers) -> float:
+    """An upper bound guess of every delay (s) for the node span, from the first/middle/last pulses."""
+    eta = scenario.eta[[0, scenario.eta.size // 2, -1]]
+    c = scenario.medium.sound_speed
+    tx = scenario.tx_position(eta)
+    worst = 0.0
+    for p in range(eta.size):
+        q = scat.p0 + scat.vel * eta[p]
+        out = np.linalg.norm(q - tx[p], axis=1)
+        back = max(np.max(np.linalg.norm(q - scenario.receiver_position(h, eta[p]), axis=1))
+                   for h in range(scenario.n_receivers))
+        worst = max(worst, np.max(out) + back)
+    return 1.2 * worst / c + scenario.waveform.duration
+
+
+def _window(scenario: Scenario, lo: np.ndarray, hi: np.ndarray):
+    """(t0 per receiver, valid samples per receiver, origin text) from the delay extents lo/hi (H, N)."""
+    wf = scenario.waveform
+    if scenario.recording is not None:
+        t0, n_valid = scenario.recording.for_receivers(scenario.n_receivers)
+        return np.asarray(t0, float), np.asarray(n_valid, np.int64), "given by Scenario.recording"
+    first = np.floor((lo.min(axis=1) - 0.5 * wf.duration) * wf.fs)
+    last = np.ceil((hi.max(axis=1) + 0.5 * wf.duration) * wf.fs)
+    return first / wf.fs, (last - first + 1).astype(np.int64), "derived from the geometry"
+
+
+def _check_targets_in_windows(scenario: Scenario, lo, hi, t0, n_valid) -> None:
+    wf = scenario.waveform
+    end = t0 + (n_valid - 1) / wf.fs
+    heard = ((hi + 0.5 * wf.duration) >= t0[:, None]) & ((lo - 0.5 * wf.duration) <= end[:, None])
+    deaf = np.flatnonzero(~heard.any(axis=0))
+    if deaf.size:
+        raise ValueError(
+            f"{deaf.size} scatterer(s) (indices {deaf[:5].tolist()}{'...' if deaf.size > 5 else ''}) echo "
+            f"between {lo[:, deaf[0]].min():.6g} and {hi[:, deaf[0]].max():.6g} s, outside every recording "
+            f"window (Scenario.recording: starts {np.round(t0, 6).tolist()} s, {n_valid.tolist()} samples); "
+            "move the targets or widen the window"
+        )
+
+
+def add_noise(data: np.ndarray, snr_db: float, seed, n_valid=None, block: int = 64) -> np.ndarray:
+    """Add complex white Gaussian noise in place at ``snr_db`` per receiver (see the module docstring).
+
+    ``data`` is (n_rx, n_pulses, n_samples); receiver h records only its first ``n_valid[h]``
+    samples (default all), and only those get noise. Noise is drawn pulse block by pulse block
+    (same draws for the same ``seed`` whatever the backend).
+    """
+    if not np.isfinite(snr_db):
+        raise ValueError(f"snr_db must be a finite number of dB, got {snr_db}")
+    n_valid = np.full(data.shape[0], data.shape[2]) if n_valid is None else np.asarray(n_valid)
+    rng = np.random.default_rng(seed)
+    power = np.empty(data.shape[0])
+    for h in range(data.shape[0]):
+        mag2 = np.abs(data[h, :, :n_valid[h]]) ** 2
+        on = mag2 > 0
+        if not on.any():
+            raise ValueError(f"receiver {h} recorded no echo: its SNR is undefined")
+        power[h] = mag2[on].mean()
+    sigma = np.sqrt(power / 10 ** (snr_db / 10) / 2).astype(np.float32)
+    for s in range(0, data.shape[1], block):
+        part = data[:, s:s + block]
+        noise = rng.standard_normal(part.shape + (2,), dtype=np.float32)
+        noise = (noise[..., 0] + 1j * noise[..., 1]) * sigma[:, None, None]
+        for h in range(part.shape[0]):
+            part[h, :, :n_valid[h]] += noise[h, :, :n_valid[h]]
+    return data
+
+
+def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_occlusion: bool):
+    """The user's occlusion factor times the mesh targets' path weights (hull visibility and
+    angular law, :class:`clsas.simulate.occlusion.PathWeights`) when the scene has meshes."""
+    if not has_meshes(scenario):
+        return occlusion
+    mesh = PathWeights(scenario, stop_and_go=stop_and_go, hull_occlusion=hull_occlusion)
+    if occlusion is None:
+        return mesh
+    if callable(occlusion):
+        return lambda pulses: mesh(pulses) * np.asarray(occlusion(pulses), dtype=np.float64)
+    return lambda pulses: mesh(pulses) * occlusion[:, pulses]
+
+
+def _make_synth(scenario: Scenario, name: str, double: bool, occlusion, stop_and_go: bool, spreading: bool,
+                chunk_bytes: int, hull_occlusion: bool = True):
+    """The backend's synthesizer and the pulse blocks that keep its working memory under ``chunk_bytes``."""
+    scat = scatterers_of(scenario.targets)
+    if scat.count == 0:
+        raise ValueError("Scenario.targets is empty: add PointTargets or a mesh target to simulate echoes")
+    n_rx, n_pulses = scenario.n_receivers, scenario.eta.size
+    if occlusion is not None and not callable(occlusion):
+        occlusion = np.asarray(occlusion, dtype=np.float64)
+        if occlusion.shape != (n_rx, n_pulses, scat.count):
+            raise ValueError(f"occlusion must have shape (n_rx, n_pulses, n_scatterers) = "
+                             f"{(n_rx, n_pulses, scat.count)}, got {occlusion.shape}")
+    occlusion = _with_mesh_weights(scenario, occlusion, stop_and_go, hull_occlusion)
+    args = (scenario, scat, occlusion, stop_and_go, spreading)
+    if name == "numpy":
+        span = int(0.5 * scenario.waveform.duration * scenario.waveform.fs) + 2
+        synth = _NumpySynth(*args)
+        per_pulse = n_rx * scat.count * (16 * 8 + 48 * span)
+    else:
+        tau_hi = node_span(scenario, scenario.eta, _delay_bound(scenario, scat))
+        synth = _OpenCLSynth(*args, double=double,
+                             nodes=receiver_nodes(scenario, scenario.eta, tau_hi, strict=not stop_and_go))
+        per_pulse = n_rx * scat.count * 4 * 8  # path records (float4 or double4) on the device
+    return synth, _pulse_blocks(n_pulses, per_pulse, int(chunk_bytes))
+
+
+def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False) -> np.ndarray:
+    """Exact two-way delays of every (receiver, pulse, scatterer) path, s, shape (H, P, N).
+
+    The NumPy backend iterates the fixed point of :mod:`clsas.simulate.geometry`; the OpenCL
+    kernel solves each leg in closed form (kernels/echo.cl, ``meet_time``) and returns the
+    delay as the sample index it hands to the accumulation (float32 fraction: ~3e-12 s at 20 kHz).
+    """
+    if not isinstance(scenario, Scenario):
+        raise TypeError(f"scenario must be a Scenario, got {type(scenario).__name__}")
+    synth, blocks = _make_synth(scenario, _backend.resolve(backend), False, None, stop_and_go, False, 256 * 2**20)
+    return np.concatenate([synth.delays(sl) for sl in blocks], axis=1)
+
+
+def _synthesize(scenario: Scenario, name: str, double: bool, stop_and_go: bool, progress: bool, spreading: bool,
+                occlusion, max_bytes: int, chunk_bytes: int, hull_occlusion: bool = True, dtype=None) -> dict:
+    """Both passes; returns the cube in ``dtype`` (default: the backend's own precision,
+    complex128 for NumPy and precision="double", complex64 otherwise) with its window and
+    receiver nodes."""
+    synth, blocks = _make_synth(scenario, name, double, occlusion, stop_and_go, spreading, chunk_bytes,
+                                hull_occlusion)
+    wf = scenario.waveform
+    n_rx, n_pulses, n_scat = scenario.n_receivers, scenario.eta.size, synth.scat.count
+    lo = np.full((n_rx, n_scat), np.inf)
+    hi = np.full((n_rx, n_scat), -np.inf)
+    for sl in tqdm(blocks, desc="echo delays", disable=not progress, leave=False):
+        a, b = synth.extents(sl)
+        lo, hi = np.minimum(lo, a), np.maximum(hi, b)
+    lo, hi = lo / wf.fs, hi / wf.fs  # s, whole samples
+    # the nodes span the recording window (and not beyond sampled motion errors)
+    tau_span = node_span(scenario, scenario.eta, hi.max() + 0.5 * wf.duration + 2 / wf.fs)
+    if name == "opencl" and hi.max() > synth.rx_tau[-1]:
+        synth = _OpenCLSynth(*synth.args, double=double,
+                             nodes=receiver_nodes(scenario, scenario.eta, tau_span, strict=not stop_and_go))
+    t0, n_valid, origin = _window(scenario, lo, hi)
+    _check_targets_in_windows(scenario, lo, hi, t0, n_valid)
+    n_samples = int(n_valid.max())
+    nodes = (synth.rx_tau, synth.rx_pos, synth.rx_node_error) if name == "opencl" else \
+        (lambda n: (n[0], n[1], n[3]))(receiver_nodes(scenario, scenario.eta, tau_span, strict=False))
+    check_cube_size(n_rx, n_pulses, n_samples, max_bytes, origin, n_nodes=nodes[0].size)
+    native = np.complex64 if name == "opencl" and not double else np.complex128
+    data = np.zeros((n_rx, n_pulses, n_samples), dtype=dtype or native)
+    # pass B in blocks that also bound the records' memory (complex128 on the host, the
+    # kernel's output buffer and its copy)
+    per_pulse = n_rx * (synth.scat.count * 32 + 3 * 16 * n_samples)
+    for sl in tqdm(_pulse_blocks(n_pulses, per_pulse, chunk_bytes), desc=f"echo synthesis ({name})",
+                   disable=not progress):
+        block = synth.records(sl, t0, n_samples)
+        if not np.all(np.isfinite(block)):
+            raise ValueError("the echo has non-finite samples: a scatterer coincides with the transmitter or a "
+                             "receiver (zero path length); move it away")
+        data[:, sl] = block
+    synth.release()
+    for h in range(n_rx):
+        data[h, :, n_valid[h]:] = 0
+    return {"data": data, "t0": t0, "n_valid": n_valid, "origin": origin, "nodes": nodes[:2],
+            "node_error_m": float(nodes[2]), "n_scatterers": n_scat}
+
+
+def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False, snr_db: float | None = None,
+             seed=None, precision: str = "single", progress: bool = True, spreading: bool = False,
+             occlusion=None, max_bytes: int = DEFAULT_MAX_BYTES, chunk_bytes: int = 256 * 2**20,
+             hull_occlusion: bool = True) -> EchoData:
+    """Synthesize the raw echoes of ``scenario`` (see the module docstring for the model).
+
+    Parameters
+    ----------
+    scenario : Scenario with at least one target (``Scenario.targets``).
+    backend : {"numpy", "opencl", "auto"} or None (the current default, :func:`clsas.use_backend`).
+    stop_and_go : bool
+        Evaluate every position at the emission time (for comparisons) instead of the exact
+        non-stop-and-go delays.
+    snr_db : float, optional
+        Add white Gaussian noise at this SNR (definition in the module docstring); ``seed`` seeds it.
+    precision : {"single", "double"}
+        Accumulation precision of the OpenCL kernel (delays are always double). The returned
+        samples are complex64 either way (DESIGN.md).
+    progress : bool
+        Show tqdm progress bars over pulse blocks.
+    spreading : bool
+        Include the spherical spreading 1 / (R1 R2).
+    occlusion : None, array (n_rx, n_pulses, n_scatterers) or callable
+        Factor per path (1 = seen, 0 = hidden); a callable ``occlusion(pulses: slice)`` returns
+        the block (n_rx, len(pulses), n_scatterers), so that memory stays bounded. Mesh targets
+        multiply it by their own path weights (hull visibility by Embree ray casting and the
+        facets' angular law, :mod:`clsas.simulate.occlusion`).
+    hull_occlusion : bool
+        Cast rays for the hull occlusion of mesh targets (False keeps only back-facing
+        darkness and the angular law).
+    max_bytes : int
+        Largest echo cube allowed (complex64); larger requests are refused before allocation.
+    chunk_bytes : int
+        Working memory per pulse block.
+
+    Returns
+    -------
+    EchoData, raw (not range-compressed), complex64 (n_rx, n_pulses, n_samples). The recording
+    window of receiver h starts at ``t0[h]`` (from the geometry: earliest echo minus T/2, to
+    the latest plus T/2, unless ``Scenario.recording`` gives it); its samples beyond its own
+    window length (``provenance["n_valid"]``) are zero.
+    """
+    if not isinstance(scenario, Scenario):
+        raise TypeError(f"scenario must be a Scenario, got {type(scenario).__name__}")
+    name = _backend.resolve(backend)
+    double = _backend.check_precision(precision)
+    if snr_db is not None and not np.isfinite(snr_db):
+        raise ValueError(f"snr_db must be a finite number of dB or None, got {snr_db}")
+    if int(max_bytes) <= 0 or int(chunk_bytes) <= 0:
+        raise ValueError("max_bytes and chunk_bytes must be positive numbers of bytes")
+    if scenario.recording is not None:
+        _, n_valid = scenario.recording.for_receivers(scenario.n_receivers)
+        check_cube_size(scenario.n_receivers, scenario.eta.size, int(np.max(n_valid)), max_bytes,
+                        "given by Scenario.recording")
+    out = _synthesize(scenario, name, double, stop_and_go, progress, spreading, occlusion, int(max_bytes),
+                      int(chunk_bytes), hull_occlusion, dtype=np.complex64)
+    data = out["data"]
+    if snr_db is not None:
+        add_noise(data, float(snr_db), seed, out["n_valid"])
+    rx_tau, rx_pos = out["nodes"]
+    n_rx = scenario.n_receivers
+    return EchoData(
+        data=data, eta=scenario.eta, t0=out["t0"], fs=scenario.waveform.fs,
+        tx_pos=scenario.tx_position(scenario.eta), rx_pos=rx_pos, rx_tau=np.tile(rx_tau, (n_rx, 1)),
+        waveform=scenario.waveform, medium=scenario.medium, receivers=scenario.receiver_names, compressed=False,
+        provenance={"algorithm": "clsas.simulate", "backend": name, "precision": precision,
+                    "stop_and_go": bool(stop_and_go), "spreading": bool(spreading), "snr_db": snr_db,
+                    "seed": seed if seed is None or isinstance(seed, int) else str(seed),
+                    "n_scatterers": out["n_scatterers"], "occlusion": occlusion is not None,
+                    "hull_occlusion": bool(hull_occlusion and has_meshes(scenario)),
+                    "window": out["origin"], "n_valid": out["n_valid"].tolist(),
+                    "rx_node_error_m": out["node_error_m"]},
+    )
