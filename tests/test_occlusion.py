@@ -55,24 +55,25 @@ def test_embree_equals_moller_trumbore(seed):
     np.testing.assert_array_equal(RayCaster(mesh, "reference").occluded(origins, d, tfar)[~grazing], inner[~grazing])
 
 
+def seen_from(caster, target, point):
+    """facet_visibility of every facet of ``target`` towards ``point`` (rays from 1e-5 m off the facets)."""
+    normals = target.mesh.face_normals
+    start = target.mesh.triangles_center + 1e-5 * normals
+    return facet_visibility(caster, start, normals, np.asarray(point, dtype=float) - start)
+
+
 def test_sphere_from_far_is_half_lit():
     target = MeshTarget(sphere(1.0, 3))
-    caster = RayCaster(target.mesh)
-    far = np.broadcast_to([800.0, 300.0, -200.0], target.mesh.triangles_center.shape)
-    lit, _ = facet_visibility(caster, target.mesh.triangles_center, target.mesh.face_normals, far, 1e-5)
+    lit = seen_from(RayCaster(target.mesh), target, [800.0, 300.0, -200.0])
     assert abs(lit.mean() - 0.5) < 0.02
-    reference, _ = facet_visibility(RayCaster(target.mesh, "reference"), target.mesh.triangles_center,
-                                    target.mesh.face_normals, far, 1e-5)
-    np.testing.assert_array_equal(lit, reference)
+    np.testing.assert_array_equal(lit, seen_from(RayCaster(target.mesh, "reference"), target, [800.0, 300.0, -200.0]))
 
 
 def test_box_behind_larger_box_is_shadowed():
     wall, small = box((1.0, 10.0, 10.0)), box((1.0, 1.0, 1.0))
     small.apply_translation([-5.0, 0.0, 0.0])
     target = MeshTarget(trimesh.util.concatenate([wall, small]))
-    centres, normals = target.mesh.triangles_center, target.mesh.face_normals
-    lit, _ = facet_visibility(RayCaster(target.mesh), centres, normals, np.broadcast_to([200.0, 0, 0], centres.shape),
-                              1e-5)
+    lit = seen_from(RayCaster(target.mesh), target, [200.0, 0.0, 0.0])
     assert not lit[12:].any()  # the small box: all dark
     assert lit[:12].sum() == 2  # the wall's face towards the source (two triangles)
 

@@ -87,9 +87,10 @@ def _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velo
 
 
 def pixel_delays(echo: EchoData, h: int, pulses: np.ndarray, pixels: np.ndarray, velocity: np.ndarray,
-                 stop_and_go: bool) -> np.ndarray:
+                 stop_and_go: bool) -> tuple[np.ndarray, np.ndarray]:
     """Exact two-way delays (len(pulses), M) from the pulses' transmitters to the M pixels and back
-    to receiver h (float64 fixed point, :mod:`clsas.simulate.geometry`)."""
+    to receiver h (float64 fixed point, :mod:`clsas.simulate.geometry`), and where the pulses meet
+    the pixels (len(pulses), M, 3)."""
     c = echo.medium.sound_speed
     tol = geometry.iteration_tolerance(echo.waveform.f0)
     eta = echo.eta[pulses]
@@ -100,18 +101,13 @@ def pixel_delays(echo: EchoData, h: int, pulses: np.ndarray, pixels: np.ndarray,
         return echo.rx_position(h, t - eta.reshape((-1,) + (1,) * (t.ndim - 1)), pulses=pulses)
 
     t2, _ = geometry.incoming(receiver, eta, t1, q, c, tol, stop_and_go)
-    return t1 + t2
+    return t1 + t2, q
 
 
-def _aperture_keep(echo, pulses, pixels, velocity, half_sin, stop_and_go):
-    """(P, M) mask: the pixel (where the pulse meets it) lies within the integration angle,
-    |sin theta| <= half_sin, theta the angle of transmitter -> pixel off broadside (the x-z
-    plane; y is the nominal heading)."""
-    eta = echo.eta[pulses]
-    c = echo.medium.sound_speed
-    targets = Scatterers(pixels, np.broadcast_to(velocity, pixels.shape), np.ones(pixels.shape[0], complex))
-    _, q = geometry.outgoing(echo.tx_pos[pulses], eta, targets, c, geometry.iteration_tolerance(echo.waveform.f0),
-                             stop_and_go)
+def _aperture_keep(echo, pulses, q, half_sin):
+    """(P, M) mask: the pixel, at ``q`` where the pulse meets it, lies within the integration
+    angle, |sin theta| <= half_sin, theta the angle of transmitter -> pixel off broadside (the
+    x-z plane; y is the nominal heading)."""
     d = q - echo.tx_pos[pulses][:, None, :]
     return np.abs(d[..., 1] / np.linalg.norm(d, axis=-1)) <= half_sin
 
@@ -155,10 +151,10 @@ def backproject_reference(echo, grid, receivers, interp, upsample, aperture, vel
             for s in range(0, echo.n_pulses, block)]
     for h, pulses in tqdm(jobs, desc="back-projection (numpy)", disable=not progress):
         records = upsample_records(echo.data[h, pulses], factor).astype(np.complex128)
-        tau = pixel_delays(echo, h, pulses, pixels, velocity, stop_and_go)
+        tau, q = pixel_delays(echo, h, pulses, pixels, velocity, stop_and_go)
         value = _sample(records, (tau - echo.t0[h]) * fs, interp) * np.exp(2j * np.pi * f0 * tau)
         if aperture is not None:
-            value *= _aperture_keep(echo, pulses, pixels, velocity, np.sin(aperture / 2), stop_and_go)
+            value *= _aperture_keep(echo, pulses, q, np.sin(aperture / 2))
         image += value.sum(axis=0)
     return image
 

@@ -98,37 +98,30 @@ def _unit(d: np.ndarray) -> np.ndarray:
     return d / np.sqrt(_dot(d, d))[:, None]
 
 
-def _cast(caster: "RayCaster | None", start: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Unobstructed segments start -> start + d (K, 3): bool (K,) (all True without a caster)."""
-    if caster is None or start.shape[0] == 0:
-        return np.ones(start.shape[0], dtype=bool)
-    dist = np.sqrt(_dot(d, d))
-    return ~caster.occluded(start, d / dist[:, None], dist)
+def facet_visibility(caster: "RayCaster | None", start: np.ndarray, normal: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Facets (K of them) that face a point and see it unobstructed: bool (K,).
 
-
-def facet_visibility(caster: "RayCaster | None", facet_body: np.ndarray, normal_body: np.ndarray,
-                     points_body: np.ndarray, offset: float, need: np.ndarray | None = None):
-    """Which facets face ``points_body`` (..., N, 3) and see them unobstructed.
-
-    Returns (visible bool (..., N), unit directions facet -> point (..., N, 3), zero where the
-    facet does not face the point). Rays start ``offset`` (m) off the facet along its normal and
-    are cast only for facing facets where ``need`` (bool (..., N)) holds; ``caster=None`` checks
-    facing only.
+    ``start`` (K, 3) are the ray origins (each facet's centroid moved a little along its normal),
+    ``normal`` (K, 3) the facets' unit normals, ``d`` (K, 3) the vectors from ``start`` to the
+    point. Rays are cast only for facing facets; ``caster=None`` checks facing only.
     """
-    start = facet_body + offset * normal_body
-    d = points_body - start
-    visible = _dot(d, normal_body) > 0
-    if need is not None:
-        visible &= need
-    idx = np.nonzero(visible)
-    d_idx = d[idx]
-    dist = np.sqrt(_dot(d_idx, d_idx))
-    unit_idx = d_idx / dist[:, None]
-    unit = np.zeros_like(d)
-    unit[idx] = unit_idx
-    if caster is not None and dist.size:
-        visible[idx] = ~caster.occluded(start[idx[-1]], unit_idx, dist)
-    return visible, unit
+    visible = _dot(d, normal) > 0
+    if caster is not None and visible.any():
+        dv = d[visible]
+        dist = np.sqrt(_dot(dv, dv))
+        visible[visible] = ~caster.occluded(start[visible], dv / dist[:, None], dist)
+    return visible
+
+
+class _Facets:
+    """A mesh target's facets in its body frame, float32: centroids, normals and ray origins
+    (centroids moved 1e-5 of the hull's size along the normal, so that no facet shadows itself)."""
+
+    def __init__(self, target: MeshTarget):
+        self.centre = target.mesh.triangles_center.astype(np.float32)
+        self.normal = target.mesh.face_normals.astype(np.float32)
+        offset = 1e-5 * float(np.linalg.norm(np.ptp(target.mesh.vertices, axis=0)))
+        self.start = self.centre + np.float32(offset) * self.normal
 
 
 class PathWeights:
@@ -143,32 +136,39 @@ class PathWeights:
                  pulses_per_call: int = 4):
         self.scenario, self.stop_and_go, self.hull_occlusion = scenario, stop_and_go, hull_occlusion
         self.pulses_per_call = max(1, int(pulses_per_call))
-        self.parts = []  # (first scatterer index, count, target or None, caster)
+        self.parts = []  # (first scatterer index, count, target or None, caster, facets or None)
         start = 0
         for target in scenario.targets:
-            n = target.scatterers().count
-            caster = RayCaster(target.mesh, method) if isinstance(target, MeshTarget) and hull_occlusion else None
-            self.parts.append((start, n, target if isinstance(target, MeshTarget) else None, caster))
+            mesh = isinstance(target, MeshTarget)
+            n = target.n_facets if mesh else target.scatterers().count
+            caster = RayCaster(target.mesh, method) if mesh and hull_occlusion else None
+            self.parts.append((start, n, target if mesh else None, caster, _Facets(target) if mesh else None))
             start += n
         self.n_scatterers = start
-
-    def _receiver_at_reception(self, h: int, eta, t1, q, c, tol):
-        """Receiver h where the echo of each facet arrives (P, N, 3): in closed form
-        (:func:`geometry.meet_time`) when the receiver moves uniformly (a sonobuoy, or a platform
-        without motion errors), else by the fixed point of :func:`geometry.incoming`."""
-        sc = self.scenario
-        if self.stop_and_go or (h < sc.array.n_receivers and has_motion_errors(sc.platform)):
-            return geometry.incoming(lambda t: sc.receiver_position(h, t), eta, t1, q, c, tol, self.stop_and_go)[1]
-        r0 = sc.receiver_position(h, eta)  # (P, 3)
-        w = sc.receiver_position(h, eta + 1.0) - r0  # velocity over one second: uniform motion
-        r_t1 = r0[:, None, :] + w[:, None, :] * t1[..., None]
-        t2 = geometry.meet_time(r_t1 - q, w[:, None, :], c)
-        return r_t1 + w[:, None, :] * t2[..., None]
 
     def _uniform_motion(self) -> bool:
         return not self.stop_and_go and not (self.scenario.array.n_receivers and has_motion_errors(self.scenario.platform))
 
-    def _mesh_weights_uniform(self, target: MeshTarget, caster, eta: np.ndarray) -> np.ndarray:
+    def _weights(self, target: MeshTarget, caster, facets: _Facets, d_tx: np.ndarray, receiver_d) -> np.ndarray:
+        """Path weights (H, P, N) from the vectors facet -> transmitter ``d_tx`` (P * N, 3, body
+        frame) and ``receiver_d(h, flat)``, the vectors facet -> receiver h (K, 3) of the paths
+        ``flat`` (indices into P * N): lit x heard x the angular law. The receivers' legs are
+        asked for only where the transmitter lights the facet."""
+        n_facets = facets.start.shape[0]
+        flat = np.arange(d_tx.shape[0])
+        lit = facet_visibility(caster, facets.start[flat % n_facets], facets.normal[flat % n_facets], d_tx)
+        flat = flat[lit]
+        u_tx = _unit(d_tx[flat])
+        ni = flat % n_facets
+        out = np.zeros((self.scenario.n_receivers, d_tx.shape[0] // n_facets, n_facets))
+        for h in range(self.scenario.n_receivers):
+            d_rx = receiver_d(h, flat)
+            heard = facet_visibility(caster, facets.start[ni], facets.normal[ni], d_rx)
+            out[h].reshape(-1)[flat[heard]] = target.angular_gain(facets.normal[ni[heard]], u_tx[heard],
+                                                                  _unit(d_rx[heard]))
+        return out
+
+    def _mesh_weights_uniform(self, target: MeshTarget, caster, facets: _Facets, eta: np.ndarray) -> np.ndarray:
         """:meth:`_mesh_weights` when every receiver moves uniformly, computed in the body frame.
 
         With x_b = (x - position - v t) R (R body-to-world, v the target velocity), a point moving
@@ -176,68 +176,54 @@ class PathWeights:
         its scattering time eta + t1_n is tx_b(eta) - v_b t1_n, and receiver h at reception is
         r_b(eta) + (w_b - v_b) t1_n + w_b t2_n: broadcasts instead of a rotation per path. The legs
         are the closed forms of :func:`geometry.meet_time` (distances and dot products do not
-        change under the rotation). The receivers' legs are solved only for lit facets. Computed in
-        float32: these delays only place the hull and the receivers (an error of 1e-7 s moves them
-        by under a micrometre), and the rays are float32.
+        change under the rotation). Computed in float32: these delays only place the hull and the
+        receivers (an error of 1e-7 s moves them by under a micrometre), and the rays are float32.
         """
         sc = self.scenario
         f32 = np.float32
         c = float(sc.medium.sound_speed)
         rot = target.rotation
         v_b = (target.velocity @ rot).astype(f32)
-        facet_b, normal_b = target.mesh.triangles_center.astype(f32), target.mesh.face_normals.astype(f32)
-        offset = 1e-5 * float(np.linalg.norm(np.ptp(target.mesh.vertices, axis=0)))
-        start = facet_b + f32(offset) * normal_b
         tx0_b = target.to_body(sc.tx_position(eta), eta).astype(f32)  # (P, 3), the pose at emission
-        t1 = geometry.meet_time(facet_b[None] - tx0_b[:, None, :], v_b, c)  # (P, N)
-        d_tx = (tx0_b[:, None, :] - v_b * t1[..., None] - start).reshape(-1, 3)
-        flat = np.flatnonzero(_dot(d_tx, np.tile(normal_b, (eta.size, 1))) > 0)  # facing the transmitter
-        n_facets = facet_b.shape[0]
-        lit = _cast(caster, start[flat % n_facets], d_tx[flat])
-        flat = flat[lit]
-        pi, ni = np.divmod(flat, n_facets)
-        u_tx = _unit(d_tx[flat])
-        out = np.zeros((sc.n_receivers,) + t1.shape)
-        for h in range(sc.n_receivers):
+        t1 = geometry.meet_time(facets.centre[None] - tx0_b[:, None, :], v_b, c)  # (P, N)
+        d_tx = (tx0_b[:, None, :] - v_b * t1[..., None] - facets.start).reshape(-1, 3)
+        n_facets = facets.start.shape[0]
+
+        def receiver_d(h, flat):
+            pi, ni = np.divmod(flat, n_facets)
             r0 = sc.receiver_position(h, eta)
             w_b = ((sc.receiver_position(h, eta + 1.0) - r0) @ rot).astype(f32)[pi]  # uniform velocity
             r_t1 = target.to_body(r0, eta).astype(f32)[pi] + (w_b - v_b) * t1.reshape(-1)[flat][:, None]
-            t2 = geometry.meet_time(r_t1 - facet_b[ni], w_b, c)
-            d_rx = r_t1 + w_b * t2[:, None] - start[ni]
-            facing = _dot(d_rx, normal_b[ni]) > 0
-            heard = np.zeros(pi.size, dtype=bool)
-            heard[facing] = _cast(caster, start[ni[facing]], d_rx[facing])
-            gain = target.angular_gain(normal_b[ni[heard]], u_tx[heard], _unit(d_rx[heard]))
-            out[h].reshape(-1)[flat[heard]] = gain
-        return out
+            t2 = geometry.meet_time(r_t1 - facets.centre[ni], w_b, c)
+            return r_t1 + w_b * t2[:, None] - facets.start[ni]
 
-    def _mesh_weights(self, target: MeshTarget, caster, eta: np.ndarray) -> np.ndarray:
+        return self._weights(target, caster, facets, d_tx, receiver_d)
+
+    def _mesh_weights(self, target: MeshTarget, caster, facets: _Facets, eta: np.ndarray) -> np.ndarray:
+        """Weights (H, P, N) of a mesh target's paths for the pulses ``eta``: in general (stop-and-go,
+        motion errors) the positions are found in the world frame (fixed points for the receivers)
+        and moved into the body frame at each facet's scattering time."""
         if self._uniform_motion():
-            return self._mesh_weights_uniform(target, caster, eta)
+            return self._mesh_weights_uniform(target, caster, facets, eta)
         sc = self.scenario
         c = sc.medium.sound_speed
         tol = geometry.iteration_tolerance(sc.waveform.f0)
         tx = sc.tx_position(eta)
-        p0 = target.facets_world()[0]
-        q_emit = p0[None] + target.velocity * eta[:, None, None]
+        q_emit = target.facets_world()[0][None] + target.velocity * eta[:, None, None]
         if self.stop_and_go:
             t1, q = np.linalg.norm(q_emit - tx[:, None, :], axis=-1) / c, q_emit
         else:
             t1 = geometry.meet_time(q_emit - tx[:, None, :], target.velocity, c)
             q = q_emit + target.velocity * t1[..., None]
         t_scatter = eta[:, None] + (0.0 if self.stop_and_go else t1)  # the hull's pose time
-        facet_b = target.mesh.triangles_center
-        normal_b = target.mesh.face_normals
-        offset = 1e-5 * float(np.linalg.norm(np.ptp(target.mesh.vertices, axis=0)))
-        tx_b = target.to_body(np.broadcast_to(tx[:, None, :], q.shape), np.broadcast_to(t_scatter, t1.shape))
-        lit, to_tx = facet_visibility(caster, facet_b, normal_b, tx_b, offset)
-        out = np.empty((sc.n_receivers,) + t1.shape)
-        for h in range(sc.n_receivers):
-            r = self._receiver_at_reception(h, eta, t1, q, c, tol)
-            r_b = target.to_body(r, np.broadcast_to(t_scatter, t1.shape))
-            heard, to_rx = facet_visibility(caster, facet_b, normal_b, r_b, offset, need=lit)
-            out[h] = (lit & heard) * target.angular_gain(normal_b, to_tx, to_rx)
-        return out
+        tx_b = target.to_body(np.broadcast_to(tx[:, None, :], q.shape), t_scatter)
+        n_facets = facets.start.shape[0]
+
+        def receiver_d(h, flat):
+            r = geometry.incoming(lambda t: sc.receiver_position(h, t), eta, t1, q, c, tol, self.stop_and_go)[1]
+            return target.to_body(r, t_scatter).reshape(-1, 3)[flat] - facets.start[flat % n_facets]
+
+        return self._weights(target, caster, facets, (tx_b - facets.start).reshape(-1, 3), receiver_d)
 
     def __call__(self, pulses: slice) -> np.ndarray:
         """Weights (n_rx, len(pulses), n_scatterers); pulse groups run on two threads (Embree's
@@ -249,9 +235,9 @@ class PathWeights:
 
         def fill(s):
             eta = eta_all[s:s + self.pulses_per_call]
-            for first, n, target, caster in self.parts:
+            for first, n, target, caster, facets in self.parts:
                 if target is not None:
-                    out[:, s:s + eta.size, first:first + n] = self._mesh_weights(target, caster, eta)
+                    out[:, s:s + eta.size, first:first + n] = self._mesh_weights(target, caster, facets, eta)
 
         with ThreadPoolExecutor(max_workers=THREADS) as pool:
             list(pool.map(fill, range(0, eta_all.size, self.pulses_per_call)))
@@ -283,10 +269,11 @@ def scan_image(scenario, r, y, eta: float = 0.0, receiver: int = 0):
     if not has_meshes(scenario):
         raise ValueError("scan_image: the scenario has no mesh target")
     one = scenario.replace(schedule=PulseSchedule(prf=1.0, n_pulses=1, start=float(eta)))
-    weights = PathWeights(one)(slice(None))[receiver, 0]  # (n_scatterers,)
+    path_weights = PathWeights(one)
+    weights = path_weights(slice(None))[receiver, 0]  # (n_scatterers,)
     image = np.zeros((y.size, r.size))
     tx = one.receiver_position(receiver, np.array([float(eta)]))[0]
-    for first, n, target, _ in PathWeights(one, hull_occlusion=False).parts:
+    for first, n, target, _, _ in path_weights.parts:
         if target is None:
             continue
         centres = target.facets_world()[0] + target.velocity * eta
