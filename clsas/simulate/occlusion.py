@@ -99,17 +99,18 @@ def _unit(d: np.ndarray) -> np.ndarray:
 
 
 def facet_visibility(caster: "RayCaster | None", start: np.ndarray, normal: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Facets (K of them) that face a point and see it unobstructed: bool (K,).
+    """Facets that face a point and see it unobstructed: bool ``d.shape[:-1]``.
 
-    ``start`` (K, 3) are the ray origins (each facet's centroid moved a little along its normal),
-    ``normal`` (K, 3) the facets' unit normals, ``d`` (K, 3) the vectors from ``start`` to the
-    point. Rays are cast only for facing facets; ``caster=None`` checks facing only.
+    ``start`` are the ray origins (each facet's centroid moved a little along its normal),
+    ``normal`` the facets' unit normals (both broadcast against ``d``), ``d`` (..., 3) the vectors
+    from ``start`` to the point. Rays are cast only for facing facets; ``caster=None`` checks
+    facing only.
     """
     visible = _dot(d, normal) > 0
     if caster is not None and visible.any():
         dv = d[visible]
         dist = np.sqrt(_dot(dv, dv))
-        visible[visible] = ~caster.occluded(start[visible], dv / dist[:, None], dist)
+        visible[visible] = ~caster.occluded(np.broadcast_to(start, d.shape)[visible], dv / dist[:, None], dist)
     return visible
 
 
@@ -150,17 +151,15 @@ class PathWeights:
         return not self.stop_and_go and not (self.scenario.array.n_receivers and has_motion_errors(self.scenario.platform))
 
     def _weights(self, target: MeshTarget, caster, facets: _Facets, d_tx: np.ndarray, receiver_d) -> np.ndarray:
-        """Path weights (H, P, N) from the vectors facet -> transmitter ``d_tx`` (P * N, 3, body
+        """Path weights (H, P, N) from the vectors facet -> transmitter ``d_tx`` (P, N, 3, body
         frame) and ``receiver_d(h, flat)``, the vectors facet -> receiver h (K, 3) of the paths
         ``flat`` (indices into P * N): lit x heard x the angular law. The receivers' legs are
         asked for only where the transmitter lights the facet."""
         n_facets = facets.start.shape[0]
-        flat = np.arange(d_tx.shape[0])
-        lit = facet_visibility(caster, facets.start[flat % n_facets], facets.normal[flat % n_facets], d_tx)
-        flat = flat[lit]
-        u_tx = _unit(d_tx[flat])
+        flat = np.flatnonzero(facet_visibility(caster, facets.start, facets.normal, d_tx))
+        u_tx = _unit(d_tx.reshape(-1, 3)[flat])
         ni = flat % n_facets
-        out = np.zeros((self.scenario.n_receivers, d_tx.shape[0] // n_facets, n_facets))
+        out = np.zeros((self.scenario.n_receivers,) + d_tx.shape[:2])
         for h in range(self.scenario.n_receivers):
             d_rx = receiver_d(h, flat)
             heard = facet_visibility(caster, facets.start[ni], facets.normal[ni], d_rx)
@@ -186,7 +185,7 @@ class PathWeights:
         v_b = (target.velocity @ rot).astype(f32)
         tx0_b = target.to_body(sc.tx_position(eta), eta).astype(f32)  # (P, 3), the pose at emission
         t1 = geometry.meet_time(facets.centre[None] - tx0_b[:, None, :], v_b, c)  # (P, N)
-        d_tx = (tx0_b[:, None, :] - v_b * t1[..., None] - facets.start).reshape(-1, 3)
+        d_tx = tx0_b[:, None, :] - v_b * t1[..., None] - facets.start
         n_facets = facets.start.shape[0]
 
         def receiver_d(h, flat):
@@ -223,7 +222,7 @@ class PathWeights:
             r = geometry.incoming(lambda t: sc.receiver_position(h, t), eta, t1, q, c, tol, self.stop_and_go)[1]
             return target.to_body(r, t_scatter).reshape(-1, 3)[flat] - facets.start[flat % n_facets]
 
-        return self._weights(target, caster, facets, (tx_b - facets.start).reshape(-1, 3), receiver_d)
+        return self._weights(target, caster, facets, tx_b - facets.start, receiver_d)
 
     def __call__(self, pulses: slice) -> np.ndarray:
         """Weights (n_rx, len(pulses), n_scatterers); pulse groups run on two threads (Embree's
