@@ -113,30 +113,37 @@ def _check(spectrum: np.ndarray, ku: np.ndarray, axes: StoltAxes) -> None:
         raise ValueError(f"axes need n_out >= 1 and positive df, dkx, got {axes}")
 
 
-def stolt_reference(spectrum, ku, axes: StoltAxes, interp: str = "sinc8", window: str = "kaiser",
-                    oversampling: float = 1.25) -> np.ndarray:
-    """The float64 NumPy reference: (n_ku, n_out) complex128 (see the module docstring)."""
-    idx_all = axes.source_index(ku)
-    out = np.zeros((spectrum.shape[0], axes.n_out), dtype=np.complex128)
+def resample_rows(src: np.ndarray, idx: np.ndarray, interp: str = "sinc8", window: str = "kaiser",
+                  oversampling: float = 1.25) -> np.ndarray:
+    """Rows of ``src`` (n_rows, n) read at fractional columns ``idx`` (n_rows, m), float64:
+    the interpolator of this module (linear, or windowed sinc from the nearest tap-table row),
+    zero where a source sample is missing. The NumPy definition the Stolt kernel is held to;
+    the other imagers use it for their range interpolations (RCMC, micro-range shifts)."""
     taps = INTERPOLATORS[interp]
     table = None if interp == "linear" else tap_table(taps, window, oversampling)
-    n = axes.n_src
-    for r0 in range(0, spectrum.shape[0], ROW_BLOCK):
-        src = spectrum[r0:r0 + ROW_BLOCK].astype(np.complex128)
-        idx = idx_all[r0:r0 + ROW_BLOCK]
-        i = np.floor(idx).astype(np.int64)
-        w = idx - i
-        rows = np.arange(src.shape[0])[:, None]
+    n = src.shape[1]
+    out = np.zeros(idx.shape, dtype=np.complex128)
+    for r0 in range(0, src.shape[0], ROW_BLOCK):
+        block = src[r0:r0 + ROW_BLOCK].astype(np.complex128)
+        i = np.floor(idx[r0:r0 + ROW_BLOCK]).astype(np.int64)
+        w = idx[r0:r0 + ROW_BLOCK] - i
+        rows = np.arange(block.shape[0])[:, None]
         first = i - (taps // 2 - 1) if table is not None else i
         ok = (first >= 0) & (first <= n - taps)
         start = np.where(ok, first, 0)
         if table is None:
-            value = (1 - w) * src[rows, start] + w * src[rows, start + 1]
+            value = (1 - w) * block[rows, start] + w * block[rows, start + 1]
         else:
             weights = table[np.floor(w * (TAP_ROWS - 1) + 0.5).astype(np.int64)]
-            value = sum(weights[..., t] * src[rows, start + t] for t in range(taps))
+            value = sum(weights[..., t] * block[rows, start + t] for t in range(taps))
         out[r0:r0 + ROW_BLOCK] = np.where(ok, value, 0)
     return out
+
+
+def stolt_reference(spectrum, ku, axes: StoltAxes, interp: str = "sinc8", window: str = "kaiser",
+                    oversampling: float = 1.25) -> np.ndarray:
+    """The float64 NumPy reference: (n_ku, n_out) complex128 (see the module docstring)."""
+    return resample_rows(spectrum, axes.source_index(ku), interp, window, oversampling)
 
 
 def stolt_opencl(spectrum, ku, axes: StoltAxes, interp: str = "sinc8", window: str = "kaiser",

@@ -1,0 +1,130 @@
+"""Multireceiver to monostatic: the phase-centre approximation with the bistatic deformation compensated.
+
+Huang & Yang 2022, eqs. (3)-(4): the two-way path of receiver i, d_i ahead of the transmitter,
+to a target at closest range r is, to second order,
+
+    R_i(t; r) ~ 2 sqrt(r^2 + (v t + v r / c + d_i / 2)^2) + (2 v r / c + d_i)^2 / (4 r),
+
+a monostatic path seen from the phase centre u = v t + d_i / 2 (plus the non-stop-and-go
+shift v r / c, common to all receivers) and a path excess e_i(r) = (2 v r / c + d_i)^2 / (4 r)
+(Heremans 2009 eq. 49's sigma^2 / (4 r) at broadside, with the motion during the echo's travel
+added). Its phase (eq. 12, first term) and its delay (second term) are the bistatic
+deformation; :func:`compensate_bistatic` removes both on the range-compressed record
+(eqs. 16-17): each sample at fast time tau (range r = c tau / 2) is read at tau + e_i(r) / c
+(a windowed-sinc interpolation: the micro-range migration is range-variant) and multiplied by
+exp(+j 2 pi f0 e_i(r) / c) (eq. 16; the printed exponent lacks its j). The third term of
+eq. (12), the Doppler phase pi f_t d_i / v, is the slow-time offset of receiver i's phase
+centre, d_i / (2 v): instead of the Doppler-domain filter of eq. (18), :func:`pca_record`
+places every receiver's rows at their phase centres u_p + d_i / 2 and interleaves the
+receivers into one uniformly sampled monostatic record (Wu et al. 2018 eq. 27), which
+omega-k, range-Doppler and chirp scaling image.
+
+What remains approximate: e_i(r) is evaluated at broadside (Heremans eq. 49 has cos^2 of the
+bearing: within a beam of +-lambda / D the excess is off by at most (lambda / D)^2 of itself)
+and at the range of the sample, and fourth-order terms (sigma^4 / (64 r^3)) are dropped.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..data import EchoData
+from .stolt import resample_rows
+from .track import STRAIGHTNESS, LineRecord, check_straight_track
+
+
+def receiver_index(echo: EchoData, receiver) -> int:
+    """Index of ``receiver`` (an index or a name) in ``echo``, or a ValueError."""
+    if isinstance(receiver, str):
+        if receiver not in echo.receivers:
+            raise ValueError(f"receiver: unknown name {receiver!r}; the echo has {echo.receivers}")
+        return echo.receivers.index(receiver)
+    if isinstance(receiver, bool) or not isinstance(receiver, (int, np.integer)) or not 0 <= receiver < echo.n_rx:
+        raise ValueError(f"receiver must be an index in [0, {echo.n_rx - 1}] or a name in {echo.receivers}, "
+                         f"got {receiver!r}")
+    return int(receiver)
+
+
+def path_excess(r, d: float, speed: float, c: float, nonstop: bool = True):
+    """e(r) = (2 v r / c + d)^2 / (4 r), m (Huang & Yang 2022 eq. 4; without the 2 v r / c term
+    for stop-and-go echoes)."""
+    r = np.asarray(r, dtype=np.float64)
+    lead = 2 * speed * r / c if nonstop else 0.0
+    return (lead + d) ** 2 / (4 * r)
+
+
+def compensate_bistatic(data, t0: float, fs: float, d: float, speed: float, waveform, medium,
+                        t0_out: float | None = None, nonstop: bool = True) -> np.ndarray:
+    """Remove the bistatic deformation (Huang & Yang eqs. 16-17) from the compressed records
+    ``data`` (n_pulses, n) of a receiver d metres ahead of the transmitter, sampled from fast
+    time ``t0`` at ``fs``; the output is sampled from ``t0_out`` (default ``t0``) on the same
+    number of samples. complex64 (n_pulses, n)."""
+    c = medium.sound_speed
+    n = data.shape[1]
+    t_out = (t0 if t0_out is None else t0_out) + np.arange(n) / fs
+    excess = path_excess(np.maximum(c * t_out / 2, 1e-3), d, speed, c, nonstop)
+    idx = np.broadcast_to((t_out + excess / c - t0) * fs, data.shape)
+    phase = np.exp(2j * np.pi * waveform.f0 * excess / c)
+    oversampling = fs / waveform.bandwidth
+    return (resample_rows(data, idx, "sinc8", oversampling=max(oversampling, 1.01)) * phase).astype(np.complex64)
+
+
+def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and_go: bool | None = None) -> LineRecord:
+    """Interleave the receivers of a line array into one monostatic-equivalent record.
+
+    Parameters
+    ----------
+    echo : EchoData, range-compressed, from a straight uniformly sampled track, receivers on the
+        transmitter's track line (along-track offsets d_i only).
+    receivers : indices or names (default all); their phase centres u_p + d_i / 2 over all
+        pulses must interleave into a uniform grid (e.g. Huang & Yang's 32 contiguous receivers
+        with v PRI = M d / 2); overlapping or gapped phase centres are refused.
+    compensate : apply :func:`compensate_bistatic` (False shows the uncompensated PCA error).
+    stop_and_go : how the echoes were made (default ``echo.provenance["stop_and_go"]``).
+
+    Returns
+    -------
+    LineRecord with n_pulses x len(receivers) rows.
+    """
+    if not isinstance(echo, EchoData):
+        raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
+    if not echo.compressed:
+        raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first")
+    chosen = list(range(echo.n_rx)) if receivers is None else [receiver_index(echo, r) for r in np.atleast_1d(receivers)]
+    if not chosen:
+        raise ValueError("receivers is empty: select at least one receiver")
+    u0, du, x, z = check_straight_track(echo)
+    c = echo.medium.sound_speed
+    tol = STRAIGHTNESS * c / echo.waveform.f0
+    offsets = []
+    for h in chosen:
+        off = echo.rx_position(h, np.zeros((echo.n_pulses, 1)))[:, 0] - echo.tx_pos
+        if np.ptp(off, axis=0).max() > tol or np.abs(off[:, [0, 2]]).max() > tol:
+            raise ValueError(f"receiver {echo.receivers[h]!r} must sit on the transmitter's track line at a fixed "
+                             f"along-track offset (found offsets {off[0]} m varying by {np.ptp(off, axis=0).max():.3g} m)")
+        offsets.append(float(np.mean(off[:, 1])))
+    nonstop = not (echo.provenance.get("stop_and_go", False) if stop_and_go is None else stop_and_go)
+    speed = du * (echo.n_pulses - 1) / (echo.eta[-1] - echo.eta[0])
+    centres = (u0 + du * np.arange(echo.n_pulses))[:, None] + np.asarray(offsets)[None, :] / 2
+    order = np.argsort(centres, axis=None, kind="stable")
+    u = centres.ravel()[order]
+    step = (u[-1] - u[0]) / (u.size - 1)
+    if step <= 0 or np.max(np.abs(u - (u[0] + step * np.arange(u.size)))) > tol:
+        raise ValueError("the receivers' phase centres u_p + d_i / 2 do not interleave into a uniform grid "
+                         f"(mean spacing {step:.4g} m, largest deviation "
+                         f"{np.max(np.abs(u - (u[0] + step * np.arange(u.size)))):.3g} m > {tol:.3g} m): the "
+                         "along-track sampling is not uniform; use clsas.backproject")
+    t0 = float(np.min(echo.t0[chosen]))
+    rows = np.empty((echo.n_pulses, len(chosen), echo.n_samples), dtype=np.complex64)
+    for j, (h, d) in enumerate(zip(chosen, offsets)):
+        if compensate:
+            rows[:, j] = compensate_bistatic(echo.data[h], echo.t0[h], echo.fs, d, speed, echo.waveform, echo.medium,
+                                             t0_out=t0, nonstop=nonstop)
+        else:
+            rows[:, j] = compensate_bistatic(echo.data[h], echo.t0[h], echo.fs, 0.0, 0.0, echo.waveform, echo.medium,
+                                             t0_out=t0, nonstop=False)
+    data = rows.reshape(-1, echo.n_samples)[order]
+    return LineRecord(data=data, u0=float(u[0]), du=float(step), t0=t0, fs=echo.fs, speed=speed, track=(x, z),
+                      waveform=echo.waveform, medium=echo.medium, nonstop=nonstop,
+                      provenance={"from": "pca_record", "receivers": [echo.receivers[h] for h in chosen],
+                                  "compensated": bool(compensate), "echo": dict(echo.provenance)})

@@ -1,0 +1,143 @@
+"""The wavenumber (omega-k) imager: Heremans, Dupont & Acheroy 2009, section 4, eqs. (40)-(47).
+
+On a :class:`~clsas.image.track.LineRecord` s(tau, u) (range-compressed, so the P_b^* of
+eq. 42 is already applied), with k = 2 pi (f0 + f_b) / c:
+
+1. 2-D FFT (scipy.fft, ``workers`` threads): S(f_b, k_u). The range FFT starts at the record's
+   fast time t0, so exp(-j 2 pi f_b t0) restores absolute delays; a target at (r, y) then has
+   S ~ sqrt(pi r / (i k)) exp(-i sqrt(4k^2 - k_u^2) r - i k_u y) (eq. 40).
+2. Reference-range matched filter (eq. 42): sqrt(k / k0) exp(+i sqrt(4k^2 - k_u^2) r0), r0 the
+   middle of the recorded ranges; evanescent components (4k^2 < k_u^2) are dropped. (Eq. 42's
+   "- 2k" in the exponent belongs to data whose time origin is 2 r0 / c; with absolute times
+   it is not needed.)
+3. Stolt mapping (eq. 41, :mod:`clsas.image.stolt`) onto the uniform baseband
+   k_x' = sqrt(4k^2 - k_u^2) - 2 k0, spaced 4 pi df / c (one output column per input one).
+4. Extraction and weighting (eqs. 44-45): the rectangle |k_y| <= B_ky / 2 = 2 pi / D and
+   2 k_min - 2 k0 <= k_x' <= sqrt(4 k_max^2 - (2 pi / D)^2) - 2 k0, a 2-D window over it
+   (``window``: "none", "hamming", "taylor", "kaiser"; :func:`clsas.image.rangecomp.spectral_window`,
+   whose Hamming 0.54 + 0.46 cos is eq. 46's 0.5386 - 0.46164 cos to 0.2 %), and the
+   element-pattern deconvolution 1 / A(k_y) with A = sinc(L_tx k_y / 4 pi) sinc(L_rx k_y / 4 pi)
+   (the one-way pattern sinc(L sin(theta) / lambda) with sin(theta) = k_y / 2k, eq. 33, does
+   not depend on k). Without ``elements`` the whole sampled k_y band is kept, unweighted by
+   the pattern.
+5. Inverse FFT over k_x' (column j at r = r0 + (j - n/2) c / (2 fs)), the phase
+   exp(+i (k_x'_first + 2 k0)(r - r0)) that makes a focused point's phase zero (as
+   back-projection's), the non-stop-and-go along-track shift (Huang & Yang 2022 eq. 25,
+   :func:`clsas.image.track.nonstop_shift`), and the inverse FFT over k_y.
+
+Resolution (eq. 47): delta x = alpha_w c / (2 B), delta y = alpha_w D / 2, alpha_w = 0.886 for
+no window and 1.30 for Hamming.
+
+What stays approximate with non-stop-and-go data: the receiver's motion during the echo is
+taken as the constant shift v r / c at the target's range and the path excess of
+:func:`clsas.image.multireceiver.path_excess` at the sample's range (second order in v / c).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.fft
+
+from .rangecomp import WINDOWS, spectral_window
+from .stolt import StoltAxes, check_options, stolt
+from .track import LineRecord, image_of, line_record, nonstop_shift
+
+
+def as_record(data, receiver=0) -> LineRecord:
+    """A LineRecord as is, or the monostatic record of an EchoData (:func:`clsas.image.track.line_record`)."""
+    from ..data import EchoData
+
+    if isinstance(data, LineRecord):
+        return data
+    if isinstance(data, EchoData):
+        return line_record(data, receiver)
+    raise TypeError(f"expected a LineRecord or a monostatic EchoData, got {type(data).__name__}")
+
+
+def check_elements(elements, rec: LineRecord):
+    """(L_tx, L_rx) in metres or None; the along-track sampling must resolve the extracted band."""
+    if elements is None:
+        return None
+    lengths = np.broadcast_to(np.asarray(elements, dtype=np.float64), (2,))
+    if not np.all(np.isfinite(lengths)) or np.any(lengths <= 0):
+        raise ValueError(f"elements must be the positive along-track lengths (L_tx, L_rx) in m, got {elements!r}")
+    if 2 * np.pi / lengths.max() > np.pi / rec.du * (1 + 1e-9):
+        raise ValueError(f"elements {tuple(lengths)}: the band |k_y| <= 2 pi / D needs along-track samples at most "
+                         f"D / 2 = {lengths.max() / 2:.4g} m apart, the record has {rec.du:.4g} m")
+    return tuple(float(v) for v in lengths)
+
+
+def azimuth_weights(ku: np.ndarray, elements, window: str, **window_options) -> np.ndarray:
+    """rect(k_y / B_ky) W(k_y / B_ky) / A(k_y) per row (Heremans eq. 44); ones without elements
+    (then only the window over the sampled band)."""
+    if elements is None:
+        band = 2 * np.abs(ku).max() if ku.size > 1 else 1.0
+        return spectral_window(ku / band, window, **window_options)
+    d = max(elements)
+    pattern = np.sinc(elements[0] * ku / (4 * np.pi)) * np.sinc(elements[1] * ku / (4 * np.pi))
+    inside = np.abs(ku) <= 2 * np.pi / d
+    return np.where(inside, spectral_window(ku / (4 * np.pi / d), window, **window_options)
+                    / np.where(inside, pattern, 1.0), 0.0)
+
+
+def omega_k(data, receiver=0, window: str = "hamming", elements=None, interp: str = "sinc8",
+            tap_window: str = "kaiser", backend: str | None = None, depth: float | None = None,
+            workers: int | None = None, **window_options):
+    """Focus a straight-track strip-map record with the wavenumber algorithm (see the module docstring).
+
+    Parameters
+    ----------
+    data : LineRecord, or a range-compressed monostatic EchoData (then ``receiver`` picks the
+        receiver that sits with the transmitter).
+    window : spectral weighting over the extracted rectangle ("none", "hamming", "taylor", "kaiser").
+    elements : (L_tx, L_rx) along-track element lengths, m: the processed band 4 pi / max(L)
+        and the pattern deconvolution (eqs. 44-45). None keeps the whole sampled band.
+    interp, tap_window : the Stolt interpolator (:func:`clsas.image.stolt.stolt`).
+    backend : the Stolt kernel's backend; the FFTs run on the host (scipy.fft).
+    depth : the horizontal plane the image's pixel positions are placed on (default: the track's).
+    workers : scipy.fft threads (default: all cores).
+
+    Returns
+    -------
+    Image, dims ("y", "x"): along-track by across-track on the plane z = depth.
+    """
+    rec = as_record(data, receiver)
+    if window not in WINDOWS:
+        raise ValueError(f"window must be one of {WINDOWS}, got {window!r}")
+    check_options(interp, tap_window, 1.25)
+    elements = check_elements(elements, rec)
+    workers = -1 if workers is None else workers
+    c, f0, fs = rec.medium.sound_speed, rec.waveform.f0, rec.fs
+    bandwidth = rec.waveform.bandwidth
+    n_r = scipy.fft.next_fast_len(rec.n_samples)
+    n_ku = scipy.fft.next_fast_len(rec.n_u)
+    f = (np.arange(n_r) - n_r // 2) * fs / n_r
+    ku = 2 * np.pi * np.fft.fftfreq(n_ku, rec.du)
+    k0 = 2 * np.pi * f0 / c
+    k = 2 * np.pi * (f0 + f) / c
+    r0 = c * (rec.t0 + rec.n_samples / (2 * fs)) / 2
+
+    spec = scipy.fft.fftshift(scipy.fft.fft(rec.data, n=n_r, axis=1, workers=workers), axes=1)
+    spec = scipy.fft.fft(spec, n=n_ku, axis=0, workers=workers)
+    kx2 = 4 * k[None, :] ** 2 - ku[:, None] ** 2
+    kx = np.sqrt(np.maximum(kx2, 0.0))
+    spec *= np.where(kx2 > 0, np.sqrt(k / k0)[None, :] * np.exp(1j * (kx * r0 - 2 * np.pi * f[None, :] * rec.t0)), 0)
+
+    dkx = 4 * np.pi * fs / n_r / c
+    axes = StoltAxes(f_first=f[0], df=fs / n_r, n_src=n_r, kx_first=4 * np.pi * f[0] / c, dkx=dkx, n_out=n_r,
+                     f0=f0, c=c)
+    mapped = stolt(spec, ku, axes, interp, tap_window, oversampling=max(fs / bandwidth, 1.01), backend=backend)
+
+    ky_edge = 2 * np.pi / max(elements) if elements is not None else np.pi / rec.du
+    kx_lo = 2 * (2 * np.pi * (f0 - bandwidth / 2) / c) - 2 * k0
+    kx_hi = np.sqrt(4 * (2 * np.pi * (f0 + bandwidth / 2) / c) ** 2 - ky_edge ** 2) - 2 * k0
+    kxp = axes.kx_first + dkx * np.arange(n_r)
+    range_w = np.where((kxp >= kx_lo) & (kxp <= kx_hi),
+                       spectral_window((kxp - (kx_lo + kx_hi) / 2) / (kx_hi - kx_lo), window, **window_options), 0.0)
+    mapped *= azimuth_weights(ku, elements, window, **window_options)[:, None] * range_w[None, :]
+
+    ku_r = scipy.fft.fftshift(scipy.fft.ifft(mapped, axis=1, workers=workers), axes=1)
+    r = r0 + (np.arange(n_r) - n_r // 2) * c / (2 * fs)
+    ku_r *= np.exp(1j * (axes.kx_first + 2 * k0) * (r - r0))[None, :] * nonstop_shift(rec, ku, r)
+    return image_of(rec, ku_r, r, "omega_k", {"window": window, "elements": elements, "interp": interp,
+                                             "tap_window": tap_window, "backend": backend}, depth)

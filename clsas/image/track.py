@@ -1,0 +1,162 @@
+"""Straight-track, uniformly sampled monostatic records: what the frequency-domain imagers take.
+
+omega-k, range-Doppler and chirp scaling assume a monostatic sonar moving at constant speed
+along a straight line (y, the nominal heading) and sampling the aperture uniformly. A
+:class:`LineRecord` is such a record; :func:`line_record` makes one from a monostatic
+EchoData (after checking those assumptions, so that a track with motion errors is refused
+rather than imaged wrongly), and :func:`clsas.image.multireceiver.pca_record` makes one from a
+multireceiver EchoData.
+
+Non-stop-and-go: the receiver moves on while the echo travels, so a monostatic echo of a
+target at closest range r behaves as if sent and received at u + v r / c (Wu et al. 2018
+eq. 28; Huang & Yang 2022 eq. 4 with d_i = 0), plus a two-way path excess (2 v r / c)^2 / (4 r)
+(compensated by :func:`clsas.image.multireceiver.compensate_bistatic`, which every
+:func:`line_record` applies when ``nonstop``). The imagers then undo the range-dependent
+along-track shift v r / c (Huang & Yang eq. 25).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..data import EchoData
+from ..scene.scenario import Medium, Waveform
+
+STRAIGHTNESS = 0.05  # allowed deviation of the track from a line, wavelengths
+
+
+@dataclass(frozen=True, eq=False)
+class LineRecord:
+    """A monostatic-equivalent strip-map record on a straight, uniformly sampled track.
+
+    data : complex (n_u, n_samples); row p was recorded at along-track position u0 + p du
+        (its phase centre), sample k at two-way fast time t0 + k / fs.
+    u0, du : m. t0 : s. fs : Hz.
+    speed : platform speed along +y, m/s (the along-track shift v r / c uses it).
+    track : (x, z) of the track line, m; the imaged side is +x (DESIGN's convention).
+    waveform, medium : the pulse and the water.
+    nonstop : whether the echoes carry the non-stop-and-go shift v r / c.
+    provenance : how it was made.
+    """
+
+    data: np.ndarray
+    u0: float
+    du: float
+    t0: float
+    fs: float
+    speed: float
+    track: tuple
+    waveform: Waveform
+    medium: Medium
+    nonstop: bool
+    provenance: dict = field(default_factory=dict)
+
+    @property
+    def n_u(self) -> int:
+        return self.data.shape[0]
+
+    @property
+    def n_samples(self) -> int:
+        return self.data.shape[1]
+
+    @property
+    def wavelength(self) -> float:
+        return self.medium.sound_speed / self.waveform.f0
+
+    def replace(self, **changes) -> "LineRecord":
+        return dataclasses.replace(self, **changes)
+
+
+def check_straight_track(echo: EchoData) -> tuple[float, float, float, float]:
+    """(u0, du, x, z) of the transmitter's track: a line along y sampled uniformly, within
+    STRAIGHTNESS wavelengths; otherwise a ValueError naming what deviates."""
+    if echo.n_pulses < 2:
+        raise ValueError(f"a strip-map record needs at least 2 pulses, got {echo.n_pulses}")
+    tol = STRAIGHTNESS * echo.medium.sound_speed / echo.waveform.f0
+    tx = echo.tx_pos
+    p = np.arange(echo.n_pulses)
+    du, u0 = np.polyfit(p, tx[:, 1], 1)
+    dev = {"x (across track)": np.ptp(tx[:, 0]), "z (depth)": np.ptp(tx[:, 2]),
+           "y (along track, from uniform spacing)": np.max(np.abs(tx[:, 1] - (u0 + du * p)))}
+    for what, value in dev.items():
+        if value > tol:
+            raise ValueError(f"the frequency-domain imagers need a straight, uniformly sampled track along y: the "
+                             f"transmitter's {what} varies by {value:.3g} m > {tol:.3g} m ({STRAIGHTNESS} wavelengths); "
+                             "use clsas.backproject for this geometry")
+    if du <= 0:
+        raise ValueError(f"the platform must move along +y (the along-track step is {du:.3g} m)")
+    return float(u0), float(du), float(np.mean(tx[:, 0])), float(np.mean(tx[:, 2]))
+
+
+def line_record(echo: EchoData, receiver=0, stop_and_go: bool | None = None) -> LineRecord:
+    """The monostatic record of ``receiver`` (index or name), which must sit with the transmitter.
+
+    ``stop_and_go`` says how the echoes were made (default: ``echo.provenance["stop_and_go"]``,
+    False when absent: clsas.simulate's exact delays). Non-stop-and-go records get the path
+    excess of Huang & Yang eq. (4) compensated (:func:`clsas.image.multireceiver.compensate_bistatic`
+    with d = 0); their along-track shift v r / c is left to the imagers.
+    """
+    from .multireceiver import compensate_bistatic, receiver_index
+
+    h = receiver_index(echo, receiver)
+    if not echo.compressed:
+        raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first (the imagers "
+                         "work on compressed records; chirp scaling re-spreads them itself)")
+    u0, du, x, z = check_straight_track(echo)
+    offset = echo.rx_position(h, np.zeros((echo.n_pulses, 1)))[:, 0] - echo.tx_pos
+    tol = STRAIGHTNESS * echo.medium.sound_speed / echo.waveform.f0
+    if np.max(np.abs(offset)) > tol:
+        raise ValueError(f"receiver {echo.receivers[h]!r} is {np.max(np.linalg.norm(offset, axis=1)):.3g} m from the "
+                         "transmitter: not monostatic; convert a multireceiver record with "
+                         "clsas.image.multireceiver.pca_record, or use clsas.backproject")
+    nonstop = not (echo.provenance.get("stop_and_go", False) if stop_and_go is None else stop_and_go)
+    speed = du * (echo.n_pulses - 1) / (echo.eta[-1] - echo.eta[0])
+    data = echo.data[h]
+    if nonstop:
+        data = compensate_bistatic(data, echo.t0[h], echo.fs, 0.0, speed, echo.waveform, echo.medium)
+    return LineRecord(data=data, u0=u0, du=du, t0=float(echo.t0[h]), fs=echo.fs, speed=speed, track=(x, z),
+                      waveform=echo.waveform, medium=echo.medium, nonstop=nonstop,
+                      provenance={"from": "line_record", "receiver": echo.receivers[h], "echo": dict(echo.provenance)})
+
+
+def along_track_wavenumbers(rec: LineRecord, n_ku: int) -> np.ndarray:
+    """k_u (rad/m) of the rows of an along-track FFT of length n_ku (FFT order)."""
+    return 2 * np.pi * np.fft.fftfreq(n_ku, rec.du)
+
+
+def nonstop_shift(rec: LineRecord, ku: np.ndarray, r: np.ndarray) -> np.ndarray | float:
+    """exp(-j k_u v r / c) for rows ku and ranges r (Huang & Yang 2022 eq. 25 with
+    f_t = v k_u / (2 pi)): moves the echo of a target at range r from u = y - v r / c (the
+    non-stop-and-go phase centre) back to its true along-track position y; 1 for stop-and-go."""
+    if not rec.nonstop:
+        return 1.0
+    return np.exp(-1j * np.outer(ku, r) * rec.speed / rec.medium.sound_speed)
+
+
+def image_of(rec: LineRecord, ku_range: np.ndarray, r: np.ndarray, algorithm: str, params: dict,
+             depth: float | None = None):
+    """The Image of an imager's (k_u, r) result: inverse along-track FFT, rows at
+    y = u0 + j du, columns cropped to the recorded ranges and placed on the horizontal plane
+    z = ``depth`` (default: the track's depth) at x = x_track + sqrt(r^2 - (depth - z_track)^2).
+
+    ku_range : complex (n_ku, len(r)); r : slant ranges of its columns, m, increasing.
+    """
+    from ..data import Image
+
+    x_track, z_track = rec.track
+    depth = z_track if depth is None else float(depth)
+    c = rec.medium.sound_speed
+    dz = depth - z_track
+    keep = (r > abs(dz)) & (r >= c * rec.t0 / 2) & (r <= c * (rec.t0 + (rec.n_samples - 1) / rec.fs) / 2)
+    if not np.any(keep):
+        raise ValueError(f"depth {depth} m: no recorded range reaches that plane")
+    img = np.fft.ifft(ku_range[:, keep], axis=0)
+    y = rec.u0 + rec.du * np.arange(img.shape[0])
+    x = x_track + np.sqrt(r[keep] ** 2 - dz ** 2)
+    yy, xx = np.meshgrid(y, x, indexing="ij")
+    positions = np.stack([xx, yy, np.full_like(xx, depth)], axis=-1)
+    return Image(data=img.astype(np.complex64), dims=("y", "x"), axes={"y": y, "x": x}, positions=positions,
+                 provenance={"algorithm": algorithm, **params, "record": dict(rec.provenance)})
