@@ -3,7 +3,12 @@
 from .backend import use_backend
 from .data import EchoData, Grid, Image
 from .image.backprojection import backproject
+from .image.csa import chirp_scaling
+from .image.multireceiver import pca_record
+from .image.omegak import omega_k
 from .image.rangecomp import range_compress
+from .image.rda import range_doppler
+from .image.track import line_record
 from .io import load, save
 from .scene.scenario import (
                              Array,
@@ -19,7 +24,28 @@ from .scene.targets import PointTargets
 from .simulate import simulate
 
 __all__ = [
-    "Array", "EchoData", "Grid", "Image", "Medium", "Platform", "PulseSchedule", "Recording", "Scenario",
-    "PointTargets", "Sonobuoy", "Waveform", "backproject", "load", "range_compress", "save", "simulate", "use_backend",
+                             "Array",
+                             "EchoData",
+                             "Grid",
+                             "Image",
+                             "Medium",
+                             "Platform",
+                             "PointTargets",
+                             "PulseSchedule",
+                             "Recording",
+                             "Scenario",
+                             "Sonobuoy",
+                             "Waveform",
+                             "backproject",
+                             "chirp_scaling",
+                             "line_record",
+                             "load",
+                             "omega_k",
+                             "pca_record",
+                             "range_compress",
+                             "range_doppler",
+                             "save",
+                             "simulate",
+                             "use_backend",
 ]
 __version__ = "0.1.0"

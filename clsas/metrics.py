@@ -251,3 +251,25 @@ def entropy(data) -> float:
         raise ValueError("entropy of an all-zero image is undefined")
     p = power[power > 0] / total
     return float(-np.sum(p * np.log(p)))
+
+
+def ssim(a, b, sigma: float = 1.5) -> float:
+    """Structural similarity (Wang et al. 2004) of two images' magnitudes, each normalised to its
+    peak (so [0, 1], constants C1 = 0.01^2, C2 = 0.03^2), with a Gaussian window of ``sigma``
+    pixels; the mean SSIM map. Images must have the same shape (e.g. two imagers on one grid;
+    Kiang & Kiang 2022 compare their images with RDA, CSA and omega-k this way)."""
+    from scipy.ndimage import gaussian_filter
+
+    x = np.abs(np.asarray(getattr(a, "data", a)))
+    y = np.abs(np.asarray(getattr(b, "data", b)))
+    if x.shape != y.shape or x.ndim != 2:
+        raise ValueError(f"ssim needs two 2-D images of one shape, got {x.shape} and {y.shape}")
+    if not (x.max() > 0 and y.max() > 0):
+        raise ValueError("ssim: an image is all zeros")
+    x, y = x / x.max(), y / y.max()
+    c1, c2 = 0.01**2, 0.03**2
+    mx, my = gaussian_filter(x, sigma), gaussian_filter(y, sigma)
+    sxx = gaussian_filter(x * x, sigma) - mx * mx
+    syy = gaussian_filter(y * y, sigma) - my * my
+    sxy = gaussian_filter(x * y, sigma) - mx * my
+    return float(np.mean((2 * mx * my + c1) * (2 * sxy + c2) / ((mx * mx + my * my + c1) * (sxx + syy + c2))))

@@ -284,3 +284,15 @@ def test_entropy_prefers_concentrated_energy():
     assert entropy(flat) == pytest.approx(np.log(64))
     with pytest.raises(ValueError, match="all-zero"):
         entropy(np.zeros(3))
+
+
+def test_ssim_is_one_for_equal_images_and_drops_with_differences():
+    rng = np.random.default_rng(3)
+    a = rng.random((40, 50)) + 1j * rng.random((40, 50))
+    assert metrics.ssim(a, 3 * a) == pytest.approx(1.0)
+    noisy = metrics.ssim(a, a + 0.5 * rng.random((40, 50)))
+    assert 0.0 < noisy < 0.95
+    with pytest.raises(ValueError, match="shape"):
+        metrics.ssim(a, a[:, :10])
+    with pytest.raises(ValueError, match="zeros"):
+        metrics.ssim(a, np.zeros_like(a))

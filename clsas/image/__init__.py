@@ -1,6 +1,9 @@
 """EchoData -> Image: range compression and the imaging algorithms."""
 
 from .backprojection import backproject
+from .csa import chirp_scaling
+from .multireceiver import pca_record
+from .omegak import omega_k
 from .rangecomp import (
            WINDOWS,
            lfm_replica,
@@ -9,6 +12,9 @@ from .rangecomp import (
            spectral_window,
            upsample_records,
 )
+from .rda import range_doppler
+from .stolt import stolt
+from .track import LineRecord, line_record
 
-__all__ = ["WINDOWS", "backproject", "lfm_replica", "matched_filter", "range_compress", "spectral_window",
-           "upsample_records"]
+__all__ = ["WINDOWS", "LineRecord", "backproject", "chirp_scaling", "lfm_replica", "line_record", "matched_filter",
+           "omega_k", "pca_record", "range_compress", "range_doppler", "spectral_window", "stolt", "upsample_records"]

@@ -32,7 +32,7 @@ from .omegak import as_record, azimuth_weights, check_elements
 from .track import image_of, nonstop_shift
 
 
-def chirp_scaling(data, receiver=0, elements=None, window: str = "none", depth: float | None = None,
+def chirp_scaling(data, receiver=0, elements=None, deconvolve: bool = True, window: str = "none", depth: float | None = None,
                   workers: int | None = None, **window_options):
     """Focus a straight-track record with the chirp-scaling algorithm (see the module docstring).
 
@@ -64,5 +64,5 @@ def chirp_scaling(data, receiver=0, elements=None, window: str = "none", depth: 
     rd = scipy.fft.ifft(two_d, axis=1, workers=workers)
     rd *= np.exp(4j * np.pi * f0 * r0[None, :] * d / c)
     rd *= np.exp(-4j * np.pi * k_m * (1 - d) * (r0[None, :] / d - r_ref) ** 2 / c**2)
-    rd *= azimuth_weights(ku, elements, window, **window_options)[:, None] * nonstop_shift(rec, ku, r0)
-    return image_of(rec, rd, r0, "chirp_scaling", {"elements": elements, "window": window}, depth)
+    rd *= azimuth_weights(ku, elements, window, deconvolve, **window_options)[:, None] * nonstop_shift(rec, ku, r0)
+    return image_of(rec, rd, r0, "chirp_scaling", {"elements": elements, "deconvolve": deconvolve, "window": window}, depth)

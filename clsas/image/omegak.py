@@ -67,20 +67,20 @@ def check_elements(elements, rec: LineRecord):
     return tuple(float(v) for v in lengths)
 
 
-def azimuth_weights(ku: np.ndarray, elements, window: str, **window_options) -> np.ndarray:
-    """rect(k_y / B_ky) W(k_y / B_ky) / A(k_y) per row (Heremans eq. 44); ones without elements
-    (then only the window over the sampled band)."""
+def azimuth_weights(ku: np.ndarray, elements, window: str, deconvolve: bool = True, **window_options) -> np.ndarray:
+    """rect(k_y / B_ky) W(k_y / B_ky) / A(k_y) per row (Heremans eq. 44; without the 1 / A(k_y)
+    when not ``deconvolve``); without elements only the window over the sampled band."""
     if elements is None:
         band = 2 * np.abs(ku).max() if ku.size > 1 else 1.0
         return spectral_window(ku / band, window, **window_options)
     d = max(elements)
-    pattern = np.sinc(elements[0] * ku / (4 * np.pi)) * np.sinc(elements[1] * ku / (4 * np.pi))
+    pattern = np.sinc(elements[0] * ku / (4 * np.pi)) * np.sinc(elements[1] * ku / (4 * np.pi)) if deconvolve else 1.0
     inside = np.abs(ku) <= 2 * np.pi / d
     return np.where(inside, spectral_window(ku / (4 * np.pi / d), window, **window_options)
                     / np.where(inside, pattern, 1.0), 0.0)
 
 
-def omega_k(data, receiver=0, window: str = "hamming", elements=None, interp: str = "sinc8",
+def omega_k(data, receiver=0, window: str = "hamming", elements=None, deconvolve: bool = True, interp: str = "sinc8",
             tap_window: str = "kaiser", backend: str | None = None, depth: float | None = None,
             workers: int | None = None, **window_options):
     """Focus a straight-track strip-map record with the wavenumber algorithm (see the module docstring).
@@ -92,6 +92,8 @@ def omega_k(data, receiver=0, window: str = "hamming", elements=None, interp: st
     window : spectral weighting over the extracted rectangle ("none", "hamming", "taylor", "kaiser").
     elements : (L_tx, L_rx) along-track element lengths, m: the processed band 4 pi / max(L)
         and the pattern deconvolution (eqs. 44-45). None keeps the whole sampled band.
+    deconvolve : divide by the element pattern A(k_y) (eq. 44); False keeps its taper, as
+        back-projection does (for like-for-like comparisons).
     interp, tap_window : the Stolt interpolator (:func:`clsas.image.stolt.stolt`).
     backend : the Stolt kernel's backend; the FFTs run on the host (scipy.fft).
     depth : the horizontal plane the image's pixel positions are placed on (default: the track's).
@@ -134,10 +136,10 @@ def omega_k(data, receiver=0, window: str = "hamming", elements=None, interp: st
     kxp = axes.kx_first + dkx * np.arange(n_r)
     range_w = np.where((kxp >= kx_lo) & (kxp <= kx_hi),
                        spectral_window((kxp - (kx_lo + kx_hi) / 2) / (kx_hi - kx_lo), window, **window_options), 0.0)
-    mapped *= azimuth_weights(ku, elements, window, **window_options)[:, None] * range_w[None, :]
+    mapped *= azimuth_weights(ku, elements, window, deconvolve, **window_options)[:, None] * range_w[None, :]
 
     ku_r = scipy.fft.fftshift(scipy.fft.ifft(mapped, axis=1, workers=workers), axes=1)
     r = r0 + (np.arange(n_r) - n_r // 2) * c / (2 * fs)
     ku_r *= np.exp(1j * (axes.kx_first + 2 * k0) * (r - r0))[None, :] * nonstop_shift(rec, ku, r)
-    return image_of(rec, ku_r, r, "omega_k", {"window": window, "elements": elements, "interp": interp,
+    return image_of(rec, ku_r, r, "omega_k", {"window": window, "elements": elements, "deconvolve": deconvolve, "interp": interp,
                                              "tap_window": tap_window, "backend": backend}, depth)

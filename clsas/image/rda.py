@@ -24,6 +24,8 @@ f_tau (eq. 19); the SRC is exact only at each sub-block's centre.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import scipy.fft
 
@@ -40,12 +42,12 @@ def src_block_width(rec, beta_min: float) -> float:
     return np.inf if slope == 0 else 2 * (np.pi / 16) / slope
 
 
-def range_doppler(data, receiver=0, elements=None, window: str = "none", interp: str = "sinc8",
+def range_doppler(data, receiver=0, elements=None, deconvolve: bool = True, window: str = "none", interp: str = "sinc8",
                   depth: float | None = None, workers: int | None = None, **window_options):
     """Focus a straight-track record with the range-Doppler algorithm (see the module docstring).
 
     Parameters are those of :func:`clsas.image.omegak.omega_k`: ``elements`` (L_tx, L_rx) limit
-    the processed Doppler band to |k_u| <= 2 pi / max(L) and deconvolve the element pattern,
+    the processed Doppler band to |k_u| <= 2 pi / max(L) and (``deconvolve``) undo the element pattern,
     ``window`` weights that band (the range weighting is the range compression's),
     ``interp`` is the RCMC interpolator ("linear", "sinc8", "sinc16").
 
@@ -73,7 +75,7 @@ def range_doppler(data, receiver=0, elements=None, window: str = "none", interp:
     n_blocks = max(1, int(np.ceil((r[-1] - r[0]) / width)))
     edges = np.linspace(0, n_r, n_blocks + 1).astype(int)
     coupling = (1 / beta**3 - 1 / beta)[:, None] * f[None, :] ** 2
-    for lo, hi in zip(edges[:-1], edges[1:]):
+    for lo, hi in itertools.pairwise(edges):
         r_n = r[(lo + hi - 1) // 2]
         src = np.exp(-2j * np.pi * r_n * rec.wavelength / c**2 * coupling)
         rd[:, lo:hi] = scipy.fft.ifft(two_d * src, axis=1, workers=workers)[:, lo:hi]
@@ -81,7 +83,7 @@ def range_doppler(data, receiver=0, elements=None, window: str = "none", interp:
     idx = (tau[None, :] / beta[:, None] - rec.t0) * fs
     rd = resample_rows(rd, idx, interp, oversampling=max(fs / rec.waveform.bandwidth, 1.01))
     # azimuth compression (eq. 24), Doppler band and weighting, along-track shift (eq. 25)
-    rd *= np.exp(2j * k0 * np.outer(beta, r)) * azimuth_weights(ku, elements, window, **window_options)[:, None]
+    rd *= np.exp(2j * k0 * np.outer(beta, r)) * azimuth_weights(ku, elements, window, deconvolve, **window_options)[:, None]
     rd *= nonstop_shift(rec, ku, r)
-    return image_of(rec, rd, r, "range_doppler", {"elements": elements, "window": window, "interp": interp,
+    return image_of(rec, rd, r, "range_doppler", {"elements": elements, "deconvolve": deconvolve, "window": window, "interp": interp,
                                                   "src_blocks": n_blocks}, depth)

@@ -66,7 +66,7 @@ class LineRecord:
     def wavelength(self) -> float:
         return self.medium.sound_speed / self.waveform.f0
 
-    def replace(self, **changes) -> "LineRecord":
+    def replace(self, **changes) -> LineRecord:
         return dataclasses.replace(self, **changes)
 
 
