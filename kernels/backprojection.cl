@@ -1,58 +1,216 @@
 /* Time-domain back-projection of range-compressed echoes, one receiver and one block of
- * pulses a launch.
+ * pulses a launch. Two kernels (NumPy twin of both: clsas/image/backprojection.py,
+ * backproject_reference; launcher and the derivation of bp_tile's algebra in the same module):
  *
- * NumPy twin: clsas/image/backprojection.py (backproject_reference); launcher in the same module.
+ * bp_tile (built with BP_TILE; precision="single"): float32 geometry relative to a reference
+ *   point per (tile, pulse). One work-item: ROWS vectors of 16 pixels (float16 lanes) of one
+ *   spatial tile. The host gives, per (tile, pulse), the exact legs of the tile's reference
+ *   point in double (rounded to float): B = q_ref - tx, C = R_ref - q_ref, the receiver
+ *   velocity v_r over the tile's delay span, c^2 t1_ref - B.v, c^2 t2_ref - C.v_r, the sample
+ *   index of T_ref = t1_ref + t2_ref split into an int and a fraction, and the carrier cycles
+ *   f0 T_ref reduced to [-1/2, 1/2]. Per pixel (offset delta from the reference, float) the
+ *   delay offsets s1 = t1 - t1_ref and s2 = t2 - t2_ref are the stable roots
+ *     s1 = N1 / (b1 + sqrt(b1^2 + a1 N1)),  N1 = 2 B.delta + |delta|^2,  b1 = c^2 t1_ref - (B + delta).v,
+ *     e = (v_r - v) s1 - delta,  s2 = N2 / (b2 + sqrt(b2^2 + a2 N2)),
+ *     N2 = 2 C.e + |e|^2,  b2 = c^2 t2_ref - (C + e).v_r,  a1 = c^2 - |v|^2,  a2 = c^2 - |v_r|^2,
+ *   so that every float error scales with |delta|, not with the range.
+ * bp_block (otherwise): the exact delays in double per pixel and pulse (geometry8.h), eight
+ *   pixels (double8 lanes) a work-item; precision="double" (with CLSAS_DOUBLE) and the
+ *   fallback of precision="single" when a receiver's motion is not linear over a tile.
  *
- * One work-item: eight pixels (double8 lanes). For every pulse of the block: the exact two-way
- * delay tau (transmitter at emission; pixel moving at the target velocity, P0 + v t; receiver
- * moving during reception, linear between position nodes), in double (geometry8.h); the
- * range-compressed sample at tau by linear interpolation of the FFT-upsampled record
- * (INTERP_LINEAR) or by an 8-tap Kaiser-windowed sinc on the original samples (INTERP_SINC8,
- * taps from the nearest row of a table over the fractional offset); a record reads as zero
- * where the interpolator would need samples outside it;
- * the phase rotation exp(+j 2 pi f0 tau) with the cycles reduced in double; accumulation in
- * float over the block (blocked sum), added once into the double image at the end.
+ * Both: the range-compressed sample at the delay by linear interpolation of the (upsampled)
+ * record (INTERP_LINEAR) or by an 8-tap Kaiser-windowed sinc on the original samples
+ * (INTERP_SINC8, taps from the nearest row of a table over the fractional offset); a record
+ * reads as zero where the interpolator would need samples outside it; the phase rotation
+ * exp(+j 2 pi f0 tau) from cycles reduced to a fraction (polynomial sin/cos, common.h);
+ * accumulation in float (double with CLSAS_DOUBLE) over the launch's pulses, added once into
+ * the double image at the end (blocked sum).
  *
- * Defines: N_NODES, SEGMENT_PASSES (geometry8.h), INTERP_LINEAR or INTERP_SINC8 (with
- * TAP_ROWS, the tap table resolution), STOP_AND_GO, APERTURE (limit |sin theta| off broadside,
- * theta measured from the x-z plane, to params.s7), CLSAS_DOUBLE (data, phases and sums in
- * double: precision="double").
+ * Defines: BP_TILE (with ROWS, MOVING when the pixels move), or N_NODES and SEGMENT_PASSES
+ * (geometry8.h) and STOP_AND_GO for bp_block; INTERP_LINEAR or INTERP_SINC8 (with TAP_ROWS);
+ * APERTURE (keep |sin theta| off broadside <= sin(aperture / 2), theta measured from the x-z
+ * plane); CLSAS_DOUBLE (bp_block's data, phases and sums in double: precision="double").
+ * Portable OpenCL C 1.2: no vendor builtins.
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #include "common.h"
-#include "geometry8.h"
-
-/* params: c, f0, fs (of the data), dtau (node spacing), vx, vy, vz (target velocity),
- * sin of half the integration angle (APERTURE) */
 
 /* Data, interpolation and sums in float, or in double with CLSAS_DOUBLE (precision="double"). */
 #ifdef CLSAS_DOUBLE
 typedef double2 sample_t;
-typedef double8 realv8;
+typedef double2 realv2_t;
 typedef double4 realv4_t;
+typedef double8 realv8;
 typedef double16 realv16_t;
 #define convert_realv8 convert_double8
-#define CONVERT_TAPS convert_double8
-#define VLOAD4 vload4
-#define VLOAD16 vload16
+#define TAP_ROW(taps, row) convert_double16(vload16((row), (taps)))
 #else
 typedef float2 sample_t;
-typedef float8 realv8;
+typedef float2 realv2_t;
 typedef float4 realv4_t;
+typedef float8 realv8;
 typedef float16 realv16_t;
 #define convert_realv8 convert_float8
-#define CONVERT_TAPS(x) (x)
-#define VLOAD4 vload4
-#define VLOAD16 vload16
+#define TAP_ROW(taps, row) vload16((row), (taps))
 #endif
 
+/* One lane's 8-tap sinc: sum_j w_j s[i + j] over the record's complex samples i .. i + 7 (one
+ * 16-wide load), taps[row * 16 + 2 j + {0, 1}] = w_j (each tap twice: for re and im), the
+ * products summed pairwise keeping the re/im parity. Returns (re, im). */
+inline realv2_t sinc8_lane(__global const real_t *rec, int i, __global const float *taps, int row)
+{
+    const realv16_t p = vload16(0, rec + 2 * i) * TAP_ROW(taps, row);
+    const realv8 h8 = p.lo + p.hi;
+    const realv4_t h4 = h8.lo + h8.hi;
+    return h4.lo + h4.hi;
+}
+
+#ifdef BP_TILE
+#define FOR_ROWS _Pragma("unroll") for (int r = 0; r < ROWS; ++r)
+#define CHAINS (ROWS * PULSES)
+#define FOR_CHAINS _Pragma("unroll") for (int j = 0, r = 0; j < CHAINS; ++j, r = j % ROWS)
+#define RJ R[j / ROWS]
+
+/* pix[f * m_pad + m], m = 16 (ROWS g + r) + lane: f = 0, 1, 2: delta (pixel at t = 0 minus its
+ *   tile's reference point, m), f = 3: |delta|^2, f = 4 (MOVING): delta . v;
+ * tile_of[g]: the tile of work-item g;
+ * ref[t * ref_stride + p], float16 per (tile t, pulse p): s012 B, s3 c^2 t1_ref - B.v, s456 C,
+ *   s7 c^2 t2_ref - C.v_r, s89a v_r, sb a2, sc the integer sample index of T_ref (int bits),
+ *   sd its fraction, se f0 T_ref reduced, sf c t1_ref;
+ * params: s0 a1, s1 fs (of the data), s2 f0, s345 v, s6 sin(aperture / 2), s7 c;
+ * data[p n + i]: the receiver's range-compressed record of pulse p; taps: see sinc8_lane;
+ * image[m] += the sum over pulses p_first .. p_first + p_count - 1. */
+__kernel void bp_tile(__global const float *pix, __global const int *tile_of, __global const float16 *ref,
+                      const int ref_stride, __global const sample_t *data, __global const float *taps,
+                      const float8 params, const int p_first, const int p_count, const int n, const int m_pad,
+                      __global double2 *image)
+{
+    const int g = get_global_id(0);
+    __global const float16 *tref = ref + (size_t)tile_of[g] * ref_stride;
+    const float a1 = params.s0, fs = params.s1, f0 = params.s2;
+    float16 dx[ROWS], dy[ROWS], dz[ROWS], dd[ROWS], acc_re[ROWS], acc_im[ROWS];
+#ifdef MOVING
+    float16 dv[ROWS];
+#endif
+    FOR_ROWS {
+        const int m = 16 * (ROWS * g + r);
+        dx[r] = vload16(0, pix + m);
+        dy[r] = vload16(0, pix + m_pad + m);
+        dz[r] = vload16(0, pix + 2 * m_pad + m);
+        dd[r] = vload16(0, pix + 3 * m_pad + m);
+#ifdef MOVING
+        dv[r] = vload16(0, pix + 4 * m_pad + m);
+#endif
+        acc_re[r] = (float16)0.0f;
+        acc_im[r] = (float16)0.0f;
+    }
+    const int p_end = p_first + p_count;
+    for (int p = p_first; p < p_end; p += PULSES) {
+        /* PULSES pulses x ROWS rows = CHAINS independent dependency chains, each step done for all
+         * of them before the next (the out-of-order core overlaps them); a pulse past the block's
+         * end repeats the last one with weight 0 */
+        float16 R[PULSES];
+        __global const float *rec[PULSES];
+        float live[PULSES];
+        _Pragma("unroll") for (int j = 0; j < PULSES; ++j) {
+            const int pj = min(p + j, p_end - 1);
+            R[j] = tref[pj];
+            rec[j] = (__global const float *)(data + (size_t)pj * n);
+            live[j] = p + j < p_end ? 1.0f : 0.0f;
+        }
+        float16 s1[CHAINS], s[CHAINS], frac[CHAINS], cs[CHAINS], sn[CHAINS];
+        int16 ki[CHAINS];
+        FOR_CHAINS {  /* leg 1: s1 = t1 - t1_ref */
+            const float16 n1 = 2.0f * (RJ.s0 * dx[r] + RJ.s1 * dy[r] + RJ.s2 * dz[r]) + dd[r];
+#ifdef MOVING
+            const float16 b1 = RJ.s3 - dv[r];
+#else
+            const float16 b1 = (float16)RJ.s3;
+#endif
+            s1[j] = n1 / (b1 + sqrt(b1 * b1 + a1 * n1));
+        }
+        FOR_CHAINS {  /* leg 2: s2 = t2 - t2_ref, e = (v_r - v) s1 - delta; s = s1 + s2 */
+            const float ux = RJ.s8 - params.s3, uy = RJ.s9 - params.s4, uz = RJ.sa - params.s5;  /* v_r - v */
+            const float16 ex = ux * s1[j] - dx[r], ey = uy * s1[j] - dy[r], ez = uz * s1[j] - dz[r];
+            const float16 n2 = 2.0f * (RJ.s4 * ex + RJ.s5 * ey + RJ.s6 * ez) + (ex * ex + ey * ey + ez * ez);
+            const float16 b2 = RJ.s7 - (RJ.s8 * ex + RJ.s9 * ey + RJ.sa * ez);
+            s[j] = s1[j] + n2 / (b2 + sqrt(b2 * b2 + RJ.sb * n2));
+        }
+        FOR_CHAINS {  /* sample index K_ref + (frac_ref + s fs), split by truncation (floor is slow) */
+            const float16 kf = RJ.sd + s[j] * fs;
+            int16 k = convert_int16(kf);
+            k += kf < convert_float16(k);  /* floor (a true compare is -1) */
+            frac[j] = kf - convert_float16(k);
+            ki[j] = k + as_int(RJ.sc);
+        }
+        FOR_CHAINS {  /* carrier exp(+j 2 pi f0 tau): cycles f0 T_ref (reduced) + f0 s, reduced again */
+            float16 cyc = RJ.se + f0 * s[j];
+            cyc -= convert_float16(convert_int16(cyc));
+            expj_fraction16(cyc, &cs[j], &sn[j]);
+            cs[j] *= live[j / ROWS];
+            sn[j] *= live[j / ROWS];
+        }
+#ifdef APERTURE
+        FOR_CHAINS {  /* sin theta = (q - tx).y / (c t1), q - tx = B + delta + v s1 */
+            const float16 keep = select((float16)0.0f, (float16)1.0f,
+                                        fabs(RJ.s1 + dy[r] + params.s4 * s1[j]) <= params.s6 * (RJ.sf + params.s7 * s1[j]));
+            cs[j] *= keep;
+            sn[j] *= keep;
+        }
+#endif
+        FOR_CHAINS {
+            __global const float *recj = rec[j / ROWS];
+#ifdef INTERP_LINEAR
+            /* samples i and i + 1 of each lane in one 4-wide load, transposed in registers */
+            const int16 ic = clamp(ki[j], (int16)0, (int16)(n - 2));
+            const float16 keep = select((float16)0.0f, (float16)1.0f, ki[j] >= (int16)0 && ki[j] < (int16)(n - 1));
+#define W(L) vload4(0, recj + 2 * ic.s##L)
+            const float16 w0 = (float16)(W(0), W(1), W(2), W(3)), w1 = (float16)(W(4), W(5), W(6), W(7));
+            const float16 w2 = (float16)(W(8), W(9), W(a), W(b)), w3 = (float16)(W(c), W(d), W(e), W(f));
+#undef W
+            const float16 a_re = (float16)(w0.s048c, w1.s048c, w2.s048c, w3.s048c);
+            const float16 a_im = (float16)(w0.s159d, w1.s159d, w2.s159d, w3.s159d);
+            const float16 b_re = (float16)(w0.s26ae, w1.s26ae, w2.s26ae, w3.s26ae);
+            const float16 b_im = (float16)(w0.s37bf, w1.s37bf, w2.s37bf, w3.s37bf);
+            const float16 dr = keep * mix(a_re, b_re, frac[j]), di = keep * mix(a_im, b_im, frac[j]);
+#else
+            /* samples i - 3 .. i + 4 of each lane, the taps of the nearest fractional-offset row */
+            const int16 ic = clamp(ki[j] - 3, (int16)0, (int16)(n - 8));
+            const float16 keep = select((float16)0.0f, (float16)1.0f, ki[j] >= (int16)3 && ki[j] < (int16)(n - 4));
+            const int16 row = convert_int16(frac[j] * (float)(TAP_ROWS - 1) + 0.5f);
+            float v[32];
+#define TAPS8(L, I) vstore2(sinc8_lane(recj, ic.s##L, taps, row.s##L), I, v);
+            TAPS8(0, 0) TAPS8(1, 1) TAPS8(2, 2) TAPS8(3, 3) TAPS8(4, 4) TAPS8(5, 5) TAPS8(6, 6) TAPS8(7, 7)
+            TAPS8(8, 8) TAPS8(9, 9) TAPS8(a, 10) TAPS8(b, 11) TAPS8(c, 12) TAPS8(d, 13) TAPS8(e, 14) TAPS8(f, 15)
+#undef TAPS8
+            const float16 lo = vload16(0, v), hi = vload16(1, v);
+            const float16 dr = keep * (float16)(lo.even, hi.even), di = keep * (float16)(lo.odd, hi.odd);
+#endif
+            acc_re[r] += dr * cs[j] - di * sn[j];
+            acc_im[r] += dr * sn[j] + di * cs[j];
+        }
+    }
+    for (int r = 0; r < ROWS; ++r) {
+        float re[16], im[16];
+        vstore16(acc_re[r], 0, re);
+        vstore16(acc_im[r], 0, im);
+        const int m = 16 * (ROWS * g + r);
+        for (int l = 0; l < 16; ++l) image[m + l] += (double2)(re[l], im[l]);
+    }
+}
+
+#else /* bp_block: exact double geometry */
+#include "geometry8.h"
+
+/* params: c, f0, fs (of the data), dtau (node spacing), vx, vy, vz (target velocity),
+ * sin of half the integration angle (APERTURE) */
 
 /* pix[f * m_pad + m]: pixel m's x, y, z at t = 0 (f = 0, 1, 2);
  * pulse[p]: tx.xyz, eta, t0 fs (window start in samples of the data);
  * nodes[p N_NODES + k]: receiver position.xyz (and axis) at fast time k dtau;
  * data[p n + i]: the receiver's range-compressed record of pulse p;
  * pulses p_first .. p_first + p_count - 1 of the buffers are summed by this launch;
- * taps[r * 8 + j]: sinc8 taps for fractional offset r / (TAP_ROWS - 1), sample i - 3 + j (the
+ * taps: see sinc8_lane (row r: fractional offset r / (TAP_ROWS - 1), samples i - 3 .. i + 4; the
  * row nearest to the pixel's offset is used);
  * image[m] += the block's sum. */
 __kernel void bp_block(__global const double *pix, __global const double8 *pulse,
@@ -110,7 +268,7 @@ __kernel void bp_block(__global const double *pix, __global const double8 *pulse
          * outside [0, n - 1) the record reads as zero */
         const long8 ic = clamp(kl, (long8)0, (long8)(n - 2));
         const realv8 keep = convert_realv8(select((double8)0.0, (double8)1.0, kl >= 0 && kl < (long8)(n - 1)));
-#define LOAD2(L) const realv4_t w##L = VLOAD4(0, rec + 2 * ic.s##L);
+#define LOAD2(L) const realv4_t w##L = vload4(0, rec + 2 * ic.s##L);
         LOAD2(0) LOAD2(1) LOAD2(2) LOAD2(3) LOAD2(4) LOAD2(5) LOAD2(6) LOAD2(7)
 #undef LOAD2
         const realv8 a_re = (realv8)(w0.s0, w1.s0, w2.s0, w3.s0, w4.s0, w5.s0, w6.s0, w7.s0);
@@ -124,16 +282,12 @@ __kernel void bp_block(__global const double *pix, __global const double8 *pulse
         const long8 ic = clamp(kl - 3, (long8)0, (long8)(n - 8));
         const realv8 keep = convert_realv8(select((double8)0.0, (double8)1.0, kl >= 3 && kl < (long8)(n - 4)));
         const int8 row = convert_int8(frac * (real_t)(TAP_ROWS - 1) + (real_t)0.5);
-        real_t vr[8], vi[8];
-#define TAPS8(L) {                                                                   \
-            const realv16_t s8 = VLOAD16(0, rec + 2 * ic.s##L);                         \
-            const realv8 t = CONVERT_TAPS(vload8(row.s##L, taps));                      \
-            const realv8 pr = s8.even * t, pi = s8.odd * t;                             \
-            vr[L] = pr.s0 + pr.s1 + pr.s2 + pr.s3 + pr.s4 + pr.s5 + pr.s6 + pr.s7;      \
-            vi[L] = pi.s0 + pi.s1 + pi.s2 + pi.s3 + pi.s4 + pi.s5 + pi.s6 + pi.s7; }
+        real_t v[16];
+#define TAPS8(L) vstore2(sinc8_lane(rec, ic.s##L, taps, row.s##L), L, v);
         TAPS8(0) TAPS8(1) TAPS8(2) TAPS8(3) TAPS8(4) TAPS8(5) TAPS8(6) TAPS8(7)
 #undef TAPS8
-        const realv8 dr = keep * vload8(0, vr), di = keep * vload8(0, vi);
+        const realv16_t vv = vload16(0, v);
+        const realv8 dr = keep * vv.even, di = keep * vv.odd;
 #endif
         acc_re += dr * cs - di * sn;
         acc_im += dr * sn + di * cs;
@@ -143,3 +297,4 @@ __kernel void bp_block(__global const double *pix, __global const double8 *pulse
     vstore8(acc_im, 0, im);
     for (int l = 0; l < 8; ++l) image[m0 + l] += (double2)(re[l], im[l]);
 }
+#endif /* BP_TILE */

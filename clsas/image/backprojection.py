@@ -21,16 +21,30 @@ Aperture: ``aperture`` (radians, full integration angle) keeps only the pulses t
 pixel within +-aperture/2 of broadside: |sin theta| <= sin(aperture / 2) with sin theta the
 along-track (y) component of the unit vector from the transmitter to the pixel.
 
-Precision (OpenCL, ``precision="single"``): the delays, the sample index and the carrier
-cycles f0 tau are computed in double per pixel (the carrier phase at 2 km and 150 kHz is 4e5
-cycles: float32 would lose 0.15 rad); the interpolation, the phase factor (fractional cycles,
-polynomial sin/cos, error < 1e-6) and the accumulation are float. Sums are blocked: float over a
-block of at most ``PULSE_BLOCK`` pulses (relative error below 256 x 6e-8 = 1.5e-5 even if every
-rounding adds up; ~1e-6 typically), then added into a double image, so 10^5 pulses x receivers
-lose nothing more. ``precision="double"`` runs the data path in double as well.
+Precision (OpenCL). ``precision="single"``: the geometry runs in float32 *relative to a
+reference point per spatial tile and pulse* whose exact legs the host computes in float64
+(derivation and error bound at :func:`backproject_opencl`); the phase error this leaves is
+below ``PHASE_BUDGET`` = 2e-3 rad by construction of the tiles (at any range: it scales with the
+tile's size, not with the range), well inside the 0.01 rad budget at 2 km and 150 kHz. Where a
+receiver's motion is not linear within lambda / 2000 over a tile's delay span (motion errors
+with kinks between its position nodes) that receiver's pulse block falls back to the exact
+double kernel (delays and carrier cycles in double per pixel). The interpolation, the phase
+factor (fractional cycles, polynomial sin/cos, error < 1e-6) and the accumulation are float.
+Sums are blocked: float over a block of at most ``PULSE_BLOCK`` = 32 pulses (relative error
+below 32 x 6e-8 = 2e-6 even if every rounding adds up), then added into a double image, so
+10^5 pulses x receivers add at most another 10^5 x 1.1e-16 relative. ``precision="double"``
+runs the exact double kernel with the data path in double as well.
+
+Memory: the pixels are processed in chunks of at most ``PIXEL_CHUNK`` (2^22) pixels on the
+device (a 4096^2 image is four chunks of ~150 MB of device buffers each), the records a block
+of at most ``UPLOAD_BYTES`` at a time, the per-(tile, pulse) references a block at a time; the
+host keeps the tile order of the pixels (12 bytes a pixel) beside the grid. The NumPy
+reference works on at most 2^20 pixels x 4 pulses at once.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -47,7 +61,14 @@ INTERPOLATORS = ("linear", "sinc8")
 SINC_BETA = 5.0
 TAP_ROWS = 2049  # sinc8 tap table rows over the fractional offset [0, 1] (nearest row is used)
 UPLOAD_BYTES = 64 * 2**20  # upsampled records prepared and uploaded at once
-PULSE_BLOCK = 8  # pulses a kernel launch: their records stay in cache while every pixel reads them
+PULSE_BLOCK = 32  # pulses a kernel launch: their records stay in cache while every pixel reads them
+PIXEL_CHUNK = 2**22  # pixels on the device at once
+LANES, ROWS, PULSES = 16, 2, 4  # bp_tile: a work-item holds ROWS float16 vectors of pixels, PULSES pulses a step
+PHASE_BUDGET = 2e-3  # rad: the float32 geometry's share of the 0.01 rad phase budget
+ERROR_FACTOR = 8.0  # float32 roundings per |delta| / c of delay (see backproject_opencl)
+NODE_TOLERANCE = 1 / 2000  # of a wavelength: a receiver's allowed departure from linear motion over a tile
+SPAN_FACTOR = 2.5  # a tile's delay span is +-SPAN_FACTOR * half_extent / c around its reference
+REF_PULSES = 64  # pulses whose tile references are computed at once
 
 
 def _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velocity):
@@ -86,11 +107,12 @@ def _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velo
     return chosen, v
 
 
-def pixel_delays(echo: EchoData, h: int, pulses: np.ndarray, pixels: np.ndarray, velocity: np.ndarray,
-                 stop_and_go: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Exact two-way delays (len(pulses), M) from the pulses' transmitters to the M pixels and back
-    to receiver h (float64 fixed point, :mod:`clsas.simulate.geometry`), and where the pulses meet
-    the pixels (len(pulses), M, 3)."""
+def legs(echo: EchoData, h: int, pulses: np.ndarray, pixels: np.ndarray, velocity: np.ndarray,
+         stop_and_go: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The exact legs from the pulses' transmitters to the M pixels and back to receiver h
+    (float64 fixed point, :mod:`clsas.simulate.geometry`): t1 (len(pulses), M) s, where the pulses
+    meet the pixels q (len(pulses), M, 3) m, t2 (len(pulses), M) s and the receiver at reception
+    (len(pulses), M, 3) m. The two-way delay is t1 + t2."""
     c = echo.medium.sound_speed
     tol = geometry.iteration_tolerance(echo.waveform.f0)
     eta = echo.eta[pulses]
@@ -100,8 +122,8 @@ def pixel_delays(echo: EchoData, h: int, pulses: np.ndarray, pixels: np.ndarray,
     def receiver(t):
         return echo.rx_position(h, t - eta.reshape((-1,) + (1,) * (t.ndim - 1)), pulses=pulses)
 
-    t2, _ = geometry.incoming(receiver, eta, t1, q, c, tol, stop_and_go)
-    return t1 + t2, q
+    t2, r = geometry.incoming(receiver, eta, t1, q, c, tol, stop_and_go)
+    return t1, q, t2, r
 
 
 def _aperture_keep(echo, pulses, q, half_sin):
@@ -140,28 +162,35 @@ def _sample(records: np.ndarray, k: np.ndarray, interp: str) -> np.ndarray:
 
 
 def backproject_reference(echo, grid, receivers, interp, upsample, aperture, velocity, stop_and_go, progress):
-    """The float64 NumPy reference (vectorised over pixels, a pulse block at a time): image (M,)."""
+    """The float64 NumPy reference (vectorised over pixels, at most 2^20 pixels and a few pulses
+    at a time): image (M,) complex128."""
     pixels = grid.positions.reshape(-1, 3)
     image = np.zeros(pixels.shape[0], dtype=np.complex128)
     f0 = echo.waveform.f0
     factor = upsample if interp == "linear" else 1
     fs = echo.fs * factor
-    block = max(1, int(2**22 // pixels.shape[0]))
+    chunk = min(pixels.shape[0], 2**20)
+    block = max(1, 2**22 // chunk)
     jobs = [(h, np.arange(s, min(s + block, echo.n_pulses))) for h in receivers
             for s in range(0, echo.n_pulses, block)]
     for h, pulses in tqdm(jobs, desc="back-projection (numpy)", disable=not progress):
         records = upsample_records(echo.data[h, pulses], factor).astype(np.complex128)
-        tau, q = pixel_delays(echo, h, pulses, pixels, velocity, stop_and_go)
-        value = _sample(records, (tau - echo.t0[h]) * fs, interp) * np.exp(2j * np.pi * f0 * tau)
-        if aperture is not None:
-            value *= _aperture_keep(echo, pulses, q, np.sin(aperture / 2))
-        image += value.sum(axis=0)
+        for first in range(0, pixels.shape[0], chunk):
+            part = slice(first, first + chunk)
+            t1, q, t2, _ = legs(echo, h, pulses, pixels[part], velocity, stop_and_go)
+            tau = t1 + t2
+            value = _sample(records, (tau - echo.t0[h]) * fs, interp) * np.exp(2j * np.pi * f0 * tau)
+            if aperture is not None:
+                value *= _aperture_keep(echo, pulses, q, np.sin(aperture / 2))
+            image[part] += value.sum(axis=0)
     return image
 
 
 def _tap_table() -> np.ndarray:
+    """sinc8 taps (TAP_ROWS, 16) float32: row r holds w_j(r / (TAP_ROWS - 1)), j = -3..4, each twice
+    (for the real and the imaginary part of a sample; kernels/backprojection.cl sinc8_lane)."""
     frac = np.linspace(0.0, 1.0, TAP_ROWS)[:, None]
-    return kaiser_sinc_tap(frac - np.arange(-3, 5)[None, :], 4.0, SINC_BETA).astype(np.float32)
+    return np.repeat(kaiser_sinc_tap(frac - np.arange(-3, 5)[None, :], 4.0, SINC_BETA), 2, axis=1).astype(np.float32)
 
 
 def _uniform_nodes(echo: EchoData, h: int):
@@ -175,60 +204,246 @@ def _uniform_nodes(echo: EchoData, h: int):
     return step, echo.rx_pos[h]
 
 
+def tile_half_extent(f0: float, c: float) -> float:
+    """The largest distance (m) from a tile's reference point that keeps the float32 geometry's
+    phase error below PHASE_BUDGET: 2 pi f0 ERROR_FACTOR eps32 |delta| / c <= PHASE_BUDGET
+    (6.7 m at 150 kHz and 1500 m/s)."""
+    return PHASE_BUDGET * c / (2 * np.pi * f0 * ERROR_FACTOR * float(np.finfo(np.float32).eps))
+
+
+@dataclasses.dataclass(frozen=True)
+class Tiling:
+    """Pixels reordered into spatial tiles for bp_tile.
+
+    ``order`` (M_pad,): pixel index of each slot (a tile's slots padded to whole work-items of
+    LANES x ROWS by repeating its last pixel), ``real`` (M_pad,) bool: the slot is not padding,
+    ``tile`` (M_pad,) int: the slot's tile, ``centres`` (T, 3) m: the tiles' reference points,
+    ``half_extent`` m: the largest |pixel - its reference point|, ``phase_bound`` rad: the
+    float32 geometry's phase error bound 2 pi f0 ERROR_FACTOR eps32 half_extent / c.
+    """
+
+    order: np.ndarray
+    real: np.ndarray
+    tile: np.ndarray
+    centres: np.ndarray
+    half_extent: float
+    phase_bound: float
+
+
+def plan_tiles(pixels: np.ndarray, f0: float, c: float, half_extent: float | None = None) -> Tiling:
+    """Bucket the (M, 3) pixels into cubic cells whose half-diagonal is ``half_extent`` (default
+    :func:`tile_half_extent`), each cell a tile with its reference point at the centre of its
+    pixels' bounding box; within a tile the pixels keep their order (a raster stays a raster), so
+    a work-item's 16 lanes are neighbours. Raises ValueError when the bound is not met (it is by
+    construction; the check guards the arithmetic)."""
+    pixels = np.asarray(pixels, dtype=np.float64)
+    budget = tile_half_extent(f0, c) if half_extent is None else float(half_extent)
+    if not budget > 0:
+        raise ValueError(f"half_extent must be positive, got {half_extent}")
+    side = 2 * budget / np.sqrt(3.0)
+    cell = np.floor((pixels - pixels.min(axis=0)) / side).astype(np.int64)
+    key = np.ravel_multi_index(tuple(cell.T), tuple(cell.max(axis=0) + 1))
+    by_key = np.argsort(key, kind="stable")
+    _, first, count = np.unique(key[by_key], return_index=True, return_counts=True)
+    width = LANES * ROWS
+    padded = -(-count // width) * width
+    tile = np.repeat(np.arange(count.size), padded)
+    local = np.arange(tile.size) - np.repeat(np.cumsum(padded) - padded, padded)
+    real = local < count[tile]
+    order = by_key[first[tile] + np.minimum(local, count[tile] - 1)]
+    sorted_pixels = pixels[by_key]
+    centres = 0.5 * (np.minimum.reduceat(sorted_pixels, first) + np.maximum.reduceat(sorted_pixels, first))
+    extent = float(np.sqrt(np.max(np.sum((pixels[order] - centres[tile]) ** 2, axis=-1))))
+    if extent > budget * (1 + 1e-9):
+        raise ValueError(f"tiles reach {extent:.3g} m from their reference points, beyond the {budget:.3g} m "
+                         "that keeps the float32 phase error in budget")
+    bound = 2 * np.pi * f0 * ERROR_FACTOR * float(np.finfo(np.float32).eps) * extent / c
+    return Tiling(order, real, tile, centres, extent, float(bound))
+
+
+def tile_references(echo: EchoData, h: int, pulses: np.ndarray, centres: np.ndarray, velocity: np.ndarray,
+                    stop_and_go: bool, fs: float, half_extent: float) -> tuple[np.ndarray, float]:
+    """bp_tile's per-(tile, pulse) reference (T, P, 16) float32 (layout in kernels/backprojection.cl)
+    for the T tile ``centres`` and the P ``pulses``, and the receiver's largest departure (m) from
+    the linear motion the kernel assumes over the tiles' delay spans (0 for stop-and-go and for
+    receivers with two nodes, whose motion is uniform)."""
+    c, f0 = echo.medium.sound_speed, echo.waveform.f0
+    t1, q, t2, r = legs(echo, h, pulses, centres, velocity, stop_and_go)
+    big_t = t1 + t2
+    b_vec = q - echo.tx_pos[pulses][:, None, :]
+    c_vec = r - q
+    v_r = np.zeros_like(c_vec)
+    departure = 0.0
+    if not stop_and_go and echo.rx_tau[h].size > 1:
+        # secant of the receiver over the delay span T_ref +- span; the kernel's line passes through R_ref
+        span = SPAN_FACTOR * half_extent / c
+        ends = echo.rx_position(h, big_t[..., None] + [-span, span], pulses=pulses)
+        v_r = (ends[..., 1, :] - ends[..., 0, :]) / (2 * span)
+        dtau, _ = _uniform_nodes(echo, h)
+        if echo.rx_tau[h].size > 2:
+            # the piecewise-linear track departs from the line most at its nodes or the span's ends
+            steps = np.arange(int(np.ceil(2 * span / dtau)) + 2)
+            times = np.clip((np.floor((big_t - span) / dtau)[..., None] + steps) * dtau,
+                            (big_t - span)[..., None], (big_t + span)[..., None])
+            line = r[..., None, :] + v_r[..., None, :] * (times - big_t[..., None])[..., None]
+            departure = float(np.max(np.linalg.norm(echo.rx_position(h, times, pulses=pulses) - line, axis=-1)))
+    v_k = np.zeros(3) if stop_and_go else velocity
+    k_ref = (big_t - echo.t0[h]) * fs
+    k_int = np.clip(np.floor(k_ref), -2**30, 2**30)
+    cycles = f0 * big_t
+    ref = np.empty(big_t.shape + (16,), dtype=np.float32)
+    ref[..., 0:3] = b_vec
+    ref[..., 3] = c * c * t1 - b_vec @ v_k
+    ref[..., 4:7] = c_vec
+    ref[..., 7] = c * c * t2 - np.einsum("...i,...i->...", c_vec, v_r)
+    ref[..., 8:11] = v_r
+    ref[..., 11] = c * c - np.einsum("...i,...i->...", v_r, v_r)
+    ref[..., 12] = k_int.astype(np.int32).view(np.float32)
+    ref[..., 13] = np.clip(k_ref - k_int, 0.0, np.nextafter(np.float32(1), np.float32(0)))
+    ref[..., 14] = cycles - np.round(cycles)
+    ref[..., 15] = c * t1
+    return np.ascontiguousarray(ref.transpose(1, 0, 2)), departure
+
+
+class _Chunk:
+    """The device side of slots ``first`` .. ``stop - 1`` of a :class:`Tiling`: bp_tile's pixel
+    fields (delta x, y, z, |delta|^2 and, for moving pixels, delta . v; float32 (F, n)), its
+    work-items' local tile indices, the tiles present (``tiles``, indices into the Tiling), the
+    double image (n,), and on demand the absolute positions for bp_block (double (3, n))."""
+
+    def __init__(self, ctx, pixels, tiling: Tiling, first: int, stop: int, v_k: np.ndarray):
+        import pyopencl as cl
+
+        mf = cl.mem_flags
+        self.first, self.n = first, stop - first
+        self.order, self.real = tiling.order[first:stop], tiling.real[first:stop]
+        self.tiles, local = np.unique(tiling.tile[first:stop], return_inverse=True)
+        delta = pixels[self.order] - tiling.centres[tiling.tile[first:stop]]
+        fields = [*delta.T, np.sum(delta * delta, axis=-1)] + ([delta @ v_k] if np.any(v_k) else [])
+        self.pix = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.array(fields, dtype=np.float32))
+        self.tile_of = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                                 hostbuf=local[::LANES * ROWS].astype(np.int32))
+        self.image = cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.zeros(self.n, np.complex128))
+        self._absolute = None
+
+    def absolute(self, ctx, pixels):
+        if self._absolute is None:
+            import pyopencl as cl
+
+            self._absolute = cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                                       hostbuf=np.ascontiguousarray(pixels[self.order].T))
+        return self._absolute
+
+    def finish(self, queue, image: np.ndarray) -> None:
+        """Wait for the chunk and put its pixels (not the padding) into the flat image."""
+        import pyopencl as cl
+
+        out = np.empty(self.n, np.complex128)
+        cl.enqueue_copy(queue, out, self.image)
+        image[self.order[self.real]] = out[self.real]
+
+
 def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, velocity, stop_and_go, progress,
                        double=False):
-    """The kernels/backprojection.cl launcher: image (M,) complex128."""
+    """The kernels/backprojection.cl launcher: image (M,) complex128 and how many (chunk, receiver,
+    pulse block) jobs ran on the exact double kernel.
+
+    ``precision="single"`` (bp_tile): float32 geometry relative to a reference per (tile, pulse).
+    Derivation. Let the tile's reference point meet pulse p at t1_ref, at q_ref (exact, float64,
+    :func:`legs`), and its echo reach the receiver at T_ref = t1_ref + t2_ref, at R_ref; let
+    B = q_ref - tx (|B| = c t1_ref) and C = R_ref - q_ref (|C| = c t2_ref). A pixel of the tile
+    sits at delta from the reference point and moves with it at v, so it meets the pulse at
+    q = q_ref + delta + v s1 with s1 = t1 - t1_ref; c t1 = |q - tx| gives
+    |B + delta + v s1|^2 = c^2 (t1_ref + s1)^2, and subtracting |B|^2 = c^2 t1_ref^2:
+
+        (c^2 - |v|^2) s1^2 + 2 b1 s1 - N1 = 0,  N1 = 2 B.delta + |delta|^2,  b1 = c^2 t1_ref - (B + delta).v,
+
+    whose root near 0 is s1 = N1 / (b1 + sqrt(b1^2 + (c^2 - |v|^2) N1)) (no cancellation: b1 ~ c |B|
+    > 0). The receiver moves linearly over the tile's delay span, R = R_ref + v_r (s1 + s2) with
+    s2 = t2 - t2_ref, so R - q = C + e + v_r s2 with e = (v_r - v) s1 - delta, and
+    c t2 = |R - q| gives likewise
+
+        (c^2 - |v_r|^2) s2^2 + 2 b2 s2 - N2 = 0,  N2 = 2 C.e + |e|^2,  b2 = c^2 t2_ref - (C + e).v_r,
+
+    s2 = N2 / (b2 + sqrt(b2^2 + (c^2 - |v_r|^2) N2)). The delay is T_ref + s1 + s2 (DESIGN.md's
+    exact non-stop-and-go delay; stop-and-go is the same with v = v_r = 0 and references at eta);
+    the sample index (T_ref - t0) fs + (s1 + s2) fs is K_ref + (frac_ref + (s1 + s2) fs) and the
+    carrier cycles f0 T_ref (reduced in double) + f0 (s1 + s2). Nothing of size |B| is subtracted
+    in float: every term carries a relative error of a few eps32 of a quantity of size |delta|
+    (N1, N2, s1, s2 ~ |delta| / c; B, C, b1, b2 enter as ratios), and f0 (s1 + s2) ~ 2 f0 |delta| / c
+    cycles is rounded once more; counting about ERROR_FACTOR = 8 roundings of |delta| / c of delay,
+    the phase error is below 2 pi f0 8 eps32 |delta| / c, kept below PHASE_BUDGET by the tile
+    size (:func:`plan_tiles`; tests/test_backprojection.py measures it). The receiver's velocity
+    v_r is the secant of its track over T_ref +- SPAN_FACTOR |delta|_max / c (which contains
+    every pixel's delay); where the track departs from that line by more than NODE_TOLERANCE
+    wavelengths (motion errors: kinks at its nodes), the receiver's pulse block runs on the exact
+    double kernel instead (bp_block; counted in the result).
+    """
     import pyopencl as cl
 
     rt = opencl.runtime()
-    ctx, q = rt.context, rt.queue
+    ctx, queue = rt.context, rt.queue
     mf = cl.mem_flags
+    c, f0 = echo.medium.sound_speed, echo.waveform.f0
     pixels = grid.positions.reshape(-1, 3)
     m = pixels.shape[0]
-    m_pad = -(-m // 8) * 8
-    soa = np.zeros((3, m_pad))
-    soa[:, :m] = pixels.T
-    soa[:, m:] = pixels[-1][:, None]
-    pix_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=soa)
-    image = np.zeros(m_pad, dtype=np.complex128)
-    image_buf = cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=image)
-    taps_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=_tap_table())
+    image = np.zeros(m, dtype=np.complex128)
     factor = upsample if interp == "linear" else 1
     fs = echo.fs * factor
-    # records are upsampled and uploaded a large block at a time (few host round trips); the
-    # kernel then sums PULSE_BLOCK pulses a launch so that their records stay in cache
+    taps_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=_tap_table())
+    defines = {"INTERP_LINEAR" if interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS,
+               **({"APERTURE": 1} if aperture is not None else {})}
+    half_sin = np.sin(aperture / 2) if aperture is not None else 1.0
+    v_k = np.zeros(3) if stop_and_go else velocity
+    tiles = plan_tiles(pixels, f0, c)
+    chunk = PIXEL_CHUNK // (LANES * ROWS) * (LANES * ROWS)
     per_pulse = 16 * echo.n_samples * factor
     upload = max(PULSE_BLOCK, int(UPLOAD_BYTES // per_pulse) // PULSE_BLOCK * PULSE_BLOCK)
-    jobs = [(h, np.arange(s, min(s + upload, echo.n_pulses))) for h in receivers
-            for s in range(0, echo.n_pulses, upload)]
-    kernels = {}
-    for h, pulses in tqdm(jobs, desc="back-projection (opencl)", disable=not progress):
+    jobs = [(first, h, np.arange(s, min(s + upload, echo.n_pulses))) for first in range(0, tiles.order.size, chunk)
+            for h in receivers for s in range(0, echo.n_pulses, upload)]
+    tolerance = NODE_TOLERANCE * echo.waveform.wavelength(echo.medium)
+    fallbacks, chunk_state = 0, None
+    for first, h, pulses in tqdm(jobs, desc="back-projection (opencl)", disable=not progress):
+        if chunk_state is None or chunk_state.first != first:
+            if chunk_state is not None:
+                chunk_state.finish(queue, image)
+            chunk_state = _Chunk(ctx, pixels, tiles, first, min(first + chunk, tiles.order.size), v_k)
+        records = upsample_records(echo.data[h, pulses], factor).astype(np.complex128 if double else np.complex64)
+        records_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=records)
+        blocks = [(p0, min(PULSE_BLOCK, pulses.size - p0)) for p0 in range(0, pulses.size, PULSE_BLOCK)]
+        if not double:
+            refs = [tile_references(echo, h, pulses[s:s + REF_PULSES], tiles.centres[chunk_state.tiles], velocity,
+                                    stop_and_go, fs, tiles.half_extent) for s in range(0, pulses.size, REF_PULSES)]
+            if max(dep for _, dep in refs) <= tolerance:
+                ref_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                                    hostbuf=np.concatenate([ref for ref, _ in refs], axis=1))
+                kern = opencl.kernel("backprojection", "bp_tile", defines=dict(
+                    defines, BP_TILE=1, ROWS=ROWS, PULSES=PULSES, **({"MOVING": 1} if np.any(v_k) else {})))
+                params = np.array([c * c - v_k @ v_k, fs, f0, *v_k, half_sin, c], dtype=np.float32)
+                for p0, count in blocks:
+                    kern(queue, (chunk_state.n // (LANES * ROWS),), None, chunk_state.pix, chunk_state.tile_of,
+                         ref_buf, np.int32(pulses.size), records_buf, taps_buf, params.view(cl.cltypes.float8)[0],
+                         np.int32(p0), np.int32(count), np.int32(records.shape[1]), np.int32(chunk_state.n),
+                         chunk_state.image)
+                continue
+            fallbacks += 1
+        # the exact double kernel (precision="double", or the fallback)
         dtau, pos = _uniform_nodes(echo, h)
         n_nodes = pos.shape[1]
-        if n_nodes not in kernels:
-            defines = {"N_NODES": n_nodes, "SEGMENT_PASSES": 1 if n_nodes == 2 else 3,
-                       "INTERP_LINEAR" if interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS}
-            if stop_and_go:
-                defines["STOP_AND_GO"] = 1
-            if aperture is not None:
-                defines["APERTURE"] = 1
-            kernels[n_nodes] = opencl.kernel("backprojection", "bp_block", defines=defines, double=double)
-        records = upsample_records(echo.data[h, pulses], factor).astype(np.complex128 if double else np.complex64)
+        kern = opencl.kernel("backprojection", "bp_block", double=double, defines=dict(
+            defines, N_NODES=n_nodes, SEGMENT_PASSES=1 if n_nodes == 2 else 3, **({"STOP_AND_GO": 1} if stop_and_go else {})))
         pulse = np.zeros((pulses.size, 8))
         pulse[:, 0:3], pulse[:, 3], pulse[:, 4] = echo.tx_pos[pulses], echo.eta[pulses], echo.t0[h] * fs
         nodes = np.zeros((pulses.size, n_nodes, 8))
         nodes[..., 0:3] = pos[pulses]
-        bufs = [cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
-                for a in (pulse, nodes, records)]
-        params = np.array([echo.medium.sound_speed, echo.waveform.f0, fs, dtau, *velocity,
-                           np.sin(aperture / 2) if aperture is not None else 1.0])
-        for first in range(0, pulses.size, PULSE_BLOCK):
-            kernels[n_nodes](q, (m_pad // 8,), None, pix_buf, bufs[0], bufs[1], bufs[2], taps_buf,
-                             params.view(cl.cltypes.double8)[0], np.int32(first),
-                             np.int32(min(PULSE_BLOCK, pulses.size - first)), np.int32(records.shape[1]),
-                             np.int32(m_pad), image_buf)
-    cl.enqueue_copy(q, image, image_buf)
-    return image[:m]
+        pulse_buf, nodes_buf = (cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a) for a in (pulse, nodes))
+        params = np.array([c, f0, fs, dtau, *velocity, half_sin])
+        for p0, count in blocks:
+            kern(queue, (chunk_state.n // 8,), None, chunk_state.absolute(ctx, pixels), pulse_buf, nodes_buf,
+                 records_buf, taps_buf, params.view(cl.cltypes.double8)[0], np.int32(p0), np.int32(count),
+                 np.int32(records.shape[1]), np.int32(chunk_state.n), chunk_state.image)
+    chunk_state.finish(queue, image)
+    return image, fallbacks
 
 
 def backproject(echo: EchoData, grid: Grid, backend: str | None = None, receivers=None, interp: str = "linear",
@@ -264,9 +479,13 @@ def backproject(echo: EchoData, grid: Grid, backend: str | None = None, receiver
     double = _backend.check_precision(precision)
     name = _backend.resolve(backend)
     args = (echo, grid, chosen, interp, upsample, aperture, velocity, stop_and_go, progress)
-    flat = backproject_reference(*args) if name == "numpy" else backproject_opencl(*args, double=double)
+    if name == "numpy":
+        flat, fallbacks = backproject_reference(*args), 0
+    else:
+        flat, fallbacks = backproject_opencl(*args, double=double)
     return Image(data=flat.reshape(grid.shape), dims=grid.dims, axes=grid.axes, positions=grid.positions,
                  provenance={"algorithm": "backprojection", "backend": name, "precision": precision, "interp": interp,
                              "upsample": int(upsample), "receivers": [echo.receivers[h] for h in chosen],
                              "aperture": aperture, "target_velocity": velocity.tolist(),
-                             "stop_and_go": bool(stop_and_go), "echo": dict(echo.provenance)})
+                             "stop_and_go": bool(stop_and_go), "exact_fallback_blocks": fallbacks,
+                             "echo": dict(echo.provenance)})
