@@ -74,14 +74,14 @@ inline realv2_t sinc8_lane(__global const real_t *rec, int i, __global const flo
 /* pix[f * m_pad + m], m = 16 (ROWS g + r) + lane: f = 0, 1, 2: delta (pixel at t = 0 minus its
  *   tile's reference point, m), f = 3: |delta|^2, f = 4 (MOVING): delta . v;
  * tile_of[g]: the tile of work-item g;
- * ref[t * ref_stride + p], float16 per (tile t, pulse p): s012 B, s3 c^2 t1_ref - B.v, s456 C,
+ * ref[t * ref_stride + p - ref_first], float16 per (tile t, pulse p): s012 B, s3 c^2 t1_ref - B.v, s456 C,
  *   s7 c^2 t2_ref - C.v_r, s89a v_r, sb a2, sc the integer sample index of T_ref (int bits),
  *   sd its fraction, se f0 T_ref reduced, sf c t1_ref;
  * params: s0 a1, s1 fs (of the data), s2 f0, s345 v, s6 sin(aperture / 2), s7 c;
  * data[p n + i]: the receiver's range-compressed record of pulse p; taps: see sinc8_lane;
  * image[m] += the sum over pulses p_first .. p_first + p_count - 1. */
 __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __global const float16 *ref,
-                      const int ref_stride, __global const sample_t *data, __global const float *taps,
+                      const int ref_stride, const int ref_first, __global const sample_t *data, __global const float *taps,
                       const float8 params, const int p_first, const int p_count, const int n, const int m_pad,
                       __global double2 *image)
 {
@@ -114,7 +114,7 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
         float live[PULSES];
         _Pragma("unroll") for (int j = 0; j < PULSES; ++j) {
             const int pj = min(p + j, p_end - 1);
-            R[j] = tref[pj];
+            R[j] = tref[pj - ref_first];
             rec[j] = (__global const float *)(data + (size_t)pj * n);
             live[j] = p + j < p_end ? 1.0f : 0.0f;
         }

@@ -207,7 +207,7 @@ def _uniform_nodes(echo: EchoData, h: int):
 def tile_half_extent(f0: float, c: float) -> float:
     """The largest distance (m) from a tile's reference point that keeps the float32 geometry's
     phase error below PHASE_BUDGET: 2 pi f0 ERROR_FACTOR eps32 |delta| / c <= PHASE_BUDGET
-    (6.7 m at 150 kHz and 1500 m/s)."""
+    (3.3 m at 150 kHz and 1500 m/s; eps32 = 1.2e-7)."""
     return PHASE_BUDGET * c / (2 * np.pi * f0 * ERROR_FACTOR * float(np.finfo(np.float32).eps))
 
 
@@ -303,6 +303,25 @@ def tile_references(echo: EchoData, h: int, pulses: np.ndarray, centres: np.ndar
     ref[..., 14] = cycles - np.round(cycles)
     ref[..., 15] = c * t1
     return np.ascontiguousarray(ref.transpose(1, 0, 2)), departure
+
+
+def _exact_kernel(ctx, echo, h, pulses, fs, velocity, half_sin, defines, stop_and_go, double):
+    """bp_block (the exact double kernel) for receiver h and ``pulses``: the kernel, its pulse and
+    receiver-node buffers and its parameters (layouts in kernels/backprojection.cl)."""
+    import pyopencl as cl
+
+    dtau, pos = _uniform_nodes(echo, h)
+    n_nodes = pos.shape[1]
+    kern = opencl.kernel("backprojection", "bp_block", double=double, defines=dict(
+        defines, N_NODES=n_nodes, SEGMENT_PASSES=1 if n_nodes == 2 else 3, **({"STOP_AND_GO": 1} if stop_and_go else {})))
+    pulse = np.zeros((pulses.size, 8))
+    pulse[:, 0:3], pulse[:, 3], pulse[:, 4] = echo.tx_pos[pulses], echo.eta[pulses], echo.t0[h] * fs
+    nodes = np.zeros((pulses.size, n_nodes, 8))
+    nodes[..., 0:3] = pos[pulses]
+    pulse_buf, nodes_buf = (cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=a)
+                            for a in (pulse, nodes))
+    params = np.array([echo.medium.sound_speed, echo.waveform.f0, fs, dtau, *velocity, half_sin])
+    return kern, pulse_buf, nodes_buf, params.view(cl.cltypes.double8)[0]
 
 
 class _Chunk:
@@ -403,6 +422,9 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
             for h in receivers for s in range(0, echo.n_pulses, upload)]
     tolerance = NODE_TOLERANCE * echo.waveform.wavelength(echo.medium)
     fallbacks, chunk_state = 0, None
+    tile_kernel = opencl.kernel("backprojection", "bp_tile", defines=dict(
+        defines, BP_TILE=1, ROWS=ROWS, PULSES=PULSES, **({"MOVING": 1} if np.any(v_k) else {})))
+    tile_params = np.array([c * c - v_k @ v_k, fs, f0, *v_k, half_sin, c], dtype=np.float32).view(cl.cltypes.float8)[0]
     for first, h, pulses in tqdm(jobs, desc="back-projection (opencl)", disable=not progress):
         if chunk_state is None or chunk_state.first != first:
             if chunk_state is not None:
@@ -410,38 +432,30 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
             chunk_state = _Chunk(ctx, pixels, tiles, first, min(first + chunk, tiles.order.size), v_k)
         records = upsample_records(echo.data[h, pulses], factor).astype(np.complex128 if double else np.complex64)
         records_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=records)
-        blocks = [(p0, min(PULSE_BLOCK, pulses.size - p0)) for p0 in range(0, pulses.size, PULSE_BLOCK)]
-        if not double:
-            refs = [tile_references(echo, h, pulses[s:s + REF_PULSES], tiles.centres[chunk_state.tiles], velocity,
-                                    stop_and_go, fs, tiles.half_extent) for s in range(0, pulses.size, REF_PULSES)]
-            if max(dep for _, dep in refs) <= tolerance:
-                ref_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
-                                    hostbuf=np.concatenate([ref for ref, _ in refs], axis=1))
-                kern = opencl.kernel("backprojection", "bp_tile", defines=dict(
-                    defines, BP_TILE=1, ROWS=ROWS, PULSES=PULSES, **({"MOVING": 1} if np.any(v_k) else {})))
-                params = np.array([c * c - v_k @ v_k, fs, f0, *v_k, half_sin, c], dtype=np.float32)
-                for p0, count in blocks:
-                    kern(queue, (chunk_state.n // (LANES * ROWS),), None, chunk_state.pix, chunk_state.tile_of,
-                         ref_buf, np.int32(pulses.size), records_buf, taps_buf, params.view(cl.cltypes.float8)[0],
-                         np.int32(p0), np.int32(count), np.int32(records.shape[1]), np.int32(chunk_state.n),
-                         chunk_state.image)
-                continue
-            fallbacks += 1
-        # the exact double kernel (precision="double", or the fallback)
-        dtau, pos = _uniform_nodes(echo, h)
-        n_nodes = pos.shape[1]
-        kern = opencl.kernel("backprojection", "bp_block", double=double, defines=dict(
-            defines, N_NODES=n_nodes, SEGMENT_PASSES=1 if n_nodes == 2 else 3, **({"STOP_AND_GO": 1} if stop_and_go else {})))
-        pulse = np.zeros((pulses.size, 8))
-        pulse[:, 0:3], pulse[:, 3], pulse[:, 4] = echo.tx_pos[pulses], echo.eta[pulses], echo.t0[h] * fs
-        nodes = np.zeros((pulses.size, n_nodes, 8))
-        nodes[..., 0:3] = pos[pulses]
-        pulse_buf, nodes_buf = (cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a) for a in (pulse, nodes))
-        params = np.array([c, f0, fs, dtau, *velocity, half_sin])
-        for p0, count in blocks:
-            kern(queue, (chunk_state.n // 8,), None, chunk_state.absolute(ctx, pixels), pulse_buf, nodes_buf,
-                 records_buf, taps_buf, params.view(cl.cltypes.double8)[0], np.int32(p0), np.int32(count),
-                 np.int32(records.shape[1]), np.int32(chunk_state.n), chunk_state.image)
+        exact = None
+        for s in range(0, pulses.size, REF_PULSES):
+            # a sub-block's references are computed while the previous sub-block's kernels run
+            blocks = [(p0, min(PULSE_BLOCK, s + REF_PULSES - p0, pulses.size - p0))
+                      for p0 in range(s, min(s + REF_PULSES, pulses.size), PULSE_BLOCK)]
+            if not double:
+                ref, departure = tile_references(echo, h, pulses[s:s + REF_PULSES], tiles.centres[chunk_state.tiles],
+                                                 velocity, stop_and_go, fs, tiles.half_extent)
+                if departure <= tolerance:
+                    ref_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=ref)
+                    for p0, count in blocks:
+                        tile_kernel(queue, (chunk_state.n // (LANES * ROWS),), None, chunk_state.pix,
+                                    chunk_state.tile_of, ref_buf, np.int32(ref.shape[1]), np.int32(s), records_buf,
+                                    taps_buf, tile_params, np.int32(p0), np.int32(count), np.int32(records.shape[1]),
+                                    np.int32(chunk_state.n), chunk_state.image)
+                    continue
+                fallbacks += 1
+            if exact is None:  # the exact double kernel (precision="double", or the fallback)
+                exact = _exact_kernel(ctx, echo, h, pulses, fs, velocity, half_sin, defines, stop_and_go, double)
+            kern, pulse_buf, nodes_buf, params = exact
+            for p0, count in blocks:
+                kern(queue, (chunk_state.n // 8,), None, chunk_state.absolute(ctx, pixels), pulse_buf, nodes_buf,
+                     records_buf, taps_buf, params, np.int32(p0), np.int32(count), np.int32(records.shape[1]),
+                     np.int32(chunk_state.n), chunk_state.image)
     chunk_state.finish(queue, image)
     return image, fallbacks
 
