@@ -141,6 +141,25 @@ class EchoData:
         rows = np.arange(rows_of.size).reshape((-1,) + (1,) * (tau.ndim - 1))
         return pos[rows, seg] * (1 - w) + pos[rows, seg + 1] * w
 
+    def select_receivers(self, receivers=None, parameter: str = "receivers") -> list:
+        """Indices of ``receivers`` (indices or names; None: all), or a ValueError naming
+        ``parameter`` and what is allowed."""
+        if receivers is None:
+            return list(range(self.n_rx))
+        chosen = []
+        for r in np.atleast_1d(receivers).tolist():
+            if isinstance(r, str):
+                if r not in self.receivers:
+                    raise ValueError(f"{parameter}: unknown receiver {r!r}; the echo has {self.receivers}")
+                r = self.receivers.index(r)
+            if isinstance(r, bool) or not isinstance(r, int) or not 0 <= r < self.n_rx:
+                raise ValueError(f"{parameter} must be indices in [0, {self.n_rx - 1}] or names {self.receivers}, "
+                                 f"got {r!r}")
+            chosen.append(r)
+        if not chosen:
+            raise ValueError(f"{parameter} is empty: select at least one receiver")
+        return chosen
+
     def replace(self, **changes) -> "EchoData":
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)

@@ -64,6 +64,8 @@ def test_bad_input():
         omega_k(multi, receiver=5, backend="numpy")
     with pytest.raises(ValueError, match="receiver"):
         omega_k(mono, receiver=3, backend="numpy")
+    with pytest.raises(ValueError, match="one index or name"):
+        omega_k(mono, receiver=[0, 0], backend="numpy")
     with pytest.raises(ValueError, match="range-compressed"):
         omega_k(mono.replace(compressed=False), backend="numpy")
     with pytest.raises(ValueError, match="straight"):

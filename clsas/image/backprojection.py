@@ -84,21 +84,7 @@ def _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velo
         raise ValueError(f"interp must be one of {INTERPOLATORS}, got {interp!r}")
     if isinstance(upsample, bool) or not isinstance(upsample, (int, np.integer)) or not 1 <= upsample <= 64:
         raise ValueError(f"upsample must be an integer in [1, 64], got {upsample!r}")
-    if receivers is None:
-        chosen = list(range(echo.n_rx))
-    else:
-        chosen = []
-        for r in np.atleast_1d(receivers).tolist():
-            if isinstance(r, str):
-                if r not in echo.receivers:
-                    raise ValueError(f"receivers: unknown receiver {r!r}; the echo has {echo.receivers}")
-                r = echo.receivers.index(r)
-            if isinstance(r, bool) or not isinstance(r, int) or not 0 <= r < echo.n_rx:
-                raise ValueError(f"receivers must be indices in [0, {echo.n_rx - 1}] or names {echo.receivers}, "
-                                 f"got {r!r}")
-            chosen.append(r)
-        if not chosen:
-            raise ValueError("receivers is empty: select at least one receiver")
+    chosen = echo.select_receivers(receivers)
     if aperture is not None and not (np.isfinite(aperture) and 0 < aperture <= np.pi):
         raise ValueError(f"aperture must be a full integration angle in (0, pi] radians, got {aperture}")
     v = np.zeros(3) if target_velocity is None else np.asarray(target_velocity, dtype=np.float64)

@@ -30,19 +30,7 @@ import numpy as np
 
 from ..data import EchoData
 from .stolt import resample_rows
-from .track import STRAIGHTNESS, LineRecord, check_straight_track
-
-
-def receiver_index(echo: EchoData, receiver) -> int:
-    """Index of ``receiver`` (an index or a name) in ``echo``, or a ValueError."""
-    if isinstance(receiver, str):
-        if receiver not in echo.receivers:
-            raise ValueError(f"receiver: unknown name {receiver!r}; the echo has {echo.receivers}")
-        return echo.receivers.index(receiver)
-    if isinstance(receiver, bool) or not isinstance(receiver, (int, np.integer)) or not 0 <= receiver < echo.n_rx:
-        raise ValueError(f"receiver must be an index in [0, {echo.n_rx - 1}] or a name in {echo.receivers}, "
-                         f"got {receiver!r}")
-    return int(receiver)
+from .track import LineRecord, check_straight_track, made_nonstop
 
 
 def path_excess(r, d: float, speed: float, c: float, nonstop: bool = True):
@@ -62,7 +50,9 @@ def compensate_bistatic(data, t0: float, fs: float, d: float, speed: float, wave
     c = medium.sound_speed
     n = data.shape[1]
     t_out = (t0 if t0_out is None else t0_out) + np.arange(n) / fs
-    excess = path_excess(np.maximum(c * t_out / 2, 1e-3), d, speed, c, nonstop)
+    r = c * t_out / 2
+    # samples before the emission (t0 may be negative) hold no echo: no excess there
+    excess = np.where(r > 0, path_excess(np.where(r > 0, r, 1.0), d, speed, c, nonstop), 0.0)
     idx = np.broadcast_to((t_out + excess / c - t0) * fs, data.shape)
     phase = np.exp(2j * np.pi * waveform.f0 * excess / c)
     oversampling = fs / waveform.bandwidth
@@ -90,12 +80,9 @@ def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and
         raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
     if not echo.compressed:
         raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first")
-    chosen = list(range(echo.n_rx)) if receivers is None else [receiver_index(echo, r) for r in np.atleast_1d(receivers)]
-    if not chosen:
-        raise ValueError("receivers is empty: select at least one receiver")
-    u0, du, x, z = check_straight_track(echo)
-    c = echo.medium.sound_speed
-    tol = STRAIGHTNESS * c / echo.waveform.f0
+    chosen = echo.select_receivers(receivers)
+    track = check_straight_track(echo)
+    tol = track.tolerance
     offsets = []
     for h in chosen:
         off = echo.rx_position(h, np.zeros((echo.n_pulses, 1)))[:, 0] - echo.tx_pos
@@ -103,9 +90,8 @@ def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and
             raise ValueError(f"receiver {echo.receivers[h]!r} must sit on the transmitter's track line at a fixed "
                              f"along-track offset (found offsets {off[0]} m varying by {np.ptp(off, axis=0).max():.3g} m)")
         offsets.append(float(np.mean(off[:, 1])))
-    nonstop = not (echo.provenance.get("stop_and_go", False) if stop_and_go is None else stop_and_go)
-    speed = du * (echo.n_pulses - 1) / (echo.eta[-1] - echo.eta[0])
-    centres = (u0 + du * np.arange(echo.n_pulses))[:, None] + np.asarray(offsets)[None, :] / 2
+    nonstop = made_nonstop(echo, stop_and_go)
+    centres = (track.u0 + track.du * np.arange(echo.n_pulses))[:, None] + np.asarray(offsets)[None, :] / 2
     order = np.argsort(centres, axis=None, kind="stable")
     u = centres.ravel()[order]
     step = (u[-1] - u[0]) / (u.size - 1)
@@ -117,14 +103,13 @@ def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and
     t0 = float(np.min(echo.t0[chosen]))
     rows = np.empty((echo.n_pulses, len(chosen), echo.n_samples), dtype=np.complex64)
     for j, (h, d) in enumerate(zip(chosen, offsets)):
-        if compensate:
-            rows[:, j] = compensate_bistatic(echo.data[h], echo.t0[h], echo.fs, d, speed, echo.waveform, echo.medium,
-                                             t0_out=t0, nonstop=nonstop)
-        else:
-            rows[:, j] = compensate_bistatic(echo.data[h], echo.t0[h], echo.fs, 0.0, 0.0, echo.waveform, echo.medium,
-                                             t0_out=t0, nonstop=False)
+        # uncompensated: no path excess (d = v = 0), only the common time axis
+        d, speed, lead = (d, track.speed, nonstop) if compensate else (0.0, 0.0, False)
+        rows[:, j] = compensate_bistatic(echo.data[h], echo.t0[h], echo.fs, d, speed, echo.waveform, echo.medium,
+                                         t0_out=t0, nonstop=lead)
     data = rows.reshape(-1, echo.n_samples)[order]
-    return LineRecord(data=data, u0=float(u[0]), du=float(step), t0=t0, fs=echo.fs, speed=speed, track=(x, z),
+    return LineRecord(data=data, u0=float(u[0]), du=float(step), t0=t0, fs=echo.fs, speed=track.speed,
+                      track=(track.x, track.z),
                       waveform=echo.waveform, medium=echo.medium, nonstop=nonstop,
                       provenance={"from": "pca_record", "receivers": [echo.receivers[h] for h in chosen],
                                   "compensated": bool(compensate), "echo": dict(echo.provenance)})

@@ -38,6 +38,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft
 
+from ..data import EchoData
 from .rangecomp import WINDOWS, spectral_window
 from .stolt import StoltAxes, check_options, stolt
 from .track import LineRecord, image_of, line_record, nonstop_shift
@@ -45,8 +46,6 @@ from .track import LineRecord, image_of, line_record, nonstop_shift
 
 def as_record(data, receiver=0) -> LineRecord:
     """A LineRecord as is, or the monostatic record of an EchoData (:func:`clsas.image.track.line_record`)."""
-    from ..data import EchoData
-
     if isinstance(data, LineRecord):
         return data
     if isinstance(data, EchoData):

@@ -19,10 +19,11 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
-from ..data import EchoData
+from ..data import EchoData, Image
 from ..scene.scenario import Medium, Waveform
 
 STRAIGHTNESS = 0.05  # allowed deviation of the track from a line, wavelengths
@@ -70,9 +71,22 @@ class LineRecord:
         return dataclasses.replace(self, **changes)
 
 
-def check_straight_track(echo: EchoData) -> tuple[float, float, float, float]:
-    """(u0, du, x, z) of the transmitter's track: a line along y sampled uniformly, within
-    STRAIGHTNESS wavelengths; otherwise a ValueError naming what deviates."""
+class Track(NamedTuple):
+    """A straight, uniformly sampled transmitter track: u0, du (m) of its along-track samples,
+    its cross-track position x and depth z (m), its speed (m/s) and the tolerance it was held
+    to (m)."""
+
+    u0: float
+    du: float
+    x: float
+    z: float
+    speed: float
+    tolerance: float
+
+
+def check_straight_track(echo: EchoData) -> Track:
+    """The transmitter's track: a line along y sampled uniformly, within STRAIGHTNESS
+    wavelengths; otherwise a ValueError naming what deviates."""
     if echo.n_pulses < 2:
         raise ValueError(f"a strip-map record needs at least 2 pulses, got {echo.n_pulses}")
     tol = STRAIGHTNESS * echo.medium.sound_speed / echo.waveform.f0
@@ -88,7 +102,14 @@ def check_straight_track(echo: EchoData) -> tuple[float, float, float, float]:
                              "use clsas.backproject for this geometry")
     if du <= 0:
         raise ValueError(f"the platform must move along +y (the along-track step is {du:.3g} m)")
-    return float(u0), float(du), float(np.mean(tx[:, 0])), float(np.mean(tx[:, 2]))
+    speed = du * (echo.n_pulses - 1) / (echo.eta[-1] - echo.eta[0])
+    return Track(float(u0), float(du), float(np.mean(tx[:, 0])), float(np.mean(tx[:, 2])), float(speed), tol)
+
+
+def made_nonstop(echo: EchoData, stop_and_go: bool | None) -> bool:
+    """Whether the echoes carry non-stop-and-go delays: ``not stop_and_go`` when given, else
+    read from ``echo.provenance["stop_and_go"]`` (False when absent, as clsas.simulate's default)."""
+    return not (echo.provenance.get("stop_and_go", False) if stop_and_go is None else stop_and_go)
 
 
 def line_record(echo: EchoData, receiver=0, stop_and_go: bool | None = None) -> LineRecord:
@@ -99,25 +120,27 @@ def line_record(echo: EchoData, receiver=0, stop_and_go: bool | None = None) -> 
     excess of Huang & Yang eq. (4) compensated (:func:`clsas.image.multireceiver.compensate_bistatic`
     with d = 0); their along-track shift v r / c is left to the imagers.
     """
-    from .multireceiver import compensate_bistatic, receiver_index
+    # imported here: multireceiver imports this module
+    from .multireceiver import compensate_bistatic
 
-    h = receiver_index(echo, receiver)
+    if np.ndim(receiver) != 0:
+        raise ValueError(f"receiver must be one index or name, got {receiver!r}")
+    h = echo.select_receivers(receiver, "receiver")[0]
     if not echo.compressed:
         raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first (the imagers "
                          "work on compressed records; chirp scaling re-spreads them itself)")
-    u0, du, x, z = check_straight_track(echo)
+    track = check_straight_track(echo)
     offset = echo.rx_position(h, np.zeros((echo.n_pulses, 1)))[:, 0] - echo.tx_pos
-    tol = STRAIGHTNESS * echo.medium.sound_speed / echo.waveform.f0
-    if np.max(np.abs(offset)) > tol:
+    if np.max(np.abs(offset)) > track.tolerance:
         raise ValueError(f"receiver {echo.receivers[h]!r} is {np.max(np.linalg.norm(offset, axis=1)):.3g} m from the "
                          "transmitter: not monostatic; convert a multireceiver record with "
                          "clsas.image.multireceiver.pca_record, or use clsas.backproject")
-    nonstop = not (echo.provenance.get("stop_and_go", False) if stop_and_go is None else stop_and_go)
-    speed = du * (echo.n_pulses - 1) / (echo.eta[-1] - echo.eta[0])
+    nonstop = made_nonstop(echo, stop_and_go)
     data = echo.data[h]
     if nonstop:
-        data = compensate_bistatic(data, echo.t0[h], echo.fs, 0.0, speed, echo.waveform, echo.medium)
-    return LineRecord(data=data, u0=u0, du=du, t0=float(echo.t0[h]), fs=echo.fs, speed=speed, track=(x, z),
+        data = compensate_bistatic(data, echo.t0[h], echo.fs, 0.0, track.speed, echo.waveform, echo.medium)
+    return LineRecord(data=data, u0=track.u0, du=track.du, t0=float(echo.t0[h]), fs=echo.fs, speed=track.speed,
+                      track=(track.x, track.z),
                       waveform=echo.waveform, medium=echo.medium, nonstop=nonstop,
                       provenance={"from": "line_record", "receiver": echo.receivers[h], "echo": dict(echo.provenance)})
 
@@ -144,8 +167,6 @@ def image_of(rec: LineRecord, ku_range: np.ndarray, r: np.ndarray, algorithm: st
 
     ku_range : complex (n_ku, len(r)); r : slant ranges of its columns, m, increasing.
     """
-    from ..data import Image
-
     x_track, z_track = rec.track
     depth = z_track if depth is None else float(depth)
     c = rec.medium.sound_speed
