@@ -13,13 +13,30 @@
  *
  * INTERP_LINEAR: (1 - w) s[i] + w s[i + 1]; otherwise TAPS (8 or 16) windowed-sinc taps
  * s[i - TAPS/2 + 1 + t] weighted by the row of the tap table nearest to w (TAP_ROWS rows over
- * w in [0, 1]); i = floor(idx), w = idx - i. An output reads as zero unless all its source
+ * w in [0, 1]); i = floor(idx), w = idx - i, except that w >= 1 - 1/(2 (TAP_ROWS - 1)) reads as
+ * (i + 1, w - 1) (a position a rounding error below an integer is that integer, in the kernel
+ * and the reference alike). An output reads as zero unless all its source
  * samples exist.
  *
  * One work-item: sixteen consecutive outputs of a row (float16 lanes for the index), global
  * size (n_out_pad / 16, n_rows). params: K0 = kx_first + 2 k0, dkx, A = c / (4 pi df),
  * Bc = -(f0 + f_first) / df. */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
+
+/* Unaligned vector loads: PoCL builds vloadN from 8-byte pieces (eight loads for a vload16);
+ * a vector type with 4-byte alignment makes clang emit one unaligned vector load. */
+#ifdef __clang__
+typedef float16 float16_u __attribute__((aligned(4)));
+typedef float8 float8_u __attribute__((aligned(4)));
+typedef float4 float4_u __attribute__((aligned(4)));
+#define LOAD16(p) (*(__global const float16_u *)(p))
+#define LOAD8(p) (*(__global const float8_u *)(p))
+#define LOAD4(p) (*(__global const float4_u *)(p))
+#else
+#define LOAD16(p) vload16(0, (p))
+#define LOAD8(p) vload8(0, (p))
+#define LOAD4(p) vload4(0, (p))
+#endif
 
 __kernel void stolt_map(__global const float2 *src, __global const float *taps,
                         __global const double *ku2, const double4 params, const int n_src,
@@ -39,49 +56,53 @@ __kernel void stolt_map(__global const float2 *src, __global const float *taps,
                       + (float)params.s2 * (d * (2.0f * kf + d) / (s_l + (float)s_first));
     int16 fl = convert_int16(x);
     fl += convert_int16(x < convert_float16(fl));  /* floor (a true compare is -1) */
-    const float16 w = x - convert_float16(fl);
+    float16 w = x - convert_float16(fl);
+    /* a position within half a tap row below an integer reads as that integer (as the
+     * reference does), so that exact integers decide the edge test the same way */
+    const int16 up = w >= 1.0f - 0.5f / (TAP_ROWS - 1);  /* -1 where true */
+    fl -= up;
+    w = select(w, w - 1.0f, up);
     const int16 i = i_first + fl;
     __global const float *row = (__global const float *)(src + (size_t)r * n_src);
-    float out[32];
+    __global float *o = (__global float *)(dst + (size_t)r * n_out_pad + j0);
 #ifdef INTERP_LINEAR
     const int16 ok = i >= 0 && i < n_src - 1;
+    float out[32];
 #define LANE(L, N) {                                                               \
-        const float4 s = ok.s##L ? vload4(0, row + 2 * i.s##L) : (float4)0.0f;      \
+        const float4 s = ok.s##L ? LOAD4(row + 2 * i.s##L) : (float4)0.0f;          \
         out[2 * N] = mix(s.s0, s.s2, w.s##L);                                      \
         out[2 * N + 1] = mix(s.s1, s.s3, w.s##L); }
+    LANE(0, 0) LANE(1, 1) LANE(2, 2) LANE(3, 3) LANE(4, 4) LANE(5, 5) LANE(6, 6) LANE(7, 7)
+    LANE(8, 8) LANE(9, 9) LANE(a, 10) LANE(b, 11) LANE(c, 12) LANE(d, 13) LANE(e, 14) LANE(f, 15)
+    vstore16(vload16(0, out), 0, o);
+    vstore16(vload16(1, out), 1, o);
 #else
     const int16 first_raw = i - (TAPS / 2 - 1);
     const int16 ok = first_raw >= 0 && first_raw <= n_src - TAPS;
-    const int16 first = clamp(first_raw, 0, n_src - TAPS);
-    float keep[16];
-    vstore16(select((float16)0.0f, (float16)1.0f, ok), 0, keep);
+    const int16 first = 2 * clamp(first_raw, 0, n_src - TAPS);
     const int16 t_row = convert_int16(w * (float)(TAP_ROWS - 1) + 0.5f);
+    /* lane L's complex products: its TAPS samples (re, im interleaved) times the row's taps,
+     * each tap repeated for re and im; TAPS = 16 adds the second half first */
 #if TAPS == 8
-#define PRODUCTS(L)                                                                \
-            const float16 s = vload16(0, row + 2 * first.s##L);                    \
-            const float8 t = vload8(t_row.s##L, taps);                             \
-            const float8 pr = s.even * t, pi = s.odd * t;
+#define P(L) (LOAD16(row + first.s##L) * LOAD8(taps + 8 * t_row.s##L).s0011223344556677)
 #elif TAPS == 16
-#define PRODUCTS(L)                                                                \
-            const float16 a = vload16(0, row + 2 * first.s##L);                    \
-            const float16 b = vload16(0, row + 2 * first.s##L + 16);               \
-            const float16 t = vload16(t_row.s##L, taps);                           \
-            const float8 pr = a.even * t.lo + b.even * t.hi;                       \
-            const float8 pi = a.odd * t.lo + b.odd * t.hi;
+#define P(L) (LOAD16(row + first.s##L) * LOAD16(taps + 16 * t_row.s##L).lo.s0011223344556677      \
+              + LOAD16(row + first.s##L + 16) * LOAD16(taps + 16 * t_row.s##L).hi.s0011223344556677)
 #else
 #error "TAPS must be 8 or 16"
 #endif
-#define LANE(L, N) {                                                               \
-        PRODUCTS(L)                                                                \
-        const float4 qr = pr.lo + pr.hi, qi = pi.lo + pi.hi;                       \
-        const float2 hr = qr.lo + qr.hi, hi = qi.lo + qi.hi;                       \
-        out[2 * N] = keep[N] * (hr.x + hr.y);                                      \
-        out[2 * N + 1] = keep[N] * (hi.x + hi.y); }
+    /* sum each lane's eight complex partials with a tree across lanes (no per-lane horizontal
+     * sums): two lanes' halves, then quarters, then pairs, leaving 8 complex outputs a vector */
+#define FOLD1(A, B) ((float16)((A).lo, (B).lo) + (float16)((A).hi, (B).hi))
+#define FOLD2(A, B) ((float16)((A).s012389ab, (B).s012389ab) + (float16)((A).s4567cdef, (B).s4567cdef))
+#define FOLD3(A, B) ((float16)((A).s014589cd, (B).s014589cd) + (float16)((A).s2367abef, (B).s2367abef))
+    const float16 p0 = P(0), p1 = P(1), p2 = P(2), p3 = P(3), p4 = P(4), p5 = P(5), p6 = P(6), p7 = P(7);
+    const float16 p8 = P(8), p9 = P(9), pa = P(a), pb = P(b), pc = P(c), pd = P(d), pe = P(e), pf = P(f);
+    const float16 q0 = FOLD1(p0, p1), q1 = FOLD1(p2, p3), q2 = FOLD1(p4, p5), q3 = FOLD1(p6, p7);
+    const float16 q4 = FOLD1(p8, p9), q5 = FOLD1(pa, pb), q6 = FOLD1(pc, pd), q7 = FOLD1(pe, pf);
+    const float16 lo = FOLD3(FOLD2(q0, q1), FOLD2(q2, q3)), hi = FOLD3(FOLD2(q4, q5), FOLD2(q6, q7));
+    const int16 keep_lo = ok.s0011223344556677, keep_hi = ok.s8899aabbccddeeff;
+    vstore16(select((float16)0.0f, lo, keep_lo), 0, o);
+    vstore16(select((float16)0.0f, hi, keep_hi), 1, o);
 #endif
-    LANE(0, 0) LANE(1, 1) LANE(2, 2) LANE(3, 3) LANE(4, 4) LANE(5, 5) LANE(6, 6) LANE(7, 7)
-    LANE(8, 8) LANE(9, 9) LANE(a, 10) LANE(b, 11) LANE(c, 12) LANE(d, 13) LANE(e, 14) LANE(f, 15)
-#undef LANE
-    __global float *o = (__global float *)(dst + (size_t)r * n_out_pad + j0);
-    vstore16(vload16(0, out), 0, o);
-    vstore16(vload16(1, out), 1, o);
 }

@@ -19,7 +19,10 @@ the source's sampling rate over its occupied band; the form used by SAR processo
 Knab 1979). The taps of a fractional offset w come from the nearest of ``TAP_ROWS`` rows
 tabulated over w in [0, 1] (at most 1/8192 sample off: 4e-4 rad at the band edge of a
 critically sampled spectrum, far below the 8-tap interpolation error), and each row is
-normalised to unit sum (unit gain at DC). An output reads as zero unless all its source
+normalised to unit sum (unit gain at DC). A position less than half a table row (``SNAP``)
+below an integer reads as that integer: where the map hits integers exactly (k_u = 0 with
+dkx = 4 pi df / c), rounding then cannot decide differently in the kernel and the reference
+whether an edge output has all its samples. An output reads as zero unless all its source
 samples exist (the spectrum must be zero-padded where the mapping needs more).
 
 The kernel (``kernels/stolt.cl``) computes idx in double and the interpolation in float;
@@ -30,6 +33,7 @@ rounding only (relative L2 ~1e-7, tests/test_stolt.py).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -40,6 +44,7 @@ INTERPOLATORS = {"linear": 2, "sinc8": 8, "sinc16": 16}
 TAP_WINDOWS = ("kaiser", "knab")
 KAISER_BETA = {8: 5.0, 16: 8.0}
 TAP_ROWS = 4097
+SNAP = 0.5 / (TAP_ROWS - 1)  # positions this close below an integer read as the integer
 ROW_BLOCK = 32  # rows a reference step (bounds its temporaries to ~ROW_BLOCK x n_out x taps)
 
 
@@ -84,13 +89,25 @@ def _window(x: np.ndarray, taps: int, window: str, oversampling: float) -> np.nd
     return np.cosh(np.pi * v * taps / 2 * np.sqrt(u)) / np.cosh(np.pi * v * taps / 2)
 
 
+@lru_cache(maxsize=8)
 def tap_table(taps: int, window: str = "kaiser", oversampling: float = 1.25) -> np.ndarray:
     """(TAP_ROWS, taps) windowed-sinc taps: row m serves the fractional offset w = m / (TAP_ROWS - 1),
-    column t the sample i - taps/2 + 1 + t; rows normalised to unit sum."""
+    column t the sample i - taps/2 + 1 + t; rows normalised to unit sum. float64, read-only
+    (cached: the Bessel window costs milliseconds)."""
     w = np.linspace(0.0, 1.0, TAP_ROWS)[:, None]
     x = w - (np.arange(taps) - (taps // 2 - 1))[None, :]
     table = np.sinc(x) * _window(x, taps, window, oversampling) * (np.abs(x) < taps / 2)
-    return table / table.sum(axis=1, keepdims=True)
+    table /= table.sum(axis=1, keepdims=True)
+    table.flags.writeable = False
+    return table
+
+
+@lru_cache(maxsize=8)
+def _kernel_taps(interp: str, window: str, oversampling: float) -> np.ndarray:
+    """The kernel's tap table: float32 (TAP_ROWS, 2 taps), each tap twice (for re and im)."""
+    if interp == "linear":
+        return np.zeros(8, np.float32)  # unused by the linear kernel
+    return tap_table(INTERPOLATORS[interp], window, oversampling).astype(np.float32)
 
 
 def check_options(interp: str, window: str, oversampling: float) -> None:
@@ -127,6 +144,8 @@ def resample_rows(src: np.ndarray, idx: np.ndarray, interp: str = "sinc8", windo
         block = src[r0:r0 + ROW_BLOCK].astype(np.complex128)
         i = np.floor(idx[r0:r0 + ROW_BLOCK]).astype(np.int64)
         w = idx[r0:r0 + ROW_BLOCK] - i
+        up = w >= 1 - SNAP
+        i, w = i + up, w - up
         rows = np.arange(block.shape[0])[:, None]
         first = i - (taps // 2 - 1) if table is not None else i
         ok = (first >= 0) & (first <= n - taps)
@@ -154,9 +173,10 @@ def stolt_opencl(spectrum, ku, axes: StoltAxes, interp: str = "sinc8", window: s
     rt = opencl.runtime()
     mf = cl.mem_flags
     taps = INTERPOLATORS[interp]
-    defines = {"INTERP_LINEAR": 1} if interp == "linear" else {"TAPS": taps, "TAP_ROWS": TAP_ROWS}
+    defines = {"INTERP_LINEAR": 1} if interp == "linear" else {"TAPS": taps}
+    defines["TAP_ROWS"] = TAP_ROWS  # also sets the snap of positions onto integers
     knl = opencl.kernel("stolt", "stolt_map", defines=defines)
-    table = np.zeros(8, np.float32) if interp == "linear" else tap_table(taps, window, oversampling).astype(np.float32)
+    table = _kernel_taps(interp, window, oversampling)
     n_rows = spectrum.shape[0]
     n_out_pad = -(-axes.n_out // 16) * 16
     # host memory is used in place (USE_HOST_PTR: on a CPU device no copy is made) and the
