@@ -104,3 +104,24 @@ def test_bad_input(rng):
         stolt(spec, np.zeros(3), axes(), backend="numpy")
     with pytest.raises(TypeError, match="axes"):
         stolt(spec, ku, {"df": 1.0}, backend="numpy")
+    with pytest.raises(ValueError, match="out must be"):
+        stolt(spec, ku, axes(), backend="numpy", out=np.zeros((4, 511), np.complex128))
+    with pytest.raises(ValueError, match="out must be"):
+        stolt(spec, ku, axes(), backend="numpy", out=np.zeros((4, 1024), np.complex128)[:, ::2])
+
+
+@pytest.mark.parametrize("backend", ["numpy", "opencl"])
+def test_result_written_into_a_given_output(request, rng, backend):
+    """``out`` receives the result (every column, including a last partial block of the
+    kernel's 64 outputs a work-item) and is returned; the wrong dtype for a backend is refused."""
+    if backend == "opencl":
+        request.getfixturevalue("opencl_device")
+    spec = band_limited(rng, 6, 512)
+    ku = np.linspace(-100.0, 100.0, 6)
+    ax = axes(n_out=500)
+    out = np.full((6, 500), np.nan, np.complex64)
+    assert stolt(spec, ku, ax, "sinc8", backend=backend, out=out) is out
+    assert rel_l2(out, stolt(spec, ku, ax, "sinc8", backend=backend)) < 1e-6
+    if backend == "opencl":
+        with pytest.raises(ValueError, match="complex64"):
+            stolt(spec, ku, ax, "sinc8", backend=backend, out=np.zeros((6, 500), np.complex128))
