@@ -53,7 +53,7 @@ def compensate_bistatic(data, t0: float, fs: float, d: float, speed: float, wave
     r = c * t_out / 2
     # samples before the emission (t0 may be negative) hold no echo: no excess there
     excess = np.where(r > 0, path_excess(np.where(r > 0, r, 1.0), d, speed, c, nonstop), 0.0)
-    idx = np.broadcast_to((t_out + excess / c - t0) * fs, data.shape)
+    idx = (t_out + excess / c - t0) * fs  # the same for every pulse
     phase = np.exp(2j * np.pi * waveform.f0 * excess / c)
     oversampling = fs / waveform.bandwidth
     return (resample_rows(data, idx, "sinc8", oversampling=max(oversampling, 1.01)) * phase).astype(np.complex64)

@@ -131,31 +131,49 @@ def _check(spectrum: np.ndarray, ku: np.ndarray, axes: StoltAxes) -> None:
         raise ValueError(f"axes need n_out >= 1 and positive df, dkx, got {axes}")
 
 
+def _readings(idx: np.ndarray, taps: int, n: int):
+    """(first sample, fractional offset, all samples present) of fractional columns ``idx``
+    for an interpolator of ``taps`` taps over rows of ``n`` samples (positions within SNAP
+    below an integer read as the integer)."""
+    i = np.floor(idx).astype(np.int64)
+    w = idx - i
+    up = w >= 1 - SNAP
+    i, w = i + up, w - up
+    first = i - (taps // 2 - 1) if taps > 2 else i
+    ok = (first >= 0) & (first <= n - taps)
+    return np.where(ok, first, 0), w, ok
+
+
+def _gather(block: np.ndarray, columns: np.ndarray, shared: bool) -> np.ndarray:
+    """block[r, columns[r, j]]: the same columns for every row when ``shared`` (faster)."""
+    return block[:, columns] if shared else np.take_along_axis(block, columns, 1)
+
+
 def resample_rows(src: np.ndarray, idx: np.ndarray, interp: str = "sinc8", window: str = "kaiser",
                   oversampling: float = 1.25) -> np.ndarray:
-    """Rows of ``src`` (n_rows, n) read at fractional columns ``idx`` (n_rows, m), float64:
-    the interpolator of this module (linear, or windowed sinc from the nearest tap-table row),
-    zero where a source sample is missing. The NumPy definition the Stolt kernel is held to;
-    the other imagers use it for their range interpolations (RCMC, micro-range shifts)."""
+    """Rows of ``src`` (n_rows, n) read at fractional columns ``idx``, float64: (n_rows, m) one
+    row of positions per row, or (m,) the same positions for every row (then the taps are looked
+    up once). The interpolator of this module (linear, or windowed sinc from the nearest
+    tap-table row), zero where a source sample is missing. The NumPy definition the Stolt kernel
+    is held to; the other imagers use it for their range interpolations (RCMC, micro-range
+    shifts). complex128 (n_rows, m)."""
     taps = INTERPOLATORS[interp]
     table = None if interp == "linear" else tap_table(taps, window, oversampling)
+    idx = np.asarray(idx, dtype=np.float64)
+    shared = idx.ndim == 1
     n = src.shape[1]
-    out = np.zeros(idx.shape, dtype=np.complex128)
+    out = np.zeros((src.shape[0], idx.shape[-1]), dtype=np.complex128)
+    if shared:
+        start, w, ok = _readings(idx, taps, n)
     for r0 in range(0, src.shape[0], ROW_BLOCK):
         block = src[r0:r0 + ROW_BLOCK].astype(np.complex128)
-        i = np.floor(idx[r0:r0 + ROW_BLOCK]).astype(np.int64)
-        w = idx[r0:r0 + ROW_BLOCK] - i
-        up = w >= 1 - SNAP
-        i, w = i + up, w - up
-        rows = np.arange(block.shape[0])[:, None]
-        first = i - (taps // 2 - 1) if table is not None else i
-        ok = (first >= 0) & (first <= n - taps)
-        start = np.where(ok, first, 0)
+        if not shared:
+            start, w, ok = _readings(idx[r0:r0 + ROW_BLOCK], taps, n)
         if table is None:
-            value = (1 - w) * block[rows, start] + w * block[rows, start + 1]
+            value = (1 - w) * _gather(block, start, shared) + w * _gather(block, start + 1, shared)
         else:
             weights = table[np.floor(w * (TAP_ROWS - 1) + 0.5).astype(np.int64)]
-            value = sum(weights[..., t] * block[rows, start + t] for t in range(taps))
+            value = sum(weights[..., t] * _gather(block, start + t, shared) for t in range(taps))
         out[r0:r0 + ROW_BLOCK] = np.where(ok, value, 0)
     return out
 
