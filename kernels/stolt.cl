@@ -1,6 +1,8 @@
-/* Stolt mapping of a wavenumber-domain spectrum (the interpolation step of omega-k).
+/* Stolt mapping of a wavenumber-domain spectrum (the interpolation step of omega-k), and the
+ * same interpolators at explicit positions (range-cell migration, micro-range shifts).
  *
- * NumPy twin: clsas/image/stolt.py (stolt_reference); launcher in the same module.
+ * NumPy twins: clsas/image/stolt.py (stolt_reference, resample_rows); launchers in the same
+ * module.
  *
  * For output row r (one along-track wavenumber k_u, ku2[r] = k_u^2) and output column j (the
  * uniform baseband range wavenumber k_x' = kx_first + j dkx), the source column is the exact,
@@ -25,7 +27,7 @@
  * params: K0 = kx_first + 2 k0, dkx, A = c / (4 pi df), Bc = -(f0 + f_first) / df. */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 
-#define BLOCKS 4  /* blocks of 16 outputs a work-item (the launcher pads rows to 16 BLOCKS) */
+#define BLOCKS 4  /* blocks of 16 outputs a work-item (OUTPUTS_PER_ITEM = 16 BLOCKS in stolt.py) */
 
 /* Unaligned vector loads: PoCL builds vloadN from 8-byte pieces (eight loads for a vload16);
  * a vector type with 4-byte alignment makes clang emit one unaligned vector load. */
@@ -33,14 +35,27 @@
 typedef float16 float16_u __attribute__((aligned(4)));
 typedef float8 float8_u __attribute__((aligned(4)));
 typedef float4 float4_u __attribute__((aligned(4)));
+typedef double16 double16_u __attribute__((aligned(8)));
 #define LOAD16(p) (*(__global const float16_u *)(p))
 #define LOAD8(p) (*(__global const float8_u *)(p))
 #define LOAD4(p) (*(__global const float4_u *)(p))
+#define LOAD16D(p) (*(__global const double16_u *)(p))
 #else
 #define LOAD16(p) vload16(0, (p))
 #define LOAD8(p) vload8(0, (p))
 #define LOAD4(p) vload4(0, (p))
+#define LOAD16D(p) vload16(0, (p))
 #endif
+
+/* Sample index of floor fl and fraction frac in [0, 1): a fraction within half a tap row of 1
+ * reads as (fl + 1, frac - 1), as in the reference, so that exact integers decide the edge
+ * test the same way in both; the fraction goes to *w. */
+inline int16 snapped(const int16 fl, const float16 frac, float16 *w)
+{
+    const int16 up = frac >= 1.0f - 0.5f / (TAP_ROWS - 1);  /* -1 where true */
+    *w = select(frac, frac - 1.0f, up);
+    return fl - up;
+}
 
 /* Store sixteen complex outputs (lo: the first eight, hi: the rest, re/im interleaved) at o,
  * or only the first n_left of them at the end of a row. */
@@ -107,6 +122,15 @@ inline void interpolate16(__global const float *row, __global const float *taps,
 }
 #endif
 
+/* A work-item's BLOCKS x 16 outputs from its positions i + w (n_left: outputs left in the row). */
+inline void interpolate_blocks(__global const float *row, __global const float *taps, const int16 *i,
+                               const float16 *w, const int n_src, __global float *o, const int n_left)
+{
+#pragma unroll
+    for (int b = 0; b < BLOCKS; ++b)
+        interpolate16(row, taps, i[b], w[b], n_src, o + 32 * b, n_left - 16 * b);
+}
+
 __kernel void stolt_map(__global const float2 *src, __global const float *taps,
                         __global const double *ku2, const double4 params, const int n_src,
                         const int n_out, __global float2 *dst)
@@ -134,14 +158,38 @@ __kernel void stolt_map(__global const float2 *src, __global const float *taps,
         const float16 x = frac + a * (d * (2.0f * kf + d) / (s_l + sf));
         int16 fl = convert_int16(x);
         fl += convert_int16(x < convert_float16(fl));  /* floor (a true compare is -1) */
-        const float16 frac_x = x - convert_float16(fl);
-        /* a position within half a tap row below an integer reads as that integer (as the
-         * reference does), so that exact integers decide the edge test the same way */
-        const int16 up = frac_x >= 1.0f - 0.5f / (TAP_ROWS - 1);  /* -1 where true */
-        i[b] = i_first + fl - up;
-        w[b] = select(frac_x, frac_x - 1.0f, up);
+        i[b] = i_first + snapped(fl, x - convert_float16(fl), &w[b]);
     }
+    interpolate_blocks(row, taps, i, w, n_src, o, n_out - j0);
+}
+
+/* Rows of src (n_src complex samples each) read at explicit fractional columns idx (double):
+ * row r's positions start at idx + r * idx_row_stride (0: one row of positions shared by every
+ * row). Same interpolators, edges and work-item layout as stolt_map. */
+__kernel void resample_map(__global const float2 *src, __global const float *taps,
+                           __global const double *idx, const int idx_row_stride, const int n_src,
+                           const int n_out, __global float2 *dst)
+{
+    const int j0 = 16 * BLOCKS * get_global_id(0), r = get_global_id(1);
+    __global const double *pos = idx + (size_t)r * idx_row_stride + j0;
+    __global const float *row = (__global const float *)(src + (size_t)r * n_src);
+    __global float *o = (__global float *)(dst + (size_t)r * n_out + j0);
+    int16 i[BLOCKS];
+    float16 w[BLOCKS];
 #pragma unroll
-    for (int b = 0; b < BLOCKS; ++b)
-        interpolate16(row, taps, i[b], w[b], n_src, o + 32 * b, n_out - j0 - 16 * b);
+    for (int b = 0; b < BLOCKS; ++b) {
+        double16 p;
+        if (n_out - j0 - 16 * b >= 16) {
+            p = LOAD16D(pos + 16 * b);
+        } else {  /* the end of a row: repeat its last position */
+            double part[16];
+            for (int k = 0; k < 16; ++k)
+                part[k] = pos[min(16 * b + k, n_out - 1 - j0)];
+            p = vload16(0, part);
+        }
+        int16 fl = convert_int16(p);
+        fl += convert_int16(p < convert_double16(fl));  /* floor (a true compare is -1) */
+        i[b] = snapped(fl, convert_float16(p - convert_double16(fl)), &w[b]);
+    }
+    interpolate_blocks(row, taps, i, w, n_src, o, n_out - j0);
 }

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from _tolerances import rel_l2
 
-from clsas.image.stolt import TAP_ROWS, StoltAxes, stolt, tap_table
+from clsas.image.stolt import TAP_ROWS, StoltAxes, resample, stolt, tap_table
 
 C, F0, FS = 1500.0, 150e3, 40e3
 
@@ -125,3 +125,31 @@ def test_result_written_into_a_given_output(request, rng, backend):
     if backend == "opencl":
         with pytest.raises(ValueError, match="complex64"):
             stolt(spec, ku, ax, "sinc8", backend=backend, out=np.zeros((6, 500), np.complex128))
+
+
+@pytest.mark.parametrize("interp", ["linear", "sinc8", "sinc16"])
+@pytest.mark.parametrize("shared", [True, False])
+def test_resample_kernel_matches_reference(opencl_device, rng, interp, shared):
+    """Explicit positions (per row, or one row shared by all): random ones past both edges,
+    exact integers, and a row length (500) that ends inside a work-item's 64 outputs."""
+    src = band_limited(rng, 40, 512)
+    idx = rng.uniform(-6.0, 518.0, 500 if shared else (40, 500))
+    idx[..., :8] = np.arange(8.0) - 2  # integers: the edge test must agree exactly
+    ref = resample(src, idx, interp, backend="numpy")
+    out = resample(src, idx, interp, backend="opencl")
+    assert out.shape == ref.shape == (40, 500)
+    assert np.array_equal(out == 0, ref == 0)
+    assert np.count_nonzero(ref) > 0.9 * ref.size
+    assert rel_l2(out, ref) < 1e-4
+
+
+def test_resample_bad_input(rng):
+    src = band_limited(rng, 4, 64)
+    with pytest.raises(ValueError, match="idx"):
+        resample(src, np.zeros((3, 10)), backend="numpy")
+    with pytest.raises(ValueError, match="idx"):
+        resample(src, np.array([1.0, np.nan]), backend="numpy")
+    with pytest.raises(ValueError, match="src"):
+        resample(src[0], np.zeros(3), backend="numpy")
+    with pytest.raises(ValueError, match="interp"):
+        resample(src, np.zeros(3), "cubic", backend="numpy")

@@ -33,13 +33,13 @@ from .track import image_of, nonstop_shift
 
 
 def chirp_scaling(data, receiver=0, elements=None, deconvolve: bool = True, window: str = "none", depth: float | None = None,
-                  workers: int | None = None, **window_options):
+                  workers: int | None = None, backend: str | None = None, **window_options):
     """Focus a straight-track record with the chirp-scaling algorithm (see the module docstring).
 
     Parameters as :func:`clsas.image.rda.range_doppler` (no interpolator: chirp scaling needs
-    none). Returns an Image, dims ("y", "x").
+    none; ``backend`` runs an EchoData's path-excess interpolation). Returns an Image, dims ("y", "x").
     """
-    rec = as_record(data, receiver)
+    rec = as_record(data, receiver, backend)
     elements = check_elements(elements, rec)
     workers = -1 if workers is None else workers
     c, f0, fs, v = rec.medium.sound_speed, rec.waveform.f0, rec.fs, rec.speed

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..data import EchoData
-from .stolt import resample_rows
+from .stolt import resample
 from .track import LineRecord, check_straight_track, made_nonstop
 
 
@@ -42,11 +42,12 @@ def path_excess(r, d: float, speed: float, c: float, nonstop: bool = True):
 
 
 def compensate_bistatic(data, t0: float, fs: float, d: float, speed: float, waveform, medium,
-                        t0_out: float | None = None, nonstop: bool = True) -> np.ndarray:
+                        t0_out: float | None = None, nonstop: bool = True, backend: str | None = None) -> np.ndarray:
     """Remove the bistatic deformation (Huang & Yang eqs. 16-17) from the compressed records
     ``data`` (n_pulses, n) of a receiver d metres ahead of the transmitter, sampled from fast
     time ``t0`` at ``fs``; the output is sampled from ``t0_out`` (default ``t0``) on the same
-    number of samples. complex64 (n_pulses, n)."""
+    number of samples; ``backend`` runs the interpolation (:func:`clsas.image.stolt.resample`).
+    complex64 (n_pulses, n)."""
     c = medium.sound_speed
     n = data.shape[1]
     t_out = (t0 if t0_out is None else t0_out) + np.arange(n) / fs
@@ -56,10 +57,12 @@ def compensate_bistatic(data, t0: float, fs: float, d: float, speed: float, wave
     idx = (t_out + excess / c - t0) * fs  # the same for every pulse
     phase = np.exp(2j * np.pi * waveform.f0 * excess / c)
     oversampling = fs / waveform.bandwidth
-    return (resample_rows(data, idx, "sinc8", oversampling=max(oversampling, 1.01)) * phase).astype(np.complex64)
+    shifted = resample(data, idx, "sinc8", oversampling=max(oversampling, 1.01), backend=backend)
+    return (shifted * phase).astype(np.complex64)
 
 
-def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and_go: bool | None = None) -> LineRecord:
+def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and_go: bool | None = None,
+               backend: str | None = None) -> LineRecord:
     """Interleave the receivers of a line array into one monostatic-equivalent record.
 
     Parameters
@@ -71,6 +74,7 @@ def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and
         with v PRI = M d / 2); overlapping or gapped phase centres are refused.
     compensate : apply :func:`compensate_bistatic` (False shows the uncompensated PCA error).
     stop_and_go : how the echoes were made (default ``echo.provenance["stop_and_go"]``).
+    backend : where the micro-range interpolation runs (:func:`clsas.image.stolt.resample`).
 
     Returns
     -------
@@ -106,7 +110,7 @@ def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and
         # uncompensated: no path excess (d = v = 0), only the common time axis
         d, speed, lead = (d, track.speed, nonstop) if compensate else (0.0, 0.0, False)
         rows[:, j] = compensate_bistatic(echo.data[h], echo.t0[h], echo.fs, d, speed, echo.waveform, echo.medium,
-                                         t0_out=t0, nonstop=lead)
+                                         t0_out=t0, nonstop=lead, backend=backend)
     data = rows.reshape(-1, echo.n_samples)[order]
     return LineRecord(data=data, u0=float(u[0]), du=float(step), t0=t0, fs=echo.fs, speed=track.speed,
                       track=(track.x, track.z),

@@ -41,15 +41,16 @@ import scipy.fft
 from ..data import EchoData
 from .rangecomp import WINDOWS, spectral_window
 from .stolt import StoltAxes, check_options, stolt
-from .track import LineRecord, image_of, line_record, nonstop_shift
+from .track import LineRecord, image_of, line_record, nonstop_shift, unit_phasor
 
 
-def as_record(data, receiver=0) -> LineRecord:
-    """A LineRecord as is, or the monostatic record of an EchoData (:func:`clsas.image.track.line_record`)."""
+def as_record(data, receiver=0, backend: str | None = None) -> LineRecord:
+    """A LineRecord as is, or the monostatic record of an EchoData (:func:`clsas.image.track.line_record`,
+    its interpolation on ``backend``)."""
     if isinstance(data, LineRecord):
         return data
     if isinstance(data, EchoData):
-        return line_record(data, receiver)
+        return line_record(data, receiver, backend=backend)
     raise TypeError(f"expected a LineRecord or a monostatic EchoData, got {type(data).__name__}")
 
 
@@ -94,7 +95,8 @@ def omega_k(data, receiver=0, window: str = "hamming", elements=None, deconvolve
     deconvolve : divide by the element pattern A(k_y) (eq. 44); False keeps its taper, as
         back-projection does (for like-for-like comparisons).
     interp, tap_window : the Stolt interpolator (:func:`clsas.image.stolt.stolt`).
-    backend : the Stolt kernel's backend; the FFTs run on the host (scipy.fft).
+    backend : where the Stolt map (and an EchoData's path-excess interpolation) runs; the FFTs
+        run on the host (scipy.fft).
     depth : the horizontal plane the image's pixel positions are placed on (default: the track's).
     workers : scipy.fft threads (default: all cores).
 
@@ -102,7 +104,7 @@ def omega_k(data, receiver=0, window: str = "hamming", elements=None, deconvolve
     -------
     Image, dims ("y", "x"): along-track by across-track on the plane z = depth.
     """
-    rec = as_record(data, receiver)
+    rec = as_record(data, receiver, backend)
     if window not in WINDOWS:
         raise ValueError(f"window must be one of {WINDOWS}, got {window!r}")
     check_options(interp, tap_window, 1.25)
@@ -121,8 +123,9 @@ def omega_k(data, receiver=0, window: str = "hamming", elements=None, deconvolve
     spec = scipy.fft.fftshift(scipy.fft.fft(rec.data, n=n_r, axis=1, workers=workers), axes=1)
     spec = scipy.fft.fft(spec, n=n_ku, axis=0, workers=workers)
     kx2 = 4 * k[None, :] ** 2 - ku[:, None] ** 2
-    kx = np.sqrt(np.maximum(kx2, 0.0))
-    spec *= np.where(kx2 > 0, np.sqrt(k / k0)[None, :] * np.exp(1j * (kx * r0 - 2 * np.pi * f[None, :] * rec.t0)), 0)
+    propagating = kx2 > 0
+    spec *= unit_phasor(np.sqrt(np.maximum(kx2, 0.0)) * r0)
+    spec *= np.where(propagating, (np.sqrt(k / k0) * np.exp(-2j * np.pi * f * rec.t0))[None, :], 0).astype(np.complex64)
 
     dkx = 4 * np.pi * fs / n_r / c
     axes = StoltAxes(f_first=f[0], df=fs / n_r, n_src=n_r, kx_first=4 * np.pi * f[0] / c, dkx=dkx, n_out=n_r,
@@ -139,6 +142,7 @@ def omega_k(data, receiver=0, window: str = "hamming", elements=None, deconvolve
 
     ku_r = scipy.fft.fftshift(scipy.fft.ifft(mapped, axis=1, workers=workers), axes=1)
     r = r0 + (np.arange(n_r) - n_r // 2) * c / (2 * fs)
-    ku_r *= np.exp(1j * (axes.kx_first + 2 * k0) * (r - r0))[None, :] * nonstop_shift(rec, ku, r)
+    ku_r *= np.exp(1j * (axes.kx_first + 2 * k0) * (r - r0)).astype(np.complex64)[None, :]
+    ku_r *= nonstop_shift(rec, ku, r)
     return image_of(rec, ku_r, r, "omega_k", {"window": window, "elements": elements, "deconvolve": deconvolve, "interp": interp,
                                              "tap_window": tap_window, "backend": backend}, depth)

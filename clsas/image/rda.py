@@ -13,7 +13,7 @@ lambda f_t / (2 v) = k_u / (2 k0)):
    allows (the phase error within half a block below pi / 16 at the band edge f_tau = B / 2).
 3. Range-cell-migration correction (eq. 23): a target at closest range r lies at
    tau = 2 r / (c beta); column tau_out = 2 r / c reads tau_out / beta (windowed-sinc interpolation,
-   :func:`clsas.image.stolt.resample_rows`).
+   :func:`clsas.image.stolt.resample`).
 4. Azimuth compression (eq. 24): exp(+j 2 k0 beta r), with r = c tau_out / 2 (the data carry
    exp(-j sqrt(4 k0^2 - k_u^2) r - j k_u y) = exp(-j 2 k0 beta r - j k_u y)); the
    non-stop-and-go along-track shift (eq. 25); the inverse along-track FFT.
@@ -30,7 +30,7 @@ import numpy as np
 import scipy.fft
 
 from .omegak import as_record, azimuth_weights, check_elements
-from .stolt import resample_rows
+from .stolt import resample
 from .track import image_of, nonstop_shift
 
 
@@ -43,19 +43,21 @@ def src_block_width(rec, beta_min: float) -> float:
 
 
 def range_doppler(data, receiver=0, elements=None, deconvolve: bool = True, window: str = "none", interp: str = "sinc8",
-                  depth: float | None = None, workers: int | None = None, **window_options):
+                  depth: float | None = None, workers: int | None = None, backend: str | None = None,
+                  **window_options):
     """Focus a straight-track record with the range-Doppler algorithm (see the module docstring).
 
     Parameters are those of :func:`clsas.image.omegak.omega_k`: ``elements`` (L_tx, L_rx) limit
     the processed Doppler band to |k_u| <= 2 pi / max(L) and (``deconvolve``) undo the element pattern,
     ``window`` weights that band (the range weighting is the range compression's),
-    ``interp`` is the RCMC interpolator ("linear", "sinc8", "sinc16").
+    ``interp`` is the RCMC interpolator ("linear", "sinc8", "sinc16") and ``backend`` where it
+    (and an EchoData's path-excess interpolation) runs.
 
     Returns
     -------
     Image, dims ("y", "x").
     """
-    rec = as_record(data, receiver)
+    rec = as_record(data, receiver, backend)
     elements = check_elements(elements, rec)
     workers = -1 if workers is None else workers
     c, f0, fs = rec.medium.sound_speed, rec.waveform.f0, rec.fs
@@ -81,7 +83,7 @@ def range_doppler(data, receiver=0, elements=None, deconvolve: bool = True, wind
         rd[:, lo:hi] = scipy.fft.ifft(two_d * src, axis=1, workers=workers)[:, lo:hi]
     # range-cell-migration correction (eq. 23)
     idx = (tau[None, :] / beta[:, None] - rec.t0) * fs
-    rd = resample_rows(rd, idx, interp, oversampling=max(fs / rec.waveform.bandwidth, 1.01))
+    rd = resample(rd, idx, interp, oversampling=max(fs / rec.waveform.bandwidth, 1.01), backend=backend)
     # azimuth compression (eq. 24), Doppler band and weighting, along-track shift (eq. 25)
     rd *= np.exp(2j * k0 * np.outer(beta, r)) * azimuth_weights(ku, elements, window, deconvolve, **window_options)[:, None]
     rd *= nonstop_shift(rec, ku, r)

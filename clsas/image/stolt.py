@@ -188,34 +188,87 @@ def stolt_reference(spectrum, ku, axes: StoltAxes, interp: str = "sinc8", window
     return out
 
 
-def stolt_opencl(spectrum, ku, axes: StoltAxes, interp: str = "sinc8", window: str = "kaiser",
-                 oversampling: float = 1.25, out: np.ndarray | None = None) -> np.ndarray:
-    """The kernels/stolt.cl launcher: (n_ku, n_out) complex64, written into ``out`` if given."""
+def _launch(kernel_name: str, src: np.ndarray, n_out: int, interp: str, window: str, oversampling: float,
+            out: np.ndarray | None, make_args) -> np.ndarray:
+    """Run ``kernel_name`` of kernels/stolt.cl on the rows of ``src``: (n_rows, n_out) complex64
+    (into ``out`` if given). ``make_args(context)`` gives the kernel's own arguments between the
+    tap table and n_src."""
     import pyopencl as cl
 
     rt = opencl.runtime()
     mf = cl.mem_flags
-    taps = INTERPOLATORS[interp]
-    defines = {"INTERP_LINEAR": 1} if interp == "linear" else {"TAPS": taps}
+    defines = {"INTERP_LINEAR": 1} if interp == "linear" else {"TAPS": INTERPOLATORS[interp]}
     defines["TAP_ROWS"] = TAP_ROWS  # also sets the snap of positions onto integers
-    knl = opencl.kernel("stolt", "stolt_map", defines=defines)
-    table = _kernel_taps(interp, window, oversampling)
-    n_rows = spectrum.shape[0]
+    knl = opencl.kernel("stolt", kernel_name, defines=defines)
     # host memory is used in place (USE_HOST_PTR: on a CPU device no copy is made) and the
     # result is read back by mapping the output buffer
-    spectrum = np.ascontiguousarray(spectrum, dtype=np.complex64)
-    src = cl.Buffer(rt.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=spectrum)
-    tap_buf = cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=table)
-    ku2 = cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.asarray(ku, np.float64) ** 2)
+    src = np.ascontiguousarray(src, dtype=np.complex64)
+    src_buf = cl.Buffer(rt.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=src)
+    tap_buf = cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=_kernel_taps(interp, window, oversampling))
     if out is None:
-        out = np.empty((n_rows, axes.n_out), dtype=np.complex64)
+        out = np.empty((src.shape[0], n_out), dtype=np.complex64)
     dst = cl.Buffer(rt.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out)
-    params = np.array(axes.index_constants(), dtype=np.float64).view(cl.cltypes.double4)[0]
-    knl(rt.queue, (-(-axes.n_out // OUTPUTS_PER_ITEM), n_rows), None, src, tap_buf, ku2, params,
-        np.int32(axes.n_src), np.int32(axes.n_out), dst)
+    knl(rt.queue, (-(-n_out // OUTPUTS_PER_ITEM), src.shape[0]), None, src_buf, tap_buf, *make_args(rt.context),
+        np.int32(src.shape[1]), np.int32(n_out), dst)
     mapped, _ = cl.enqueue_map_buffer(rt.queue, dst, cl.map_flags.READ, 0, out.shape, out.dtype)
     mapped.base.release()
     return out
+
+
+def stolt_opencl(spectrum, ku, axes: StoltAxes, interp: str = "sinc8", window: str = "kaiser",
+                 oversampling: float = 1.25, out: np.ndarray | None = None) -> np.ndarray:
+    """The stolt_map launcher: (n_ku, n_out) complex64, written into ``out`` if given."""
+    import pyopencl as cl
+
+    def args(context):
+        ku2 = cl.Buffer(context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                        hostbuf=np.asarray(ku, np.float64) ** 2)
+        return ku2, np.array(axes.index_constants(), dtype=np.float64).view(cl.cltypes.double4)[0]
+
+    return _launch("stolt_map", spectrum, axes.n_out, interp, window, oversampling, out, args)
+
+
+def resample_opencl(src, idx, interp: str = "sinc8", window: str = "kaiser", oversampling: float = 1.25) -> np.ndarray:
+    """The resample_map launcher: :func:`resample_rows` in float32, (n_rows, m) complex64."""
+    import pyopencl as cl
+
+    idx = np.ascontiguousarray(idx, dtype=np.float64)
+
+    def args(context):
+        buf = cl.Buffer(context, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=idx)
+        return buf, np.int32(0 if idx.ndim == 1 else idx.shape[1])
+
+    return _launch("resample_map", src, idx.shape[-1], interp, window, oversampling, None, args)
+
+
+def resample(src, idx, interp: str = "sinc8", window: str = "kaiser", oversampling: float = 1.25,
+             backend: str | None = None) -> np.ndarray:
+    """Rows of ``src`` read at fractional columns ``idx``: the interpolators of this module at
+    explicit positions (see :func:`resample_rows`, the NumPy reference, for the definition).
+
+    Parameters
+    ----------
+    src : complex (n_rows, n).
+    idx : float (n_rows, m) positions per row, or (m,) shared by every row, in samples of src.
+    interp, window, oversampling : as for :func:`stolt`.
+    backend : "numpy", "opencl", "auto" or None (the default backend).
+
+    Returns
+    -------
+    complex (n_rows, m): complex128 from NumPy, complex64 from OpenCL.
+    """
+    check_options(interp, window, oversampling)
+    src = np.asarray(src)
+    idx = np.asarray(idx, dtype=np.float64)
+    if src.ndim != 2 or src.shape[0] < 1 or src.shape[1] < 1:
+        raise ValueError(f"src must be a non-empty 2-D array (rows, samples), got shape {src.shape}")
+    if not (idx.ndim == 1 or idx.shape[:1] == src.shape[:1] and idx.ndim == 2) or idx.shape[-1] < 1:
+        raise ValueError(f"idx must be (m,) or (n_rows={src.shape[0]}, m) positions, got shape {idx.shape}")
+    if not np.all(np.isfinite(idx)) or np.abs(idx).max() > 2**30:
+        raise ValueError("idx must hold finite positions within +-2^30 samples")
+    if _backend.resolve(backend) == "numpy":
+        return resample_rows(src, idx, interp, window, oversampling)
+    return resample_opencl(src, idx, interp, window, oversampling)
 
 
 def _check_out(out, backend: str, shape: tuple[int, int]) -> None:

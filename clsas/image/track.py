@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
+import scipy.fft
 
 from ..data import EchoData, Image
 from ..scene.scenario import Medium, Waveform
@@ -112,13 +113,14 @@ def made_nonstop(echo: EchoData, stop_and_go: bool | None) -> bool:
     return not (echo.provenance.get("stop_and_go", False) if stop_and_go is None else stop_and_go)
 
 
-def line_record(echo: EchoData, receiver=0, stop_and_go: bool | None = None) -> LineRecord:
+def line_record(echo: EchoData, receiver=0, stop_and_go: bool | None = None, backend: str | None = None) -> LineRecord:
     """The monostatic record of ``receiver`` (index or name), which must sit with the transmitter.
 
     ``stop_and_go`` says how the echoes were made (default: ``echo.provenance["stop_and_go"]``,
     False when absent: clsas.simulate's exact delays). Non-stop-and-go records get the path
     excess of Huang & Yang eq. (4) compensated (:func:`clsas.image.multireceiver.compensate_bistatic`
-    with d = 0); their along-track shift v r / c is left to the imagers.
+    with d = 0, its interpolation on ``backend``); their along-track shift v r / c is left to
+    the imagers.
     """
     # imported here: multireceiver imports this module
     from .multireceiver import compensate_bistatic
@@ -138,7 +140,8 @@ def line_record(echo: EchoData, receiver=0, stop_and_go: bool | None = None) -> 
     nonstop = made_nonstop(echo, stop_and_go)
     data = echo.data[h]
     if nonstop:
-        data = compensate_bistatic(data, echo.t0[h], echo.fs, 0.0, track.speed, echo.waveform, echo.medium)
+        data = compensate_bistatic(data, echo.t0[h], echo.fs, 0.0, track.speed, echo.waveform, echo.medium,
+                                   backend=backend)
     return LineRecord(data=data, u0=track.u0, du=track.du, t0=float(echo.t0[h]), fs=echo.fs, speed=track.speed,
                       track=(track.x, track.z),
                       waveform=echo.waveform, medium=echo.medium, nonstop=nonstop,
@@ -150,13 +153,26 @@ def along_track_wavenumbers(rec: LineRecord, n_ku: int) -> np.ndarray:
     return 2 * np.pi * np.fft.fftfreq(n_ku, rec.du)
 
 
+def unit_phasor(phase: np.ndarray) -> np.ndarray:
+    """exp(j phase) as complex64 for a float64 ``phase`` (rad) of any size: reduced to
+    [-pi, pi] in float64 first, so that float32 cos and sin keep ~1e-7 rad (a phase of 1e5 rad
+    would lose 1e-2 rad in float32); ~7x faster than a complex128 exp (NumPy's float32 cos/sin
+    are SIMD)."""
+    reduced = (phase - 2 * np.pi * np.rint(phase * (0.5 / np.pi))).astype(np.float32)
+    out = np.empty(reduced.shape, np.complex64)
+    np.cos(reduced, out=out.real)
+    np.sin(reduced, out=out.imag)
+    return out
+
+
 def nonstop_shift(rec: LineRecord, ku: np.ndarray, r: np.ndarray) -> np.ndarray | float:
     """exp(-j k_u v r / c) for rows ku and ranges r (Huang & Yang 2022 eq. 25 with
     f_t = v k_u / (2 pi)): moves the echo of a target at range r from u = y - v r / c (the
-    non-stop-and-go phase centre) back to its true along-track position y; 1 for stop-and-go."""
+    non-stop-and-go phase centre) back to its true along-track position y; 1 for stop-and-go.
+    complex64 (len(ku), len(r))."""
     if not rec.nonstop:
         return 1.0
-    return np.exp(-1j * np.outer(ku, r) * rec.speed / rec.medium.sound_speed)
+    return unit_phasor(np.outer(ku, -rec.speed / rec.medium.sound_speed * np.asarray(r)))
 
 
 def image_of(rec: LineRecord, ku_range: np.ndarray, r: np.ndarray, algorithm: str, params: dict,
@@ -174,7 +190,7 @@ def image_of(rec: LineRecord, ku_range: np.ndarray, r: np.ndarray, algorithm: st
     keep = (r > abs(dz)) & (r >= c * rec.t0 / 2) & (r <= c * (rec.t0 + (rec.n_samples - 1) / rec.fs) / 2)
     if not np.any(keep):
         raise ValueError(f"depth {depth} m: no recorded range reaches that plane")
-    img = np.fft.ifft(ku_range[:, keep], axis=0)
+    img = scipy.fft.ifft(ku_range[:, keep], axis=0, workers=-1)
     y = rec.u0 + rec.du * np.arange(img.shape[0])
     x = x_track + np.sqrt(r[keep] ** 2 - dz ** 2)
     yy, xx = np.meshgrid(y, x, indexing="ij")
