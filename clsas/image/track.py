@@ -193,7 +193,9 @@ def image_of(rec: LineRecord, ku_range: np.ndarray, r: np.ndarray, algorithm: st
     img = scipy.fft.ifft(ku_range[:, keep], axis=0, workers=-1)
     y = rec.u0 + rec.du * np.arange(img.shape[0])
     x = x_track + np.sqrt(r[keep] ** 2 - dz ** 2)
-    yy, xx = np.meshgrid(y, x, indexing="ij")
-    positions = np.stack([xx, yy, np.full_like(xx, depth)], axis=-1)
-    return Image(data=img.astype(np.complex64), dims=("y", "x"), axes={"y": y, "x": x}, positions=positions,
+    positions = np.empty((y.size, x.size, 3))
+    positions[..., 0] = x[None, :]
+    positions[..., 1] = y[:, None]
+    positions[..., 2] = depth
+    return Image(data=img.astype(np.complex64, copy=False), dims=("y", "x"), axes={"y": y, "x": x}, positions=positions,
                  provenance={"algorithm": algorithm, **params, "record": dict(rec.provenance)})
