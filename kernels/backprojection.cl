@@ -34,6 +34,8 @@
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #include "common.h"
+#include "loads.h"
+#include "lanes.h"
 
 /* Data, interpolation and sums in float, or in double with CLSAS_DOUBLE (precision="double"). */
 #ifdef CLSAS_DOUBLE
@@ -43,7 +45,9 @@ typedef double4 realv4_t;
 typedef double8 realv8;
 typedef double16 realv16_t;
 #define convert_realv8 convert_double8
-#define TAP_ROW(taps, row) convert_double16(vload16((row), (taps)))
+#define TAP_ROW(taps, row) convert_double16(LOAD_F16((taps) + 16 * (row)))
+#define LOAD_R16 LOAD_D16
+#define LOAD_R4 LOAD_D4
 #else
 typedef float2 sample_t;
 typedef float2 realv2_t;
@@ -51,7 +55,9 @@ typedef float4 realv4_t;
 typedef float8 realv8;
 typedef float16 realv16_t;
 #define convert_realv8 convert_float8
-#define TAP_ROW(taps, row) vload16((row), (taps))
+#define TAP_ROW(taps, row) LOAD_F16((taps) + 16 * (row))
+#define LOAD_R16 LOAD_F16
+#define LOAD_R4 LOAD_F4
 #endif
 
 /* One lane's 8-tap sinc: sum_j w_j s[i + j] over the record's complex samples i .. i + 7 (one
@@ -59,7 +65,7 @@ typedef float16 realv16_t;
  * products summed pairwise keeping the re/im parity. Returns (re, im). */
 inline realv2_t sinc8_lane(__global const real_t *rec, int i, __global const float *taps, int row)
 {
-    const realv16_t p = vload16(0, rec + 2 * i) * TAP_ROW(taps, row);
+    const realv16_t p = LOAD_R16(rec + 2 * i) * TAP_ROW(taps, row);
     const realv8 h8 = p.lo + p.hi;
     const realv4_t h4 = h8.lo + h8.hi;
     return h4.lo + h4.hi;
@@ -164,7 +170,7 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
             /* samples i and i + 1 of each lane in one 4-wide load, transposed in registers */
             const int16 ic = clamp(ki[j], (int16)0, (int16)(n - 2));
             const float16 keep = select((float16)0.0f, (float16)1.0f, ki[j] >= (int16)0 && ki[j] < (int16)(n - 1));
-#define W(L) vload4(0, recj + 2 * ic.s##L)
+#define W(L) LOAD_F4(recj + 2 * ic.s##L)
             const float16 w0 = (float16)(W(0), W(1), W(2), W(3)), w1 = (float16)(W(4), W(5), W(6), W(7));
             const float16 w2 = (float16)(W(8), W(9), W(a), W(b)), w3 = (float16)(W(c), W(d), W(e), W(f));
 #undef W
@@ -178,12 +184,11 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
             const int16 ic = clamp(ki[j] - 3, (int16)0, (int16)(n - 8));
             const float16 keep = select((float16)0.0f, (float16)1.0f, ki[j] >= (int16)3 && ki[j] < (int16)(n - 4));
             const int16 row = convert_int16(frac[j] * (float)(TAP_ROWS - 1) + 0.5f);
-            float v[32];
-#define TAPS8(L, I) vstore2(sinc8_lane(recj, ic.s##L, taps, row.s##L), I, v);
-            TAPS8(0, 0) TAPS8(1, 1) TAPS8(2, 2) TAPS8(3, 3) TAPS8(4, 4) TAPS8(5, 5) TAPS8(6, 6) TAPS8(7, 7)
-            TAPS8(8, 8) TAPS8(9, 9) TAPS8(a, 10) TAPS8(b, 11) TAPS8(c, 12) TAPS8(d, 13) TAPS8(e, 14) TAPS8(f, 15)
-#undef TAPS8
-            const float16 lo = vload16(0, v), hi = vload16(1, v);
+            /* each lane's eight complex products, summed across lanes (lanes.h) */
+#define P(L) (LOAD_F16(recj + 2 * ic.s##L) * TAP_ROW(taps, row.s##L))
+            const float16 lo = csum8(P(0), P(1), P(2), P(3), P(4), P(5), P(6), P(7));
+            const float16 hi = csum8(P(8), P(9), P(a), P(b), P(c), P(d), P(e), P(f));
+#undef P
             const float16 dr = keep * (float16)(lo.even, hi.even), di = keep * (float16)(lo.odd, hi.odd);
 #endif
             acc_re[r] += dr * cs[j] - di * sn[j];
@@ -268,7 +273,7 @@ __kernel void bp_block(__global const double *pix, __global const double8 *pulse
          * outside [0, n - 1) the record reads as zero */
         const long8 ic = clamp(kl, (long8)0, (long8)(n - 2));
         const realv8 keep = convert_realv8(select((double8)0.0, (double8)1.0, kl >= 0 && kl < (long8)(n - 1)));
-#define LOAD2(L) const realv4_t w##L = vload4(0, rec + 2 * ic.s##L);
+#define LOAD2(L) const realv4_t w##L = LOAD_R4(rec + 2 * ic.s##L);
         LOAD2(0) LOAD2(1) LOAD2(2) LOAD2(3) LOAD2(4) LOAD2(5) LOAD2(6) LOAD2(7)
 #undef LOAD2
         const realv8 a_re = (realv8)(w0.s0, w1.s0, w2.s0, w3.s0, w4.s0, w5.s0, w6.s0, w7.s0);

@@ -29,23 +29,8 @@
 
 #define BLOCKS 4  /* blocks of 16 outputs a work-item (OUTPUTS_PER_ITEM = 16 BLOCKS in stolt.py) */
 
-/* Unaligned vector loads: PoCL builds vloadN from 8-byte pieces (eight loads for a vload16);
- * a vector type with 4-byte alignment makes clang emit one unaligned vector load. */
-#ifdef __clang__
-typedef float16 float16_u __attribute__((aligned(4)));
-typedef float8 float8_u __attribute__((aligned(4)));
-typedef float4 float4_u __attribute__((aligned(4)));
-typedef double16 double16_u __attribute__((aligned(8)));
-#define LOAD16(p) (*(__global const float16_u *)(p))
-#define LOAD8(p) (*(__global const float8_u *)(p))
-#define LOAD4(p) (*(__global const float4_u *)(p))
-#define LOAD16D(p) (*(__global const double16_u *)(p))
-#else
-#define LOAD16(p) vload16(0, (p))
-#define LOAD8(p) vload8(0, (p))
-#define LOAD4(p) vload4(0, (p))
-#define LOAD16D(p) vload16(0, (p))
-#endif
+#include "loads.h"
+#include "lanes.h"
 
 /* Sample index of floor fl and fraction frac in [0, 1): a fraction within half a tap row of 1
  * reads as (fl + 1, frac - 1), as in the reference, so that exact integers decide the edge
@@ -79,7 +64,7 @@ inline void interpolate16(__global const float *row, __global const float *taps,
                           const float16 w, const int n_src, __global float *o, const int n_left)
 {
     const int16 ok = i >= 0 && i < n_src - 1;
-#define V(L) (ok.s##L ? mix(LOAD4(row + 2 * i.s##L).lo, LOAD4(row + 2 * i.s##L).hi, w.s##L) : (float2)0.0f)
+#define V(L) (ok.s##L ? mix(LOAD_F4(row + 2 * i.s##L).lo, LOAD_F4(row + 2 * i.s##L).hi, w.s##L) : (float2)0.0f)
     store16((float16)(V(0), V(1), V(2), V(3), V(4), V(5), V(6), V(7)),
             (float16)(V(8), V(9), V(a), V(b), V(c), V(d), V(e), V(f)), o, n_left);
 #undef V
@@ -96,29 +81,18 @@ inline void interpolate16(__global const float *row, __global const float *taps,
     /* lane L's complex products: its TAPS samples (re, im interleaved) times the row's taps,
      * each tap repeated for re and im; TAPS = 16 adds the second half first */
 #if TAPS == 8
-#define P(L) (LOAD16(row + first.s##L) * LOAD8(taps + 8 * t_row.s##L).s0011223344556677)
+#define P(L) (LOAD_F16(row + first.s##L) * LOAD_F8(taps + 8 * t_row.s##L).s0011223344556677)
 #elif TAPS == 16
-#define P(L) (LOAD16(row + first.s##L) * LOAD16(taps + 16 * t_row.s##L).lo.s0011223344556677      \
-              + LOAD16(row + first.s##L + 16) * LOAD16(taps + 16 * t_row.s##L).hi.s0011223344556677)
+#define P(L) (LOAD_F16(row + first.s##L) * LOAD_F16(taps + 16 * t_row.s##L).lo.s0011223344556677      \
+              + LOAD_F16(row + first.s##L + 16) * LOAD_F16(taps + 16 * t_row.s##L).hi.s0011223344556677)
 #else
 #error "TAPS must be 8 or 16"
 #endif
-    /* sum each lane's eight complex partials with a tree across lanes (no per-lane horizontal
-     * sums): two lanes' halves, then quarters, then pairs, leaving 8 complex outputs a vector */
-#define FOLD1(A, B) ((float16)((A).lo, (B).lo) + (float16)((A).hi, (B).hi))
-#define FOLD2(A, B) ((float16)((A).s012389ab, (B).s012389ab) + (float16)((A).s4567cdef, (B).s4567cdef))
-#define FOLD3(A, B) ((float16)((A).s014589cd, (B).s014589cd) + (float16)((A).s2367abef, (B).s2367abef))
-    const float16 p0 = P(0), p1 = P(1), p2 = P(2), p3 = P(3), p4 = P(4), p5 = P(5), p6 = P(6), p7 = P(7);
-    const float16 p8 = P(8), p9 = P(9), pa = P(a), pb = P(b), pc = P(c), pd = P(d), pe = P(e), pf = P(f);
-    const float16 q0 = FOLD1(p0, p1), q1 = FOLD1(p2, p3), q2 = FOLD1(p4, p5), q3 = FOLD1(p6, p7);
-    const float16 q4 = FOLD1(p8, p9), q5 = FOLD1(pa, pb), q6 = FOLD1(pc, pd), q7 = FOLD1(pe, pf);
-    const float16 lo = FOLD3(FOLD2(q0, q1), FOLD2(q2, q3)), hi = FOLD3(FOLD2(q4, q5), FOLD2(q6, q7));
+    const float16 lo = csum8(P(0), P(1), P(2), P(3), P(4), P(5), P(6), P(7));
+    const float16 hi = csum8(P(8), P(9), P(a), P(b), P(c), P(d), P(e), P(f));
     store16(select((float16)0.0f, lo, ok.s0011223344556677), select((float16)0.0f, hi, ok.s8899aabbccddeeff),
             o, n_left);
 #undef P
-#undef FOLD1
-#undef FOLD2
-#undef FOLD3
 }
 #endif
 
@@ -180,7 +154,7 @@ __kernel void resample_map(__global const float2 *src, __global const float *tap
     for (int b = 0; b < BLOCKS; ++b) {
         double16 p;
         if (n_out - j0 - 16 * b >= 16) {
-            p = LOAD16D(pos + 16 * b);
+            p = LOAD_D16(pos + 16 * b);
         } else {  /* the end of a row: repeat its last position */
             double part[16];
             for (int k = 0; k < 16; ++k)
