@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import dataclasses
+import json
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -91,6 +95,34 @@ def test_tiles_cover_every_pixel_once_within_the_phase_budget(rng):
     assert tiles.phase_bound <= PHASE_BUDGET
     with pytest.raises(ValueError, match="half_extent"):
         plan_tiles(pixels, 150e3, 1500.0, half_extent=0.0)
+
+
+def peak_increase_mb(n_pix, n_rx, n_pulses, n_samples, upload_bytes):
+    """Peak resident memory (MB) added by one back-projection, measured in a fresh process
+    (tests/_bp_memory.py: after start-up and kernel builds, sampled every 2 ms)."""
+    out = subprocess.run([sys.executable, str(Path(__file__).with_name("_bp_memory.py")), str(n_pix), str(n_rx),
+                          str(n_pulses), str(n_samples), str(upload_bytes)],
+                         capture_output=True, text=True, check=True, timeout=300)
+    row = json.loads(out.stdout.strip().splitlines()[-1])
+    return row["peak_mb"] - row["before_mb"]
+
+
+def test_memory_of_a_4096_square_image_is_bounded_per_pixel(opencl_device):
+    """A 4096^2 plane (16.8 M pixels; its positions, 384 MB, exist before the call): the call adds
+    at most 80 bytes a pixel (flat complex128 image 16, the Image's complex64 8, tiling order and
+    tile indices 16, float32 pixel fields 16 and their device copy, one 2^22-pixel chunk's device
+    image, one coordinate's float64 temporaries), ~1.3 GB, whatever the pulses."""
+    assert peak_increase_mb(4096, 1, 2, 256, 64 * 2**20) < 80 * 4096**2 / 2**20
+
+
+def test_memory_does_not_grow_with_pulses_and_receivers(opencl_device):
+    """32 receivers x 250 vs 1000 pulses (31 vs 125 MB of records, upsampled x 8 in use): records
+    are upsampled and uploaded UPLOAD_BYTES at a time (4 MB here, to reach the plateau with few
+    pulses), so four times the pulses add nothing beyond that."""
+    few = peak_increase_mb(128, 32, 250, 512, 4 * 2**20)
+    many = peak_increase_mb(128, 32, 1000, 512, 4 * 2**20)
+    assert many < few + 16
+    assert many < 64
 
 
 def test_receiver_with_a_kink_falls_back_to_the_exact_kernel(opencl_device, kiang_echo):

@@ -204,7 +204,8 @@ class Tiling:
     ``order`` (M_pad,): pixel index of each slot (a tile's slots padded to whole work-items of
     LANES x ROWS by repeating its last pixel), ``real`` (M_pad,) bool: the slot is not padding,
     ``tile`` (M_pad,) int: the slot's tile, ``centres`` (T, 3) m: the tiles' reference points,
-    ``half_extent`` m: the largest |pixel - its reference point|, ``phase_bound`` rad: the
+    ``half_extent`` m: the largest half-diagonal of a tile's bounding box (at least every
+    |pixel - its reference point|, the reference being the box's centre), ``phase_bound`` rad: the
     float32 geometry's phase error bound 2 pi f0 ERROR_FACTOR eps32 half_extent / c.
     """
 
@@ -220,26 +221,34 @@ def plan_tiles(pixels: np.ndarray, f0: float, c: float, half_extent: float | Non
     """Bucket the (M, 3) pixels into cubic cells whose half-diagonal is ``half_extent`` (default
     :func:`tile_half_extent`), each cell a tile with its reference point at the centre of its
     pixels' bounding box; within a tile the pixels keep their order (a raster stays a raster), so
-    a work-item's 16 lanes are neighbours. Raises ValueError when the bound is not met (it is by
-    construction; the check guards the arithmetic)."""
+    a work-item's 16 lanes are neighbours. The work goes one coordinate at a time (a 4096^2
+    grid's float64 temporaries are then 134 MB, not 400 MB: first-touch page faults dominate at
+    that size). Raises ValueError when the bound is not met (it is by construction; the check
+    guards the arithmetic)."""
     pixels = np.asarray(pixels, dtype=np.float64)
     budget = tile_half_extent(f0, c) if half_extent is None else float(half_extent)
     if not budget > 0:
         raise ValueError(f"half_extent must be positive, got {half_extent}")
     side = 2 * budget / np.sqrt(3.0)
-    cell = np.floor((pixels - pixels.min(axis=0)) / side).astype(np.int64)
-    key = np.ravel_multi_index(tuple(cell.T), tuple(cell.max(axis=0) + 1))
+    cells = [np.floor((pixels[:, k] - pixels[:, k].min()) / side).astype(np.int64) for k in range(3)]
+    key = np.ravel_multi_index(cells, tuple(int(cell.max()) + 1 for cell in cells))
+    del cells
     by_key = np.argsort(key, kind="stable")
-    _, first, count = np.unique(key[by_key], return_index=True, return_counts=True)
+    sorted_key = key[by_key]
+    first = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+    count = np.diff(np.r_[first, key.size])
     width = LANES * ROWS
     padded = -(-count // width) * width
     tile = np.repeat(np.arange(count.size), padded)
     local = np.arange(tile.size) - np.repeat(np.cumsum(padded) - padded, padded)
     real = local < count[tile]
     order = by_key[first[tile] + np.minimum(local, count[tile] - 1)]
-    sorted_pixels = pixels[by_key]
-    centres = 0.5 * (np.minimum.reduceat(sorted_pixels, first) + np.maximum.reduceat(sorted_pixels, first))
-    extent = float(np.sqrt(np.max(np.sum((pixels[order] - centres[tile]) ** 2, axis=-1))))
+    low, high = np.empty((count.size, 3)), np.empty((count.size, 3))
+    for k in range(3):
+        column = pixels[by_key, k]
+        low[:, k], high[:, k] = np.minimum.reduceat(column, first), np.maximum.reduceat(column, first)
+    centres = 0.5 * (low + high)
+    extent = float(0.5 * np.sqrt(np.max(np.sum((high - low) ** 2, axis=1))))
     if extent > budget * (1 + 1e-9):
         raise ValueError(f"tiles reach {extent:.3g} m from their reference points, beyond the {budget:.3g} m "
                          "that keeps the float32 phase error in budget")
@@ -323,9 +332,18 @@ class _Chunk:
         self.first, self.n = first, stop - first
         self.order, self.real = tiling.order[first:stop], tiling.real[first:stop]
         self.tiles, local = np.unique(tiling.tile[first:stop], return_inverse=True)
-        delta = pixels[self.order] - tiling.centres[tiling.tile[first:stop]]
-        fields = [*delta.T, np.sum(delta * delta, axis=-1)] + ([delta @ v_k] if np.any(v_k) else [])
-        self.pix = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.array(fields, dtype=np.float32))
+        moving = bool(np.any(v_k))
+        fields = np.zeros((5 if moving else 4, self.n), np.float32)
+        squared, along_v = np.zeros(self.n), np.zeros(self.n)
+        for k in range(3):  # one coordinate at a time (temporaries of n, not 3 n, doubles)
+            delta = pixels[self.order, k] - tiling.centres[tiling.tile[first:stop], k]
+            fields[k] = delta
+            squared += delta * delta
+            along_v += delta * v_k[k]
+        fields[3] = squared
+        if moving:
+            fields[4] = along_v
+        self.pix = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=fields)
         self.tile_of = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                                  hostbuf=local[::LANES * ROWS].astype(np.int32))
         self.image = cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.zeros(self.n, np.complex128))
