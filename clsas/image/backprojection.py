@@ -96,12 +96,24 @@ def _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velo
 def legs(echo: EchoData, h: int, pulses: np.ndarray, pixels: np.ndarray, velocity: np.ndarray,
          stop_and_go: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The exact legs from the pulses' transmitters to the M pixels and back to receiver h
-    (float64 fixed point, :mod:`clsas.simulate.geometry`): t1 (len(pulses), M) s, where the pulses
+    (float64, :mod:`clsas.simulate.geometry`): t1 (len(pulses), M) s, where the pulses
     meet the pixels q (len(pulses), M, 3) m, t2 (len(pulses), M) s and the receiver at reception
-    (len(pulses), M, 3) m. The two-way delay is t1 + t2."""
+    (len(pulses), M, 3) m. The two-way delay is t1 + t2. With a receiver of two nodes (uniform
+    motion) both legs are :func:`geometry.meet_time`'s closed form, else fixed points."""
     c = echo.medium.sound_speed
-    tol = geometry.iteration_tolerance(echo.waveform.f0)
     eta = echo.eta[pulses]
+    if not stop_and_go and echo.rx_tau[h].size == 2:
+        # the target and a two-node receiver move uniformly: both fixed points in closed form
+        tx = echo.tx_pos[pulses]
+        q_emit = pixels[None] + velocity * eta[:, None, None]
+        t1 = geometry.meet_time(q_emit - tx[:, None, :], velocity, c)
+        q = q_emit + velocity * t1[..., None]
+        nodes, pos = echo.rx_tau[h], echo.rx_pos[h][pulses]
+        v_r = ((pos[:, 1] - pos[:, 0]) / (nodes[1] - nodes[0]))[:, None, :]
+        r_scatter = echo.rx_position(h, t1, pulses=pulses)  # the receiver when the pulse meets the pixel
+        t2 = geometry.meet_time(r_scatter - q, v_r, c)
+        return t1, q, t2, r_scatter + v_r * t2[..., None]
+    tol = geometry.iteration_tolerance(echo.waveform.f0)
     targets = Scatterers(pixels, np.broadcast_to(velocity, pixels.shape), np.ones(pixels.shape[0], complex))
     t1, q = geometry.outgoing(echo.tx_pos[pulses], eta, targets, c, tol, stop_and_go)
 
