@@ -60,7 +60,8 @@ def seen_from(caster, target, point):
     normals = target.mesh.face_normals
     start = target.mesh.triangles_center + 1e-5 * normals
     d = (np.asarray(point, dtype=float) - start).T[:, None, :].astype(np.float32)
-    return visibility(caster, start, normals.T, d)[0]
+    facing = np.einsum("ij,ij->i", normals, d[:, 0].T)[None] > 0
+    return visibility(caster, start, d, facing)[0]
 
 
 def test_sphere_from_far_is_half_lit():
