@@ -20,8 +20,8 @@ from clsas.scene.targets import MeshTarget
 from clsas.simulate.occlusion import (
     PathWeights,
     RayCaster,
-    facet_visibility,
     occluded_reference,
+    visibility,
 )
 
 
@@ -56,10 +56,12 @@ def test_embree_equals_moller_trumbore(seed):
 
 
 def seen_from(caster, target, point):
-    """facet_visibility of every facet of ``target`` towards ``point`` (rays from 1e-5 m off the facets)."""
+    """visibility of every facet of ``target`` towards ``point`` (rays from 1e-5 m off the facets)."""
     normals = target.mesh.face_normals
     start = target.mesh.triangles_center + 1e-5 * normals
-    return facet_visibility(caster, start, normals, np.asarray(point, dtype=float) - start)
+    d = (np.asarray(point, dtype=float) - start).T[:, None, :].astype(np.float32)
+    facing = np.einsum("ij,ij->i", normals, d[:, 0].T)[None] > 0
+    return visibility(caster, start, d, facing)[0]
 
 
 def test_sphere_from_far_is_half_lit():
@@ -90,9 +92,10 @@ def shadow_scene(n_pulses=41):
     return sc, target
 
 
-def test_moving_facet_crosses_into_shadow_at_the_predicted_pulse():
+@pytest.mark.parametrize("tolerance", [0.0, 5e-4, 0.5])  # every ray cast; the default; reuse over whole blocks
+def test_moving_facet_crosses_into_shadow_at_the_predicted_pulse(tolerance):
     sc, target = shadow_scene()
-    weights = PathWeights(sc, stop_and_go=True)(slice(None))[0]  # (pulses, facets), monostatic
+    weights = PathWeights(sc, stop_and_go=True, reuse_tolerance=tolerance)(slice(None))[0]  # (pulses, facets)
     normals = target.mesh.face_normals
     front = np.flatnonzero((normals[:, 0] < -0.9) & (target.mesh.triangles_center[:, 0] > 3.0))  # cube's -x face
     assert front.size == 2
@@ -164,3 +167,55 @@ def test_scan_image_projects_the_lit_face():
     with pytest.raises(ValueError, match="mesh"):
         scan_image(shadow_scene(2)[0].replace(targets=(clsas.PointTargets([[100.0, 0, 0]]),)), np.arange(3.0),
                    np.arange(3.0))
+
+
+def pole_scene(n_pulses=64):
+    """A thin pole (6 cm square, 2 m tall) 2 m in front of a small wall (0.4 m x 1 m, facets of
+    5 cm), 100 m from a platform passing at 2 m/s, 20 pulses/s: from a facet of the wall the pole
+    subtends ~0.03 rad and the platform turns by ~1e-3 rad per pulse, so the pole's shadow
+    crosses some facets for ~30 pulses, starting and ending inside 64 pulses."""
+    wall, pole = box((0.2, 0.4, 1.0)), box((0.06, 0.06, 2.0))
+    pole.apply_translation([-2.0, 0.0, 0.0])
+    target = MeshTarget(trimesh.util.concatenate([wall, pole]), position=(100.0, 0.0, 0.0), velocity=(0.0, 0.3, 0.0),
+                        max_facet=0.05)
+    sc = Scenario(Medium(1500.0), Waveform(f0=100e3, bandwidth=10e3, duration=2e-3, fs=12.5e3),
+                  Platform(speed=2.0), Array(rx_offsets=[[0.0, 0.0, 0.0]]), PulseSchedule(prf=20.0, n_pulses=n_pulses),
+                  targets=(target,))
+    return sc, target
+
+
+def test_reuse_within_tolerance_equals_full_cast_and_tolerance_matters():
+    sc, _ = pole_scene()
+    full = PathWeights(sc, reuse_tolerance=0.0, pulses_per_block=64)
+    w_full = full(slice(None))
+    caster = full.parts[0][3]
+    assert caster.rays_cast == caster.queries  # every answered path cast
+    lit = w_full[0] > 0  # (pulses, facets)
+    passing = lit[0] & lit[-1] & ~lit.all(axis=0)  # lit at both ends, shadowed in between
+    assert passing.sum() >= 3
+    fine = PathWeights(sc, reuse_tolerance=0.01, pulses_per_block=64)  # under the pole's ~0.03 rad
+    np.testing.assert_array_equal(fine(slice(None)), w_full)
+    assert fine.parts[0][3].queries == caster.queries
+    assert fine.parts[0][3].rays_cast < caster.rays_cast / 3
+    coarse = PathWeights(sc, reuse_tolerance=0.1, pulses_per_block=64)  # wider than the block's sweep
+    w_coarse = coarse(slice(None))
+    assert (w_coarse[0] > 0)[:, passing].all()  # the passing shadow is missed: lit throughout
+    assert coarse.parts[0][3].rays_cast < fine.parts[0][3].rays_cast
+
+
+def test_reuse_equals_full_cast_on_the_moving_submarine():
+    from clsas.scene import presets
+
+    sc = presets.kiang2022_case(5, n_pulses=48, sections=32, stations=40)  # a moving, turning-free hull
+    reused, full = PathWeights(sc, pulses_per_block=48), PathWeights(sc, reuse_tolerance=0.0)
+    np.testing.assert_array_equal(reused(slice(None)), full(slice(None)))
+    assert reused.parts[0][3].queries == full.parts[0][3].queries
+    assert reused.parts[0][3].rays_cast < full.parts[0][3].queries / 4
+
+
+def test_reuse_tolerance_is_checked():
+    sc, _ = pole_scene(4)
+    with pytest.raises(ValueError, match="reuse_tolerance"):
+        PathWeights(sc, reuse_tolerance=-1e-3)
+    with pytest.raises(ValueError, match="pulses_per_block"):
+        PathWeights(sc, pulses_per_block=0)

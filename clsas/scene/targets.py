@@ -220,7 +220,12 @@ class MeshTarget:
         bisector = to_tx + to_rx
         size = np.sqrt(np.einsum("...i,...i->...", bisector, bisector))
         dot = np.einsum("...i,...i->...", normals, bisector)
-        cos = np.maximum(np.divide(dot, size, out=np.zeros_like(dot), where=size > 0), 0.0)
+        return self.lobe(np.divide(dot, size, out=np.zeros_like(dot), where=size > 0))
+
+    def lobe(self, cos: np.ndarray) -> np.ndarray:
+        """The angular law of the cosines ``cos`` between the normals and the bisectors (any shape):
+        max(0, cos) (Lambertian) or max(0, cos) ** exponent (specular)."""
+        cos = np.maximum(cos, 0)
         return cos if self.law == "lambertian" else cos ** self.exponent
 
     def scatterers(self) -> Scatterers:

@@ -89,16 +89,29 @@ def incoming(receiver, eta: np.ndarray, t1: np.ndarray, q: np.ndarray, c: float,
     return t2, receiver(t_scatter + t2)
 
 
-def meet_time(d: np.ndarray, w: np.ndarray, c: float) -> np.ndarray:
+def meet_time(d: np.ndarray, w: np.ndarray, c: float, axis: int = -1) -> np.ndarray:
     """Closed form of the fixed points above for uniform motion: the t > 0 with |d + w t| = c t.
 
     (c^2 - |w|^2) t^2 - 2 (d.w) t - |d|^2 = 0 has the positive root
     t = [d.w + sqrt((d.w)^2 + (c^2 - |w|^2) |d|^2)] / (c^2 - |w|^2) (no cancellation: |d.w| << c |d|).
-    ``d`` and ``w`` broadcast (..., 3). The OpenCL kernels use the same formula (geometry8.h).
+    ``d`` and ``w`` broadcast, their 3 components along ``axis`` (..., 3 by default; 0 for
+    components-first arrays); the result has that axis removed and ``d``'s dtype. The OpenCL
+    kernels use the same formula (geometry8.h).
     """
-    a = c * c - np.einsum("...i,...i->...", w, w)
-    b = np.einsum("...i,...i->...", d, w)
-    return (b + np.sqrt(b * b + a * np.einsum("...i,...i->...", d, d))) / a
+    d, w = np.moveaxis(d, axis, 0), np.moveaxis(w, axis, 0)
+    a = c * c - (w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    b = d[0] * w[0]
+    b += d[1] * w[1]
+    b += d[2] * w[2]
+    dd = d[0] * d[0]
+    dd += d[1] * d[1]
+    dd += d[2] * d[2]
+    dd *= a
+    dd += b * b
+    np.sqrt(dd, out=dd)
+    dd += b
+    dd /= a
+    return dd
 
 
 def element_gain(length: float, direction: np.ndarray, axis: np.ndarray, wavelength: float) -> np.ndarray:
