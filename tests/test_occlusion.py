@@ -219,3 +219,15 @@ def test_reuse_tolerance_is_checked():
         PathWeights(sc, reuse_tolerance=-1e-3)
     with pytest.raises(ValueError, match="pulses_per_block"):
         PathWeights(sc, pulses_per_block=0)
+
+
+def test_simulate_passes_the_reuse_tolerance(opencl_device):
+    """simulate(reuse_tolerance=) reaches the path weights: casting every ray and the default
+    reuse give the same echo on the pole scene, and the tolerance is recorded and checked."""
+    sc, _ = pole_scene()
+    exact = clsas.simulate(sc, backend="opencl", progress=False, reuse_tolerance=0.0)
+    reused = clsas.simulate(sc, backend="opencl", progress=False)
+    np.testing.assert_array_equal(reused.data, exact.data)
+    assert exact.provenance["reuse_tolerance"] == 0.0 and reused.provenance["reuse_tolerance"] == 5e-4
+    with pytest.raises(ValueError, match="reuse_tolerance"):
+        clsas.simulate(sc, backend="opencl", progress=False, reuse_tolerance=-1.0)

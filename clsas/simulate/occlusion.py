@@ -31,6 +31,7 @@ from . import geometry
 from .window import has_motion_errors
 
 METHODS = ("embree", "reference")
+DEFAULT_REUSE_TOLERANCE = 5e-4  # rad: PathWeights' default angle within which visibility is reused
 THREADS = 2  # pulse blocks computed at once (the machine has two cores)
 
 
@@ -213,7 +214,7 @@ class PathWeights:
     """
 
     def __init__(self, scenario, stop_and_go: bool = False, hull_occlusion: bool = True, method: str = "embree",
-                 reuse_tolerance: float = 5e-4, pulses_per_block: int = 32):
+                 reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE, pulses_per_block: int = 32):
         if not (np.isfinite(reuse_tolerance) and reuse_tolerance >= 0):
             raise ValueError(f"reuse_tolerance must be a finite angle >= 0 (rad), got {reuse_tolerance}")
         if int(pulses_per_block) < 1:

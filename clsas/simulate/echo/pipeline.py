@@ -23,7 +23,7 @@ from ... import backend as _backend
 from ...data import EchoData
 from ...scene.scenario import Scenario
 from ...scene.targets import Scatterers, scatterers_of
-from ..occlusion import PathWeights, has_meshes
+from ..occlusion import DEFAULT_REUSE_TOLERANCE, PathWeights, has_meshes
 from ..window import DEFAULT_MAX_BYTES, check_cube_size, node_span, receiver_nodes
 from .synth import _NumpySynth, _OpenCLSynth
 
@@ -101,12 +101,14 @@ def add_noise(data: np.ndarray, snr_db: float, seed, n_valid=None, block: int = 
     return data
 
 
-def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_occlusion: bool):
+def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_occlusion: bool,
+                       reuse_tolerance: float):
     """The user's occlusion factor times the mesh targets' path weights (hull visibility and
     angular law, :class:`clsas.simulate.occlusion.PathWeights`) when the scene has meshes."""
     if not has_meshes(scenario):
         return occlusion
-    mesh = PathWeights(scenario, stop_and_go=stop_and_go, hull_occlusion=hull_occlusion)
+    mesh = PathWeights(scenario, stop_and_go=stop_and_go, hull_occlusion=hull_occlusion,
+                       reuse_tolerance=reuse_tolerance)
     if occlusion is None:
         return mesh
     if callable(occlusion):
@@ -115,7 +117,7 @@ def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_oc
 
 
 def _make_synth(scenario: Scenario, name: str, double: bool, occlusion, stop_and_go: bool, spreading: bool,
-                chunk_bytes: int, hull_occlusion: bool = True):
+                chunk_bytes: int, hull_occlusion: bool = True, reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE):
     """The backend's synthesizer and the pulse blocks that keep its working memory under ``chunk_bytes``."""
     scat = scatterers_of(scenario.targets)
     if scat.count == 0:
@@ -126,7 +128,7 @@ def _make_synth(scenario: Scenario, name: str, double: bool, occlusion, stop_and
         if occlusion.shape != (n_rx, n_pulses, scat.count):
             raise ValueError(f"occlusion must have shape (n_rx, n_pulses, n_scatterers) = "
                              f"{(n_rx, n_pulses, scat.count)}, got {occlusion.shape}")
-    occlusion = _with_mesh_weights(scenario, occlusion, stop_and_go, hull_occlusion)
+    occlusion = _with_mesh_weights(scenario, occlusion, stop_and_go, hull_occlusion, reuse_tolerance)
     args = (scenario, scat, occlusion, stop_and_go, spreading)
     if name == "numpy":
         span = int(0.5 * scenario.waveform.duration * scenario.waveform.fs) + 2
@@ -154,12 +156,13 @@ def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = F
 
 
 def _synthesize(scenario: Scenario, name: str, double: bool, stop_and_go: bool, progress: bool, spreading: bool,
-                occlusion, max_bytes: int, chunk_bytes: int, hull_occlusion: bool = True, dtype=None) -> dict:
+                occlusion, max_bytes: int, chunk_bytes: int, hull_occlusion: bool = True,
+                reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE, dtype=None) -> dict:
     """Both passes; returns the cube in ``dtype`` (default: the backend's own precision,
     complex128 for NumPy and precision="double", complex64 otherwise) with its window and
     receiver nodes."""
     synth, blocks = _make_synth(scenario, name, double, occlusion, stop_and_go, spreading, chunk_bytes,
-                                hull_occlusion)
+                                hull_occlusion, reuse_tolerance)
     wf = scenario.waveform
     n_rx, n_pulses, n_scat = scenario.n_receivers, scenario.eta.size, synth.scat.count
     lo = np.full((n_rx, n_scat), np.inf)
@@ -201,7 +204,7 @@ def _synthesize(scenario: Scenario, name: str, double: bool, stop_and_go: bool, 
 def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False, snr_db: float | None = None,
              seed=None, precision: str = "single", progress: bool = True, spreading: bool = False,
              occlusion=None, max_bytes: int = DEFAULT_MAX_BYTES, chunk_bytes: int = 256 * 2**20,
-             hull_occlusion: bool = True) -> EchoData:
+             hull_occlusion: bool = True, reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE) -> EchoData:
     """Synthesize the raw echoes of ``scenario`` (see the module docstring for the model).
 
     Parameters
@@ -228,6 +231,10 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
     hull_occlusion : bool
         Cast rays for the hull occlusion of mesh targets (False keeps only back-facing
         darkness and the angular law).
+    reuse_tolerance : float
+        rad: a facet's hull visibility is reused between pulses whose directions from it differ
+        by at most this angle and whose bracketing casts agree (0 casts every ray;
+        :class:`clsas.simulate.occlusion.PathWeights`).
     max_bytes : int
         Largest echo cube allowed (complex64); larger requests are refused before allocation.
     chunk_bytes : int
@@ -253,7 +260,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         check_cube_size(scenario.n_receivers, scenario.eta.size, int(np.max(n_valid)), max_bytes,
                         "given by Scenario.recording")
     out = _synthesize(scenario, name, double, stop_and_go, progress, spreading, occlusion, int(max_bytes),
-                      int(chunk_bytes), hull_occlusion, dtype=np.complex64)
+                      int(chunk_bytes), hull_occlusion, reuse_tolerance, dtype=np.complex64)
     data = out["data"]
     if snr_db is not None:
         add_noise(data, float(snr_db), seed, out["n_valid"])
@@ -268,6 +275,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
                     "seed": seed if seed is None or isinstance(seed, int) else str(seed),
                     "n_scatterers": out["n_scatterers"], "occlusion": occlusion is not None,
                     "hull_occlusion": bool(hull_occlusion and has_meshes(scenario)),
+                    **({"reuse_tolerance": float(reuse_tolerance)} if hull_occlusion and has_meshes(scenario) else {}),
                     "window": out["origin"], "n_valid": out["n_valid"].tolist(),
                     "rx_node_error_m": out["node_error_m"]},
     )

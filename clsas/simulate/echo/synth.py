@@ -178,6 +178,10 @@ class _OpenCLSynth(_Synth):
                 defines[flag] = 1
         prg = opencl.program("echo", defines=defines, double=double)
         self.k_paths = cl.Kernel(prg, "echo_paths")
+        # delays and extents need no weights: their paths come from a build without them
+        plain = {key: value for key, value in defines.items() if key != "PATH_WEIGHTS"}
+        self.k_paths_plain = self.k_paths if plain == defines else \
+            cl.Kernel(opencl.program("echo", defines=plain, double=double), "echo_paths")
         self.k_bounds = cl.Kernel(prg, "echo_bounds")
         self.k_extents = cl.Kernel(prg, "echo_extents")
         self.k_acc = cl.Kernel(prg, "echo_accumulate")
@@ -195,7 +199,9 @@ class _OpenCLSynth(_Synth):
         tau, _ = geometry.paths(self.scenario, mid, self.scat, range(self.n_rx), stop_and_go=True)
         return np.argsort(tau[:, 0, :], axis=1, kind="stable")
 
-    def _run_paths(self, pulses: slice, t0: np.ndarray):
+    def _run_paths(self, pulses: slice, t0: np.ndarray, weighted: bool = True):
+        """The paths kernel on a pulse block: delays and amplitudes (times the occlusion weights
+        unless not ``weighted``: the delays and extents do not need them)."""
         cl, q, ctx = self.cl, self.rt.queue, self.rt.context
         mf = cl.mem_flags
         idx = np.arange(self.eta.size)[pulses]
@@ -205,14 +211,14 @@ class _OpenCLSynth(_Synth):
         nodes = np.zeros((h, pc, self.rx_tau.size, 8))
         nodes[..., 0:3], nodes[..., 3:6] = self.rx_pos[:, idx], self.rx_axis[:, idx]
         rx = np.column_stack([t0 * self.scenario.waveform.fs, self.scenario.receiver_lengths]).astype(np.float64)
-        w = self.weights(pulses)
+        w = self.weights(pulses) if weighted else None
         w = np.ones(1, np.float32) if w is None else np.ascontiguousarray(w, dtype=np.float32)
         bufs = [cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
                 for a in (pulse, nodes, rx, w)]
         paths = cl.Buffer(ctx, mf.READ_WRITE, 4 * np.dtype(self.real).itemsize * h * pc * n)
-        self.k_paths(q, (n // 8, pc, h), None, self.soa_buf, bufs[0], bufs[1], bufs[2], self.order_buf, bufs[3],
-                     self.params.view(cl.cltypes.double8)[0], np.int32(self.scat.count), np.int32(n), np.int32(pc),
-                     paths)
+        kernel = self.k_paths if weighted else self.k_paths_plain
+        kernel(q, (n // 8, pc, h), None, self.soa_buf, bufs[0], bufs[1], bufs[2], self.order_buf, bufs[3],
+               self.params.view(cl.cltypes.double8)[0], np.int32(self.scat.count), np.int32(n), np.int32(pc), paths)
         return paths, pc
 
     def release(self) -> None:
@@ -223,7 +229,7 @@ class _OpenCLSynth(_Synth):
     def delays(self, pulses: slice) -> np.ndarray:
         """Two-way delays (H, P, N) of the block from the kernel, in scatterer order."""
         h, n = self.n_rx, self.scat.count
-        paths, pc = self._run_paths(pulses, np.zeros(h))
+        paths, pc = self._run_paths(pulses, np.zeros(h), weighted=False)
         host = np.empty((h, pc, self.n_pad, 4), self.real)
         self.cl.enqueue_copy(self.rt.queue, host, paths)
         host = host[:, :, :n]
@@ -235,11 +241,15 @@ class _OpenCLSynth(_Synth):
         return tau
 
     def extents(self, pulses: slice):
-        """(floor(min u), floor(max u) + 1) per (receiver, scatterer), reduced on the device."""
+        """(floor(min u), floor(max u) + 1) per (receiver, scatterer), reduced on the device. With
+        an occlusion factor the paths are computed unweighted and not kept for pass B: the
+        weights (hull ray casting for meshes) are then computed once, by pass B, whose pulse
+        blocks need not match these."""
         cl, q = self.cl, self.rt.queue
         h, n = self.n_rx, self.scat.count
-        paths, pc = self._run_paths(pulses, np.zeros(h))
-        if self.cached_bytes + 4 * np.dtype(self.real).itemsize * h * pc * self.n_pad <= self.cache_bytes:
+        paths, pc = self._run_paths(pulses, np.zeros(h), weighted=False)
+        reusable = self.occlusion is None  # unweighted paths are pass B's paths only without weights
+        if reusable and self.cached_bytes + 4 * np.dtype(self.real).itemsize * h * pc * self.n_pad <= self.cache_bytes:
             self.cache[(pulses.start, pulses.stop)] = (paths, pc)
             self.cached_bytes += 4 * np.dtype(self.real).itemsize * h * pc * self.n_pad
         ext = cl.Buffer(self.rt.context, cl.mem_flags.WRITE_ONLY, 8 * h * self.n_pad)
