@@ -80,6 +80,7 @@ def main() -> None:
     report(args, "occlusion", "opencl", {"facets": case8.targets[0].n_facets, "pulses": case8.eta.size,
                                           "receivers": 3}, occl / total, "share of simulate time", total,
            occlusion_seconds=occl, calls_per_simulate=len(inside) // repeats,
+           occlusion_per_synthesis_second=occl / (total - occl),  # against the rest of simulate()
            case="Kiang case 8: time in PathWeights calls / whole simulate time (warm, median)")
 
 
