@@ -47,8 +47,8 @@ inline int16 snapped(const int16 fl, const float16 frac, float16 *w)
 inline void store16(const float16 lo, const float16 hi, __global float *o, const int n_left)
 {
     if (n_left >= 16) {
-        vstore16(lo, 0, o);
-        vstore16(hi, 1, o);
+        STORE_F16(lo, o);
+        STORE_F16(hi, o + 16);
         return;
     }
     float part[32];
