@@ -282,19 +282,22 @@ def tile_references(echo: EchoData, h: int, pulses: np.ndarray, centres: np.ndar
     c_vec = r - q
     v_r = np.zeros_like(c_vec)
     departure = 0.0
-    if not stop_and_go and echo.rx_tau[h].size > 1:
+    if not stop_and_go and echo.rx_tau[h].size == 2:
+        # uniform motion: the secant over any span is the receiver's velocity
+        pos = echo.rx_pos[h][pulses]
+        v_r[:] = ((pos[:, 1] - pos[:, 0]) / (echo.rx_tau[h][1] - echo.rx_tau[h][0]))[:, None, :]
+    elif not stop_and_go and echo.rx_tau[h].size > 2:
         # secant of the receiver over the delay span T_ref +- span; the kernel's line passes through R_ref
         span = SPAN_FACTOR * half_extent / c
         ends = echo.rx_position(h, big_t[..., None] + [-span, span], pulses=pulses)
         v_r = (ends[..., 1, :] - ends[..., 0, :]) / (2 * span)
         dtau, _ = _uniform_nodes(echo, h)
-        if echo.rx_tau[h].size > 2:
-            # the piecewise-linear track departs from the line most at its nodes or the span's ends
-            steps = np.arange(int(np.ceil(2 * span / dtau)) + 2)
-            times = np.clip((np.floor((big_t - span) / dtau)[..., None] + steps) * dtau,
-                            (big_t - span)[..., None], (big_t + span)[..., None])
-            line = r[..., None, :] + v_r[..., None, :] * (times - big_t[..., None])[..., None]
-            departure = float(np.max(np.linalg.norm(echo.rx_position(h, times, pulses=pulses) - line, axis=-1)))
+        # the piecewise-linear track departs from the line most at its nodes or the span's ends
+        steps = np.arange(int(np.ceil(2 * span / dtau)) + 2)
+        times = np.clip((np.floor((big_t - span) / dtau)[..., None] + steps) * dtau,
+                        (big_t - span)[..., None], (big_t + span)[..., None])
+        line = r[..., None, :] + v_r[..., None, :] * (times - big_t[..., None])[..., None]
+        departure = float(np.max(np.linalg.norm(echo.rx_position(h, times, pulses=pulses) - line, axis=-1)))
     v_k = np.zeros(3) if stop_and_go else velocity
     k_ref = (big_t - echo.t0[h]) * fs
     k_int = np.clip(np.floor(k_ref), -2**30, 2**30)
@@ -330,6 +333,22 @@ def _exact_kernel(ctx, echo, h, pulses, fs, velocity, half_sin, defines, stop_an
                             for a in (pulse, nodes))
     params = np.array([echo.medium.sound_speed, echo.waveform.f0, fs, dtau, *velocity, half_sin])
     return kern, pulse_buf, nodes_buf, params.view(cl.cltypes.double8)[0]
+
+
+def _records_buffer(ctx, echo: EchoData, h: int, pulses: np.ndarray, factor: int, double: bool):
+    """The device buffer of receiver h's records of ``pulses`` (consecutive), upsampled by ``factor``,
+    and its samples per record. Where the echo's own block already is what the kernel reads
+    (``factor`` 1, the kernel's complex type, C-contiguous) the device uses that memory in place
+    (CL_MEM_USE_HOST_PTR: PoCL shares host memory, so nothing is copied; the buffer holds a view
+    of the block, and the call finishes its queue before it returns), else a copy is made."""
+    import pyopencl as cl
+
+    dtype = np.complex128 if double else np.complex64
+    block = echo.data[h, pulses[0]:pulses[-1] + 1]
+    if factor == 1 and block.dtype == dtype and block.flags.c_contiguous:
+        return cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=block), block.shape[1]
+    records = upsample_records(block, factor).astype(dtype, copy=False)
+    return cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=records), records.shape[1]
 
 
 class _Chunk:
@@ -447,8 +466,7 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
             if chunk_state is not None:
                 chunk_state.finish(queue, image)
             chunk_state = _Chunk(ctx, pixels, tiles, first, min(first + chunk, tiles.order.size), v_k)
-        records = upsample_records(echo.data[h, pulses], factor).astype(np.complex128 if double else np.complex64)
-        records_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=records)
+        records_buf, n_samples = _records_buffer(ctx, echo, h, pulses, factor, double)
         exact = None
         for s in range(0, pulses.size, REF_PULSES):
             # a sub-block's references are computed while the previous sub-block's kernels run
@@ -462,7 +480,7 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
                     for p0, count in blocks:
                         tile_kernel(queue, (chunk_state.n // (LANES * ROWS),), None, chunk_state.pix,
                                     chunk_state.tile_of, ref_buf, np.int32(ref.shape[1]), np.int32(s), records_buf,
-                                    taps_buf, tile_params, np.int32(p0), np.int32(count), np.int32(records.shape[1]),
+                                    taps_buf, tile_params, np.int32(p0), np.int32(count), np.int32(n_samples),
                                     np.int32(chunk_state.n), chunk_state.image)
                     continue
                 fallbacks += 1
@@ -471,7 +489,7 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
             kern, pulse_buf, nodes_buf, params = exact
             for p0, count in blocks:
                 kern(queue, (chunk_state.n // 8,), None, chunk_state.absolute(ctx, pixels), pulse_buf, nodes_buf,
-                     records_buf, taps_buf, params, np.int32(p0), np.int32(count), np.int32(records.shape[1]),
+                     records_buf, taps_buf, params, np.int32(p0), np.int32(count), np.int32(n_samples),
                      np.int32(chunk_state.n), chunk_state.image)
     chunk_state.finish(queue, image)
     return image, fallbacks
