@@ -69,7 +69,7 @@ PHASE_BUDGET = 2e-3  # rad: the float32 geometry's share of the 0.01 rad phase b
 ERROR_FACTOR = 8.0  # float32 roundings per |delta| / c of delay (see backproject_opencl)
 NODE_TOLERANCE = 1 / 2000  # of a wavelength: a receiver's allowed departure from linear motion over a tile
 SPAN_FACTOR = 2.5  # a tile's delay span is +-SPAN_FACTOR * half_extent / c around its reference
-REF_PULSES = 64  # pulses whose tile references are computed at once
+REF_PULSES = 256  # pulses whose tile references are computed at once
 
 
 def _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velocity):
@@ -347,7 +347,7 @@ def _records_buffer(ctx, echo: EchoData, h: int, pulses: np.ndarray, factor: int
     block = echo.data[h, pulses[0]:pulses[-1] + 1]
     if factor == 1 and block.dtype == dtype and block.flags.c_contiguous:
         return cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=block), block.shape[1]
-    records = upsample_records(block, factor).astype(dtype, copy=False)
+    records = np.ascontiguousarray(upsample_records(block, factor), dtype=dtype)
     return cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=records), records.shape[1]
 
 
