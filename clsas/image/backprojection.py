@@ -69,7 +69,7 @@ PHASE_BUDGET = 2e-3  # rad: the float32 geometry's share of the 0.01 rad phase b
 ERROR_FACTOR = 8.0  # float32 roundings per |delta| / c of delay (see backproject_opencl)
 NODE_TOLERANCE = 1 / 2000  # of a wavelength: a receiver's allowed departure from linear motion over a tile
 SPAN_FACTOR = 2.5  # a tile's delay span is +-SPAN_FACTOR * half_extent / c around its reference
-REF_PULSES = 256  # pulses whose tile references are computed at once
+REF_PULSES = 64  # pulses whose tile references are computed at once
 
 
 def _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velocity):
@@ -94,6 +94,12 @@ def _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velo
     return chosen, v
 
 
+def _two_node_velocity(echo: EchoData, h: int, pulses: np.ndarray) -> np.ndarray:
+    """(len(pulses), 3) m/s: the uniform velocity of receiver h, which has two position nodes."""
+    pos = echo.rx_pos[h][pulses]
+    return (pos[:, 1] - pos[:, 0]) / (echo.rx_tau[h][1] - echo.rx_tau[h][0])
+
+
 def legs(echo: EchoData, h: int, pulses: np.ndarray, pixels: np.ndarray, velocity: np.ndarray,
          stop_and_go: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The exact legs from the pulses' transmitters to the M pixels and back to receiver h
@@ -109,8 +115,7 @@ def legs(echo: EchoData, h: int, pulses: np.ndarray, pixels: np.ndarray, velocit
         q_emit = pixels[None] + velocity * eta[:, None, None]
         t1 = geometry.meet_time(q_emit - tx[:, None, :], velocity, c)
         q = q_emit + velocity * t1[..., None]
-        nodes, pos = echo.rx_tau[h], echo.rx_pos[h][pulses]
-        v_r = ((pos[:, 1] - pos[:, 0]) / (nodes[1] - nodes[0]))[:, None, :]
+        v_r = _two_node_velocity(echo, h, pulses)[:, None, :]
         r_scatter = echo.rx_position(h, t1, pulses=pulses)  # the receiver when the pulse meets the pixel
         t2 = geometry.meet_time(r_scatter - q, v_r, c)
         return t1, q, t2, r_scatter + v_r * t2[..., None]
@@ -284,8 +289,7 @@ def tile_references(echo: EchoData, h: int, pulses: np.ndarray, centres: np.ndar
     departure = 0.0
     if not stop_and_go and echo.rx_tau[h].size == 2:
         # uniform motion: the secant over any span is the receiver's velocity
-        pos = echo.rx_pos[h][pulses]
-        v_r[:] = ((pos[:, 1] - pos[:, 0]) / (echo.rx_tau[h][1] - echo.rx_tau[h][0]))[:, None, :]
+        v_r[:] = _two_node_velocity(echo, h, pulses)[:, None, :]
     elif not stop_and_go and echo.rx_tau[h].size > 2:
         # secant of the receiver over the delay span T_ref +- span; the kernel's line passes through R_ref
         span = SPAN_FACTOR * half_extent / c
