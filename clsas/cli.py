@@ -1,6 +1,8 @@
 """The ``clsas`` command (also ``python -m clsas``).
 
 ``clsas info``  prints the backend and the OpenCL device.
+``clsas reproduce PAPER`` prints a paper's tables beside clsas's figures (see
+:mod:`clsas.reproduce`; ``clsas reproduce --help`` lists the papers).
 ``clsas demo``  runs a short end-to-end check on this machine: an OpenCL helper kernel against
 its NumPy twin, then Heremans et al. 2009's nine-point scene simulated, range-compressed and
 back-projected, with the centre point's metrics, HDF5 files and a picture written into
@@ -106,5 +108,19 @@ def main(argv=None) -> int:
     demo = sub.add_parser("demo", help="end-to-end check on this machine")
     demo.add_argument("--out", default="demo-output", help="folder for the demo's files")
     demo.set_defaults(run=_demo)
+    _add_reproductions(sub)
     args = parser.parse_args(argv)
     return args.run(args)
+
+
+def _add_reproductions(sub) -> None:
+    """``clsas reproduce PAPER [options]``: one sub-command per module of :mod:`clsas.reproduce`."""
+    from . import reproduce
+
+    papers = reproduce.papers()
+    parser = sub.add_parser("reproduce", help="reproduce a source paper's tables")
+    which = parser.add_subparsers(dest="paper", required=True, metavar="PAPER")
+    for name, module in papers.items():
+        one = which.add_parser(name, help=(module.__doc__ or name).strip().splitlines()[0])
+        module.add_arguments(one)
+        one.set_defaults(run=module.run)
