@@ -84,10 +84,10 @@ def _demo(args) -> int:
           f"range PSLR {res['x'].pslr_db:.1f} dB (theory -13.3)")
     ok &= abs(res["y"].location - centre[1]) < 0.1 * d / 2 and abs(res["x"].location - centre[0]) < 0.1 * rres
 
-    back = io.load(io.save(compressed, out / "demo_echo.h5"))
-    io.save(image, out / "demo_image.h5")
+    back = io.load(io.save(compressed, out / "demo_echo.nc"))
+    io.save(image, out / "demo_image.nc")
     same = np.array_equal(back.data, compressed.data)
-    print(f"saved {out / 'demo_echo.h5'} and {out / 'demo_image.h5'}: reload {'identical' if same else 'DIFFERENT'}")
+    print(f"saved {out / 'demo_echo.nc'} and {out / 'demo_image.nc'}: reload {'identical' if same else 'DIFFERENT'}")
     ok &= same
     try:
         from . import plot

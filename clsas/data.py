@@ -24,6 +24,22 @@ def _geometry(name: str, value, shape: tuple) -> np.ndarray:
     return arr
 
 
+def _span(values, unit: str) -> str:
+    """``"a..b unit"`` of a 1-D array (``"a unit"`` for one value)."""
+    if values.size == 0:
+        return "empty"
+    if values.size == 1:
+        return f"{values[0]:.6g} {unit}"
+    return f"{values[0]:.6g}..{values[-1]:.6g} {unit}"
+
+
+def _provenance_line(provenance: dict) -> str:
+    keys = list(provenance)
+    head = provenance.get("algorithm", provenance.get("from", ""))
+    shown = ", ".join(keys[:6]) + (", ..." if len(keys) > 6 else "")
+    return f"{head} ({shown})" if head else f"({shown})"
+
+
 @dataclass(frozen=True, eq=False)
 class EchoData:
     """Recorded echoes with the geometry that produced them.
@@ -164,6 +180,27 @@ class EchoData:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
 
+    def to_xarray(self):
+        """An ``xarray.Dataset`` with named, united coordinates (layout: :mod:`clsas.dataset`)."""
+        from .dataset import echo_to_xarray
+
+        return echo_to_xarray(self)
+
+    @classmethod
+    def from_xarray(cls, ds) -> "EchoData":
+        """The EchoData of a Dataset made by :meth:`to_xarray` (or read from a clsas file)."""
+        from .dataset import echo_from_xarray
+
+        return echo_from_xarray(ds)
+
+    def __repr__(self) -> str:
+        what = "range-compressed" if self.compressed else "raw"
+        names = ", ".join(self.receivers[:4]) + (", ..." if self.n_rx > 4 else "")
+        return (f"<EchoData {what} {self.n_rx} rx x {self.n_pulses} pulses x {self.n_samples} samples "
+                f"({self.data.nbytes / 2**20:.1f} MiB) rx=[{names}] eta={_span(self.eta, 's')} "
+                f"fs={self.fs:.6g} Hz f0={self.waveform.f0:.6g} Hz B={self.waveform.bandwidth:.6g} Hz "
+                f"provenance={_provenance_line(self.provenance)}>")
+
 
 @dataclass(frozen=True, eq=False)
 class Image:
@@ -236,6 +273,25 @@ class Image:
     def replace(self, **changes) -> "Image":
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
+
+    def to_xarray(self):
+        """An ``xarray.Dataset`` with the axes as coordinates in m or s (layout: :mod:`clsas.dataset`)."""
+        from .dataset import image_to_xarray
+
+        return image_to_xarray(self)
+
+    @classmethod
+    def from_xarray(cls, ds) -> "Image":
+        """The Image of a Dataset made by :meth:`to_xarray` (or read from a clsas file)."""
+        from .dataset import image_from_xarray
+
+        return image_from_xarray(ds)
+
+    def __repr__(self) -> str:
+        axes = ", ".join(f"{d}={_span(self.axes[d], '')}".rstrip() for d in self.dims)
+        where = "" if self.positions is None else " with pixel positions"
+        return (f"<Image {' x '.join(map(str, self.data.shape))} ({self.data.nbytes / 2**20:.1f} MiB) {axes}{where} "
+                f"provenance={_provenance_line(self.provenance)}>")
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,5 +17,5 @@ def test_demo_runs_and_writes_its_files(tmp_path, capsys, opencl_device):
     assert cli.main(["demo", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "demo OK" in out
-    assert (tmp_path / "demo_echo.h5").is_file()
+    assert (tmp_path / "demo_echo.nc").is_file()
     assert (tmp_path / "demo_image.png").stat().st_size > 1000
