@@ -63,16 +63,18 @@ def _chunks(shape: tuple, itemsize: int) -> tuple:
     return tuple(max(1, c) for c in chunks)
 
 
-def _encoding(ds, zarr: bool) -> dict:
+def _encoding(ds, zarr: bool, level: int) -> dict:
     enc = {}
     for name, var in ds.variables.items():
         if var.ndim == 0 or var.dtype.kind in "OUS":
             continue
         chunks = _chunks(var.shape, var.dtype.itemsize)
         if zarr:
-            enc[name] = {"chunks": chunks}
+            enc[name] = {"chunks": chunks} if level else {"chunks": chunks, "compressor": None}
         else:
-            enc[name] = {"chunksizes": chunks, "compression": "gzip", "compression_opts": 1, "shuffle": True}
+            enc[name] = {"chunksizes": chunks}
+            if level:
+                enc[name].update(compression="gzip", compression_opts=level, shuffle=True)
     return enc
 
 
@@ -83,11 +85,11 @@ def to_dataset(obj):
     raise TypeError(f"save() takes an EchoData or an Image, got {type(obj).__name__}")
 
 
-def _write(ds, path: Path) -> None:
+def _write(ds, path: Path, level: int) -> None:
     if _is_zarr(path):
-        ds.to_zarr(path, mode="w", encoding=_encoding(ds, True), consolidated=True, zarr_format=2)
+        ds.to_zarr(path, mode="w", encoding=_encoding(ds, True, level), consolidated=True, zarr_format=2)
     else:
-        ds.to_netcdf(path, engine="h5netcdf", encoding=_encoding(ds, False))
+        ds.to_netcdf(path, engine="h5netcdf", encoding=_encoding(ds, False, level))
         with open(path, "rb+") as f:
             os.fsync(f.fileno())
 
@@ -110,14 +112,20 @@ def _remove(path: Path) -> None:
         path.unlink()
 
 
-def save(obj: EchoData | Image, path: str | os.PathLike) -> Path:
+def save(obj: EchoData | Image, path: str | os.PathLike, compression: int = 1) -> Path:
     """Write ``obj`` (EchoData or Image) to ``path``: NetCDF4, or zarr when it ends in ``.zarr``.
+
+    ``compression``: the gzip level of a NetCDF file (1-9; 0 stores the chunks raw). Level 1
+    with byte shuffle saves ~15 % of a noisy echo and ~20 % of an image, and costs several times
+    the time of a raw write; zarr stores use zarr's default compressor unless it is 0.
 
     The file is written beside the target under a temporary name, read back and compared with
     ``obj`` (data and geometry bit for bit), then renamed over ``path``; on any failure the old
     file (if any) is left untouched and the temporary one removed. Returns ``Path(path)``.
     """
     path = Path(path)
+    if isinstance(compression, bool) or not isinstance(compression, (int, np.integer)) or not 0 <= compression <= 9:
+        raise ValueError(f"save: compression must be a gzip level 0-9, got {compression!r}")
     ds = to_dataset(obj)  # TypeError / ValueError (unstorable provenance, bad dim names) before any write
     if path.is_dir() and not _is_zarr(path):
         raise ValueError(f"save: {path} is a folder; give a file name (.nc) or a name ending in .zarr")
@@ -128,7 +136,7 @@ def save(obj: EchoData | Image, path: str | os.PathLike) -> Path:
     tmp = Path(tmp_name)
     tmp.unlink()
     try:
-        _write(ds, tmp)
+        _write(ds, tmp, int(compression))
         back = load(tmp)
         if not _same(obj, back):
             raise DataFileError(f"{path}: the file read back differs from the data written; the old file is kept")

@@ -1,21 +1,92 @@
-"""The clsas command: info and the end-to-end demo."""
+"""The clsas command, run as a user runs it (in a subprocess): workflow, info, errors, demo."""
 
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 
-from clsas import cli
+import numpy as np
+import xarray as xr
+
+from clsas import cli, io
 
 
-def test_info_prints_backend(capsys):
+def _clsas(*args, env=None, cwd=None):
+    full_env = dict(os.environ, TQDM_DISABLE="1", **(env or {}))
+    return subprocess.run([sys.executable, "-m", "clsas", *args], capture_output=True, text=True, env=full_env,
+                          cwd=cwd, timeout=300)
+
+
+def test_version_and_plain_text_help(capsys):
+    for args in (["--version"], ["--help"]):
+        try:
+            cli.main(args)
+        except SystemExit as stop:
+            assert stop.code == 0
+    out = capsys.readouterr().out
+    assert out.startswith("clsas ")
+    for command in ("simulate", "image", "plot", "bench", "info", "reproduce"):
+        assert command in out
+    assert "``" not in out and ":func:" not in out
+
+
+def test_info_prints_version_backend_and_device(opencl_device, capsys):
     assert cli.main(["info"]) == 0
     info = json.loads(capsys.readouterr().out)
-    assert info["resolved"] in ("numpy", "opencl")
+    assert info["resolved"] == "opencl" and info["device"] and info["clsas"]
+
+
+def test_mistakes_print_one_line_not_a_traceback(tmp_path, capsys, monkeypatch):
+    out = _clsas("info", env={"CLSAS_BACKEND": "bogus"})  # as a user meets it: a fresh process
+    assert out.returncode == 2 and "Traceback" not in out.stderr
+    assert out.stderr.strip().splitlines() == ["clsas: error: the CLSAS_BACKEND environment variable must be one of "
+                                               "('numpy', 'opencl', 'auto'), got 'bogus'"]
+    existing = tmp_path / "file.txt"
+    existing.write_text("x")
+    cases = [
+        (["demo", "--out", str(existing)], "is an existing file"),
+        (["simulate", "nosuch", "-o", str(tmp_path / "e.nc")], "unknown preset 'nosuch'"),
+        (["simulate", "scene.toml", "-o", str(tmp_path / "e.nc")], "scenario files are not read by this version"),
+        (["image", str(existing), "-o", str(tmp_path / "i.nc")], "not a NetCDF4/HDF5 clsas file"),
+        (["image", str(existing), "--grid", "1:0:1,0:1:1,0", "-o", "x.nc"], "not a NetCDF4/HDF5"),
+        (["plot", str(tmp_path / "missing.nc")], "no such clsas file"),
+    ]
+    for args, message in cases:
+        assert cli.main(args) == 2, args
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("clsas: error:") and message in err, err
+
+
+def test_simulate_image_plot_workflow(tmp_path, opencl_device, monkeypatch):
+    """simulate and image as a user runs them (fresh processes), then omega-k and plot in this
+    process (each fresh process pays ~1-5 s of imports and kernel builds)."""
+    out = _clsas("simulate", "huang2022", "--pulses", "8", "--snr", "30", "--seed", "3", "-o", "echo.nc",
+                 cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert "32 receivers x 8 pulses" in out.stdout
+    with xr.open_dataset(tmp_path / "echo.nc", engine="h5netcdf") as ds:
+        assert ds["echo"].dims == ("rx", "pulse", "sample") and ds["eta"].attrs["units"] == "s"
+        assert json.loads(ds.attrs["provenance"])["seed"] == 3
+    out = _clsas("image", "echo.nc", "--algorithm", "bp", "--grid", "38:42:0.05,-2.5:2.5:0.05,0", "-o", "bp.nc",
+                 "--png", "bp.png", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    image = io.load(tmp_path / "bp.nc")
+    assert image.shape == (100, 80) and (tmp_path / "bp.png").stat().st_size > 10_000
+    peak = np.unravel_index(np.argmax(np.abs(image.data)), image.shape)
+    assert abs(image.axes["x"][peak[1]] - 40) < 0.1  # the near row of points
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["--no-progress", "image", "echo.nc", "--algorithm", "omegak", "-o", "wk.zarr"]) == 0
+    assert io.load(tmp_path / "wk.zarr").dims == ("y", "x")
+    assert cli.main(["plot", "echo.nc"]) == 0
+    assert (tmp_path / "echo.png").stat().st_size > 10_000
 
 
 def test_demo_runs_and_writes_its_files(tmp_path, capsys, opencl_device):
+    """``make demo``'s command; its files reload and its picture is written."""
     assert cli.main(["demo", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "demo OK" in out
-    assert (tmp_path / "demo_echo.nc").is_file()
+    assert io.load(tmp_path / "demo_echo.nc").compressed
     assert (tmp_path / "demo_image.png").stat().st_size > 1000

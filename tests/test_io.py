@@ -60,6 +60,14 @@ def test_echo_round_trip_is_exact(tmp_path, rng, suffix, compressed):
 
 
 @pytest.mark.parametrize("suffix", SUFFIXES)
+def test_uncompressed_files_round_trip(tmp_path, rng, suffix):
+    echo = _echo(rng)
+    _assert_same_echo(io.load(io.save(echo, tmp_path / f"raw{suffix}", compression=0)), echo)
+    with pytest.raises(ValueError, match="compression must be a gzip level 0-9, got 10"):
+        io.save(echo, tmp_path / f"raw{suffix}", compression=10)
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
 def test_xarray_opens_an_echo_file_with_named_united_coordinates(tmp_path, rng, suffix):
     echo = _echo(rng)
     path = io.save(echo, tmp_path / f"echo{suffix}")
@@ -129,8 +137,8 @@ def test_failed_save_leaves_the_old_file_intact(tmp_path, rng, suffix, monkeypat
     with pytest.raises(ValueError, match="cannot name a variable"):
         io.save(Image(data=np.ones((2, 2)), dims=("a/b", "c"), axes={"a/b": [0, 1], "c": [0, 1]}), path)
 
-    def broken(ds, target):  # a write that dies part-way (disk full, killed process)
-        original(ds, target)
+    def broken(ds, target, level):  # a write that dies part-way (disk full, killed process)
+        original(ds, target, level)
         raise OSError("No space left on device")
 
     original = io._write

@@ -1,17 +1,12 @@
-"""The ``clsas`` command (also ``python -m clsas``).
+"""``clsas demo``: a short end-to-end check on this machine.
 
-``clsas info``  prints the backend and the OpenCL device.
-``clsas reproduce PAPER`` prints a paper's tables beside clsas's figures (see
-:mod:`clsas.reproduce`; ``clsas reproduce --help`` lists the papers).
-``clsas demo``  runs a short end-to-end check on this machine: an OpenCL helper kernel against
-its NumPy twin, then Heremans et al. 2009's nine-point scene simulated, range-compressed and
-back-projected, with the centre point's metrics, HDF5 files and a picture written into
-``--out`` (default ``demo-output/``).
+An OpenCL helper kernel against its NumPy twin, then Heremans et al. 2009's nine-point scene
+(15 hydrophones, 48 pulses) simulated, range-compressed and back-projected, with the centre
+point's metrics, the NetCDF files and a picture written into ``--out``.
 """
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import time
@@ -19,25 +14,26 @@ from pathlib import Path
 
 import numpy as np
 
-
-def _info(_args) -> int:
-    from . import backend
-
-    print(json.dumps(backend.info(), indent=2))
-    return 0
+from ._common import UsageError
 
 
-def _demo(args) -> int:
+def add_arguments(parser) -> None:
+    parser.add_argument("--out", default="demo-output", help="folder for the demo's files (default: demo-output)")
+
+
+def run(args) -> int:
     """Heremans et al. 2009's nine-point scene (15 hydrophones) end to end: echoes, range
     compression, back-projection, metrics of the centre point, files and a picture."""
-    from . import backend, io, kernelmath, metrics
-    from .data import Grid
-    from .image import backproject, range_compress
-    from .scene import presets
-    from .scene.targets import PointTargets
-    from .simulate import delays, simulate
+    from .. import backend, io, kernelmath, metrics
+    from ..data import Grid
+    from ..image import backproject, range_compress
+    from ..scene import presets
+    from ..scene.targets import PointTargets
+    from ..simulate import delays, simulate
 
     out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out} is an existing file; give a folder for the demo's files")
     out.mkdir(parents=True, exist_ok=True)
     info = backend.info()
     print("backend:", json.dumps(info))
@@ -90,37 +86,12 @@ def _demo(args) -> int:
     print(f"saved {out / 'demo_echo.nc'} and {out / 'demo_image.nc'}: reload {'identical' if same else 'DIFFERENT'}")
     ok &= same
     try:
-        from . import plot
+        from .. import plot
 
-        plot.save_figure(plot.plot_image(image, floor_db=-50, title="Heremans 2009: nine points, back-projection"),
+        plot.save_figure(plot.image_figure(image, floor_db=-50, title="Heremans 2009: nine points, back-projection"),
                          out / "demo_image.png")
         print(f"picture: {out / 'demo_image.png'}")
     except ImportError:
         print("matplotlib not installed: no picture (pip install 'clsas[plot]')")
     print("demo", "OK" if ok else "FAILED")
     return 0 if ok else 1
-
-
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="clsas", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True)
-    sub.add_parser("info", help="backend and OpenCL device").set_defaults(run=_info)
-    demo = sub.add_parser("demo", help="end-to-end check on this machine")
-    demo.add_argument("--out", default="demo-output", help="folder for the demo's files")
-    demo.set_defaults(run=_demo)
-    _add_reproductions(sub)
-    args = parser.parse_args(argv)
-    return args.run(args)
-
-
-def _add_reproductions(sub) -> None:
-    """``clsas reproduce PAPER [options]``: one sub-command per module of :mod:`clsas.reproduce`."""
-    from . import reproduce
-
-    papers = reproduce.papers()
-    parser = sub.add_parser("reproduce", help="reproduce a source paper's tables")
-    which = parser.add_subparsers(dest="paper", required=True, metavar="PAPER")
-    for name, module in papers.items():
-        one = which.add_parser(name, help=(module.__doc__ or name).strip().splitlines()[0])
-        module.add_arguments(one)
-        one.set_defaults(run=module.run)

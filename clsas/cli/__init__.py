@@ -1,0 +1,111 @@
+"""The ``clsas`` command (also ``python -m clsas``).
+
+Sub-commands: simulate, image, plot (the file workflow, :mod:`clsas.cli.workflow`), info,
+demo, bench, and ``reproduce PAPER`` (one sub-command per module of :mod:`clsas.reproduce`).
+A mistake in the arguments or the files prints one line ``clsas: error: ...`` and exits with
+status 2; ``CLSAS_DEBUG=1`` shows the traceback instead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import sys
+
+from ._common import UsageError
+
+DESCRIPTION = """\
+Synthetic aperture sonar simulation and imaging.
+
+examples:
+  clsas simulate huang2022 -o echo.nc --pulses 128 --snr 20 --seed 1
+  clsas image echo.nc --algorithm omegak -o image.nc --png image.png
+  clsas image echo.nc --algorithm bp --grid 38:42:0.01,-2:2:0.01,-10 --png bp.png
+  clsas plot image.nc
+  clsas info
+  clsas reproduce --help
+
+files are NetCDF4 (.nc) or zarr (.zarr); xarray.open_dataset reads them.
+environment: CLSAS_BACKEND (auto, opencl, numpy), CLSAS_DEVICE (an OpenCL device),
+TQDM_DISABLE=1 (no progress bars), CLSAS_DEBUG=1 (tracebacks, compiler output).
+"""
+
+
+def _info(_args) -> int:
+    from .. import __version__, backend
+
+    print(json.dumps({"clsas": __version__, **backend.info()}, indent=2))
+    return 0
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return f"clsas {__version__}"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from . import bench, demo, workflow
+
+    parser = argparse.ArgumentParser(prog="clsas", description=DESCRIPTION,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=_version())
+    parser.add_argument("-v", "--verbose", action="count", default=0,
+                        help="log the stages (device, sizes, times); -vv adds debug detail")
+    parser.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bars")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    commands = [
+        ("simulate", "simulate a preset's echoes into a file", workflow.add_simulate_arguments, workflow.run_simulate),
+        ("image", "form an image from an echo file", workflow.add_image_arguments, workflow.run_image),
+        ("plot", "picture of an image or echo file (PNG)", workflow.add_plot_arguments, workflow.run_plot),
+        ("info", "clsas version, backend and OpenCL device", lambda p: None, _info),
+        ("demo", "end-to-end check on this machine (about 10 s)", demo.add_arguments, demo.run),
+        ("bench", "time the workflow's stages on this machine", bench.add_arguments, bench.run),
+    ]
+    for name, help_text, add_arguments, run in commands:
+        one = sub.add_parser(name, help=help_text, description=help_text)
+        add_arguments(one)
+        one.set_defaults(run=run)
+    _add_reproductions(sub)
+    return parser
+
+
+def _add_reproductions(sub) -> None:
+    """``clsas reproduce PAPER [options]``: one sub-command per module of :mod:`clsas.reproduce`."""
+    from .. import reproduce
+
+    papers = reproduce.papers()
+    parser = sub.add_parser("reproduce", help="reproduce a source paper's tables")
+    which = parser.add_subparsers(dest="paper", required=True, metavar="PAPER")
+    for name, module in papers.items():
+        one = which.add_parser(name, help=(module.__doc__ or name).strip().splitlines()[0])
+        module.add_arguments(one)
+        one.set_defaults(run=module.run)
+
+
+def _configure_logging(verbose: int) -> None:
+    if verbose:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("%(asctime)s clsas %(levelname)s %(message)s", "%H:%M:%S"))
+        logger = logging.getLogger("clsas")
+        logger.addHandler(handler)
+        logger.setLevel(logging.INFO if verbose == 1 else logging.DEBUG)
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    _configure_logging(args.verbose)
+    if not args.progress:
+        os.environ["TQDM_DISABLE"] = "1"
+    try:
+        return args.run(args)
+    except (UsageError, ValueError, TypeError, FileNotFoundError, FileExistsError, IsADirectoryError,
+            PermissionError, RuntimeError) as err:
+        if os.environ.get("CLSAS_DEBUG", "") not in ("", "0"):
+            raise
+        message = " ".join(str(err).split()) or type(err).__name__
+        print(f"clsas: error: {message}", file=sys.stderr)
+        return 2

@@ -1,0 +1,177 @@
+"""``clsas simulate``, ``clsas image`` and ``clsas plot``: the file-to-file workflow.
+
+    clsas simulate huang2022 -o echo.nc --pulses 128 --snr 20 --seed 1
+    clsas image echo.nc --algorithm omegak -o image.nc --png image.png
+    clsas plot image.nc --png image.png
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ._common import UsageError, parse_grid, write_png
+
+log = logging.getLogger("clsas")
+
+ALGORITHMS = ("bp", "omegak", "rda", "csa")
+DEFAULT_MAX_PIXELS = 512 * 512
+
+
+def add_simulate_arguments(parser) -> None:
+    from ..scene import presets
+
+    parser.add_argument("scene", metavar="PRESET",
+                        help=f"a paper's point scene: {', '.join(sorted(presets.POINT_LAYOUTS))}")
+    parser.add_argument("-o", "--out", required=True, help="output file: .nc (NetCDF4) or .zarr")
+    parser.add_argument("--pulses", type=int, default=None, help="number of pulses (default: the preset's)")
+    parser.add_argument("--snr", type=float, default=None, help="add complex white noise at this SNR, dB")
+    parser.add_argument("--seed", type=int, default=None, help="noise seed (repeatable runs)")
+    parser.add_argument("--backend", choices=("auto", "opencl", "numpy"), default=None,
+                        help="where the kernels run (default: CLSAS_BACKEND or auto)")
+
+
+def run_simulate(args) -> int:
+    from .. import io
+    from ..scene import presets
+    from ..simulate import simulate
+
+    if args.scene.endswith(".toml"):
+        raise UsageError(f"{args.scene}: scenario files are not read by this version; give a preset name "
+                         f"({', '.join(sorted(presets.POINT_LAYOUTS))})")
+    if args.scene not in presets.POINT_LAYOUTS:
+        raise UsageError(f"unknown preset {args.scene!r}; known: {', '.join(sorted(presets.POINT_LAYOUTS))}")
+    if args.pulses is not None and args.pulses < 1:
+        raise UsageError(f"--pulses must be >= 1, got {args.pulses}")
+    scene = presets.point_scene(args.scene, n_pulses=args.pulses)
+    t = time.perf_counter()
+    echo = simulate(scene, snr_db=args.snr, seed=args.seed, backend=args.backend, progress=args.progress)
+    took = time.perf_counter() - t
+    path = io.save(echo, args.out)
+    print(f"{args.scene}: {echo.n_rx} receivers x {echo.n_pulses} pulses x {echo.n_samples} samples "
+          f"simulated in {took:.1f} s -> {path} ({_size(path) / 2**20:.1f} MiB)")
+    return 0
+
+
+def add_image_arguments(parser) -> None:
+    parser.add_argument("echo", metavar="ECHO", help="an echo file written by `clsas simulate` or clsas.save")
+    parser.add_argument("--algorithm", "-a", choices=ALGORITHMS, default="bp",
+                        help="bp: back-projection (any geometry); omegak, rda, csa: straight-track "
+                             "frequency-domain imagers (several receivers are first merged by PCA)")
+    parser.add_argument("--grid", default=None,
+                        help="bp only: X0:X1:DX,Y0:Y1:DY,Z in metres (across track, along track, plane height); "
+                             "default: the recorded ranges and the track's span at the track's depth, "
+                             f"at most {DEFAULT_MAX_PIXELS} pixels")
+    parser.add_argument("--window", default=None, help="range window: none, hamming, taylor, kaiser")
+    parser.add_argument("--elements", default=None, metavar="LTX,LRX",
+                        help="omegak/rda/csa: along-track element lengths, m (band limit and pattern deconvolution)")
+    parser.add_argument("-o", "--out", default=None, help="image file (.nc or .zarr)")
+    parser.add_argument("--png", default=None, help="also write a picture of the image with its cuts")
+    parser.add_argument("--floor", type=float, default=-50.0, help="picture floor, dB (default -50)")
+    parser.add_argument("--backend", choices=("auto", "opencl", "numpy"), default=None)
+
+
+def default_grid(echo, max_pixels: int = DEFAULT_MAX_PIXELS):
+    """The horizontal plane at the track's depth covering the recorded slant ranges (receiver
+    0) across track and the transmitter's span along track, at a quarter of the range
+    resolution, coarsened evenly until it has at most ``max_pixels`` pixels."""
+    from ..data import Grid
+
+    c = echo.medium.sound_speed
+    track = echo.tx_pos
+    r0 = c * echo.t0[0] / 2
+    r1 = c * (echo.t0[0] + (echo.n_samples - 1) / echo.fs) / 2
+    x_track, z = float(np.mean(track[:, 0])), float(np.mean(track[:, 2]))
+    y0, y1 = float(track[:, 1].min()), float(track[:, 1].max())
+    step = c / (2 * echo.waveform.bandwidth) / 4
+    nx = max(2, int((r1 - r0) / step))
+    ny = max(2, int((y1 - y0) / step))
+    scale = max(1.0, np.sqrt(nx * ny / max_pixels))
+    nx, ny = max(2, int(nx / scale)), max(2, int(ny / scale))
+    return Grid.plane(np.linspace(x_track + r0, x_track + r1, nx), np.linspace(y0, y1, ny), z)
+
+
+def _elements(text):
+    if text is None:
+        return None
+    try:
+        ltx, lrx = (float(v) for v in text.split(","))
+    except ValueError:
+        raise UsageError(f"--elements: expected LTX,LRX in metres, got {text!r}") from None
+    return ltx, lrx
+
+
+def run_image(args) -> int:
+    from .. import io
+    from ..data import EchoData
+    from ..image import backproject, range_compress
+    from ..image.csa import chirp_scaling
+    from ..image.multireceiver import pca_record
+    from ..image.omegak import omega_k
+    from ..image.rda import range_doppler
+
+    echo = io.load(args.echo)
+    if not isinstance(echo, EchoData):
+        raise UsageError(f"{args.echo} holds an image, not echoes; `clsas plot` shows it")
+    if args.out is None and args.png is None:
+        raise UsageError("give -o IMAGE.nc and/or --png PICTURE.png: nothing would be written")
+    t = time.perf_counter()
+    if not echo.compressed:
+        echo = range_compress(echo, window=args.window or "none")
+    elif args.window:
+        raise UsageError(f"{args.echo} is already range-compressed; --window applies to raw echoes")
+    if args.algorithm == "bp":
+        grid = parse_grid(args.grid) if args.grid else default_grid(echo)
+        what = f"back-projection onto {grid.shape[0]} x {grid.shape[1]} pixels"
+        image = backproject(echo, grid, backend=args.backend, progress=args.progress)
+    else:
+        if args.grid:
+            raise UsageError("--grid applies to --algorithm bp only (the frequency-domain imagers have their own grid)")
+        record = pca_record(echo, backend=args.backend) if echo.n_rx > 1 else echo
+        imager = {"omegak": omega_k, "rda": range_doppler, "csa": chirp_scaling}[args.algorithm]
+        image = imager(record, elements=_elements(args.elements), backend=args.backend)
+        what = f"{args.algorithm} ({echo.n_rx} receivers merged by PCA)" if echo.n_rx > 1 else args.algorithm
+    took = time.perf_counter() - t
+    print(f"{what}: image {' x '.join(map(str, image.shape))} ({', '.join(image.dims)}) in {took:.1f} s")
+    if args.out:
+        print(f"-> {io.save(image, args.out)}")
+    if args.png:
+        write_png(image, args.png, args.floor, f"{Path(args.echo).name}: {args.algorithm}")
+        print(f"-> {args.png}")
+    return 0
+
+
+def add_plot_arguments(parser) -> None:
+    parser.add_argument("file", metavar="FILE", help="an image or echo file (.nc or .zarr)")
+    parser.add_argument("--png", default=None, help="picture to write (default: FILE with .png)")
+    parser.add_argument("--floor", type=float, default=-50.0, help="floor, dB (default -50)")
+    parser.add_argument("--rx", default="0", help="echo files: the receiver shown (index or name)")
+
+
+def run_plot(args) -> int:
+    from .. import io
+    from ..data import EchoData, Image
+
+    obj = io.load(args.file)
+    out = args.png or str(Path(args.file).with_suffix(".png"))
+    if isinstance(obj, EchoData):
+        rx = obj.select_receivers([int(args.rx) if args.rx.isdigit() else args.rx], "--rx")[0]
+        shown = Image(data=obj.data[rx], dims=("eta", "tau"), axes={"eta": obj.eta, "tau": obj.fast_time(rx)})
+        title = f"{Path(args.file).name}: receiver {obj.receivers[rx]}"
+    else:
+        if obj.data.ndim != 2:
+            raise UsageError(f"{args.file}: a {obj.data.ndim}-D image; pictures are of 2-D images")
+        shown, title = obj, f"{Path(args.file).name}: {obj.provenance.get('algorithm', '')}"
+    write_png(shown, out, args.floor, title)
+    print(f"-> {out}")
+    return 0
+
+
+def _size(path: Path) -> int:
+    path = Path(path)
+    if path.is_dir():
+        return sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
+    return path.stat().st_size
