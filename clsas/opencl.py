@@ -13,8 +13,14 @@ build options) and caches it; structural constants are passed as ``defines``.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import logging
 import os
+import re
+import sys
+import tempfile
+import warnings
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -204,7 +210,9 @@ def program(name: str, defines: dict | None = None, device: str | None = None, d
     prg = _programs.get(cache_key)
     if prg is None:
         try:
-            prg = cl.Program(rt.context, text).build(options=options)
+            with quiet_build(name) as captured:
+                prg = cl.Program(rt.context, text).build(options=options)
+                captured.append(prg.get_build_info(rt.device, cl.program_build_info.LOG))
         except cl.RuntimeError as err:
             raise KernelBuildError(
                 f"building kernels/{name}.cl with options {options} failed on "
@@ -219,3 +227,44 @@ def kernel(name: str, kernel_name: str, defines: dict | None = None, device: str
     """A fresh pyopencl.Kernel ``kernel_name`` from ``kernels/NAME.cl`` (see :func:`program`)."""
     cl = _import_pyopencl()
     return cl.Kernel(program(name, defines=defines, device=device, double=double), kernel_name)
+
+
+#: Compiler output known to be harmless: PoCL's note that a 16-wide vector argument changes the
+#: ABI without AVX-512 (the kernels are compiled as a whole; nothing crosses that ABI), clang's
+#: count of such warnings, and the include-spelling lines that point at them.
+HARMLESS_OUTPUT = re.compile(r"changes the ABI|^\d+ warnings? generated\.$|^\s*$|^\s*\^|^\s*\d* *\|")
+
+_log = logging.getLogger("clsas")
+
+
+def _verbose_compiler() -> bool:
+    return any(os.environ.get(v, "") not in ("", "0") for v in ("CLSAS_DEBUG", "PYOPENCL_COMPILER_OUTPUT"))
+
+
+@contextlib.contextmanager
+def quiet_build(name: str):
+    """Around a kernel build: hide the compiler's known-harmless output (:data:`HARMLESS_OUTPUT`)
+    printed on file descriptor 2 and in pyopencl's CompilerWarning; anything else the compiler
+    says is logged as a warning on ``logging.getLogger("clsas")``. The caller appends the build
+    log to the list yielded. ``CLSAS_DEBUG=1`` or ``PYOPENCL_COMPILER_OUTPUT=1`` shows it all."""
+    texts: list = []
+    if _verbose_compiler():
+        yield texts
+        return
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+b") as sink, warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*compiler output", module="pyopencl")
+        warnings.filterwarnings("ignore", message="From-source build succeeded", module="pyopencl")
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield texts
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            texts.append(sink.read().decode(errors="replace"))
+            kept = [line for text in texts for line in str(text or "").splitlines() if not HARMLESS_OUTPUT.search(line)]
+            kept = [line for line in kept if "warning:" in line or "error:" in line] or kept
+            if kept:
+                _log.warning("building kernels/%s.cl, the compiler said:\n%s", name, "\n".join(kept))
