@@ -120,6 +120,8 @@ def runtime(device: str | None = None) -> Runtime:
         queue = cl.CommandQueue(ctx, properties=cl.command_queue_properties.PROFILING_ENABLE)
         rt = Runtime(device=dev, context=ctx, queue=queue)
         _runtimes[key] = rt
+        logging.getLogger("clsas").info("OpenCL device: %s / %s, %d compute units, OpenCL %s", dev.platform.name,
+                                        dev.name, dev.max_compute_units, dev.version)
     return rt
 
 

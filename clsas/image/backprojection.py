@@ -47,8 +47,8 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from tqdm.auto import tqdm
 
+from ..progress import NOMINAL_RATES, Progress, stage
 from .. import backend as _backend
 from .. import opencl
 from ..data import EchoData, Grid, Image
@@ -140,7 +140,8 @@ def backproject_reference(echo, grid, receivers, interp, upsample, aperture, vel
     block = max(1, 2**22 // chunk)
     jobs = [(h, np.arange(s, min(s + block, echo.n_pulses))) for h in receivers
             for s in range(0, echo.n_pulses, block)]
-    for h, pulses in tqdm(jobs, desc="back-projection (numpy)", disable=not progress):
+    bar = Progress(pixels.shape[0] * len(receivers) * echo.n_pulses, "pixel-pulses", "back-projection (numpy)", progress)
+    for h, pulses in jobs:
         records = upsample_records(echo.data[h, pulses], factor).astype(np.complex128)
         for first in range(0, pixels.shape[0], chunk):
             part = slice(first, first + chunk)
@@ -150,6 +151,8 @@ def backproject_reference(echo, grid, receivers, interp, upsample, aperture, vel
             if aperture is not None:
                 value *= _aperture_keep(echo, pulses, q, np.sin(aperture / 2))
             image[part] += value.sum(axis=0)
+            bar.done(value.size)
+    bar.close()
     return image
 
 
@@ -417,11 +420,13 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
     tile_kernel = opencl.kernel("backprojection", "bp_tile", defines=dict(
         defines, BP_TILE=1, ROWS=ROWS, PULSES=PULSES, **({"MOVING": 1} if np.any(v_k) else {})))
     tile_params = np.array([c * c - v_k @ v_k, fs, f0, *v_k, half_sin, c], dtype=np.float32).view(cl.cltypes.float8)[0]
-    for first, h, pulses in tqdm(jobs, desc="back-projection (opencl)", disable=not progress):
+    bar = Progress(m * len(receivers) * echo.n_pulses, "pixel-pulses", "back-projection (opencl)", progress)
+    for first, h, pulses in jobs:
         if chunk_state is None or chunk_state.first != first:
             if chunk_state is not None:
                 chunk_state.finish(queue, image)
             chunk_state = _Chunk(ctx, pixels, tiles, first, min(first + chunk, tiles.order.size), v_k)
+            real = int(np.count_nonzero(chunk_state.real))
         records_buf, n_samples = _records_buffer(ctx, echo, h, pulses, factor, double)
         exact = None
         for s in range(0, pulses.size, REF_PULSES):
@@ -434,20 +439,23 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
                 if departure <= tolerance:
                     ref_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=ref)
                     for p0, count in blocks:
-                        tile_kernel(queue, (chunk_state.n // (LANES * ROWS),), None, chunk_state.pix,
+                        done = tile_kernel(queue, (chunk_state.n // (LANES * ROWS),), None, chunk_state.pix,
                                     chunk_state.tile_of, ref_buf, np.int32(ref.shape[1]), np.int32(s), records_buf,
                                     taps_buf, tile_params, np.int32(p0), np.int32(count), np.int32(n_samples),
                                     np.int32(chunk_state.n), chunk_state.image)
+                        bar.after(done, real * count)
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)
                 exact = _exact_kernel(ctx, echo, h, pulses, fs, velocity, half_sin, defines, stop_and_go, double)
             kern, pulse_buf, nodes_buf, params = exact
             for p0, count in blocks:
-                kern(queue, (chunk_state.n // 8,), None, chunk_state.absolute(ctx, pixels), pulse_buf, nodes_buf,
+                done = kern(queue, (chunk_state.n // 8,), None, chunk_state.absolute(ctx, pixels), pulse_buf, nodes_buf,
                      records_buf, taps_buf, params, np.int32(p0), np.int32(count), np.int32(n_samples),
                      np.int32(chunk_state.n), chunk_state.image)
+                bar.after(done, real * count)
     chunk_state.finish(queue, image)
+    bar.close()
     return image, fallbacks
 
 
@@ -484,10 +492,13 @@ def backproject(echo: EchoData, grid: Grid, backend: str | None = None, receiver
     double = _backend.check_precision(precision)
     name = _backend.resolve(backend)
     args = (echo, grid, chosen, interp, upsample, aperture, velocity, stop_and_go, progress)
-    if name == "numpy":
-        flat, fallbacks = backproject_reference(*args), 0
-    else:
-        flat, fallbacks = backproject_opencl(*args, double=double)
+    with stage(f"back-projection ({name}, {interp})", f"{grid.size} pixels x {len(chosen)} receivers x {echo.n_pulses} "
+               f"pulses x {echo.n_samples} samples", grid.size * len(chosen) * echo.n_pulses,
+               NOMINAL_RATES.get(("backprojection", name))):
+        if name == "numpy":
+            flat, fallbacks = backproject_reference(*args), 0
+        else:
+            flat, fallbacks = backproject_opencl(*args, double=double)
     return Image(data=flat.reshape(grid.shape), dims=grid.dims, axes=grid.axes, positions=grid.positions,
                  provenance={"algorithm": "backprojection", "backend": name, "precision": precision, "interp": interp,
                              "upsample": int(upsample), "receivers": [echo.receivers[h] for h in chosen],

@@ -17,8 +17,8 @@ every recorded sample. Seeded by ``seed``; the same seed gives the same noise on
 from __future__ import annotations
 
 import numpy as np
-from tqdm.auto import tqdm
 
+from ...progress import Progress, stage
 from ... import backend as _backend
 from ...data import EchoData
 from ...scene.scenario import Scenario
@@ -167,9 +167,12 @@ def _synthesize(scenario: Scenario, name: str, double: bool, stop_and_go: bool, 
     n_rx, n_pulses, n_scat = scenario.n_receivers, scenario.eta.size, synth.scat.count
     lo = np.full((n_rx, n_scat), np.inf)
     hi = np.full((n_rx, n_scat), -np.inf)
-    for sl in tqdm(blocks, desc="echo delays", disable=not progress, leave=False):
-        a, b = synth.extents(sl)
-        lo, hi = np.minimum(lo, a), np.maximum(hi, b)
+    with stage(f"echo delays ({name})", f"{n_rx} receivers x {n_pulses} pulses x {n_scat} scatterers"), \
+            Progress(n_pulses, "pulses", "echo delays", progress, leave=False) as bar:
+        for sl in blocks:
+            a, b = synth.extents(sl)
+            lo, hi = np.minimum(lo, a), np.maximum(hi, b)
+            bar.done(sl.stop - sl.start)
     lo, hi = lo / wf.fs, hi / wf.fs  # s, whole samples
     # the nodes span the recording window (and not beyond sampled motion errors)
     tau_span = node_span(scenario, scenario.eta, hi.max() + 0.5 * wf.duration + 2 / wf.fs)
@@ -187,13 +190,16 @@ def _synthesize(scenario: Scenario, name: str, double: bool, stop_and_go: bool, 
     # pass B in blocks that also bound the records' memory (complex128 on the host, the
     # kernel's output buffer and its copy)
     per_pulse = n_rx * (synth.scat.count * 32 + 3 * 16 * n_samples)
-    for sl in tqdm(_pulse_blocks(n_pulses, per_pulse, chunk_bytes), desc=f"echo synthesis ({name})",
-                   disable=not progress):
-        block = synth.records(sl, t0, n_samples)
-        if not np.all(np.isfinite(block)):
-            raise ValueError("the echo has non-finite samples: a scatterer coincides with the transmitter or a "
-                             "receiver (zero path length); move it away")
-        data[:, sl] = block
+    with stage(f"echo synthesis ({name})", f"{n_rx} receivers x {n_pulses} pulses x {n_samples} samples "
+               f"({data.nbytes / 2**20:.1f} MiB) x {n_scat} scatterers"), \
+            Progress(n_pulses, "pulses", f"echo synthesis ({name})", progress) as bar:
+        for sl in _pulse_blocks(n_pulses, per_pulse, chunk_bytes):
+            block = synth.records(sl, t0, n_samples)
+            if not np.all(np.isfinite(block)):
+                raise ValueError("the echo has non-finite samples: a scatterer coincides with the transmitter or a "
+                                 "receiver (zero path length); move it away")
+            data[:, sl] = block
+            bar.done(sl.stop - sl.start)
     synth.release()
     for h in range(n_rx):
         data[h, :, n_valid[h]:] = 0
