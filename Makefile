@@ -7,7 +7,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.clsas-installed
 
-.PHONY: setup opencl demo test test-all bench clean
+.PHONY: setup opencl setup-pip-opencl demo test test-all bench clean
 
 setup: $(STAMP) opencl
 
@@ -27,6 +27,22 @@ opencl: $(STAMP)
 	    $$SUDO apt-get update -qq && \
 	    DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq pocl-opencl-icd ocl-icd-libopencl1 clinfo >/dev/null && \
 	    $(PY) -c "import pyopencl as cl; print('OpenCL:', [d.name for p in cl.get_platforms() for d in p.get_devices()])"; \
+	fi
+
+# Without root: PoCL from pip (the clsas[pocl] extra), kept only when it builds and runs a kernel
+# on this CPU (pip's PoCL fails on some CPUs, e.g. "unknown target CPU 'generic'" on AVX-512
+# machines); otherwise it is removed again and the distribution's package is the way
+# (`make setup` as root). `clsas info` says which driver the device comes from.
+setup-pip-opencl: $(STAMP)
+	$(PY) -m pip install --quiet -e '.[test,plot,pocl]'
+	@if $(PY) -m clsas info --check > $(VENV)/clsas-info.json 2>&1; then \
+	    echo "OpenCL works: $$(grep -h opencl_source $(VENV)/clsas-info.json)"; \
+	else \
+	    cat $(VENV)/clsas-info.json; \
+	    $(PY) -m pip uninstall --quiet -y pocl-binary-distribution; \
+	    echo "pip's PoCL gives no working device on this CPU and was removed; install the distribution's:"; \
+	    echo "sudo apt-get install pocl-opencl-icd (or run make setup as root)"; \
+	    exit 1; \
 	fi
 
 demo: setup

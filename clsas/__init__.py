@@ -1,5 +1,6 @@
 """clsas: synthetic aperture sonar simulation and imaging (OpenCL kernels, NumPy references)."""
 
+from . import distributed
 from .backend import use_backend
 from .data import EchoData, Grid, Image
 from .image.backprojection import backproject
@@ -38,6 +39,7 @@ __all__ = [
                              "Waveform",
                              "backproject",
                              "chirp_scaling",
+                             "distributed",
                              "line_record",
                              "load",
                              "omega_k",

@@ -63,6 +63,13 @@ def _chunks(shape: tuple, itemsize: int) -> tuple:
     return tuple(max(1, c) for c in chunks)
 
 
+def _no_zarr_compressor() -> dict:
+    """The zarr encoding key that turns compression off (zarr-python 3 renamed it)."""
+    import zarr
+
+    return {"compressors": None} if int(zarr.__version__.split(".")[0]) >= 3 else {"compressor": None}
+
+
 def _encoding(ds, zarr: bool, level: int) -> dict:
     enc = {}
     for name, var in ds.variables.items():
@@ -70,7 +77,7 @@ def _encoding(ds, zarr: bool, level: int) -> dict:
             continue
         chunks = _chunks(var.shape, var.dtype.itemsize)
         if zarr:
-            enc[name] = {"chunks": chunks} if level else {"chunks": chunks, "compressor": None}
+            enc[name] = {"chunks": chunks} if level else {"chunks": chunks, **_no_zarr_compressor()}
         else:
             enc[name] = {"chunksizes": chunks}
             if level:

@@ -32,10 +32,22 @@ def test_version_and_plain_text_help(capsys):
     assert "``" not in out and ":func:" not in out
 
 
-def test_info_prints_version_backend_and_device(opencl_device, capsys):
-    assert cli.main(["info"]) == 0
+def test_info_prints_version_backend_device_and_its_source(opencl_device, capsys):
+    assert cli.main(["info", "--check"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["resolved"] == "opencl" and info["device"] and info["clsas"]
+    assert info["kernel_check"] == "ok" and info["opencl_source"]
+
+
+def test_opencl_source_names_pip_or_the_distribution(monkeypatch):
+    from clsas.cli import info
+
+    debian = "OpenCL 3.0 PoCL 3.1+debian  Linux, None+Asserts, RELOC, SPIR, LLVM 15.0.6, SLEEF, DISTRO, POCL_DEBUG"
+    pip = "OpenCL 3.0 PoCL 3.0-rc2  Linux, Release, RELOC, LLVM 14.0.6, SLEEF, DISTRO, POCL_DEBUG"
+    assert info.opencl_source(debian) == "distribution package (pocl-opencl-icd)"
+    monkeypatch.setattr(info.importlib.metadata, "version", lambda name: "3.0")
+    assert info.opencl_source(pip) == "pip (pocl-binary-distribution 3.0)"
+    assert info.opencl_source("OpenCL 1.2 CUDA 12.0") == "system ICD"
 
 
 def test_mistakes_print_one_line_not_a_traceback(tmp_path, capsys, monkeypatch):

@@ -9,7 +9,6 @@ status 2; ``CLSAS_DEBUG=1`` shows the traceback instead.
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import os
 import sys
@@ -33,13 +32,6 @@ TQDM_DISABLE=1 (no progress bars), CLSAS_DEBUG=1 (tracebacks, compiler output).
 """
 
 
-def _info(_args) -> int:
-    from .. import __version__, backend
-
-    print(json.dumps({"clsas": __version__, **backend.info()}, indent=2))
-    return 0
-
-
 def _version() -> str:
     from .. import __version__
 
@@ -47,7 +39,7 @@ def _version() -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import bench, demo, workflow
+    from . import bench, demo, info, workflow
 
     parser = argparse.ArgumentParser(prog="clsas", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -60,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
         ("simulate", "simulate a preset's echoes into a file", workflow.add_simulate_arguments, workflow.run_simulate),
         ("image", "form an image from an echo file", workflow.add_image_arguments, workflow.run_image),
         ("plot", "picture of an image or echo file (PNG)", workflow.add_plot_arguments, workflow.run_plot),
-        ("info", "clsas version, backend and OpenCL device", lambda p: None, _info),
+        ("info", "clsas version, backend, OpenCL device and its driver's source", info.add_arguments, info.run),
         ("demo", "end-to-end check on this machine (about 10 s)", demo.add_arguments, demo.run),
         ("bench", "time the workflow's stages on this machine", bench.add_arguments, bench.run),
     ]
