@@ -25,7 +25,7 @@ u_i = D_i / |D_i|, differentiate c t1 = |D1| and c t2 = |D2| once and twice:
     t1'' = (|a|^2 - (u1.a)^2) / (|D1| (c - u1.v))
     t2'' = [(|b|^2 - (u2.b)^2) / |D2| + t1'' u2.(V_h - v)] / (c - u2.V_h)
 
-with t1, t2 from :func:`clsas.simulate.geometry.meet_time` (the closed-form leg times). These
+with t1, t2 from :func:`clsas.geometry.meet_time` (the closed-form leg times). These
 agree with a polynomial fit of the simulator's exact delays to ~1e-6 (tests/test_moving.py).
 
 ``model="paper"``: eqs. 3-6, 22-25 and 32 as printed, generalised to any receiver R_h: the
@@ -57,7 +57,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...simulate.geometry import meet_time
+from ...geometry import meet_time
 from .doppler import Doppler
 from .layout import Layout, layout_of
 
