@@ -182,3 +182,126 @@ def test_kiang_case_hull_is_the_albacore_scaled_down_six_times():
     extents = hull.mesh.extents  # body frame: x_b along the hull
     assert 10.0 < extents[0] < 11.0
     assert 1.3 < min(extents[1], extents[2]) < 2.5
+
+
+# --------------------------------------------------------------------------- the public API
+
+
+def _truth_estimates(scenario, position, velocity):
+    return closed_forms(scenario, position, velocity)
+
+
+def test_motion_from_closed_form_receivers_case_7_cannot_focus_at_a_and_b():
+    """Table II case 7: the target moves with the platform, K_a,eq = 0 at A and B; v is still
+    solved (from the centroids) and A and B are reported as unable to focus."""
+    from clsas.estimate.moving import motion_from_receivers
+
+    sc = presets.kiang2022()
+    v = np.array(presets.KIANG_CASES[7])
+    est = motion_from_receivers(layout_of(sc), _truth_estimates(sc, CENTRE, v), position=CENTRE)
+    np.testing.assert_allclose(est.velocity, v, atol=1e-6)
+    assert est.cannot_focus == ("A", "B") and est.note == "A and B cannot focus"
+    assert not est.position_estimated and np.array_equal(est.position, CENTRE)
+    other = motion_from_receivers(layout_of(sc), _truth_estimates(sc, CENTRE, presets.KIANG_CASES[1]))
+    assert other.cannot_focus == () and other.note == "" and other.position_estimated
+    np.testing.assert_allclose(other.position, CENTRE, atol=1e-4)
+
+
+def _small_echo(n_pulses=8, **changes):
+    import clsas
+
+    sc = presets.kiang2022(n_pulses=n_pulses).replace(targets=(PointTargets(CENTRE, velocity=(0.0, -4.0, 0.0)),))
+    return clsas.simulate(sc, backend="numpy", progress=False)
+
+
+def test_estimate_rejects_bad_input_naming_the_parameter():
+    import clsas
+
+    echo = _small_echo()
+    with pytest.raises(TypeError, match="echo must be an EchoData"):
+        clsas.estimate_motion(echo.data)
+    with pytest.raises(ValueError, match="range-compressed"):
+        clsas.estimate_motion(clsas.range_compress(echo))
+    two = echo.replace(data=echo.data[:2], t0=echo.t0[:2], rx_pos=echo.rx_pos[:2], rx_tau=echo.rx_tau[:2],
+                       receivers=echo.receivers[:2])
+    with pytest.raises(ValueError, match="at least 3 receivers"):
+        clsas.estimate_motion(two)
+    with pytest.raises(ValueError, match="receivers: unknown receiver 'Z'"):
+        clsas.estimate_motion(echo, receivers=["A", "B", "Z"])
+    for bad in [(1.0, 2.0), np.zeros((3, 1)), (np.nan, 0.0, 0.0), 5.0]:
+        with pytest.raises(ValueError, match="position must be"):
+            clsas.estimate_motion(echo, position=bad)
+    with pytest.raises(TypeError, match="est must be a MotionEstimate"):
+        clsas.focus_moving(echo, {"A": None})
+
+
+# --------------------------------------------------------------------------- end to end (the chain)
+
+
+def _point_echo(velocity, n_pulses, targets=None, scenario=None, backend="opencl"):
+    import clsas
+
+    sc = scenario or presets.kiang2022(n_pulses=n_pulses)
+    targets = targets or (PointTargets(CENTRE, velocity=velocity),)
+    return sc.replace(targets=targets), clsas.simulate(sc.replace(targets=targets), backend=backend, progress=False)
+
+
+def _velocity_error(case, n_pulses, position=CENTRE):
+    import clsas
+
+    v = np.array(presets.KIANG_CASES[case])
+    _, echo = _point_echo(v, n_pulses)
+    est = clsas.estimate_motion(echo, position=position)
+    return est, np.linalg.norm(est.velocity - v) / np.linalg.norm(v)
+
+
+@pytest.mark.parametrize("case", [1, 7, 8])
+def test_point_target_velocity_end_to_end(opencl_device, case):
+    """Table II cases on one point (512 pulses, 6.4 s): |dv| / |v| far below the paper's 3 %."""
+    est, err = _velocity_error(case, 512)
+    assert err < 0.01, (est.velocity, err)
+    assert est.cannot_focus == (("A", "B") if case == 7 else ())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", range(1, 9))
+def test_point_target_velocity_all_cases(opencl_device, case):
+    est, err = _velocity_error(case, 2048)
+    assert err < 0.01, (est.velocity, err)
+
+
+@pytest.mark.slow
+def test_point_target_position_and_velocity_estimated(opencl_device):
+    est, err = _velocity_error(3, 2048, position=None)
+    assert est.position_estimated
+    assert np.linalg.norm(est.position - CENTRE) < 1.0
+    assert err < 0.03
+
+
+def test_focused_points_sit_at_their_predicted_r_y(opencl_device):
+    """Two points moving together (case 1's v), the second 1 m further in x and 2 m ahead in y:
+    on A's and C's r-y images the second point lies within one resolution cell of its
+    predicted (r, y) (range from A at eta = 0, along-track position)."""
+    import clsas
+    from clsas import metrics
+
+    v = np.array(presets.KIANG_CASES[1])
+    second = CENTRE + [1.0, 2.0, 0.0]
+    _, echo = _point_echo(v, 512, targets=(PointTargets(np.stack([CENTRE, second]), reflectivity=[1.0, 0.8],
+                                                        velocity=v),))
+    est = clsas.estimate_motion(echo, position=CENTRE)
+    images = clsas.focus_moving(echo, est, tau_span=0.03)
+    tx = est.layout.tx_position
+    for name in ("A", "C"):
+        image = images[name]
+        r, y = image.axes["r"], image.axes["y"]
+        cell_r = 1500.0 / (2 * 20e3)
+        k = abs(est.receivers[name].fm_rate)
+        cell_y = abs(image.provenance["along_track_speed"]) / (k * 512 / 80.0)
+        mag = np.abs(image.data)
+        near = (np.abs(y[:, None] - second[1]) < 1.0) & (np.abs(r[None, :] - np.linalg.norm(second - tx)) < 0.5)
+        i, j = np.unravel_index(np.argmax(np.where(near, mag, 0)), mag.shape)
+        assert abs(r[j] - np.linalg.norm(second - tx)) < cell_r, name
+        assert abs(y[i] - second[1]) < cell_y, name
+        i0, j0 = metrics.peak_index(mag)
+        assert abs(r[j0] - np.linalg.norm(CENTRE - tx)) < cell_r and abs(y[i0]) < cell_y

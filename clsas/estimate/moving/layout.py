@@ -39,7 +39,8 @@ class Layout:
     ----------
     tx_position, tx_velocity : (3,) m, m/s: the transmitter at ``eta_ref`` and its velocity.
     receivers : dict name -> ((3,) position at ``eta_ref``, (3,) velocity), m and m/s.
-    sound_speed : m/s; f0 : carrier, Hz; bandwidth : Hz; prf : Hz; eta_ref : s.
+    sound_speed : m/s; f0 : carrier, Hz; bandwidth : Hz; prf : Hz; aperture : the exposure
+    T_a = n_pulses / prf, s; eta_ref : s.
     """
 
     tx_position: np.ndarray
@@ -49,6 +50,7 @@ class Layout:
     f0: float
     bandwidth: float
     prf: float
+    aperture: float
     eta_ref: float = 0.0
 
     @property
@@ -86,7 +88,7 @@ def layout_of(source, eta_ref: float | None = None) -> Layout:
         receivers = {name: _line_fit(eta, source.receiver_position(h, eta), ref)
                      for h, name in enumerate(source.receiver_names)}
         return Layout(tx[0], tx[1], receivers, source.medium.sound_speed, source.waveform.f0,
-                      source.waveform.bandwidth, source.schedule.prf, ref)
+                      source.waveform.bandwidth, source.schedule.prf, eta.size / source.schedule.prf, ref)
     if isinstance(source, EchoData):
         eta = source.eta
         ref = float(0.5 * (eta[0] + eta[-1])) if eta_ref is None else float(eta_ref)
@@ -95,7 +97,7 @@ def layout_of(source, eta_ref: float | None = None) -> Layout:
         for h, name in enumerate(source.receivers):
             times = eta[:, None] + source.rx_tau[h][None, :]
             receivers[name] = _line_fit(times, source.rx_pos[h], ref)
-        prf = 1.0 / float(np.median(np.diff(eta))) if eta.size > 1 else 0.0
+        prf = 1.0 / float(np.median(np.diff(eta))) if eta.size > 1 else np.inf
         return Layout(tx[0], tx[1], receivers, source.medium.sound_speed, source.waveform.f0,
-                      source.waveform.bandwidth, prf, ref)
+                      source.waveform.bandwidth, prf, eta.size / prf, ref)
     raise TypeError(f"expected a Scenario, an EchoData or a Layout, got {type(source).__name__}")
