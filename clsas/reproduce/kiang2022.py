@@ -37,6 +37,7 @@ PAPER = {
     8: ((593.264, 554.189, 594.629), (2.918, -0.011, 0.017), 2.817),
 }
 PAPER_CASE1_RATES = {"A": 4.879, "B": 4.863}  # sections III-C and IV, Hz/s
+PAPER_SSIM = {"RDA": 0.9398, "CSA": 0.9111, "omega-k": 0.9082}  # section VII-A, case 1, against Fig. 18(a)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -51,6 +52,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="kiang2022-output", help="folder for the PNG images")
     parser.add_argument("--no-images", action="store_true", help="print the table only")
     parser.add_argument("--backend", default=None, help="echo synthesis backend (numpy, opencl; default: auto)")
+    parser.add_argument("--sota", type=int, nargs="*", default=[1],
+                        help="cases to verify with RDA, CSA and omega-k run stop-and-go (section VII-A; default: 1)")
 
 
 def scene(case: int, targets: str, n_pulses: int):
@@ -118,6 +121,16 @@ def run_case(case: int, args) -> dict:
         row["ssim"] = {n: mapping.ssim_against(img, scan, blur=2.0) for n, img in images.items()}
     for name, image in images.items():
         _save(window(image, r_c, y_c, half), out / f"case{case}_{name}.png", f"case {case}: receiver {name}")
+    if case in args.sota and "A" in images:
+        from ..estimate.moving import compare
+
+        sota = compare.stop_and_go_images(echo, est.velocity, est.receivers["A"].fm_rate)
+        proposed = window(images["A"], r_c, y_c, half)
+        row["sota"] = compare.compare(proposed, sota, images["A"].provenance["along_track_speed"])
+        for name, image in sota.items():
+            shifted = window(compare.as_ry(image), r_c, y_c + row["sota"][name]["shift_m"], half)
+            _save(shifted, out / f"case{case}_{name}.png", f"case {case}: {name}, stop-and-go, v = "
+                  f"({est.velocity[0]:.3f}, {est.velocity[1]:.3f}, {est.velocity[2]:.3f}) m/s")
     return row
 
 
@@ -163,6 +176,9 @@ def print_table(rows: list) -> None:
         print(f"  v est  {np.round(est.velocity, 3)}  error {row['err_pct']:.3f} %  (sigma {np.round(est.sigma, 3)}, "
               f"residual {est.residual:.3g} Hz, confidence {est.confidence:.2f}){pos}")
         print(f"  paper  {paper_v}  error {paper_err:.3f} %" + (f"   {est.note}" if est.note else ""))
+        for name, cmp in row.get("sota", {}).items():
+            print(f"  {name:8} stop-and-go at A: shifted {cmp['shift_s']:+.3f} s ({cmp['shift_m']:+.2f} m) in azimuth, "
+                  f"SSIM {cmp['ssim']:.4f} with the shift removed   (paper, case 1: ~1 s; SSIM {PAPER_SSIM[name]})")
     print("\nsummary: case  error % (clsas)  error % (paper)")
     for row in rows:
         err = row.get("err_pct")
