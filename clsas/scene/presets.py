@@ -93,19 +93,27 @@ def wu2018(n_pulses: int = 128) -> Scenario:
                              speed=3.0, prf=3.0 / 1.28, n_pulses=n_pulses)
 
 
-def zhang2019(n_pulses: int = 256) -> Scenario:
+def zhang2019(n_pulses: int = 256, receivers: int = 30, pri: float = 0.3) -> Scenario:
     """Zhang, Tan & Ying 2019, Table 1: f0 = 150 kHz, B = 20 kHz, V = 2 m/s, receiver length
     0.02 m, receiver array 0.6 m (30 receivers), transmitter 0.04 m, PRI 0.3 s.
 
     As printed, the table undersamples the aperture: 30 phase centres 0.01 m apart cover
     0.3 m per ping while the platform moves V PRI = 0.6 m, so the Scenario warns
-    (SamplingWarning). The preset keeps the printed values. Receivers ahead of the
-    transmitter at d_i = 0.03 + 0.02 (i - 1) m (contiguous). Assumed: pulse 10 ms, sampling
-    rate 25 kHz, c = 1500 m/s, platform at depth 0.
+    (SamplingWarning). The preset keeps the printed values by default. Receivers ahead of the
+    transmitter at d_i = 0.03 + (0.6 / ``receivers``) (i - 1) m (contiguous for 30). Assumed:
+    pulse 10 ms, sampling rate 25 kHz, c = 1500 m/s, platform at depth 0.
+
+    ``receivers`` and ``pri`` change what the table cannot have meant together. The
+    reproduction (``clsas reproduce zhang2019``) uses ``receivers=15, pri=0.15``: the printed
+    0.6 m array, 0.02 m receivers on a 0.04 m pitch (the table gives no count), and PRI 0.15 s
+    so that V PRI = 0.3 m = the span of the 15 phase centres (0.02 m = D_tx / 2 apart, uniform
+    across pings, as the coherent superposition of section 4.4 needs); the equivalent
+    sampling rate M PRF = 100 Hz is the transmitter's Doppler band 2 V / D_tx.
     """
-    return _line_array_sonar(Array.uniform_line(30, 0.02, first=0.03, tx_length=0.04, rx_length=0.02),
+    spacing = 0.6 / receivers
+    return _line_array_sonar(Array.uniform_line(receivers, spacing, first=0.03, tx_length=0.04, rx_length=0.02),
                              Waveform(f0=150e3, bandwidth=20e3, duration=10e-3, fs=25e3),
-                             speed=2.0, prf=1 / 0.3, n_pulses=n_pulses)
+                             speed=2.0, prf=1 / pri, n_pulses=n_pulses)
 
 
 def heremans2009(n_pulses: int = 128) -> Scenario:
