@@ -36,15 +36,13 @@ phi_de(r_ref)| must stay below pi / 4 over the processed band; without ``block_w
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.fft
 
 from ...data import EchoData, Image
-from ..omegak import azimuth_weights, check_elements
+from ..multireceiver import line_array
 from ..rangecomp import WINDOWS
-from ..track import LineRecord, Track, check_straight_track, image_of
+from ..record import LineRecord, azimuth_weights, check_elements, image_of
 from .phase import compress_azimuth, decouple
 from .stationary import StationaryPoints, hermite
 
@@ -53,38 +51,6 @@ log = logging.getLogger("clsas")
 NODE_SPACING = 0.5  # m between the ranges at which the azimuth modulation is tabulated
 MIN_RANGE = 1.0  # m: columns nearer than this (or before the emission) are not imaged
 RESIDUAL_LIMIT = np.pi / 4  # rad, the sub-block rule of seed 003 section 6.1.2 (after [31])
-
-
-@dataclass(frozen=True)
-class LineArray:
-    """A multireceiver record on a straight track: the transmitter's track, the chosen
-    receivers (indices) and their along-track offsets d_i (m, ahead of the transmitter), the
-    pulse repetition interval (s)."""
-
-    track: Track
-    receivers: list
-    offsets: np.ndarray
-    pri: float
-
-
-def line_array(echo: EchoData, receivers=None) -> LineArray:
-    """Check that ``echo`` is a range-compressed record of receivers on the transmitter's
-    straight track line (fixed along-track offsets) and describe it."""
-    if not isinstance(echo, EchoData):
-        raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
-    if not echo.compressed:
-        raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first")
-    chosen = echo.select_receivers(receivers)
-    track = check_straight_track(echo)
-    offsets = []
-    for h in chosen:
-        off = echo.rx_position(h, np.zeros((echo.n_pulses, 1)))[:, 0] - echo.tx_pos
-        if np.ptp(off, axis=0).max() > track.tolerance or np.abs(off[:, [0, 2]]).max() > track.tolerance:
-            raise ValueError(f"receiver {echo.receivers[h]!r} must sit on the transmitter's track line at a fixed "
-                             f"along-track offset (found offsets {off[0]} m varying by {np.ptp(off, axis=0).max():.3g} m)")
-        offsets.append(float(np.mean(off[:, 1])))
-    pri = (echo.eta[-1] - echo.eta[0]) / (echo.n_pulses - 1)
-    return LineArray(track, chosen, np.asarray(offsets), float(pri))
 
 
 def plan_blocks(r: np.ndarray, valid: np.ndarray, block_width, reference_ranges, rule_width) -> list:

@@ -17,14 +17,14 @@ Hermite interpolation with dG/ds = -T) and multiply data in place by exp(-j 2 pi
       cycles(f_t, r) = -f0 G(-f_t / f0; r)       (the conjugate of eq. 8's phase: eq. 14)
 
 Phases are computed in float64 (the terms are ~1e5 cycles) and reduced modulo 2 pi before the
-complex64 phasor (:func:`clsas.image.track.unit_phasor`).
+complex64 phasor (:func:`clsas.image.record.unit_phasor`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..track import unit_phasor
+from ..record import unit_phasor
 from .stationary import hermite
 
 ROW_BLOCK = 64  # rows a step (bounds the float64 temporaries)

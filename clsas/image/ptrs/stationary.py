@@ -5,7 +5,7 @@ ahead of it, a stationary point target sits at perpendicular (slant) range r fro
 line and at y = 0; t is the emission time, zero when the transmitter passes the target. The
 exact two-way delay tau_i(t; r) of eq. (1) is clsas's non-stop-and-go delay: the outgoing leg
 c t1 = sqrt(r^2 + v^2 t^2), then the receiver, moving on while the echo travels, is met by
-the echo after :func:`clsas.simulate.geometry.meet_time` (the closed form of eq. 1).
+the echo after :func:`clsas.geometry.meet_time` (the closed form of eq. 1).
 
 Implicit derivatives (from c tau = A + B, A = sqrt(r^2 + v^2 t^2), B = sqrt(r^2 + X^2),
 X = v t + d + v tau the receiver's y at reception, a = X / B):
@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...simulate.geometry import meet_time
+from ...geometry import meet_time
 
 NEWTON_TOLERANCE = 1e-12  # s, largest Newton update at convergence
 NEWTON_ITERATIONS = 40
