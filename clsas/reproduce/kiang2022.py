@@ -62,7 +62,9 @@ def scene(case: int, targets: str, n_pulses: int):
     from ..scene.targets import PointTargets
 
     if targets == "submarine":
-        return presets.kiang2022_case(case, n_pulses=n_pulses)
+        # facets <= 0.15 m: the hull's own are ~0.13 m, but the sail's and the stern planes' flat
+        # faces are single 0.1-0.4 m^2 triangles that would image as a few bright points
+        return presets.kiang2022_case(case, n_pulses=n_pulses, max_facet=0.15)
     return presets.kiang2022(n_pulses=n_pulses).replace(
         targets=(PointTargets(CENTRE, velocity=presets.KIANG_CASES[case]),))
 
