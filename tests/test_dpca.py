@@ -150,3 +150,13 @@ def test_bad_input(seafloor):
         dpca.estimate(echo, scene.array, v, t_lags=100, block=64)
     with pytest.raises(ValueError, match="receivers and emission times"):
         dpca.with_track(echo, presets.heremans2009(n_pulses=4))
+
+
+@pytest.mark.slow
+def test_reproduce_heremans2009_runs(tmp_path, capsys):
+    from clsas import cli
+
+    assert cli.main(["reproduce", "heremans2009", "--pings", "24", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "sway error" in out and "compensated (eqs. 74-75)" in out
+    assert (tmp_path / "compensated.png").stat().st_size > 1000
