@@ -3,10 +3,14 @@
 from . import distributed
 from .backend import use_backend
 from .data import EchoData, Grid, Image
+from .errors import EstimationError
+from .estimate.moving import estimate as estimate_motion
+from .estimate.moving import focus as focus_moving
 from .image.backprojection import backproject
 from .image.csa import chirp_scaling
 from .image.multireceiver import pca_record
 from .image.omegak import omega_k
+from .image.ptrs import ptrs_image
 from .image.rangecomp import range_compress
 from .image.rda import range_doppler
 from .image.record import line_record
@@ -27,6 +31,7 @@ from .simulate import simulate
 __all__ = [
                              "Array",
                              "EchoData",
+                             "EstimationError",
                              "Grid",
                              "Image",
                              "Medium",
@@ -40,10 +45,13 @@ __all__ = [
                              "backproject",
                              "chirp_scaling",
                              "distributed",
+                             "estimate_motion",
+                             "focus_moving",
                              "line_record",
                              "load",
                              "omega_k",
                              "pca_record",
+                             "ptrs_image",
                              "range_compress",
                              "range_doppler",
                              "save",
