@@ -20,6 +20,7 @@ import os
 import re
 import sys
 import tempfile
+import threading
 import warnings
 from dataclasses import dataclass
 from importlib import resources
@@ -237,6 +238,7 @@ def kernel(name: str, kernel_name: str, defines: dict | None = None, device: str
 HARMLESS_OUTPUT = re.compile(r"changes the ABI|^\d+ warnings? generated\.$|^\s*$|^\s*\^|^\s*\d* *\|")
 
 _log = logging.getLogger("clsas")
+_build_lock = threading.RLock()  # file descriptor 2 and the warning filters are process-wide
 
 
 def _verbose_compiler() -> bool:
@@ -253,6 +255,11 @@ def quiet_build(name: str):
     if _verbose_compiler():
         yield texts
         return
+    with _build_lock:  # one build at a time: a second thread would save and restore the redirected fd
+        yield from _silenced(name, texts)
+
+
+def _silenced(name: str, texts: list):
     sys.stderr.flush()
     saved = os.dup(2)
     with tempfile.TemporaryFile(mode="w+b") as sink, warnings.catch_warnings():
