@@ -15,7 +15,8 @@ from _tolerances import phase_error, rel_l2
 import clsas
 from clsas import metrics
 from clsas.data import Grid
-from clsas.image.backprojection import (PHASE_BUDGET, GridPlan, backproject, legs, plan_tiles, prepare, reach,
+from clsas.geometry import legs
+from clsas.image.backprojection import (PHASE_BUDGET, GridPlan, backproject, plan_tiles, prepare, reach,
                                         tile_half_extent)
 from clsas.image.backprojection_records import UPSAMPLE_BLOCK, upsample_blocks
 from clsas.image.rangecomp import upsample_records
