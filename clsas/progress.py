@@ -1,9 +1,9 @@
 """Progress bars that count finished work, and the stage log of ``logging.getLogger("clsas")``.
 
 A bar counts work in real units (pulses, pixel x pulses) when it is done, not when it is
-handed to the device: :meth:`Progress.after` takes the OpenCL event of a launch and counts
-its work when the event completes; at most :data:`IN_FLIGHT` launches wait unfinished (the
-host then waits for the oldest), so the bar and its ETA follow the device.
+handed to the device: the callers count a block after its results are read back (echo
+synthesis) or after the OpenCL events of its kernels have completed (back-projection, which
+keeps at most one upload block in flight), so the bar and its ETA follow the device.
 
 Bars are off with ``progress=False`` or the environment variable ``TQDM_DISABLE=1``.
 
@@ -13,7 +13,6 @@ cost: at INFO, and at WARNING when the estimate is over a minute) and its time w
 
 from __future__ import annotations
 
-import collections
 import contextlib
 import logging
 import os
@@ -21,7 +20,6 @@ import time
 
 log = logging.getLogger("clsas")
 
-IN_FLIGHT = 4  # OpenCL launches allowed to wait unfinished behind the bar
 LONG_CALL_S = 60.0  # an estimate above this is logged as a warning before the call starts
 
 #: Work units a second for the cost estimates of :func:`stage`, by (stage, backend): measured
@@ -43,7 +41,6 @@ class Progress:
     """A tqdm bar of ``total`` units of work named ``unit`` (or nothing when disabled)."""
 
     def __init__(self, total: int, unit: str, desc: str, progress: bool = True, leave: bool = True):
-        self._pending = collections.deque()
         self._bar = None
         if enabled(progress):
             from tqdm.auto import tqdm
@@ -56,24 +53,7 @@ class Progress:
         if self._bar is not None:
             self._bar.update(int(n))
 
-    def after(self, event, n) -> None:
-        """Count ``n`` units when the OpenCL ``event`` completes; waits for the oldest pending
-        launch when more than :data:`IN_FLIGHT` are unfinished (an in-order queue finishes them
-        in order)."""
-        if self._bar is None:
-            return
-        self._pending.append((event, n))
-        while self._pending and (len(self._pending) > IN_FLIGHT or _complete(self._pending[0][0])):
-            oldest, count = self._pending.popleft()
-            oldest.wait()
-            self.done(count)
-
     def close(self) -> None:
-        """Wait for what is pending, count it and close the bar."""
-        while self._pending:
-            event, count = self._pending.popleft()
-            event.wait()
-            self.done(count)
         if self._bar is not None:
             self._bar.close()
 
@@ -81,15 +61,7 @@ class Progress:
         return self
 
     def __exit__(self, *exc) -> None:
-        if exc[0] is not None:
-            self._pending.clear()
         self.close()
-
-
-def _complete(event) -> bool:
-    import pyopencl as cl
-
-    return event.command_execution_status == cl.command_execution_status.COMPLETE
 
 
 @contextlib.contextmanager

@@ -5,42 +5,33 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-import pyopencl as cl
 import pytest
 
 from clsas import Grid, backproject, progress, range_compress, simulate
 from clsas.scene import presets
 
 
-class _Event:
-    """An OpenCL event stand-in: finishes when waited on (as an in-order queue's oldest launch)."""
-
-    def __init__(self, done=False):
-        self.done = done
-
-    @property
-    def command_execution_status(self):
-        return cl.command_execution_status.COMPLETE if self.done else cl.command_execution_status.RUNNING
-
-    def wait(self):
-        self.done = True
-
-
-def test_bar_counts_launches_when_they_finish(monkeypatch):
+def test_backprojection_bar_counts_finished_pixel_pulses(opencl_device, monkeypatch):
+    """The OpenCL bar is counted as each upload block's kernels complete (their events are
+    waited on first) and ends at pixels x receivers x pulses, in pixel-pulses."""
     monkeypatch.delenv("TQDM_DISABLE", raising=False)
-    bar = progress.Progress(100, "pixel-pulses", "test")
-    events = [_Event() for _ in range(progress.IN_FLIGHT)]
-    for event in events:
-        bar.after(event, 10)
-    assert bar._bar.n == 0  # enqueued, none finished: nothing counted
-    events[0].done = True
-    bar.after(_Event(), 10)  # the finished oldest launch is counted, the rest wait
-    assert bar._bar.n == 10
-    bar.after(_Event(), 10)  # one over IN_FLIGHT: the host waits for the oldest
-    assert bar._bar.n == 20 and events[1].done
+    bars, counted = [], []
+    original = progress.Progress.done
+
+    def done(self, n):
+        counted.append(n)
+        original(self, n)
+
+    monkeypatch.setattr(progress.Progress, "done", done)
+    monkeypatch.setattr(progress.Progress, "close", lambda self: self._bar is not None and bars.append(self._bar))
+    scene = presets.point_scene("heremans2009", n_pulses=8)
+    echo = range_compress(simulate(scene, backend="numpy", progress=False))
+    grid = Grid.plane(np.linspace(99, 101, 16), np.linspace(-1, 1, 8), scene.platform.start[2])
+    counted.clear()
+    backproject(echo, grid, backend="opencl")
+    (bar,) = bars
+    assert bar.unit == " pixel-pulses" and bar.n == bar.total == 128 * 15 * 8 == sum(counted)
     bar.close()
-    assert bar._bar.n == 60
-    assert bar._bar.unit == " pixel-pulses"
 
 
 @pytest.mark.parametrize("env, flag", [("1", True), ("", False)])
