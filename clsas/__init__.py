@@ -4,6 +4,7 @@ from .backend import use_backend
 from .data import EchoData, Grid, Image
 from .image.backprojection import backproject
 from .image.csa import chirp_scaling
+from .image.inclined import correct_inclined_array
 from .image.multireceiver import pca_record
 from .image.omegak import omega_k
 from .image.ptrs import ptrs_image
@@ -39,6 +40,7 @@ __all__ = [
                              "Waveform",
                              "backproject",
                              "chirp_scaling",
+                             "correct_inclined_array",
                              "line_record",
                              "load",
                              "omega_k",
