@@ -177,7 +177,7 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
         spec *= np.exp(-2j * np.pi * ftau * (echo.t0[h] - t0)).astype(np.complex64)
         spec = scipy.fft.fft(spec, n=n_fp, axis=0, workers=workers)[rows % n_fp]
         g_c, t_c = tables_g[j, 0], tables_t[j, 0]
-        decouple(spec, ft_used, ftau, f0, g_c, t_c, points.s_first, points.ds, 2 * r_c / c)
+        decouple(spec, ft_used, ftau, f0, g_c, t_c, points.s_first, points.ds, 2 * r_c / c, backend=backend)
         rd = scipy.fft.ifft(spec, axis=1, workers=workers)
         del spec
         out = np.zeros((rows.size, n_cols), np.complex64)
@@ -185,11 +185,11 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
             length = scipy.fft.next_fast_len(hi - lo + 2 * margin)
             seg = scipy.fft.fft(rd[:, np.arange(lo - margin, lo - margin + length) % n_r], axis=1, workers=workers)
             decouple(seg, ft_used, np.fft.fftfreq(length, 1 / fs), f0, tables_g[j, 1 + b] - g_c,
-                     tables_t[j, 1 + b] - t_c, points.s_first, points.ds, 2 * (r_ref - r_c) / c)
+                     tables_t[j, 1 + b] - t_c, points.s_first, points.ds, 2 * (r_ref - r_c) / c, backend=backend)
             out[:, lo:hi] = scipy.fft.ifft(seg, axis=1, workers=workers)[:, margin:margin + hi - lo]
         del rd
         compress_azimuth(out, ft_used, f0, tables_g[j, 1 + refs.size:], tables_t[j, 1 + refs.size:],
-                         points.s_first, points.ds, column_node, column_weight)
+                         points.s_first, points.ds, column_node, column_weight, backend=backend)
         acc += out
     acc *= weights[rows, None].astype(np.complex64)
     full = np.zeros((n_ft, n_cols), np.complex64)
