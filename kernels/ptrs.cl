@@ -8,7 +8,8 @@
  *     cycles = -(f0 + f_tau) D(s) + row_term[i] + kappa f_tau,   s = -f_t / (f0 + f_tau),
  * D read from the table (D_k, T_k) at slopes s_first + k ds by cubic Hermite interpolation with
  * the derivative dD/ds = -T (the host checks that every s lies inside the table, so the
- * truncating conversion is a floor). params = (f0, s_first, ds, kappa).
+ * truncating conversion is a floor). params = (f0, s_first, ds, kappa); inv_f[j] =
+ * 1 / (f0 + ftau[j]) and inv_ds = 1 / ds come from the host (no division per element).
  *
  * ptrs_compress_azimuth: element (i, j) of a range-Doppler array is multiplied by
  * exp(+j 2 pi cycles), cycles = (1 - w_j) A[i, m_j] + w_j A[i, m_j + 1] (A: the azimuth
@@ -31,15 +32,16 @@ inline float2 rotate(const float2 z, const double cycles)
 }
 
 __kernel void ptrs_decouple(__global float2 *data, __global const double *ft, __global const double *ftau,
-                            __global const double *row_term, __global const double2 *table,
-                            const double4 params, const int n_s, const int n_cols)
+                            __global const double *inv_f, __global const double *row_term,
+                            __global const double2 *table, const double4 params, const double inv_ds,
+                            const int n_s, const int n_cols)
 {
     const int j = get_global_id(0);
     const int i = get_global_id(1);
     if (j >= n_cols)
         return;
     const double f = params.s0 + ftau[j];
-    const double pos = (-ft[i] / f - params.s1) / params.s2;
+    const double pos = (-ft[i] * inv_f[j] - params.s1) * inv_ds;
     const int k = min(convert_int(pos), n_s - 2);
     const double u = pos - k, u2 = u * u, u3 = u2 * u;
     const double2 a = table[k], b = table[k + 1];

@@ -42,6 +42,11 @@ The correction of each hydrophone's range-compressed record (Fig. 3):
 Yaw and pitch may change from pulse to pulse (seed 002 Fig. 5: random in 1-2 degrees): they are
 given per pulse, read from a Platform's attitude at the echoes' reception times, or (default)
 measured from the echo's own receiver positions, which record where each hydrophone was.
+
+Not corrected (as in the paper): the amplitude of the beam patterns, which turn with the array
+(on the wu2018_inclined scene the fully corrected peak stays 0.5 dB below that of an
+uninclined array), and the attitude's change during one pulse's echoes (the angles are those
+at the reference range's reception).
 """
 
 from __future__ import annotations

@@ -114,15 +114,16 @@ def timing(echo, backend: str) -> dict:
     and of back-projection over the PTRS image's pixels."""
     import clsas
     from clsas.data import Grid
+    from clsas.image.ptrs import StationaryPoints
 
     swath = echo.medium.sound_speed * (echo.n_samples / echo.fs) / 2
     times = {}
-    first = clsas.ptrs_image(echo, block_width=swath / 4, elements=(0.04, 0.02), deconvolve=False, backend=backend)
+    points = StationaryPoints()
     for blocks in (4, 8):
         kwargs = {"block_width": swath / blocks, "elements": (0.04, 0.02), "deconvolve": False, "backend": backend}
-        clsas.ptrs_image(echo, points=first.provenance["points"], **kwargs)  # the second scheme: PSPs solved
+        clsas.ptrs_image(echo, points=points, **kwargs)  # the second scheme: the PSPs solved beforehand
         start = time.perf_counter()
-        image = clsas.ptrs_image(echo, points=first.provenance["points"], **kwargs)
+        image = clsas.ptrs_image(echo, points=points, **kwargs)
         times[f"ptrs_{blocks}"] = time.perf_counter() - start
     grid = Grid.points(image.positions, dims=("y", "x"))
     start = time.perf_counter()

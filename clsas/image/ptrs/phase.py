@@ -78,7 +78,8 @@ def decouple_opencl(data, ft, ftau, f0, table_g, table_t, s_first, ds, kappa, ro
 
     table = np.ascontiguousarray(np.stack([table_g, table_t], axis=-1), dtype=np.float64)
     params = np.array([f0, s_first, ds, kappa], dtype=np.float64).view(cl.cltypes.double4)[0]
-    _run("ptrs_decouple", data, [ft, ftau, row_term, table], [params, np.int32(table_g.size), np.int32(data.shape[1])])
+    _run("ptrs_decouple", data, [ft, ftau, 1 / (f0 + ftau), row_term, table],
+         [params, np.float64(1 / ds), np.int32(table_g.size), np.int32(data.shape[1])])
     return data
 
 
