@@ -125,7 +125,7 @@ def timing(echo, backend: str) -> dict:
         start = time.perf_counter()
         image = clsas.ptrs_image(echo, points=points, **kwargs)
         times[f"ptrs_{blocks}"] = time.perf_counter() - start
-    grid = Grid.points(image.positions, dims=("y", "x"))
+    grid = Grid.plane(image.axes["x"], image.axes["y"], float(image.positions[0, 0, 2]))
     start = time.perf_counter()
     clsas.backproject(echo, grid, backend=backend, interp="sinc8", progress=False)
     times["bp"] = time.perf_counter() - start
@@ -134,7 +134,7 @@ def timing(echo, backend: str) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    from clsas.scene.presets import ZHANG_WIDTHS
+    from clsas.scene.presets import ZHANG_REFERENCES, ZHANG_WIDTHS
 
     sc, echo = scene(args.pulses)
     points = sc.targets[0].positions
@@ -143,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"Zhang, Tan & Ying 2019: azimuth PSLR / ISLR (dB), clsas [paper]; {echo.n_rx} receivers x "
           f"{echo.n_pulses} pulses x {echo.n_samples} samples")
     for g, group in enumerate(GROUPS):
-        print(f"\n{group}: PTRS decoupled at {sc.targets[0].positions[6 * g:6 * g + 6, 0].mean():.0f} m's reference")
+        print(f"\n{group}: PTRS decoupled at the reference range {ZHANG_REFERENCES[g]:.0f} m")
         print(f"{'':4} {'width':>5}  {'PTRS PSLR':>17} {'ISLR':>17}  {'PCA PSLR':>17} {'ISLR':>17}  "
               f"{'BP PSLR':>17} {'ISLR':>17}")
         for k in range(6 * g, 6 * g + 6):
