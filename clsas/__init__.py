@@ -2,6 +2,9 @@
 
 from .backend import use_backend
 from .data import EchoData, Grid, Image
+from .errors import EstimationError
+from .estimate.moving import estimate as estimate_motion
+from .estimate.moving import focus as focus_moving
 from .image.backprojection import backproject
 from .image.csa import chirp_scaling
 from .image.inclined import correct_inclined_array
@@ -28,6 +31,7 @@ from .simulate import simulate
 __all__ = [
                              "Array",
                              "EchoData",
+                             "EstimationError",
                              "Grid",
                              "Image",
                              "Medium",
@@ -41,6 +45,8 @@ __all__ = [
                              "backproject",
                              "chirp_scaling",
                              "correct_inclined_array",
+                             "estimate_motion",
+                             "focus_moving",
                              "line_record",
                              "load",
                              "omega_k",
