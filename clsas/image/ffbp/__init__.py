@@ -46,7 +46,7 @@ from .merge import KERNEL_TAPS, merge_opencl, merge_reference
 from .polar import PolarGrid, Scene
 from .tree import Tree, plan
 
-DEFAULT_TOLERANCE = 0.05
+DEFAULT_TOLERANCE = 0.1
 
 __all__ = ["DEFAULT_TOLERANCE", "ffbp"]
 
