@@ -101,3 +101,79 @@ def test_points_match_direct_backprojection(opencl_device, track):
     tight = ffbp(echo_of(track), GRID, backend="opencl", tolerance=0.02)
     print("tight", rel_l2(tight.data, ref.data))
     assert rel_l2(tight.data, ref.data) <= 0.02
+
+
+def test_speckle_matches_direct_backprojection(opencl_device):
+    """3000 random complex scatterers (a seafloor-like speckle): the complex image within the
+    same bounds as the points."""
+    ref = direct("straight", "speckle")
+    img = ffbp(echo_of("straight", "speckle"), GRID, backend="opencl")
+    err = rel_l2(img.data, ref.data)
+    print("speckle rel L2", err, "ssim", metrics.ssim(img, ref))
+    assert err <= 0.1
+    assert metrics.ssim(img, ref) >= 0.95
+
+
+def test_merge_kernel_matches_reference(opencl_device):
+    """One merge of real first-stage images into their parent's polar grid and onto pixels:
+    kernel (float32 interpolation, double geometry) against the float64 reference."""
+    echo = echo_of("straight")
+    chosen = list(range(echo.n_rx))
+    tree = plan(echo, chosen, Scene.of(GRID.positions), 2, 0.1, 8, None, None)
+    from clsas.image.ffbp import _leaf
+
+    level = 1
+    kids = [(tree.grids[0][k], _leaf(echo, tree, k, tree.grids[0][k], "opencl", chosen, "linear", 8, None, False))
+            for k in tree.children[level][0]]
+    parent = tree.grids[level][0]
+    f0, c = echo.waveform.f0, echo.medium.sound_speed
+    ref = merge_reference(kids, parent, f0, c, 8, tree.rho)
+    got = merge_opencl(kids, parent, f0, c, 8, tree.rho)
+    print("merge kernel rel L2 (parent)", rel_l2(got, ref))
+    assert rel_l2(got, ref) < 1e-5
+    pixels = GRID.positions[::4, ::4].reshape(-1, 3)
+    ref = merge_reference(kids, pixels, f0, c, 8, tree.rho)
+    got = merge_opencl(kids, pixels, f0, c, 8, tree.rho)
+    print("merge kernel rel L2 (points)", rel_l2(got, ref))
+    assert rel_l2(got, ref) < 1e-5
+
+
+def test_numpy_and_opencl_agree(opencl_device):
+    """The whole method on both backends (NumPy back-projection and merges in float64) on a
+    small patch around one point."""
+    echo = echo_of("straight")
+    grid = Grid.plane(np.arange(43.7, 44.3, 0.015), np.arange(-0.3, 0.3, 0.02), DEPTH)
+    a = ffbp(echo, grid, backend="numpy")
+    b = ffbp(echo, grid, backend="opencl")
+    print("numpy vs opencl", rel_l2(b.data, a.data))
+    assert rel_l2(b.data, a.data) < 1e-3
+
+
+def test_tolerance_sets_the_oversampling():
+    """The error model: the chosen oversampling meets the per-interpolation budget
+    tolerance / (2 stages) and one step less would not."""
+    for taps, tol, stages in ((8, 0.1, 4), (8, 0.02, 6), (4, 0.5, 2)):
+        rho = oversampling(taps, tol, stages)
+        assert interpolation_error(taps, rho) <= tol / (2 * stages)
+        assert interpolation_error(taps, round(rho - 0.05, 2)) > tol / (2 * stages)
+    with pytest.raises(ValueError, match="4-tap interpolator"):
+        oversampling(4, 0.02, 6)
+
+
+def test_bad_input_is_refused():
+    echo = echo_of("straight")
+    far = Grid.plane(np.arange(900.0, 901.0, 0.1), np.arange(-1.0, 1.0, 0.1), DEPTH)
+    with pytest.raises(ValueError, match="never sees"):
+        ffbp(echo, far, backend="numpy")
+    for tol in (0.0, -0.1, float("nan")):
+        with pytest.raises(ValueError, match="tolerance"):
+            ffbp(echo, GRID, tolerance=tol, backend="numpy")
+    with pytest.raises(ValueError, match="factor"):
+        ffbp(echo, GRID, factor=1, backend="numpy")
+    with pytest.raises(ValueError, match="taps"):
+        ffbp(echo, GRID, taps=6, backend="numpy")
+    kiang = presets.kiang2022(n_pulses=4)
+    buoy = clsas.range_compress(clsas.simulate(kiang.replace(targets=(PointTargets([100.0, 0.0, -43.0]),)),
+                                               backend="numpy", progress=False))
+    with pytest.raises(ValueError, match="'C' is stationary"):
+        ffbp(buoy, Grid.plane([100.0, 100.1], [0.0, 0.1], -43.0), backend="numpy")

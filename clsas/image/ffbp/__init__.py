@@ -28,7 +28,8 @@ Geometry: any track (sway, yaw, surge, circles: each sub-aperture's frame follow
 chord) and any grid on a plane (planes, slant planes, points on a plane) are exact up to the
 interpolation error; points off the grid's fitted plane are read rotated about each
 sub-aperture's axis (exact for a straight sub-aperture). Sonobuoys (stationary receivers) are
-refused: their range does not follow the sub-aperture's centre, so a polar grid about it does
+refused (a receiver is taken as one when it moves less than half as far as the
+transmitter over the pulses): their range does not follow the sub-aperture's centre, so a polar grid about it does
 not demodulate their echoes; leave them out with ``receivers=`` and image them with
 :func:`clsas.backproject`.
 """
@@ -64,9 +65,12 @@ def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsamp
                               or not 1 <= first <= echo.n_pulses):
         raise ValueError(f"first (pulses a first-stage sub-aperture) must be an integer in [1, {echo.n_pulses}] "
                          f"or None, got {first!r}")
+    track = float(np.linalg.norm(np.ptp(echo.tx_pos, axis=0)))
     for h in chosen:
-        if echo.rx_tau[h].size == 1:
-            raise ValueError(f"receivers: {echo.receivers[h]!r} is stationary (a sonobuoy); ffbp's polar grids follow "
+        moved = float(np.linalg.norm(np.ptp(echo.rx_pos[h].reshape(-1, 3), axis=0)))
+        if echo.rx_tau[h].size == 1 or moved < 0.5 * track:
+            raise ValueError(f"receivers: {echo.receivers[h]!r} is stationary (a sonobuoy: it does not move with the "
+                             "transmitter); ffbp's polar grids follow "
                              "the platform, so leave it out with receivers=... and image it with clsas.backproject")
     return chosen
 

@@ -73,9 +73,9 @@ class _Frames:
         self.tx = echo.tx_pos
         self.mids = 0.5 * (self.tx[None] + rx)
         self.baseline = np.linalg.norm(rx - self.tx[None], axis=-1).max(axis=0)  # (N,)
-        step = max(1, echo.n_pulses // 64)
-        track = np.concatenate([self.mids[:, ::step].reshape(-1, 3), self.mids[:, -1]])
-        d = np.min(np.linalg.norm(scene.skeleton[None] - track[:, None], axis=-1)) - scene.margin
+        step = max(1, echo.n_pulses // 64)  # the array's two ends every ~1/64 of the track
+        track = np.concatenate([self.mids[[0, -1], ::step].reshape(-1, 3), self.mids[[0, -1], -1]])
+        d = min(float(np.min(np.linalg.norm(scene.skeleton - t, axis=-1))) for t in track) - scene.margin
         self.r_near = float(d)
 
     def frame(self, p0: int, p1: int) -> tuple[np.ndarray, np.ndarray, float, float]:
