@@ -4,6 +4,7 @@ from .backend import use_backend
 from .data import EchoData, Grid, Image
 from .image.backprojection import backproject
 from .image.csa import chirp_scaling
+from .image.ffbp import ffbp
 from .image.multireceiver import pca_record
 from .image.omegak import omega_k
 from .image.rangecomp import range_compress
@@ -38,6 +39,7 @@ __all__ = [
                              "Waveform",
                              "backproject",
                              "chirp_scaling",
+                             "ffbp",
                              "line_record",
                              "load",
                              "omega_k",

@@ -61,12 +61,16 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
         const double3 d = x - vload3(0, f);
         const double rc = sqrt(dot(d, d));
         const double pv = (dot(d, vload3(1, f)) / rc - f[14]) / f[15], pr = (rc - f[12]) / f[13];
-        const double fv = floor(pv), fr = floor(pr);
-        const int iv = (int)fv - (TAPS / 2 - 1), ir = (int)fr - (TAPS / 2 - 1);
+        if (!(pv >= 0.0 && pr >= 0.0))  /* outside the image (every read needs a whole window) */
+            continue;
+        const int fv = convert_int(pv), fr = convert_int(pr);  /* floor of a non-negative value
+                                                                    (PoCL's floor() is a slow emulation) */
+        const int iv = fv - (TAPS / 2 - 1), ir = fr - (TAPS / 2 - 1);
         const int n_r = (int)f[16], n_v = (int)f[17];
         if (iv < 0 || iv > n_v - TAPS || ir < 0 || ir > n_r - TAPS)
             continue;
-        const int row_v = (int)((pv - fv) * (TAP_ROWS - 1) + 0.5), row_r = (int)((pr - fr) * (TAP_ROWS - 1) + 0.5);
+        const int row_v = convert_int((pv - fv) * (TAP_ROWS - 1) + 0.5);
+        const int row_r = convert_int((pr - fr) * (TAP_ROWS - 1) + 0.5);
         __global const float *img = (__global const float *)(images + offsets[k] + (long)iv * n_r + ir);
         __global const float *tv = taps + TAPS * row_v;
 #if TAPS == 8

@@ -86,37 +86,37 @@ def compare_points(image: Image, reference: Image) -> dict:
     return worst
 
 
-@pytest.mark.parametrize("track", ["straight", "motion", "circle"])
+@pytest.mark.parametrize("track", ["straight", pytest.param("motion", marks=pytest.mark.slow),
+                                   pytest.param("circle", marks=pytest.mark.slow)])
 def test_points_match_direct_backprojection(opencl_device, track):
+    """The issue's bars (peaks within 0.05 of a cell, 0.5 dB, PSLR and ISLR within 1 dB, SSIM
+    >= 0.95); relative L2 measured 0.0066-0.0067 on the three tracks at the default tolerance
+    (bound 0.07) and 0.0023-0.0024 at tolerance 0.02 (bound 0.02)."""
     ref = direct(track)
     img = ffbp(echo_of(track), GRID, backend="opencl")
     worst = compare_points(img, ref)
     err = rel_l2(img.data, ref.data)
-    print(track, worst, "rel L2", err, "ssim", metrics.ssim(img, ref), img.provenance["levels"],
-          img.provenance["polar_samples"])
     assert worst["shift"] < 0.05 and worst["power"] < 0.5, worst
     assert worst["pslr"] < 1.0 and worst["islr"] < 1.0, worst
     assert metrics.ssim(img, ref) >= 0.95
-    assert err <= 0.1
+    assert err <= 0.07
     tight = ffbp(echo_of(track), GRID, backend="opencl", tolerance=0.02)
-    print("tight", rel_l2(tight.data, ref.data))
     assert rel_l2(tight.data, ref.data) <= 0.02
 
 
 def test_speckle_matches_direct_backprojection(opencl_device):
-    """3000 random complex scatterers (a seafloor-like speckle): the complex image within the
-    same bounds as the points."""
+    """3000 random complex scatterers (a seafloor-like speckle): relative L2 measured 0.0068."""
     ref = direct("straight", "speckle")
     img = ffbp(echo_of("straight", "speckle"), GRID, backend="opencl")
     err = rel_l2(img.data, ref.data)
-    print("speckle rel L2", err, "ssim", metrics.ssim(img, ref))
-    assert err <= 0.1
+    assert err <= 0.07
     assert metrics.ssim(img, ref) >= 0.95
 
 
 def test_merge_kernel_matches_reference(opencl_device):
     """One merge of real first-stage images into their parent's polar grid and onto pixels:
-    kernel (float32 interpolation, double geometry) against the float64 reference."""
+    kernel (float32 interpolation, double geometry) against the float64 reference: relative L2
+    measured 1.9e-7 (float32 rounding of 64-tap sums)."""
     echo = echo_of("straight")
     chosen = list(range(echo.n_rx))
     tree = plan(echo, chosen, Scene.of(GRID.positions), 2, 0.1, 8, None, None)
@@ -129,24 +129,21 @@ def test_merge_kernel_matches_reference(opencl_device):
     f0, c = echo.waveform.f0, echo.medium.sound_speed
     ref = merge_reference(kids, parent, f0, c, 8, tree.rho)
     got = merge_opencl(kids, parent, f0, c, 8, tree.rho)
-    print("merge kernel rel L2 (parent)", rel_l2(got, ref))
-    assert rel_l2(got, ref) < 1e-5
+    assert rel_l2(got, ref) < 2e-6
     pixels = GRID.positions[::4, ::4].reshape(-1, 3)
     ref = merge_reference(kids, pixels, f0, c, 8, tree.rho)
     got = merge_opencl(kids, pixels, f0, c, 8, tree.rho)
-    print("merge kernel rel L2 (points)", rel_l2(got, ref))
-    assert rel_l2(got, ref) < 1e-5
+    assert rel_l2(got, ref) < 2e-6
 
 
 def test_numpy_and_opencl_agree(opencl_device):
     """The whole method on both backends (NumPy back-projection and merges in float64) on a
-    small patch around one point."""
+    small patch around one point: relative L2 measured 2.8e-6 (the float32 kernels' rounding)."""
     echo = echo_of("straight")
     grid = Grid.plane(np.arange(43.7, 44.3, 0.015), np.arange(-0.3, 0.3, 0.02), DEPTH)
     a = ffbp(echo, grid, backend="numpy")
     b = ffbp(echo, grid, backend="opencl")
-    print("numpy vs opencl", rel_l2(b.data, a.data))
-    assert rel_l2(b.data, a.data) < 1e-3
+    assert rel_l2(b.data, a.data) < 3e-5
 
 
 def test_tolerance_sets_the_oversampling():
@@ -177,3 +174,16 @@ def test_bad_input_is_refused():
                                                backend="numpy", progress=False))
     with pytest.raises(ValueError, match="'C' is stationary"):
         ffbp(buoy, Grid.plane([100.0, 100.1], [0.0, 0.1], -43.0), backend="numpy")
+
+
+def test_points_off_the_plane(opencl_device):
+    """A 3-D point grid (two planes 0.5 m apart around a point) on a straight track: pixels off the
+    fitted plane are read rotated about each sub-aperture's axis, exact for a straight track:
+    relative L2 measured 0.0048 (both planes alike)."""
+    echo = echo_of("straight")
+    x, y = np.arange(43.8, 44.2, 0.015), np.arange(-0.2, 0.2, 0.02)
+    pos = np.stack([Grid.plane(x, y, z).positions for z in (DEPTH, DEPTH + 0.5)])
+    grid = Grid.points(pos, dims=("z", "y", "x"))
+    ref = backproject(echo, grid, backend="opencl", progress=False)
+    img = ffbp(echo, grid, backend="opencl")
+    assert rel_l2(img.data, ref.data) < 0.05

@@ -2,6 +2,7 @@
 
 from .backprojection import backproject
 from .csa import chirp_scaling
+from .ffbp import ffbp
 from .multireceiver import pca_record
 from .omegak import omega_k
 from .rangecomp import (
@@ -16,5 +17,5 @@ from .rda import range_doppler
 from .stolt import stolt
 from .track import LineRecord, line_record
 
-__all__ = ["WINDOWS", "LineRecord", "backproject", "chirp_scaling", "lfm_replica", "line_record", "matched_filter",
+__all__ = ["WINDOWS", "LineRecord", "backproject", "chirp_scaling", "ffbp", "lfm_replica", "line_record", "matched_filter",
            "omega_k", "pca_record", "range_compress", "range_doppler", "spectral_window", "stolt", "upsample_records"]

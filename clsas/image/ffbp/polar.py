@@ -94,13 +94,18 @@ class Plane:
 
     @classmethod
     def fit(cls, skeleton: np.ndarray) -> "Plane":
-        """The least-squares plane of the points (K, 3) (the smallest principal axis is its normal;
-        a single point or a line gets the horizontal plane through them)."""
+        """The plane of the points (K, 3): for points on a plane (within 1e-6 of their extent) that
+        plane; for a volume the least-squares plane among those containing the nominal track
+        direction y (so that every sub-aperture's circles of (r, v) cross it); a single point or
+        a line gets the horizontal plane through them."""
         centroid = skeleton.mean(axis=0)
         spread = skeleton - centroid
         _, s, vt = np.linalg.svd(spread, full_matrices=False)
         if s.size < 2 or s[1] <= 1e-9 * max(s[0], 1e-30):
             normal = np.array([0.0, 0.0, 1.0])
+        elif s.size == 3 and s[2] > 1e-6 * s[0]:
+            _, _, vt_xz = np.linalg.svd(spread[:, [0, 2]], full_matrices=False)
+            normal = np.array([vt_xz[-1][0], 0.0, vt_xz[-1][1]])
         else:
             normal = vt[-1] if s.size == 3 else np.cross(vt[0], vt[1])
         normal = normal / np.linalg.norm(normal)
