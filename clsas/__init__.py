@@ -7,9 +7,10 @@ from .image.csa import chirp_scaling
 from .image.ffbp import ffbp
 from .image.multireceiver import pca_record
 from .image.omegak import omega_k
+from .image.ptrs import ptrs_image
 from .image.rangecomp import range_compress
 from .image.rda import range_doppler
-from .image.track import line_record
+from .image.record import line_record
 from .io import load, save
 from .scene.scenario import (
                              Array,
@@ -44,6 +45,7 @@ __all__ = [
                              "load",
                              "omega_k",
                              "pca_record",
+                             "ptrs_image",
                              "range_compress",
                              "range_doppler",
                              "save",

@@ -5,6 +5,7 @@ from .csa import chirp_scaling
 from .ffbp import ffbp
 from .multireceiver import pca_record
 from .omegak import omega_k
+from .ptrs import ptrs_image
 from .rangecomp import (
            WINDOWS,
            lfm_replica,
@@ -15,7 +16,7 @@ from .rangecomp import (
 )
 from .rda import range_doppler
 from .stolt import stolt
-from .track import LineRecord, line_record
+from .record import LineRecord, line_record
 
 __all__ = ["WINDOWS", "LineRecord", "backproject", "chirp_scaling", "ffbp", "lfm_replica", "line_record", "matched_filter",
-           "omega_k", "pca_record", "range_compress", "range_doppler", "spectral_window", "stolt", "upsample_records"]
+           "omega_k", "pca_record", "ptrs_image", "range_compress", "range_doppler", "spectral_window", "stolt", "upsample_records"]
