@@ -229,7 +229,7 @@ def polar_grid(centre: np.ndarray, axis: np.ndarray, half_length: float, scene: 
                sine_limit: float | None = None) -> PolarGrid | None:
     """The polar grid of a sub-aperture with the given frame and half-length L (m) that covers the
     scene within the recorded range window ``window`` (m, (min, max)), sampled by the rule of the
-    module docstring at oversampling ``rho``, padded by ``taps`` samples on every side for the
+    module docstring at oversampling ``rho``, padded by ``taps // 2 + 2`` samples on every side for the
     interpolator; ``sine_limit`` bounds |v| (the integration angle), None for all angles. None
     when the scene lies wholly outside the window or the angular limit."""
     e1, e2 = frame_axes(axis, centre, scene.plane)
@@ -253,7 +253,7 @@ def polar_grid(centre: np.ndarray, axis: np.ndarray, half_length: float, scene: 
     w_r = bandwidth / c + 2 * f_max * float(np.max(1 - (r_lo - a * vv) / dist)) / c
     dr = 1 / (2 * w_r * rho)
     dv = 1 / (2 * max(w_v, 1e-12) * rho)
-    pad = taps
+    pad = taps // 2 + 2  # the interpolator reads taps / 2 samples either side; 2 more for frame shifts
     n_r = int(np.ceil((r_hi - r_lo) / dr)) + 1 + 2 * pad
     n_v = int(np.ceil((v_hi - v_lo) / dv)) + 1 + 2 * pad
     return PolarGrid(centre, axis, e1, e2, scene.plane, r_lo - pad * dr, dr, n_r, v_lo - pad * dv, dv, n_v)
