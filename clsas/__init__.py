@@ -2,6 +2,9 @@
 
 from .backend import use_backend
 from .data import EchoData, Grid, Image
+from .errors import EstimationError
+from .estimate.moving import estimate as estimate_motion
+from .estimate.moving import focus as focus_moving
 from .image.backprojection import backproject
 from .image.csa import chirp_scaling
 from .image.ffbp import ffbp
@@ -28,6 +31,7 @@ from .simulate import simulate
 __all__ = [
                              "Array",
                              "EchoData",
+                             "EstimationError",
                              "Grid",
                              "Image",
                              "Medium",
@@ -40,7 +44,9 @@ __all__ = [
                              "Waveform",
                              "backproject",
                              "chirp_scaling",
+                             "estimate_motion",
                              "ffbp",
+                             "focus_moving",
                              "line_record",
                              "load",
                              "omega_k",
