@@ -100,8 +100,8 @@ def main() -> None:
                              levels=images["ffbp"].provenance["levels"], first=images["ffbp"].provenance["first"],
                              oversampling=images["ffbp"].provenance["oversampling"],
                              polar_samples=images["ffbp"].provenance["polar_samples"])
-            report(args, "ffbp", "opencl", {"pixels": grid.size, "pulses": pulses, "receivers": 1}, work / medians[name],
-                   "BP/s", medians[name], **extra)
+            report(args, "ffbp", "opencl", {"pixels": grid.size, "pulses": pulses, "receivers": 1},
+                   work / medians[name], "BP/s", medians[name], **extra)
 
 
 if __name__ == "__main__":

@@ -43,7 +43,8 @@ from tqdm.auto import tqdm
 from ... import backend as _backend
 from ...data import EchoData, Grid, Image
 from ...kernelmath import expj_cycles
-from ..backprojection import _check_inputs, backproject
+from ..backprojection import backproject
+from ..backprojection_records import check_options
 from .merge import KERNEL_TAPS, merge_opencl, merge_reference
 from .polar import PolarGrid, Scene
 from .tree import Tree, plan
@@ -54,7 +55,12 @@ __all__ = ["DEFAULT_TOLERANCE", "ffbp"]
 
 
 def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsample, aperture):
-    chosen, _ = _check_inputs(echo, grid, receivers, interp, upsample, aperture, None)
+    chosen, _ = check_options(echo, receivers, interp, upsample, None)
+    if not isinstance(grid, Grid):
+        raise TypeError(f"grid must be a clsas.data.Grid (Grid.plane, Grid.slant or Grid.points), got "
+                        f"{type(grid).__name__}")
+    if aperture is not None and not (np.isfinite(aperture) and 0 < aperture <= np.pi):
+        raise ValueError(f"aperture must be a full integration angle in (0, pi] radians, got {aperture}")
     if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or not 2 <= factor <= 16:
         raise ValueError(f"factor (children a merge) must be an integer in [2, 16], got {factor!r}")
     if not (isinstance(tolerance, (int, float, np.floating)) and np.isfinite(tolerance) and 0 < tolerance < 1):
