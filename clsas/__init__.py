@@ -7,6 +7,7 @@ from .estimate.moving import estimate as estimate_motion
 from .estimate.moving import focus as focus_moving
 from .image.backprojection import backproject
 from .image.csa import chirp_scaling
+from .image.ffbp import ffbp
 from .image.inclined import correct_inclined_array
 from .image.multireceiver import pca_record
 from .image.omegak import omega_k
@@ -46,6 +47,7 @@ __all__ = [
                              "chirp_scaling",
                              "correct_inclined_array",
                              "estimate_motion",
+                             "ffbp",
                              "focus_moving",
                              "line_record",
                              "load",
