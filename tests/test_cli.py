@@ -91,6 +91,9 @@ def test_simulate_image_plot_workflow(tmp_path, opencl_device, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert cli.main(["--no-progress", "image", "echo.nc", "--algorithm", "omegak", "-o", "wk.zarr"]) == 0
     assert io.load(tmp_path / "wk.zarr").dims == ("y", "x")
+    assert cli.main(["--no-progress", "image", "echo.nc", "-a", "ffbp", "--grid", "39.5:40.5:0.05,1.5:2.5:0.05,0",
+                     "-o", "ffbp.nc"]) == 0
+    assert io.load(tmp_path / "ffbp.nc").shape == (20, 20)
     assert cli.main(["plot", "echo.nc"]) == 0
     assert (tmp_path / "echo.png").stat().st_size > 10_000
 

@@ -17,7 +17,7 @@ from ._common import UsageError, parse_grid, write_png
 
 log = logging.getLogger("clsas")
 
-ALGORITHMS = ("bp", "omegak", "rda", "csa")
+ALGORITHMS = ("bp", "ffbp", "omegak", "rda", "csa")
 DEFAULT_MAX_PIXELS = 512 * 512
 
 
@@ -59,10 +59,11 @@ def run_simulate(args) -> int:
 def add_image_arguments(parser) -> None:
     parser.add_argument("echo", metavar="ECHO", help="an echo file written by `clsas simulate` or clsas.save")
     parser.add_argument("--algorithm", "-a", choices=ALGORITHMS, default="bp",
-                        help="bp: back-projection (any geometry); omegak, rda, csa: straight-track "
+                        help="bp: back-projection (any geometry); ffbp: fast factorised back-projection; "
+                             "omegak, rda, csa: straight-track "
                              "frequency-domain imagers (several receivers are first merged by PCA)")
     parser.add_argument("--grid", default=None,
-                        help="bp only: X0:X1:DX,Y0:Y1:DY,Z in metres (across track, along track, plane height); "
+                        help="bp and ffbp: X0:X1:DX,Y0:Y1:DY,Z in metres (across track, along track, plane height); "
                              "default: the recorded ranges and the track's span at the track's depth, "
                              f"at most {DEFAULT_MAX_PIXELS} pixels")
     parser.add_argument("--window", default=None, help="range window: none, hamming, taylor, kaiser")
@@ -109,6 +110,7 @@ def run_image(args) -> int:
     from ..data import EchoData
     from ..image import backproject, range_compress
     from ..image.csa import chirp_scaling
+    from ..image.ffbp import ffbp
     from ..image.multireceiver import pca_record
     from ..image.omegak import omega_k
     from ..image.rda import range_doppler
@@ -123,13 +125,14 @@ def run_image(args) -> int:
         echo = range_compress(echo, window=args.window or "none")
     elif args.window:
         raise UsageError(f"{args.echo} is already range-compressed; --window applies to raw echoes")
-    if args.algorithm == "bp":
+    if args.algorithm in ("bp", "ffbp"):
         grid = parse_grid(args.grid) if args.grid else default_grid(echo)
-        what = f"back-projection onto {grid.shape[0]} x {grid.shape[1]} pixels"
-        image = backproject(echo, grid, backend=args.backend, progress=args.progress)
+        what = f"{args.algorithm} onto {grid.shape[0]} x {grid.shape[1]} pixels"
+        imager = backproject if args.algorithm == "bp" else ffbp
+        image = imager(echo, grid, backend=args.backend, progress=args.progress)
     else:
         if args.grid:
-            raise UsageError("--grid applies to --algorithm bp only (the frequency-domain imagers have their own grid)")
+            raise UsageError("--grid applies to --algorithm bp and ffbp only (the frequency-domain imagers have their own grid)")
         record = pca_record(echo, backend=args.backend) if echo.n_rx > 1 else echo
         imager = {"omegak": omega_k, "rda": range_doppler, "csa": chirp_scaling}[args.algorithm]
         image = imager(record, elements=_elements(args.elements), backend=args.backend)
