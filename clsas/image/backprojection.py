@@ -78,6 +78,23 @@ SPAN_FACTOR = 2.5  # a tile's delay span is +-SPAN_FACTOR * half_extent / c arou
 REF_PULSES = 64  # pulses whose tile references are computed at once
 
 
+def _pulse_span(pulses, n_pulses: int) -> tuple[int, int]:
+    """(start, stop) of the consecutive pulses to sum, or a ValueError naming ``pulses``."""
+    if pulses is None:
+        return 0, n_pulses
+    if isinstance(pulses, (range, slice)):
+        step = 1 if pulses.step is None else pulses.step
+        start, stop = pulses.start or 0, n_pulses if pulses.stop is None else pulses.stop
+    elif isinstance(pulses, (tuple, list)) and len(pulses) == 2:
+        (start, stop), step = pulses, 1
+    else:
+        raise ValueError(f"pulses must be None, (start, stop), a range or a slice of consecutive pulses, got {pulses!r}")
+    ok = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in (start, stop, step))
+    if not ok or step != 1 or not 0 <= start < stop <= n_pulses:
+        raise ValueError(f"pulses must select consecutive pulses start < stop within [0, {n_pulses}], got {pulses!r}")
+    return int(start), int(stop)
+
+
 def _check_call(grid, aperture):
     if not isinstance(grid, (Grid, GridPlan)):
         raise TypeError(f"grid must be a clsas.data.Grid (Grid.plane, Grid.slant or Grid.points) or a GridPlan, got "
@@ -119,7 +136,8 @@ def _sample(records: np.ndarray, i: np.ndarray, frac: np.ndarray, interp: str) -
     return np.where((i >= 3) & (i < n - 4), out, 0)
 
 
-def backproject_reference(records: PreparedRecords, plan: "GridPlan", aperture, velocity, stop_and_go, progress):
+def backproject_reference(records: PreparedRecords, plan: "GridPlan", aperture, velocity, stop_and_go, progress,
+                          span: tuple[int, int]):
     """The float64 NumPy reference (vectorised over pixels, at most 2^20 pixels and a few pulses
     at a time): image (M,) complex128. The sample index of a delay tau is k = (tau - t0) fs,
     split into floor(k) and its fraction before the records' offset (an integer) is taken off,
@@ -130,8 +148,8 @@ def backproject_reference(records: PreparedRecords, plan: "GridPlan", aperture, 
     f0, fs = echo.waveform.f0, records.fs
     chunk = min(pixels.shape[0], 2**20)
     block = max(1, 2**22 // chunk)
-    jobs = [(i, h, np.arange(s, min(s + block, echo.n_pulses))) for i, h in enumerate(records.receivers)
-            for s in range(0, echo.n_pulses, block)]
+    jobs = [(i, h, np.arange(s, min(s + block, span[1]))) for i, h in enumerate(records.receivers)
+            for s in range(span[0], span[1], block)]
     for i, h, pulses in tqdm(jobs, desc="back-projection (numpy)", disable=not progress):
         samples = records.samples(i, pulses).astype(np.complex128)
         for first in range(0, pixels.shape[0], chunk):
@@ -262,7 +280,7 @@ class _Chunk:
 
 
 def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,
-                       double=False):
+                       span: tuple[int, int], double=False):
     """The kernels/backprojection.cl launcher: image (M,) complex128, how many (chunk, receiver,
     pulse block) jobs ran on the exact double kernel, and the kernels' own time (s, from the
     queue's profiling events).
@@ -317,8 +335,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     tiles = plan.tiling(f0, c)
     chunk = PIXEL_CHUNK // (LANES * ROWS) * (LANES * ROWS)
     upload = records.upload_pulses()
-    jobs = [(first, i, np.arange(s, min(s + upload, echo.n_pulses))) for first in range(0, tiles.order.size, chunk)
-            for i in range(len(records.receivers)) for s in range(0, echo.n_pulses, upload)]
+    jobs = [(first, i, np.arange(s, min(s + upload, span[1]))) for first in range(0, tiles.order.size, chunk)
+            for i in range(len(records.receivers)) for s in range(span[0], span[1], upload)]
     tolerance = NODE_TOLERANCE * echo.waveform.wavelength(echo.medium)
     fallbacks, chunk_state, in_flight, kernel_seconds = 0, None, [], 0.0
 
@@ -345,7 +363,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                 chunk_state.finish(queue, image)
             chunk_state = _Chunk(ctx, plan, f0, c, first, min(first + chunk, tiles.order.size), v_k)
         kernel_seconds += retire(1)
-        records_buf, n_samples = records.buffer(ctx, i, pulses, double)
+        records_buf, n_samples, base = records.buffer(ctx, i, pulses, double)
+        skip = int(pulses[0] - base)  # the job's first pulse in the buffer (which may hold earlier pulses)
         in_flight.append(events := [])
         exact = None
         for s in range(0, pulses.size, REF_PULSES):
@@ -360,18 +379,19 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                     for p0, count in blocks:
                         events.append(tile_kernel(
                             queue, (chunk_state.n // (LANES * ROWS),), None, chunk_state.pix, chunk_state.tile_of,
-                            ref_buf, np.int32(ref.shape[1]), np.int32(s), records_buf, taps_buf, tile_params,
-                            np.int32(p0), np.int32(count), np.int32(n_samples), np.int32(chunk_state.n),
+                            ref_buf, np.int32(ref.shape[1]), np.int32(skip + s), records_buf, taps_buf, tile_params,
+                            np.int32(skip + p0), np.int32(count), np.int32(n_samples), np.int32(chunk_state.n),
                             chunk_state.image))
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)
-                exact = _exact_kernel(ctx, echo, h, pulses, fs, offset, velocity, half_sin, defines, stop_and_go,
-                                      double)
+                # pulse and node buffers indexed like the records buffer (from its first pulse)
+                exact = _exact_kernel(ctx, echo, h, np.arange(base, pulses[-1] + 1), fs, offset, velocity, half_sin,
+                                      defines, stop_and_go, double)
             kern, pulse_buf, nodes_buf, params = exact
             for p0, count in blocks:
                 events.append(kern(queue, (chunk_state.n // 8,), None, chunk_state.absolute(ctx, pixels), pulse_buf,
-                                   nodes_buf, records_buf, taps_buf, params, np.int32(p0), np.int32(count),
+                                   nodes_buf, records_buf, taps_buf, params, np.int32(skip + p0), np.int32(count),
                                    np.int32(n_samples), np.int32(chunk_state.n), chunk_state.image))
     chunk_state.finish(queue, image)
     return image, fallbacks, kernel_seconds + retire(0)
@@ -379,7 +399,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
 
 def backproject(echo, grid, backend: str | None = None, receivers=None, interp: str | None = None,
                 upsample: int | None = None, aperture: float | None = None, target_velocity=None,
-                stop_and_go: bool = False, precision: str = "single", progress: bool = True) -> Image:
+                stop_and_go: bool = False, precision: str = "single", progress: bool = True,
+                pulses=None) -> Image:
     """Back-project range-compressed echoes onto ``grid`` (see the module docstring).
 
     Parameters
@@ -407,6 +428,10 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
         Use stop-and-go delays (all positions at the emission time).
     precision : {"single", "double"}
         The OpenCL kernel's data path (delays and carrier cycles are double either way).
+    pulses : (start, stop), range or slice of consecutive pulses, optional
+        Sum only pulses start .. stop - 1 (a sub-aperture, e.g. the first stage of a factorised
+        back-projection: prepare the records once, image each sub-aperture on its own grid).
+        Default: all.
 
     Returns
     -------
@@ -440,9 +465,10 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
         chosen, velocity = check_options(echo, receivers, interp, upsample, target_velocity)
         records = PreparedRecords(echo, chosen, interp, upsample, fast_time_spans(echo, chosen, plan.grid, velocity),
                                   materialise=False)
+    span = _pulse_span(pulses, records.echo.n_pulses)
     double = _backend.check_precision(precision)
     name = _backend.resolve(backend)
-    args = (records, plan, aperture, velocity, stop_and_go, progress)
+    args = (records, plan, aperture, velocity, stop_and_go, progress, span)
     if name == "numpy":
         flat, fallbacks, kernel_seconds = backproject_reference(*args), 0, None
     else:
@@ -456,4 +482,5 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
                              "aperture": aperture, "target_velocity": velocity.tolist(),
                              "stop_and_go": bool(stop_and_go), "exact_fallback_blocks": fallbacks,
                              "prepared_records": records.materialised, "kernel_seconds": kernel_seconds,
+                             "pulses": list(span),
                              "echo": dict(source.provenance)})

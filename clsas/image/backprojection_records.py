@@ -236,29 +236,28 @@ class PreparedRecords:
         return self._make(i, pulses)
 
     def buffer(self, ctx, i: int, pulses: np.ndarray, double: bool):
-        """(device buffer of :meth:`samples` (complex128 when ``double``), samples per record).
-        Materialised records keep one buffer per (receiver, precision) and ``pulses`` must then be
-        all pulses; others build a buffer for the block and drop it with the call."""
+        """(device buffer of receiver ``receivers[i]``'s records (complex128 when ``double``),
+        samples per record, the buffer's first pulse). Materialised records keep one buffer of all
+        pulses per (receiver, precision); others build one for the consecutive ``pulses`` and drop
+        it with the call."""
         import pyopencl as cl
 
         mf = cl.mem_flags
         dtype = np.complex128 if double else np.complex64
         if self._host is not None:
-            if pulses[0] != 0 or pulses.size != self.echo.n_pulses:
-                raise ValueError("materialised records are uploaded whole: pass all pulses")
             key = (int(ctx.int_ptr), self.receivers[i], bool(double))
             if key not in self._device:
                 host = self._host[i] if not double else self._host[i].astype(np.complex128)
                 host.flags.writeable = False
                 self._device[key] = (cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=host), host)
-            return self._device[key][0], self._host[i].shape[1]
+            return self._device[key][0], self._host[i].shape[1], 0
         records = self.samples(i, pulses)
         if records.dtype == dtype and records.flags.c_contiguous and records.base is not None:
             # a view of the echo itself (no upsampling, no cut): the device reads it in place; the
             # call finishes its queue before it returns, and the echo outlives the call
-            return cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=records), records.shape[1]
+            return cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=records), records.shape[1], int(pulses[0])
         records = np.ascontiguousarray(records, dtype=dtype)
-        return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=records), records.shape[1]
+        return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=records), records.shape[1], int(pulses[0])
 
     def subset(self, chosen) -> "PreparedRecords":
         """The same records for the receivers ``chosen`` (echo indices, all prepared), in that
@@ -273,8 +272,8 @@ class PreparedRecords:
         return part
 
     def upload_pulses(self) -> int:
-        """Pulses a call uploads at once: all for materialised records, else as many as fill
-        UPLOAD_BYTES (at least 64)."""
+        """Pulses a call's job covers: all for materialised records (their buffers hold every
+        pulse), else as many as fill UPLOAD_BYTES (at least 64)."""
         if self._host is not None:
             return self.echo.n_pulses
         per_pulse = 16 * max(1, int(np.max(self.length)))
