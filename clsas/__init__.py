@@ -1,6 +1,7 @@
 """clsas: synthetic aperture sonar simulation and imaging (OpenCL kernels, NumPy references)."""
 
 from .backend import use_backend
+from .budget import memory_budget, use_memory_budget
 from .data import EchoData, Grid, Image
 from .image.backprojection import backproject
 from .image.csa import chirp_scaling
@@ -40,6 +41,7 @@ __all__ = [
                              "chirp_scaling",
                              "line_record",
                              "load",
+                             "memory_budget",
                              "omega_k",
                              "pca_record",
                              "range_compress",
@@ -47,5 +49,6 @@ __all__ = [
                              "save",
                              "simulate",
                              "use_backend",
+                             "use_memory_budget",
 ]
 __version__ = "0.1.0"
