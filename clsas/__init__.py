@@ -9,7 +9,7 @@ from .image.multireceiver import pca_record
 from .image.omegak import omega_k
 from .image.rangecomp import range_compress
 from .image.rda import range_doppler
-from .image.track import line_record
+from .image.record import line_record
 from .io import load, save
 from .scene.scenario import (
                              Array,

@@ -14,7 +14,7 @@
  *     e = (v_r - v) s1 - delta,  s2 = N2 / (b2 + sqrt(b2^2 + a2 N2)),
  *     N2 = 2 C.e + |e|^2,  b2 = c^2 t2_ref - (C + e).v_r,  a1 = c^2 - |v|^2,  a2 = c^2 - |v_r|^2,
  *   so that every float error scales with |delta|, not with the range.
- * bp_block (otherwise): the exact delays in double per pixel and pulse (geometry8.h), eight
+ * bp_block (otherwise): the exact delays in double per pixel and pulse (geometry.h), eight
  *   pixels (double8 lanes) a work-item; precision="double" (with CLSAS_DOUBLE) and the
  *   fallback of precision="single" when a receiver's motion is not linear over a tile.
  *
@@ -27,7 +27,7 @@
  * the double image at the end (blocked sum).
  *
  * Defines: BP_TILE (with ROWS, MOVING when the pixels move), or N_NODES and SEGMENT_PASSES
- * (geometry8.h) and STOP_AND_GO for bp_block; INTERP_LINEAR or INTERP_SINC8 (with TAP_ROWS);
+ * (geometry.h) and STOP_AND_GO for bp_block; INTERP_LINEAR or INTERP_SINC8 (with TAP_ROWS);
  * APERTURE (keep |sin theta| off broadside <= sin(aperture / 2), theta measured from the x-z
  * plane); CLSAS_DOUBLE (bp_block's data, phases and sums in double: precision="double").
  * Portable OpenCL C 1.2: no vendor builtins. Measured and dropped on this CPU (AVX-512, PoCL 3.1):
@@ -210,7 +210,7 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
 }
 
 #else /* bp_block: exact double geometry */
-#include "geometry8.h"
+#include "geometry.h"
 
 /* params: c, f0, fs (of the data), dtau (node spacing), vx, vy, vz (target velocity),
  * sin of half the integration angle (APERTURE) */

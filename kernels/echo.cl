@@ -1,6 +1,6 @@
 /* Echo synthesis: exact two-way delays, path amplitudes, and accumulation of the LFM echoes.
  *
- * NumPy twin: clsas/simulate/echo/synth.py (accumulate_reference) and clsas/simulate/geometry.py
+ * NumPy twin: clsas/simulate/echo/synth.py (accumulate_reference) and clsas/geometry.py
  * (paths); the launcher is clsas/simulate/echo/synth.py (_OpenCLSynth).
  *
  * Three kernels per chunk of pulses:
@@ -28,7 +28,7 @@
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #include "common.h"
-#include "geometry8.h"
+#include "geometry.h"
 
 /* One path = (start, frac, amplitude re, im) in one vector: a single 16-byte (float) or
  * 32-byte (double) load per scatterer in the accumulation. In float the integer start is

@@ -11,7 +11,8 @@ from _line_scenes import huang_six, mono_grid
 
 import clsas
 from clsas import metrics
-from clsas.image.multireceiver import path_excess, pca_record
+from clsas.image.multireceiver import pca_record
+from clsas.image.record import path_excess
 from clsas.image.omegak import omega_k
 from clsas.scene import presets
 

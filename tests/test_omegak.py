@@ -9,7 +9,7 @@ from _line_scenes import MONO_D, assert_agrees_with_backprojection, huang_six, m
 
 from clsas import metrics
 from clsas.image.omegak import omega_k
-from clsas.image.track import line_record
+from clsas.image.record import line_record
 
 
 @pytest.mark.parametrize("scene", ["mono", "huang"])

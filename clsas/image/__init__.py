@@ -14,7 +14,7 @@ from .rangecomp import (
 )
 from .rda import range_doppler
 from .stolt import stolt
-from .track import LineRecord, line_record
+from .record import LineRecord, line_record
 
 __all__ = ["WINDOWS", "LineRecord", "backproject", "chirp_scaling", "lfm_replica", "line_record", "matched_filter",
            "omega_k", "pca_record", "range_compress", "range_doppler", "spectral_window", "stolt", "upsample_records"]

@@ -53,8 +53,7 @@ from .. import backend as _backend
 from .. import opencl
 from ..data import EchoData, Grid, Image
 from ..kernelmath import kaiser_sinc_tap
-from ..scene.targets import Scatterers
-from ..simulate import geometry
+from ..geometry import legs, two_node_velocity, uniform_nodes
 from .rangecomp import upsample_records
 
 INTERPOLATORS = ("linear", "sinc8")
@@ -92,42 +91,6 @@ def _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velo
     if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) >= 100:
         raise ValueError(f"target_velocity must be a finite 3-vector slower than 100 m/s, got {target_velocity!r}")
     return chosen, v
-
-
-def _two_node_velocity(echo: EchoData, h: int, pulses: np.ndarray) -> np.ndarray:
-    """(len(pulses), 3) m/s: the uniform velocity of receiver h, which has two position nodes."""
-    pos = echo.rx_pos[h][pulses]
-    return (pos[:, 1] - pos[:, 0]) / (echo.rx_tau[h][1] - echo.rx_tau[h][0])
-
-
-def legs(echo: EchoData, h: int, pulses: np.ndarray, pixels: np.ndarray, velocity: np.ndarray,
-         stop_and_go: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The exact legs from the pulses' transmitters to the M pixels and back to receiver h
-    (float64, :mod:`clsas.simulate.geometry`): t1 (len(pulses), M) s, where the pulses
-    meet the pixels q (len(pulses), M, 3) m, t2 (len(pulses), M) s and the receiver at reception
-    (len(pulses), M, 3) m. The two-way delay is t1 + t2. With a receiver of two nodes (uniform
-    motion) both legs are :func:`geometry.meet_time`'s closed form, else fixed points."""
-    c = echo.medium.sound_speed
-    eta = echo.eta[pulses]
-    if not stop_and_go and echo.rx_tau[h].size == 2:
-        # the target and a two-node receiver move uniformly: both fixed points in closed form
-        tx = echo.tx_pos[pulses]
-        q_emit = pixels[None] + velocity * eta[:, None, None]
-        t1 = geometry.meet_time(q_emit - tx[:, None, :], velocity, c)
-        q = q_emit + velocity * t1[..., None]
-        v_r = _two_node_velocity(echo, h, pulses)[:, None, :]
-        r_scatter = echo.rx_position(h, t1, pulses=pulses)  # the receiver when the pulse meets the pixel
-        t2 = geometry.meet_time(r_scatter - q, v_r, c)
-        return t1, q, t2, r_scatter + v_r * t2[..., None]
-    tol = geometry.iteration_tolerance(echo.waveform.f0)
-    targets = Scatterers(pixels, np.broadcast_to(velocity, pixels.shape), np.ones(pixels.shape[0], complex))
-    t1, q = geometry.outgoing(echo.tx_pos[pulses], eta, targets, c, tol, stop_and_go)
-
-    def receiver(t):
-        return echo.rx_position(h, t - eta.reshape((-1,) + (1,) * (t.ndim - 1)), pulses=pulses)
-
-    t2, r = geometry.incoming(receiver, eta, t1, q, c, tol, stop_and_go)
-    return t1, q, t2, r
 
 
 def _aperture_keep(echo, pulses, q, half_sin):
@@ -195,17 +158,6 @@ def _tap_table() -> np.ndarray:
     (for the real and the imaginary part of a sample; kernels/backprojection.cl sinc8_lane)."""
     frac = np.linspace(0.0, 1.0, TAP_ROWS)[:, None]
     return np.repeat(kaiser_sinc_tap(frac - np.arange(-3, 5)[None, :], 4.0, SINC_BETA), 2, axis=1).astype(np.float32)
-
-
-def _uniform_nodes(echo: EchoData, h: int):
-    nodes = echo.rx_tau[h]
-    if nodes.size == 1:
-        return 1.0, np.repeat(echo.rx_pos[h], 2, axis=1)
-    step = nodes[1] - nodes[0]
-    if nodes[0] != 0 or not np.allclose(np.diff(nodes), step, rtol=1e-9, atol=0):
-        raise ValueError("the OpenCL back-projection needs receiver nodes (EchoData.rx_tau) uniformly spaced "
-                         "from 0 (as clsas.simulate makes them); use backend='numpy' for other node layouts")
-    return step, echo.rx_pos[h]
 
 
 def tile_half_extent(f0: float, c: float) -> float:
@@ -289,13 +241,13 @@ def tile_references(echo: EchoData, h: int, pulses: np.ndarray, centres: np.ndar
     departure = 0.0
     if not stop_and_go and echo.rx_tau[h].size == 2:
         # uniform motion: the secant over any span is the receiver's velocity
-        v_r[:] = _two_node_velocity(echo, h, pulses)[:, None, :]
+        v_r[:] = two_node_velocity(echo, h, pulses)[:, None, :]
     elif not stop_and_go and echo.rx_tau[h].size > 2:
         # secant of the receiver over the delay span T_ref +- span; the kernel's line passes through R_ref
         span = SPAN_FACTOR * half_extent / c
         ends = echo.rx_position(h, big_t[..., None] + [-span, span], pulses=pulses)
         v_r = (ends[..., 1, :] - ends[..., 0, :]) / (2 * span)
-        dtau, _ = _uniform_nodes(echo, h)
+        dtau, _ = uniform_nodes(echo, h)
         # the piecewise-linear track departs from the line most at its nodes or the span's ends
         steps = np.arange(int(np.ceil(2 * span / dtau)) + 2)
         times = np.clip((np.floor((big_t - span) / dtau)[..., None] + steps) * dtau,
@@ -325,7 +277,7 @@ def _exact_kernel(ctx, echo, h, pulses, fs, velocity, half_sin, defines, stop_an
     receiver-node buffers and its parameters (layouts in kernels/backprojection.cl)."""
     import pyopencl as cl
 
-    dtau, pos = _uniform_nodes(echo, h)
+    dtau, pos = uniform_nodes(echo, h)
     n_nodes = pos.shape[1]
     kern = opencl.kernel("backprojection", "bp_block", double=double, defines=dict(
         defines, N_NODES=n_nodes, SEGMENT_PASSES=1 if n_nodes == 2 else 3, **({"STOP_AND_GO": 1} if stop_and_go else {})))
@@ -409,7 +361,7 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
 
     ``precision="single"`` (bp_tile): float32 geometry relative to a reference per (tile, pulse).
     Derivation. Let the tile's reference point meet pulse p at t1_ref, at q_ref (exact, float64,
-    :func:`legs`), and its echo reach the receiver at T_ref = t1_ref + t2_ref, at R_ref; let
+    :func:`clsas.geometry.legs`), and its echo reach the receiver at T_ref = t1_ref + t2_ref, at R_ref; let
     B = q_ref - tx (|B| = c t1_ref) and C = R_ref - q_ref (|C| = c t2_ref). A pixel of the tile
     sits at delta from the reference point and moves with it at v, so it meets the pulse at
     q = q_ref + delta + v s1 with s1 = t1 - t1_ref; c t1 = |q - tx| gives

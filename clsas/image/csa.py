@@ -2,7 +2,7 @@
 Synthetic Aperture Radar Data" (Artech House, 2005), chapter 7 (eqs. 7.17-7.33 there).
 
 Chirp scaling works on the uncompressed chirp: a range-compressed
-:class:`~clsas.image.track.LineRecord` is first re-spread by the chirp's own spectral phase,
+:class:`~clsas.image.record.LineRecord` is first re-spread by the chirp's own spectral phase,
 exp(-j pi f_tau^2 / K) (the stationary-phase spectrum of rect(t/T) exp(j pi K t^2), Heremans
 2009 eq. 22), with the range axis zero-padded by the pulse length so the spread chirps do not
 wrap. Then, with D(k_u) = sqrt(1 - (k_u / 2 k0)^2) (C&W's migration factor with
@@ -28,8 +28,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft
 
-from .omegak import as_record, azimuth_weights, check_elements
-from .track import image_of, nonstop_shift
+from .record import along_track_wavenumbers, as_record, azimuth_weights, check_elements, image_of, nonstop_shift
 
 
 def chirp_scaling(data, receiver=0, elements=None, deconvolve: bool = True, window: str = "none", depth: float | None = None,
@@ -47,7 +46,7 @@ def chirp_scaling(data, receiver=0, elements=None, deconvolve: bool = True, wind
     k0 = 2 * np.pi * f0 / c
     n_r = scipy.fft.next_fast_len(rec.n_samples + int(np.ceil(rec.waveform.duration * fs)))
     n_ku = scipy.fft.next_fast_len(rec.n_u)
-    ku = 2 * np.pi * np.fft.fftfreq(n_ku, rec.du)
+    ku = along_track_wavenumbers(rec, n_ku)
     f = np.fft.fftfreq(n_r, 1 / fs)
     tau = rec.t0 + np.arange(n_r) / fs
     r0 = c * tau / 2

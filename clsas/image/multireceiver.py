@@ -9,7 +9,7 @@ a monostatic path seen from the phase centre u = v t + d_i / 2 (plus the non-sto
 shift v r / c, common to all receivers) and a path excess e_i(r) = (2 v r / c + d_i)^2 / (4 r)
 (Heremans 2009 eq. 49's sigma^2 / (4 r) at broadside, with the motion during the echo's travel
 added). Its phase (eq. 12, first term) and its delay (second term) are the bistatic
-deformation; :func:`compensate_bistatic` removes both on the range-compressed record
+deformation; :func:`clsas.image.record.compensate_bistatic` removes both on the range-compressed record
 (eqs. 16-17): each sample at fast time tau (range r = c tau / 2) is read at tau + e_i(r) / c
 (a windowed-sinc interpolation: the micro-range migration is range-variant) and multiplied by
 exp(+j 2 pi f0 e_i(r) / c) (eq. 16; the printed exponent lacks its j). The third term of
@@ -29,36 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..data import EchoData
-from .stolt import resample
-from .track import LineRecord, check_straight_track, made_nonstop
-
-
-def path_excess(r, d: float, speed: float, c: float, nonstop: bool = True):
-    """e(r) = (2 v r / c + d)^2 / (4 r), m (Huang & Yang 2022 eq. 4; without the 2 v r / c term
-    for stop-and-go echoes)."""
-    r = np.asarray(r, dtype=np.float64)
-    lead = 2 * speed * r / c if nonstop else 0.0
-    return (lead + d) ** 2 / (4 * r)
-
-
-def compensate_bistatic(data, t0: float, fs: float, d: float, speed: float, waveform, medium,
-                        t0_out: float | None = None, nonstop: bool = True, backend: str | None = None) -> np.ndarray:
-    """Remove the bistatic deformation (Huang & Yang eqs. 16-17) from the compressed records
-    ``data`` (n_pulses, n) of a receiver d metres ahead of the transmitter, sampled from fast
-    time ``t0`` at ``fs``; the output is sampled from ``t0_out`` (default ``t0``) on the same
-    number of samples; ``backend`` runs the interpolation (:func:`clsas.image.stolt.resample`).
-    complex64 (n_pulses, n)."""
-    c = medium.sound_speed
-    n = data.shape[1]
-    t_out = (t0 if t0_out is None else t0_out) + np.arange(n) / fs
-    r = c * t_out / 2
-    # samples before the emission (t0 may be negative) hold no echo: no excess there
-    excess = np.where(r > 0, path_excess(np.where(r > 0, r, 1.0), d, speed, c, nonstop), 0.0)
-    idx = (t_out + excess / c - t0) * fs  # the same for every pulse
-    phase = np.exp(2j * np.pi * waveform.f0 * excess / c)
-    oversampling = fs / waveform.bandwidth
-    shifted = resample(data, idx, "sinc8", oversampling=max(oversampling, 1.01), backend=backend)
-    return (shifted * phase).astype(np.complex64)
+from .record import LineRecord, check_straight_track, compensate_bistatic, made_nonstop
 
 
 def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and_go: bool | None = None,

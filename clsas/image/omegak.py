@@ -1,6 +1,6 @@
 """The wavenumber (omega-k) imager: Heremans, Dupont & Acheroy 2009, section 4, eqs. (40)-(47).
 
-On a :class:`~clsas.image.track.LineRecord` s(tau, u) (range-compressed, so the P_b^* of
+On a :class:`~clsas.image.record.LineRecord` s(tau, u) (range-compressed, so the P_b^* of
 eq. 42 is already applied), with k = 2 pi (f0 + f_b) / c:
 
 1. 2-D FFT (scipy.fft, ``workers`` threads): S(f_b, k_u). The range FFT starts at the record's
@@ -23,14 +23,14 @@ eq. 42 is already applied), with k = 2 pi (f0 + f_b) / c:
 5. Inverse FFT over k_x' (column j at r = r0 + (j - n/2) c / (2 fs)), the phase
    exp(+i (k_x'_first + 2 k0)(r - r0)) that makes a focused point's phase zero (as
    back-projection's), the non-stop-and-go along-track shift (Huang & Yang 2022 eq. 25,
-   :func:`clsas.image.track.nonstop_shift`), and the inverse FFT over k_y.
+   :func:`clsas.image.record.nonstop_shift`), and the inverse FFT over k_y.
 
 Resolution (eq. 47): delta x = alpha_w c / (2 B), delta y = alpha_w D / 2, alpha_w = 0.886 for
 no window and 1.30 for Hamming.
 
 What stays approximate with non-stop-and-go data: the receiver's motion during the echo is
 taken as the constant shift v r / c at the target's range and the path excess of
-:func:`clsas.image.multireceiver.path_excess` at the sample's range (second order in v / c).
+:func:`clsas.image.record.path_excess` at the sample's range (second order in v / c).
 """
 
 from __future__ import annotations
@@ -38,46 +38,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft
 
-from ..data import EchoData
 from .rangecomp import WINDOWS, spectral_window
+from .record import along_track_wavenumbers, as_record, azimuth_weights, check_elements, image_of, nonstop_shift, unit_phasor
 from .stolt import StoltAxes, check_options, stolt
-from .track import LineRecord, image_of, line_record, nonstop_shift, unit_phasor
-
-
-def as_record(data, receiver=0, backend: str | None = None) -> LineRecord:
-    """A LineRecord as is, or the monostatic record of an EchoData (:func:`clsas.image.track.line_record`,
-    its interpolation on ``backend``)."""
-    if isinstance(data, LineRecord):
-        return data
-    if isinstance(data, EchoData):
-        return line_record(data, receiver, backend=backend)
-    raise TypeError(f"expected a LineRecord or a monostatic EchoData, got {type(data).__name__}")
-
-
-def check_elements(elements, rec: LineRecord):
-    """(L_tx, L_rx) in metres or None; the along-track sampling must resolve the extracted band."""
-    if elements is None:
-        return None
-    lengths = np.broadcast_to(np.asarray(elements, dtype=np.float64), (2,))
-    if not np.all(np.isfinite(lengths)) or np.any(lengths <= 0):
-        raise ValueError(f"elements must be the positive along-track lengths (L_tx, L_rx) in m, got {elements!r}")
-    if 2 * np.pi / lengths.max() > np.pi / rec.du * (1 + 1e-9):
-        raise ValueError(f"elements {tuple(lengths)}: the band |k_y| <= 2 pi / D needs along-track samples at most "
-                         f"D / 2 = {lengths.max() / 2:.4g} m apart, the record has {rec.du:.4g} m")
-    return tuple(float(v) for v in lengths)
-
-
-def azimuth_weights(ku: np.ndarray, elements, window: str, deconvolve: bool = True, **window_options) -> np.ndarray:
-    """rect(k_y / B_ky) W(k_y / B_ky) / A(k_y) per row (Heremans eq. 44; without the 1 / A(k_y)
-    when not ``deconvolve``); without elements only the window over the sampled band."""
-    if elements is None:
-        band = 2 * np.abs(ku).max() if ku.size > 1 else 1.0
-        return spectral_window(ku / band, window, **window_options)
-    d = max(elements)
-    pattern = np.sinc(elements[0] * ku / (4 * np.pi)) * np.sinc(elements[1] * ku / (4 * np.pi)) if deconvolve else 1.0
-    inside = np.abs(ku) <= 2 * np.pi / d
-    return np.where(inside, spectral_window(ku / (4 * np.pi / d), window, **window_options)
-                    / np.where(inside, pattern, 1.0), 0.0)
 
 
 def omega_k(data, receiver=0, window: str = "hamming", elements=None, deconvolve: bool = True, interp: str = "sinc8",
@@ -115,7 +78,7 @@ def omega_k(data, receiver=0, window: str = "hamming", elements=None, deconvolve
     n_r = scipy.fft.next_fast_len(rec.n_samples)
     n_ku = scipy.fft.next_fast_len(rec.n_u)
     f = (np.arange(n_r) - n_r // 2) * fs / n_r
-    ku = 2 * np.pi * np.fft.fftfreq(n_ku, rec.du)
+    ku = along_track_wavenumbers(rec, n_ku)
     k0 = 2 * np.pi * f0 / c
     k = 2 * np.pi * (f0 + f) / c
     r0 = c * (rec.t0 + rec.n_samples / (2 * fs)) / 2

@@ -1,6 +1,6 @@
 """Range-Doppler imaging with sub-block secondary range compression: Huang & Yang 2022, eqs. (19)-(25).
 
-On a range-compressed :class:`~clsas.image.track.LineRecord` (monostatic, or a multireceiver
+On a range-compressed :class:`~clsas.image.record.LineRecord` (monostatic, or a multireceiver
 record converted by :func:`clsas.image.multireceiver.pca_record`), with
 beta(k_u) = sqrt(1 - (k_u / 2 k0)^2) (eq. 20 with f_t = v k_u / (2 pi), so that
 lambda f_t / (2 v) = k_u / (2 k0)):
@@ -29,9 +29,8 @@ import itertools
 import numpy as np
 import scipy.fft
 
-from .omegak import as_record, azimuth_weights, check_elements
+from .record import along_track_wavenumbers, as_record, azimuth_weights, check_elements, image_of, nonstop_shift
 from .stolt import resample
-from .track import image_of, nonstop_shift
 
 
 def src_block_width(rec, beta_min: float) -> float:
@@ -64,7 +63,7 @@ def range_doppler(data, receiver=0, elements=None, deconvolve: bool = True, wind
     k0 = 2 * np.pi * f0 / c
     n_r = rec.n_samples
     n_ku = scipy.fft.next_fast_len(rec.n_u)
-    ku = 2 * np.pi * np.fft.fftfreq(n_ku, rec.du)
+    ku = along_track_wavenumbers(rec, n_ku)
     beta = np.sqrt(np.clip(1 - (ku / (2 * k0)) ** 2, 1e-6, None))
     tau = rec.t0 + np.arange(n_r) / fs
     r = c * tau / 2

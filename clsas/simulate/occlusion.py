@@ -6,7 +6,7 @@ it faces the transmitter (at its emission position) and the segment from the fac
 transmitter is free of the hull; it is heard by receiver h when it faces the receiver (at its
 reception position) and that segment is free too (Kiang & Kiang 2022, section VI and Fig. 17:
 the hull blocks scattered waves). The target moves: the rays are cast in its body frame at the
-facet's scattering time (eta + t1 of :mod:`clsas.simulate.geometry`), where the hull is fixed.
+facet's scattering time (eta + t1 of :mod:`clsas.geometry`), where the hull is fixed.
 Back-facing facets are dark without casting a ray. A path's weight is
 lit x heard x the target's angular law (:meth:`MeshTarget.angular_gain`).
 
@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..scene.targets import MeshTarget
-from . import geometry
+from .. import geometry
 from .window import has_motion_errors
 
 METHODS = ("embree", "reference")

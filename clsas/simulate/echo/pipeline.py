@@ -145,7 +145,7 @@ def _make_synth(scenario: Scenario, name: str, double: bool, occlusion, stop_and
 def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False) -> np.ndarray:
     """Exact two-way delays of every (receiver, pulse, scatterer) path, s, shape (H, P, N).
 
-    The NumPy backend iterates the fixed point of :mod:`clsas.simulate.geometry`; the OpenCL
+    The NumPy backend iterates the fixed point of :mod:`clsas.geometry`; the OpenCL
     kernel solves each leg in closed form (kernels/echo.cl, ``meet_time``) and returns the
     delay as the sample index it hands to the accumulation (float32 fraction: ~3e-12 s at 20 kHz).
     """

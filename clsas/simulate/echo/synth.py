@@ -5,7 +5,7 @@ Signal model (DESIGN.md): the baseband echo of path (receiver h, pulse p, scatte
 
     s(tau) = a rect((tau - tau_n) / T) exp(-j 2 pi f0 tau_n) exp(j pi K (tau - tau_n)^2),
 
-tau_n the exact two-way delay and a the path amplitude of :mod:`clsas.simulate.geometry`
+tau_n the exact two-way delay and a the path amplitude of :mod:`clsas.geometry`
 (times the occlusion factor). Fast time is sampled at ``t0_h + k / fs``; with
 ``u = (tau_n - t0_h) fs`` (the echo centre in samples) and ``d = k - u``, sample k receives
 ``a exp(-j 2 pi f0 tau_n) exp(j 2 pi alpha d^2)`` when ``|d| <= T fs / 2``, with
@@ -34,7 +34,7 @@ import numpy as np
 from ... import opencl
 from ...scene.scenario import Scenario
 from ...scene.targets import Scatterers
-from .. import geometry
+from ... import geometry
 
 CHUNK_SCATTERERS = 16  # scatterers per bounds chunk in the OpenCL accumulation
 ROWS = 8  # 16-sample rows per work-item of the OpenCL accumulation

@@ -1,16 +1,18 @@
-"""Straight-track, uniformly sampled monostatic records: what the frequency-domain imagers take.
+"""Straight-track, uniformly sampled monostatic records: what the frequency-domain imagers take,
+and the helpers all of them share (omega-k, range-Doppler, chirp scaling and the multireceiver
+conversion import from here; nothing here imports them).
 
 omega-k, range-Doppler and chirp scaling assume a monostatic sonar moving at constant speed
 along a straight line (y, the nominal heading) and sampling the aperture uniformly. A
 :class:`LineRecord` is such a record; :func:`line_record` makes one from a monostatic
 EchoData (after checking those assumptions, so that a track with motion errors is refused
 rather than imaged wrongly), and :func:`clsas.image.multireceiver.pca_record` makes one from a
-multireceiver EchoData.
+multireceiver EchoData; :func:`as_record` takes either.
 
 Non-stop-and-go: the receiver moves on while the echo travels, so a monostatic echo of a
 target at closest range r behaves as if sent and received at u + v r / c (Wu et al. 2018
 eq. 28; Huang & Yang 2022 eq. 4 with d_i = 0), plus a two-way path excess (2 v r / c)^2 / (4 r)
-(compensated by :func:`clsas.image.multireceiver.compensate_bistatic`, which every
+(compensated by :func:`compensate_bistatic`, which every
 :func:`line_record` applies when ``nonstop``). The imagers then undo the range-dependent
 along-track shift v r / c (Huang & Yang eq. 25).
 """
@@ -26,6 +28,8 @@ import scipy.fft
 
 from ..data import EchoData, Image
 from ..scene.scenario import Medium, Waveform
+from .rangecomp import spectral_window
+from .stolt import resample
 
 STRAIGHTNESS = 0.05  # allowed deviation of the track from a line, wavelengths
 
@@ -113,18 +117,42 @@ def made_nonstop(echo: EchoData, stop_and_go: bool | None) -> bool:
     return not (echo.provenance.get("stop_and_go", False) if stop_and_go is None else stop_and_go)
 
 
+def path_excess(r, d: float, speed: float, c: float, nonstop: bool = True):
+    """e(r) = (2 v r / c + d)^2 / (4 r), m (Huang & Yang 2022 eq. 4; without the 2 v r / c term
+    for stop-and-go echoes)."""
+    r = np.asarray(r, dtype=np.float64)
+    lead = 2 * speed * r / c if nonstop else 0.0
+    return (lead + d) ** 2 / (4 * r)
+
+
+def compensate_bistatic(data, t0: float, fs: float, d: float, speed: float, waveform, medium,
+                        t0_out: float | None = None, nonstop: bool = True, backend: str | None = None) -> np.ndarray:
+    """Remove the bistatic deformation (Huang & Yang eqs. 16-17) from the compressed records
+    ``data`` (n_pulses, n) of a receiver d metres ahead of the transmitter, sampled from fast
+    time ``t0`` at ``fs``; the output is sampled from ``t0_out`` (default ``t0``) on the same
+    number of samples; ``backend`` runs the interpolation (:func:`clsas.image.stolt.resample`).
+    complex64 (n_pulses, n)."""
+    c = medium.sound_speed
+    n = data.shape[1]
+    t_out = (t0 if t0_out is None else t0_out) + np.arange(n) / fs
+    r = c * t_out / 2
+    # samples before the emission (t0 may be negative) hold no echo: no excess there
+    excess = np.where(r > 0, path_excess(np.where(r > 0, r, 1.0), d, speed, c, nonstop), 0.0)
+    idx = (t_out + excess / c - t0) * fs  # the same for every pulse
+    phase = np.exp(2j * np.pi * waveform.f0 * excess / c)
+    oversampling = fs / waveform.bandwidth
+    shifted = resample(data, idx, "sinc8", oversampling=max(oversampling, 1.01), backend=backend)
+    return (shifted * phase).astype(np.complex64)
+
+
 def line_record(echo: EchoData, receiver=0, stop_and_go: bool | None = None, backend: str | None = None) -> LineRecord:
     """The monostatic record of ``receiver`` (index or name), which must sit with the transmitter.
 
     ``stop_and_go`` says how the echoes were made (default: ``echo.provenance["stop_and_go"]``,
     False when absent: clsas.simulate's exact delays). Non-stop-and-go records get the path
-    excess of Huang & Yang eq. (4) compensated (:func:`clsas.image.multireceiver.compensate_bistatic`
-    with d = 0, its interpolation on ``backend``); their along-track shift v r / c is left to
-    the imagers.
+    excess of Huang & Yang eq. (4) compensated (:func:`compensate_bistatic` with d = 0, its
+    interpolation on ``backend``); their along-track shift v r / c is left to the imagers.
     """
-    # imported here: multireceiver imports this module
-    from .multireceiver import compensate_bistatic
-
     if np.ndim(receiver) != 0:
         raise ValueError(f"receiver must be one index or name, got {receiver!r}")
     h = echo.select_receivers(receiver, "receiver")[0]
@@ -146,6 +174,42 @@ def line_record(echo: EchoData, receiver=0, stop_and_go: bool | None = None, bac
                       track=(track.x, track.z),
                       waveform=echo.waveform, medium=echo.medium, nonstop=nonstop,
                       provenance={"from": "line_record", "receiver": echo.receivers[h], "echo": dict(echo.provenance)})
+
+
+def as_record(data, receiver=0, backend: str | None = None) -> LineRecord:
+    """A LineRecord as is, or the monostatic record of an EchoData (:func:`line_record`,
+    its interpolation on ``backend``)."""
+    if isinstance(data, LineRecord):
+        return data
+    if isinstance(data, EchoData):
+        return line_record(data, receiver, backend=backend)
+    raise TypeError(f"expected a LineRecord or a monostatic EchoData, got {type(data).__name__}")
+
+
+def check_elements(elements, rec: LineRecord):
+    """(L_tx, L_rx) in metres or None; the along-track sampling must resolve the extracted band."""
+    if elements is None:
+        return None
+    lengths = np.broadcast_to(np.asarray(elements, dtype=np.float64), (2,))
+    if not np.all(np.isfinite(lengths)) or np.any(lengths <= 0):
+        raise ValueError(f"elements must be the positive along-track lengths (L_tx, L_rx) in m, got {elements!r}")
+    if 2 * np.pi / lengths.max() > np.pi / rec.du * (1 + 1e-9):
+        raise ValueError(f"elements {tuple(lengths)}: the band |k_y| <= 2 pi / D needs along-track samples at most "
+                         f"D / 2 = {lengths.max() / 2:.4g} m apart, the record has {rec.du:.4g} m")
+    return tuple(float(v) for v in lengths)
+
+
+def azimuth_weights(ku: np.ndarray, elements, window: str, deconvolve: bool = True, **window_options) -> np.ndarray:
+    """rect(k_y / B_ky) W(k_y / B_ky) / A(k_y) per row (Heremans eq. 44; without the 1 / A(k_y)
+    when not ``deconvolve``); without elements only the window over the sampled band."""
+    if elements is None:
+        band = 2 * np.abs(ku).max() if ku.size > 1 else 1.0
+        return spectral_window(ku / band, window, **window_options)
+    d = max(elements)
+    pattern = np.sinc(elements[0] * ku / (4 * np.pi)) * np.sinc(elements[1] * ku / (4 * np.pi)) if deconvolve else 1.0
+    inside = np.abs(ku) <= 2 * np.pi / d
+    return np.where(inside, spectral_window(ku / (4 * np.pi / d), window, **window_options)
+                    / np.where(inside, pattern, 1.0), 0.0)
 
 
 def along_track_wavenumbers(rec: LineRecord, n_ku: int) -> np.ndarray:

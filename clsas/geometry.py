@@ -1,4 +1,6 @@
-"""Exact two-way delays and echo amplitudes (NumPy, float64): the reference geometry of echo synthesis.
+"""Exact two-way delays, meeting times and echo amplitudes (NumPy, float64): the geometry shared by
+echo synthesis (:mod:`clsas.simulate`) and imaging (:mod:`clsas.image`); its kernel twin is
+``kernels/geometry.h``.
 
 Delay (DESIGN.md, non-stop-and-go). A pulse is emitted at slow time ``eta`` from the
 transmitter at T = T(eta). Scatterer n moves, Q(t) = p0 + v t. The outgoing wave meets it
@@ -38,9 +40,13 @@ R1 = c t1 and R2 = c t2 are the path lengths.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from ..scene.targets import Scatterers
+if TYPE_CHECKING:
+    from .data import EchoData
+    from .scene.targets import Scatterers
 
 MAX_ITERATIONS = 60
 
@@ -61,18 +67,20 @@ def _fixed_point(update, t, tol: float, what: str):
                        "(a speed close to the sound speed?)")
 
 
-def outgoing(tx: np.ndarray, eta: np.ndarray, scat: Scatterers, c: float, tol: float, stop_and_go: bool):
+def outgoing(tx: np.ndarray, eta: np.ndarray, p0: np.ndarray, vel: np.ndarray, c: float, tol: float,
+             stop_and_go: bool):
     """t1 (P, N) s and the scatterer positions Q (P, N, 3) at the scattering times (eq. 1a).
 
-    ``tx`` (P, 3) transmitter at emission, ``eta`` (P,) emission times.
+    ``tx`` (P, 3) transmitter at emission, ``eta`` (P,) emission times, ``p0`` (N, 3) m the
+    scatterers at t = 0 and ``vel`` (N, 3) m/s their velocities.
     """
-    q_emit = scat.p0[None, :, :] + scat.vel[None, :, :] * eta[:, None, None]
+    q_emit = p0[None, :, :] + vel[None, :, :] * eta[:, None, None]
     t1 = np.linalg.norm(q_emit - tx[:, None, :], axis=-1) / c
     if stop_and_go:
         return t1, q_emit
-    t1 = _fixed_point(lambda t: np.linalg.norm(q_emit + scat.vel[None] * t[..., None] - tx[:, None, :], axis=-1) / c,
+    t1 = _fixed_point(lambda t: np.linalg.norm(q_emit + vel[None] * t[..., None] - tx[:, None, :], axis=-1) / c,
                       t1, tol, "outgoing path")
-    return t1, q_emit + scat.vel[None] * t1[..., None]
+    return t1, q_emit + vel[None] * t1[..., None]
 
 
 def incoming(receiver, eta: np.ndarray, t1: np.ndarray, q: np.ndarray, c: float, tol: float, stop_and_go: bool):
@@ -96,7 +104,7 @@ def meet_time(d: np.ndarray, w: np.ndarray, c: float, axis: int = -1) -> np.ndar
     t = [d.w + sqrt((d.w)^2 + (c^2 - |w|^2) |d|^2)] / (c^2 - |w|^2) (no cancellation: |d.w| << c |d|).
     ``d`` and ``w`` broadcast, their 3 components along ``axis`` (..., 3 by default; 0 for
     components-first arrays); the result has that axis removed and ``d``'s dtype. The OpenCL
-    kernels use the same formula (geometry8.h).
+    kernels use the same formula (kernels/geometry.h).
     """
     d, w = np.moveaxis(d, axis, 0), np.moveaxis(w, axis, 0)
     a = c * c - (w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
@@ -144,7 +152,7 @@ def paths(scenario, eta: np.ndarray, scat: Scatterers, receivers, stop_and_go: b
     tol = iteration_tolerance(scenario.waveform.f0)
     eta = np.asarray(eta, dtype=np.float64)
     tx = scenario.tx_position(eta)
-    t1, q = outgoing(tx, eta, scat, c, tol, stop_and_go)
+    t1, q = outgoing(tx, eta, scat.p0, scat.vel, c, tol, stop_and_go)
     out_dir = q - tx[:, None, :]
     r1 = np.linalg.norm(out_dir, axis=-1)
     tx_axis = scenario.platform.rotation(eta)[..., :, 1]
@@ -164,3 +172,54 @@ def paths(scenario, eta: np.ndarray, scat: Scatterers, receivers, stop_and_go: b
         taus.append(t1 + t2)
         amps.append(amp)
     return np.stack(taus), np.stack(amps)
+
+
+def two_node_velocity(echo: EchoData, h: int, pulses: np.ndarray) -> np.ndarray:
+    """(len(pulses), 3) m/s: the uniform velocity of receiver h of ``echo``, which has two position nodes."""
+    pos = echo.rx_pos[h][pulses]
+    return (pos[:, 1] - pos[:, 0]) / (echo.rx_tau[h][1] - echo.rx_tau[h][0])
+
+
+def uniform_nodes(echo: EchoData, h: int) -> tuple[float, np.ndarray]:
+    """Receiver h's position nodes as the kernels read them (kernels/geometry.h, ``node_field``):
+    their spacing dtau (s) and the positions (n_pulses, n_nodes >= 2, 3) m; a single node is
+    repeated (a receiver at rest during reception). ValueError unless the nodes are uniformly
+    spaced from fast time 0 (as clsas.simulate makes them)."""
+    nodes = echo.rx_tau[h]
+    if nodes.size == 1:
+        return 1.0, np.repeat(echo.rx_pos[h], 2, axis=1)
+    step = nodes[1] - nodes[0]
+    if nodes[0] != 0 or not np.allclose(np.diff(nodes), step, rtol=1e-9, atol=0):
+        raise ValueError("the OpenCL back-projection needs receiver nodes (EchoData.rx_tau) uniformly spaced "
+                         "from 0 (as clsas.simulate makes them); use backend='numpy' for other node layouts")
+    return step, echo.rx_pos[h]
+
+
+def legs(echo: EchoData, h: int, pulses: np.ndarray, points: np.ndarray, velocity: np.ndarray,
+         stop_and_go: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The exact legs from the transmitter of ``echo``'s ``pulses`` to the M ``points`` (m, at
+    t = 0, all moving at ``velocity`` m/s) and back to receiver h (float64): t1 (len(pulses), M) s,
+    where the pulses meet the points q (len(pulses), M, 3) m, t2 (len(pulses), M) s and the
+    receiver at reception (len(pulses), M, 3) m. The two-way delay is t1 + t2. With a receiver of
+    two nodes (uniform motion) both legs are :func:`meet_time`'s closed form, else the fixed
+    points of :func:`outgoing` and :func:`incoming` (the receiver linear between its nodes)."""
+    c = echo.medium.sound_speed
+    eta = echo.eta[pulses]
+    if not stop_and_go and echo.rx_tau[h].size == 2:
+        # the target and a two-node receiver move uniformly: both fixed points in closed form
+        tx = echo.tx_pos[pulses]
+        q_emit = points[None] + velocity * eta[:, None, None]
+        t1 = meet_time(q_emit - tx[:, None, :], velocity, c)
+        q = q_emit + velocity * t1[..., None]
+        v_r = two_node_velocity(echo, h, pulses)[:, None, :]
+        r_scatter = echo.rx_position(h, t1, pulses=pulses)  # the receiver when the pulse meets the point
+        t2 = meet_time(r_scatter - q, v_r, c)
+        return t1, q, t2, r_scatter + v_r * t2[..., None]
+    tol = iteration_tolerance(echo.waveform.f0)
+    t1, q = outgoing(echo.tx_pos[pulses], eta, points, np.broadcast_to(velocity, points.shape), c, tol, stop_and_go)
+
+    def receiver(t):
+        return echo.rx_position(h, t - eta.reshape((-1,) + (1,) * (t.ndim - 1)), pulses=pulses)
+
+    t2, r = incoming(receiver, eta, t1, q, c, tol, stop_and_go)
+    return t1, q, t2, r

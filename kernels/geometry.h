@@ -1,13 +1,13 @@
 /* clsas kernels: exact two-way geometry for eight lanes at once (double8), shared by
  * kernels/echo.cl (eight scatterers a work-item) and kernels/backprojection.cl (eight pixels).
- * NumPy twin: clsas/simulate/geometry.py (fixed-point iteration; the closed forms here agree
+ * NumPy twin: clsas/geometry.py (fixed-point iteration; the closed forms here agree
  * with it to its 1e-6-period tolerance, tests/test_echo.py and tests/test_backprojection.py).
  *
  * Needs N_NODES (receiver position nodes a pulse, >= 2) and SEGMENT_PASSES defined, and
  * cl_khr_fp64 enabled.
  */
-#ifndef CLSAS_GEOMETRY8_H
-#define CLSAS_GEOMETRY8_H
+#ifndef CLSAS_GEOMETRY_H
+#define CLSAS_GEOMETRY_H
 
 /* Eight lanes as double8 (PoCL does not vectorise these kernels across work-items by
  * itself): a 3-vector of lanes is three double8. */
@@ -102,4 +102,4 @@ inline double8 reception8(__global const double8 *nd, double8 t1, vec8 q, double
 #endif
 }
 
-#endif /* CLSAS_GEOMETRY8_H */
+#endif /* CLSAS_GEOMETRY_H */
