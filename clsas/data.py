@@ -15,17 +15,13 @@ from . import budget
 from . import validate
 from .scene.scenario import Medium, Waveform
 
+MAX_ECHO_FS = 1e11  # Hz: a waveform's largest rate (1 GHz) upsampled 64 times, with margin
 GRID_BYTES_PER_PIXEL = 80  # a plane's positions (24) and their temporaries while it is built
 
 
 def _geometry(name: str, value, shape: tuple) -> np.ndarray:
-    arr = np.array(value, dtype=np.float64)
-    if arr.shape != shape:
-        raise ValueError(f"EchoData.{name} must have shape {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"EchoData.{name} must be finite everywhere; it has NaN or inf")
-    arr.flags.writeable = False
-    return arr
+    """A finite float64 array of ``shape`` within the coordinate (m) and time (s) bounds."""
+    return validate.array(f"EchoData.{name}", value, shape, bound=max(validate.MAX_COORDINATE, validate.MAX_TIME))
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,13 +78,13 @@ class EchoData:
         if not np.iscomplexobj(data):
             raise TypeError(f"EchoData.data must be complex baseband samples, got dtype {data.dtype}")
         data = data.astype(np.complex64, copy=False)
+        if not validate.all_finite(data):
+            raise ValueError("EchoData.data must be finite: it has NaN or inf samples")
         n_rx, n_p, _ = data.shape
         object.__setattr__(self, "data", data)
         object.__setattr__(self, "eta", _geometry("eta", self.eta, (n_p,)))
         object.__setattr__(self, "t0", _geometry("t0", self.t0, (n_rx,)))
-        fs = float(self.fs)
-        if not (np.isfinite(fs) and fs > 0):
-            raise ValueError(f"EchoData.fs must be a positive sampling rate in Hz, got {self.fs}")
+        fs = validate.scalar("EchoData.fs", self.fs, low=1.0, high=MAX_ECHO_FS, unit="Hz")
         object.__setattr__(self, "fs", fs)
         object.__setattr__(self, "tx_pos", _geometry("tx_pos", self.tx_pos, (n_p, 3)))
         rx_tau = np.asarray(self.rx_tau, dtype=np.float64)

@@ -24,6 +24,10 @@ MAX_TIME = 1e6  # s: emission times, recording starts
 MAX_AMPLITUDE = 1e15  # reflectivities: sums of 1e20 such echoes stay below complex64's 3.4e38
 
 
+class CoverageWarning(UserWarning):
+    """An imager's grid lies wholly outside what was recorded (its image is all zeros)."""
+
+
 def _show(value) -> str:
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."

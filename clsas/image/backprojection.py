@@ -45,12 +45,13 @@ reference works on at most 2^20 pixels x 4 pulses at once.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import numpy as np
 from tqdm.auto import tqdm
 
 from .. import backend as _backend
-from .. import opencl
+from .. import opencl, validate
 from ..data import EchoData, Grid, Image
 from ..kernelmath import kaiser_sinc_tap
 from ..geometry import legs, two_node_velocity, uniform_nodes
@@ -80,17 +81,21 @@ def _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velo
     if not isinstance(grid, Grid):
         raise TypeError(f"grid must be a clsas.data.Grid (Grid.plane, Grid.slant or Grid.points), got "
                         f"{type(grid).__name__}")
-    if interp not in INTERPOLATORS:
-        raise ValueError(f"interp must be one of {INTERPOLATORS}, got {interp!r}")
-    if isinstance(upsample, bool) or not isinstance(upsample, (int, np.integer)) or not 1 <= upsample <= 64:
-        raise ValueError(f"upsample must be an integer in [1, 64], got {upsample!r}")
+    validate.choice("backproject interp", interp, INTERPOLATORS)
+    upsample = validate.integer("backproject upsample", upsample, low=1, high=64)
+    need = 8 if interp == "sinc8" else 2
+    if echo.n_samples < need or echo.n_pulses < 1:
+        raise ValueError(f"backproject echo: has {echo.n_pulses} pulses of {echo.n_samples} samples; interp={interp!r} "
+                         f"needs at least one pulse of {need} samples")
     chosen = echo.select_receivers(receivers)
-    if aperture is not None and not (np.isfinite(aperture) and 0 < aperture <= np.pi):
-        raise ValueError(f"aperture must be a full integration angle in (0, pi] radians, got {aperture}")
-    v = np.zeros(3) if target_velocity is None else np.asarray(target_velocity, dtype=np.float64)
-    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) >= 100:
-        raise ValueError(f"target_velocity must be a finite 3-vector slower than 100 m/s, got {target_velocity!r}")
-    return chosen, v
+    if aperture is not None:
+        aperture = validate.scalar("backproject aperture", aperture, low=0.0, high=np.pi, low_open=True, unit="rad",
+                                   why="the full integration angle")
+    v = np.zeros(3) if target_velocity is None else validate.vector3("backproject target_velocity", target_velocity)
+    if np.linalg.norm(v) > validate.MAX_SPEED:
+        raise ValueError(f"backproject target_velocity: must be at most {validate.MAX_SPEED:g} m/s, got "
+                         f"{np.linalg.norm(v):g} m/s")
+    return chosen, v, upsample, aperture
 
 
 def _aperture_keep(echo, pulses, q, half_sin):
@@ -480,7 +485,8 @@ def backproject(echo: EchoData, grid: Grid, backend: str | None = None, receiver
     -------
     Image with the grid's dims and axes, ``positions`` the grid's pixels, complex64.
     """
-    chosen, velocity = _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velocity)
+    chosen, velocity, upsample, aperture = _check_inputs(echo, grid, receivers, interp, upsample, aperture,
+                                                         target_velocity)
     double = _backend.check_precision(precision)
     name = _backend.resolve(backend)
     args = (echo, grid, chosen, interp, upsample, aperture, velocity, stop_and_go, progress)
@@ -488,6 +494,11 @@ def backproject(echo: EchoData, grid: Grid, backend: str | None = None, receiver
         flat, fallbacks = backproject_reference(*args), 0
     else:
         flat, fallbacks = backproject_opencl(*args, double=double)
+    validate.finite_result("backproject: the image", flat.astype(np.complex64), "scale echo.data down")
+    if not np.any(flat) and np.any(echo.data[chosen]):
+        warnings.warn("backproject: the image is all zeros: no pixel of the grid lies within the recorded fast-time "
+                      "windows of the selected receivers (the swath); move the grid", validate.CoverageWarning,
+                      stacklevel=2)
     return Image(data=flat.reshape(grid.shape), dims=grid.dims, axes=grid.axes, positions=grid.positions,
                  provenance={"algorithm": "backprojection", "backend": name, "precision": precision, "interp": interp,
                              "upsample": int(upsample), "receivers": [echo.receivers[h] for h in chosen],

@@ -26,7 +26,9 @@ from typing import NamedTuple
 import numpy as np
 import scipy.fft
 
+from .. import validate
 from ..data import EchoData, Image
+from ..scene.scenario import MAX_ELEMENT
 from ..scene.scenario import Medium, Waveform
 from .rangecomp import spectral_window
 from .stolt import resample
@@ -190,9 +192,10 @@ def check_elements(elements, rec: LineRecord):
     """(L_tx, L_rx) in metres or None; the along-track sampling must resolve the extracted band."""
     if elements is None:
         return None
-    lengths = np.broadcast_to(np.asarray(elements, dtype=np.float64), (2,))
-    if not np.all(np.isfinite(lengths)) or np.any(lengths <= 0):
-        raise ValueError(f"elements must be the positive along-track lengths (L_tx, L_rx) in m, got {elements!r}")
+    lengths = np.broadcast_to(validate.array("elements (L_tx, L_rx)", elements, (2,) if np.ndim(elements) else (),
+                                             bound=MAX_ELEMENT), (2,))
+    if np.any(lengths <= 0):
+        raise ValueError(f"elements: must be the positive along-track lengths (L_tx, L_rx) in m, got {elements!r}")
     if 2 * np.pi / lengths.max() > np.pi / rec.du * (1 + 1e-9):
         raise ValueError(f"elements {tuple(lengths)}: the band |k_y| <= 2 pi / D needs along-track samples at most "
                          f"D / 2 = {lengths.max() / 2:.4g} m apart, the record has {rec.du:.4g} m")
