@@ -7,6 +7,7 @@ from .image.backprojection import backproject
 from .image.csa import chirp_scaling
 from .image.multireceiver import pca_record
 from .image.omegak import omega_k
+from .image.ptrs import ptrs_image
 from .image.rangecomp import range_compress
 from .image.rda import range_doppler
 from .image.record import line_record
@@ -44,6 +45,7 @@ __all__ = [
                              "memory_budget",
                              "omega_k",
                              "pca_record",
+                             "ptrs_image",
                              "range_compress",
                              "range_doppler",
                              "save",
