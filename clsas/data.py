@@ -192,6 +192,8 @@ class Image:
 
     def __post_init__(self):
         data = np.asarray(self.data)
+        if data.dtype.kind not in "iufc":
+            raise TypeError(f"Image.data: must be an array of numbers, got dtype {data.dtype}")
         if not np.iscomplexobj(data):
             data = data.astype(np.complex64)
         data = data.astype(np.complex64, copy=False)

@@ -107,9 +107,13 @@ def array(name: str, value, shape: tuple, *, nonnegative: bool = False, bound: f
     want = "(" + ", ".join("n" if s == -1 else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
     kind = "complex" if np.dtype(dtype).kind == "c" else "real"
     try:
+        if value is None:
+            raise TypeError("None")
         raw = np.asarray(value)
         if raw.dtype.kind not in ("iufc" if kind == "complex" else "iuf") and raw.dtype != object:
             raise TypeError(f"dtype {raw.dtype}")
+        if raw.dtype == object and not all(isinstance(x, numbers.Number) and not isinstance(x, bool) for x in raw.flat):
+            raise TypeError("it holds items that are not numbers")
         arr = np.array(value, dtype=dtype, copy=True if copy else None)
     except (TypeError, ValueError, OverflowError) as err:
         raise TypeError(f"{name}: must be an array of {kind} numbers with shape {want}, got {_show(value)} "
@@ -146,12 +150,19 @@ def all_finite(data) -> bool:
     return bool(np.all(np.isfinite(data)))
 
 
-def finite_result(what: str, data, advice: str) -> None:
-    """Raise a ValueError when a result computed from finite input is not finite (an overflow of
-    its float32 type): ``what`` names the result, ``advice`` says which input to scale."""
-    if not all_finite(data):
-        raise ValueError(f"{what} overflows {np.asarray(data).dtype} (|value| > "
-                         f"{float(np.finfo(np.asarray(data).real.dtype).max):.3g}): {advice}")
+def finite_result(what: str, data, advice: str, dtype=None) -> None:
+    """Raise a ValueError when a result computed from finite input is not finite, or (``dtype``
+    given, e.g. complex64) will not fit that type: an overflow. ``what`` names the result,
+    ``advice`` says which input to scale. Reads the data in place (no temporaries)."""
+    data = np.asarray(data)
+    target = np.dtype(dtype if dtype is not None else data.dtype)
+    largest = float(np.finfo(target).max)
+    fits = all_finite(data)
+    if fits and target.itemsize < data.dtype.itemsize and data.size:
+        parts = (data.real, data.imag) if data.dtype.kind == "c" else (data,)
+        fits = all(max(-float(part.min()), float(part.max())) <= largest for part in parts)
+    if not fits:
+        raise ValueError(f"{what} overflows {target.name} (|value| > {largest:.3g}): {advice}")
 
 
 def seed(name: str, value):

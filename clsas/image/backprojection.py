@@ -51,7 +51,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .. import backend as _backend
-from .. import opencl, validate
+from .. import budget, opencl, validate
 from ..data import EchoData, Grid, Image
 from ..kernelmath import kaiser_sinc_tap
 from ..geometry import legs, two_node_velocity, uniform_nodes
@@ -70,6 +70,7 @@ ERROR_FACTOR = 8.0  # float32 roundings per |delta| / c of delay (see backprojec
 NODE_TOLERANCE = 1 / 2000  # of a wavelength: a receiver's allowed departure from linear motion over a tile
 SPAN_FACTOR = 2.5  # a tile's delay span is +-SPAN_FACTOR * half_extent / c around its reference
 REF_PULSES = 64  # pulses whose tile references are computed at once
+BYTES_PER_PIXEL = 80  # what a call adds a pixel (tests/test_backprojection.py measures it)
 
 
 def _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velocity):
@@ -88,6 +89,8 @@ def _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velo
         raise ValueError(f"backproject echo: has {echo.n_pulses} pulses of {echo.n_samples} samples; interp={interp!r} "
                          f"needs at least one pulse of {need} samples")
     chosen = echo.select_receivers(receivers)
+    budget.check_bytes(f"backproject onto {grid.size} pixels", BYTES_PER_PIXEL * float(grid.size),
+                       "image fewer pixels at a time (tiles of the grid)")
     if aperture is not None:
         aperture = validate.scalar("backproject aperture", aperture, low=0.0, high=np.pi, low_open=True, unit="rad",
                                    why="the full integration angle")
@@ -494,7 +497,7 @@ def backproject(echo: EchoData, grid: Grid, backend: str | None = None, receiver
         flat, fallbacks = backproject_reference(*args), 0
     else:
         flat, fallbacks = backproject_opencl(*args, double=double)
-    validate.finite_result("backproject: the image", flat.astype(np.complex64), "scale echo.data down")
+    validate.finite_result("backproject: the image", flat, "scale echo.data down", np.complex64)
     if not np.any(flat) and np.any(echo.data[chosen]):
         warnings.warn("backproject: the image is all zeros: no pixel of the grid lies within the recorded fast-time "
                       "windows of the selected receivers (the swath); move the grid", validate.CoverageWarning,

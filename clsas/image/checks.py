@@ -4,6 +4,7 @@ depth, and records long enough for the interpolators."""
 
 from __future__ import annotations
 
+from .. import budget
 from .. import validate as v
 from ..data import EchoData
 from .rangecomp import check_window, check_workers
@@ -11,6 +12,7 @@ from .record import LineRecord
 
 MIN_SAMPLES = 16  # samples a record: the longest interpolator (sinc16) reads 16
 MIN_ROWS = 2  # along-track samples
+BYTES_PER_SAMPLE = 128  # an imager's 2-D spectra, phase screens and interpolation temporaries, per record sample
 
 
 def check_imager(caller: str, data, window, window_options: dict, workers, depth) -> tuple[dict, int]:
@@ -28,6 +30,8 @@ def check_imager(caller: str, data, window, window_options: dict, workers, depth
     if rows < MIN_ROWS:
         raise ValueError(f"{caller} data: {rows} along-track sample(s) (pulses); a strip-map image needs at least "
                          f"{MIN_ROWS}")
+    budget.check_bytes(f"{caller} of {rows} pulses x {samples} samples", BYTES_PER_SAMPLE * float(rows) * samples,
+                       "image a shorter stretch of the track or of the swath at a time")
     options = check_window(window, window_options, caller)
     if depth is not None:
         v.scalar(f"{caller} depth", depth, low=-v.MAX_COORDINATE, high=v.MAX_COORDINATE, unit="m")

@@ -93,6 +93,9 @@ class Waveform:
                       unit="Hz", why="0 < B < 2 f0")
         dur = v.positive("Waveform.duration", self.duration, high=MAX_DURATION, unit="s")
         fs = v.scalar("Waveform.fs", self.fs, low=bw, high=MAX_FS, unit="Hz", why="at least the bandwidth")
+        if dur * fs < 1:
+            raise ValueError(f"Waveform.duration: a pulse of {dur:g} s sampled at fs = {fs:g} Hz spans {dur * fs:.3g} "
+                             "samples; it needs at least one (duration >= 1 / fs)")
         if isinstance(self.chirp_sign, (bool, np.bool_)) or not v.is_number(self.chirp_sign, "iuf") \
                 or self.chirp_sign not in (1, -1):
             raise ValueError(f"Waveform.chirp_sign: must be +1 or -1, got {self.chirp_sign!r}")
