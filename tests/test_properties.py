@@ -159,15 +159,19 @@ def test_resample_kernel_matches_reference(opencl_device, rows, n, m, shared, in
 @given(window=st.sampled_from(WINDOWS), nbar=st.integers(1, TAYLOR_NBAR_MAX), sll=st.floats(0.1, TAYLOR_SLL_MAX),
        beta=st.floats(0.0, KAISER_BETA_MAX), u=st.lists(st.floats(-1.0, 1.0), min_size=1, max_size=32))
 def test_windows_are_finite_and_peak_at_one(window, nbar, sll, beta, u):
-    """Any window with any allowed option: finite, 1 at u = 0, within [0, 1] on the band, 0 off it."""
+    """Any window with any allowed option: finite, 1 at u = 0, within [0, 1] on the band, 0 off it
+    (Taylor designs that would leave [0, 1] are refused, naming taylor_nbar)."""
     u = np.array(u + [0.0])
-    w = spectral_window(u, window, taylor_nbar=nbar, taylor_sll_db=sll, kaiser_beta=beta)
+    try:
+        w = spectral_window(u, window, taylor_nbar=nbar, taylor_sll_db=sll, kaiser_beta=beta)
+    except ValueError as err:
+        assert window == "taylor" and "taylor_nbar" in str(err) and "no window" in str(err)
+        return
     assert np.all(np.isfinite(w))
     assert w[-1] == pytest.approx(1.0, rel=1e-9)
     if window != "none":
         assert np.all(w[np.abs(u) > 0.5] == 0)
-        # a Taylor window with a shallow sidelobe level and many terms ripples a little above 1
-        assert np.all(w >= -1e-9) and np.all(w <= 1 + (1e-2 if window == "taylor" else 1e-12))
+        assert np.all(w >= -1e-9) and np.all(w <= 1 + 1e-9)
 
 
 @st.composite
@@ -194,7 +198,7 @@ def test_range_compress_of_finite_input_is_finite_or_refused(echo, window, upsam
     try:
         out = clsas.range_compress(echo, window=window, upsample=upsample, kaiser_beta=beta, taylor_nbar=nbar)
     except ValueError as err:
-        assert "overflows" in str(err)
+        assert "overflows" in str(err) or (window == "taylor" and "no window" in str(err))
         return
     assert out.data.shape == echo.data.shape[:2] + (echo.n_samples * upsample,)
     assert np.all(np.isfinite(out.data))

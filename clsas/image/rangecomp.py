@@ -56,7 +56,25 @@ def check_window(window, options: dict, caller: str) -> dict:
     opts["taylor_sll_db"] = v.positive(f"{caller} taylor_sll_db", opts["taylor_sll_db"], high=TAYLOR_SLL_MAX,
                                        unit="dB", why="sidelobe level below the peak")
     opts["kaiser_beta"] = v.scalar(f"{caller} kaiser_beta", opts["kaiser_beta"], low=0.0, high=KAISER_BETA_MAX)
+    if window == "taylor":
+        _check_taylor_shape(opts["taylor_nbar"], opts["taylor_sll_db"], caller)
     return opts
+
+
+def _check_taylor_shape(nbar: int, sll_db: float, caller: str) -> None:
+    """Refuse a Taylor design that is no window: with too many nearly constant sidelobes for a
+    shallow sidelobe level (e.g. nbar = 100 at 25 dB) the series rises above its peak and dips
+    below zero (the design rule is nbar >= 2 A^2 + 1/2 from below; from above it is this check)."""
+    u = np.linspace(0.0, 0.5, 513)
+    f = taylor_coefficients(nbar, sll_db)
+    w = np.ones_like(u)
+    for m, fm in enumerate(f, start=1):
+        w += 2 * fm * np.cos(2 * np.pi * m * u)
+    w /= 1 + 2 * f.sum()
+    if w.min() < -1e-9 or w.max() > 1 + 1e-9:
+        raise ValueError(f"{caller} taylor_nbar: {nbar} nearly constant sidelobes at taylor_sll_db = {sll_db:g} dB give "
+                         f"no window (it spans [{w.min():.3g}, {w.max():.3g}] instead of [0, 1]); use fewer "
+                         "(nbar of 3 to 8 is usual) or a deeper sidelobe level")
 
 
 def check_workers(workers, name: str) -> int:

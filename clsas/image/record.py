@@ -155,6 +155,8 @@ def line_record(echo: EchoData, receiver=0, stop_and_go: bool | None = None, bac
     excess of Huang & Yang eq. (4) compensated (:func:`compensate_bistatic` with d = 0, its
     interpolation on ``backend``); their along-track shift v r / c is left to the imagers.
     """
+    if not isinstance(echo, EchoData):
+        raise TypeError(f"line_record echo: must be an EchoData, got {type(echo).__name__}")
     if np.ndim(receiver) != 0:
         raise ValueError(f"receiver must be one index or name, got {receiver!r}")
     h = echo.select_receivers(receiver, "receiver")[0]

@@ -124,13 +124,13 @@ def check_options(interp: str, window: str, oversampling: float) -> None:
     v.scalar("oversampling", oversampling, low=1.0, low_open=True, why="source sampling rate over its band")
 
 
-def _check_sizes(caller: str, src_shape: tuple, n_out: int, interp: str) -> None:
+def _check_sizes(caller: str, src_shape: tuple, n_out: int, interp: str, out_name: str) -> None:
     """Rows long enough for the interpolator's taps, and the result within the memory budget."""
     taps = INTERPOLATORS[interp]
     if src_shape[1] < taps:
         raise ValueError(f"{caller}: rows of {src_shape[1]} samples are too short for interp={interp!r}, which reads "
                          f"{taps} samples; give at least {taps}")
-    budget.check_bytes(f"{caller} of {src_shape[0]} rows onto {n_out} columns", 16.0 * src_shape[0] * n_out
+    budget.check_bytes(f"{caller} of {src_shape[0]} rows onto {out_name} = {n_out} columns", 16.0 * src_shape[0] * n_out
                        + 16.0 * min(src_shape[0], ROW_BLOCK) * n_out * (taps + 2), "fewer rows or columns at a time")
 
 
@@ -282,7 +282,7 @@ def resample(src, idx, interp: str = "sinc8", window: str = "kaiser", oversampli
     idx = v.array("resample idx", idx, (-1,) if np.ndim(idx) == 1 else (src.shape[0], -1), bound=2**30, copy=False)
     if idx.shape[-1] < 1:
         raise ValueError(f"resample idx: must be (m,) or (n_rows={src.shape[0]}, m) positions, got shape {idx.shape}")
-    _check_sizes("resample src", src.shape, idx.shape[-1], interp)
+    _check_sizes("resample src", src.shape, idx.shape[-1], interp, "the positions of idx")
     if _backend.resolve(backend) == "numpy":
         return resample_rows(src, idx, interp, window, oversampling)
     return resample_opencl(src, idx, interp, window, oversampling)
@@ -323,7 +323,7 @@ def stolt(spectrum, ku, axes: StoltAxes, interp: str = "sinc8", window: str = "k
     spectrum = np.asarray(spectrum)
     ku = np.asarray(ku, dtype=np.float64)
     _check(spectrum, ku, axes)
-    _check_sizes("stolt spectrum", spectrum.shape, axes.n_out, interp)
+    _check_sizes("stolt spectrum", spectrum.shape, axes.n_out, interp, "axes.n_out")
     backend = _backend.resolve(backend)
     if out is not None:
         _check_out(out, backend, (spectrum.shape[0], axes.n_out))

@@ -276,7 +276,7 @@ class Array:
 
         ``rx_length`` defaults to ``spacing`` (contiguous elements).
         """
-        n = v.integer("Array.uniform_line n_receivers", n_receivers)
+        n = v.integer("Array.uniform_line n_receivers", n_receivers, high=2**53)
         budget.check_bytes(f"Array.uniform_line with n_receivers={n}", 200.0 * n, "fewer receivers")
         step = v.positive("Array.uniform_line spacing", spacing, high=v.MAX_COORDINATE, unit="m")
         y = v.scalar("Array.uniform_line first", first, low=-v.MAX_COORDINATE, high=v.MAX_COORDINATE, unit="m") \
@@ -327,7 +327,7 @@ class PulseSchedule:
             object.__setattr__(self, "exposure", exposure)
             object.__setattr__(self, "n_pulses", n)
         else:
-            object.__setattr__(self, "n_pulses", v.integer("PulseSchedule.n_pulses", self.n_pulses))
+            object.__setattr__(self, "n_pulses", v.integer("PulseSchedule.n_pulses", self.n_pulses, high=2**53))
         what = "PulseSchedule.exposure" if self.exposure is not None else "PulseSchedule.n_pulses"
         budget.check_bytes(f"{what} ({self.n_pulses} pulses: their emission times)", 8.0 * self.n_pulses,
                            "fewer pulses")
