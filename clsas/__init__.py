@@ -2,6 +2,7 @@
 
 from . import distributed
 from .backend import use_backend
+from .budget import memory_budget, use_memory_budget
 from .data import EchoData, Grid, Image
 from .errors import EstimationError
 from .estimate.moving import estimate as estimate_motion
@@ -53,6 +54,7 @@ __all__ = [
                              "focus_moving",
                              "line_record",
                              "load",
+                             "memory_budget",
                              "omega_k",
                              "pca_record",
                              "ptrs_image",
@@ -61,5 +63,6 @@ __all__ = [
                              "save",
                              "simulate",
                              "use_backend",
+                             "use_memory_budget",
 ]
 __version__ = "0.1.0"
