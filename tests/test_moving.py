@@ -261,7 +261,7 @@ def case1_echo(opencl_device):
     return _point_echo(presets.KIANG_CASES[1], 512)[1]
 
 
-@pytest.mark.parametrize("case", [1, 7, 8])
+@pytest.mark.parametrize("case", [1, 7])
 def test_point_target_velocity_end_to_end(opencl_device, case, case1_echo):
     """Table II cases on one point (512 pulses, 6.4 s): |dv| / |v| far below the paper's 3 %
     (measured 0.002-0.08 % with 2048 pulses)."""
@@ -367,3 +367,28 @@ def test_submarine_velocity_within_the_papers_bound(opencl_device, case):
         est = clsas.estimate_motion(echo, position=position)
         assert np.linalg.norm(est.velocity - v) / np.linalg.norm(v) < 0.03, (position, est.velocity)
     assert np.linalg.norm(est.position - CENTRE) < 6.0  # within the hull's half-length
+
+
+def test_reproduce_kiang2022_on_points_prints_the_table(opencl_device, capsys):
+    import argparse
+
+    from clsas.reproduce import kiang2022
+
+    parser = argparse.ArgumentParser()
+    kiang2022.add_arguments(parser)
+    args = parser.parse_args(["--targets", "points", "--cases", "1", "--pulses", "256", "--no-images",
+                              "--position", "both", "--backend", "opencl"])
+    assert kiang2022.run(args) == 0
+    out = capsys.readouterr().out
+    assert "case 1" in out and "paper  (0.002, -3.914, 0.0)  error 2.151 %" in out
+    assert "with the position estimated too" in out
+
+
+def test_reproduce_writes_a_db_image_with_metric_axes(tmp_path):
+    from clsas.data import Image
+    from clsas.reproduce.kiang2022 import _save
+
+    y, r = np.linspace(-1, 1, 21), np.linspace(2011, 2013, 31)
+    _save(Image(np.exp(-(y[:, None] ** 2 + (r[None, :] - 2012) ** 2)), ("y", "r"), {"y": y, "r": r}),
+          tmp_path / "a.png", "test")
+    assert (tmp_path / "a.png").stat().st_size > 1000

@@ -46,8 +46,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cases", type=int, nargs="+", default=list(range(1, 9)), help="Table II cases (1-8)")
     parser.add_argument("--pulses", type=int, default=None,
                         help="pulses at 80 Hz (default: Table I's 6400, 80 s, for the submarine; 2048 for points)")
-    parser.add_argument("--position", choices=("given", "estimated"), default="given",
-                        help="give the target's position (the paper) or estimate it with v")
+    parser.add_argument("--position", choices=("given", "estimated", "both"), default="given",
+                        help="give the target's position (the paper), estimate it with v, or both (two estimates "
+                             "from one echo)")
     parser.add_argument("--snr", type=float, default=None, help="add white noise at this SNR, dB")
     parser.add_argument("--out", default="kiang2022-output", help="folder for the PNG images")
     parser.add_argument("--no-images", action="store_true", help="print the table only")
@@ -104,6 +105,12 @@ def run_case(case: int, args) -> dict:
         return row
     row.update(est=est, estimate_s=time.perf_counter() - t,
                err_pct=100 * np.linalg.norm(est.velocity - v_true) / np.linalg.norm(v_true))
+    if args.position == "both":
+        try:
+            joint = clsas.estimate_motion(echo, position=None)
+            row.update(joint=joint, joint_err_pct=100 * np.linalg.norm(joint.velocity - v_true) / np.linalg.norm(v_true))
+        except EstimationError as err:
+            row.update(joint_error=str(err))
     if args.no_images:
         return row
     out = Path(args.out)
@@ -177,14 +184,18 @@ def print_table(rows: list) -> None:
         pos = f"; position estimated {np.round(est.position, 2)} m" if est.position_estimated else ""
         print(f"  v est  {np.round(est.velocity, 3)}  error {row['err_pct']:.3f} %  (sigma {np.round(est.sigma, 3)}, "
               f"residual {est.residual:.3g} Hz, confidence {est.confidence:.2f}){pos}")
+        if "joint" in row:
+            joint = row["joint"]
+            print(f"  v est  {np.round(joint.velocity, 3)}  error {row['joint_err_pct']:.3f} %  with the position "
+                  f"estimated too: {np.round(joint.position, 2)} m (sigma {np.round(joint.position_sigma, 2)})")
         print(f"  paper  {paper_v}  error {paper_err:.3f} %" + (f"   {est.note}" if est.note else ""))
         for name, cmp in row.get("sota", {}).items():
             print(f"  {name:8} stop-and-go at A: shifted {cmp['shift_s']:+.3f} s ({cmp['shift_m']:+.2f} m) in azimuth, "
                   f"SSIM {cmp['ssim']:.4f} with the shift removed   (paper, case 1: ~1 s; SSIM {PAPER_SSIM[name]})")
-    print("\nsummary: case  error % (clsas)  error % (paper)")
+    print("\nsummary: case  error % (clsas)  error % (position estimated)  error % (paper)")
     for row in rows:
-        err = row.get("err_pct")
-        print(f"  {row['case']:4d}  {_fmt(err, '.3f', 14)}  {PAPER[row['case']][2]:14.3f}")
+        print(f"  {row['case']:4d}  {_fmt(row.get('err_pct'), '.3f', 14)}  {_fmt(row.get('joint_err_pct'), '.3f', 26)}"
+              f"  {PAPER[row['case']][2]:14.3f}")
 
 
 def run(args) -> int:
@@ -203,4 +214,4 @@ def run(args) -> int:
     print_table(rows)
     if not args.no_images:
         print(f"\nimages in {Path(args.out).resolve()}")
-    return 0 if all(r.get("err_pct", np.inf) < BOUND for r in rows) else 1
+    return 0 if all(r.get("err_pct", np.inf) < BOUND and r.get("joint_err_pct", 0.0) < BOUND for r in rows) else 1
