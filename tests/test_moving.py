@@ -273,6 +273,7 @@ def test_point_target_velocity_end_to_end(opencl_device, case, case1_echo):
     err = np.linalg.norm(est.velocity - v) / np.linalg.norm(v)
     assert err < 0.01, (est.velocity, err)
     assert est.cannot_focus == (("A", "B") if case == 7 else ())
+    assert est.range_residual < 0.05  # m: the point is where it was said to be
 
 
 def test_stop_and_go_imagers_shift_the_target_by_f_dc_over_k(case1_echo):

@@ -183,7 +183,8 @@ def print_table(rows: list) -> None:
             continue
         pos = f"; position estimated {np.round(est.position, 2)} m" if est.position_estimated else ""
         print(f"  v est  {np.round(est.velocity, 3)}  error {row['err_pct']:.3f} %  (sigma {np.round(est.sigma, 3)}, "
-              f"residual {est.residual:.3g} Hz, confidence {est.confidence:.2f}){pos}")
+              f"residual {est.residual:.3g} Hz, range residual {est.range_residual:.3f} m, confidence "
+              f"{est.confidence:.2f}){pos}")
         if "joint" in row:
             joint = row["joint"]
             print(f"  v est  {np.round(joint.velocity, 3)}  error {row['joint_err_pct']:.3f} %  with the position "

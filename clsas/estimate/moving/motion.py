@@ -50,8 +50,11 @@ class MotionEstimate:
     confidence : probability in [0, 1] that the velocity error is within the paper's 3 % bound
     (:mod:`.velocity`). sigma, position_sigma : (3,) 1-sigma errors, m/s and m. centroids :
     {name: Hz} the centroids solved with (refined by the focus where possible). cannot_focus :
-    names of the receivers with |K_a,eq| T_a^2 < 4 at the solved velocity. layout : the
-    geometry used.
+    names of the receivers with |K_a,eq| T_a^2 < 4 at the solved velocity. range_residual : RMS
+    of c (tau_c,measured - tau_c,model) / 2 over the receivers at the solution, m: a few
+    centimetres when the focused scatterer is at ``position``; metres when a given position is
+    not where the strongest scatterer is (an extended target: estimate the position instead).
+    layout : the geometry used.
     """
 
     velocity: np.ndarray
@@ -64,6 +67,7 @@ class MotionEstimate:
     position_estimated: bool
     centroids: dict
     cannot_focus: tuple
+    range_residual: float
     layout: Layout = field(repr=False)
 
     @property
@@ -136,6 +140,8 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
     else:
         sol = solve_velocity(layout, position, centroids, sigmas, rates)
     aperture = layout.aperture if aperture is None else float(aperture)
+    tau_misfit = [float(rx.tau_c) - delay_terms(layout, n, sol.position, sol.velocity)[0] for n, rx in receivers.items()]
+    range_residual = float(0.5 * layout.sound_speed * np.sqrt(np.mean(np.square(tau_misfit))))
     blind = tuple(n for n in receivers
                   if abs(delay_terms(layout, n, sol.position, sol.velocity)[2]) * aperture**2 < MIN_TIME_BANDWIDTH)
     log.info("moving target: v = %s m/s (sigma %s), residual %.3g Hz, confidence %.2f%s", np.round(sol.velocity, 3),
@@ -143,7 +149,7 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
     return MotionEstimate(velocity=sol.velocity, position=sol.position, receivers=dict(receivers),
                           residual=sol.residual, confidence=sol.confidence, sigma=sol.sigma,
                           position_sigma=sol.position_sigma, position_estimated=sol.position_estimated,
-                          centroids=centroids, cannot_focus=blind, layout=layout)
+                          centroids=centroids, cannot_focus=blind, range_residual=range_residual, layout=layout)
 
 
 def estimate(echo: EchoData, position=None, receivers=None, **chain_options) -> MotionEstimate:
