@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...data import EchoData, Image
+from .chain import MIN_TIME_BANDWIDTH, estimate_receiver, focus_receiver
 from .closedforms import delay_terms
 from .layout import Layout, layout_of
 from .mapping import to_ry
@@ -32,8 +33,6 @@ from .velocity import centroid_sigma, solve_motion, solve_velocity
 
 log = logging.getLogger("clsas")
 
-#: |K| T_a^2 below this: no azimuth chirp to compress (as in the chain).
-MIN_TIME_BANDWIDTH = 4.0
 #: 1-sigma of a centroid refined by the azimuth focus, Hz (plus 1e-4 of it): the closed forms are
 #: Taylor coefficients at eta_ref, the focus sees the aperture (measured on point targets, Table II
 #: cases 1-8, 2048 pulses: 0.00-0.07 Hz from the closed forms).
@@ -168,8 +167,6 @@ def estimate(echo: EchoData, position=None, receivers=None, **chain_options) -> 
     """
     names = check_echo(echo, receivers)
     position = _check_position(position)
-    from .chain import estimate_receiver
-
     estimates = {name: estimate_receiver(echo, name, **chain_options) for name in names}
     layout = layout_of(echo)
     return motion_from_receivers(layout, estimates, position)
@@ -183,8 +180,6 @@ def focus(echo: EchoData, est: MotionEstimate, tau_span: float | None = None) ->
     if not isinstance(est, MotionEstimate):
         raise TypeError(f"est must be a MotionEstimate (from estimate()), got {type(est).__name__}")
     check_echo(echo, list(est.receivers))
-    from .chain import focus_receiver
-
     images = {}
     for name, rx in est.receivers.items():
         if name in est.cannot_focus:
