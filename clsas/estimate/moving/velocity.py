@@ -31,6 +31,14 @@ first the position from the delays alone (trilateration of the bistatic ellipsoi
 on the imaged side, +x, at several depression angles, keeping the root under the surface),
 then v bracketed and refined as above at that position, then all nine (or more) equations
 together by least squares.
+
+How well it works (measured): on one point target (Table II cases 1-8, 2048 pulses) the position
+comes within 0.1 m (reported sigma 0.02, 0.09, 0.15 m in x, y, z: the depth is the weakest, A and
+B being at one depth) and the velocity error is the same as with the position given (0.001-0.08 %);
+with a fourth receiver and another layout, 3 cm and 0.012 %. On the submarine the chain locks on
+the strongest scatterer, not the hull's centre: given the centre, the velocity absorbs the offset
+(case 1: 2.0 %, the paper's 2.15 % is the same effect); estimated, the position lands on that
+scatterer (the sail, 2.5 m along and 1.1 m above the axis) and the velocity error drops to 0.4 %.
 """
 
 from __future__ import annotations
