@@ -115,9 +115,12 @@ def run_case(case: int, args) -> dict:
         return row
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    images = clsas.focus_moving(echo, est, tau_span=0.04)
-    q = est.position + est.velocity * est.layout.eta_ref
-    r_c, y_c = float(np.linalg.norm(q - est.layout.tx_position)), float(q[1])
+    # with the position estimated too, the images are placed by that estimate: it is where the
+    # strongest scatterer (the one the chain focuses on) is, while the given centre is not
+    shown = row.get("joint", est)
+    images = clsas.focus_moving(echo, shown, tau_span=0.04)
+    q = np.array(CENTRE) + v_true * shown.layout.eta_ref  # windows centred on the true hull centre
+    r_c, y_c = float(np.linalg.norm(q - shown.layout.tx_position)), float(q[1])
     half = 12.0 if args.targets == "submarine" else 3.0
     scan = None
     if args.targets == "submarine":
@@ -133,13 +136,13 @@ def run_case(case: int, args) -> dict:
     if case in args.sota and "A" in images:
         from ..estimate.moving import compare
 
-        sota = compare.stop_and_go_images(echo, est.velocity, est.receivers["A"].fm_rate)
+        sota = compare.stop_and_go_images(echo, shown.velocity, shown.receivers["A"].fm_rate)
         proposed = window(images["A"], r_c, y_c, half)
         row["sota"] = compare.compare(proposed, sota, images["A"].provenance["along_track_speed"])
         for name, image in sota.items():
             shifted = window(compare.as_ry(image), r_c, y_c + row["sota"][name]["shift_m"], half)
             _save(shifted, out / f"case{case}_{name}.png", f"case {case}: {name}, stop-and-go, v = "
-                  f"({est.velocity[0]:.3f}, {est.velocity[1]:.3f}, {est.velocity[2]:.3f}) m/s")
+                  f"({shown.velocity[0]:.3f}, {shown.velocity[1]:.3f}, {shown.velocity[2]:.3f}) m/s")
     return row
 
 
