@@ -86,7 +86,7 @@ inline realv2_t sinc8_lane(__global const real_t *rec, int i, __global const flo
  *   tile's reference point, m), f = 3: |delta|^2, f = 4 (MOVING): delta . v;
  * tile_of[g]: the tile of work-item g;
  * ref[t * ref_stride + p - ref_first], float16 per (tile t, pulse p): s012 B, s3 c^2 t1_ref - B.v, s456 C,
- *   s7 c^2 t2_ref - C.v_r, s89a v_r, sb a2, sc the integer sample index of T_ref (int bits),
+ *   s7 c^2 t2_ref - C.v_r, s89a v_r, sb a2, sc the integer sample index of T_ref in the records (int bits),
  *   sd its fraction, se f0 T_ref reduced, sf c t1_ref;
  * params: s0 a1, s1 fs (of the data), s2 f0, s345 v, s6 sin(aperture / 2), s7 c;
  * data[p n + i]: the receiver's range-compressed record of pulse p; taps: see sinc8_lane;
@@ -216,7 +216,8 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
  * sin of half the integration angle (APERTURE) */
 
 /* pix[f * m_pad + m]: pixel m's x, y, z at t = 0 (f = 0, 1, 2);
- * pulse[p]: tx.xyz, eta, t0 fs (window start in samples of the data);
+ * pulse[p]: tx.xyz, eta, t0 fs (window start in samples of the data), the records' first sample
+ *   (an integer, counted from t0 at the data's rate);
  * nodes[p N_NODES + k]: receiver position.xyz (and axis) at fast time k dtau;
  * data[p n + i]: the receiver's range-compressed record of pulse p;
  * pulses p_first .. p_first + p_count - 1 of the buffers are summed by this launch;
@@ -254,6 +255,7 @@ __kernel void bp_block(__global const double *pix, __global const double8 *pulse
         long8 kl = convert_long8(k);
         kl += (k < convert_double8(kl));  /* floor (a true compare is -1) */
         const realv8 frac = convert_realv8(k - convert_double8(kl));
+        kl -= (long)pl.s5;  /* the records start pl.s5 samples into the window (after the split: exact) */
         /* carrier exp(+j 2 pi f0 tau), cycles reduced in double */
         double8 cyc = f0 * tau;
         cyc -= convert_double8(convert_long8(cyc));
