@@ -115,9 +115,9 @@ def run_case(case: int, args) -> dict:
         return row
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    # with the position estimated too, the images are placed by that estimate: it is where the
-    # strongest scatterer (the one the chain focuses on) is, while the given centre is not
-    shown = row.get("joint", est)
+    # the images are placed by the first estimate (the given position, unless --position estimated):
+    # the joint one is unreliable on the hull (velocity module docstring)
+    shown = est
     images = clsas.focus_moving(echo, shown, tau_span=0.04)
     q = np.array(CENTRE) + v_true * shown.layout.eta_ref  # windows centred on the true hull centre
     r_c, y_c = float(np.linalg.norm(q - shown.layout.tx_position)), float(q[1])

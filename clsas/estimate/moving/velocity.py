@@ -35,10 +35,12 @@ together by least squares.
 How well it works (measured): on one point target (Table II cases 1-8, 2048 pulses) the position
 comes within 0.1 m (reported sigma 0.02, 0.09, 0.15 m in x, y, z: the depth is the weakest, A and
 B being at one depth) and the velocity error is the same as with the position given (0.001-0.08 %);
-with a fourth receiver and another layout, 3 cm and 0.012 %. On the submarine the chain locks on
-the strongest scatterer, not the hull's centre: given the centre, the velocity absorbs the offset
-(case 1: 2.0 %, the paper's 2.15 % is the same effect); estimated, the position lands on that
-scatterer (the sail, 2.5 m along and 1.1 m above the axis) and the velocity error drops to 0.4 %.
+with a fourth receiver and another layout, 3 cm and 0.012 %. On the submarine it is not reliable:
+the chain locks on the strongest scatterer at each receiver, and these are not one point (the
+sail seen from A, other parts from B and C), so the three delays do not meet at one position.
+Measured on Table II (2048 pulses, facets <= 0.15 m): velocity errors 1.3-7.9 % against 1.0-8.4 %
+with the centre given, and in case 8 16 % (the position off by 216 m in depth). Give the position
+for extended targets.
 """
 
 from __future__ import annotations
