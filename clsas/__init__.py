@@ -1,6 +1,7 @@
 """clsas: synthetic aperture sonar simulation and imaging (OpenCL kernels, NumPy references)."""
 
 from .backend import use_backend
+from .budget import memory_budget, use_memory_budget
 from .data import EchoData, Grid, Image
 from .errors import EstimationError
 from .estimate.moving import estimate as estimate_motion
@@ -51,6 +52,7 @@ __all__ = [
                              "focus_moving",
                              "line_record",
                              "load",
+                             "memory_budget",
                              "omega_k",
                              "pca_record",
                              "ptrs_image",
@@ -59,5 +61,6 @@ __all__ = [
                              "save",
                              "simulate",
                              "use_backend",
+                             "use_memory_budget",
 ]
 __version__ = "0.1.0"
