@@ -21,7 +21,8 @@
  * Both: the range-compressed sample at the delay by linear interpolation of the (upsampled)
  * record (INTERP_LINEAR) or by an 8-tap Kaiser-windowed sinc on the original samples
  * (INTERP_SINC8, taps from the nearest row of a table over the fractional offset); a record
- * reads as zero where the interpolator would need samples outside it; the phase rotation
+ * reads as zero where the interpolator would need samples outside it (taps and row lookup:
+ * interp.h, the table of clsas/interp.py); the phase rotation
  * exp(+j 2 pi f0 tau) from cycles reduced to a fraction (polynomial sin/cos, common.h);
  * accumulation in float (double with CLSAS_DOUBLE) over the launch's pulses, added once into
  * the double image at the end (blocked sum).
@@ -41,6 +42,7 @@
 #include "common.h"
 #include "loads.h"
 #include "lanes.h"
+#include "interp.h"
 
 /* Data, interpolation and sums in float, or in double with CLSAS_DOUBLE (precision="double"). */
 #ifdef CLSAS_DOUBLE
@@ -50,7 +52,7 @@ typedef double4 realv4_t;
 typedef double8 realv8;
 typedef double16 realv16_t;
 #define convert_realv8 convert_double8
-#define TAP_ROW(taps, row) convert_double16(LOAD_F16((taps) + 16 * (row)))
+#define TAP_ROW(taps, row) convert_double16(TAP_ROW8(taps, row))
 #define LOAD_R16 LOAD_D16
 #define LOAD_R4 LOAD_D4
 #else
@@ -60,14 +62,14 @@ typedef float4 realv4_t;
 typedef float8 realv8;
 typedef float16 realv16_t;
 #define convert_realv8 convert_float8
-#define TAP_ROW(taps, row) LOAD_F16((taps) + 16 * (row))
+#define TAP_ROW(taps, row) TAP_ROW8(taps, row)
 #define LOAD_R16 LOAD_F16
 #define LOAD_R4 LOAD_F4
 #endif
 
 /* One lane's 8-tap sinc: sum_j w_j s[i + j] over the record's complex samples i .. i + 7 (one
- * 16-wide load), taps[row * 16 + 2 j + {0, 1}] = w_j (each tap twice: for re and im), the
- * products summed pairwise keeping the re/im parity. Returns (re, im). */
+ * 16-wide load), w_j = taps[8 row + j] (the shared 8-tap table of interp.h, each tap repeated
+ * for re and im), the products summed pairwise keeping the re/im parity. Returns (re, im). */
 inline realv2_t sinc8_lane(__global const real_t *rec, int i, __global const float *taps, int row)
 {
     const realv16_t p = LOAD_R16(rec + 2 * i) * TAP_ROW(taps, row);
@@ -188,7 +190,7 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
             /* samples i - 3 .. i + 4 of each lane, the taps of the nearest fractional-offset row */
             const int16 ic = clamp(ki[j] - 3, (int16)0, (int16)(n - 8));
             const float16 keep = select((float16)0.0f, (float16)1.0f, ki[j] >= (int16)3 && ki[j] < (int16)(n - 4));
-            const int16 row = convert_int16(frac[j] * (float)(TAP_ROWS - 1) + 0.5f);
+            const int16 row = NEAREST_TAP_ROW(convert_int16, frac[j]);
             /* each lane's eight complex products, summed across lanes (lanes.h) */
 #define P(L) (LOAD_F16(recj + 2 * ic.s##L) * TAP_ROW(taps, row.s##L))
             const float16 lo = csum8(P(0), P(1), P(2), P(3), P(4), P(5), P(6), P(7));
@@ -291,7 +293,7 @@ __kernel void bp_block(__global const double *pix, __global const double8 *pulse
          * fractional-offset row; zero unless all eight samples exist */
         const long8 ic = clamp(kl - 3, (long8)0, (long8)(n - 8));
         const realv8 keep = convert_realv8(select((double8)0.0, (double8)1.0, kl >= 3 && kl < (long8)(n - 4)));
-        const int8 row = convert_int8(frac * (real_t)(TAP_ROWS - 1) + (real_t)0.5);
+        const int8 row = NEAREST_TAP_ROW(convert_int8, frac);
         real_t v[16];
 #define TAPS8(L) vstore2(sinc8_lane(rec, ic.s##L, taps, row.s##L), L, v);
         TAPS8(0) TAPS8(1) TAPS8(2) TAPS8(3) TAPS8(4) TAPS8(5) TAPS8(6) TAPS8(7)

@@ -11,11 +11,11 @@ which focuses a moving target, Kiang & Kiang 2022), every selected receiver h an
     image(P) += s_h,p(tau) exp(+j 2 pi f0 tau),
 
 s the range-compressed record sampled at ``t0_h + k / fs``: its value at tau comes from linear
-interpolation of the record FFT-upsampled by ``upsample`` (``interp="linear"``) or from an
-8-tap Kaiser-windowed sinc (beta = 5, :func:`clsas.kernelmath.kaiser_sinc_tap`) on the original
-samples (``interp="sinc8"``). The rotation exp(+j 2 pi f0 tau) undoes the carrier phase
-exp(-j 2 pi f0 tau) of the baseband echo (DESIGN.md signal model), so all contributions of a
-scatterer add in phase at its pixel.
+interpolation of the record FFT-upsampled by ``upsample`` (``interp="linear"``) or from the
+8-tap Kaiser-windowed sinc of :mod:`clsas.interp` on the original samples (``interp="sinc8"``;
+:func:`clsas.interp.resample_rows` in the reference, ``kernels/interp.h`` in the kernels). The
+rotation exp(+j 2 pi f0 tau) undoes the carrier phase exp(-j 2 pi f0 tau) of the baseband echo
+(DESIGN.md signal model), so all contributions of a scatterer add in phase at its pixel.
 
 Aperture: ``aperture`` (radians, full integration angle) keeps only the pulses that see the
 pixel within +-aperture/2 of broadside: |sin theta| <= sin(aperture / 2) with sin theta the
@@ -52,13 +52,11 @@ from tqdm.auto import tqdm
 from .. import backend as _backend
 from .. import opencl
 from ..data import EchoData, Grid, Image
-from ..kernelmath import kaiser_sinc_tap
 from ..geometry import legs, two_node_velocity, uniform_nodes
+from ..interp import TAP_ROWS, kernel_taps, resample_rows
 from .rangecomp import upsample_records
 
 INTERPOLATORS = ("linear", "sinc8")
-SINC_BETA = 5.0
-TAP_ROWS = 2049  # sinc8 tap table rows over the fractional offset [0, 1] (nearest row is used)
 UPLOAD_BYTES = 64 * 2**20  # upsampled records prepared and uploaded at once
 PULSE_BLOCK = 64  # pulses a kernel launch (one reference sub-block; 32 was ~4 % slower: more launches)
 PIXEL_CHUNK = 2**22  # pixels on the device at once
@@ -101,33 +99,6 @@ def _aperture_keep(echo, pulses, q, half_sin):
     return np.abs(d[..., 1] / np.linalg.norm(d, axis=-1)) <= half_sin
 
 
-def _sample(records: np.ndarray, k: np.ndarray, interp: str) -> np.ndarray:
-    """Records (P, n) read at fractional indices k (P, M).
-
-    ``"linear"``: (1 - f) s[i] + f s[i + 1] with i = floor(k), f = k - i, zero unless both
-    samples exist. ``"sinc8"``: sum_j w_j(f) s[i + j], j = -3..4, zero unless all eight exist,
-    with the Kaiser-windowed sinc taps w_j(f) = kaiser_sinc_tap(f - j, 4, 5) evaluated at the
-    fractional offset rounded to the nearest 1/(TAP_ROWS - 1) (the OpenCL kernel's tap table;
-    the rounding of at most 1/4096 sample costs at most 2 pi (fs/4) / (4096 fs) = 4e-4 rad at the
-    edge of a band sampled at twice its width).
-    """
-    n = records.shape[1]
-    i = np.floor(k).astype(np.int64)
-    frac = k - i
-    rows = np.arange(records.shape[0])[:, None]
-
-    def at(j):
-        return records[rows, np.clip(j, 0, n - 1)]
-
-    if interp == "linear":
-        return np.where((i >= 0) & (i < n - 1), (1 - frac) * at(i) + frac * at(i + 1), 0)
-    row = np.floor(frac * (TAP_ROWS - 1) + 0.5) / (TAP_ROWS - 1)
-    out = np.zeros(k.shape, dtype=np.complex128)
-    for j in range(-3, 5):
-        out += kaiser_sinc_tap(row - j, 4.0, SINC_BETA) * at(i + j)
-    return np.where((i >= 3) & (i < n - 4), out, 0)
-
-
 def backproject_reference(echo, grid, receivers, interp, upsample, aperture, velocity, stop_and_go, progress):
     """The float64 NumPy reference (vectorised over pixels, at most 2^20 pixels and a few pulses
     at a time): image (M,) complex128."""
@@ -146,18 +117,11 @@ def backproject_reference(echo, grid, receivers, interp, upsample, aperture, vel
             part = slice(first, first + chunk)
             t1, q, t2, _ = legs(echo, h, pulses, pixels[part], velocity, stop_and_go)
             tau = t1 + t2
-            value = _sample(records, (tau - echo.t0[h]) * fs, interp) * np.exp(2j * np.pi * f0 * tau)
+            value = resample_rows(records, (tau - echo.t0[h]) * fs, interp) * np.exp(2j * np.pi * f0 * tau)
             if aperture is not None:
                 value *= _aperture_keep(echo, pulses, q, np.sin(aperture / 2))
             image[part] += value.sum(axis=0)
     return image
-
-
-def _tap_table() -> np.ndarray:
-    """sinc8 taps (TAP_ROWS, 16) float32: row r holds w_j(r / (TAP_ROWS - 1)), j = -3..4, each twice
-    (for the real and the imaginary part of a sample; kernels/backprojection.cl sinc8_lane)."""
-    frac = np.linspace(0.0, 1.0, TAP_ROWS)[:, None]
-    return np.repeat(kaiser_sinc_tap(frac - np.arange(-3, 5)[None, :], 4.0, SINC_BETA), 2, axis=1).astype(np.float32)
 
 
 def tile_half_extent(f0: float, c: float) -> float:
@@ -401,7 +365,7 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
     image = np.zeros(m, dtype=np.complex128)
     factor = upsample if interp == "linear" else 1
     fs = echo.fs * factor
-    taps_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=_tap_table())
+    taps_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=kernel_taps(interp))
     defines = {"INTERP_LINEAR" if interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS,
                **({"APERTURE": 1} if aperture is not None else {})}
     half_sin = np.sin(aperture / 2) if aperture is not None else 1.0
