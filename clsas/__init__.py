@@ -6,6 +6,7 @@ from .image.backprojection import backproject
 from .image.csa import chirp_scaling
 from .image.multireceiver import pca_record
 from .image.omegak import omega_k
+from .image.ptrs import ptrs_image
 from .image.rangecomp import range_compress
 from .image.rda import range_doppler
 from .image.record import line_record
@@ -42,6 +43,7 @@ __all__ = [
                              "load",
                              "omega_k",
                              "pca_record",
+                             "ptrs_image",
                              "range_compress",
                              "range_doppler",
                              "save",

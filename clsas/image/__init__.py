@@ -4,6 +4,7 @@ from .backprojection import backproject
 from .csa import chirp_scaling
 from .multireceiver import pca_record
 from .omegak import omega_k
+from .ptrs import ptrs_image
 from .rangecomp import (
            WINDOWS,
            lfm_replica,
@@ -17,4 +18,4 @@ from .stolt import stolt
 from .record import LineRecord, line_record
 
 __all__ = ["WINDOWS", "LineRecord", "backproject", "chirp_scaling", "lfm_replica", "line_record", "matched_filter",
-           "omega_k", "pca_record", "range_compress", "range_doppler", "spectral_window", "stolt", "upsample_records"]
+           "omega_k", "pca_record", "ptrs_image", "range_compress", "range_doppler", "spectral_window", "stolt", "upsample_records"]

@@ -26,10 +26,69 @@ and at the range of the sample, and fourth-order terms (sigma^4 / (64 r^3)) are 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..data import EchoData
-from .record import LineRecord, check_straight_track, compensate_bistatic, made_nonstop
+from .record import LineRecord, Track, check_straight_track, compensate_bistatic, made_nonstop
+
+
+def line_offsets(echo: EchoData, chosen, track) -> np.ndarray:
+    """Along-track offsets d_i (m, ahead of the transmitter) of receivers ``chosen``, which must
+    sit on the transmitter's track line at fixed offsets (within ``track.tolerance``)."""
+    tol = track.tolerance
+    offsets = []
+    for h in chosen:
+        off = echo.rx_position(h, np.zeros((echo.n_pulses, 1)))[:, 0] - echo.tx_pos
+        if np.ptp(off, axis=0).max() > tol or np.abs(off[:, [0, 2]]).max() > tol:
+            raise ValueError(f"receiver {echo.receivers[h]!r} must sit on the transmitter's track line at a fixed "
+                             f"along-track offset (found offsets {off[0]} m varying by {np.ptp(off, axis=0).max():.3g} m)")
+        offsets.append(float(np.mean(off[:, 1])))
+    return np.asarray(offsets)
+
+
+def interleave(track, offsets, n_pulses: int) -> tuple[np.ndarray, float, float]:
+    """Order of the (pulse, receiver) rows by phase centre u_p + d_i / 2 (Wu et al. 2018 eq. 27),
+    and the uniform grid they form (first centre u0 and spacing, m); a ValueError when the
+    centres are not uniform within ``track.tolerance``."""
+    tol = track.tolerance
+    centres = (track.u0 + track.du * np.arange(n_pulses))[:, None] + np.asarray(offsets)[None, :] / 2
+    order = np.argsort(centres, axis=None, kind="stable")
+    u = centres.ravel()[order]
+    step = (u[-1] - u[0]) / (u.size - 1)
+    if step <= 0 or np.max(np.abs(u - (u[0] + step * np.arange(u.size)))) > tol:
+        raise ValueError("the receivers' phase centres u_p + d_i / 2 do not interleave into a uniform grid "
+                         f"(mean spacing {step:.4g} m, largest deviation "
+                         f"{np.max(np.abs(u - (u[0] + step * np.arange(u.size)))):.3g} m > {tol:.3g} m): the "
+                         "along-track sampling is not uniform; use clsas.backproject")
+    return order, float(u[0]), float(step)
+
+
+@dataclass(frozen=True)
+class LineArray:
+    """A multireceiver record on a straight track: the transmitter's track, the chosen
+    receivers (indices) and their along-track offsets d_i (m, ahead of the transmitter), the
+    pulse repetition interval (s)."""
+
+    track: Track
+    receivers: list
+    offsets: np.ndarray
+    pri: float
+
+
+def line_array(echo: EchoData, receivers=None) -> LineArray:
+    """Check that ``echo`` is a range-compressed record of receivers on the transmitter's
+    straight track line (fixed along-track offsets) and describe it."""
+    if not isinstance(echo, EchoData):
+        raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
+    if not echo.compressed:
+        raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first")
+    chosen = echo.select_receivers(receivers)
+    track = check_straight_track(echo)
+    offsets = line_offsets(echo, chosen, track)
+    pri = (echo.eta[-1] - echo.eta[0]) / (echo.n_pulses - 1)
+    return LineArray(track, chosen, offsets, float(pri))
 
 
 def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and_go: bool | None = None,
@@ -51,30 +110,10 @@ def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and
     -------
     LineRecord with n_pulses x len(receivers) rows.
     """
-    if not isinstance(echo, EchoData):
-        raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
-    if not echo.compressed:
-        raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first")
-    chosen = echo.select_receivers(receivers)
-    track = check_straight_track(echo)
-    tol = track.tolerance
-    offsets = []
-    for h in chosen:
-        off = echo.rx_position(h, np.zeros((echo.n_pulses, 1)))[:, 0] - echo.tx_pos
-        if np.ptp(off, axis=0).max() > tol or np.abs(off[:, [0, 2]]).max() > tol:
-            raise ValueError(f"receiver {echo.receivers[h]!r} must sit on the transmitter's track line at a fixed "
-                             f"along-track offset (found offsets {off[0]} m varying by {np.ptp(off, axis=0).max():.3g} m)")
-        offsets.append(float(np.mean(off[:, 1])))
+    arr = line_array(echo, receivers)
+    chosen, track, offsets = arr.receivers, arr.track, arr.offsets
     nonstop = made_nonstop(echo, stop_and_go)
-    centres = (track.u0 + track.du * np.arange(echo.n_pulses))[:, None] + np.asarray(offsets)[None, :] / 2
-    order = np.argsort(centres, axis=None, kind="stable")
-    u = centres.ravel()[order]
-    step = (u[-1] - u[0]) / (u.size - 1)
-    if step <= 0 or np.max(np.abs(u - (u[0] + step * np.arange(u.size)))) > tol:
-        raise ValueError("the receivers' phase centres u_p + d_i / 2 do not interleave into a uniform grid "
-                         f"(mean spacing {step:.4g} m, largest deviation "
-                         f"{np.max(np.abs(u - (u[0] + step * np.arange(u.size)))):.3g} m > {tol:.3g} m): the "
-                         "along-track sampling is not uniform; use clsas.backproject")
+    order, u0, step = interleave(track, offsets, echo.n_pulses)
     t0 = float(np.min(echo.t0[chosen]))
     rows = np.empty((echo.n_pulses, len(chosen), echo.n_samples), dtype=np.complex64)
     for j, (h, d) in enumerate(zip(chosen, offsets)):
@@ -83,7 +122,7 @@ def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and
         rows[:, j] = compensate_bistatic(echo.data[h], echo.t0[h], echo.fs, d, speed, echo.waveform, echo.medium,
                                          t0_out=t0, nonstop=lead, backend=backend)
     data = rows.reshape(-1, echo.n_samples)[order]
-    return LineRecord(data=data, u0=float(u[0]), du=float(step), t0=t0, fs=echo.fs, speed=track.speed,
+    return LineRecord(data=data, u0=u0, du=step, t0=t0, fs=echo.fs, speed=track.speed,
                       track=(track.x, track.z),
                       waveform=echo.waveform, medium=echo.medium, nonstop=nonstop,
                       provenance={"from": "pca_record", "receivers": [echo.receivers[h] for h in chosen],

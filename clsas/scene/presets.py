@@ -93,19 +93,27 @@ def wu2018(n_pulses: int = 128) -> Scenario:
                              speed=3.0, prf=3.0 / 1.28, n_pulses=n_pulses)
 
 
-def zhang2019(n_pulses: int = 256) -> Scenario:
+def zhang2019(n_pulses: int = 256, receivers: int = 30, pri: float = 0.3) -> Scenario:
     """Zhang, Tan & Ying 2019, Table 1: f0 = 150 kHz, B = 20 kHz, V = 2 m/s, receiver length
     0.02 m, receiver array 0.6 m (30 receivers), transmitter 0.04 m, PRI 0.3 s.
 
     As printed, the table undersamples the aperture: 30 phase centres 0.01 m apart cover
     0.3 m per ping while the platform moves V PRI = 0.6 m, so the Scenario warns
-    (SamplingWarning). The preset keeps the printed values. Receivers ahead of the
-    transmitter at d_i = 0.03 + 0.02 (i - 1) m (contiguous). Assumed: pulse 10 ms, sampling
-    rate 25 kHz, c = 1500 m/s, platform at depth 0.
+    (SamplingWarning). The preset keeps the printed values by default. Receivers ahead of the
+    transmitter at d_i = 0.03 + (0.6 / ``receivers``) (i - 1) m (contiguous for 30). Assumed:
+    pulse 10 ms, sampling rate 25 kHz, c = 1500 m/s, platform at depth 0.
+
+    ``receivers`` and ``pri`` change what the table cannot have meant together. The
+    reproduction (``clsas reproduce zhang2019``) uses ``receivers=15, pri=0.15``: the printed
+    0.6 m array, 0.02 m receivers on a 0.04 m pitch (the table gives no count), and PRI 0.15 s
+    so that V PRI = 0.3 m = the span of the 15 phase centres (0.02 m = D_tx / 2 apart, uniform
+    across pings, as the coherent superposition of section 4.4 needs); the equivalent
+    sampling rate M PRF = 100 Hz is the transmitter's Doppler band 2 V / D_tx.
     """
-    return _line_array_sonar(Array.uniform_line(30, 0.02, first=0.03, tx_length=0.04, rx_length=0.02),
+    spacing = 0.6 / receivers
+    return _line_array_sonar(Array.uniform_line(receivers, spacing, first=0.03, tx_length=0.04, rx_length=0.02),
                              Waveform(f0=150e3, bandwidth=20e3, duration=10e-3, fs=25e3),
-                             speed=2.0, prf=1 / 0.3, n_pulses=n_pulses)
+                             speed=2.0, prf=1 / pri, n_pulses=n_pulses)
 
 
 def heremans2009(n_pulses: int = 128) -> Scenario:
@@ -143,16 +151,24 @@ def _grid(ranges, along) -> np.ndarray:
     return np.array([[x, y, 0.0] for x in ranges for y in along])
 
 
+# Zhang et al. 2019 Tables 2-4: the sub-block width each of T1-T6 (and T7-T12) measures, m
+ZHANG_WIDTHS = (20.0, 14.0, 12.0, 10.0, 8.0, 2.0)
+ZHANG_REFERENCES = (53.0, 143.0, 194.0)
+
 # Point-target layouts (x across track, y along track, z = 0 at the platform's depth), m.
 POINT_LAYOUTS = {
     # Huang & Yang 2022 Fig. 4 shows six points T1..T6 but the text gives no coordinates:
     # assumed two along-track rows (y = -2, +2 m) at ranges 40, 60, 80 m.
     "huang2022": _grid([40.0, 60.0, 80.0], [-2.0, 2.0]),
-    # Zhang et al. 2019 Fig. 7: 18 points in three range sub-blocks centred on the reference
-    # ranges of the text (53, 143, 194 m), six per block (T1-T6 close, T7-T12 medium, T13-T18
-    # far); the coordinates are not in the text: assumed r_ref - 6, r_ref, r_ref + 6 m at
-    # y = -3 and +3 m.
-    "zhang2019": np.concatenate([_grid([r - 6.0, r, r + 6.0], [-3.0, 3.0]) for r in (53.0, 143.0, 194.0)]),
+    # Zhang et al. 2019 Fig. 7 and section 6.1.2: 18 points in three groups decoupled at the
+    # reference ranges 53, 143 and 194 m; "the difference between the target range and reference
+    # range denotes the half width of the sub-block", so each point sits half a sub-block width
+    # (20, 14, 12, 10, 8, 2 m for T1-T6 and T7-T12; 2, 8, 10, 12, 14, 20 m for T13-T18, the
+    # order of Tables 2-4 and Figs. 8-10) from its group's reference. Assumed (not in the
+    # text): the points alternate below and above the reference range, at y = -5, -3, -1, 1, 3, 5 m.
+    "zhang2019": np.array([[ref + sign * width / 2, y, 0.0]
+                           for ref, widths in zip(ZHANG_REFERENCES, (ZHANG_WIDTHS, ZHANG_WIDTHS, ZHANG_WIDTHS[::-1]))
+                           for width, sign, y in zip(widths, (-1, 1, -1, 1, -1, 1), (-5.0, -3.0, -1.0, 1.0, 3.0, 5.0))]),
     # Wu et al. 2018 section 4: P1(297, -3), P2(303, -3), P3(303, 3), P4(297, 3), P5(300, 0) m.
     "wu2018": np.array([[297.0, -3.0, 0.0], [303.0, -3.0, 0.0], [303.0, 3.0, 0.0], [297.0, 3.0, 0.0],
                         [300.0, 0.0, 0.0]]),

@@ -1,0 +1,228 @@
+"""One receiver's moving-target chain (Kiang & Kiang 2022, sections III and IV, Fig. 3).
+
+The monostatic chain of transceiver A (section III) and the bistatic chains of receiver B and
+sonobuoy C (section IV) are the same processing of one receiver's record: only the closed forms
+of K_a,eq and f_dc,eq (eqs. 15-16, 23-25, 28, 32) differ, and the chain does not use them. With
+tau(eta) = tau_0 + (f_dc / f0) eta + (K / (2 f0)) eta^2 the two-way delay of the target
+(eqs. 1-2, 21, the R'' of C; f_dc = f_dc,eq, K = K_a,eq):
+
+1. range compression (eq. 8; :func:`clsas.range_compress`, upsampled twice so that the envelope
+   stages see a well-sampled |s|),
+2. RFRT (eqs. 10-11) gated to where the echo stands out of the noise, modified SoWVD
+   (eqs. 12-14) and its strongest peak -> K; a peak-to-background test (section VII-C) raises
+   :class:`clsas.errors.EstimationError` when no peak stands out,
+3. RCMC (eq. 17, :mod:`.filters`), Radon transform of |s_rcmc| -> slope -> f_dc (:mod:`.radon`),
+4. range-walk compensation and azimuth compression (eqs. 18-20; :func:`.filters.compress`).
+   tau_c is the trace's delay at eta = 0 (the Radon intercept; eq. 20: (R'_10 + R''_10) / c_s),
+   eta_c the focused peak's slow time: -(f_dc,true - f_dc) / K, ~0.
+
+Several targets (section VII-B): :func:`estimate_receivers` takes the strongest SoWVD peak,
+focuses it, windows its image, undoes the chain on the window (inverse azimuth compression,
+RWC, RCMC: all unitary here) and subtracts the result from the range-compressed record
+before looking for the next peak.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...data import EchoData, Image
+from ...errors import EstimationError
+from ...image.rangecomp import range_compress
+from . import filters, radon, trace
+from .doppler import Doppler
+from .sowvd import SoWVD, modified_sowvd, rfrt
+
+log = logging.getLogger("clsas")
+
+#: Default lag offset p0 (s): Kiang & Kiang 2022 Fig. 5(b) reads f_eta = 1.934 Hz for
+#: K = 4.834 Hz/s, i.e. 4 p0 = 0.4 s.
+P0 = 0.1
+#: Default SoWVD peak-to-background threshold (peak over the map's median), dB. A noise-only map
+#: of 1e5-2e7 cells has its largest cell at ~12-14 dB (Rayleigh: sqrt(2 ln N) / sqrt(2 ln 2)).
+THRESHOLD_DB = 20.0
+#: Range upsampling of the compressed records.
+UPSAMPLE = 2
+#: An azimuth chirp with time-bandwidth product |K| T_a^2 below this has nothing to compress
+#: (the target keeps its range to the receiver: Table II case 7 at A and B).
+MIN_TIME_BANDWIDTH = 4.0
+
+
+@dataclass(frozen=True)
+class ReceiverEstimate(Doppler):
+    """A target's Doppler parameters at one receiver, estimated from its echo.
+
+    fm_rate : K_a,eq, Hz/s (SoWVD peak, eq. 14); doppler_centroid : f_dc,eq, Hz (Radon slope).
+    receiver : its name. tau_c : the trace's fast time at eta = 0 (Radon intercept), s: where the
+    focused target sits in range, (R'_10 + R''_10) / c_s in eq. (20). eta_c : the focused peak's
+    slow time, s (~0 when f_dc is right: eq. 20; nan when the target cannot be focused).
+    peak_to_background : the SoWVD peak over the map's median (linear). p0 : the lag offset
+    used, s. aperture : the record's slow-time span T_a, s.
+    """
+
+    receiver: str
+    tau_c: float
+    eta_c: float
+    peak_to_background: float
+    p0: float
+    aperture: float
+
+    @property
+    def focusable(self) -> bool:
+        """False when |K| T_a^2 < :data:`MIN_TIME_BANDWIDTH`: the azimuth chirp has no
+        bandwidth to compress (the target moves with the receiver)."""
+        return abs(self.fm_rate) * self.aperture**2 >= MIN_TIME_BANDWIDTH
+
+
+@dataclass(frozen=True)
+class _Records:
+    """One receiver's range-compressed record: x (n_pulses, n_samples) at fast times
+    t0 + k / fs after each emission eta (n_pulses,)."""
+
+    x: np.ndarray
+    eta: np.ndarray
+    t0: float
+    fs: float
+    f0: float
+    name: str
+
+    @property
+    def prf(self) -> float:
+        return (self.eta.size - 1) / float(np.ptp(self.eta))
+
+
+def _records(echo: EchoData, receiver: str) -> _Records:
+    if not isinstance(echo, EchoData):
+        raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
+    if echo.compressed:
+        raise ValueError("echo must be raw (EchoData.compressed is False): the chain range-compresses it itself")
+    if not isinstance(receiver, str):
+        raise TypeError(f"receiver must be a receiver name (one of {echo.receivers}), got {receiver!r}")
+    (r,) = echo.select_receivers(receiver, parameter="receiver")
+    if echo.n_pulses < 64:
+        raise ValueError(f"echo has {echo.n_pulses} pulses; the moving-target chain needs at least 64")
+    eta = echo.eta
+    if np.ptp(np.diff(eta)) > 1e-6 * np.mean(np.diff(eta)):
+        raise ValueError("echo.eta must be uniformly spaced (one PRF) for the moving-target chain")
+    one = echo.replace(data=echo.data[r:r + 1], t0=echo.t0[r:r + 1], rx_pos=echo.rx_pos[r:r + 1],
+                       rx_tau=echo.rx_tau[r:r + 1], receivers=(receiver,))
+    comp = range_compress(one, upsample=UPSAMPLE)
+    return _Records(x=comp.data[0], eta=eta, t0=float(echo.t0[r]), fs=comp.fs, f0=echo.waveform.f0, name=receiver)
+
+
+def _sowvd(rec: _Records, p0: float) -> SoWVD:
+    gate = trace.support(trace.smoothed_power(rec.x, UPSAMPLE), upsample=UPSAMPLE)
+    return modified_sowvd(rfrt(rec.x, gate), rec.prf, p0)
+
+
+def _doppler_centroid_radon(rec: _Records, rcmc: np.ndarray) -> tuple[float, float]:
+    """(f_dc, tau at eta = 0) of the straight trace in |s_rcmc| (:mod:`.radon`): the slope s in
+    samples a pulse is f_dc fs / (f0 PRF)."""
+    image = np.abs(rcmc).astype(np.float32)
+    image -= np.median(image[::4, ::4])
+    np.maximum(image, 0, out=image)
+    slope, k_mid = radon.line_slope(image)
+    n_zero = -rec.eta[0] * rec.prf  # fractional pulse index of eta = 0
+    k_zero = k_mid + slope * (n_zero - 0.5 * (rec.eta.size - 1))
+    return slope * rec.f0 * rec.prf / rec.fs, rec.t0 + k_zero / rec.fs
+
+
+def _focus_bins(rec: _Records, fm_rate: float, doppler_centroid: float, bins: slice):
+    """RCMC + RWC of the whole record, then azimuth compression of the range ``bins``:
+    (image, eta axis)."""
+    shift, cycles = filters.migration(rec.eta, rec.f0, fm_rate, doppler_centroid)
+    aligned = filters.advance(rec.x, rec.fs, shift, cycles)
+    return filters.compress(aligned[:, bins], rec.eta, fm_rate)
+
+
+def _peak(image: np.ndarray, eta_axis: np.ndarray) -> tuple[float, int, float]:
+    """(eta, range bin, sub-bin offset) of the largest |image| (parabolic refinement both ways)."""
+    mag = np.abs(image)
+    i, j = np.unravel_index(int(np.argmax(mag)), mag.shape)
+
+    def vertex(a, b, c):
+        den = a - 2 * b + c
+        return 0.5 * (a - c) / den if den < 0 else 0.0
+
+    di = vertex(*mag[i - 1:i + 2, j]) if 0 < i < mag.shape[0] - 1 else 0.0
+    dj = vertex(*mag[i, j - 1:j + 2]) if 0 < j < mag.shape[1] - 1 else 0.0
+    return float(eta_axis[i] + di * (eta_axis[1] - eta_axis[0])), int(j), float(dj)
+
+
+def _estimate(rec: _Records, p0: float, threshold_db: float) -> ReceiverEstimate:
+    wv = _sowvd(rec, p0)
+    ratio_db = 10 * np.log10(wv.peak_to_background) if np.isfinite(wv.peak_to_background) else np.inf
+    if ratio_db < threshold_db:
+        raise EstimationError(f"receiver {rec.name}: no SoWVD peak stands out of the background: "
+                              f"peak-to-background {ratio_db:.1f} dB < threshold {threshold_db:.1f} dB")
+    k = wv.fm_rate
+    rcmc = filters.advance(rec.x, rec.fs, k * rec.eta**2 / (2 * rec.f0))
+    f_dc, tau_c = _doppler_centroid_radon(rec, rcmc)
+    aperture = float(np.ptp(rec.eta) + 1.0 / rec.prf)
+    est = ReceiverEstimate(fm_rate=k, doppler_centroid=f_dc, receiver=rec.name, tau_c=tau_c, eta_c=np.nan,
+                           peak_to_background=wv.peak_to_background, p0=wv.p0, aperture=aperture)
+    if est.focusable:
+        k0 = (tau_c - rec.t0) * rec.fs
+        bins = slice(int(max(0, np.floor(k0) - 4 * UPSAMPLE)), int(min(rec.x.shape[1], np.ceil(k0) + 4 * UPSAMPLE + 1)))
+        est = dataclasses.replace(est, eta_c=_peak(*_focus_bins(rec, k, f_dc, bins))[0])
+    log.info("receiver %s: K = %.5g Hz/s, f_dc = %.5g Hz, tau_c = %.6f s, eta_c = %.4g s, SoWVD peak-to-background "
+             "%.1f dB", rec.name, k, f_dc, tau_c, est.eta_c, ratio_db)
+    return est
+
+
+def estimate_receiver(echo: EchoData, receiver: str, *, p0: float = P0,
+                      threshold_db: float = THRESHOLD_DB) -> ReceiverEstimate:
+    """K_a,eq and f_dc,eq of the strongest moving target in ``receiver``'s echo (section III for a
+    transceiver, IV for a receiver or sonobuoy), with no knowledge of its motion.
+
+    Parameters
+    ----------
+    echo : raw EchoData (not range-compressed) holding ``receiver``.
+    receiver : the receiver's name (e.g. "A", "B", "C").
+    p0 : lag offset of the modified SoWVD, s (eq. 12), rounded to whole pulses; K must satisfy
+        |K| < PRF / (8 p0) (see :mod:`.sowvd`).
+    threshold_db : SoWVD peak-to-background ratio (peak over median) below which
+        :class:`clsas.errors.EstimationError` is raised.
+    """
+    return _estimate(_records(echo, receiver), p0, threshold_db)
+
+
+def focus_receiver(echo: EchoData, receiver: str, rx_estimate: ReceiverEstimate, *,
+                   tau_span: float | None = None) -> Image:
+    """The target focused on the tau-eta plane from ``receiver``'s raw echo with ``rx_estimate``'s
+    K_a,eq and f_dc,eq: RCMC, range-walk compensation and azimuth compression (eqs. 17-20).
+
+    Returns an Image with dims ("eta", "tau"): eta spans one period PRF / |K| centred on the
+    focus (see :mod:`.filters`), tau the receiver's fast times (all of them, or ``tau_span``
+    seconds centred on ``rx_estimate.tau_c``). Raises EstimationError when the estimate is not
+    focusable (|K| T_a^2 too small: the target moves with the receiver).
+    """
+    if not isinstance(rx_estimate, Doppler):
+        raise TypeError(f"rx_estimate must be a ReceiverEstimate, got {type(rx_estimate).__name__}")
+    rec = _records(echo, receiver)
+    aperture = float(np.ptp(rec.eta) + 1.0 / rec.prf)
+    if abs(rx_estimate.fm_rate) * aperture**2 < MIN_TIME_BANDWIDTH:
+        raise EstimationError(f"receiver {receiver}: cannot focus: |K_a,eq| T_a^2 = "
+                              f"{abs(rx_estimate.fm_rate) * aperture**2:.3g} < {MIN_TIME_BANDWIDTH} "
+                              "(the target keeps its range to this receiver)")
+    n = rec.x.shape[1]
+    bins = slice(0, n)
+    if tau_span is not None:
+        if not (np.isfinite(tau_span) and tau_span > 0):
+            raise ValueError(f"tau_span must be a positive number of seconds, got {tau_span}")
+        centre = (getattr(rx_estimate, "tau_c", np.nan) - rec.t0) * rec.fs
+        if not np.isfinite(centre):
+            raise ValueError("tau_span needs rx_estimate.tau_c")
+        half = 0.5 * tau_span * rec.fs
+        bins = slice(int(np.clip(np.floor(centre - half), 0, n - 1)), int(np.clip(np.ceil(centre + half) + 1, 1, n)))
+    image, eta_axis = _focus_bins(rec, rx_estimate.fm_rate, rx_estimate.doppler_centroid, bins)
+    tau = rec.t0 + np.arange(bins.start, bins.stop) / rec.fs
+    return Image(image, ("eta", "tau"), {"eta": eta_axis, "tau": tau},
+                 provenance={"algorithm": "clsas.estimate.moving.focus_receiver", "receiver": receiver,
+                             "fm_rate": float(rx_estimate.fm_rate),
+                             "doppler_centroid": float(rx_estimate.doppler_centroid),
+                             "range_upsample": UPSAMPLE, "reference": "Kiang & Kiang 2022 eqs. 17-20"})

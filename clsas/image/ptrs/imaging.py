@@ -1,0 +1,247 @@
+"""Numerical point-target-reference-spectrum (PTRS) imaging of a multireceiver line array:
+Zhang, Tan & Ying 2019, sections 3-4 (Fig. 2).
+
+For each receiver i (offset d_i ahead of the transmitter), on its range-compressed record:
+
+1. 2-D FFT (section 4.1): range FFT (every receiver's fast time referred to the earliest
+   receiver's start by a linear phase), slow-time FFT over its pulses at the PRF. The spectrum
+   is aliased M times; it is laid on the full Doppler grid of M x PRF (the receiver's samples
+   zero-stuffed onto the fine slow-time grid PRI / M, i.e. its spectrum repeated M times).
+2. Bulk decoupling (eq. 12) at the swath centre r_c: exp(-j phi_de_i(f_tau, f_t; r_c)) with
+   phi_de = Psi - phi_ac + 4 pi f_tau r / c (eqs. 7, 8, 10, 11; the range matched filter
+   conj(P) is already applied). Range IFFT: the range-Doppler domain.
+3. Differential decoupling (eq. 13) per range sub-block n: exp(-j [phi_de_i(r_ref_n) -
+   phi_de_i(r_c)]), applied by overlap-save: the block's columns plus a margin of the largest
+   differential range migration are range-FFT'd, filtered and transformed back, and the
+   block's own columns kept (the paper transforms the whole swath once per block; the filter
+   is the same and its impulse response is shorter than the margin).
+4. Azimuth compression (eq. 14): exp(-j phi_ac_i(f_t; r)) at every range column r.
+5. Coherent superposition (section 4.4) of the M receivers' spectra on the M x PRF grid (the
+   aliases cancel when the phase centres v t + d_i / 2 interleave uniformly), the Doppler band
+   and its window (as omega-k: ``elements``, ``window``, ``deconvolve``), and the azimuth IFFT.
+
+The stationary points behind Psi and phi_ac are solved numerically (eq. 5, Newton,
+:mod:`clsas.image.ptrs.stationary`) per receiver and range and kept in a
+:class:`~clsas.image.ptrs.stationary.StationaryPoints` (pass it back as ``points`` to reuse
+them: seed 003's second scheme). The azimuth modulation is tabulated at range nodes
+``NODE_SPACING`` apart and interpolated linearly between them (G is linear in r up to the
+bistatic d_i^2 / (4 r) terms: the interpolation error is below 1e-3 rad beyond 20 m).
+
+Sub-block width (section 6.1.2): the residual coupling phase |phi_de(r_ref +- dr / 2) -
+phi_de(r_ref)| must stay below pi / 4 over the processed band; without ``block_width`` or
+``reference_ranges`` the width is the largest that satisfies this at every range of the swath
+(the rule evaluated with the phase's range derivative at the band's corners).
+"""
+
+from __future__ import annotations
+
+import logging
+import numpy as np
+import scipy.fft
+
+from ...data import EchoData, Image
+from ..multireceiver import line_array
+from ..rangecomp import WINDOWS
+from ..record import LineRecord, azimuth_weights, check_elements, image_of
+from .phase import compress_azimuth, decouple
+from .stationary import StationaryPoints, hermite
+
+log = logging.getLogger("clsas")
+
+NODE_SPACING = 0.5  # m between the ranges at which the azimuth modulation is tabulated
+MIN_RANGE = 1.0  # m: columns nearer than this (or before the emission) are not imaged
+RESIDUAL_LIMIT = np.pi / 4  # rad, the sub-block rule of seed 003 section 6.1.2 (after [31])
+
+
+def plan_blocks(r: np.ndarray, valid: np.ndarray, block_width, reference_ranges, rule_width) -> list:
+    """Range sub-blocks as (first column, stop column, reference range) over the ``valid``
+    columns of ranges ``r``: ``reference_ranges`` (each column to its nearest reference), or a
+    uniform partition of ``block_width`` m (reference at each block's centre), or, when both
+    are None, of ``rule_width()`` m."""
+    cols = np.flatnonzero(valid)
+    lo_col, hi_col = int(cols[0]), int(cols[-1]) + 1
+    if reference_ranges is not None:
+        refs = np.sort(np.asarray(reference_ranges, dtype=np.float64).reshape(-1))
+        if refs.size == 0 or not np.all(np.isfinite(refs)) or np.any(refs <= 0):
+            raise ValueError(f"reference_ranges must be positive ranges in m, got {reference_ranges!r}")
+        nearest = np.argmin(np.abs(r[lo_col:hi_col, None] - refs[None, :]), axis=1)
+        blocks = []
+        for k, ref in enumerate(refs):
+            mine = np.flatnonzero(nearest == k)
+            if mine.size:
+                blocks.append((lo_col + int(mine[0]), lo_col + int(mine[-1]) + 1, float(ref)))
+        return blocks
+    width = rule_width() if block_width is None else float(block_width)
+    start = r[lo_col]
+    index = np.floor((r[lo_col:hi_col] - start) / width).astype(int)
+    blocks = []
+    for k in np.unique(index):
+        mine = np.flatnonzero(index == k)
+        blocks.append((lo_col + int(mine[0]), lo_col + int(mine[-1]) + 1, float(start + (k + 0.5) * width)))
+    return blocks
+
+
+def _check_width(block_width) -> None:
+    if block_width is not None and not (np.isfinite(block_width) and block_width > 0):
+        raise ValueError(f"block_width must be a positive sub-block width in m (or None for the pi/4 rule), "
+                         f"got {block_width!r}")
+
+
+def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None, reference_ranges=None,
+               elements=None, window: str = "none", deconvolve: bool = True, points: StationaryPoints | None = None,
+               depth: float | None = None, workers: int | None = None, backend: str | None = None,
+               **window_options) -> Image:
+    """Focus a multireceiver line-array record by numerical PTRS imaging (see the module docstring).
+
+    Parameters
+    ----------
+    echo : EchoData, range-compressed, straight uniformly sampled track, receivers on the track
+        line at fixed along-track offsets (Zhang et al. 2019 Fig. 1).
+    receivers : indices or names (default all).
+    block_width : sub-block width, m (eq. 13); None: the pi / 4 rule (section 6.1.2).
+    reference_ranges : explicit sub-block reference ranges r_ref_n, m (each range column is
+        decoupled at its nearest one); overrides ``block_width``.
+    elements : (L_tx, L_rx) along-track element lengths, m: the processed Doppler band
+        |f_t| <= v / max(L) and (``deconvolve``) the element-pattern deconvolution, as
+        :func:`clsas.image.omegak.omega_k`. None keeps the whole M x PRF band.
+    window : Doppler-band weighting ("none", "hamming", "taylor", "kaiser").
+    points : a :class:`StationaryPoints` from an earlier call on the same geometry (its
+        :attr:`~StationaryPoints.solved` count does not grow when it serves every range);
+        a new one is made otherwise. The one used is in ``image.provenance["points"]``.
+    depth : the horizontal plane the pixels are placed on (default: the track's).
+    workers : scipy.fft threads (default: all cores).
+    backend : where the phase multiplies run.
+
+    Returns
+    -------
+    Image, dims ("y", "x"), along-track rows every v PRI / M.
+    """
+    _check_width(block_width)
+    if window not in WINDOWS:
+        raise ValueError(f"window must be one of {WINDOWS}, got {window!r}")
+    if points is not None and not isinstance(points, StationaryPoints):
+        raise TypeError(f"points must be a StationaryPoints (or None), got {type(points).__name__}")
+    arr = line_array(echo, receivers)
+    workers = -1 if workers is None else workers
+    c, f0, fs, v = echo.medium.sound_speed, echo.waveform.f0, echo.fs, arr.track.speed
+    n_rx, n_p = len(arr.receivers), echo.n_pulses
+    if f0 <= fs / 2:
+        raise ValueError(f"the carrier f0 = {f0:g} Hz must exceed half the sampling rate fs / 2 = {fs / 2:g} Hz")
+
+    # the full Doppler grid (M x PRF) and the processed band
+    n_fp = scipy.fft.next_fast_len(n_p)
+    n_ft = n_rx * n_fp
+    ft = np.fft.fftfreq(n_ft, arr.pri / n_rx)
+    probe = LineRecord(data=np.zeros((1, 1), np.complex64), u0=arr.track.u0, du=arr.track.du / n_rx, t0=0.0, fs=fs,
+                       speed=v, track=(arr.track.x, arr.track.z), waveform=echo.waveform, medium=echo.medium,
+                       nonstop=False)
+    elements = check_elements(elements, probe)
+    weights = azimuth_weights(2 * np.pi * ft / v, elements, window, deconvolve, **window_options)
+    rows = np.flatnonzero(weights != 0)
+    ft_used = ft[rows]
+    f_edge = np.abs(ft_used).max()
+    s_max = 1.02 * f_edge / (f0 - fs / 2)
+    if points is None or not points.matches(arr.offsets, v, c, s_max):
+        points = StationaryPoints(arr.offsets, v, c, s_max)
+
+    # the common range axis
+    t0 = float(np.min(echo.t0[arr.receivers]))
+    n_cols = int(np.ceil(np.max(echo.t0[arr.receivers] - t0) * fs)) + echo.n_samples
+    r = c * (t0 + np.arange(n_cols) / fs) / 2
+    valid = r >= MIN_RANGE
+    if not valid.any():
+        raise ValueError("the record holds no range beyond 1 m")
+    x_edge = c * f_edge / (2 * v * (f0 - fs / 2))
+    migration = int(np.ceil(r[-1] * (1 / np.sqrt(1 - min(x_edge, 0.9) ** 2) - 1) * 2 / c * fs))
+    n_r = scipy.fft.next_fast_len(n_cols + migration + 32)
+    ftau = np.fft.fftfreq(n_r, 1 / fs)
+    r_c = float((r[valid][0] + r[-1]) / 2)
+
+    def rule_width() -> float:
+        return residual_rule_width(points, r[valid], r_c, ft_used, echo.waveform.bandwidth, f0, c)
+
+    blocks = plan_blocks(r, valid, block_width, reference_ranges, rule_width)
+    nodes = np.arange(r[valid][0], r[-1] + NODE_SPACING, NODE_SPACING)
+    column_node = np.clip(np.floor((r - nodes[0]) / NODE_SPACING).astype(int), 0, nodes.size - 2)
+    column_weight = (r - nodes[column_node]) / NODE_SPACING
+    refs = np.array([b[2] for b in blocks])
+    tables_t, tables_g = points.tables(np.concatenate([[r_c], refs, nodes]))
+    margin = _block_margin(tables_t[:, :1 + refs.size], tables_g[:, :1 + refs.size], points.slopes,
+                           np.concatenate([[r_c], refs]), c, fs)
+    log.info("ptrs_image: %d receivers, %d x %d 2-D grid, %d sub-blocks, margin %d columns",
+             n_rx, rows.size, n_r, len(blocks), margin)
+
+    acc = np.zeros((rows.size, n_cols), np.complex64)
+    for j, h in enumerate(arr.receivers):
+        spec = scipy.fft.fft(echo.data[h], n=n_r, axis=1, workers=workers)
+        spec *= np.exp(-2j * np.pi * ftau * (echo.t0[h] - t0)).astype(np.complex64)
+        spec = scipy.fft.fft(spec, n=n_fp, axis=0, workers=workers)[rows % n_fp]
+        g_c, t_c = tables_g[j, 0], tables_t[j, 0]
+        decouple(spec, ft_used, ftau, f0, g_c, t_c, points.s_first, points.ds, 2 * r_c / c)
+        rd = scipy.fft.ifft(spec, axis=1, workers=workers)
+        del spec
+        out = np.zeros((rows.size, n_cols), np.complex64)
+        for b, (lo, hi, r_ref) in enumerate(blocks):
+            length = scipy.fft.next_fast_len(hi - lo + 2 * margin)
+            seg = scipy.fft.fft(rd[:, np.arange(lo - margin, lo - margin + length) % n_r], axis=1, workers=workers)
+            decouple(seg, ft_used, np.fft.fftfreq(length, 1 / fs), f0, tables_g[j, 1 + b] - g_c,
+                     tables_t[j, 1 + b] - t_c, points.s_first, points.ds, 2 * (r_ref - r_c) / c)
+            out[:, lo:hi] = scipy.fft.ifft(seg, axis=1, workers=workers)[:, margin:margin + hi - lo]
+        del rd
+        compress_azimuth(out, ft_used, f0, tables_g[j, 1 + refs.size:], tables_t[j, 1 + refs.size:],
+                         points.s_first, points.ds, column_node, column_weight)
+        acc += out
+    acc *= weights[rows, None].astype(np.complex64)
+    full = np.zeros((n_ft, n_cols), np.complex64)
+    full[rows] = acc
+    del acc
+    full[:, ~valid] = 0
+    grid = probe.replace(data=np.broadcast_to(np.complex64(0), (1, n_cols)), t0=t0)  # the output grid's axes
+    image = image_of(grid, full, r, "ptrs", {"receivers": [echo.receivers[h] for h in arr.receivers],
+                                            "blocks": [(float(r[lo]), float(r[hi - 1]), ref) for lo, hi, ref in blocks],
+                                            "r_c": r_c, "elements": elements, "window": window,
+                                            "deconvolve": deconvolve, "backend": backend}, depth)
+    image.provenance["points"] = points
+    return image
+
+
+def decoupling_phase(points: StationaryPoints, g: np.ndarray, t: np.ndarray, r: float, ft: np.ndarray,
+                     ftau: np.ndarray, f0: float, c: float) -> np.ndarray:
+    """phi_de(f_tau, f_t; r) (eq. 11), rad, (len(ft), len(ftau)), from the tables (g, t) at range r."""
+    f = f0 + ftau[None, :]
+    psi = -2 * np.pi * f * hermite(g, t, points.s_first, points.ds, -ft[:, None] / f)
+    phi_ac = -2 * np.pi * f0 * hermite(g, t, points.s_first, points.ds, -ft / f0)[:, None]
+    return psi - phi_ac + 4 * np.pi * ftau[None, :] * r / c
+
+
+def residual_rule_width(points: StationaryPoints, r: np.ndarray, r_c: float, ft: np.ndarray, bandwidth: float,
+                        f0: float, c: float, probes: int = 5, step: float = 1.0) -> float:
+    """The widest sub-block (m) whose residual coupling phase stays below pi / 4 at its edges
+    (seed 003 section 6.1.2): 2 (pi / 4) / max |d phi_de / dr| over every receiver, the
+    band's corners (f_t at the band edges and 0, f_tau = +-B / 2) and ``probes`` ranges across
+    the swath (the derivative by a difference over ``step`` m)."""
+    ranges = np.linspace(r[0], r[-1], probes)
+    ft_c = np.array([ft.min(), 0.0, ft.max()])
+    ftau_c = np.array([-bandwidth / 2, bandwidth / 2])
+    t_all, g_all = points.tables(np.concatenate([ranges, ranges + step]))
+    slope = 0.0
+    for j in range(points.offsets.size):
+        for k, rk in enumerate(ranges):
+            a = decoupling_phase(points, g_all[j, k], t_all[j, k], rk, ft_c, ftau_c, f0, c)
+            b = decoupling_phase(points, g_all[j, probes + k], t_all[j, probes + k], rk + step, ft_c, ftau_c, f0, c)
+            slope = max(slope, float(np.abs(b - a).max()) / step)
+    return np.inf if slope == 0 else 2 * RESIDUAL_LIMIT / slope
+
+
+def _block_margin(tables_t: np.ndarray, tables_g: np.ndarray, slopes: np.ndarray, ranges: np.ndarray, c: float,
+                  fs: float) -> int:
+    """Columns of margin for the overlap-save differential decoupling: the largest group delay
+    of the differential filters plus 32 samples for the compressed pulse's sidelobes.
+
+    d phi_de / d f_tau = 2 pi (2 r / c - tau(T(s); r)) (with dG/ds = -T, tau(T) = G + s T), so the
+    group delay of exp(-j [phi_de(r_ref) - phi_de(r_c)]) is the difference of the two ranges'
+    migrations tau(T(s); r) - 2 r / c. ``tables_*`` are (n_receivers, n_ranges, n_s) with
+    range 0 the bulk reference r_c and the others the sub-blocks' references ``ranges[1:]``.
+    """
+    migration = tables_g + slopes * tables_t - 2 * ranges[None, :, None] / c
+    return int(32 + np.ceil(fs * np.abs(migration[:, 1:] - migration[:, :1]).max(initial=0.0)))
