@@ -1,5 +1,5 @@
-"""Kiang & Kiang 2022 at full scale: the moving submarine of a Table II case, simulated with hull
-occlusion and focused by back-projection with its velocity."""
+"""Kiang & Kiang 2022: the moving submarine of a Table II case (the Albacore scaled down six times),
+simulated with hull occlusion and focused by back-projection with its velocity."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ def test_submarine_case_focuses_on_its_hull(opencl_device, case):
     assert energy[on_hull].sum() > 0.9 * energy.sum()
     # on a patch sampled finer than the resolution, focusing with the right velocity concentrates
     # the energy: lower entropy and a higher peak than assuming a stationary target
-    patch = Grid.plane(np.arange(1980.0, 1990.0, 0.05), np.arange(-5.0, 5.0, 0.05), -350.0 + 4.2)
+    patch = Grid.plane(np.arange(1980.0, 1990.0, 0.05), np.arange(-5.0, 5.0, 0.05), -350.0 + 0.7)  # the hull top
     kw = dict(backend="opencl", receivers=["A"], upsample=1, progress=False)
     sharp = clsas.backproject(echo, patch, target_velocity=hull.velocity, **kw)
     smeared = clsas.backproject(echo, patch, **kw)

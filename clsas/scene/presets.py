@@ -194,6 +194,9 @@ def point_scene(name: str, n_pulses: int | None = None, **options) -> Scenario:
     return scenario.replace(targets=(PointTargets(layout),))
 
 
+# Kiang & Kiang 2022 section II-B: the Albacore model (LOA 62.13 m) scaled down six times, LOA ~10 m.
+KIANG_HULL_SCALE = 1.0 / 6.0
+
 # Kiang & Kiang 2022 Table II: the submarine's velocity vector (m/s) in the eight cases.
 KIANG_CASES = {
     1: (0.0, -4.0, 0.0), 2: (0.0, 4.0, 0.0), 3: (0.0, -5.0, 3.0), 4: (0.0, -5.0, -3.0),
@@ -207,6 +210,9 @@ def kiang2022_case(case: int, n_pulses: int | None = None, max_facet: float | No
     receiver B, sonobuoy C at (-500, 0, -150) m) and the submarine centred at (1989, 0, -350) m at
     eta = 0, moving with the case's velocity vector.
 
+    The hull is the Albacore model scaled down six times (section II-B: LOA about 10 m;
+    :data:`KIANG_HULL_SCALE`): 10.35 m long, 1.4 m in diameter.
+
     The bow points along the velocity (the paper: "the bow is oriented toward" the motion):
     heading = atan2(v_y, v_x), pitch = atan2(v_z, |v_xy|) (assumed; the paper shows the
     orientation only in its figures). ``max_facet`` subdivides the hull (m); ``sections`` and
@@ -218,7 +224,9 @@ def kiang2022_case(case: int, n_pulses: int | None = None, max_facet: float | No
     if case not in KIANG_CASES:
         raise ValueError(f"case must be one of {sorted(KIANG_CASES)} (Kiang & Kiang 2022 Table II), got {case!r}")
     v = np.array(KIANG_CASES[case])
-    hull = MeshTarget(submarine(sections=sections, stations=stations), position=(1989.0, 0.0, -350.0),
+    mesh = submarine(sections=sections, stations=stations)
+    mesh.apply_scale(KIANG_HULL_SCALE)
+    hull = MeshTarget(mesh, position=(1989.0, 0.0, -350.0),
                       heading=float(np.arctan2(v[1], v[0])), pitch=float(np.arctan2(v[2], np.hypot(v[0], v[1]))),
                       velocity=v, max_facet=max_facet)
     return kiang2022(n_pulses=n_pulses).replace(targets=(hull,))

@@ -1,1 +1,24 @@
-"""Moving-target estimation and focusing (Kiang & Kiang 2022, sections III-VII)."""
+"""Moving-target estimation and focusing (Kiang & Kiang 2022, sections III-VII).
+
+- :func:`estimate` (``clsas.estimate_motion``): velocity (and position) of a moving target from a
+  raw echo of >= 3 receivers; :func:`focus` (``clsas.focus_moving``): its images on the r-y plane;
+- :func:`closed_forms`: the true K_a,eq, f_dc,eq, tau_c, eta_c of a point target at every receiver
+  (eqs. 3-6, 15-16, 23-25, 28, 32-35; exact non-stop-and-go Taylor coefficients);
+- :func:`solve_velocity` / :func:`solve_motion`: the velocity vector (section V), and the
+  position with it when it is not known;
+- :func:`estimate_receiver` / :func:`focus_receiver` (:mod:`.chain`): one receiver's chain
+  (RFRT, modified SoWVD, RCMC, Radon, RWC, azimuth compression; sections III-IV);
+- :mod:`.mapping`: tau-eta -> r-y (section VI) and SSIM against a reference image;
+  :mod:`.compare`: RDA, CSA and omega-k run stop-and-go with the estimated velocity (VII-A).
+"""
+
+from .chain import ReceiverEstimate, estimate_receiver, focus_receiver
+from .closedforms import Predicted, closed_forms
+from .doppler import Doppler
+from .layout import Layout, layout_of
+from .motion import MotionEstimate, estimate, focus, motion_from_receivers
+from .velocity import MotionSolution, solve_motion, solve_velocity
+
+__all__ = ["Doppler", "Layout", "MotionEstimate", "MotionSolution", "Predicted", "ReceiverEstimate", "closed_forms",
+           "estimate", "estimate_receiver", "focus", "focus_receiver", "layout_of", "motion_from_receivers",
+           "solve_motion", "solve_velocity"]

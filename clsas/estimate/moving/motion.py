@@ -1,0 +1,189 @@
+"""The public moving-target API (issue 14): :func:`estimate` a moving target's velocity (and
+position) from a raw multistatic echo, :func:`focus` it on the r-y plane of every receiver that
+can focus it (Kiang & Kiang 2022, sections III-VI).
+
+``estimate`` runs the per-receiver chain (:func:`.chain.estimate_receiver`: K_a,eq from the
+modified SoWVD, f_dc,eq from the Radon slope, tau_c, eta_c) on every receiver, then solves for
+the velocity (:func:`.velocity.solve_velocity`, section V) at the given position, or for the
+position and velocity together (:func:`.velocity.solve_motion`). The centroids it solves with
+are refined by the azimuth focus: the chain focuses the target at eta_c = -(f_dc,true -
+f~_dc) / K~ (a residual linear phase shifts the compressed chirp), so f~_dc - K~ eta_c is the
+centroid the focus agrees with (to ~1 / T_a, against the Radon slope's fraction of a range cell
+over the aperture); it is used when the receiver focuses (|K| T_a^2 large enough) and within
+half a PRF of the Radon estimate.
+
+A receiver "cannot focus" when |K_a,eq| T_a^2 < 4 at the solved velocity (the target keeps its
+range to it: Table II case 7 at A and B); it still gives its centroid to the velocity solve and
+is left out of :func:`focus`.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...data import EchoData, Image
+from .closedforms import delay_terms
+from .layout import Layout, layout_of
+from .mapping import to_ry
+from .velocity import centroid_sigma, solve_motion, solve_velocity
+
+log = logging.getLogger("clsas")
+
+#: |K| T_a^2 below this: no azimuth chirp to compress (as in the chain).
+MIN_TIME_BANDWIDTH = 4.0
+#: 1-sigma of a centroid refined by the azimuth focus, Hz (plus 1e-4 of it): the closed forms are
+#: Taylor coefficients at eta_ref, the focus sees the aperture (measured on point targets, Table II
+#: cases 1-8, 2048 pulses: 0.00-0.07 Hz from the closed forms).
+REFINED_SIGMA = 0.05
+
+
+@dataclass(frozen=True)
+class MotionEstimate:
+    """A moving target's motion from a multistatic echo.
+
+    velocity : (3,) m/s. position : (3,) m at slow time 0 (given, or estimated when
+    ``position_estimated``). receivers : {name: ReceiverEstimate} (K_a,eq, f_dc,eq, tau_c,
+    eta_c, ...). residual : RMS misfit of the centroid equations at the solution, Hz.
+    confidence : probability in [0, 1] that the velocity error is within the paper's 3 % bound
+    (:mod:`.velocity`). sigma, position_sigma : (3,) 1-sigma errors, m/s and m. centroids :
+    {name: Hz} the centroids solved with (refined by the focus where possible). cannot_focus :
+    names of the receivers with |K_a,eq| T_a^2 < 4 at the solved velocity. layout : the
+    geometry used.
+    """
+
+    velocity: np.ndarray
+    position: np.ndarray
+    receivers: dict
+    residual: float
+    confidence: float
+    sigma: np.ndarray
+    position_sigma: np.ndarray
+    position_estimated: bool
+    centroids: dict
+    cannot_focus: tuple
+    layout: Layout = field(repr=False)
+
+    @property
+    def speed(self) -> float:
+        return float(np.linalg.norm(self.velocity))
+
+    @property
+    def note(self) -> str:
+        """"A and B cannot focus" (Table II case 7), or ""."""
+        if not self.cannot_focus:
+            return ""
+        names = list(self.cannot_focus)
+        who = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+        return f"{who} cannot focus"
+
+
+def _check_position(position):
+    if position is None:
+        return None
+    arr = np.asarray(position, dtype=np.float64) if np.ndim(position) else None
+    if arr is None or arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"position must be None or a finite 3-vector (x, y, z) in m, got {position!r}")
+    return arr
+
+
+def check_echo(echo, receivers=None) -> list:
+    """The receiver names to use, after checking ``echo`` is a raw EchoData with >= 3 of them."""
+    if not isinstance(echo, EchoData):
+        raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
+    if echo.compressed:
+        raise ValueError("echo must be raw (EchoData.compressed is False); got a range-compressed echo: the "
+                         "moving-target chain range-compresses it itself (Kiang & Kiang 2022 eq. 8)")
+    names = list(echo.receivers) if receivers is None else [echo.receivers[i] for i in
+                                                           echo.select_receivers(receivers, "receivers")]
+    if len(names) < 3:
+        raise ValueError(f"echo must hold at least 3 receivers to solve the 3 velocity components (the paper's "
+                         f"A, B and C), got {tuple(names)}")
+    return names
+
+
+def refined_centroid(rx, layout: Layout) -> tuple[float, float]:
+    """(centroid, 1-sigma) of one receiver estimate: f~ - K~ eta_c when the focus gives it (module
+    docstring), else the Radon slope's f~ with :func:`.velocity.centroid_sigma`."""
+    f, k = float(rx.doppler_centroid), float(rx.fm_rate)
+    eta_c = float(getattr(rx, "eta_c", np.nan))
+    aperture = float(getattr(rx, "aperture", layout.aperture))
+    shift = -k * eta_c
+    if np.isfinite(shift) and abs(k) * aperture**2 >= MIN_TIME_BANDWIDTH and abs(shift) < 0.5 * layout.prf:
+        return f + shift, REFINED_SIGMA + 1e-4 * abs(f)
+    return f, centroid_sigma(f)
+
+
+def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine: bool = True,
+                          aperture: float | None = None) -> MotionEstimate:
+    """Solve a :class:`MotionEstimate` from per-receiver estimates (anything with fm_rate,
+    doppler_centroid, tau_c and eta_c: the chain's ReceiverEstimate, or the closed forms).
+
+    ``aperture`` (s) decides which receivers cannot focus (default: the layout's T_a).
+    """
+    position = _check_position(position)
+    if len(receivers) < 3:
+        raise ValueError(f"receivers must hold at least 3 receiver estimates, got {sorted(receivers)}")
+    centroids, sigmas = {}, {}
+    for name, rx in receivers.items():
+        centroids[name], sigmas[name] = refined_centroid(rx, layout) if refine else \
+            (float(rx.doppler_centroid), centroid_sigma(rx.doppler_centroid))
+    rates = {n: float(rx.fm_rate) for n, rx in receivers.items()}
+    if position is None:
+        sol = solve_motion(layout, {n: float(rx.tau_c) for n, rx in receivers.items()}, centroids, rates, sigmas)
+    else:
+        sol = solve_velocity(layout, position, centroids, sigmas, rates)
+    aperture = layout.aperture if aperture is None else float(aperture)
+    blind = tuple(n for n in receivers
+                  if abs(delay_terms(layout, n, sol.position, sol.velocity)[2]) * aperture**2 < MIN_TIME_BANDWIDTH)
+    log.info("moving target: v = %s m/s (sigma %s), residual %.3g Hz, confidence %.2f%s", np.round(sol.velocity, 3),
+             np.round(sol.sigma, 3), sol.residual, sol.confidence, f"; {', '.join(blind)} cannot focus" if blind else "")
+    return MotionEstimate(velocity=sol.velocity, position=sol.position, receivers=dict(receivers),
+                          residual=sol.residual, confidence=sol.confidence, sigma=sol.sigma,
+                          position_sigma=sol.position_sigma, position_estimated=sol.position_estimated,
+                          centroids=centroids, cannot_focus=blind, layout=layout)
+
+
+def estimate(echo: EchoData, position=None, receivers=None, **chain_options) -> MotionEstimate:
+    """Velocity vector (and position, when not given) of the strongest moving target in a raw
+    multistatic echo, with no prior knowledge of its motion (Kiang & Kiang 2022, sections III-V).
+
+    Parameters
+    ----------
+    echo : raw EchoData with at least three receivers (the paper's A, B, C), found by name.
+    position : (3,) m, the target at slow time 0 (the paper assumes it known), or None to
+        estimate it from the receivers' delays, centroids and FM rates.
+    receivers : names (or indices) to use; default all of the echo's.
+    chain_options : passed to :func:`.chain.estimate_receiver` (p0, threshold_db).
+
+    Raises :class:`clsas.errors.EstimationError` naming the receiver when its SoWVD shows no peak.
+    """
+    names = check_echo(echo, receivers)
+    position = _check_position(position)
+    from .chain import estimate_receiver
+
+    estimates = {name: estimate_receiver(echo, name, **chain_options) for name in names}
+    layout = layout_of(echo)
+    return motion_from_receivers(layout, estimates, position)
+
+
+def focus(echo: EchoData, est: MotionEstimate, tau_span: float | None = None) -> dict:
+    """The target focused at every receiver that can focus it, on the r-y plane (section VI):
+    {name: Image with dims ("y", "r")}. Receivers in ``est.cannot_focus`` are left out (case 7:
+    imaged from C only). ``tau_span`` (s) limits the range extent around tau_c.
+    """
+    if not isinstance(est, MotionEstimate):
+        raise TypeError(f"est must be a MotionEstimate (from estimate()), got {type(est).__name__}")
+    check_echo(echo, list(est.receivers))
+    from .chain import focus_receiver
+
+    images = {}
+    for name, rx in est.receivers.items():
+        if name in est.cannot_focus:
+            continue
+        image: Image = focus_receiver(echo, name, rx, tau_span=tau_span)
+        eta_c = float(rx.eta_c) if np.isfinite(getattr(rx, "eta_c", np.nan)) else est.layout.eta_ref
+        images[name] = to_ry(image, est.layout, name, est.position, est.velocity, rx.tau_c, eta_c)
+    return images
