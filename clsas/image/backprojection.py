@@ -52,7 +52,8 @@ from tqdm.auto import tqdm
 from .. import backend as _backend
 from .. import opencl
 from ..data import EchoData, Grid, Image
-from ..geometry import legs, two_node_velocity, uniform_nodes
+from ..cstruct import declare_all, record_dtype
+from ..geometry import NODE, legs, two_node_velocity, uniform_nodes
 from ..interp import TAP_ROWS, kernel_taps, resample_rows
 from .rangecomp import upsample_records
 
@@ -67,6 +68,17 @@ ERROR_FACTOR = 8.0  # float32 roundings per |delta| / c of delay (see backprojec
 NODE_TOLERANCE = 1 / 2000  # of a wavelength: a receiver's allowed departure from linear motion over a tile
 SPAN_FACTOR = 2.5  # a tile's delay span is +-SPAN_FACTOR * half_extent / c around its reference
 REF_PULSES = 64  # pulses whose tile references are computed at once
+# the records the kernels read (kernels/backprojection.cl), declared once here: bp_tile's reference
+# of a (tile, pulse) and its parameters (float32), bp_block's pulse and parameters (float64)
+TILE_REF = record_dtype([("leg1", "f4", 3), ("b1", "f4"), ("leg2", "f4", 3), ("b2", "f4"), ("v_rx", "f4", 3),
+                         ("a2", "f4"), ("k_ref", "i4"), ("k_frac", "f4"), ("cycles", "f4"), ("range1", "f4")])
+TILE_PARAMS = record_dtype([("a1", "f4"), ("fs", "f4"), ("f0", "f4"), ("velocity", "f4", 3), ("half_sin", "f4"),
+                            ("c", "f4")])
+PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("t0_fs", "f8")])
+BLOCK_PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("dtau", "f8"), ("velocity", "f8", 3),
+                             ("half_sin", "f8")])
+RECORDS = declare_all({"node_t": NODE, "tile_ref_t": TILE_REF, "tile_params_t": TILE_PARAMS, "bp_pulse_t": PULSE,
+                       "bp_block_params_t": BLOCK_PARAMS})
 
 
 def _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velocity):
@@ -192,8 +204,8 @@ def plan_tiles(pixels: np.ndarray, f0: float, c: float, half_extent: float | Non
 
 def tile_references(echo: EchoData, h: int, pulses: np.ndarray, centres: np.ndarray, velocity: np.ndarray,
                     stop_and_go: bool, fs: float, half_extent: float) -> tuple[np.ndarray, float]:
-    """bp_tile's per-(tile, pulse) reference (T, P, 16) float32 (layout in kernels/backprojection.cl)
-    for the T tile ``centres`` and the P ``pulses``, and the receiver's largest departure (m) from
+    """bp_tile's per-(tile, pulse) references (T, P) :data:`TILE_REF` (their meaning in
+    :func:`backproject_opencl` and kernels/backprojection.cl) for the T tile ``centres`` and the P ``pulses``, and the receiver's largest departure (m) from
     the linear motion the kernel assumes over the tiles' delay spans (0 for stop-and-go and for
     receivers with two nodes, whose motion is uniform)."""
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
@@ -222,18 +234,18 @@ def tile_references(echo: EchoData, h: int, pulses: np.ndarray, centres: np.ndar
     k_ref = (big_t - echo.t0[h]) * fs
     k_int = np.clip(np.floor(k_ref), -2**30, 2**30)
     cycles = f0 * big_t
-    ref = np.empty(big_t.shape + (16,), dtype=np.float32)
-    ref[..., 0:3] = b_vec
-    ref[..., 3] = c * c * t1 - b_vec @ v_k
-    ref[..., 4:7] = c_vec
-    ref[..., 7] = c * c * t2 - np.einsum("...i,...i->...", c_vec, v_r)
-    ref[..., 8:11] = v_r
-    ref[..., 11] = c * c - np.einsum("...i,...i->...", v_r, v_r)
-    ref[..., 12] = k_int.astype(np.int32).view(np.float32)
-    ref[..., 13] = np.clip(k_ref - k_int, 0.0, np.nextafter(np.float32(1), np.float32(0)))
-    ref[..., 14] = cycles - np.round(cycles)
-    ref[..., 15] = c * t1
-    return np.ascontiguousarray(ref.transpose(1, 0, 2)), departure
+    ref = np.empty(big_t.shape, dtype=TILE_REF)
+    ref["leg1"] = b_vec
+    ref["b1"] = c * c * t1 - b_vec @ v_k
+    ref["leg2"] = c_vec
+    ref["b2"] = c * c * t2 - np.einsum("...i,...i->...", c_vec, v_r)
+    ref["v_rx"] = v_r
+    ref["a2"] = c * c - np.einsum("...i,...i->...", v_r, v_r)
+    ref["k_ref"] = k_int
+    ref["k_frac"] = np.clip(k_ref - k_int, 0.0, np.nextafter(np.float32(1), np.float32(0)))
+    ref["cycles"] = cycles - np.round(cycles)
+    ref["range1"] = c * t1
+    return np.ascontiguousarray(ref.T), departure
 
 
 def _exact_kernel(ctx, echo, h, pulses, fs, velocity, half_sin, defines, stop_and_go, double):
@@ -243,16 +255,18 @@ def _exact_kernel(ctx, echo, h, pulses, fs, velocity, half_sin, defines, stop_an
 
     dtau, pos = uniform_nodes(echo, h)
     n_nodes = pos.shape[1]
-    kern = opencl.kernel("backprojection", "bp_block", double=double, defines=dict(
+    kern = opencl.kernel("backprojection", "bp_block", double=double, preamble=RECORDS, defines=dict(
         defines, N_NODES=n_nodes, SEGMENT_PASSES=1 if n_nodes == 2 else 3, **({"STOP_AND_GO": 1} if stop_and_go else {})))
-    pulse = np.zeros((pulses.size, 8))
-    pulse[:, 0:3], pulse[:, 3], pulse[:, 4] = echo.tx_pos[pulses], echo.eta[pulses], echo.t0[h] * fs
-    nodes = np.zeros((pulses.size, n_nodes, 8))
-    nodes[..., 0:3] = pos[pulses]
+    pulse = np.zeros(pulses.size, PULSE)
+    pulse["tx"], pulse["eta"], pulse["t0_fs"] = echo.tx_pos[pulses], echo.eta[pulses], echo.t0[h] * fs
+    nodes = np.zeros((pulses.size, n_nodes), NODE)
+    nodes["pos"] = pos[pulses]
     pulse_buf, nodes_buf = (cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=a)
                             for a in (pulse, nodes))
-    params = np.array([echo.medium.sound_speed, echo.waveform.f0, fs, dtau, *velocity, half_sin])
-    return kern, pulse_buf, nodes_buf, params.view(cl.cltypes.double8)[0]
+    params = np.zeros((), BLOCK_PARAMS)
+    params["c"], params["f0"], params["fs"], params["dtau"] = echo.medium.sound_speed, echo.waveform.f0, fs, dtau
+    params["velocity"], params["half_sin"] = velocity, half_sin
+    return kern, pulse_buf, nodes_buf, params[()]
 
 
 def _records_buffer(ctx, echo: EchoData, h: int, pulses: np.ndarray, factor: int, double: bool):
@@ -378,9 +392,11 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
             for h in receivers for s in range(0, echo.n_pulses, upload)]
     tolerance = NODE_TOLERANCE * echo.waveform.wavelength(echo.medium)
     fallbacks, chunk_state = 0, None
-    tile_kernel = opencl.kernel("backprojection", "bp_tile", defines=dict(
+    tile_kernel = opencl.kernel("backprojection", "bp_tile", preamble=RECORDS, defines=dict(
         defines, BP_TILE=1, ROWS=ROWS, PULSES=PULSES, **({"MOVING": 1} if np.any(v_k) else {})))
-    tile_params = np.array([c * c - v_k @ v_k, fs, f0, *v_k, half_sin, c], dtype=np.float32).view(cl.cltypes.float8)[0]
+    tile_params = np.zeros((), TILE_PARAMS)
+    tile_params["a1"], tile_params["fs"], tile_params["f0"] = c * c - v_k @ v_k, fs, f0
+    tile_params["velocity"], tile_params["half_sin"], tile_params["c"] = v_k, half_sin, c
     for first, h, pulses in tqdm(jobs, desc="back-projection (opencl)", disable=not progress):
         if chunk_state is None or chunk_state.first != first:
             if chunk_state is not None:
@@ -400,7 +416,7 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
                     for p0, count in blocks:
                         tile_kernel(queue, (chunk_state.n // (LANES * ROWS),), None, chunk_state.pix,
                                     chunk_state.tile_of, ref_buf, np.int32(ref.shape[1]), np.int32(s), records_buf,
-                                    taps_buf, tile_params, np.int32(p0), np.int32(count), np.int32(n_samples),
+                                    taps_buf, tile_params[()], np.int32(p0), np.int32(count), np.int32(n_samples),
                                     np.int32(chunk_state.n), chunk_state.image)
                     continue
                 fallbacks += 1
