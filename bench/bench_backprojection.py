@@ -20,6 +20,24 @@ uploads and the kernel; builds and warm-up excluded):
 NumPy (the float64 reference) runs on fewer pulses (its rate does not depend on the pulse
 count). Each figure is the median of several timed runs; the fastest run is reported as
 ``min_seconds`` / ``rate_best`` beside it (the machine is shared: spread is noise).
+
+Fixed cost (issue 19; ``bench: "backprojection-fixed-cost"``): Huang & Yang 2022's sonar
+(``presets.point_scene("huang2022", n_pulses=64)``: 32 receivers x 64 pulses, range-compressed,
+default options: linear, upsample 8) imaged on grids of 128^2, 256^2 (and 512^2 without
+``--quick``) pixels, each over two extents: ``scene`` (x 35-85 m, y +-6 m: the six targets, the
+whole record's range) and ``patch`` (6 m x 6 m around the target at 60 m). Four ways, timed
+interleaved (A B C D, A B C D, ...), warm (one untimed round first):
+
+- ``plain``: ``backproject(echo, grid)``, a first call on the echo (it upsamples the span the
+  grid reaches, plans the grid's tiles);
+- ``prepared``: ``backproject(records, plan)`` on records from ``prepare(echo)`` (every sample,
+  made once) and a ``GridPlan`` of the grid: a further call on prepared records;
+- ``whole-records``: ``backproject(prepare(echo), grid)``: every record upsampled in every call,
+  as the path before prepared records did (with the same block upsampling, so the difference is
+  the span alone);
+- ``kernel_seconds`` beside each: the kernels' own time in that call (profiling events), and
+  ``over_kernel`` = whole call / kernel time (issue 19 asks <= 2 for prepared, <= 3 for plain
+  at 128^2 on the scene).
 """
 
 from __future__ import annotations
@@ -30,9 +48,11 @@ import time
 import numpy as np
 from _harness import arguments, report
 
+import clsas
 from clsas import EchoData, Medium, Waveform
 from clsas.data import Grid
-from clsas.image.backprojection import backproject
+from clsas.image.backprojection import GridPlan, backproject, prepare
+from clsas.scene import presets
 
 FS = 40e3
 
@@ -63,8 +83,45 @@ def timings(run, repeats: int) -> list[float]:
     return out
 
 
+def fixed_cost(args) -> None:
+    """The fixed-cost rows (module docstring)."""
+    echo = clsas.range_compress(clsas.simulate(presets.point_scene("huang2022", n_pulses=64), backend="opencl",
+                                               progress=False))
+    records = prepare(echo)
+    extents = {"scene": ((35.0, 85.0), (-6.0, 6.0)), "patch": ((57.0, 63.0), (-3.0, 3.0))}
+    sizes = (128, 256) if args.quick else (128, 256, 512)
+    repeats = args.repeats or (3 if args.quick else 5)
+    for n in sizes:
+        for extent, (xs, ys) in extents.items():
+            grid = Grid.plane(np.linspace(*xs, n), np.linspace(*ys, n), 0.0)
+            plan = GridPlan(grid)
+            ways = {"plain": lambda: backproject(echo, grid, progress=False),
+                    "prepared": lambda: backproject(records, plan, progress=False),
+                    "whole-records": lambda: backproject(prepare(echo), grid, progress=False)}
+            for run in ways.values():
+                run()  # warm-up: kernel builds, first touch
+            seconds = {way: [] for way in ways}
+            kernel = {way: [] for way in ways}
+            for _ in range(repeats):
+                for way, run in ways.items():
+                    start = time.perf_counter()
+                    image = run()
+                    seconds[way].append(time.perf_counter() - start)
+                    kernel[way].append(image.provenance["kernel_seconds"])
+            work = grid.size * echo.n_pulses * echo.n_rx / 1e9
+            for way in ways:
+                median, k_median = statistics.median(seconds[way]), statistics.median(kernel[way])
+                report(args, "backprojection-fixed-cost", "opencl",
+                       {"pixels": grid.size, "pulses": echo.n_pulses, "receivers": echo.n_rx,
+                        "samples": echo.n_samples}, work / median, "G backprojections/s", median, case=way,
+                       grid=f"{extent} {n}^2", min_seconds=min(seconds[way]), kernel_seconds=k_median,
+                       kernel_min_seconds=min(kernel[way]), over_kernel=median / k_median, runs=repeats,
+                       **({"prepared_records_mb": records.nbytes / 2**20} if way == "prepared" else {}))
+
+
 def main() -> None:
     args = arguments(__doc__.splitlines()[0])
+    fixed_cost(args)
     n_pix = 256 if args.quick else 512
     pulses = {"opencl": 256 if args.quick else 1024, "numpy": 8 if args.quick else 16}
     cases = [("sinc8", "sinc8", 4096, FS), ("linear", "linear", 4096, FS)]

@@ -86,22 +86,44 @@ def check_options(interp: str, window: str, oversampling: float) -> None:
         raise ValueError(f"oversampling (source sampling rate over its band) must be > 1, got {oversampling}")
 
 
+def _window_start(i: np.ndarray, taps: int, n: int):
+    """(first sample read, all samples present) of an interpolator of ``taps`` taps at integer
+    samples ``i`` over rows of ``n`` samples (the first sample is 0 where some are missing)."""
+    first = i - (taps // 2 - 1) if taps > 2 else i
+    ok = (first >= 0) & (first <= n - taps)
+    return np.where(ok, first, 0), ok
+
+
 def _readings(idx: np.ndarray, taps: int, n: int):
     """(first sample, fractional offset, all samples present) of fractional columns ``idx``
-    for an interpolator of ``taps`` taps over rows of ``n`` samples (positions within SNAP
-    below an integer read as the integer)."""
+    (positions within SNAP below an integer read as the integer)."""
     i = np.floor(idx).astype(np.int64)
     w = idx - i
     up = w >= 1 - SNAP
     i, w = i + up, w - up
-    first = i - (taps // 2 - 1) if taps > 2 else i
-    ok = (first >= 0) & (first <= n - taps)
-    return np.where(ok, first, 0), w, ok
+    first, ok = _window_start(i, taps, n)
+    return first, w, ok
 
 
 def _gather(block: np.ndarray, columns: np.ndarray, shared: bool) -> np.ndarray:
     """block[r, columns[r, j]]: the same columns for every row when ``shared`` (faster)."""
     return block[:, columns] if shared else np.take_along_axis(block, columns, 1)
+
+
+def _interpolate(block: np.ndarray, first: np.ndarray, w: np.ndarray, ok: np.ndarray, shared: bool, taps: int,
+                 table: np.ndarray | None) -> np.ndarray:
+    """The rows of ``block`` (complex128) read from samples ``first`` at fractional offsets ``w``:
+    linear, or the taps of the nearest table row; zero where not ``ok``."""
+    if table is None:
+        value = (1 - w) * _gather(block, first, shared) + w * _gather(block, first + 1, shared)
+    else:
+        row = np.floor(w * (TAP_ROWS - 1) + 0.5).astype(np.int64)
+        value = sum(table[row, t] * _gather(block, first + t, shared) for t in range(taps))
+    return np.where(ok, value, 0)
+
+
+def _table(interp: str, window: str, oversampling: float):
+    return None if interp == "linear" else tap_table(INTERPOLATORS[interp], window, oversampling)
 
 
 def resample_rows(src: np.ndarray, idx: np.ndarray, interp: str = "sinc8", window: str = "kaiser",
@@ -110,24 +132,34 @@ def resample_rows(src: np.ndarray, idx: np.ndarray, interp: str = "sinc8", windo
     row of positions per row, or (m,) the same positions for every row (then the taps are looked
     up once). The interpolators of this module, zero where a source sample is missing: the NumPy
     definition the kernels are held to. complex128 (n_rows, m)."""
-    taps = INTERPOLATORS[interp]
-    table = None if interp == "linear" else tap_table(taps, window, oversampling)
+    taps, table = INTERPOLATORS[interp], _table(interp, window, oversampling)
     idx = np.asarray(idx, dtype=np.float64)
     shared = idx.ndim == 1
     n = src.shape[1]
     out = np.zeros((src.shape[0], idx.shape[-1]), dtype=np.complex128)
     if shared:
-        start, w, ok = _readings(idx, taps, n)
+        first, w, ok = _readings(idx, taps, n)
     for r0 in range(0, src.shape[0], ROW_BLOCK):
-        block = src[r0:r0 + ROW_BLOCK].astype(np.complex128)
         if not shared:
-            start, w, ok = _readings(idx[r0:r0 + ROW_BLOCK], taps, n)
-        if table is None:
-            value = (1 - w) * _gather(block, start, shared) + w * _gather(block, start + 1, shared)
-        else:
-            row = np.floor(w * (TAP_ROWS - 1) + 0.5).astype(np.int64)
-            value = sum(table[row, t] * _gather(block, start + t, shared) for t in range(taps))
-        out[r0:r0 + ROW_BLOCK] = np.where(ok, value, 0)
+            first, w, ok = _readings(idx[r0:r0 + ROW_BLOCK], taps, n)
+        out[r0:r0 + ROW_BLOCK] = _interpolate(src[r0:r0 + ROW_BLOCK].astype(np.complex128), first, w, ok, shared,
+                                              taps, table)
+    return out
+
+
+def read_rows(src: np.ndarray, i: np.ndarray, frac: np.ndarray, interp: str = "sinc8", window: str = "kaiser",
+              oversampling: float = 1.25) -> np.ndarray:
+    """Rows of ``src`` (n_rows, n) read at integer samples ``i`` plus fractions ``frac`` in [0, 1)
+    (both (n_rows, m)): :func:`resample_rows` for positions already split (as a kernel splits
+    them before taking off a record's integer offset, so that the fraction is the same whatever
+    the offset), without the snap onto integers. complex128 (n_rows, m)."""
+    taps, table = INTERPOLATORS[interp], _table(interp, window, oversampling)
+    n = src.shape[1]
+    out = np.zeros(np.shape(i), dtype=np.complex128)
+    for r0 in range(0, src.shape[0], ROW_BLOCK):
+        rows = slice(r0, r0 + ROW_BLOCK)
+        first, ok = _window_start(np.asarray(i[rows], dtype=np.int64), taps, n)
+        out[rows] = _interpolate(src[rows].astype(np.complex128), first, frac[rows], ok, False, taps, table)
     return out
 
 

@@ -45,6 +45,7 @@ class Runtime:
 
 _runtimes: dict[str, Runtime] = {}
 _programs: dict[tuple, object] = {}
+_sources: dict[str, tuple[str, str]] = {}  # kernels/NAME.cl -> (text, digest), read once per process
 
 
 def _import_pyopencl():
@@ -164,7 +165,10 @@ def kernels_dir() -> Path:
 
 
 def _source(name: str) -> tuple[str, str]:
-    """(source text, digest of it and of every header in kernels/) for kernels/NAME.cl."""
+    """(source text, digest of it and of every header in kernels/) for kernels/NAME.cl, read from
+    disk on the first call for NAME in the process (a source edited later needs a new process)."""
+    if name in _sources:
+        return _sources[name]
     kdir = kernels_dir()
     path = kdir / f"{name}.cl"
     if not path.is_file():
@@ -174,7 +178,8 @@ def _source(name: str) -> tuple[str, str]:
     digest = hashlib.sha256(text.encode())
     for header in sorted(kdir.glob("*.h")):
         digest.update(header.read_bytes())
-    return text, digest.hexdigest()
+    _sources[name] = text, digest.hexdigest()
+    return _sources[name]
 
 
 def program(name: str, defines: dict | None = None, device: str | None = None, double: bool = False,

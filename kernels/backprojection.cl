@@ -89,7 +89,7 @@ inline realv2_t sinc8_lane(__global const real_t *rec, int i, __global const flo
  * tile_of[g]: the tile of work-item g;
  * ref[t * ref_stride + p - ref_first]: the reference of (tile t, pulse p), a tile_ref_t: leg1 = B,
  *   b1 = c^2 t1_ref - B.v, leg2 = C, b2 = c^2 t2_ref - C.v_r, v_rx = v_r, a2, k_ref the integer
- *   sample index of T_ref, k_frac its fraction, cycles = f0 T_ref reduced, range1 = c t1_ref;
+ *   sample index of T_ref in the records, k_frac its fraction, cycles = f0 T_ref reduced, range1 = c t1_ref;
  * params (tile_params_t): a1, fs (of the data), f0, velocity v, half_sin = sin(aperture / 2), c;
  * the records are declared by the launcher (clsas/image/backprojection.py, RECORDS);
  * data[p n + i]: the receiver's range-compressed record of pulse p; taps: see sinc8_lane;
@@ -218,7 +218,7 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
 
 /* pix[f * m_pad + m]: pixel m's x, y, z at t = 0 (f = 0, 1, 2);
  * pulse[p] (bp_pulse_t): tx, the transmitter at emission; eta; t0_fs, the window start in
- * samples of the data;
+ * samples of the data; first, the records' first sample (counted from t0 at the data's rate);
  * nodes[p N_NODES + k] (node_t): the receiver's position at fast time k dtau;
  * params (bp_block_params_t): c, f0, fs (of the data), dtau (node spacing), velocity (of the
  * pixels), half_sin = sin(aperture / 2) (APERTURE);
@@ -260,6 +260,7 @@ __kernel void bp_block(__global const double *pix, __global const bp_pulse_t *pu
         long8 kl = convert_long8(k);
         kl += (k < convert_double8(kl));  /* floor (a true compare is -1) */
         const realv8 frac = convert_realv8(k - convert_double8(kl));
+        kl -= (long)pl.first;  /* the records start pl.first samples into the window (after the split: exact) */
         /* carrier exp(+j 2 pi f0 tau), cycles reduced in double */
         double8 cyc = f0 * tau;
         cyc -= convert_double8(convert_long8(cyc));

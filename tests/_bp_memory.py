@@ -17,6 +17,7 @@ import time
 import numpy as np
 
 import clsas.image.backprojection as bp
+import clsas.image.backprojection_records as bp_records
 from clsas import EchoData, Medium, Waveform
 from clsas.data import Grid
 
@@ -40,7 +41,7 @@ def echo_of(n_rx: int, n_pulses: int, n_samples: int) -> EchoData:
 
 def main() -> None:
     n_pix, n_rx, n_pulses, n_samples, upload = (int(a) for a in sys.argv[1:6])
-    bp.UPLOAD_BYTES = upload
+    bp_records.UPLOAD_BYTES = upload
     echo = echo_of(n_rx, n_pulses, n_samples)
     grid = Grid.plane(np.linspace(40.0, 45.0, n_pix), np.linspace(-5.0, 5.0, n_pix), 0.0)
     bp.backproject(echo_of(1, 2, n_samples), Grid.plane(np.linspace(40.0, 41.0, 16), [0.0], 0.0),

@@ -15,7 +15,11 @@ from _tolerances import phase_error, rel_l2
 import clsas
 from clsas import metrics
 from clsas.data import Grid
-from clsas.image.backprojection import PHASE_BUDGET, backproject, plan_tiles, tile_half_extent
+from clsas.geometry import legs
+from clsas.image.backprojection import (PHASE_BUDGET, GridPlan, backproject, plan_tiles, prepare, reach,
+                                        tile_half_extent)
+from clsas.image.backprojection_records import UPSAMPLE_BLOCK, upsample_blocks
+from clsas.image.rangecomp import upsample_records
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets
 
@@ -156,6 +160,96 @@ def test_receiver_with_a_kink_falls_back_to_the_exact_kernel(opencl_device, kian
     assert rel_l2(got.data, ref.data) < 5e-3
     straight = backproject(echo, grid, backend="opencl", **dict(kw, receivers=["A"]))
     assert straight.provenance["exact_fallback_blocks"] == 0
+
+
+# ---------------------------------------------------------------- prepared records, grid plans
+
+@pytest.mark.parametrize("interp", ["linear", "sinc8"])
+def test_prepared_records_give_the_identical_image(backend, kiang_echo, interp):
+    """Records prepared once (whole records, or only the grid's reach) give the image a plain call
+    gives, bit for bit, on both backends; a subset of the prepared receivers too."""
+    grid = around((1989.0, 0.0, -350.0), 0.02, 0.05, 8, 8)
+    kw = dict(backend=backend, target_velocity=(0.5, -1.0, 0.0), progress=False)
+    plain = backproject(kiang_echo, grid, interp=interp, upsample=4, **kw)
+    whole = prepare(kiang_echo, upsample=4, interp=interp)
+    patch = prepare(kiang_echo, upsample=4, interp=interp, grid=grid, target_velocity=(0.5, -1.0, 0.0))
+    assert np.all(patch.length < whole.length)  # only the patch's reach is prepared
+    for records in (whole, patch, whole):  # the second use of ``whole`` reads its device buffers again
+        image = backproject(records, GridPlan(grid), **kw)
+        assert np.array_equal(image.data, plain.data)
+        assert image.provenance["prepared_records"] and image.provenance["interp"] == interp
+    one = backproject(kiang_echo, grid, interp=interp, upsample=4, receivers=["C"], **kw)
+    assert np.array_equal(backproject(whole, grid, receivers=["C"], **kw).data, one.data)
+
+
+def test_a_grid_plan_images_its_grid_again(opencl_device, kiang_echo):
+    grid = around((30.0, 1.0, -43.0), 0.5, 0.5, 16, 16)  # several tiles
+    plan = GridPlan(grid)
+    kw = dict(backend="opencl", interp="sinc8", progress=False)
+    first = backproject(kiang_echo, plan, **kw)
+    assert np.array_equal(backproject(kiang_echo, plan, **kw).data, first.data)
+    assert np.array_equal(backproject(kiang_echo, grid, **kw).data, first.data)
+    assert first.provenance["kernel_seconds"] > 0
+
+
+def test_reach_holds_every_delay(kiang_echo, rng):
+    """The fast-time span reach() gives each receiver holds the exact two-way delay of every pixel
+    of the grid at every pulse (moving pixels, a towed receiver and a sonobuoy)."""
+    pixels = rng.uniform(-20.0, 20.0, (200, 3)) + [1989.0, 0.0, -350.0]
+    v = np.array([0.5, -1.0, 0.0])
+    spans = reach(kiang_echo, range(kiang_echo.n_rx), pixels, v)
+    for h in range(kiang_echo.n_rx):
+        t1, _, t2, _ = legs(kiang_echo, h, np.arange(kiang_echo.n_pulses), pixels, v, False)
+        tau = t1 + t2
+        assert spans[h, 0] <= tau.min() and tau.max() <= spans[h, 1]
+        assert spans[h, 1] - spans[h, 0] < 1.5 * (tau.max() - tau.min()) + 0.01  # a bound, not the record
+
+
+def test_records_prepared_for_one_grid_refuse_another(kiang_echo):
+    near = around((1989.0, 0.0, -350.0), 0.02, 0.05, 4, 4)
+    records = prepare(kiang_echo, grid=near)
+    with pytest.raises(ValueError, match="do not cover"):
+        backproject(records, around((30.0, 1.0, -43.0), 0.02, 0.05, 4, 4), backend="numpy", progress=False)
+    with pytest.raises(ValueError, match="contradicts"):
+        backproject(records, near, backend="numpy", interp="sinc8", progress=False)
+    with pytest.raises(ValueError, match="not prepared"):
+        backproject(prepare(kiang_echo, receivers=["A"], grid=(2.5, 2.7)), near, backend="numpy", receivers=["B"])
+
+
+def test_prepare_bad_input(kiang_echo):
+    raw = kiang_echo.replace(compressed=False)
+    with pytest.raises(ValueError, match="range_compress"):
+        prepare(raw)
+    with pytest.raises(TypeError, match="EchoData"):
+        prepare(np.zeros((1, 2, 3)))
+    with pytest.raises(ValueError, match="upsample"):
+        prepare(kiang_echo, upsample=100)
+    with pytest.raises(ValueError, match="interp"):
+        prepare(kiang_echo, interp="cubic")
+    with pytest.raises(ValueError, match="receivers"):
+        prepare(kiang_echo, receivers=["D"])
+    with pytest.raises(TypeError, match="grid"):
+        prepare(kiang_echo, grid="all")
+    with pytest.raises(ValueError, match="start < stop"):
+        prepare(kiang_echo, grid=(3.0, 2.0))
+    with pytest.raises(ValueError, match="workers"):
+        prepare(kiang_echo, workers=0)
+    with pytest.raises(ValueError, match="target_velocity"):
+        prepare(kiang_echo, target_velocity=(1.0, 2.0))
+
+
+def test_block_upsampling_is_local_and_close_to_one_fft(kiang_echo):
+    """A block's upsampled samples do not depend on the span asked for, and the blocks agree with
+    one FFT of the whole zero-padded record (measured 1.3e-4 relative L2 on this echo)."""
+    records = kiang_echo.data[0, :4]
+    n = records.shape[1]
+    whole = upsample_blocks(records, 8, 0, n)
+    part = upsample_blocks(records, 8, UPSAMPLE_BLOCK, 3 * UPSAMPLE_BLOCK)
+    assert np.array_equal(part, whole[:, 8 * UPSAMPLE_BLOCK:24 * UPSAMPLE_BLOCK])
+    one = upsample_records(records, 8)
+    assert rel_l2(whole, one) < 1.5e-3
+    with pytest.raises(ValueError, match="multiple"):
+        upsample_blocks(records, 8, 3, n)
 
 
 # ---------------------------------------------------------------- physics

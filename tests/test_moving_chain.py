@@ -19,7 +19,9 @@ import pytest
 
 from clsas import PointTargets
 from clsas.errors import EstimationError
-from clsas.estimate.moving.chain import estimate_receiver, focus_receiver
+from clsas.estimate.moving.chain import P0, THRESHOLD_DB, estimate_receiver, estimate_receivers, focus_receiver
+from clsas.estimate.moving import filters
+from clsas.estimate.moving.sowvd import modified_sowvd
 from clsas.scene import presets
 from clsas.scene.scenario import PulseSchedule
 from clsas.simulate import delays, simulate
@@ -68,7 +70,7 @@ def test_case1_each_receiver(case1, receiver):
     # sample), and at eta_c = -(f_dc,true - f_dc) / K: ~0
     assert abs(est.tau_c - tau0) < 0.1 / echo.fs
     assert abs(est.eta_c * k) < FDC_ATOL
-    assert 10 * np.log10(est.peak_to_background) > 35
+    assert 20 * np.log10(est.peak_to_background) > 70  # measured 86-109 dB
 
 
 def test_focus_receiver_image(case1):
@@ -89,16 +91,17 @@ def test_focus_receiver_image(case1):
     assert img.axes["eta"][-1] - img.axes["eta"][0] == pytest.approx(prf / k, rel=0.01)
 
 
-@pytest.mark.parametrize("velocity", [(0.0, -5.0, 3.0), (3.0, 0.0, 0.0)], ids=["case3", "case8"])
-def test_other_cases_aliased(velocity):
-    sc = scene(velocity, 512, 20.0)
+@pytest.mark.parametrize("velocity, n_pulses, receiver", [((0.0, -5.0, 3.0), 512, "C"), ((3.0, 0.0, 0.0), 256, "A")],
+                         ids=["case3-C", "case8-A"])
+def test_other_cases_aliased(velocity, n_pulses, receiver):
+    """Case 3 (heave; f_dc -65 Hz at C) and case 8 (sway: f_dc 595 Hz at A, the trace walking 4
+    samples a pulse, the Doppler centroid 30 PRFs up)."""
+    sc = scene(velocity, n_pulses, 20.0)
     echo = simulate(sc, backend="numpy", progress=False)
-    true = truth(sc)
-    for receiver in ("A", "C"):
-        est = estimate_receiver(echo, receiver)
-        k, f_dc, _ = true[receiver]
-        assert est.fm_rate == pytest.approx(k, rel=K_RTOL)
-        assert est.doppler_centroid == pytest.approx(f_dc, abs=FDC_ATOL)
+    est = estimate_receiver(echo, receiver)
+    k, f_dc, _ = truth(sc)[receiver]
+    assert est.fm_rate == pytest.approx(k, rel=K_RTOL)
+    assert est.doppler_centroid == pytest.approx(f_dc, abs=FDC_ATOL)
 
 
 def test_case7_moving_with_the_platform():
@@ -117,8 +120,66 @@ def test_case7_moving_with_the_platform():
     assert est_c.doppler_centroid == pytest.approx(f_dc, abs=FDC_ATOL)
 
 
-def test_bad_input(case1):
-    sc, echo, _ = case1
+@pytest.fixture(scope="module")
+def unaliased():
+    sc = scene((0.0, -4.0, 0.0), 1024, 80.0)
+    return sc, truth(sc)
+
+
+@pytest.mark.parametrize("receiver", ["A", "B"])
+def test_noise_minus_15_db_still_estimates(unaliased, receiver):
+    """Section VII-C: -15 dB SNR (clsas.simulate's definition, per raw sample of the echo).
+    Measured on this scene: SoWVD peak-to-background 33-37 dB (noise-only maps: 15-20 dB),
+    K within 0.6 %, f_dc within 0.05 Hz."""
+    sc, true = unaliased
+    echo = simulate(sc, backend="numpy", progress=False, snr_db=-15.0, seed=3)
+    est = estimate_receiver(echo, receiver)
+    k, f_dc, _ = true[receiver]
+    assert est.fm_rate == pytest.approx(k, rel=0.03)
+    assert est.doppler_centroid == pytest.approx(f_dc, abs=FDC_ATOL)
+    assert 20 * np.log10(est.peak_to_background) > 28
+
+
+def test_noise_minus_25_db_raises(unaliased):
+    """At -25 dB the echo stands out of the noise in ~10 % of the pulses (-15 dB: all of them)."""
+    sc, _ = unaliased
+    echo = simulate(sc, backend="numpy", progress=False, snr_db=-25.0, seed=3)
+    with pytest.raises(EstimationError, match=r"receiver A: the echo stands out of the noise in \d+ % .* < 25 %"):
+        estimate_receiver(echo, "A")
+
+
+def test_sowvd_peak_to_background_test(case1):
+    """A noise-only SoWVD map has no peak over the threshold; a clean echo's peak fails a
+    threshold set above it, with the message naming the receiver and both figures."""
+    rng = np.random.default_rng(7)
+    noise = rng.standard_normal(1024) + 1j * rng.standard_normal(1024)
+    wv = modified_sowvd(noise, 80.0, P0)
+    assert 20 * np.log10(wv.peak_to_background) < THRESHOLD_DB - 4  # measured 18-20 dB
+    _, echo, _ = case1
+    with pytest.raises(EstimationError, match=r"receiver C: no SoWVD peak stands out .*: peak-to-background "
+                                              r"\d+\.\d dB < threshold 200.0 dB"):
+        estimate_receiver(echo, "C", threshold_db=200.0)
+
+
+def test_two_targets_strongest_first():
+    """Section VII-B: case 1 (reflectivity 1) and case 3 (0.7) targets 50 m apart along track;
+    the second is found after the first is focused, windowed and removed by the inverse chain.
+    Measured (512 pulses at 20 Hz, aliased): K within 0.1 %, f_dc within 0.11 Hz."""
+    targets = (PointTargets([TARGET, (TARGET[0], 50.0, TARGET[2])], reflectivity=[1.0, 0.7],
+                            velocity=[(0.0, -4.0, 0.0), (0.0, -5.0, 3.0)]),)
+    sc = scene(None, 512, 20.0, targets=targets)
+    echo = simulate(sc, backend="numpy", progress=False)
+    first, second = estimate_receivers(echo, "A", n_targets=2)
+    for est, target in ((first, 0), (second, 1)):
+        k, f_dc, tau0 = truth(sc, target)["A"]
+        assert est.fm_rate == pytest.approx(k, rel=K_RTOL)
+        assert est.doppler_centroid == pytest.approx(f_dc, abs=FDC_ATOL)
+        assert abs(est.tau_c - tau0) < 0.5 / echo.fs
+
+
+def test_bad_input():
+    sc = scene((0.0, -4.0, 0.0), 128, 20.0)
+    echo = simulate(sc, backend="numpy", progress=False)
     with pytest.raises(ValueError, match="receiver: unknown receiver 'D'"):
         estimate_receiver(echo, "D")
     with pytest.raises(TypeError, match="receiver must be a receiver name"):
@@ -130,6 +191,73 @@ def test_bad_input(case1):
         estimate_receiver(echo.data, "A")
     with pytest.raises(ValueError, match="p0 must be between one pulse"):
         estimate_receiver(echo, "A", p0=1e-4)
+    with pytest.raises(ValueError, match="n_targets must be an integer >= 1"):
+        estimate_receivers(echo, "A", n_targets=0)
+    short = echo.replace(data=echo.data[:, :32], eta=echo.eta[:32], tx_pos=echo.tx_pos[:32],
+                         rx_pos=echo.rx_pos[:, :32])
+    with pytest.raises(ValueError, match="needs at least 64"):
+        estimate_receiver(short, "A")
     est = estimate_receiver(echo, "A")
     with pytest.raises(ValueError, match="tau_span must be a positive"):
         focus_receiver(echo, "A", est, tau_span=-1.0)
+    with pytest.raises(TypeError, match="rx_estimate must be a ReceiverEstimate"):
+        focus_receiver(echo, "A", (4.8, 6.5))
+
+
+def test_paper_azimuth_filter_splits_an_aliased_target(case1):
+    """Why clsas compresses by deramping (clsas.estimate.moving.filters): eq. (19)'s
+    H_ac = exp(-j pi f^2 / K) on the azimuth spectrum assumes K T_a < PRF. On the unaliased scene
+    it focuses like the deramp; on the aliased one (K T_a ~ 6 PRF) its peak holds about
+    PRF / (K T_a) of the share of the energy that the deramp's holds (each wrapped piece of the
+    chirp is compressed to its own place)."""
+    from clsas.estimate.moving import chain, filters
+
+    sc, echo, _ = case1
+    est = estimate_receiver(echo, "A")
+    rec = chain._records(echo, "A")
+    k0 = int(round((est.tau_c - rec.t0) * rec.fs))
+    shift, cycles = filters.migration(rec.eta, rec.f0, est.fm_rate, est.doppler_centroid)
+    line = filters.advance(rec.x, rec.fs, shift, cycles)[:, k0]
+    n = line.size
+    f = np.fft.fftfreq(2 * n, 1 / rec.prf)
+    paper = np.fft.ifft(np.fft.fft(line, 2 * n) * np.exp(-1j * np.pi * f**2 / est.fm_rate))
+    deramp, _ = filters.compress(line[:, None], rec.eta, est.fm_rate)
+
+    def concentration(y):  # the peak's share of the output energy (both have 2n bins)
+        return np.abs(y).max() ** 2 / np.sum(np.abs(y) ** 2)
+
+    ratio = concentration(paper) / concentration(deramp)
+    aliasing = est.fm_rate * est.aperture / rec.prf
+    if aliasing < 1:
+        assert ratio == pytest.approx(1.0, abs=0.1)
+    else:
+        assert ratio < 2.5 / aliasing  # measured 0.27 with K T_a / PRF = 6.2
+
+
+def test_decompress_inverts_compress(rng):
+    eta = (np.arange(300) - 149.5) / 20.0
+    x = (rng.standard_normal((300, 5)) + 1j * rng.standard_normal((300, 5))).astype(np.complex64)
+    image, _ = filters.compress(x, eta, 4.87)
+    assert np.abs(filters.decompress(image, eta, 4.87) - x).max() < 1e-4 * np.abs(x).max()
+    shift, cycles = filters.migration(eta, 150e3, 4.87, -10.0)  # shifts within +-60 samples
+    # a band-limited record (Gaussian range profile, 4 samples wide) well inside the window
+    wide = (x[:, :1] * np.exp(-0.5 * ((np.arange(400) - 200) / 4.0) ** 2)).astype(np.complex64)
+    back = filters.advance(filters.advance(wide, 40e3, shift, cycles), 40e3, -shift, -cycles)
+    assert np.abs(back - wide).max() < 1e-4 * np.abs(wide).max()
+
+
+@pytest.mark.slow
+def test_table1_full_aperture_at_the_papers_prf():
+    """Table I as printed: 6400 pulses at 80 Hz (80 s, K T_a ~ 390 Hz: aliased ~5x), case 1.
+    Measured: K -0.6 % (A), -1.1 % (B), -0.5 % (C): the SoWVD reads K averaged over the aperture,
+    and on the hyperbolic range history K(eta) falls ~1 % by the aperture's ends (the paper:
+    4.834 and 4.803 against 4.879 and 4.863); f_dc within 0.05 Hz; ~40 s and 1.3 GB a receiver."""
+    sc = scene((0.0, -4.0, 0.0), 6400, 80.0)
+    echo = simulate(sc, backend="opencl", progress=False)
+    true = truth(sc)
+    for receiver in "ABC":
+        est = estimate_receiver(echo, receiver)
+        k, f_dc, tau0 = true[receiver]
+        assert est.fm_rate == pytest.approx(k, rel=0.03)
+        assert est.doppler_centroid == pytest.approx(f_dc, abs=FDC_ATOL)
+        assert abs(est.tau_c - tau0) < 1 / echo.fs  # one range cell 1 / B (measured 0.3-0.5)

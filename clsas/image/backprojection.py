@@ -11,9 +11,10 @@ which focuses a moving target, Kiang & Kiang 2022), every selected receiver h an
     image(P) += s_h,p(tau) exp(+j 2 pi f0 tau),
 
 s the range-compressed record sampled at ``t0_h + k / fs``: its value at tau comes from linear
-interpolation of the record FFT-upsampled by ``upsample`` (``interp="linear"``) or from the
+interpolation of the record FFT-upsampled by ``upsample`` in blocks (``interp="linear"``;
+:mod:`clsas.image.backprojection_records`: only the fast-time span the grid reaches) or from an
 8-tap Kaiser-windowed sinc of :mod:`clsas.interp` on the original samples (``interp="sinc8"``;
-:func:`clsas.interp.resample_rows` in the reference, ``kernels/interp.h`` in the kernels). The
+:func:`clsas.interp.read_rows` in the reference, ``kernels/interp.h`` in the kernels). The
 rotation exp(+j 2 pi f0 tau) undoes the carrier phase exp(-j 2 pi f0 tau) of the baseband echo
 (DESIGN.md signal model), so all contributions of a scatterer add in phase at its pixel.
 
@@ -37,9 +38,16 @@ runs the exact double kernel with the data path in double as well.
 
 Memory: the pixels are processed in chunks of at most ``PIXEL_CHUNK`` (2^22) pixels on the
 device (a 4096^2 image is four chunks of ~150 MB of device buffers each), the records a block
-of at most ``UPLOAD_BYTES`` at a time, the per-(tile, pulse) references a block at a time; the
-host keeps the tile order of the pixels (12 bytes a pixel) beside the grid. The NumPy
+of at most ``backprojection_records.UPLOAD_BYTES`` at a time (at most two blocks in flight: the
+host waits for the kernels of the block before last), the per-(tile, pulse) references a block
+at a time; the host keeps the tile order of the pixels (12 bytes a pixel) beside the grid.
+Records prepared with :func:`prepare` are held whole instead (host and device: see that
+module), and a :class:`GridPlan` keeps the grid's tile plan and pixel fields. The NumPy
 reference works on at most 2^20 pixels x 4 pulses at once.
+
+Fixed cost per call, and how to pay it once: the records' upsampling and upload
+(:func:`prepare`), the grid's tile plan (:class:`GridPlan`); the per-(tile, pulse) references
+depend on both and are computed in every call (a few per cent of the kernels' time).
 """
 
 from __future__ import annotations
@@ -54,11 +62,11 @@ from .. import opencl
 from ..data import EchoData, Grid, Image
 from ..cstruct import declare_all, record_dtype
 from ..geometry import NODE, legs, two_node_velocity, uniform_nodes
-from ..interp import TAP_ROWS, kernel_taps, resample_rows
-from .rangecomp import upsample_records
+from ..interp import TAP_ROWS, kernel_taps, read_rows
+from .backprojection_records import PreparedRecords, check_options, fast_time_spans, prepare, reach
 
-INTERPOLATORS = ("linear", "sinc8")
-UPLOAD_BYTES = 64 * 2**20  # upsampled records prepared and uploaded at once
+__all__ = ["GridPlan", "PreparedRecords", "backproject", "plan_tiles", "prepare", "reach", "tile_half_extent"]
+
 PULSE_BLOCK = 64  # pulses a kernel launch (one reference sub-block; 32 was ~4 % slower: more launches)
 PIXEL_CHUNK = 2**22  # pixels on the device at once
 LANES, ROWS, PULSES = 16, 2, 2  # bp_tile: a work-item holds ROWS float16 vectors of pixels, PULSES pulses a step
@@ -74,33 +82,19 @@ TILE_REF = record_dtype([("leg1", "f4", 3), ("b1", "f4"), ("leg2", "f4", 3), ("b
                          ("a2", "f4"), ("k_ref", "i4"), ("k_frac", "f4"), ("cycles", "f4"), ("range1", "f4")])
 TILE_PARAMS = record_dtype([("a1", "f4"), ("fs", "f4"), ("f0", "f4"), ("velocity", "f4", 3), ("half_sin", "f4"),
                             ("c", "f4")])
-PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("t0_fs", "f8")])
+PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("t0_fs", "f8"), ("first", "i4")])
 BLOCK_PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("dtau", "f8"), ("velocity", "f8", 3),
                              ("half_sin", "f8")])
 RECORDS = declare_all({"node_t": NODE, "tile_ref_t": TILE_REF, "tile_params_t": TILE_PARAMS, "bp_pulse_t": PULSE,
                        "bp_block_params_t": BLOCK_PARAMS})
 
 
-def _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velocity):
-    if not isinstance(echo, EchoData):
-        raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
-    if not echo.compressed:
-        raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first "
-                         "(back-projection refuses raw echoes rather than compressing them silently)")
-    if not isinstance(grid, Grid):
-        raise TypeError(f"grid must be a clsas.data.Grid (Grid.plane, Grid.slant or Grid.points), got "
+def _check_call(grid, aperture):
+    if not isinstance(grid, (Grid, GridPlan)):
+        raise TypeError(f"grid must be a clsas.data.Grid (Grid.plane, Grid.slant or Grid.points) or a GridPlan, got "
                         f"{type(grid).__name__}")
-    if interp not in INTERPOLATORS:
-        raise ValueError(f"interp must be one of {INTERPOLATORS}, got {interp!r}")
-    if isinstance(upsample, bool) or not isinstance(upsample, (int, np.integer)) or not 1 <= upsample <= 64:
-        raise ValueError(f"upsample must be an integer in [1, 64], got {upsample!r}")
-    chosen = echo.select_receivers(receivers)
     if aperture is not None and not (np.isfinite(aperture) and 0 < aperture <= np.pi):
         raise ValueError(f"aperture must be a full integration angle in (0, pi] radians, got {aperture}")
-    v = np.zeros(3) if target_velocity is None else np.asarray(target_velocity, dtype=np.float64)
-    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) >= 100:
-        raise ValueError(f"target_velocity must be a finite 3-vector slower than 100 m/s, got {target_velocity!r}")
-    return chosen, v
 
 
 def _aperture_keep(echo, pulses, q, half_sin):
@@ -111,25 +105,29 @@ def _aperture_keep(echo, pulses, q, half_sin):
     return np.abs(d[..., 1] / np.linalg.norm(d, axis=-1)) <= half_sin
 
 
-def backproject_reference(echo, grid, receivers, interp, upsample, aperture, velocity, stop_and_go, progress):
+def backproject_reference(records: PreparedRecords, plan: "GridPlan", aperture, velocity, stop_and_go, progress):
     """The float64 NumPy reference (vectorised over pixels, at most 2^20 pixels and a few pulses
-    at a time): image (M,) complex128."""
-    pixels = grid.positions.reshape(-1, 3)
+    at a time): image (M,) complex128. The sample index of a delay tau is k = (tau - t0) fs,
+    split into floor(k) and its fraction before the records' offset (an integer) is taken off,
+    as the kernels do, so that records prepared over any span covering the grid read alike."""
+    echo = records.echo
+    pixels = plan.grid.positions.reshape(-1, 3)
     image = np.zeros(pixels.shape[0], dtype=np.complex128)
-    f0 = echo.waveform.f0
-    factor = upsample if interp == "linear" else 1
-    fs = echo.fs * factor
+    f0, fs = echo.waveform.f0, records.fs
     chunk = min(pixels.shape[0], 2**20)
     block = max(1, 2**22 // chunk)
-    jobs = [(h, np.arange(s, min(s + block, echo.n_pulses))) for h in receivers
+    jobs = [(i, h, np.arange(s, min(s + block, echo.n_pulses))) for i, h in enumerate(records.receivers)
             for s in range(0, echo.n_pulses, block)]
-    for h, pulses in tqdm(jobs, desc="back-projection (numpy)", disable=not progress):
-        records = upsample_records(echo.data[h, pulses], factor).astype(np.complex128)
+    for i, h, pulses in tqdm(jobs, desc="back-projection (numpy)", disable=not progress):
+        samples = records.samples(i, pulses).astype(np.complex128)
         for first in range(0, pixels.shape[0], chunk):
             part = slice(first, first + chunk)
             t1, q, t2, _ = legs(echo, h, pulses, pixels[part], velocity, stop_and_go)
             tau = t1 + t2
-            value = resample_rows(records, (tau - echo.t0[h]) * fs, interp) * np.exp(2j * np.pi * f0 * tau)
+            k = (tau - echo.t0[h]) * fs
+            whole = np.floor(k)
+            value = read_rows(samples, whole.astype(np.int64) - records.offset[i], k - whole, records.interp)
+            value *= np.exp(2j * np.pi * f0 * tau)
             if aperture is not None:
                 value *= _aperture_keep(echo, pulses, q, np.sin(aperture / 2))
             image[part] += value.sum(axis=0)
@@ -203,11 +201,12 @@ def plan_tiles(pixels: np.ndarray, f0: float, c: float, half_extent: float | Non
 
 
 def tile_references(echo: EchoData, h: int, pulses: np.ndarray, centres: np.ndarray, velocity: np.ndarray,
-                    stop_and_go: bool, fs: float, half_extent: float) -> tuple[np.ndarray, float]:
+                    stop_and_go: bool, fs: float, half_extent: float, offset: int = 0) -> tuple[np.ndarray, float]:
     """bp_tile's per-(tile, pulse) references (T, P) :data:`TILE_REF` (their meaning in
     :func:`backproject_opencl` and kernels/backprojection.cl) for the T tile ``centres`` and the P ``pulses``, and the receiver's largest departure (m) from
     the linear motion the kernel assumes over the tiles' delay spans (0 for stop-and-go and for
-    receivers with two nodes, whose motion is uniform)."""
+    receivers with two nodes, whose motion is uniform). ``offset``: the first sample of the records
+    the kernel reads, counted at ``fs`` from the window start t0 (taken off the integer part only)."""
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
     t1, q, t2, r = legs(echo, h, pulses, centres, velocity, stop_and_go)
     big_t = t1 + t2
@@ -241,14 +240,14 @@ def tile_references(echo: EchoData, h: int, pulses: np.ndarray, centres: np.ndar
     ref["b2"] = c * c * t2 - np.einsum("...i,...i->...", c_vec, v_r)
     ref["v_rx"] = v_r
     ref["a2"] = c * c - np.einsum("...i,...i->...", v_r, v_r)
-    ref["k_ref"] = k_int
+    ref["k_ref"] = k_int - offset
     ref["k_frac"] = np.clip(k_ref - k_int, 0.0, np.nextafter(np.float32(1), np.float32(0)))
     ref["cycles"] = cycles - np.round(cycles)
     ref["range1"] = c * t1
     return np.ascontiguousarray(ref.T), departure
 
 
-def _exact_kernel(ctx, echo, h, pulses, fs, velocity, half_sin, defines, stop_and_go, double):
+def _exact_kernel(ctx, echo, h, pulses, fs, offset, velocity, half_sin, defines, stop_and_go, double):
     """bp_block (the exact double kernel) for receiver h and ``pulses``: the kernel, its pulse and
     receiver-node buffers and its parameters (layouts in kernels/backprojection.cl)."""
     import pyopencl as cl
@@ -259,6 +258,7 @@ def _exact_kernel(ctx, echo, h, pulses, fs, velocity, half_sin, defines, stop_an
         defines, N_NODES=n_nodes, SEGMENT_PASSES=1 if n_nodes == 2 else 3, **({"STOP_AND_GO": 1} if stop_and_go else {})))
     pulse = np.zeros(pulses.size, PULSE)
     pulse["tx"], pulse["eta"], pulse["t0_fs"] = echo.tx_pos[pulses], echo.eta[pulses], echo.t0[h] * fs
+    pulse["first"] = offset
     nodes = np.zeros((pulses.size, n_nodes), NODE)
     nodes["pos"] = pos[pulses]
     pulse_buf, nodes_buf = (cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=a)
@@ -269,49 +269,68 @@ def _exact_kernel(ctx, echo, h, pulses, fs, velocity, half_sin, defines, stop_an
     return kern, pulse_buf, nodes_buf, params[()]
 
 
-def _records_buffer(ctx, echo: EchoData, h: int, pulses: np.ndarray, factor: int, double: bool):
-    """The device buffer of receiver h's records of ``pulses`` (consecutive), upsampled by ``factor``,
-    and its samples per record. Where the echo's own block already is what the kernel reads
-    (``factor`` 1, the kernel's complex type, C-contiguous) the device uses that memory in place
-    (CL_MEM_USE_HOST_PTR: PoCL shares host memory, so nothing is copied; the buffer holds a view
-    of the block, and the call finishes its queue before it returns), else a copy is made."""
-    import pyopencl as cl
+class GridPlan:
+    """A grid and what imaging it needs besides the echo: its tile plan (:func:`plan_tiles`) and the
+    float32 pixel fields of its chunks (bp_tile's offsets from the tiles' reference points), made
+    on first use for a carrier and sound speed (and, for the fields, a target velocity) and kept.
+    Pass it to :func:`backproject` in place of the grid to image the same grid again without
+    redoing them (e.g. re-imaging an echo at several target velocities or after autofocus). It
+    holds ~16 + 20 bytes a pixel once used (tile order and fields; a 4096^2 grid: ~600 MB).
+    """
 
-    dtype = np.complex128 if double else np.complex64
-    block = echo.data[h, pulses[0]:pulses[-1] + 1]
-    if factor == 1 and block.dtype == dtype and block.flags.c_contiguous:
-        return cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=block), block.shape[1]
-    records = np.ascontiguousarray(upsample_records(block, factor), dtype=dtype)
-    return cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=records), records.shape[1]
+    def __init__(self, grid: Grid):
+        if not isinstance(grid, Grid):
+            raise TypeError(f"grid must be a clsas.data.Grid, got {type(grid).__name__}")
+        self.grid = grid
+        self._tilings, self._fields = {}, {}
+
+    def tiling(self, f0: float, c: float) -> Tiling:
+        key = (float(f0), float(c))
+        if key not in self._tilings:
+            self._tilings[key] = plan_tiles(self.grid.positions.reshape(-1, 3), f0, c)
+        return self._tilings[key]
+
+    def fields(self, f0: float, c: float, first: int, stop: int, v_k: np.ndarray):
+        """Slots ``first`` .. ``stop - 1`` of the tiling: bp_tile's pixel fields (delta x, y, z,
+        |delta|^2 and, for moving pixels, delta . v; float32 (F, n)), the work-items' local tile
+        indices (int32) and the tiles present (indices into the tiling)."""
+        key = (float(f0), float(c), first, stop, tuple(np.asarray(v_k, dtype=float)))
+        if key not in self._fields:
+            tiling, pixels = self.tiling(f0, c), self.grid.positions.reshape(-1, 3)
+            n = stop - first
+            tiles, local = np.unique(tiling.tile[first:stop], return_inverse=True)
+            moving = bool(np.any(v_k))
+            fields = np.zeros((5 if moving else 4, n), np.float32)
+            squared, along_v = np.zeros(n), np.zeros(n)
+            for k in range(3):  # one coordinate at a time (temporaries of n, not 3 n, doubles)
+                delta = pixels[tiling.order[first:stop], k] - tiling.centres[tiling.tile[first:stop], k]
+                fields[k] = delta
+                squared += delta * delta
+                along_v += delta * v_k[k]
+            fields[3] = squared
+            if moving:
+                fields[4] = along_v
+            for a in (fields, local):
+                a.flags.writeable = False
+            self._fields[key] = (fields, local[::LANES * ROWS].astype(np.int32), tiles)
+        return self._fields[key]
 
 
 class _Chunk:
     """The device side of slots ``first`` .. ``stop - 1`` of a :class:`Tiling`: bp_tile's pixel
-    fields (delta x, y, z, |delta|^2 and, for moving pixels, delta . v; float32 (F, n)), its
-    work-items' local tile indices, the tiles present (``tiles``, indices into the Tiling), the
-    double image (n,), and on demand the absolute positions for bp_block (double (3, n))."""
+    fields and work-items' tile indices (:meth:`GridPlan.fields`), the tiles present (``tiles``),
+    the double image (n,), and on demand the absolute positions for bp_block (double (3, n))."""
 
-    def __init__(self, ctx, pixels, tiling: Tiling, first: int, stop: int, v_k: np.ndarray):
+    def __init__(self, ctx, plan: GridPlan, f0, c, first: int, stop: int, v_k: np.ndarray):
         import pyopencl as cl
 
         mf = cl.mem_flags
+        tiling = plan.tiling(f0, c)
         self.first, self.n = first, stop - first
         self.order, self.real = tiling.order[first:stop], tiling.real[first:stop]
-        self.tiles, local = np.unique(tiling.tile[first:stop], return_inverse=True)
-        moving = bool(np.any(v_k))
-        fields = np.zeros((5 if moving else 4, self.n), np.float32)
-        squared, along_v = np.zeros(self.n), np.zeros(self.n)
-        for k in range(3):  # one coordinate at a time (temporaries of n, not 3 n, doubles)
-            delta = pixels[self.order, k] - tiling.centres[tiling.tile[first:stop], k]
-            fields[k] = delta
-            squared += delta * delta
-            along_v += delta * v_k[k]
-        fields[3] = squared
-        if moving:
-            fields[4] = along_v
+        fields, tile_of, self.tiles = plan.fields(f0, c, first, stop, v_k)
         self.pix = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=fields)
-        self.tile_of = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
-                                 hostbuf=local[::LANES * ROWS].astype(np.int32))
+        self.tile_of = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=tile_of)
         self.image = cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.zeros(self.n, np.complex128))
         self._absolute = None
 
@@ -332,10 +351,11 @@ class _Chunk:
         image[self.order[self.real]] = out[self.real]
 
 
-def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, velocity, stop_and_go, progress,
+def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,
                        double=False):
-    """The kernels/backprojection.cl launcher: image (M,) complex128 and how many (chunk, receiver,
-    pulse block) jobs ran on the exact double kernel.
+    """The kernels/backprojection.cl launcher: image (M,) complex128, how many (chunk, receiver,
+    pulse block) jobs ran on the exact double kernel, and the kernels' own time (s, from the
+    queue's profiling events).
 
     ``precision="single"`` (bp_tile): float32 geometry relative to a reference per (tile, pulse).
     Derivation. Let the tile's reference point meet pulse p at t1_ref, at q_ref (exact, float64,
@@ -366,43 +386,59 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
     v_r is the secant of its track over T_ref +- SPAN_FACTOR |delta|_max / c (which contains
     every pixel's delay); where the track departs from that line by more than NODE_TOLERANCE
     wavelengths (motion errors: kinks at its nodes), the receiver's pulse block runs on the exact
-    double kernel instead (bp_block; counted in the result).
+    double kernel instead (bp_block; counted in the result). The records' offset (their first
+    sample, an integer) is taken off the reference's integer sample index K_ref (and bp_block's
+    after its floor), so the fraction, hence the image, does not depend on the span prepared.
     """
     import pyopencl as cl
 
     rt = opencl.runtime()
     ctx, queue = rt.context, rt.queue
     mf = cl.mem_flags
+    echo, interp, fs = records.echo, records.interp, records.fs
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
-    pixels = grid.positions.reshape(-1, 3)
-    m = pixels.shape[0]
-    image = np.zeros(m, dtype=np.complex128)
-    factor = upsample if interp == "linear" else 1
-    fs = echo.fs * factor
+    pixels = plan.grid.positions.reshape(-1, 3)
+    image = np.zeros(pixels.shape[0], dtype=np.complex128)
     taps_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=kernel_taps(interp))
     defines = {"INTERP_LINEAR" if interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS,
                **({"APERTURE": 1} if aperture is not None else {})}
     half_sin = np.sin(aperture / 2) if aperture is not None else 1.0
     v_k = np.zeros(3) if stop_and_go else velocity
-    tiles = plan_tiles(pixels, f0, c)
+    tiles = plan.tiling(f0, c)
     chunk = PIXEL_CHUNK // (LANES * ROWS) * (LANES * ROWS)
-    per_pulse = 16 * echo.n_samples * factor
-    upload = max(PULSE_BLOCK, int(UPLOAD_BYTES // per_pulse) // PULSE_BLOCK * PULSE_BLOCK)
-    jobs = [(first, h, np.arange(s, min(s + upload, echo.n_pulses))) for first in range(0, tiles.order.size, chunk)
-            for h in receivers for s in range(0, echo.n_pulses, upload)]
+    upload = records.upload_pulses()
+    jobs = [(first, i, np.arange(s, min(s + upload, echo.n_pulses))) for first in range(0, tiles.order.size, chunk)
+            for i in range(len(records.receivers)) for s in range(0, echo.n_pulses, upload)]
     tolerance = NODE_TOLERANCE * echo.waveform.wavelength(echo.medium)
-    fallbacks, chunk_state = 0, None
+    fallbacks, chunk_state, in_flight, kernel_seconds = 0, None, [], 0.0
+
+    def retire(keep: int) -> float:
+        """Wait for all but the last ``keep`` jobs' kernels (so that the host, which prepares
+        records faster than the kernels read them, holds at most ``keep`` + 1 upload blocks) and
+        return their time (s); their events are dropped (PoCL keeps a command's buffers while
+        its event lives)."""
+        seconds = 0.0
+        while len(in_flight) > keep:
+            done = in_flight.pop(0)
+            for e in done:
+                e.wait()
+                seconds += 1e-9 * (e.profile.end - e.profile.start)
+        return seconds
+
     tile_kernel = opencl.kernel("backprojection", "bp_tile", preamble=RECORDS, defines=dict(
         defines, BP_TILE=1, ROWS=ROWS, PULSES=PULSES, **({"MOVING": 1} if np.any(v_k) else {})))
     tile_params = np.zeros((), TILE_PARAMS)
     tile_params["a1"], tile_params["fs"], tile_params["f0"] = c * c - v_k @ v_k, fs, f0
     tile_params["velocity"], tile_params["half_sin"], tile_params["c"] = v_k, half_sin, c
-    for first, h, pulses in tqdm(jobs, desc="back-projection (opencl)", disable=not progress):
+    for first, i, pulses in tqdm(jobs, desc="back-projection (opencl)", disable=not progress):
+        h, offset = records.receivers[i], int(records.offset[i])
         if chunk_state is None or chunk_state.first != first:
             if chunk_state is not None:
                 chunk_state.finish(queue, image)
-            chunk_state = _Chunk(ctx, pixels, tiles, first, min(first + chunk, tiles.order.size), v_k)
-        records_buf, n_samples = _records_buffer(ctx, echo, h, pulses, factor, double)
+            chunk_state = _Chunk(ctx, plan, f0, c, first, min(first + chunk, tiles.order.size), v_k)
+        kernel_seconds += retire(1)
+        records_buf, n_samples = records.buffer(ctx, i, pulses, double)
+        in_flight.append(events := [])
         exact = None
         for s in range(0, pulses.size, REF_PULSES):
             # a sub-block's references are computed while the previous sub-block's kernels run
@@ -410,43 +446,51 @@ def backproject_opencl(echo, grid, receivers, interp, upsample, aperture, veloci
                       for p0 in range(s, min(s + REF_PULSES, pulses.size), PULSE_BLOCK)]
             if not double:
                 ref, departure = tile_references(echo, h, pulses[s:s + REF_PULSES], tiles.centres[chunk_state.tiles],
-                                                 velocity, stop_and_go, fs, tiles.half_extent)
+                                                 velocity, stop_and_go, fs, tiles.half_extent, offset)
                 if departure <= tolerance:
                     ref_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=ref)
                     for p0, count in blocks:
-                        tile_kernel(queue, (chunk_state.n // (LANES * ROWS),), None, chunk_state.pix,
-                                    chunk_state.tile_of, ref_buf, np.int32(ref.shape[1]), np.int32(s), records_buf,
-                                    taps_buf, tile_params[()], np.int32(p0), np.int32(count), np.int32(n_samples),
-                                    np.int32(chunk_state.n), chunk_state.image)
+                        events.append(tile_kernel(
+                            queue, (chunk_state.n // (LANES * ROWS),), None, chunk_state.pix, chunk_state.tile_of,
+                            ref_buf, np.int32(ref.shape[1]), np.int32(s), records_buf, taps_buf, tile_params[()],
+                            np.int32(p0), np.int32(count), np.int32(n_samples), np.int32(chunk_state.n),
+                            chunk_state.image))
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)
-                exact = _exact_kernel(ctx, echo, h, pulses, fs, velocity, half_sin, defines, stop_and_go, double)
+                exact = _exact_kernel(ctx, echo, h, pulses, fs, offset, velocity, half_sin, defines, stop_and_go,
+                                      double)
             kern, pulse_buf, nodes_buf, params = exact
             for p0, count in blocks:
-                kern(queue, (chunk_state.n // 8,), None, chunk_state.absolute(ctx, pixels), pulse_buf, nodes_buf,
-                     records_buf, taps_buf, params, np.int32(p0), np.int32(count), np.int32(n_samples),
-                     np.int32(chunk_state.n), chunk_state.image)
+                events.append(kern(queue, (chunk_state.n // 8,), None, chunk_state.absolute(ctx, pixels), pulse_buf,
+                                   nodes_buf, records_buf, taps_buf, params, np.int32(p0), np.int32(count),
+                                   np.int32(n_samples), np.int32(chunk_state.n), chunk_state.image))
     chunk_state.finish(queue, image)
-    return image, fallbacks
+    return image, fallbacks, kernel_seconds + retire(0)
 
 
-def backproject(echo: EchoData, grid: Grid, backend: str | None = None, receivers=None, interp: str = "linear",
-                upsample: int = 8, aperture: float | None = None, target_velocity=None, stop_and_go: bool = False,
-                precision: str = "single", progress: bool = True) -> Image:
+def backproject(echo, grid, backend: str | None = None, receivers=None, interp: str | None = None,
+                upsample: int | None = None, aperture: float | None = None, target_velocity=None,
+                stop_and_go: bool = False, precision: str = "single", progress: bool = True) -> Image:
     """Back-project range-compressed echoes onto ``grid`` (see the module docstring).
 
     Parameters
     ----------
-    echo : EchoData, range-compressed (:func:`clsas.range_compress`).
-    grid : Grid (plane, slant plane or any 3-D points).
+    echo : EchoData, range-compressed (:func:`clsas.range_compress`), or PreparedRecords
+        (:func:`prepare`): records prepared once for many calls; the image is bit-identical to
+        the one the echo gives with the records' ``interp``, ``upsample`` and ``receivers``.
+    grid : Grid (plane, slant plane or any 3-D points), or a :class:`GridPlan` of one to image
+        the same grid again without redoing its tile plan.
     backend : {"numpy", "opencl", "auto"} or None.
-    receivers : indices or names of the receivers to sum coherently (default: all).
+    receivers : indices or names of the receivers to sum coherently (default: all; with prepared
+        records: theirs, of which a subset may be chosen).
     interp : {"linear", "sinc8"}
-        Linear interpolation of data FFT-upsampled by ``upsample``, or an 8-tap windowed sinc
-        on the original samples. The upsampling is redone at every call: to image many grids
-        from one echo, upsample once with ``range_compress(echo, upsample=8)`` and pass
-        ``upsample=1`` here.
+        Linear interpolation of data FFT-upsampled by ``upsample`` (in blocks:
+        :mod:`clsas.image.backprojection_records`), or an 8-tap windowed sinc on the original
+        samples. Default "linear", or the prepared records' (which a different value contradicts).
+    upsample : int in [1, 64], default 8 (or the prepared records'). A call on an echo upsamples
+        only the fast-time span the grid reaches; to image many grids from one echo, prepare the
+        records once with :func:`prepare`.
     aperture : float, optional
         Full integration angle, radians.
     target_velocity : 3-vector, optional
@@ -458,19 +502,50 @@ def backproject(echo: EchoData, grid: Grid, backend: str | None = None, receiver
 
     Returns
     -------
-    Image with the grid's dims and axes, ``positions`` the grid's pixels, complex64.
+    Image with the grid's dims and axes, ``positions`` the grid's pixels, complex64; its
+    provenance records the options and, for OpenCL, ``kernel_seconds`` (the kernels' own time).
     """
-    chosen, velocity = _check_inputs(echo, grid, receivers, interp, upsample, aperture, target_velocity)
+    _check_call(grid, aperture)
+    plan = grid if isinstance(grid, GridPlan) else GridPlan(grid)
+    if isinstance(echo, PreparedRecords):
+        records = echo
+        for name, asked, held in (("interp", interp, records.interp), ("upsample", upsample, records.upsample)):
+            if asked is not None and asked != held:
+                raise ValueError(f"{name}={asked!r} contradicts the prepared records' {name}={held!r}: "
+                                 f"prepare the records with {name}={asked!r}, or leave {name} out")
+        _, velocity = check_options(records.echo, None, records.interp, records.upsample, target_velocity)
+        if receivers is not None:
+            chosen = records.echo.select_receivers(receivers)
+            missing = [records.echo.receivers[h] for h in chosen if h not in records.receivers]
+            if missing:
+                raise ValueError(f"receivers {missing} were not prepared; the records hold "
+                                 f"{[records.echo.receivers[h] for h in records.receivers]}")
+            records = records.subset(chosen)
+        covered = records.covers(reach(records.echo, records.receivers, plan.grid.positions, velocity))
+        if not np.all(covered):
+            names = [records.echo.receivers[h] for h, ok in zip(records.receivers, covered) if not ok]
+            raise ValueError(f"grid: the prepared records do not cover the fast times this grid reaches "
+                             f"(receivers {names}); prepare them with grid=None or with this grid")
+    else:
+        interp = "linear" if interp is None else interp
+        upsample = 8 if upsample is None else upsample
+        chosen, velocity = check_options(echo, receivers, interp, upsample, target_velocity)
+        records = PreparedRecords(echo, chosen, interp, upsample, fast_time_spans(echo, chosen, plan.grid, velocity),
+                                  materialise=False)
     double = _backend.check_precision(precision)
     name = _backend.resolve(backend)
-    args = (echo, grid, chosen, interp, upsample, aperture, velocity, stop_and_go, progress)
+    args = (records, plan, aperture, velocity, stop_and_go, progress)
     if name == "numpy":
-        flat, fallbacks = backproject_reference(*args), 0
+        flat, fallbacks, kernel_seconds = backproject_reference(*args), 0, None
     else:
-        flat, fallbacks = backproject_opencl(*args, double=double)
-    return Image(data=flat.reshape(grid.shape), dims=grid.dims, axes=grid.axes, positions=grid.positions,
-                 provenance={"algorithm": "backprojection", "backend": name, "precision": precision, "interp": interp,
-                             "upsample": int(upsample), "receivers": [echo.receivers[h] for h in chosen],
+        flat, fallbacks, kernel_seconds = backproject_opencl(*args, double=double)
+    source = records.echo
+    g = plan.grid
+    return Image(data=flat.reshape(g.shape), dims=g.dims, axes=g.axes, positions=g.positions,
+                 provenance={"algorithm": "backprojection", "backend": name, "precision": precision,
+                             "interp": records.interp, "upsample": records.upsample,
+                             "receivers": [source.receivers[h] for h in records.receivers],
                              "aperture": aperture, "target_velocity": velocity.tolist(),
                              "stop_and_go": bool(stop_and_go), "exact_fallback_blocks": fallbacks,
-                             "echo": dict(echo.provenance)})
+                             "prepared_records": records.materialised, "kernel_seconds": kernel_seconds,
+                             "echo": dict(source.provenance)})
