@@ -7,6 +7,7 @@ from .estimate.moving import estimate as estimate_motion
 from .estimate.moving import focus as focus_moving
 from .image.backprojection import backproject
 from .image.csa import chirp_scaling
+from .image.ffbp import ffbp
 from .image.multireceiver import pca_record
 from .image.omegak import omega_k
 from .image.ptrs import ptrs_image
@@ -44,6 +45,7 @@ __all__ = [
                              "backproject",
                              "chirp_scaling",
                              "estimate_motion",
+                             "ffbp",
                              "focus_moving",
                              "line_record",
                              "load",

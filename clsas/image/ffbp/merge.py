@@ -1,0 +1,118 @@
+"""The merge of fast factorised back-projection: children's polar images read at the parent's
+samples (or at the user's pixels), their phase restored and summed (NumPy reference and the
+kernels/ffbp.cl launcher).
+
+A child image J_c on its polar grid (r_c, v_c) is the sub-aperture's back-projected image I_c
+demodulated by its own centre range: J_c = I_c exp(-j 4 pi f0 r_c / c). At a point X (a parent
+sample or a pixel) the merge forms
+
+    out(X) = sum_c J_c(r_c(X), v_c(X)) exp(+j 4 pi f0 (r_c(X) - r_p(X)) / c),
+
+the child read by the separable ``taps`` x ``taps`` windowed sinc of
+:func:`clsas.image.stolt.tap_table` (Knab's window for the oversampling ``rho``; positions in
+samples i = (r - r0) / dr and j = (v - v0) / dv; the taps of a fractional offset come from the
+nearest of stolt.TAP_ROWS table rows), zero unless all taps x taps samples exist; r_p is the
+parent's centre range for a parent grid (the parent is demodulated in turn) and 0 for pixels
+(the final stage restores the full phase, giving back-projection's image). Phases in cycles,
+2 f0 (r_c - r_p) / c, reduced to their fraction before the exponential.
+
+The kernel computes X, r_c, v_c, the positions and the phase in double, the interpolation and
+the sum in float; the reference does everything in float64.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ... import opencl
+from ...kernelmath import expj_cycles
+from ..stolt import TAP_ROWS, tap_table
+from .polar import PolarGrid
+
+KERNEL_TAPS = (4, 8)
+CHUNK = 2**16  # output samples a reference step
+
+
+def _interpolate(image: np.ndarray, grid: PolarGrid, r: np.ndarray, v: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """image (n_v, n_r) read at (r, v) (K,) by the separable windowed sinc of ``table``, complex128 (K,)."""
+    taps = table.shape[1]
+    out = np.zeros(r.shape, np.complex128)
+    firsts, weights, ok = [], [], np.ones(r.shape, bool)
+    for pos, n in (((v - grid.v0) / grid.dv, grid.n_v), ((r - grid.r0) / grid.dr, grid.n_r)):
+        i = np.floor(pos)
+        first = i.astype(np.int64) - (taps // 2 - 1)
+        ok &= (first >= 0) & (first <= n - taps)
+        firsts.append(np.where(ok, first, 0))
+        weights.append(table[np.floor((pos - i) * (TAP_ROWS - 1) + 0.5).astype(np.int64)])
+    for a in range(taps):
+        for b in range(taps):
+            out += weights[0][:, a] * weights[1][:, b] * image[firsts[0] + a, firsts[1] + b]
+    return np.where(ok, out, 0)
+
+
+def merge_reference(children, targets, f0: float, c: float, taps: int, rho: float) -> np.ndarray:
+    """The float64 NumPy merge: ``children`` a list of (PolarGrid, image (n_v, n_r)); ``targets``
+    the parent PolarGrid (returns its demodulated image (n_v, n_r)) or points (M, 3) m (returns
+    the pixels' values (M,)). complex128."""
+    table = tap_table(taps, "knab", float(rho))
+    parent = targets if isinstance(targets, PolarGrid) else None
+    shape = (parent.n_v, parent.n_r) if parent is not None else targets.shape[:-1]
+    out = np.zeros(int(np.prod(shape)), np.complex128)
+    rows_per_chunk = max(1, CHUNK // parent.n_r) if parent is not None else 0
+    n_chunks = -(-shape[0] // rows_per_chunk) if parent is not None else -(-out.size // CHUNK)
+    for k in range(n_chunks):
+        if parent is not None:
+            rows = slice(k * rows_per_chunk, min((k + 1) * rows_per_chunk, parent.n_v))
+            x = parent.points(rows).reshape(-1, 3)
+            r_p = np.broadcast_to(parent.ranges, (rows.stop - rows.start, parent.n_r)).reshape(-1)
+            part = slice(rows.start * parent.n_r, rows.stop * parent.n_r)
+        else:
+            part = slice(k * CHUNK, min((k + 1) * CHUNK, out.size))
+            x = targets.reshape(-1, 3)[part]
+            r_p = 0.0
+        for grid, image in children:
+            r, v = grid.coordinates(x)
+            out[part] += _interpolate(image, grid, r, v, table) * expj_cycles(2 * f0 * (r - r_p) / c)
+    return out.reshape(shape)
+
+
+def merge_opencl(children, targets, f0: float, c: float, taps: int, rho: float, out: np.ndarray | None = None):
+    """The ffbp_merge launcher (kernels/ffbp.cl): as :func:`merge_reference` in float32 (geometry,
+    positions and phases in double), complex64; for points, the result is *added* into ``out``
+    (M,) complex64 when given."""
+    import pyopencl as cl
+
+    if taps not in KERNEL_TAPS:
+        raise ValueError(f"taps must be one of {KERNEL_TAPS} for the OpenCL merge, got {taps!r}")
+    rt = opencl.runtime()
+    ctx, mf = rt.context, cl.mem_flags
+    parent = targets if isinstance(targets, PolarGrid) else None
+    images = np.concatenate([np.ascontiguousarray(img, np.complex64).reshape(-1) for _, img in children])
+    offsets = np.cumsum([0] + [img.size for _, img in children])[:-1].astype(np.int64)
+    frames = np.stack([grid.record() for grid, _ in children])
+    table = tap_table(taps, "knab", float(rho)).astype(np.float32)
+    defines = {"TAPS": taps, "TAP_ROWS": TAP_ROWS}
+    if parent is not None:
+        defines["PARENT_GRID"] = 1
+        shape = (parent.n_v, parent.n_r)
+        plane = np.concatenate([parent.plane.normal, [parent.plane.offset]])
+        parent_frame = parent.record()
+        points = np.zeros(3)
+        result = np.empty(shape, np.complex64)
+    else:
+        shape = targets.shape[:-1]
+        plane = np.zeros(4)
+        parent_frame = np.zeros(20)
+        points = np.ascontiguousarray(targets.reshape(-1, 3), np.float64)
+        result = np.zeros(shape, np.complex64) if out is None else out
+    n_out = int(np.prod(shape))
+    kern = opencl.kernel("ffbp", "ffbp_merge", defines=defines)
+    bufs = [cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=a) for a in
+            (images, offsets, np.ascontiguousarray(frames), table, points)]
+    params = np.array([*parent_frame, *plane, 2 * f0 / c])
+    params_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=params)
+    dst = cl.Buffer(ctx, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=result)
+    kern(rt.queue, (n_out,), None, *bufs, params_buf, np.int32(len(children)), np.int32(n_out), dst)
+    mapped, _ = cl.enqueue_map_buffer(rt.queue, dst, cl.map_flags.READ, 0, result.shape, result.dtype)
+    mapped.base.release()
+    return result

@@ -1,0 +1,259 @@
+"""Local polar grids of fast factorised back-projection and the rule that samples them.
+
+A sub-aperture (a block of consecutive pulses, every selected receiver) has a *frame*: its
+centre C (the mean of its phase centres, the midpoints of transmitter and receiver), its axis
+u (the unit chord of the transmitter's track over the block) and the *reference plane* of the
+image (the grid's plane; for a 3-D point set the plane fitted to it). A point X has the polar
+coordinates
+
+    r = |X - C|  (m),    v = u . (X - C) / r  (the sine of the angle off broadside),
+
+and the polar sample (r, v) stands for the point of the reference plane at that range and
+angle, on the scene's side of the axis:
+
+    X(r, v) = C + r v u + r sqrt(1 - v^2) (cos phi e1 + sin phi e2),
+
+e2 the plane normal's part perpendicular to u, e1 = e2 x u turned towards the scene, and
+sin phi = (m . (X0 - C) - r v m . u) / (r sqrt(1 - v^2) |m_perp|) from m . X = m . X0 (clipped
+to [-1, 1] where the circle of (r, v) misses the plane: those samples serve no pixel).
+Pixels of the plane are therefore represented exactly; a pixel off the plane is read at its
+own (r, v), i.e. rotated about the axis into the plane, which is exact for phase centres on
+the axis (a straight track; the delay depends on r and v alone) and approximate otherwise.
+
+Sampling rule (the error model). After demodulation by exp(-j 4 pi f0 r / c) a sub-aperture's
+image is band-limited in r and in v; its band follows from the delay of a phase centre at
+axial offset a in [-L, L] (L the sub-aperture's half-length, plus its largest offset off the
+axis): d(r, v, a) = sqrt(r^2 - 2 r a v + a^2). At frequency f the phase 2 pi f 2 d / c has
+
+    dd/dv = -r a / d,               |2 f dd/dv / c| <= W_v = 2 f_max max|r a / d| / c   cycles per unit v,
+    dd/dr = (r - a v) / d,          2 f dd/dr / c - 2 f0 / c in [-W_r, W_r],
+                                    W_r = B / c + 2 f_max max(1 - (r - a v) / d) / c     cycles per m,
+
+the maxima taken over a = +-L, v over the grid's span and r = r_min (the nearest scene range;
+both bounds fall with r). The first term of W_r is the pulse band (f in f0 +- B/2), the second
+the range curvature of a long sub-aperture (its polar image is not band-limited to B alone).
+Samples every dr = 1 / (2 W_r rho) and dv = 1 / (2 W_v rho) oversample the band by rho; a
+T-tap windowed sinc (Knab's window for that oversampling, :func:`clsas.image.stolt.tap_table`)
+then interpolates a band-edge component with an error e_T(rho) (amplitude and phase, relative;
+tabulated by :func:`interpolation_error`). A merge tree of S interpolation stages makes 2 S
+interpolation errors (range and angle at each stage): rho is
+the smallest oversampling with e_T(rho) <= tolerance / (2 S), so that each sub-aperture's
+contribution to a pixel keeps its phase and relative amplitude error below ``tolerance`` up to
+the edge of the scene (the band edge is the component from the scene's edge). The bound adds
+the errors linearly: a band-edge component's interpolation error has the same sign at every
+stage (an amplitude loss), so they do not add in power (measured: an rss rule let the error
+of an 8-stage tree reach twice its tolerance).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from functools import lru_cache
+
+import numpy as np
+
+from ..stolt import tap_table
+
+RHO_STEPS = np.round(np.arange(1.2, 6.01, 0.05), 2)  # oversamplings tried by the sampling rule
+SKELETON = 4096  # at most about this many pixels stand for the grid when extents are computed
+
+
+@lru_cache(maxsize=64)
+def interpolation_error(taps: int, rho: float) -> float:
+    """The largest error |interpolated - exact| of a unit complex exponential at the band edge
+    (1 / (2 rho) cycles a sample) over all fractional offsets, for the ``taps``-tap Knab-windowed
+    sinc of the tap table at oversampling ``rho``."""
+    table = tap_table(taps, "knab", float(rho))
+    f = 1 / (2 * rho)
+    w = np.linspace(0.0, 1.0, table.shape[0])
+    x = np.arange(taps) - (taps // 2 - 1)
+    return float(np.abs(table @ np.exp(2j * np.pi * f * x) - np.exp(2j * np.pi * f * w)).max())
+
+
+def oversampling(taps: int, tolerance: float, stages: int) -> float:
+    """The smallest rho of RHO_STEPS with interpolation_error(taps, rho) <= tolerance / (2 stages)
+    (the rule of the module docstring); a ValueError when no oversampling up to RHO_STEPS[-1]
+    reaches it with this interpolator."""
+    budget = tolerance / (2 * max(stages, 1))
+    for rho in RHO_STEPS:
+        if interpolation_error(taps, float(rho)) <= budget:
+            return float(rho)
+    best = interpolation_error(taps, float(RHO_STEPS[-1]))
+    raise ValueError(f"tolerance {tolerance} needs an interpolation error below {budget:.2g} at each of {stages} "
+                     f"stages, which the {taps}-tap interpolator does not reach ({best:.2g} at oversampling "
+                     f"{RHO_STEPS[-1]}); use taps=8 or a larger tolerance")
+
+
+@dataclasses.dataclass(frozen=True)
+class Plane:
+    """The reference plane m . X = offset (m unit normal) and the scene's centroid (m)."""
+
+    normal: np.ndarray
+    offset: float
+    centroid: np.ndarray
+
+    @classmethod
+    def fit(cls, skeleton: np.ndarray) -> "Plane":
+        """The plane of the points (K, 3): for points on a plane (within 1e-6 of their extent) that
+        plane; for a volume the least-squares plane among those containing the nominal track
+        direction y (so that every sub-aperture's circles of (r, v) cross it); a single point or
+        a line gets the horizontal plane through them."""
+        centroid = skeleton.mean(axis=0)
+        spread = skeleton - centroid
+        _, s, vt = np.linalg.svd(spread, full_matrices=False)
+        if s.size < 2 or s[1] <= 1e-9 * max(s[0], 1e-30):
+            normal = np.array([0.0, 0.0, 1.0])
+        elif s.size == 3 and s[2] > 1e-6 * s[0]:
+            _, _, vt_xz = np.linalg.svd(spread[:, [0, 2]], full_matrices=False)
+            normal = np.array([vt_xz[-1][0], 0.0, vt_xz[-1][1]])
+        else:
+            normal = vt[-1] if s.size == 3 else np.cross(vt[0], vt[1])
+        normal = normal / np.linalg.norm(normal)
+        if normal[2] < 0:
+            normal = -normal
+        return cls(normal, float(normal @ centroid), centroid)
+
+
+@dataclasses.dataclass(frozen=True)
+class PolarGrid:
+    """A sub-aperture's local polar grid: frame (centre, axis, e1, e2), reference plane, and the
+    samples r0 + i dr (i < n_r), v0 + j dv (j < n_v). Images on it are (n_v, n_r), range fastest."""
+
+    centre: np.ndarray
+    axis: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    plane: Plane
+    r0: float
+    dr: float
+    n_r: int
+    v0: float
+    dv: float
+    n_v: int
+
+    @property
+    def size(self) -> int:
+        return self.n_r * self.n_v
+
+    @property
+    def ranges(self) -> np.ndarray:
+        return self.r0 + self.dr * np.arange(self.n_r)
+
+    @property
+    def sines(self) -> np.ndarray:
+        return self.v0 + self.dv * np.arange(self.n_v)
+
+    def points(self, rows: slice = slice(None)) -> np.ndarray:
+        """The 3-D points X(r, v) of the samples (n_v, n_r, 3) (or of the v rows ``rows``), m, float64."""
+        r = self.ranges[None, :]
+        v = self.sines[rows][:, None]
+        m, c = self.plane.normal, self.centre
+        rho = r * np.sqrt(np.clip(1 - v * v, 0.0, None))
+        m_perp = float(m @ self.e2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sin_phi = np.clip((self.plane.offset - m @ c - r * v * (m @ self.axis)) / (rho * m_perp), -1.0, 1.0)
+        sin_phi = np.where(rho > 0, sin_phi, 0.0)
+        cos_phi = np.sqrt(1 - sin_phi * sin_phi)
+        return (c + (r * v)[..., None] * self.axis + (rho * cos_phi)[..., None] * self.e1
+                + (rho * sin_phi)[..., None] * self.e2)
+
+    def coordinates(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(r, v) of points x (..., 3) in this frame, float64."""
+        d = x - self.centre
+        r = np.linalg.norm(d, axis=-1)
+        return r, (d @ self.axis) / np.where(r > 0, r, 1.0)
+
+    def record(self) -> np.ndarray:
+        """The frame as 20 doubles for kernels/ffbp.cl: centre, axis, e1, e2 (3 each), r0, dr, v0,
+        dv, n_r, n_v, 0, 0 (the plane goes separately)."""
+        return np.concatenate([self.centre, self.axis, self.e1, self.e2,
+                               [self.r0, self.dr, self.v0, self.dv, self.n_r, self.n_v, 0.0, 0.0]])
+
+
+@dataclasses.dataclass(frozen=True)
+class Scene:
+    """What every sub-aperture needs to know of the grid: a skeleton of its pixels (K, 3) (its
+    border and a strided interior), the distance ``margin`` (m) by which a pixel can lie outside
+    the skeleton's hull, the reference plane and the number of pixels."""
+
+    skeleton: np.ndarray
+    margin: float
+    plane: Plane
+    pixels: int
+
+    @classmethod
+    def of(cls, positions: np.ndarray) -> "Scene":
+        shape = positions.shape[:-1]
+        flat = positions.reshape(-1, 3)
+        if flat.shape[0] <= SKELETON:
+            return cls(flat.copy(), 0.0, Plane.fit(flat), flat.shape[0])
+        stride = int(np.ceil((flat.shape[0] / SKELETON) ** (1 / len(shape))))
+        strided = tuple(np.unique(np.r_[np.arange(0, n, stride), n - 1]) for n in shape)
+        picked = [positions[np.ix_(*strided)].reshape(-1, 3)]
+        for k, n in enumerate(shape):  # every pixel of the border, one face of the index box at a time
+            for end in (0, n - 1):
+                index = list(strided)
+                index[k] = np.array([end])
+                full = list(index)
+                for j in range(len(shape)):
+                    if j != k:
+                        full[j] = np.arange(shape[j]) if len(shape) <= 2 else strided[j]
+                picked.append(positions[np.ix_(*full)].reshape(-1, 3))
+        skeleton = np.concatenate(picked)
+        # neighbours of the strided set are at most one stride apart along each axis
+        steps = [np.linalg.norm(np.diff(positions, axis=k), axis=-1).max() for k in range(len(shape))
+                 if shape[k] > 1]
+        margin = stride * float(np.sqrt(np.sum(np.square(steps)))) if steps else 0.0
+        return cls(skeleton, margin, Plane.fit(skeleton), flat.shape[0])
+
+
+def frame_axes(axis: np.ndarray, centre: np.ndarray, plane: Plane) -> tuple[np.ndarray, np.ndarray]:
+    """(e1, e2): e2 the plane normal's part perpendicular to ``axis`` (unit), e1 = e2 x axis turned
+    towards the scene's centroid. Raises ValueError when the plane is (nearly) perpendicular to
+    the axis (a cross-track vertical image plane: the polar grid would be degenerate)."""
+    m = plane.normal
+    perp = m - (m @ axis) * axis
+    norm = np.linalg.norm(perp)
+    if norm < 0.1:
+        raise ValueError("grid: its plane is within 6 degrees of perpendicular to the track, so a sub-aperture's "
+                         "polar grid cannot represent it; image it with clsas.backproject")
+    e2 = perp / norm
+    e1 = np.cross(e2, axis)
+    if e1 @ (plane.centroid - centre) < 0:
+        e1 = -e1
+    return e1, e2
+
+
+def polar_grid(centre: np.ndarray, axis: np.ndarray, half_length: float, scene: Scene, window: tuple[float, float],
+               bandwidth: float, f0: float, c: float, rho: float, taps: int,
+               sine_limit: float | None = None) -> PolarGrid | None:
+    """The polar grid of a sub-aperture with the given frame and half-length L (m) that covers the
+    scene within the recorded range window ``window`` (m, (min, max)), sampled by the rule of the
+    module docstring at oversampling ``rho``, padded by ``taps // 2 + 2`` samples on every side for the
+    interpolator; ``sine_limit`` bounds |v| (the integration angle), None for all angles. None
+    when the scene lies wholly outside the window or the angular limit."""
+    e1, e2 = frame_axes(axis, centre, scene.plane)
+    d = scene.skeleton - centre
+    r = np.linalg.norm(d, axis=-1)
+    v = (d @ axis) / r
+    r_lo, r_hi = max(r.min() - scene.margin, window[0]), min(r.max() + scene.margin, window[1])
+    if r_hi <= r_lo or r_lo <= 0:
+        return None
+    v_margin = scene.margin / max(r_lo, 1e-9)
+    v_lo, v_hi = max(v.min() - v_margin, -1.0), min(v.max() + v_margin, 1.0)
+    if sine_limit is not None:
+        v_lo, v_hi = max(v_lo, -sine_limit), min(v_hi, sine_limit)
+        if v_hi <= v_lo:
+            return None
+    f_max = f0 + bandwidth / 2
+    a = np.array([-half_length, half_length])[:, None]
+    vv = np.array([v_lo, v_hi, 0.0])[None, :]
+    dist = np.sqrt(np.maximum(r_lo ** 2 - 2 * r_lo * a * vv + a * a, 1e-30))
+    w_v = 2 * f_max * float(np.max(np.abs(r_lo * a / dist))) / c
+    w_r = bandwidth / c + 2 * f_max * float(np.max(1 - (r_lo - a * vv) / dist)) / c
+    dr = 1 / (2 * w_r * rho)
+    dv = 1 / (2 * max(w_v, 1e-12) * rho)
+    pad = taps // 2 + 2  # the interpolator reads taps / 2 samples either side; 2 more for frame shifts
+    n_r = int(np.ceil((r_hi - r_lo) / dr)) + 1 + 2 * pad
+    n_v = int(np.ceil((v_hi - v_lo) / dv)) + 1 + 2 * pad
+    return PolarGrid(centre, axis, e1, e2, scene.plane, r_lo - pad * dr, dr, n_r, v_lo - pad * dv, dv, n_v)

@@ -1,0 +1,156 @@
+"""The merge tree of fast factorised back-projection: sub-apertures, their frames and polar grids.
+
+Level 0 holds the leaves, blocks of ``first`` consecutive pulses (the last one shorter);
+a node of level l + 1 is ``factor`` consecutive nodes of level l. A node's frame:
+
+- centre C: the mean of its phase centres, the midpoints of the transmitter at emission and
+  each selected receiver (the mean of its position nodes over the recording);
+- axis u: the unit chord of the transmitter's track from the node's first to its last pulse
+  (a one-pulse node: the chord over its neighbours);
+- half-length L: max |a| + max |b| + max |T - R|^2 / (4 r_near) over its phase centres, a
+  the offset along u and b the distance off it; the last term bounds the two-leg bistatic
+  delay's departure from twice the range to the midpoint, (|X - T| + |X - R|) - 2 |X - M|
+  <= |T - R|^2 / (4 |X - M|) (r_near the nearest scene range).
+
+Its polar grid covers the scene within the recorded range window widened by L + max |T - R| / 2
+and, with an ``aperture`` (the smaller of ffbp's ``aperture`` and ``beam``), the angles
+|v| <= sin(aperture / 2) + |u - y| + L / r_near (a pixel that some pulse of the node sees within
+the aperture, whose sine is taken off the y axis);
+:func:`clsas.image.ffbp.polar.polar_grid` samples it.
+
+Where to stop: merging level l into level l + 1 costs about factor x (the samples of level l + 1)
+interpolations and saves (nodes of level l - nodes of level l + 1) x pixels at the final stage;
+the tree merges while that pays. The oversampling rho depends on the number of stages
+(:func:`clsas.image.ffbp.polar.oversampling`), which depends on where the tree stops: two
+rounds settle both.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ...data import EchoData
+from .polar import Scene, oversampling, polar_grid
+
+LEAF_SAMPLES = 16  # the default first stage: the fewest pulses whose leaf grid is at least this wide in angle
+
+
+@dataclasses.dataclass
+class Tree:
+    """pulses[l][n] = (p0, p1) of node n of level l; children[l][n] its children (level l - 1);
+    grids[l][n] its PolarGrid (None: it sees no pixel); ``top`` the last level merged (its nodes
+    go to the pixels), ``rho`` the oversampling, ``first`` pulses a leaf."""
+
+    pulses: list
+    children: list
+    grids: list
+    top: int
+    rho: float
+    first: int
+
+    def samples(self) -> list[int]:
+        """Polar samples of each level up to the top."""
+        return [int(sum(g.size for g in level if g is not None)) for level in self.grids[:self.top + 1]]
+
+
+def _levels(n_pulses: int, first: int, factor: int):
+    pulses = [[(p, min(p + first, n_pulses)) for p in range(0, n_pulses, first)]]
+    children = [[[] for _ in pulses[0]]]
+    while len(pulses[-1]) > 1:
+        below = pulses[-1]
+        groups = [list(range(i, min(i + factor, len(below)))) for i in range(0, len(below), factor)]
+        pulses.append([(below[g[0]][0], below[g[-1]][1]) for g in groups])
+        children.append(groups)
+    return pulses, children
+
+
+class _Frames:
+    """Phase centres and bistatic baselines of the echo's pulses, and node frames from them."""
+
+    def __init__(self, echo: EchoData, chosen: list, scene: Scene):
+        rx = echo.rx_pos[chosen].mean(axis=2)  # (n_sel, N, 3)
+        self.tx = echo.tx_pos
+        self.mids = 0.5 * (self.tx[None] + rx)
+        self.baseline = np.linalg.norm(rx - self.tx[None], axis=-1).max(axis=0)  # (N,)
+        step = max(1, echo.n_pulses // 64)  # the array's two ends every ~1/64 of the track
+        track = np.concatenate([self.mids[[0, -1], ::step].reshape(-1, 3), self.mids[[0, -1], -1]])
+        d = min(float(np.min(np.linalg.norm(scene.skeleton - t, axis=-1))) for t in track) - scene.margin
+        self.r_near = float(d)
+
+    def frame(self, p0: int, p1: int) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """(centre, axis, half-length, largest baseline) of the node of pulses p0..p1-1."""
+        n = self.tx.shape[0]
+        lo, hi = (p0, p1 - 1) if p1 - p0 > 1 else (max(p0 - 1, 0), min(p0 + 1, n - 1))
+        chord = self.tx[hi] - self.tx[lo]
+        norm = np.linalg.norm(chord)
+        axis = chord / norm if norm > 0 else np.array([0.0, 1.0, 0.0])
+        mids = self.mids[:, p0:p1].reshape(-1, 3)
+        centre = mids.mean(axis=0)
+        d = mids - centre
+        a = d @ axis
+        b = np.linalg.norm(d - a[:, None] * axis, axis=-1)
+        base = float(self.baseline[p0:p1].max())
+        return centre, axis, float(np.abs(a).max() + b.max() + base ** 2 / (4 * self.r_near)), base
+
+
+def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: float, taps: int,
+         first: int | None, aperture: float | None) -> Tree:
+    """The merge tree for ``echo``'s pulses and the scene (see the module docstring)."""
+    frames = _Frames(echo, chosen, scene)
+    if frames.r_near <= 0:
+        raise ValueError("grid: a pixel lies on the sonar's track (zero range); ffbp's polar grids need every pixel "
+                         "at a positive range from the phase centres")
+    c, f0, bw = echo.medium.sound_speed, echo.waveform.f0, echo.waveform.bandwidth
+    t_lo = float(echo.t0[chosen].min())
+    t_hi = float(echo.t0[chosen].max()) + echo.n_samples / echo.fs
+    sine = None if aperture is None else np.sin(aperture / 2)
+    n_pixels = scene.pixels
+    cache = {}
+
+    def node_grid(p0, p1, rho):
+        key = (p0, p1, rho)
+        if key not in cache:
+            centre, axis, half, base = frames.frame(p0, p1)
+            widen = half + base / 2
+            limit = None if sine is None else min(1.0, sine + float(np.linalg.norm(axis - [0.0, 1.0, 0.0]))
+                                                   + half / frames.r_near)
+            cache[key] = polar_grid(centre, axis, half, scene, (c * t_lo / 2 - widen, c * t_hi / 2 + widen),
+                                    bw, f0, c, rho, taps, limit)
+        return cache[key]
+
+    if first is None:
+        first = 1
+        rho0 = oversampling(taps, tolerance, 1)
+        while first < echo.n_pulses:
+            g = next((node_grid(p, min(p + first, echo.n_pulses), rho0) for p in (echo.n_pulses // 2,)), None)
+            if g is not None and g.n_v - 2 * taps >= LEAF_SAMPLES:
+                break
+            first *= factor
+        first = min(first, echo.n_pulses)
+    pulses, children = _levels(echo.n_pulses, first, factor)
+    top = len(pulses) - 1
+    for _ in range(2):
+        rho = oversampling(taps, tolerance, top + 1)
+        grids = [[node_grid(p0, p1, rho) if level <= top else None for p0, p1 in pulses[level]]
+                 for level in range(len(pulses))]
+        if all(g is None for g in grids[0]):
+            raise ValueError("grid: no pixel lies within the recorded range window (and the integration angle, "
+                             "if given) of any sub-aperture: the sonar never sees this grid")
+        new_top = 0
+        while new_top + 1 < len(pulses):
+            level = new_top + 1
+            level_grids = [node_grid(p0, p1, rho) for p0, p1 in pulses[level]]
+            cost = factor * sum(g.size for g in level_grids if g is not None)
+            saving = (len(pulses[new_top]) - len(pulses[level])) * n_pixels
+            if cost > saving:
+                break
+            grids[level] = level_grids
+            new_top = level
+        if new_top == top:
+            break
+        top = new_top
+    grids = [[node_grid(p0, p1, rho) for p0, p1 in pulses[level]] if level <= top else [] for level in
+             range(len(pulses))]
+    return Tree(pulses, children, grids, top, rho, first)
