@@ -1,6 +1,7 @@
 """clsas: synthetic aperture sonar simulation and imaging (OpenCL kernels, NumPy references)."""
 
 from .backend import use_backend
+from .budget import memory_budget, use_memory_budget
 from .data import EchoData, Grid, Image
 from .errors import EstimationError
 from .estimate.moving import estimate as estimate_motion
@@ -8,6 +9,7 @@ from .estimate.moving import focus as focus_moving
 from .image.backprojection import backproject
 from .image.csa import chirp_scaling
 from .image.ffbp import ffbp
+from .image.inclined import correct_inclined_array
 from .image.multireceiver import pca_record
 from .image.omegak import omega_k
 from .image.ptrs import ptrs_image
@@ -44,11 +46,13 @@ __all__ = [
                              "Waveform",
                              "backproject",
                              "chirp_scaling",
+                             "correct_inclined_array",
                              "estimate_motion",
                              "ffbp",
                              "focus_moving",
                              "line_record",
                              "load",
+                             "memory_budget",
                              "omega_k",
                              "pca_record",
                              "ptrs_image",
@@ -57,5 +61,6 @@ __all__ = [
                              "save",
                              "simulate",
                              "use_backend",
+                             "use_memory_budget",
 ]
 __version__ = "0.1.0"

@@ -11,17 +11,17 @@ from typing import ClassVar
 
 import numpy as np
 
+from . import budget
+from . import validate
 from .scene.scenario import Medium, Waveform
+
+MAX_ECHO_FS = 1e11  # Hz: a waveform's largest rate (1 GHz) upsampled 64 times, with margin
+GRID_BYTES_PER_PIXEL = 80  # a plane's positions (24) and their temporaries while it is built
 
 
 def _geometry(name: str, value, shape: tuple) -> np.ndarray:
-    arr = np.array(value, dtype=np.float64)
-    if arr.shape != shape:
-        raise ValueError(f"EchoData.{name} must have shape {shape}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"EchoData.{name} must be finite everywhere; it has NaN or inf")
-    arr.flags.writeable = False
-    return arr
+    """A finite float64 array of ``shape`` within the coordinate (m) and time (s) bounds."""
+    return validate.array(f"EchoData.{name}", value, shape, bound=max(validate.MAX_COORDINATE, validate.MAX_TIME))
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,13 +78,13 @@ class EchoData:
         if not np.iscomplexobj(data):
             raise TypeError(f"EchoData.data must be complex baseband samples, got dtype {data.dtype}")
         data = data.astype(np.complex64, copy=False)
+        if not validate.all_finite(data):
+            raise ValueError("EchoData.data must be finite: it has NaN or inf samples")
         n_rx, n_p, _ = data.shape
         object.__setattr__(self, "data", data)
         object.__setattr__(self, "eta", _geometry("eta", self.eta, (n_p,)))
         object.__setattr__(self, "t0", _geometry("t0", self.t0, (n_rx,)))
-        fs = float(self.fs)
-        if not (np.isfinite(fs) and fs > 0):
-            raise ValueError(f"EchoData.fs must be a positive sampling rate in Hz, got {self.fs}")
+        fs = validate.scalar("EchoData.fs", self.fs, low=1.0, high=MAX_ECHO_FS, unit="Hz")
         object.__setattr__(self, "fs", fs)
         object.__setattr__(self, "tx_pos", _geometry("tx_pos", self.tx_pos, (n_p, 3)))
         rx_tau = np.asarray(self.rx_tau, dtype=np.float64)
@@ -192,6 +192,8 @@ class Image:
 
     def __post_init__(self):
         data = np.asarray(self.data)
+        if data.dtype.kind not in "iufc":
+            raise TypeError(f"Image.data: must be an array of numbers, got dtype {data.dtype}")
         if not np.iscomplexobj(data):
             data = data.astype(np.complex64)
         data = data.astype(np.complex64, copy=False)
@@ -258,13 +260,12 @@ class Grid:
     axes: dict
 
     def __post_init__(self):
-        pos = np.asarray(self.positions, dtype=np.float64)
+        pos = validate.array("Grid.positions", self.positions, (-1,) * max(2, np.ndim(self.positions)),
+                             bound=validate.MAX_COORDINATE, copy=False)
         if pos.ndim < 2 or pos.shape[-1] != 3:
-            raise ValueError(f"Grid.positions must have shape (..., 3), got {pos.shape}")
+            raise ValueError(f"Grid.positions: must have shape (..., 3), got {pos.shape}")
         if pos.size == 0:
             raise ValueError("Grid is empty: give at least one pixel")
-        if not np.all(np.isfinite(pos)):
-            raise ValueError("Grid.positions must be finite (it has NaN or inf)")
         dims = tuple(self.dims)
         if len(dims) != pos.ndim - 1:
             raise ValueError(f"Grid.dims must name the {pos.ndim - 1} pixel axes, got {dims}")
@@ -291,33 +292,37 @@ class Grid:
     def plane(cls, x, y, z: float) -> "Grid":
         """Horizontal plane z = ``z`` (m, negative below the surface) on the x (across-track) and
         y (along-track) coordinates given; dims ``("y", "x")``."""
-        x = np.atleast_1d(np.asarray(x, dtype=np.float64))
-        y = np.atleast_1d(np.asarray(y, dtype=np.float64))
-        if x.ndim != 1 or y.ndim != 1 or x.size == 0 or y.size == 0:
-            raise ValueError(f"Grid.plane needs non-empty 1-D x and y, got shapes {x.shape} and {y.shape}")
-        if not np.isfinite(z):
-            raise ValueError(f"Grid.plane z must be finite, got {z}")
+        x = validate.array("Grid.plane x", x if np.ndim(x) else [x], (-1,), bound=validate.MAX_COORDINATE)
+        y = validate.array("Grid.plane y", y if np.ndim(y) else [y], (-1,), bound=validate.MAX_COORDINATE)
+        if x.size == 0 or y.size == 0:
+            raise ValueError(f"Grid.plane x and y: must be non-empty, got shapes {x.shape} and {y.shape}")
+        z = validate.scalar("Grid.plane z", z, low=-validate.MAX_COORDINATE, high=validate.MAX_COORDINATE, unit="m")
+        budget.check_bytes(f"Grid.plane of {y.size} x {x.size} pixels", GRID_BYTES_PER_PIXEL * x.size * y.size,
+                           "fewer pixels (image in tiles)")
         yy, xx = np.meshgrid(y, x, indexing="ij")
         return cls(np.stack([xx, yy, np.full_like(xx, z)], axis=-1), ("y", "x"), {"y": y, "x": x})
 
     @classmethod
     def slant(cls, origin, u_direction, v_direction, u, v, dims=("v", "u")) -> "Grid":
         """Plane ``origin + u_i u_direction + v_j v_direction`` (unit directions, m); shape (len(v), len(u))."""
-        origin = np.asarray(origin, dtype=np.float64)
-        du = np.asarray(u_direction, dtype=np.float64)
-        dv = np.asarray(v_direction, dtype=np.float64)
+        origin = validate.vector3("Grid.slant origin", origin)
+        du = validate.vector3("Grid.slant u_direction", u_direction)
+        dv = validate.vector3("Grid.slant v_direction", v_direction)
         for name, vec in (("u_direction", du), ("v_direction", dv)):
-            if vec.shape != (3,) or not np.isclose(np.linalg.norm(vec), 1.0):
-                raise ValueError(f"Grid.slant {name} must be a unit 3-vector, got {vec}")
-        u = np.atleast_1d(np.asarray(u, dtype=np.float64))
-        v = np.atleast_1d(np.asarray(v, dtype=np.float64))
-        pos = origin + v[:, None, None] * dv + u[None, :, None] * du
-        return cls(pos, tuple(dims), {dims[0]: v, dims[1]: u})
+            if not np.isclose(np.linalg.norm(vec), 1.0):
+                raise ValueError(f"Grid.slant {name}: must be a unit 3-vector, got {vec}")
+        u = validate.array("Grid.slant u", u if np.ndim(u) else [u], (-1,), bound=validate.MAX_COORDINATE)
+        w = validate.array("Grid.slant v", v if np.ndim(v) else [v], (-1,), bound=validate.MAX_COORDINATE)
+        budget.check_bytes(f"Grid.slant of {w.size} x {u.size} pixels", GRID_BYTES_PER_PIXEL * u.size * w.size,
+                           "fewer pixels (image in tiles)")
+        pos = origin + w[:, None, None] * dv + u[None, :, None] * du
+        return cls(pos, tuple(dims), {dims[0]: w, dims[1]: u})
 
     @classmethod
     def points(cls, positions, dims=None) -> "Grid":
         """Any ``(..., 3)`` array of pixel positions (m); dims default to ``("i0", "i1", ...)``."""
-        pos = np.asarray(positions, dtype=np.float64)
+        pos = validate.array("Grid.points positions", positions, (-1,) * max(1, np.ndim(positions)),
+                             bound=validate.MAX_COORDINATE)
         if pos.ndim == 1:
             pos = pos[None]
         dims = tuple(dims) if dims is not None else tuple(f"i{k}" for k in range(pos.ndim - 1))

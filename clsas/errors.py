@@ -17,3 +17,9 @@ class EstimationError(ClsasError, RuntimeError):
 class DataFileError(ClsasError, ValueError):
     """A file that :func:`clsas.load` cannot read as clsas data: the message names the file and
     what is wrong with it (missing item, wrong shape or type, declared size over the budget)."""
+
+
+class MemoryBudgetError(ClsasError, ValueError):
+    """A request (its sizes follow from the arguments named in the message) would allocate more
+    than :func:`clsas.memory_budget` allows; refused before anything is allocated. Raise the budget
+    with :func:`clsas.use_memory_budget` or the ``CLSAS_MEMORY_BUDGET`` environment variable."""

@@ -30,7 +30,8 @@ from functools import lru_cache
 import numpy as np
 
 from . import backend as _backend
-from . import opencl
+from . import budget, opencl
+from . import validate as v
 from .kernelmath import kaiser_sinc_tap
 
 INTERPOLATORS = {"linear": 2, "sinc8": 8, "sinc16": 16}
@@ -82,8 +83,17 @@ def check_options(interp: str, window: str, oversampling: float) -> None:
         raise ValueError(f"interp must be one of {sorted(INTERPOLATORS)}, got {interp!r}")
     if window not in TAP_WINDOWS:
         raise ValueError(f"window must be one of {TAP_WINDOWS}, got {window!r}")
-    if not (np.isfinite(oversampling) and oversampling > 1):
-        raise ValueError(f"oversampling (source sampling rate over its band) must be > 1, got {oversampling}")
+    v.scalar("oversampling", oversampling, low=1.0, low_open=True, why="source sampling rate over its band")
+
+
+def check_sizes(caller: str, src_shape: tuple, n_out: int, interp: str, out_name: str) -> None:
+    """Rows long enough for the interpolator's taps, and the result within the memory budget."""
+    taps = INTERPOLATORS[interp]
+    if src_shape[1] < taps:
+        raise ValueError(f"{caller}: rows of {src_shape[1]} samples are too short for interp={interp!r}, which reads "
+                         f"{taps} samples; give at least {taps}")
+    budget.check_bytes(f"{caller} of {src_shape[0]} rows onto {out_name} = {n_out} columns", 16.0 * src_shape[0] * n_out
+                       + 16.0 * min(src_shape[0], ROW_BLOCK) * n_out * (taps + 2), "fewer rows or columns at a time")
 
 
 def _window_start(i: np.ndarray, taps: int, n: int):
@@ -223,13 +233,14 @@ def resample(src, idx, interp: str = "sinc8", window: str = "kaiser", oversampli
     """
     check_options(interp, window, oversampling)
     src = np.asarray(src)
-    idx = np.asarray(idx, dtype=np.float64)
+    if src.dtype.kind not in "iufc":
+        raise TypeError(f"resample src: must be a 2-D array of numbers (rows, samples), got dtype {src.dtype}")
     if src.ndim != 2 or src.shape[0] < 1 or src.shape[1] < 1:
-        raise ValueError(f"src must be a non-empty 2-D array (rows, samples), got shape {src.shape}")
-    if not (idx.ndim == 1 or idx.shape[:1] == src.shape[:1] and idx.ndim == 2) or idx.shape[-1] < 1:
-        raise ValueError(f"idx must be (m,) or (n_rows={src.shape[0]}, m) positions, got shape {idx.shape}")
-    if not np.all(np.isfinite(idx)) or np.abs(idx).max() > 2**30:
-        raise ValueError("idx must hold finite positions within +-2^30 samples")
+        raise ValueError(f"resample src: must be a non-empty 2-D array (rows, samples), got shape {src.shape}")
+    idx = v.array("resample idx", idx, (-1,) if np.ndim(idx) == 1 else (src.shape[0], -1), bound=2**30, copy=False)
+    if idx.shape[-1] < 1:
+        raise ValueError(f"resample idx: must be (m,) or (n_rows={src.shape[0]}, m) positions, got shape {idx.shape}")
+    check_sizes("resample src", src.shape, idx.shape[-1], interp, "the positions of idx")
     if _backend.resolve(backend) == "numpy":
         return resample_rows(src, idx, interp, window, oversampling)
     return resample_opencl(src, idx, interp, window, oversampling)

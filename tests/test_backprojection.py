@@ -54,12 +54,13 @@ def test_kernel_matches_reference(opencl_device, kiang_echo, interp, centre):
     kw = dict(interp=interp, upsample=4, target_velocity=(0.5, -1.0, 0.0), progress=False)
     ref = backproject(kiang_echo, grid, backend="numpy", **kw)
     got = backproject(kiang_echo, grid, backend="opencl", **kw)
-    # float32 budget: relative L2 < 5e-3; phase at the peak < 0.01 rad (delays and carrier
-    # cycles are double in the kernel, so both are met by orders of magnitude)
-    assert rel_l2(got.data, ref.data) < 5e-3
+    # float32 budget: relative L2 < 5e-3, phase at the peak < 0.01 rad; delays and carrier
+    # cycles are double in the kernel, so both are met by orders of magnitude: measured relative
+    # L2 1.4e-6 to 4.8e-6 and peak phase 2e-9 to 8e-9 rad over the four cases; bounds ~10x
+    assert rel_l2(got.data, ref.data) < 5e-5
     peak = metrics.peak_index(ref.data)
     assert metrics.peak_index(got.data) == peak
-    assert phase_error(got.data[peak], ref.data[peak]) < 0.01
+    assert phase_error(got.data[peak], ref.data[peak]) < 1e-7
     dbl = backproject(kiang_echo, grid, backend="opencl", precision="double", **kw)
     assert rel_l2(dbl.data, ref.data) < 1e-7
 
@@ -69,7 +70,7 @@ def test_kernel_matches_reference_options(opencl_device, kiang_echo, options):
     grid = around((1989.0, 0.0, -350.0), 0.02, 0.05, 8, 8)
     ref = backproject(kiang_echo, grid, backend="numpy", progress=False, **options)
     got = backproject(kiang_echo, grid, backend="opencl", progress=False, **options)
-    assert rel_l2(got.data, ref.data) < 5e-3
+    assert rel_l2(got.data, ref.data) < 2e-4  # measured 1.3e-5 to 2.2e-5
 
 
 def test_records_in_place_and_copied_give_the_same_image(opencl_device, kiang_echo):
@@ -93,10 +94,12 @@ def test_full_size_tiles_match_reference(opencl_device, kiang_echo, centre):
     ref = backproject(kiang_echo, grid, backend="numpy", **kw)
     got = backproject(kiang_echo, grid, backend="opencl", **kw)
     assert got.provenance["exact_fallback_blocks"] == 0
-    assert rel_l2(got.data, ref.data) < 5e-3
+    # measured: relative L2 3.2e-5 and 4.6e-5, phase 1.1e-4 and 2.6e-4 rad (the tiles' float32
+    # offsets at full size, within PHASE_BUDGET = 2e-3 by construction); bounds ~10x
+    assert rel_l2(got.data, ref.data) < 5e-4
     # phase at the 20 strongest pixels (the target's response), not only at the peak
     strongest = np.argsort(np.abs(ref.data).ravel())[-20:]
-    assert np.max(phase_error(got.data.ravel()[strongest], ref.data.ravel()[strongest])) < 0.01
+    assert np.max(phase_error(got.data.ravel()[strongest], ref.data.ravel()[strongest])) < 3e-3
     assert metrics.peak_index(got.data) == metrics.peak_index(ref.data)
 
 
@@ -132,13 +135,20 @@ def test_memory_of_a_4096_square_image_is_bounded_per_pixel(opencl_device):
 
 
 def test_memory_does_not_grow_with_pulses_and_receivers(opencl_device):
-    """32 receivers x 250 vs 1000 pulses (31 vs 125 MB of records, upsampled x 8 in use): records
-    are upsampled and uploaded UPLOAD_BYTES at a time (4 MB here, to reach the plateau with few
-    pulses), so four times the pulses add nothing beyond that."""
+    """32 receivers x 250 vs 1000 pulses (31 vs 125 MB of records; 250 vs 1000 MB once upsampled
+    x 8): records are upsampled and uploaded UPLOAD_BYTES at a time (4 MB here, to reach the
+    plateau with few pulses), so four times the pulses add nothing beyond that.
+
+    The bounds follow from the sizes, not from one machine's allocator (the plateau itself, a few
+    upload blocks with their FFT temporaries plus the OpenCL runtime's buffers in flight, varies
+    between runs and CPUs: 23 to 76 MB measured, the 1000-pulse call sometimes the lower): the extra pulses may add at most 5 % of their
+    upsampled records (37 MB; keeping them would add 750 MB), and the larger call may not hold a
+    quarter of its upsampled records (250 MB) at once."""
+    upsampled_mb = {n: 32 * n * 512 * 8 * np.dtype(np.complex64).itemsize / 2**20 for n in (250, 1000)}
     few = peak_increase_mb(128, 32, 250, 512, 4 * 2**20)
     many = peak_increase_mb(128, 32, 1000, 512, 4 * 2**20)
-    assert many < few + 16
-    assert many < 64
+    assert many < few + 0.05 * (upsampled_mb[1000] - upsampled_mb[250]), (few, many)
+    assert many < 0.25 * upsampled_mb[1000], (few, many)
 
 
 def test_receiver_with_a_kink_falls_back_to_the_exact_kernel(opencl_device, kiang_echo):

@@ -96,9 +96,11 @@ def test_kernel_phase_error_per_contribution(opencl_device, rng, f0):
     ref, got = reference_and_kernel(isolated_scene(rng, f0))
     on = np.abs(ref) > 0.5
     assert on.sum() > 3 * 6 * 19 * 90
-    assert phase_error(got[on], ref[on]).max() < 0.01
+    # float32 accumulation against float64; ~10x the measured errors (phase 2.8e-5 rad, relative
+    # L2 4.5e-6 at both carriers) so that a regression shows long before the 0.01 rad budget
+    assert phase_error(got[on], ref[on]).max() < 3e-4
     assert np.max(np.abs(np.abs(got[on]) - np.abs(ref[on]))) < 1e-4
-    assert rel_l2(got, ref) < 5e-3
+    assert rel_l2(got, ref) < 5e-5
 
 
 def test_kernel_dense_scene_relative_l2(opencl_device, rng):
@@ -108,7 +110,7 @@ def test_kernel_dense_scene_relative_l2(opencl_device, rng):
                            velocity=(1.0, -2.0, 0.5))
     near = PointTargets(np.array([30.0, 0.0, -43.0]) + rng.uniform(-2, 2, (20, 3)))
     ref, got = reference_and_kernel(kiang(5, targets=(targets, near)))
-    assert rel_l2(got, ref) < 5e-3
+    assert rel_l2(got, ref) < 6e-5  # measured 5.6e-6
 
 
 def test_kernel_double_precision_agrees_to_1e9(opencl_device, rng):
@@ -127,9 +129,11 @@ def test_kernel_with_motion_errors_and_element_patterns(opencl_device, rng):
                   targets=(PointTargets(np.column_stack([rng.uniform(40, 120, 10), rng.uniform(-3, 3, 10),
                                                          np.full(10, -20.0)])),))
     ref, got = reference_and_kernel(sc, spreading=True)
-    assert rel_l2(got, ref) < 5e-3
+    # measured: relative L2 1.9e-4, 99th percentile phase 4.8e-4 rad (linear receiver motion
+    # between nodes, lambda / 10^4 by construction); bounds ~10x
+    assert rel_l2(got, ref) < 2e-3
     on = np.abs(ref) > 1e-3 * np.abs(ref).max()
-    assert np.percentile(phase_error(got[on], ref[on]), 99) < 0.01
+    assert np.percentile(phase_error(got[on], ref[on]), 99) < 5e-3
 
 
 def _aligned_equal(a, b, tol=1e-5) -> bool:
@@ -332,7 +336,7 @@ def test_scales_to_1e5_scatterers_with_bounded_memory(opencl_device):
 @pytest.mark.parametrize("option,value,error", [
     ("precision", "half", ValueError), ("dtype", np.float32, ValueError), ("dtype", "bogus", ValueError),
     ("stop_and_go", "yes", TypeError), ("spreading", 1, TypeError), ("progress", None, TypeError),
-    ("max_bytes", 0, ValueError), ("chunk_bytes", 2.5e8, ValueError), ("max_bytes", True, ValueError),
+    ("max_bytes", 0, ValueError), ("chunk_bytes", -5, ValueError), ("max_bytes", True, TypeError),
     ("reuse_tolerance", -1.0, ValueError), ("reuse_tolerance", np.nan, ValueError), ("backend", "cuda", ValueError),
 ])
 def test_options_are_checked_once_naming_the_option(option, value, error):

@@ -114,8 +114,9 @@ def test_kiang2022_receivers_a_b_c():
     assert s.receiver_names == ("A", "B", "C")
     assert s.array.n_receivers == 2 and len(s.sonobuoys) == 1
     assert isinstance(s.sonobuoys[0], Sonobuoy) and s.sonobuoys[0].name == "C"
-    depth = -250.0 * np.sin(np.deg2rad(10.0))
+    depth = s.platform.start[2]  # -L1 sin(theta_b) with L1 = 250 m, theta_b = 10 deg
     assert depth == pytest.approx(-43.41, abs=0.01)
+    np.testing.assert_array_equal(s.platform.start[:2], [0.0, 0.0])
     eta = np.array([-10.0, -0.5, 0.0, 3.0, 40.0])
     zeros = np.zeros_like(eta)
     a = s.receiver_position(0, eta)
@@ -140,7 +141,8 @@ def test_huang2022_table_1():
     np.testing.assert_allclose(a.rx_offsets[:, 1], 0.06 + 0.04 * np.arange(32), atol=1e-12)
     assert np.all(a.rx_offsets[:, [0, 2]] == 0)
     np.testing.assert_array_equal(a.tx_offset, [0.0, 0.0, 0.0])
-    assert 32 * 0.04 == pytest.approx(1.28)  # array length from the element widths
+    array_length = a.rx_offsets[-1, 1] + a.rx_length[-1] / 2 - (a.rx_offsets[0, 1] - a.rx_length[0] / 2)
+    assert array_length == pytest.approx(1.28)  # 32 contiguous elements of 0.04 m
     np.testing.assert_allclose(a.rx_length, 0.04)
     assert a.tx_length == 0.08
     assert s.platform.speed == 2.0
@@ -183,7 +185,8 @@ def test_zhang2019_table_1_and_documented_undersampling():
     a = s.array
     assert a.n_receivers == 30
     np.testing.assert_allclose(a.rx_offsets[:, 1], 0.03 + 0.02 * np.arange(30), atol=1e-12)
-    assert 30 * 0.02 == pytest.approx(0.6)
+    array_length = a.rx_offsets[-1, 1] + a.rx_length[-1] / 2 - (a.rx_offsets[0, 1] - a.rx_length[0] / 2)
+    assert array_length == pytest.approx(0.6)  # 30 contiguous elements of 0.02 m
     np.testing.assert_allclose(a.rx_length, 0.02)
     assert a.tx_length == 0.04
     assert s.platform.speed == 2.0
@@ -210,9 +213,10 @@ def test_heremans2009_section_5_2():
     assert s.waveform.wavelength(s.medium) == pytest.approx(0.03)
     step = _step(s)
     assert step == pytest.approx(0.7658, abs=1e-4)
-    assert step / (0.2188 / 2) == pytest.approx(7.0, abs=1e-3)  # 7 phase-centre spacings (eq. 50)
+    centre_spacing = np.diff(a.rx_offsets[:, 1])[0] / 2  # phase centres sit midway to the transmitter
+    assert step / centre_spacing == pytest.approx(7.0, abs=1e-3)  # 7 phase-centre spacings (eq. 50)
     # H = 15 centres, 7 new per ping: n = 8 overlap.
-    assert 15 - round(step / (0.2188 / 2)) == 8
+    assert a.n_receivers - round(step / centre_spacing) == 8
 
 
 def test_preset_docstrings_state_receiver_counts():

@@ -334,10 +334,20 @@ def test_rejects_unknown_window(small_echo, window):
         range_compress(small_echo, window=window)
 
 
-@pytest.mark.parametrize("upsample", [0, -1, 1.5, 2.0, True, 100, "2"])
-def test_rejects_bad_upsample(small_echo, upsample):
-    with pytest.raises(ValueError, match="upsample"):
+@pytest.mark.parametrize("upsample, error", [(0, ValueError), (-1, ValueError), (100, ValueError), (1.5, TypeError),
+                                             (2.0, TypeError), (True, TypeError), ("2", TypeError)])
+def test_rejects_bad_upsample(small_echo, upsample, error):
+    """Out of range: ValueError; not an integer at all: TypeError (clsas.validate's rule)."""
+    with pytest.raises(error, match="upsample"):
         range_compress(small_echo, upsample=upsample)
+
+
+@pytest.mark.parametrize("upsample", [np.int8(2), np.uint16(3), np.int64(2)])
+def test_numpy_integer_upsample(small_echo, upsample):
+    """NumPy integers of any width work (no overflow in n * upsample)."""
+    out = range_compress(small_echo, upsample=upsample)
+    assert out.n_samples == small_echo.n_samples * int(upsample)
+    assert out.provenance["range_compression"]["upsample"] == int(upsample)
 
 
 def test_rejects_bad_window_options(small_echo):
@@ -351,3 +361,41 @@ def test_rejects_bad_window_options(small_echo):
 def test_rejects_non_echodata(bad):
     with pytest.raises(TypeError, match="EchoData"):
         range_compress(bad)
+
+
+@pytest.mark.parametrize("beta", [0.0, 6.0, 40.0, 100.0])
+def test_kaiser_window_matches_scipy_and_stays_finite(beta):
+    """The i0e form equals scipy.signal.windows.kaiser sampled at the same points, up to beta = 100
+    (np.i0(800) overflowed to inf / inf = NaN before)."""
+    import scipy.signal
+
+    m = 257
+    u = np.arange(m) / (m - 1) - 0.5
+    ours = spectral_window(u, "kaiser", kaiser_beta=beta)
+    assert np.all(np.isfinite(ours))
+    np.testing.assert_allclose(ours, scipy.signal.windows.kaiser(m, beta), rtol=1e-12, atol=1e-300)
+
+
+def test_taylor_window_at_the_largest_nbar_is_quick_and_finite():
+    """nbar = 100 (the bound) computes its coefficients as one 99 x 99 product and matches scipy."""
+    import scipy.signal
+
+    f = taylor_coefficients(100, 60.0)
+    assert f.shape == (99,) and np.all(np.isfinite(f))
+    m = 1001
+    u = (np.arange(m) + 0.5) / m - 0.5
+    ref = scipy.signal.windows.taylor(m, nbar=100, sll=60.0, norm=False)
+    ours = spectral_window(u, "taylor", taylor_nbar=100, taylor_sll_db=60.0)
+    np.testing.assert_allclose(ours / ours.max(), ref / ref.max(), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("option, value, error", [
+    ("taylor_nbar", 10**6, ValueError), ("taylor_nbar", 2.5, TypeError), ("taylor_nbar", "4", TypeError),
+    ("taylor_sll_db", 1e300, ValueError), ("taylor_sll_db", 0.0, ValueError), ("taylor_sll_db", np.nan, ValueError),
+    ("kaiser_beta", 800.0, ValueError), ("kaiser_beta", "a", TypeError), ("kaiser_beta", np.inf, ValueError),
+    ("kaiser_bta", 6.0, TypeError),
+])
+def test_window_options_are_bounded_whatever_the_window(small_echo, option, value, error):
+    for window in ("taylor", "kaiser", "hamming"):
+        with pytest.raises(error, match=option):
+            range_compress(small_echo, window=window, **{option: value})

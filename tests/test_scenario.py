@@ -295,9 +295,9 @@ def test_pulse_schedule_start_and_exposure():
     (dict(t0=[[0.0, 0.1]], n_samples=10), "Recording.t0", ValueError),
     (dict(t0=0.0, n_samples=0), "Recording.n_samples", ValueError),
     (dict(t0=0.0, n_samples=[10, -1]), "Recording.n_samples", ValueError),
-    (dict(t0=0.0, n_samples=10.5), "Recording.n_samples", ValueError),
+    (dict(t0=0.0, n_samples=10.5), "Recording.n_samples", TypeError),
     (dict(t0=0.0, n_samples=[[10, 10]]), "Recording.n_samples", ValueError),
-    (dict(t0=0.0, n_samples="10"), "Recording.n_samples", ValueError),
+    (dict(t0=0.0, n_samples="10"), "Recording.n_samples", TypeError),
 ])
 def test_recording_rejected(kw, field, exc):
     with pytest.raises(exc, match=_field(field)):

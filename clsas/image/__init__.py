@@ -3,6 +3,7 @@
 from .backprojection import backproject
 from .csa import chirp_scaling
 from .ffbp import ffbp
+from .inclined import correct_inclined_array
 from .multireceiver import pca_record
 from .omegak import omega_k
 from .ptrs import ptrs_image
@@ -18,5 +19,5 @@ from .rda import range_doppler
 from .stolt import stolt
 from .record import LineRecord, line_record
 
-__all__ = ["WINDOWS", "LineRecord", "backproject", "chirp_scaling", "ffbp", "lfm_replica", "line_record", "matched_filter",
+__all__ = ["WINDOWS", "LineRecord", "backproject", "chirp_scaling", "correct_inclined_array", "ffbp", "lfm_replica", "line_record", "matched_filter",
            "omega_k", "pca_record", "ptrs_image", "range_compress", "range_doppler", "spectral_window", "stolt", "upsample_records"]

@@ -53,12 +53,13 @@ depend on both and are computed in every call (a few per cent of the kernels' ti
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import numpy as np
 from tqdm.auto import tqdm
 
 from .. import backend as _backend
-from .. import opencl
+from .. import budget, opencl, validate
 from ..data import EchoData, Grid, Image
 from ..cstruct import declare_all, record_dtype
 from ..geometry import NODE, legs, two_node_velocity, uniform_nodes
@@ -87,14 +88,19 @@ BLOCK_PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("dtau", "
                              ("half_sin", "f8")])
 RECORDS = declare_all({"node_t": NODE, "tile_ref_t": TILE_REF, "tile_params_t": TILE_PARAMS, "bp_pulse_t": PULSE,
                        "bp_block_params_t": BLOCK_PARAMS})
+BYTES_PER_PIXEL = 80  # what a call adds a pixel (tests/test_backprojection.py measures it)
 
 
 def _check_call(grid, aperture):
     if not isinstance(grid, (Grid, GridPlan)):
         raise TypeError(f"grid must be a clsas.data.Grid (Grid.plane, Grid.slant or Grid.points) or a GridPlan, got "
                         f"{type(grid).__name__}")
-    if aperture is not None and not (np.isfinite(aperture) and 0 < aperture <= np.pi):
-        raise ValueError(f"aperture must be a full integration angle in (0, pi] radians, got {aperture}")
+    if aperture is not None:
+        validate.scalar("backproject aperture", aperture, low=0.0, high=np.pi, low_open=True, unit="rad",
+                        why="the full integration angle")
+    size = grid.size if isinstance(grid, Grid) else grid.grid.size
+    budget.check_bytes(f"backproject onto {size} pixels", BYTES_PER_PIXEL * float(size),
+                       "image fewer pixels at a time (tiles of the grid)")
 
 
 def _aperture_keep(echo, pulses, q, half_sin):
@@ -530,6 +536,7 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
         interp = "linear" if interp is None else interp
         upsample = 8 if upsample is None else upsample
         chosen, velocity = check_options(echo, receivers, interp, upsample, target_velocity)
+        upsample = int(upsample)
         records = PreparedRecords(echo, chosen, interp, upsample, fast_time_spans(echo, chosen, plan.grid, velocity),
                                   materialise=False)
     double = _backend.check_precision(precision)
@@ -540,6 +547,11 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
     else:
         flat, fallbacks, kernel_seconds = backproject_opencl(*args, double=double)
     source = records.echo
+    validate.finite_result("backproject: the image", flat, "scale echo.data down", np.complex64)
+    if not np.any(flat) and any(np.any(source.data[h]) for h in records.receivers):
+        warnings.warn("backproject: the image is all zeros: no pixel of the grid lies within the recorded fast-time "
+                      "windows of the selected receivers (the swath); move the grid", validate.CoverageWarning,
+                      stacklevel=2)
     g = plan.grid
     return Image(data=flat.reshape(g.shape), dims=g.dims, axes=g.axes, positions=g.positions,
                  provenance={"algorithm": "backprojection", "backend": name, "precision": precision,

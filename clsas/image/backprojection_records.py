@@ -44,6 +44,7 @@ import os
 import numpy as np
 import scipy.fft
 
+from .. import validate
 from ..data import EchoData, Grid
 from .rangecomp import _upsample_spectrum
 
@@ -65,14 +66,17 @@ def check_options(echo, receivers, interp, upsample, target_velocity):
     if not echo.compressed:
         raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first "
                          "(back-projection refuses raw echoes rather than compressing them silently)")
-    if interp not in INTERPOLATORS:
-        raise ValueError(f"interp must be one of {INTERPOLATORS}, got {interp!r}")
-    if isinstance(upsample, bool) or not isinstance(upsample, (int, np.integer)) or not 1 <= upsample <= 64:
-        raise ValueError(f"upsample must be an integer in [1, 64], got {upsample!r}")
+    validate.choice("backproject interp", interp, INTERPOLATORS)
+    validate.integer("backproject upsample", upsample, low=1, high=64)
+    need = 8 if interp == "sinc8" else 2
+    if echo.n_samples < need or echo.n_pulses < 1:
+        raise ValueError(f"backproject echo: has {echo.n_pulses} pulses of {echo.n_samples} samples; interp={interp!r} "
+                         f"needs at least one pulse of {need} samples")
     chosen = echo.select_receivers(receivers)
-    v = np.zeros(3) if target_velocity is None else np.asarray(target_velocity, dtype=np.float64)
-    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) >= 100:
-        raise ValueError(f"target_velocity must be a finite 3-vector slower than 100 m/s, got {target_velocity!r}")
+    v = np.zeros(3) if target_velocity is None else validate.vector3("backproject target_velocity", target_velocity)
+    if np.linalg.norm(v) > validate.MAX_SPEED:
+        raise ValueError(f"backproject target_velocity: must be at most {validate.MAX_SPEED:g} m/s, got "
+                         f"{np.linalg.norm(v):g} m/s")
     return chosen, v
 
 
@@ -330,6 +334,7 @@ def prepare(compressed: EchoData, upsample: int = 8, interp: str = "linear", rec
     buffers, see the module docstring.
     """
     chosen, velocity = check_options(compressed, receivers, interp, upsample, target_velocity)
+    upsample = int(upsample)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
         raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
     spans = fast_time_spans(compressed, chosen, grid, velocity)

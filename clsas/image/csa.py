@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft
 
+from .checks import check_imager
 from .record import along_track_wavenumbers, as_record, azimuth_weights, check_elements, image_of, nonstop_shift
 
 
@@ -38,9 +39,9 @@ def chirp_scaling(data, receiver=0, elements=None, deconvolve: bool = True, wind
     Parameters as :func:`clsas.image.rda.range_doppler` (no interpolator: chirp scaling needs
     none; ``backend`` runs an EchoData's path-excess interpolation). Returns an Image, dims ("y", "x").
     """
+    window_options, workers = check_imager("chirp_scaling", data, window, window_options, workers, depth)
     rec = as_record(data, receiver, backend)
     elements = check_elements(elements, rec)
-    workers = -1 if workers is None else workers
     c, f0, fs, v = rec.medium.sound_speed, rec.waveform.f0, rec.fs, rec.speed
     chirp_rate = rec.waveform.bandwidth / rec.waveform.duration
     k0 = 2 * np.pi * f0 / c

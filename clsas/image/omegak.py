@@ -39,6 +39,7 @@ import numpy as np
 import scipy.fft
 
 from ..interp import check_options
+from .checks import check_imager
 from .rangecomp import WINDOWS, spectral_window
 from .record import along_track_wavenumbers, as_record, azimuth_weights, check_elements, image_of, nonstop_shift, unit_phasor
 from .stolt import StoltAxes, stolt
@@ -68,12 +69,12 @@ def omega_k(data, receiver=0, window: str = "hamming", elements=None, deconvolve
     -------
     Image, dims ("y", "x"): along-track by across-track on the plane z = depth.
     """
+    window_options, workers = check_imager("omega_k", data, window, window_options, workers, depth)
     rec = as_record(data, receiver, backend)
     if window not in WINDOWS:
         raise ValueError(f"window must be one of {WINDOWS}, got {window!r}")
     check_options(interp, tap_window, 1.25)
     elements = check_elements(elements, rec)
-    workers = -1 if workers is None else workers
     c, f0, fs = rec.medium.sound_speed, rec.waveform.f0, rec.fs
     bandwidth = rec.waveform.bandwidth
     n_r = scipy.fft.next_fast_len(rec.n_samples)

@@ -16,8 +16,10 @@ This is the exact form of the range-compression filter of Kiang & Kiang 2022 eq.
 eq. (15) (H_cross = P*(f)).
 
 Windows W(f) act on the band |f| <= B/2 (zero outside; ``"none"`` keeps the whole spectrum):
-``hamming`` 0.54 + 0.46 cos(2 pi f/B); ``taylor`` (nbar, sidelobe level in dB);
-``kaiser`` (beta). Upsampling zero-pads the compressed spectrum (FFT interpolation).
+``hamming`` 0.54 + 0.46 cos(2 pi f/B); ``taylor`` (``taylor_nbar`` in [1, 100],
+``taylor_sll_db`` in (0, 200] dB below the peak); ``kaiser`` (``kaiser_beta`` in [0, 100],
+computed with the exponentially scaled Bessel function i0e, so it cannot overflow).
+Upsampling zero-pads the compressed spectrum (FFT interpolation).
 """
 
 from __future__ import annotations
@@ -26,11 +28,64 @@ import os
 
 import numpy as np
 import scipy.fft
+import scipy.special
 
+from .. import budget
+from .. import validate as v
 from ..data import EchoData
 from ..scene.scenario import Waveform
 
 WINDOWS = ("none", "hamming", "taylor", "kaiser")
+WINDOW_OPTIONS = {"taylor_nbar": 4, "taylor_sll_db": 35.0, "kaiser_beta": 6.0}  # the defaults
+TAYLOR_NBAR_MAX = 100  # the coefficients are a nbar x nbar product
+TAYLOR_SLL_MAX = 200.0  # dB
+KAISER_BETA_MAX = 100.0  # beyond ~40 the window is a narrow Gaussian, no longer a sidelobe control
+MAX_UPSAMPLE = 64
+
+
+def check_window(window, options: dict, caller: str) -> dict:
+    """Validate a ``window`` name and its options (``taylor_nbar``, ``taylor_sll_db``,
+    ``kaiser_beta``; any given option is checked, whatever the window); returns the options with
+    their defaults filled in. ``caller`` prefixes the names in the messages."""
+    v.choice(f"{caller} window", window, WINDOWS)
+    unknown = sorted(set(options) - set(WINDOW_OPTIONS))
+    if unknown:
+        raise TypeError(f"{caller}: unknown window option(s) {unknown}; the options are {sorted(WINDOW_OPTIONS)}")
+    opts = {**WINDOW_OPTIONS, **options}
+    opts["taylor_nbar"] = v.integer(f"{caller} taylor_nbar", opts["taylor_nbar"], low=1, high=TAYLOR_NBAR_MAX)
+    opts["taylor_sll_db"] = v.positive(f"{caller} taylor_sll_db", opts["taylor_sll_db"], high=TAYLOR_SLL_MAX,
+                                       unit="dB", why="sidelobe level below the peak")
+    opts["kaiser_beta"] = v.scalar(f"{caller} kaiser_beta", opts["kaiser_beta"], low=0.0, high=KAISER_BETA_MAX)
+    if window == "taylor":
+        _check_taylor_shape(opts["taylor_nbar"], opts["taylor_sll_db"], caller)
+    return opts
+
+
+def _check_taylor_shape(nbar: int, sll_db: float, caller: str) -> None:
+    """Refuse a Taylor design that is no window: with too many nearly constant sidelobes for a
+    shallow sidelobe level (e.g. nbar = 100 at 25 dB) the series rises above its peak and dips
+    below zero (the design rule is nbar >= 2 A^2 + 1/2 from below; from above it is this check)."""
+    u = np.linspace(0.0, 0.5, 513)
+    f = taylor_coefficients(nbar, sll_db)
+    w = np.ones_like(u)
+    for m, fm in enumerate(f, start=1):
+        w += 2 * fm * np.cos(2 * np.pi * m * u)
+    w /= 1 + 2 * f.sum()
+    if w.min() < -1e-9 or w.max() > 1 + 1e-9:
+        raise ValueError(f"{caller} taylor_nbar: {nbar} nearly constant sidelobes at taylor_sll_db = {sll_db:g} dB give "
+                         f"no window (it spans [{w.min():.3g}, {w.max():.3g}] instead of [0, 1]); use fewer "
+                         "(nbar of 3 to 8 is usual) or a deeper sidelobe level")
+
+
+def check_workers(workers, name: str) -> int:
+    """scipy.fft threads: None (all cores) or a non-zero integer (negative counts back from the
+    number of cores, as scipy.fft does)."""
+    if workers is None:
+        return os.cpu_count() or 1
+    count = v.integer(name, workers, low=-1024, high=1024, why="not 0; negative counts back from the cores")
+    if count == 0:
+        raise ValueError(f"{name}: must be a non-zero integer (or None), got 0")
+    return count
 
 
 def lfm_replica(waveform: Waveform, fs: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -52,20 +107,16 @@ def taylor_coefficients(nbar: int, sll_db: float) -> np.ndarray:
     F_m = (-1)^(m+1) prod_{n=1}^{nbar-1} (1 - m^2 / (sigma^2 (A^2 + (n - 1/2)^2)))
           / (2 prod_{n != m} (1 - m^2 / n^2)).
     """
-    if isinstance(nbar, bool) or not isinstance(nbar, (int, np.integer)) or nbar < 1:
-        raise ValueError(f"taylor nbar must be an integer >= 1, got {nbar!r}")
-    if not sll_db > 0:
-        raise ValueError(f"taylor sidelobe level must be a positive number of dB below the peak, got {sll_db}")
+    nbar = v.integer("taylor nbar", nbar, low=1, high=TAYLOR_NBAR_MAX)
+    sll_db = v.positive("taylor sidelobe level (dB below the peak)", sll_db, high=TAYLOR_SLL_MAX)
     a = np.arccosh(10 ** (sll_db / 20)) / np.pi
     sigma2 = nbar**2 / (a**2 + (nbar - 0.5) ** 2)
-    ms = np.arange(1, nbar)
-    coeffs = []
-    for m in ms:
-        num = np.prod(1 - m**2 / (sigma2 * (a**2 + (ms - 0.5) ** 2)))
-        others = ms[ms != m]
-        den = 2 * np.prod(1 - m**2 / others.astype(float) ** 2)
-        coeffs.append((-1) ** (m + 1) * num / den)
-    return np.array(coeffs)
+    ms = np.arange(1, nbar, dtype=np.float64)
+    m, n = ms[:, None], ms[None, :]  # (nbar - 1)^2 products at most 99^2
+    num = np.prod(1 - m**2 / (sigma2 * (a**2 + (n - 0.5) ** 2)), axis=1)
+    ratio = np.where(m == n, 0.0, m**2 / n**2)  # the n = m factor is left out (1 - 0 = 1)
+    den = 2 * np.prod(1 - ratio, axis=1)
+    return np.where(ms % 2 == 1, 1.0, -1.0) * num / den
 
 
 def spectral_window(u: np.ndarray, window: str = "none", *, taylor_nbar: int = 4, taylor_sll_db: float = 35.0,
@@ -74,6 +125,8 @@ def spectral_window(u: np.ndarray, window: str = "none", *, taylor_nbar: int = 4
 
     ``"none"`` returns ones everywhere (the matched filter keeps the whole spectrum).
     """
+    opts = check_window(window, dict(taylor_nbar=taylor_nbar, taylor_sll_db=taylor_sll_db, kaiser_beta=kaiser_beta),
+                        "spectral_window")
     u = np.asarray(u, dtype=np.float64)
     if window == "none":
         return np.ones_like(u)
@@ -81,16 +134,15 @@ def spectral_window(u: np.ndarray, window: str = "none", *, taylor_nbar: int = 4
     if window == "hamming":
         w = 0.54 + 0.46 * np.cos(2 * np.pi * u)
     elif window == "taylor":
-        f = taylor_coefficients(taylor_nbar, taylor_sll_db)
-        m = np.arange(1, taylor_nbar)
-        w = 1 + 2 * np.cos(2 * np.pi * np.multiply.outer(u, m)) @ f if f.size else np.ones_like(u)
-        w = w / (1 + 2 * f.sum())
-    elif window == "kaiser":
-        if not (np.isfinite(kaiser_beta) and kaiser_beta >= 0):
-            raise ValueError(f"kaiser_beta must be finite and >= 0, got {kaiser_beta}")
-        w = np.i0(kaiser_beta * np.sqrt(np.clip(1 - (2 * u) ** 2, 0, None))) / np.i0(kaiser_beta)
-    else:
-        raise ValueError(f"window must be one of {WINDOWS}, got {window!r}")
+        f = taylor_coefficients(opts["taylor_nbar"], opts["taylor_sll_db"])
+        w = np.ones_like(u)
+        for m, fm in enumerate(f, start=1):  # at most 99 terms, memory of one u
+            w += 2 * fm * np.cos(2 * np.pi * m * u)
+        w /= 1 + 2 * f.sum()
+    else:  # kaiser: I0(beta s) / I0(beta) = i0e(beta s) exp(beta (s - 1)), s = sqrt(1 - (2u)^2) <= 1
+        beta = opts["kaiser_beta"]
+        s = np.sqrt(np.clip(1 - (2 * u) ** 2, 0, None))
+        w = scipy.special.i0e(beta * s) / scipy.special.i0e(beta) * np.exp(beta * (s - 1))
     return np.where(inside, w, 0.0)
 
 
@@ -134,8 +186,7 @@ def upsample_records(records: np.ndarray, factor: int, workers: int | None = Non
     FFT (by a quarter of their length, at least 16 samples) so that nothing wraps around from
     one end of a record to the other. Returns complex64 ``records.shape[:-1] + (n * factor,)``.
     """
-    if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or not 1 <= factor <= 64:
-        raise ValueError(f"upsample factor must be an integer in [1, 64], got {factor!r}")
+    factor = v.integer("upsample factor", factor, low=1, high=MAX_UPSAMPLE)
     n = records.shape[-1]
     if factor == 1:
         return np.asarray(records, dtype=np.complex64)
@@ -171,27 +222,33 @@ def range_compress(echo: EchoData, window: str = "none", upsample: int = 1, work
     ``t0[r] + k / fs`` (a scatterer at delay tau_n peaks at tau_n).
     """
     if not isinstance(echo, EchoData):
-        raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
+        raise TypeError(f"range_compress echo: must be an EchoData, got {type(echo).__name__}")
     if echo.compressed:
-        raise ValueError("echo is already range-compressed (EchoData.compressed is True)")
-    if window not in WINDOWS:
-        raise ValueError(f"window must be one of {WINDOWS}, got {window!r}")
-    if isinstance(upsample, bool) or not isinstance(upsample, (int, np.integer)) or not 1 <= upsample <= 64:
-        raise ValueError(f"upsample must be an integer in [1, 64], got {upsample!r}")
-    if echo.n_samples < 1:
-        raise ValueError("echo has no fast-time samples (n_samples = 0)")
-    workers = os.cpu_count() if workers is None else int(workers)
+        raise ValueError("range_compress echo: is already range-compressed (EchoData.compressed is True)")
+    window_options = check_window(window, window_options, "range_compress")
+    upsample = v.integer("range_compress upsample", upsample, low=1, high=MAX_UPSAMPLE)
+    workers = check_workers(workers, "range_compress workers")
+    block_bytes = budget.parse_bytes(block_bytes, "range_compress block_bytes")
+    if echo.n_samples < 1 or echo.n_pulses < 1:
+        raise ValueError(f"range_compress echo: has no samples to compress (shape {echo.data.shape})")
+    if not v.all_finite(echo.data):
+        raise ValueError("range_compress echo: echo.data has NaN or inf samples")
 
     n = echo.n_samples
-    _, replica = lfm_replica(echo.waveform, echo.fs)
-    n_fft = scipy.fft.next_fast_len(n + replica.size, real=False)
+    replica_size = 2 * int(np.floor(0.5 * echo.waveform.duration * echo.fs + 1e-9)) + 1
+    n_fft = scipy.fft.next_fast_len(n + replica_size, real=False)
+    n_out = n * upsample
+    per_record = 8 * n_fft * (2 + upsample)
+    budget.check_bytes(f"range_compress of {echo.n_rx} x {echo.n_pulses} records of {n} samples with upsample="
+                       f"{upsample} (and a pulse of {replica_size} samples)",
+                       8.0 * echo.n_rx * echo.n_pulses * n_out + 16.0 * n_fft * 4 + min(block_bytes, per_record * 1.0
+                                                                                     * echo.n_rx * echo.n_pulses),
+                       "fewer pulses or receivers at a time, or a smaller upsample")
     h = matched_filter(echo.waveform, echo.fs, n_fft, window, **window_options).astype(np.complex64)
 
-    n_out = n * upsample
     out = np.empty(echo.data.shape[:2] + (n_out,), dtype=np.complex64)
     records = echo.data.reshape(-1, n)
     flat_out = out.reshape(-1, n_out)
-    per_record = 8 * n_fft * (2 + upsample)
     block = max(1, int(block_bytes // per_record))
     for start in range(0, records.shape[0], block):
         stop = min(start + block, records.shape[0])
@@ -202,6 +259,7 @@ def range_compress(echo: EchoData, window: str = "none", upsample: int = 1, work
             spec *= upsample
         flat_out[start:stop] = scipy.fft.ifft(spec, axis=-1, workers=workers)[:, :n_out]
 
+    v.finite_result("range_compress: the compressed echo", out, "scale echo.data down")
     provenance = dict(echo.provenance)
-    provenance["range_compression"] = {"window": window, "upsample": int(upsample), **window_options}
+    provenance["range_compression"] = {"window": window, "upsample": upsample, **window_options}
     return echo.replace(data=out, fs=echo.fs * upsample, compressed=True, provenance=provenance)

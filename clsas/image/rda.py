@@ -30,6 +30,7 @@ import numpy as np
 import scipy.fft
 
 from ..interp import resample
+from .checks import check_imager
 from .record import along_track_wavenumbers, as_record, azimuth_weights, check_elements, image_of, nonstop_shift
 
 
@@ -56,9 +57,9 @@ def range_doppler(data, receiver=0, elements=None, deconvolve: bool = True, wind
     -------
     Image, dims ("y", "x").
     """
+    window_options, workers = check_imager("range_doppler", data, window, window_options, workers, depth)
     rec = as_record(data, receiver, backend)
     elements = check_elements(elements, rec)
-    workers = -1 if workers is None else workers
     c, f0, fs = rec.medium.sound_speed, rec.waveform.f0, rec.fs
     k0 = 2 * np.pi * f0 / c
     n_r = rec.n_samples

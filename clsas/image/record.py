@@ -26,8 +26,10 @@ from typing import NamedTuple
 import numpy as np
 import scipy.fft
 
+from .. import validate
 from ..data import EchoData, Image
 from ..interp import resample
+from ..scene.scenario import MAX_ELEMENT
 from ..scene.scenario import Medium, Waveform
 from .rangecomp import spectral_window
 
@@ -153,6 +155,8 @@ def line_record(echo: EchoData, receiver=0, stop_and_go: bool | None = None, bac
     excess of Huang & Yang eq. (4) compensated (:func:`compensate_bistatic` with d = 0, its
     interpolation on ``backend``); their along-track shift v r / c is left to the imagers.
     """
+    if not isinstance(echo, EchoData):
+        raise TypeError(f"line_record echo: must be an EchoData, got {type(echo).__name__}")
     if np.ndim(receiver) != 0:
         raise ValueError(f"receiver must be one index or name, got {receiver!r}")
     h = echo.select_receivers(receiver, "receiver")[0]
@@ -190,9 +194,10 @@ def check_elements(elements, rec: LineRecord):
     """(L_tx, L_rx) in metres or None; the along-track sampling must resolve the extracted band."""
     if elements is None:
         return None
-    lengths = np.broadcast_to(np.asarray(elements, dtype=np.float64), (2,))
-    if not np.all(np.isfinite(lengths)) or np.any(lengths <= 0):
-        raise ValueError(f"elements must be the positive along-track lengths (L_tx, L_rx) in m, got {elements!r}")
+    lengths = np.broadcast_to(validate.array("elements (L_tx, L_rx)", elements, (2,) if np.ndim(elements) else (),
+                                             bound=MAX_ELEMENT), (2,))
+    if np.any(lengths <= 0):
+        raise ValueError(f"elements: must be the positive along-track lengths (L_tx, L_rx) in m, got {elements!r}")
     if 2 * np.pi / lengths.max() > np.pi / rec.du * (1 + 1e-9):
         raise ValueError(f"elements {tuple(lengths)}: the band |k_y| <= 2 pi / D needs along-track samples at most "
                          f"D / 2 = {lengths.max() / 2:.4g} m apart, the record has {rec.du:.4g} m")

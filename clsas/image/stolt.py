@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import backend as _backend
-from ..interp import check_options, launch_rows, resample_rows
+from ..interp import check_options, check_sizes, launch_rows, resample_rows
 
 
 @dataclass(frozen=True)
@@ -74,6 +74,8 @@ def _check(spectrum: np.ndarray, ku: np.ndarray, axes: StoltAxes) -> None:
         raise ValueError(f"ku must hold one finite wavenumber per spectrum row ({spectrum.shape[0]}), got {ku.shape}")
     if axes.n_out < 1 or not (axes.df > 0 and axes.dkx > 0):
         raise ValueError(f"axes need n_out >= 1 and positive df, dkx, got {axes}")
+    if not np.all(np.isfinite(axes.index_constants())):
+        raise ValueError(f"axes: must give finite source positions, got {axes}")
 
 
 def stolt_reference(spectrum, ku, axes: StoltAxes, interp: str = "sinc8", window: str = "kaiser",
@@ -135,6 +137,7 @@ def stolt(spectrum, ku, axes: StoltAxes, interp: str = "sinc8", window: str = "k
     spectrum = np.asarray(spectrum)
     ku = np.asarray(ku, dtype=np.float64)
     _check(spectrum, ku, axes)
+    check_sizes("stolt spectrum", spectrum.shape, axes.n_out, interp, "axes.n_out")
     backend = _backend.resolve(backend)
     if out is not None:
         _check_out(out, backend, (spectrum.shape[0], axes.n_out))

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from . import _validate as v
+from .. import validate as v
 
 
 def _profile(length: float, radius: float, n: int) -> np.ndarray:
@@ -40,10 +40,10 @@ def submarine(length: float = 62.1, beam: float = 8.4, sections: int = 64, stati
     (about 2 sections x stations); the appendages add a few hundred facets. Use
     :class:`clsas.scene.targets.MeshTarget`'s ``max_facet`` to subdivide further.
     """
-    length = v.positive("length", length)
-    beam = v.positive("beam", beam)
-    sections = v.count("sections", sections, minimum=8)
-    stations = v.count("stations", stations, minimum=8)
+    length = v.positive("submarine length", length, high=v.MAX_COORDINATE, unit="m")
+    beam = v.positive("submarine beam", beam, high=v.MAX_COORDINATE, unit="m")
+    sections = v.integer("submarine sections", sections, low=8, high=4096)
+    stations = v.integer("submarine stations", stations, low=8, high=4096)
     radius = beam / 2
     body = trimesh.creation.revolve(_profile(length, radius, stations), sections=sections)
     # revolve turns the profile (radius, s) about z: map s to -x, then put the bow at x = +L/2
@@ -73,21 +73,22 @@ def submarine(length: float = 62.1, beam: float = 8.4, sections: int = 64, stati
 
 def sphere(radius: float = 1.0, subdivisions: int = 3) -> trimesh.Trimesh:
     """Icosphere of ``radius`` m (20 x 4^subdivisions facets)."""
-    return trimesh.creation.icosphere(subdivisions=v.count("subdivisions", subdivisions, minimum=0),
-                                      radius=v.positive("radius", radius))
+    return trimesh.creation.icosphere(subdivisions=v.integer("sphere subdivisions", subdivisions, low=0, high=8),
+                                      radius=v.positive("sphere radius", radius, high=v.MAX_COORDINATE, unit="m"))
 
 
 def cylinder(radius: float = 1.0, length: float = 4.0, sections: int = 32) -> trimesh.Trimesh:
     """Closed cylinder along x_b."""
-    c = trimesh.creation.cylinder(radius=v.positive("radius", radius), height=v.positive("length", length),
-                                  sections=v.count("sections", sections, minimum=3))
+    c = trimesh.creation.cylinder(radius=v.positive("cylinder radius", radius, high=v.MAX_COORDINATE, unit="m"),
+                                  height=v.positive("cylinder length", length, high=v.MAX_COORDINATE, unit="m"),
+                                  sections=v.integer("cylinder sections", sections, low=3, high=2**20))
     c.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0]))
     return c
 
 
 def box(extents=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
     """Box with the given x, y, z extents, m, centred on the origin."""
-    ext = v.vector3("extents", extents)
+    ext = v.vector3("box extents", extents)
     if np.any(ext <= 0):
-        raise ValueError(f"extents must be positive, got {ext}")
+        raise ValueError(f"box extents: must be positive, got {ext}")
     return trimesh.creation.box(extents=ext)

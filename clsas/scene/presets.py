@@ -93,6 +93,39 @@ def wu2018(n_pulses: int = 128) -> Scenario:
                              speed=3.0, prf=3.0 / 1.28, n_pulses=n_pulses)
 
 
+def wu2018_inclined(n_pulses: int = 64, height: float = 30.0, seed: int | None = 2018, yaw: bool = True,
+                    pitch: bool = True, low_deg: float = 1.0, high_deg: float = 2.0) -> Scenario:
+    """Wu, Tang & Zhong 2018 section 3.3: the Table 1 sonar (:func:`wu2018`), five points at
+    slant ranges and along-track positions P1 (297, -3), P2 (303, -3), P3 (303, 3), P4 (297, 3),
+    P5 (300, 0) m, and yaw and pitch drawn at random in [``low_deg``, ``high_deg``] degrees for
+    every pulse (Fig. 5: "random between 1 and 2 degrees"; ``yaw`` / ``pitch`` False keeps that
+    angle at zero; ``seed`` the generator's seed, None for a fresh draw).
+
+    Assumed (not in the paper): the array flies ``height`` = 30 m above the seafloor (the h of
+    eq. 3; the points lie on it, so their ground ranges are sqrt(r^2 - h^2)); each pulse's
+    angles are the attitude when its echoes arrive (2 x 300 m / c after emission), a cubic
+    spline joining them (so the attitude is smooth: it changes by ~0.02 deg between the
+    nearest and the farthest point's echoes); the pulses are centred on
+    eta = 0, so the targets' apertures (about 40 m at 300 m) lie inside the record for
+    ``n_pulses`` >= 40.
+    """
+    base = wu2018(n_pulses=n_pulses)
+    c = base.medium.sound_speed
+    schedule = PulseSchedule(prf=base.schedule.prf, n_pulses=n_pulses)
+    eta = schedule.eta
+    rng = np.random.default_rng(seed)
+    angles = {name: np.deg2rad(rng.uniform(low_deg, high_deg, n_pulses)) if on else np.zeros(n_pulses)
+              for name, on in (("yaw", yaw), ("pitch", pitch))}
+    # the drawn angles at each pulse's reception, one extra pulse either side for the spline's ends
+    times = eta[0] - 1 / schedule.prf + 2 * 300.0 / c + np.arange(n_pulses + 2) / schedule.prf
+    sampled = {name: np.concatenate([values[:1], values, values[-1:]]) for name, values in angles.items()}
+    platform = Platform(speed=base.platform.speed, yaw=sampled["yaw"], pitch=sampled["pitch"],
+                        error_times=times)
+    points = np.array([[np.sqrt(r * r - height * height), y, -height]
+                       for r, y in ((297.0, -3.0), (303.0, -3.0), (303.0, 3.0), (297.0, 3.0), (300.0, 0.0))])
+    return base.replace(platform=platform, schedule=schedule, targets=(PointTargets(points),))
+
+
 def zhang2019(n_pulses: int = 256, receivers: int = 30, pri: float = 0.3) -> Scenario:
     """Zhang, Tan & Ying 2019, Table 1: f0 = 150 kHz, B = 20 kHz, V = 2 m/s, receiver length
     0.02 m, receiver array 0.6 m (30 receivers), transmitter 0.04 m, PRI 0.3 s.

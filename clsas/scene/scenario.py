@@ -15,8 +15,11 @@ offset ``o`` sits in the world at ``position(t) + R(t) o`` with ``R = R_yaw @ R_
 The rotation centre is the platform's reference point (Wu et al.: the transmitter), so
 attitude moves offsets, not the reference point.
 
-Every dataclass here is frozen and validated on construction: a bad field raises ValueError
-(or TypeError) naming the field and the allowed range.
+Every dataclass here is frozen and validated on construction (:mod:`clsas.validate`): a bad
+field raises ValueError (or TypeError) naming the field, its value and the allowed range.
+Beyond each field's own range: positions within +-1000 km, speeds at most 100 m/s (far below
+the sound speed, as the delay model needs), times within +-1e6 s, and sizes (pulses,
+receivers, samples) within the memory budget (:mod:`clsas.budget`).
 """
 
 from __future__ import annotations
@@ -29,7 +32,8 @@ from typing import Callable, Union
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from . import _validate as v
+from .. import budget
+from .. import validate as v
 
 MotionInput = Union[None, Callable, np.ndarray, list, tuple]
 
@@ -37,7 +41,15 @@ MOTION_COMPONENTS = ("surge", "sway", "heave", "yaw", "pitch")
 
 
 class SamplingWarning(UserWarning):
-    """The along-track aperture is sampled more coarsely than the D/2 rule allows."""
+    """The scene is sampled too coarsely: along track (the D/2 rule), or in time (one pulse's
+    echoes outlast the pulse interval, so a real recording would overlap them with the next
+    pulse's)."""
+
+MAX_F0 = 1e8  # Hz
+MAX_FS = 1e9  # Hz
+MAX_DURATION = 10.0  # s, one pulse
+MAX_PRF = 1e5  # Hz
+MAX_ELEMENT = 100.0  # m, element length
 
 
 @dataclass(frozen=True)
@@ -47,7 +59,8 @@ class Medium:
     sound_speed: float = 1500.0
 
     def __post_init__(self):
-        object.__setattr__(self, "sound_speed", v.scalar("Medium.sound_speed", self.sound_speed, low=1000.0, high=2000.0))
+        object.__setattr__(self, "sound_speed", v.scalar("Medium.sound_speed", self.sound_speed, low=1000.0, high=2000.0,
+                                                         unit="m/s"))
 
 
 @dataclass(frozen=True)
@@ -75,12 +88,17 @@ class Waveform:
     chirp_sign: int = 1
 
     def __post_init__(self):
-        f0 = v.positive("Waveform.f0", self.f0)
-        bw = v.scalar("Waveform.bandwidth", self.bandwidth, low=0.0, high=2 * f0, low_open=True, high_open=True)
-        dur = v.positive("Waveform.duration", self.duration)
-        fs = v.scalar("Waveform.fs", self.fs, low=bw)
-        if self.chirp_sign not in (1, -1):
-            raise ValueError(f"Waveform.chirp_sign must be +1 or -1, got {self.chirp_sign!r}")
+        f0 = v.positive("Waveform.f0", self.f0, high=MAX_F0, unit="Hz")
+        bw = v.scalar("Waveform.bandwidth", self.bandwidth, low=0.0, high=2 * f0, low_open=True, high_open=True,
+                      unit="Hz", why="0 < B < 2 f0")
+        dur = v.positive("Waveform.duration", self.duration, high=MAX_DURATION, unit="s")
+        fs = v.scalar("Waveform.fs", self.fs, low=bw, high=MAX_FS, unit="Hz", why="at least the bandwidth")
+        if dur * fs < 1:
+            raise ValueError(f"Waveform.duration: a pulse of {dur:g} s sampled at fs = {fs:g} Hz spans {dur * fs:.3g} "
+                             "samples; it needs at least one (duration >= 1 / fs)")
+        if isinstance(self.chirp_sign, (bool, np.bool_)) or not v.is_number(self.chirp_sign, "iuf") \
+                or self.chirp_sign not in (1, -1):
+            raise ValueError(f"Waveform.chirp_sign: must be +1 or -1, got {self.chirp_sign!r}")
         for name, value in (("f0", f0), ("bandwidth", bw), ("duration", dur), ("fs", fs)):
             object.__setattr__(self, name, value)
         object.__setattr__(self, "chirp_sign", int(self.chirp_sign))
@@ -140,19 +158,21 @@ class Platform:
     error_times: np.ndarray | None = None
 
     def __post_init__(self):
-        object.__setattr__(self, "speed", v.positive("Platform.speed", self.speed))
+        object.__setattr__(self, "speed", v.positive("Platform.speed", self.speed, high=v.MAX_SPEED, unit="m/s",
+                                                     why="far below the sound speed"))
         object.__setattr__(self, "start", v.vector3("Platform.start", self.start))
         sampled = [c for c in MOTION_COMPONENTS if getattr(self, c) is not None and not callable(getattr(self, c))]
         splines = {}
         if sampled:
             if self.error_times is None:
                 raise ValueError(f"Platform.error_times is required when {sampled} are given as sampled arrays")
-            times = v.array("Platform.error_times", self.error_times, (-1,))
+            times = v.array("Platform.error_times", self.error_times, (-1,), bound=v.MAX_TIME)
             if times.size < 2 or np.any(np.diff(times) <= 0):
                 raise ValueError("Platform.error_times must hold >= 2 strictly increasing times (s)")
             object.__setattr__(self, "error_times", times)
             for comp in sampled:
-                values = v.array(f"Platform.{comp}", getattr(self, comp), (times.size,))
+                values = v.array(f"Platform.{comp}", getattr(self, comp), (times.size,),
+                                 bound=np.pi if comp in ("yaw", "pitch") else v.MAX_COORDINATE)
                 object.__setattr__(self, comp, values)
                 splines[comp] = CubicSpline(times, values)
         elif self.error_times is not None:
@@ -228,12 +248,18 @@ class Array:
     names: tuple | None = None
 
     def __post_init__(self):
-        rx = v.array("Array.rx_offsets", self.rx_offsets, (-1, 3))
+        rx = v.array("Array.rx_offsets", self.rx_offsets, (-1, 3), bound=v.MAX_COORDINATE)
         object.__setattr__(self, "rx_offsets", rx)
         object.__setattr__(self, "tx_offset", v.vector3("Array.tx_offset", self.tx_offset))
-        object.__setattr__(self, "tx_length", v.scalar("Array.tx_length", self.tx_length, low=0.0))
-        lengths = np.full(rx.shape[0], self.rx_length) if np.ndim(self.rx_length) == 0 else self.rx_length
-        object.__setattr__(self, "rx_length", v.array("Array.rx_length", lengths, (rx.shape[0],), nonnegative=True))
+        object.__setattr__(self, "tx_length", v.scalar("Array.tx_length", self.tx_length, low=0.0, high=MAX_ELEMENT,
+                                                       unit="m"))
+        if np.ndim(self.rx_length) == 0:
+            lengths = np.full(rx.shape[0], v.scalar("Array.rx_length", self.rx_length, low=0.0, high=MAX_ELEMENT,
+                                                    unit="m"))
+        else:
+            lengths = self.rx_length
+        lengths = v.array("Array.rx_length", lengths, (rx.shape[0],), nonnegative=True, bound=MAX_ELEMENT)
+        object.__setattr__(self, "rx_length", lengths)
         names = tuple(f"h{i}" for i in range(rx.shape[0])) if self.names is None else tuple(self.names)
         if len(names) != rx.shape[0] or not all(isinstance(n, str) and n for n in names):
             raise ValueError(f"Array.names must be {rx.shape[0]} non-empty strings, got {self.names!r}")
@@ -250,11 +276,14 @@ class Array:
 
         ``rx_length`` defaults to ``spacing`` (contiguous elements).
         """
-        n = v.count("n_receivers", n_receivers)
-        step = v.positive("spacing", spacing)
-        y = v.scalar("first", first) + step * np.arange(n)
+        n = v.integer("Array.uniform_line n_receivers", n_receivers, high=2**53)
+        budget.check_bytes(f"Array.uniform_line with n_receivers={n}", 200.0 * n, "fewer receivers")
+        step = v.positive("Array.uniform_line spacing", spacing, high=v.MAX_COORDINATE, unit="m")
+        y = v.scalar("Array.uniform_line first", first, low=-v.MAX_COORDINATE, high=v.MAX_COORDINATE, unit="m") \
+            + step * np.arange(n)
         offsets = np.column_stack([np.zeros(n), y, np.zeros(n)])
-        return cls(rx_offsets=offsets, tx_offset=(0.0, v.scalar("tx_along", tx_along), 0.0), tx_length=tx_length,
+        tx_y = v.scalar("Array.uniform_line tx_along", tx_along, low=-v.MAX_COORDINATE, high=v.MAX_COORDINATE, unit="m")
+        return cls(rx_offsets=offsets, tx_offset=(0.0, tx_y, 0.0), tx_length=tx_length,
                    rx_length=step if rx_length is None else rx_length, names=names)
 
 
@@ -286,21 +315,30 @@ class PulseSchedule:
     start: float | None = None
 
     def __post_init__(self):
-        prf = v.positive("PulseSchedule.prf", self.prf)
+        prf = v.positive("PulseSchedule.prf", self.prf, high=MAX_PRF, unit="Hz")
         object.__setattr__(self, "prf", prf)
         if (self.n_pulses is None) == (self.exposure is None):
             raise ValueError("PulseSchedule needs exactly one of n_pulses and exposure")
         if self.exposure is not None:
-            exposure = v.positive("PulseSchedule.exposure", self.exposure)
+            exposure = v.positive("PulseSchedule.exposure", self.exposure, high=v.MAX_TIME, unit="s")
             n = int(np.floor(exposure * prf + 1e-9))
             if n < 1:
-                raise ValueError(f"PulseSchedule.exposure {exposure:g} s at prf {prf:g} Hz holds no pulse; need >= 1/prf")
+                raise ValueError(f"PulseSchedule.exposure: {exposure:g} s at prf {prf:g} Hz holds no pulse; need >= 1/prf")
             object.__setattr__(self, "exposure", exposure)
             object.__setattr__(self, "n_pulses", n)
         else:
-            object.__setattr__(self, "n_pulses", v.count("PulseSchedule.n_pulses", self.n_pulses))
+            object.__setattr__(self, "n_pulses", v.integer("PulseSchedule.n_pulses", self.n_pulses, high=2**53))
+        what = "PulseSchedule.exposure" if self.exposure is not None else "PulseSchedule.n_pulses"
+        budget.check_bytes(f"{what} ({self.n_pulses} pulses: their emission times)", 8.0 * self.n_pulses,
+                           "fewer pulses")
         if self.start is not None:
-            object.__setattr__(self, "start", v.scalar("PulseSchedule.start", self.start))
+            object.__setattr__(self, "start", v.scalar("PulseSchedule.start", self.start, low=-v.MAX_TIME,
+                                                       high=v.MAX_TIME, unit="s"))
+        first = -0.5 * (self.n_pulses - 1) / prf if self.start is None else self.start
+        last = first + (self.n_pulses - 1) / prf
+        if max(abs(first), abs(last)) > v.MAX_TIME:
+            raise ValueError(f"{what}: {self.n_pulses} pulses at prf {prf:g} Hz span [{first:g}, {last:g}] s; "
+                             f"emission times must lie within +-{v.MAX_TIME:g} s")
 
     @property
     def eta(self) -> np.ndarray:
@@ -322,11 +360,20 @@ class Recording:
     n_samples: int | np.ndarray
 
     def __post_init__(self):
-        t0 = np.atleast_1d(np.asarray(self.t0, dtype=np.float64))
-        object.__setattr__(self, "t0", v.array("Recording.t0", t0, (-1,)))
-        n = np.atleast_1d(np.asarray(self.n_samples))
-        if n.dtype.kind not in "iu" or np.any(n < 1) or n.ndim != 1:
-            raise ValueError(f"Recording.n_samples must be integers >= 1, got {self.n_samples!r}")
+        t0 = self.t0 if np.ndim(self.t0) else [self.t0]
+        object.__setattr__(self, "t0", v.array("Recording.t0", t0, (-1,), bound=v.MAX_TIME))
+        try:
+            n = np.atleast_1d(np.asarray(self.n_samples))
+        except (TypeError, ValueError, OverflowError):
+            n = np.zeros(0, object)
+        if n.dtype.kind not in "iu":
+            raise TypeError(f"Recording.n_samples: must be an integer >= 1 or one per receiver, got {self.n_samples!r}")
+        if n.ndim != 1 or n.size == 0:
+            raise ValueError(f"Recording.n_samples: must be an integer >= 1 or one per receiver, got {self.n_samples!r}")
+        if np.any(n < 1):
+            raise ValueError(f"Recording.n_samples: must be integers >= 1, got {self.n_samples!r}")
+        budget.check_bytes(f"Recording.n_samples={int(n.max())} (one record of complex64 samples)", 8.0 * n.max(),
+                           "a shorter recording window")
         n = n.astype(np.int64)
         n.flags.writeable = False
         object.__setattr__(self, "n_samples", n)

@@ -10,6 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import budget
+from .. import validate as v
+
 
 @dataclass(frozen=True)
 class Scatterers:
@@ -39,11 +42,11 @@ class PointTargets:
     Parameters
     ----------
     positions : (N, 3) or (3,) array
-        Positions at t = 0 (slow time zero), m.
+        Positions at t = 0 (slow time zero), m, within +-1000 km.
     reflectivity : complex scalar or (N,) array
-        Complex amplitude of each scatterer (default 1); must be finite.
+        Complex amplitude of each scatterer (default 1); finite, |A| <= 1e15.
     velocity : (3,) or (N, 3) array
-        Constant velocity, m/s (default 0: stationary); |v| < 100 m/s.
+        Constant velocity, m/s (default 0: stationary); |v| <= 100 m/s.
     """
 
     positions: np.ndarray
@@ -51,23 +54,21 @@ class PointTargets:
     velocity: np.ndarray = (0.0, 0.0, 0.0)
 
     def __post_init__(self):
-        pos = np.atleast_2d(np.asarray(self.positions, dtype=np.float64))
-        if pos.ndim != 2 or pos.shape[1] != 3 or pos.shape[0] == 0:
-            raise ValueError(f"PointTargets.positions must have shape (N >= 1, 3), got {np.shape(self.positions)}")
-        if not np.all(np.isfinite(pos)):
-            raise ValueError("PointTargets.positions must be finite (it has NaN or inf)")
+        given = np.shape(self.positions) if not isinstance(self.positions, str) else ()
+        pos = v.array("PointTargets.positions", self.positions, (3,) if len(given) == 1 else (-1, 3),
+                      bound=v.MAX_COORDINATE).reshape(-1, 3)
+        if pos.shape[0] == 0:
+            raise ValueError("PointTargets.positions: must hold at least one scatterer (shape (N >= 1, 3)), got none")
         n = pos.shape[0]
-        refl = np.asarray(self.reflectivity, dtype=np.complex128)
-        if refl.ndim == 0:
-            refl = np.full(n, refl)
-        if refl.shape != (n,) or not np.all(np.isfinite(refl)):
-            raise ValueError(f"PointTargets.reflectivity must be a finite scalar or {n} values, got shape {refl.shape}")
-        vel = np.asarray(self.velocity, dtype=np.float64)
-        vel = np.broadcast_to(vel, (n, 3)).copy() if vel.shape in ((3,), (n, 3)) else None
-        if vel is None:
-            raise ValueError(f"PointTargets.velocity must have shape (3,) or ({n}, 3), got {np.shape(self.velocity)}")
-        if not np.all(np.isfinite(vel)) or np.any(np.linalg.norm(vel, axis=1) >= 100.0):
-            raise ValueError("PointTargets.velocity must be finite with speed < 100 m/s")
+        refl = v.array("PointTargets.reflectivity", self.reflectivity, (n,) if np.ndim(self.reflectivity) else (),
+                       bound=v.MAX_AMPLITUDE, dtype=np.complex128)
+        refl = np.full(n, refl) if refl.ndim == 0 else refl.copy()
+        vel = v.array("PointTargets.velocity", self.velocity, (n, 3) if np.ndim(self.velocity) == 2 else (3,))
+        vel = np.broadcast_to(vel, (n, 3)).copy()
+        speed = np.linalg.norm(vel, axis=1).max()
+        if speed > v.MAX_SPEED:
+            raise ValueError(f"PointTargets.velocity: speeds must be at most {v.MAX_SPEED:g} m/s (far below the sound "
+                             f"speed), got {speed:g} m/s")
         for arr in (pos, refl, vel):
             arr.flags.writeable = False
         object.__setattr__(self, "positions", pos)
@@ -155,8 +156,6 @@ class MeshTarget:
 
         import trimesh
 
-        from . import _validate as v
-
         mesh = self.mesh
         if not isinstance(mesh, trimesh.Trimesh):
             try:
@@ -176,7 +175,11 @@ class MeshTarget:
         if len(mesh.faces) == 0:
             raise ValueError("MeshTarget.mesh has only degenerate faces")
         if self.max_facet is not None:
-            edge = v.positive("MeshTarget.max_facet", self.max_facet)
+            edge = v.positive("MeshTarget.max_facet", self.max_facet, unit="m")
+            # subdivision to edges <= max_facet leaves about 2 area / (sqrt(3)/4 max_facet^2) facets
+            facets = len(mesh.faces) + 8 * float(mesh.area) / (np.sqrt(3) * edge * edge)
+            budget.check_bytes(f"MeshTarget.max_facet={edge:g} m (~{facets:.3g} facets)", 400.0 * facets,
+                               "a larger max_facet")
             verts, faces = trimesh.remesh.subdivide_to_size(mesh.vertices, mesh.faces, max_edge=edge, max_iter=20)
             mesh = trimesh.Trimesh(verts, faces, process=False)
         if not mesh.is_watertight:
@@ -189,11 +192,12 @@ class MeshTarget:
         for name in ("heading", "pitch", "roll"):
             object.__setattr__(self, name, v.scalar(f"MeshTarget.{name}", getattr(self, name)))
         vel = v.vector3("MeshTarget.velocity", self.velocity)
-        if np.linalg.norm(vel) >= 100:
-            raise ValueError(f"MeshTarget.velocity must be slower than 100 m/s, got {vel}")
+        if np.linalg.norm(vel) > v.MAX_SPEED:
+            raise ValueError(f"MeshTarget.velocity: must be at most {v.MAX_SPEED:g} m/s (far below the sound speed), "
+                             f"got {np.linalg.norm(vel):g} m/s")
         object.__setattr__(self, "velocity", vel)
         object.__setattr__(self, "exponent", v.positive("MeshTarget.exponent", self.exponent))
-        object.__setattr__(self, "gain", v.positive("MeshTarget.gain", self.gain))
+        object.__setattr__(self, "gain", v.positive("MeshTarget.gain", self.gain, high=v.MAX_AMPLITUDE))
 
     @property
     def rotation(self) -> np.ndarray:

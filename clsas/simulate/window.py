@@ -6,8 +6,6 @@ import numpy as np
 
 from ..scene.scenario import MOTION_COMPONENTS
 
-DEFAULT_MAX_BYTES = 8 * 2**30
-
 
 def has_motion_errors(platform) -> bool:
     return any(getattr(platform, c) is not None for c in MOTION_COMPONENTS)
@@ -74,5 +72,6 @@ def check_cube_size(n_rx: int, n_pulses: int, n_samples: int, max_bytes: int, or
             f"the echo cube would need {need / 2**30:.2f} GiB ({n_rx} receivers x {n_pulses} pulses x "
             f"{n_samples} samples of complex64 and {n_nodes} receiver nodes a pulse; window {origin}) but max_bytes allows "
             f"{max_bytes / 2**30:.2f} GiB. Reduce it: fewer pulses (PulseSchedule), fewer receivers, a "
-            "shorter recording window (Scenario.recording), a more compact scene, or raise max_bytes."
+            "shorter recording window (Scenario.recording), a more compact scene, or raise max_bytes "
+            "(by default the memory budget: clsas.use_memory_budget)."
         )

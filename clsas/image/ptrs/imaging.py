@@ -40,7 +40,7 @@ import numpy as np
 import scipy.fft
 
 from ...data import EchoData, Image
-from ..multireceiver import line_array
+from ..multireceiver import interleave, line_array
 from ..rangecomp import WINDOWS
 from ..record import LineRecord, azimuth_weights, check_elements, image_of
 from .phase import compress_azimuth, decouple
@@ -96,7 +96,9 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     Parameters
     ----------
     echo : EchoData, range-compressed, straight uniformly sampled track, receivers on the track
-        line at fixed along-track offsets (Zhang et al. 2019 Fig. 1).
+        line at fixed along-track offsets (Zhang et al. 2019 Fig. 1) whose phase centres
+        u_p + d_i / 2 interleave uniformly (:func:`clsas.image.multireceiver.interleave`: the
+        coherent superposition cancels the aliases only then).
     receivers : indices or names (default all).
     block_width : sub-block width, m (eq. 13); None: the pi / 4 rule (section 6.1.2).
     reference_ranges : explicit sub-block reference ranges r_ref_n, m (each range column is
@@ -105,9 +107,10 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
         |f_t| <= v / max(L) and (``deconvolve``) the element-pattern deconvolution, as
         :func:`clsas.image.omegak.omega_k`. None keeps the whole M x PRF band.
     window : Doppler-band weighting ("none", "hamming", "taylor", "kaiser").
-    points : a :class:`StationaryPoints` from an earlier call on the same geometry (its
-        :attr:`~StationaryPoints.solved` count does not grow when it serves every range);
-        a new one is made otherwise. The one used is in ``image.provenance["points"]``.
+    points : a :class:`StationaryPoints` to fill and reuse: empty on the first call, it keeps
+        the stationary points solved, and a later call on the same geometry reuses them (its
+        :attr:`~StationaryPoints.solved` count does not grow when it serves every range).
+        None solves them for this call only.
     depth : the horizontal plane the pixels are placed on (default: the track's).
     workers : scipy.fft threads (default: all cores).
     backend : where the phase multiplies run.
@@ -122,6 +125,7 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     if points is not None and not isinstance(points, StationaryPoints):
         raise TypeError(f"points must be a StationaryPoints (or None), got {type(points).__name__}")
     arr = line_array(echo, receivers)
+    interleave(arr.track, arr.offsets, echo.n_pulses)  # the aliases cancel only on a uniform phase-centre grid
     workers = -1 if workers is None else workers
     c, f0, fs, v = echo.medium.sound_speed, echo.waveform.f0, echo.fs, arr.track.speed
     n_rx, n_p = len(arr.receivers), echo.n_pulses
@@ -141,8 +145,7 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     ft_used = ft[rows]
     f_edge = np.abs(ft_used).max()
     s_max = 1.02 * f_edge / (f0 - fs / 2)
-    if points is None or not points.matches(arr.offsets, v, c, s_max):
-        points = StationaryPoints(arr.offsets, v, c, s_max)
+    points = (StationaryPoints() if points is None else points).bind(arr.offsets, v, c, s_max)
 
     # the common range axis
     t0 = float(np.min(echo.t0[arr.receivers]))
@@ -177,7 +180,7 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
         spec *= np.exp(-2j * np.pi * ftau * (echo.t0[h] - t0)).astype(np.complex64)
         spec = scipy.fft.fft(spec, n=n_fp, axis=0, workers=workers)[rows % n_fp]
         g_c, t_c = tables_g[j, 0], tables_t[j, 0]
-        decouple(spec, ft_used, ftau, f0, g_c, t_c, points.s_first, points.ds, 2 * r_c / c)
+        decouple(spec, ft_used, ftau, f0, g_c, t_c, points.s_first, points.ds, 2 * r_c / c, backend=backend)
         rd = scipy.fft.ifft(spec, axis=1, workers=workers)
         del spec
         out = np.zeros((rows.size, n_cols), np.complex64)
@@ -185,11 +188,11 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
             length = scipy.fft.next_fast_len(hi - lo + 2 * margin)
             seg = scipy.fft.fft(rd[:, np.arange(lo - margin, lo - margin + length) % n_r], axis=1, workers=workers)
             decouple(seg, ft_used, np.fft.fftfreq(length, 1 / fs), f0, tables_g[j, 1 + b] - g_c,
-                     tables_t[j, 1 + b] - t_c, points.s_first, points.ds, 2 * (r_ref - r_c) / c)
+                     tables_t[j, 1 + b] - t_c, points.s_first, points.ds, 2 * (r_ref - r_c) / c, backend=backend)
             out[:, lo:hi] = scipy.fft.ifft(seg, axis=1, workers=workers)[:, margin:margin + hi - lo]
         del rd
         compress_azimuth(out, ft_used, f0, tables_g[j, 1 + refs.size:], tables_t[j, 1 + refs.size:],
-                         points.s_first, points.ds, column_node, column_weight)
+                         points.s_first, points.ds, column_node, column_weight, backend=backend)
         acc += out
     acc *= weights[rows, None].astype(np.complex64)
     full = np.zeros((n_ft, n_cols), np.complex64)
@@ -200,8 +203,8 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     image = image_of(grid, full, r, "ptrs", {"receivers": [echo.receivers[h] for h in arr.receivers],
                                             "blocks": [(float(r[lo]), float(r[hi - 1]), ref) for lo, hi, ref in blocks],
                                             "r_c": r_c, "elements": elements, "window": window,
-                                            "deconvolve": deconvolve, "backend": backend}, depth)
-    image.provenance["points"] = points
+                                            "deconvolve": deconvolve, "backend": backend,
+                                            "stationary_points_solved": points.solved}, depth)
     return image
 
 

@@ -27,9 +27,9 @@ echo's spectrum, exp(-j 2 pi (f0 + f_tau) tau - j 2 pi f_t t) integrated over t,
 slopes (tau'' > 0: tau' is increasing, the root unique), to |dt| < 1e-12 s.
 :class:`StationaryPoints` is the paper's "second scheme": it tabulates T and G per receiver
 and range on a uniform grid of s covering the processed band, once, and serves the phase of
-any (f_tau, f_t) by cubic Hermite interpolation of G (with its exact derivative -T; the error
-is below 1e-9 rad for the presets' bands, tests/test_ptrs.py measures it against Newton at the
-grid points).
+any (f_tau, f_t) by cubic Hermite interpolation of G (with its exact derivative -T: the phase
+error is ~2e-9 rad on Zhang et al.'s band; tests/test_ptrs.py measures it against Newton at
+random slopes).
 """
 
 from __future__ import annotations
@@ -101,40 +101,50 @@ class StationaryPoints:
     """Stationary points of every receiver at chosen ranges, solved once and kept (seed 003's
     "second scheme": the numerical PSPs are computed ahead of the focusing and reused).
 
-    Holds, for receiver offsets ``offsets`` (m, ahead of the transmitter) of a line array moving
-    at ``speed`` (m/s) in water of ``sound_speed`` (m/s), tables of T(s) and G(s) on the uniform
-    slope grid ``s_first + k ds``, k < ``n_s``, one row per (receiver, range). :meth:`tables`
-    solves only ranges not seen before (:attr:`solved` counts the ranges solved so far), so a
-    second imaging of the same geometry solves nothing. A cache is tied to its geometry and
-    slope grid; :meth:`matches` says whether it serves another.
+    Make one empty and pass it to :func:`clsas.ptrs_image` as ``points``: the first image binds
+    it to its geometry (receiver offsets, m ahead of the transmitter; speed, m/s; sound speed,
+    m/s; the largest Doppler slope of its band) and fills it; later images of the same geometry
+    reuse what it holds and solve only ranges not seen before (:attr:`solved` counts the ranges
+    solved so far). It holds, for every (receiver, range), T(s) and G(s) on the uniform slope
+    grid ``s_first + k ds``, k < ``n_s``.
     """
 
-    def __init__(self, offsets, speed: float, sound_speed: float, s_max: float, n_s: int = 257):
-        self.offsets = np.asarray(offsets, dtype=np.float64).reshape(-1)
-        self.speed = float(speed)
-        self.sound_speed = float(sound_speed)
-        if not (np.isfinite(s_max) and s_max > 0):
-            raise ValueError(f"s_max must be a positive Doppler slope, got {s_max}")
-        if n_s < 8:
-            raise ValueError(f"n_s must be >= 8 slope samples, got {n_s}")
-        self.s_first = -float(s_max)
-        self.ds = 2 * float(s_max) / (n_s - 1)
+    def __init__(self, n_s: int = 257):
+        if isinstance(n_s, bool) or not isinstance(n_s, (int, np.integer)) or n_s < 8:
+            raise ValueError(f"n_s must be an integer >= 8 (slope samples), got {n_s!r}")
         self.n_s = int(n_s)
+        self.offsets = None
         self._rows: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self.solved = 0
+
+    def bind(self, offsets, speed: float, sound_speed: float, s_max: float) -> "StationaryPoints":
+        """Tie an empty cache to a geometry and a band up to slope ``s_max`` (s/s); a bound
+        one must match (same offsets, speed and sound speed; its band at least as wide), else a
+        ValueError: a cache serves one array."""
+        offsets = np.asarray(offsets, dtype=np.float64).reshape(-1)
+        if not (np.isfinite(s_max) and s_max > 0):
+            raise ValueError(f"s_max must be a positive Doppler slope, got {s_max}")
+        if self.offsets is None:
+            self.offsets, self.speed, self.sound_speed = offsets, float(speed), float(sound_speed)
+            self.s_first = -float(s_max)
+            self.ds = 2 * float(s_max) / (self.n_s - 1)
+            return self
+        same = (offsets.shape == self.offsets.shape and np.array_equal(offsets, self.offsets)
+                and float(speed) == self.speed and float(sound_speed) == self.sound_speed)
+        if not same or s_max > -self.s_first:
+            raise ValueError("points holds the stationary points of another geometry or a narrower Doppler band "
+                             f"(offsets {self.offsets.size}, speed {self.speed} m/s, slopes up to {-self.s_first:.4g}); "
+                             "pass a new StationaryPoints()")
+        return self
 
     @property
     def slopes(self) -> np.ndarray:
         return self.s_first + self.ds * np.arange(self.n_s)
 
-    def matches(self, offsets, speed: float, sound_speed: float, s_max: float) -> bool:
-        """Whether this cache serves that geometry and a band up to slope ``s_max``."""
-        offsets = np.asarray(offsets, dtype=np.float64).reshape(-1)
-        return (offsets.shape == self.offsets.shape and np.array_equal(offsets, self.offsets)
-                and speed == self.speed and sound_speed == self.sound_speed and s_max <= -self.s_first)
-
     def tables(self, ranges) -> tuple[np.ndarray, np.ndarray]:
         """(T, G) float64 (n_receivers, len(ranges), n_s): solved now for new ranges, else kept."""
+        if self.offsets is None:
+            raise ValueError("points is not bound to a geometry yet: call bind() (ptrs_image does)")
         ranges = np.asarray(ranges, dtype=np.float64).reshape(-1)
         if not np.all(np.isfinite(ranges)) or np.any(ranges <= 0):
             raise ValueError("ranges must be positive and finite (m)")

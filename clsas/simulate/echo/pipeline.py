@@ -25,7 +25,9 @@ from ...data import EchoData
 from ...scene.scenario import Scenario
 from ...scene.targets import Scatterers, scatterers_of
 from ..occlusion import DEFAULT_REUSE_TOLERANCE, PathWeights, has_meshes
-from ..window import DEFAULT_MAX_BYTES, check_cube_size, node_span, receiver_nodes
+from ...validate import scalar
+from ..checks import SNR_DB_RANGE, check_arguments, warn_pulse_overlap
+from ..window import check_cube_size, node_span, receiver_nodes
 from .options import DEFAULT_CHUNK_BYTES, SynthesisOptions
 from .synth import _NumpySynth, _OpenCLSynth
 
@@ -82,8 +84,7 @@ def add_noise(data: np.ndarray, snr_db: float, seed, n_valid=None, block: int = 
     samples (default all), and only those get noise. Noise is drawn pulse block by pulse block
     (same draws for the same ``seed`` whatever the backend).
     """
-    if not np.isfinite(snr_db):
-        raise ValueError(f"snr_db must be a finite number of dB, got {snr_db}")
+    scalar("add_noise snr_db", snr_db, low=SNR_DB_RANGE[0], high=SNR_DB_RANGE[1], unit="dB")
     n_valid = np.full(data.shape[0], data.shape[2]) if n_valid is None else np.asarray(n_valid)
     rng = np.random.default_rng(seed)
     power = np.empty(data.shape[0])
@@ -201,6 +202,7 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
     for sl in tqdm(blocks, desc="echo delays", disable=not progress, leave=False):
         a, b = synth.extents(sl)
         lo, hi = np.minimum(lo, a), np.maximum(hi, b)
+    warn_pulse_overlap(scenario, synth)
     lo, hi = lo / wf.fs, hi / wf.fs  # s, whole samples
     # the nodes span the recording window (and not beyond sampled motion errors)
     tau_span = node_span(scenario, scenario.eta, hi.max() + 0.5 * wf.duration + 2 / wf.fs)
@@ -232,7 +234,7 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
 
 def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False, snr_db: float | None = None,
              seed=None, precision: str = "single", progress: bool = True, spreading: bool = False,
-             occlusion=None, max_bytes: int = DEFAULT_MAX_BYTES, chunk_bytes: int = DEFAULT_CHUNK_BYTES,
+             occlusion=None, max_bytes: int | None = None, chunk_bytes: int = DEFAULT_CHUNK_BYTES,
              hull_occlusion: bool = True, reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE) -> EchoData:
     """Synthesize the raw echoes of ``scenario`` (see the module docstring for the model).
 
@@ -265,8 +267,9 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         rad: a facet's hull visibility is reused between pulses whose directions from it differ
         by at most this angle and whose bracketing casts agree (0 casts every ray;
         :class:`clsas.simulate.occlusion.PathWeights`).
-    max_bytes : int
-        Largest echo cube allowed (complex64); larger requests are refused before allocation.
+    max_bytes : int, optional
+        Largest echo cube allowed (complex64; default the memory budget, :func:`clsas.memory_budget`);
+        larger requests are refused before allocation.
     chunk_bytes : int
         Working memory per pulse block.
 
@@ -277,10 +280,8 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
     the latest plus T/2, unless ``Scenario.recording`` gives it); its samples beyond its own
     window length (``provenance["n_valid"]``) are zero.
     """
-    if not isinstance(scenario, Scenario):
-        raise TypeError(f"scenario must be a Scenario, got {type(scenario).__name__}")
-    if snr_db is not None and not np.isfinite(snr_db):
-        raise ValueError(f"snr_db must be a finite number of dB or None, got {snr_db}")
+    max_bytes, chunk_bytes = check_arguments(scenario, snr_db, seed, max_bytes, chunk_bytes, reuse_tolerance, dict(
+        stop_and_go=stop_and_go, progress=progress, spreading=spreading, hull_occlusion=hull_occlusion))
     opts = SynthesisOptions(backend=backend, precision=precision, stop_and_go=stop_and_go, spreading=spreading,
                             hull_occlusion=hull_occlusion, reuse_tolerance=reuse_tolerance, max_bytes=max_bytes,
                             chunk_bytes=chunk_bytes, progress=progress)

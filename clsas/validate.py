@@ -1,0 +1,172 @@
+"""Argument checks shared by every public entry point (ground floor: imports nothing of clsas).
+
+One style everywhere: a bad argument raises ``TypeError`` (wrong kind: a string where a number
+belongs, a float where an integer belongs) or ``ValueError`` (right kind, wrong value: NaN, out of
+range, wrong shape), and the message names the parameter, shows the value and says what is
+allowed::
+
+    Platform.speed: must be in (0, 100] m/s (far below the sound speed), got 2000
+    range_compress taylor_nbar: must be an integer in [1, 100], got 1000000
+
+The bounds below keep every derived quantity finite in float64 (and the records in complex64):
+they are far outside any sonar's range, so they only refuse nonsense.
+"""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+
+MAX_COORDINATE = 1e6  # m: positions and offsets (1000 km; delays stay below ~1e3 s)
+MAX_SPEED = 100.0  # m/s: platforms and targets (the delay model needs speeds << sound speed >= 1000 m/s)
+MAX_TIME = 1e6  # s: emission times, recording starts
+MAX_AMPLITUDE = 1e15  # reflectivities: sums of 1e20 such echoes stay below complex64's 3.4e38
+
+
+class CoverageWarning(UserWarning):
+    """An imager's grid lies wholly outside what was recorded (its image is all zeros)."""
+
+
+def _show(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _interval(low, high, low_open, high_open, unit) -> str:
+    lo = "-inf" if low is None else f"{low:g}"
+    hi = "inf" if high is None else f"{high:g}"
+    text = f"{'(' if low_open or low is None else '['}{lo}, {hi}{')' if high_open or high is None else ']'}"
+    return f"{text} {unit}".rstrip()
+
+
+def is_number(value, kinds: str = "iuf") -> bool:
+    """A real (kinds "iuf") or integer ("iu") number: Python, NumPy scalar or 0-d array; not bool."""
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        return value.dtype.kind in kinds
+    return isinstance(value, numbers.Integral if kinds == "iu" else numbers.Real)
+
+
+def scalar(name: str, value, *, low: float | None = None, high: float | None = None,
+           low_open: bool = False, high_open: bool = False, unit: str = "", why: str = "") -> float:
+    """A finite real number within [low, high] (``low_open`` / ``high_open`` exclude the ends);
+    returns it as float. ``why`` is appended to the allowed range in the message."""
+    allowed = _interval(low, high, low_open, high_open, unit) + (f" ({why})" if why else "")
+    if not is_number(value, "iuf"):
+        raise TypeError(f"{name}: must be a real number in {allowed}, got {_show(value)} ({type(value).__name__})")
+    try:
+        v = float(value)
+    except OverflowError:
+        raise ValueError(f"{name}: must be a finite number in {allowed}, got {_show(value)}") from None
+    if not np.isfinite(v):
+        raise ValueError(f"{name}: must be a finite number in {allowed}, got {value}")
+    if (low is not None and (v < low or (low_open and v == low))) or \
+            (high is not None and (v > high or (high_open and v == high))):
+        raise ValueError(f"{name}: must be in {allowed}, got {v:g}")
+    return v
+
+
+def positive(name: str, value, high: float | None = None, unit: str = "", why: str = "") -> float:
+    """A finite number > 0 (and <= ``high``)."""
+    return scalar(name, value, low=0.0, low_open=True, high=high, unit=unit, why=why)
+
+
+def integer(name: str, value, low: int = 1, high: int | None = None, why: str = "") -> int:
+    """An integer (Python or NumPy, not bool) in [low, high]; returns a Python int."""
+    allowed = f"an integer in [{low}, {'inf' if high is None else high}]" + (f" ({why})" if why else "")
+    if not is_number(value, "iu"):
+        raise TypeError(f"{name}: must be {allowed}, got {_show(value)} ({type(value).__name__})")
+    v = int(value)
+    if v < low or (high is not None and v > high):
+        raise ValueError(f"{name}: must be {allowed}, got {_show(v)}")
+    return v
+
+
+def choice(name: str, value, options) -> str:
+    """One of ``options`` (strings)."""
+    if not isinstance(value, str) or value not in options:
+        raise ValueError(f"{name}: must be one of {tuple(options)}, got {_show(value)}")
+    return value
+
+
+def flag(name: str, value) -> bool:
+    """A bool (Python or NumPy)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name}: must be True or False, got {_show(value)} ({type(value).__name__})")
+    return bool(value)
+
+
+def array(name: str, value, shape: tuple, *, nonnegative: bool = False, bound: float | None = None,
+          dtype=np.float64, copy: bool = True) -> np.ndarray:
+    """A finite array of the given shape (entries of -1 accept any size), within +-``bound``
+    (and >= 0 when ``nonnegative``), as a read-only copy in ``dtype`` (float64 or complex128);
+    ``copy=False`` returns an array already of that dtype as it is (for large arrays the caller
+    owns)."""
+    want = "(" + ", ".join("n" if s == -1 else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
+    kind = "complex" if np.dtype(dtype).kind == "c" else "real"
+    try:
+        if value is None:
+            raise TypeError("None")
+        raw = np.asarray(value)
+        if raw.dtype.kind not in ("iufc" if kind == "complex" else "iuf") and raw.dtype != object:
+            raise TypeError(f"dtype {raw.dtype}")
+        if raw.dtype == object and not all(isinstance(x, numbers.Number) and not isinstance(x, bool) for x in raw.flat):
+            raise TypeError("it holds items that are not numbers")
+        arr = np.array(value, dtype=dtype, copy=True if copy else None)
+    except (TypeError, ValueError, OverflowError) as err:
+        raise TypeError(f"{name}: must be an array of {kind} numbers with shape {want}, got {_show(value)} "
+                        f"({err})") from None
+    if arr.ndim != len(shape) or any(s not in (-1, n) for s, n in zip(shape, arr.shape)):
+        raise ValueError(f"{name}: must have shape {want}, got shape {arr.shape}")
+    if not all_finite(arr):
+        raise ValueError(f"{name}: must be finite everywhere; it has NaN or inf")
+    if bound is not None and arr.size:
+        largest = max(np.abs(arr.real.max()), np.abs(arr.real.min())) if arr.dtype.kind == "f" else np.abs(arr).max()
+        if largest > bound:
+            raise ValueError(f"{name}: must be within +-{bound:g} everywhere, got {largest:g}")
+    if nonnegative and arr.size and np.any(arr < 0):
+        raise ValueError(f"{name}: must be >= 0 everywhere, got minimum {arr.min():g}")
+    if copy:
+        arr.flags.writeable = False
+    return arr
+
+
+def vector3(name: str, value, bound: float = MAX_COORDINATE) -> np.ndarray:
+    """A finite (3,) float64 vector (x, y, z) within +-``bound``, read-only."""
+    return array(name, value, (3,), bound=bound)
+
+
+def all_finite(data) -> bool:
+    """True when ``data`` (any numeric array) holds no NaN or inf. Float32/complex64 data are
+    summed in float64 (which cannot overflow from finite float32 terms, and carries any NaN or
+    inf), which reads the data once instead of building a boolean mask."""
+    data = np.asarray(data)
+    if data.dtype.kind in "iub" or data.size == 0:
+        return True
+    if data.dtype.itemsize <= 8 and data.dtype.kind in "fc":
+        return bool(np.isfinite(data.sum(dtype=np.complex128 if data.dtype.kind == "c" else np.float64)))
+    return bool(np.all(np.isfinite(data)))
+
+
+def finite_result(what: str, data, advice: str, dtype=None) -> None:
+    """Raise a ValueError when a result computed from finite input is not finite, or (``dtype``
+    given, e.g. complex64) will not fit that type: an overflow. ``what`` names the result,
+    ``advice`` says which input to scale. Reads the data in place (no temporaries)."""
+    data = np.asarray(data)
+    target = np.dtype(dtype if dtype is not None else data.dtype)
+    largest = float(np.finfo(target).max)
+    fits = all_finite(data)
+    if fits and target.itemsize < data.dtype.itemsize and data.size:
+        parts = (data.real, data.imag) if data.dtype.kind == "c" else (data,)
+        fits = all(max(-float(part.min()), float(part.max())) <= largest for part in parts)
+    if not fits:
+        raise ValueError(f"{what} overflows {target.name} (|value| > {largest:.3g}): {advice}")
+
+
+def seed(name: str, value):
+    """A NumPy seed: None, an integer >= 0, a SeedSequence, a BitGenerator or a Generator."""
+    if value is None or isinstance(value, (np.random.SeedSequence, np.random.BitGenerator, np.random.Generator)):
+        return value
+    return integer(name, value, low=0, why="or None, a SeedSequence or a Generator")
