@@ -52,7 +52,6 @@ depend on both and are computed in every call (a few per cent of the kernels' ti
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 
 import numpy as np
@@ -65,15 +64,14 @@ from ..cstruct import declare_all, record_dtype
 from ..geometry import NODE, legs, two_node_velocity, uniform_nodes
 from ..interp import TAP_ROWS, kernel_taps, read_rows
 from .backprojection_records import PreparedRecords, check_options, fast_time_spans, prepare, reach
+from .backprojection_tiles import ERROR_FACTOR, LANES, PHASE_BUDGET, ROWS, GridPlan, Tiling, plan_tiles, tile_half_extent
 
-__all__ = ["GridPlan", "PreparedRecords", "backproject", "plan_tiles", "prepare", "reach", "tile_half_extent"]
+__all__ = ["ERROR_FACTOR", "PHASE_BUDGET", "GridPlan", "PreparedRecords", "Tiling", "backproject", "plan_tiles", "prepare",
+           "reach", "tile_half_extent"]
 
 PULSE_BLOCK = 64  # pulses a kernel launch (one reference sub-block; 32 was ~4 % slower: more launches)
 PIXEL_CHUNK = 2**22  # pixels on the device at once
-LANES, ROWS, PULSES = 16, 2, 2  # bp_tile: a work-item holds ROWS float16 vectors of pixels, PULSES pulses a step
-# (2 x 2 beat 2 x 4 by ~7 % in interleaved kernel timings: fewer registers spilled)
-PHASE_BUDGET = 2e-3  # rad: the float32 geometry's share of the 0.01 rad phase budget
-ERROR_FACTOR = 8.0  # float32 roundings per |delta| / c of delay (see backproject_opencl)
+PULSES = 2  # bp_tile: pulses a work-item step (with LANES x ROWS pixels, backprojection_tiles)
 NODE_TOLERANCE = 1 / 2000  # of a wavelength: a receiver's allowed departure from linear motion over a tile
 SPAN_FACTOR = 2.5  # a tile's delay span is +-SPAN_FACTOR * half_extent / c around its reference
 REF_PULSES = 64  # pulses whose tile references are computed at once
@@ -89,6 +87,23 @@ BLOCK_PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("dtau", "
 RECORDS = declare_all({"node_t": NODE, "tile_ref_t": TILE_REF, "tile_params_t": TILE_PARAMS, "bp_pulse_t": PULSE,
                        "bp_block_params_t": BLOCK_PARAMS})
 BYTES_PER_PIXEL = 80  # what a call adds a pixel (tests/test_backprojection.py measures it)
+
+
+def _pulse_span(pulses, n_pulses: int) -> tuple[int, int]:
+    """(start, stop) of the consecutive pulses to sum, or a ValueError naming ``pulses``."""
+    if pulses is None:
+        return 0, n_pulses
+    if isinstance(pulses, (range, slice)):
+        step = 1 if pulses.step is None else pulses.step
+        start, stop = pulses.start or 0, n_pulses if pulses.stop is None else pulses.stop
+    elif isinstance(pulses, (tuple, list)) and len(pulses) == 2:
+        (start, stop), step = pulses, 1
+    else:
+        raise ValueError(f"pulses must be None, (start, stop), a range or a slice of consecutive pulses, got {pulses!r}")
+    ok = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in (start, stop, step))
+    if not ok or step != 1 or not 0 <= start < stop <= n_pulses:
+        raise ValueError(f"pulses must select consecutive pulses start < stop within [0, {n_pulses}], got {pulses!r}")
+    return int(start), int(stop)
 
 
 def _check_call(grid, aperture):
@@ -111,7 +126,8 @@ def _aperture_keep(echo, pulses, q, half_sin):
     return np.abs(d[..., 1] / np.linalg.norm(d, axis=-1)) <= half_sin
 
 
-def backproject_reference(records: PreparedRecords, plan: "GridPlan", aperture, velocity, stop_and_go, progress):
+def backproject_reference(records: PreparedRecords, plan: "GridPlan", aperture, velocity, stop_and_go, progress,
+                          span: tuple[int, int]):
     """The float64 NumPy reference (vectorised over pixels, at most 2^20 pixels and a few pulses
     at a time): image (M,) complex128. The sample index of a delay tau is k = (tau - t0) fs,
     split into floor(k) and its fraction before the records' offset (an integer) is taken off,
@@ -122,8 +138,8 @@ def backproject_reference(records: PreparedRecords, plan: "GridPlan", aperture, 
     f0, fs = echo.waveform.f0, records.fs
     chunk = min(pixels.shape[0], 2**20)
     block = max(1, 2**22 // chunk)
-    jobs = [(i, h, np.arange(s, min(s + block, echo.n_pulses))) for i, h in enumerate(records.receivers)
-            for s in range(0, echo.n_pulses, block)]
+    jobs = [(i, h, np.arange(s, min(s + block, span[1]))) for i, h in enumerate(records.receivers)
+            for s in range(span[0], span[1], block)]
     for i, h, pulses in tqdm(jobs, desc="back-projection (numpy)", disable=not progress):
         samples = records.samples(i, pulses).astype(np.complex128)
         for first in range(0, pixels.shape[0], chunk):
@@ -140,70 +156,6 @@ def backproject_reference(records: PreparedRecords, plan: "GridPlan", aperture, 
     return image
 
 
-def tile_half_extent(f0: float, c: float) -> float:
-    """The largest distance (m) from a tile's reference point that keeps the float32 geometry's
-    phase error below PHASE_BUDGET: 2 pi f0 ERROR_FACTOR eps32 |delta| / c <= PHASE_BUDGET
-    (3.3 m at 150 kHz and 1500 m/s; eps32 = 1.2e-7)."""
-    return PHASE_BUDGET * c / (2 * np.pi * f0 * ERROR_FACTOR * float(np.finfo(np.float32).eps))
-
-
-@dataclasses.dataclass(frozen=True)
-class Tiling:
-    """Pixels reordered into spatial tiles for bp_tile.
-
-    ``order`` (M_pad,): pixel index of each slot (a tile's slots padded to whole work-items of
-    LANES x ROWS by repeating its last pixel), ``real`` (M_pad,) bool: the slot is not padding,
-    ``tile`` (M_pad,) int: the slot's tile, ``centres`` (T, 3) m: the tiles' reference points,
-    ``half_extent`` m: the largest half-diagonal of a tile's bounding box (at least every
-    |pixel - its reference point|, the reference being the box's centre), ``phase_bound`` rad: the
-    float32 geometry's phase error bound 2 pi f0 ERROR_FACTOR eps32 half_extent / c.
-    """
-
-    order: np.ndarray
-    real: np.ndarray
-    tile: np.ndarray
-    centres: np.ndarray
-    half_extent: float
-    phase_bound: float
-
-
-def plan_tiles(pixels: np.ndarray, f0: float, c: float, half_extent: float | None = None) -> Tiling:
-    """Bucket the (M, 3) pixels into cubic cells whose half-diagonal is ``half_extent`` (default
-    :func:`tile_half_extent`), each cell a tile with its reference point at the centre of its
-    pixels' bounding box; within a tile the pixels keep their order (a raster stays a raster), so
-    a work-item's 16 lanes are neighbours. The work goes one coordinate at a time (a 4096^2
-    grid's float64 temporaries are then 134 MB, not 400 MB: first-touch page faults dominate at
-    that size). Raises ValueError when the bound is not met (it is by construction; the check
-    guards the arithmetic)."""
-    pixels = np.asarray(pixels, dtype=np.float64)
-    budget = tile_half_extent(f0, c) if half_extent is None else float(half_extent)
-    if not budget > 0:
-        raise ValueError(f"half_extent must be positive, got {half_extent}")
-    side = 2 * budget / np.sqrt(3.0)
-    cells = [np.floor((pixels[:, k] - pixels[:, k].min()) / side).astype(np.int64) for k in range(3)]
-    key = np.ravel_multi_index(cells, tuple(int(cell.max()) + 1 for cell in cells))
-    del cells
-    by_key = np.argsort(key, kind="stable")
-    sorted_key = key[by_key]
-    first = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
-    count = np.diff(np.r_[first, key.size])
-    width = LANES * ROWS
-    padded = -(-count // width) * width
-    tile = np.repeat(np.arange(count.size), padded)
-    local = np.arange(tile.size) - np.repeat(np.cumsum(padded) - padded, padded)
-    real = local < count[tile]
-    order = by_key[first[tile] + np.minimum(local, count[tile] - 1)]
-    low, high = np.empty((count.size, 3)), np.empty((count.size, 3))
-    for k in range(3):
-        column = pixels[by_key, k]
-        low[:, k], high[:, k] = np.minimum.reduceat(column, first), np.maximum.reduceat(column, first)
-    centres = 0.5 * (low + high)
-    extent = float(0.5 * np.sqrt(np.max(np.sum((high - low) ** 2, axis=1))))
-    if extent > budget * (1 + 1e-9):
-        raise ValueError(f"tiles reach {extent:.3g} m from their reference points, beyond the {budget:.3g} m "
-                         "that keeps the float32 phase error in budget")
-    bound = 2 * np.pi * f0 * ERROR_FACTOR * float(np.finfo(np.float32).eps) * extent / c
-    return Tiling(order, real, tile, centres, extent, float(bound))
 
 
 def tile_references(echo: EchoData, h: int, pulses: np.ndarray, centres: np.ndarray, velocity: np.ndarray,
@@ -275,53 +227,6 @@ def _exact_kernel(ctx, echo, h, pulses, fs, offset, velocity, half_sin, defines,
     return kern, pulse_buf, nodes_buf, params[()]
 
 
-class GridPlan:
-    """A grid and what imaging it needs besides the echo: its tile plan (:func:`plan_tiles`) and the
-    float32 pixel fields of its chunks (bp_tile's offsets from the tiles' reference points), made
-    on first use for a carrier and sound speed (and, for the fields, a target velocity) and kept.
-    Pass it to :func:`backproject` in place of the grid to image the same grid again without
-    redoing them (e.g. re-imaging an echo at several target velocities or after autofocus). It
-    holds ~16 + 20 bytes a pixel once used (tile order and fields; a 4096^2 grid: ~600 MB).
-    """
-
-    def __init__(self, grid: Grid):
-        if not isinstance(grid, Grid):
-            raise TypeError(f"grid must be a clsas.data.Grid, got {type(grid).__name__}")
-        self.grid = grid
-        self._tilings, self._fields = {}, {}
-
-    def tiling(self, f0: float, c: float) -> Tiling:
-        key = (float(f0), float(c))
-        if key not in self._tilings:
-            self._tilings[key] = plan_tiles(self.grid.positions.reshape(-1, 3), f0, c)
-        return self._tilings[key]
-
-    def fields(self, f0: float, c: float, first: int, stop: int, v_k: np.ndarray):
-        """Slots ``first`` .. ``stop - 1`` of the tiling: bp_tile's pixel fields (delta x, y, z,
-        |delta|^2 and, for moving pixels, delta . v; float32 (F, n)), the work-items' local tile
-        indices (int32) and the tiles present (indices into the tiling)."""
-        key = (float(f0), float(c), first, stop, tuple(np.asarray(v_k, dtype=float)))
-        if key not in self._fields:
-            tiling, pixels = self.tiling(f0, c), self.grid.positions.reshape(-1, 3)
-            n = stop - first
-            tiles, local = np.unique(tiling.tile[first:stop], return_inverse=True)
-            moving = bool(np.any(v_k))
-            fields = np.zeros((5 if moving else 4, n), np.float32)
-            squared, along_v = np.zeros(n), np.zeros(n)
-            for k in range(3):  # one coordinate at a time (temporaries of n, not 3 n, doubles)
-                delta = pixels[tiling.order[first:stop], k] - tiling.centres[tiling.tile[first:stop], k]
-                fields[k] = delta
-                squared += delta * delta
-                along_v += delta * v_k[k]
-            fields[3] = squared
-            if moving:
-                fields[4] = along_v
-            for a in (fields, local):
-                a.flags.writeable = False
-            self._fields[key] = (fields, local[::LANES * ROWS].astype(np.int32), tiles)
-        return self._fields[key]
-
-
 class _Chunk:
     """The device side of slots ``first`` .. ``stop - 1`` of a :class:`Tiling`: bp_tile's pixel
     fields and work-items' tile indices (:meth:`GridPlan.fields`), the tiles present (``tiles``),
@@ -358,7 +263,7 @@ class _Chunk:
 
 
 def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,
-                       double=False):
+                       span: tuple[int, int], double=False):
     """The kernels/backprojection.cl launcher: image (M,) complex128, how many (chunk, receiver,
     pulse block) jobs ran on the exact double kernel, and the kernels' own time (s, from the
     queue's profiling events).
@@ -413,8 +318,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     tiles = plan.tiling(f0, c)
     chunk = PIXEL_CHUNK // (LANES * ROWS) * (LANES * ROWS)
     upload = records.upload_pulses()
-    jobs = [(first, i, np.arange(s, min(s + upload, echo.n_pulses))) for first in range(0, tiles.order.size, chunk)
-            for i in range(len(records.receivers)) for s in range(0, echo.n_pulses, upload)]
+    jobs = [(first, i, np.arange(s, min(s + upload, span[1]))) for first in range(0, tiles.order.size, chunk)
+            for i in range(len(records.receivers)) for s in range(span[0], span[1], upload)]
     tolerance = NODE_TOLERANCE * echo.waveform.wavelength(echo.medium)
     fallbacks, chunk_state, in_flight, kernel_seconds = 0, None, [], 0.0
 
@@ -443,7 +348,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                 chunk_state.finish(queue, image)
             chunk_state = _Chunk(ctx, plan, f0, c, first, min(first + chunk, tiles.order.size), v_k)
         kernel_seconds += retire(1)
-        records_buf, n_samples = records.buffer(ctx, i, pulses, double)
+        records_buf, n_samples, base = records.buffer(ctx, i, pulses, double)
+        skip = int(pulses[0] - base)  # the job's first pulse in the buffer (which may hold earlier pulses)
         in_flight.append(events := [])
         exact = None
         for s in range(0, pulses.size, REF_PULSES):
@@ -458,18 +364,19 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                     for p0, count in blocks:
                         events.append(tile_kernel(
                             queue, (chunk_state.n // (LANES * ROWS),), None, chunk_state.pix, chunk_state.tile_of,
-                            ref_buf, np.int32(ref.shape[1]), np.int32(s), records_buf, taps_buf, tile_params[()],
-                            np.int32(p0), np.int32(count), np.int32(n_samples), np.int32(chunk_state.n),
+                            ref_buf, np.int32(ref.shape[1]), np.int32(skip + s), records_buf, taps_buf, tile_params[()],
+                            np.int32(skip + p0), np.int32(count), np.int32(n_samples), np.int32(chunk_state.n),
                             chunk_state.image))
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)
-                exact = _exact_kernel(ctx, echo, h, pulses, fs, offset, velocity, half_sin, defines, stop_and_go,
-                                      double)
+                # pulse and node buffers indexed like the records buffer (from its first pulse)
+                exact = _exact_kernel(ctx, echo, h, np.arange(base, pulses[-1] + 1), fs, offset, velocity, half_sin,
+                                      defines, stop_and_go, double)
             kern, pulse_buf, nodes_buf, params = exact
             for p0, count in blocks:
                 events.append(kern(queue, (chunk_state.n // 8,), None, chunk_state.absolute(ctx, pixels), pulse_buf,
-                                   nodes_buf, records_buf, taps_buf, params, np.int32(p0), np.int32(count),
+                                   nodes_buf, records_buf, taps_buf, params, np.int32(skip + p0), np.int32(count),
                                    np.int32(n_samples), np.int32(chunk_state.n), chunk_state.image))
     chunk_state.finish(queue, image)
     return image, fallbacks, kernel_seconds + retire(0)
@@ -477,7 +384,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
 
 def backproject(echo, grid, backend: str | None = None, receivers=None, interp: str | None = None,
                 upsample: int | None = None, aperture: float | None = None, target_velocity=None,
-                stop_and_go: bool = False, precision: str = "single", progress: bool = True) -> Image:
+                stop_and_go: bool = False, precision: str = "single", progress: bool = True,
+                pulses=None) -> Image:
     """Back-project range-compressed echoes onto ``grid`` (see the module docstring).
 
     Parameters
@@ -505,6 +413,10 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
         Use stop-and-go delays (all positions at the emission time).
     precision : {"single", "double"}
         The OpenCL kernel's data path (delays and carrier cycles are double either way).
+    pulses : (start, stop), range or slice of consecutive pulses, optional
+        Sum only pulses start .. stop - 1 (a sub-aperture, e.g. the first stage of a factorised
+        back-projection: prepare the records once, image each sub-aperture on its own grid).
+        Default: all.
 
     Returns
     -------
@@ -539,9 +451,10 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
         upsample = int(upsample)
         records = PreparedRecords(echo, chosen, interp, upsample, fast_time_spans(echo, chosen, plan.grid, velocity),
                                   materialise=False)
+    span = _pulse_span(pulses, records.echo.n_pulses)
     double = _backend.check_precision(precision)
     name = _backend.resolve(backend)
-    args = (records, plan, aperture, velocity, stop_and_go, progress)
+    args = (records, plan, aperture, velocity, stop_and_go, progress, span)
     if name == "numpy":
         flat, fallbacks, kernel_seconds = backproject_reference(*args), 0, None
     else:
@@ -560,4 +473,5 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
                              "aperture": aperture, "target_velocity": velocity.tolist(),
                              "stop_and_go": bool(stop_and_go), "exact_fallback_blocks": fallbacks,
                              "prepared_records": records.materialised, "kernel_seconds": kernel_seconds,
+                             "pulses": list(span),
                              "echo": dict(source.provenance)})

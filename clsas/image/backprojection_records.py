@@ -26,9 +26,12 @@ scene's compressed echo (fs = 1.25 B), the blocks differ from one FFT of the who
 record (:func:`rangecomp.upsample_records`) by 9e-4 RMS relative (4.5e-3 with white noise 10 dB
 above the echo's peak before compression), well below linear interpolation's own error on x8
 upsampled data (up to (2 pi 0.4 / 8)^2 / 8 = 1.2e-2 at fs = 1.25 B). Small FFTs (256 -> 2048
-points) stay in cache: ~1.2x the whole-record FFT's operations but no 8x-long temporaries.
-Measured alternative: an OpenCL FFT (reikna 0.9 on PoCL, 2048 x 16384 points) ran 20-40x slower
-than scipy.fft with two workers, so the upsampling stays on the host.
+points) stay in cache: ~1.2x the whole-record FFT's operations but no 8x-long temporaries;
+measured on that echo's 2048 records x 1693 samples (scipy.fft, two workers, busy machine,
+medians of 5): whole records 0.59 CPU-s in blocks vs 0.66 in one FFT each, a quarter of the
+record 0.16. Measured alternative: an OpenCL FFT (reikna 0.9 on PoCL, 2048 x 16384 points) ran
+20-40x slower than scipy.fft with two workers (25 s vs 0.6-1.3 s), so the upsampling stays on
+the host.
 
 Device memory. A PreparedRecords holds its samples on the host (complex64, read-only); its device
 buffers are made on first OpenCL use, one per receiver (and one complex128 copy per receiver for
@@ -240,29 +243,28 @@ class PreparedRecords:
         return self._make(i, pulses)
 
     def buffer(self, ctx, i: int, pulses: np.ndarray, double: bool):
-        """(device buffer of :meth:`samples` (complex128 when ``double``), samples per record).
-        Materialised records keep one buffer per (receiver, precision) and ``pulses`` must then be
-        all pulses; others build a buffer for the block and drop it with the call."""
+        """(device buffer of receiver ``receivers[i]``'s records (complex128 when ``double``),
+        samples per record, the buffer's first pulse). Materialised records keep one buffer of all
+        pulses per (receiver, precision); others build one for the consecutive ``pulses`` and drop
+        it with the call."""
         import pyopencl as cl
 
         mf = cl.mem_flags
         dtype = np.complex128 if double else np.complex64
         if self._host is not None:
-            if pulses[0] != 0 or pulses.size != self.echo.n_pulses:
-                raise ValueError("materialised records are uploaded whole: pass all pulses")
             key = (int(ctx.int_ptr), self.receivers[i], bool(double))
             if key not in self._device:
                 host = self._host[i] if not double else self._host[i].astype(np.complex128)
                 host.flags.writeable = False
                 self._device[key] = (cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=host), host)
-            return self._device[key][0], self._host[i].shape[1]
+            return self._device[key][0], self._host[i].shape[1], 0
         records = self.samples(i, pulses)
         if records.dtype == dtype and records.flags.c_contiguous and records.base is not None:
             # a view of the echo itself (no upsampling, no cut): the device reads it in place; the
             # call finishes its queue before it returns, and the echo outlives the call
-            return cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=records), records.shape[1]
+            return cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=records), records.shape[1], int(pulses[0])
         records = np.ascontiguousarray(records, dtype=dtype)
-        return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=records), records.shape[1]
+        return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=records), records.shape[1], int(pulses[0])
 
     def subset(self, chosen) -> "PreparedRecords":
         """The same records for the receivers ``chosen`` (echo indices, all prepared), in that
@@ -277,8 +279,8 @@ class PreparedRecords:
         return part
 
     def upload_pulses(self) -> int:
-        """Pulses a call uploads at once: all for materialised records, else as many as fill
-        UPLOAD_BYTES (at least 64)."""
+        """Pulses a call's job covers: all for materialised records (their buffers hold every
+        pulse), else as many as fill UPLOAD_BYTES (at least 64)."""
         if self._host is not None:
             return self.echo.n_pulses
         per_pulse = 16 * max(1, int(np.max(self.length)))
