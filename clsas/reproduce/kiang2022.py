@@ -46,8 +46,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cases", type=int, nargs="+", default=list(range(1, 9)), help="Table II cases (1-8)")
     parser.add_argument("--pulses", type=int, default=None,
                         help="pulses at 80 Hz (default: Table I's 6400, 80 s, for the submarine; 2048 for points)")
-    parser.add_argument("--position", choices=("given", "estimated"), default="given",
-                        help="give the target's position (the paper) or estimate it with v")
+    parser.add_argument("--position", choices=("given", "estimated", "both"), default="given",
+                        help="give the target's position (the paper), estimate it with v, or both (two estimates "
+                             "from one echo)")
     parser.add_argument("--snr", type=float, default=None, help="add white noise at this SNR, dB")
     parser.add_argument("--out", default="kiang2022-output", help="folder for the PNG images")
     parser.add_argument("--no-images", action="store_true", help="print the table only")
@@ -104,13 +105,22 @@ def run_case(case: int, args) -> dict:
         return row
     row.update(est=est, estimate_s=time.perf_counter() - t,
                err_pct=100 * np.linalg.norm(est.velocity - v_true) / np.linalg.norm(v_true))
+    if args.position == "both":
+        try:
+            joint = clsas.estimate_motion(echo, position=None)
+            row.update(joint=joint, joint_err_pct=100 * np.linalg.norm(joint.velocity - v_true) / np.linalg.norm(v_true))
+        except EstimationError as err:
+            row.update(joint_error=str(err))
     if args.no_images:
         return row
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    images = clsas.focus_moving(echo, est, tau_span=0.04)
-    q = est.position + est.velocity * est.layout.eta_ref
-    r_c, y_c = float(np.linalg.norm(q - est.layout.tx_position)), float(q[1])
+    # the images are placed by the first estimate (the given position, unless --position estimated):
+    # the joint one is unreliable on the hull (velocity module docstring)
+    shown = est
+    images = clsas.focus_moving(echo, shown, tau_span=0.04)
+    q = np.array(CENTRE) + v_true * shown.layout.eta_ref  # windows centred on the true hull centre
+    r_c, y_c = float(np.linalg.norm(q - shown.layout.tx_position)), float(q[1])
     half = 12.0 if args.targets == "submarine" else 3.0
     scan = None
     if args.targets == "submarine":
@@ -126,13 +136,13 @@ def run_case(case: int, args) -> dict:
     if case in args.sota and "A" in images:
         from ..estimate.moving import compare
 
-        sota = compare.stop_and_go_images(echo, est.velocity, est.receivers["A"].fm_rate)
+        sota = compare.stop_and_go_images(echo, shown.velocity, shown.receivers["A"].fm_rate)
         proposed = window(images["A"], r_c, y_c, half)
         row["sota"] = compare.compare(proposed, sota, images["A"].provenance["along_track_speed"])
         for name, image in sota.items():
             shifted = window(compare.as_ry(image), r_c, y_c + row["sota"][name]["shift_m"], half)
             _save(shifted, out / f"case{case}_{name}.png", f"case {case}: {name}, stop-and-go, v = "
-                  f"({est.velocity[0]:.3f}, {est.velocity[1]:.3f}, {est.velocity[2]:.3f}) m/s")
+                  f"({shown.velocity[0]:.3f}, {shown.velocity[1]:.3f}, {shown.velocity[2]:.3f}) m/s")
     return row
 
 
@@ -176,15 +186,20 @@ def print_table(rows: list) -> None:
             continue
         pos = f"; position estimated {np.round(est.position, 2)} m" if est.position_estimated else ""
         print(f"  v est  {np.round(est.velocity, 3)}  error {row['err_pct']:.3f} %  (sigma {np.round(est.sigma, 3)}, "
-              f"residual {est.residual:.3g} Hz, confidence {est.confidence:.2f}){pos}")
+              f"residual {est.residual:.3g} Hz, range residual {est.range_residual:.3f} m, confidence "
+              f"{est.confidence:.2f}){pos}")
+        if "joint" in row:
+            joint = row["joint"]
+            print(f"  v est  {np.round(joint.velocity, 3)}  error {row['joint_err_pct']:.3f} %  with the position "
+                  f"estimated too: {np.round(joint.position, 2)} m (sigma {np.round(joint.position_sigma, 2)})")
         print(f"  paper  {paper_v}  error {paper_err:.3f} %" + (f"   {est.note}" if est.note else ""))
         for name, cmp in row.get("sota", {}).items():
             print(f"  {name:8} stop-and-go at A: shifted {cmp['shift_s']:+.3f} s ({cmp['shift_m']:+.2f} m) in azimuth, "
                   f"SSIM {cmp['ssim']:.4f} with the shift removed   (paper, case 1: ~1 s; SSIM {PAPER_SSIM[name]})")
-    print("\nsummary: case  error % (clsas)  error % (paper)")
+    print("\nsummary: case  error % (clsas)  error % (position estimated)  error % (paper)")
     for row in rows:
-        err = row.get("err_pct")
-        print(f"  {row['case']:4d}  {_fmt(err, '.3f', 14)}  {PAPER[row['case']][2]:14.3f}")
+        print(f"  {row['case']:4d}  {_fmt(row.get('err_pct'), '.3f', 14)}  {_fmt(row.get('joint_err_pct'), '.3f', 26)}"
+              f"  {PAPER[row['case']][2]:14.3f}")
 
 
 def run(args) -> int:
@@ -203,4 +218,4 @@ def run(args) -> int:
     print_table(rows)
     if not args.no_images:
         print(f"\nimages in {Path(args.out).resolve()}")
-    return 0 if all(r.get("err_pct", np.inf) < BOUND for r in rows) else 1
+    return 0 if all(r.get("err_pct", np.inf) < BOUND and r.get("joint_err_pct", 0.0) < BOUND for r in rows) else 1

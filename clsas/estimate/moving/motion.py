@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...data import EchoData, Image
+from .chain import MIN_TIME_BANDWIDTH, estimate_receiver, focus_receiver
 from .closedforms import delay_terms
 from .layout import Layout, layout_of
 from .mapping import to_ry
@@ -32,8 +33,6 @@ from .velocity import centroid_sigma, solve_motion, solve_velocity
 
 log = logging.getLogger("clsas")
 
-#: |K| T_a^2 below this: no azimuth chirp to compress (as in the chain).
-MIN_TIME_BANDWIDTH = 4.0
 #: 1-sigma of a centroid refined by the azimuth focus, Hz (plus 1e-4 of it): the closed forms are
 #: Taylor coefficients at eta_ref, the focus sees the aperture (measured on point targets, Table II
 #: cases 1-8, 2048 pulses: 0.00-0.07 Hz from the closed forms).
@@ -50,8 +49,11 @@ class MotionEstimate:
     confidence : probability in [0, 1] that the velocity error is within the paper's 3 % bound
     (:mod:`.velocity`). sigma, position_sigma : (3,) 1-sigma errors, m/s and m. centroids :
     {name: Hz} the centroids solved with (refined by the focus where possible). cannot_focus :
-    names of the receivers with |K_a,eq| T_a^2 < 4 at the solved velocity. layout : the
-    geometry used.
+    names of the receivers with |K_a,eq| T_a^2 < 4 at the solved velocity. range_residual : RMS
+    of c (tau_c,measured - tau_c,model) / 2 over the receivers at the solution, m: a few
+    centimetres when the focused scatterer is at ``position``; metres when a given position is
+    not where the strongest scatterer is (an extended target: estimate the position instead).
+    layout : the geometry used.
     """
 
     velocity: np.ndarray
@@ -64,6 +66,7 @@ class MotionEstimate:
     position_estimated: bool
     centroids: dict
     cannot_focus: tuple
+    range_residual: float
     layout: Layout = field(repr=False)
 
     @property
@@ -136,6 +139,8 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
     else:
         sol = solve_velocity(layout, position, centroids, sigmas, rates)
     aperture = layout.aperture if aperture is None else float(aperture)
+    tau_misfit = [float(rx.tau_c) - delay_terms(layout, n, sol.position, sol.velocity)[0] for n, rx in receivers.items()]
+    range_residual = float(0.5 * layout.sound_speed * np.sqrt(np.mean(np.square(tau_misfit))))
     blind = tuple(n for n in receivers
                   if abs(delay_terms(layout, n, sol.position, sol.velocity)[2]) * aperture**2 < MIN_TIME_BANDWIDTH)
     log.info("moving target: v = %s m/s (sigma %s), residual %.3g Hz, confidence %.2f%s", np.round(sol.velocity, 3),
@@ -143,7 +148,7 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
     return MotionEstimate(velocity=sol.velocity, position=sol.position, receivers=dict(receivers),
                           residual=sol.residual, confidence=sol.confidence, sigma=sol.sigma,
                           position_sigma=sol.position_sigma, position_estimated=sol.position_estimated,
-                          centroids=centroids, cannot_focus=blind, layout=layout)
+                          centroids=centroids, cannot_focus=blind, range_residual=range_residual, layout=layout)
 
 
 def estimate(echo: EchoData, position=None, receivers=None, **chain_options) -> MotionEstimate:
@@ -162,8 +167,6 @@ def estimate(echo: EchoData, position=None, receivers=None, **chain_options) -> 
     """
     names = check_echo(echo, receivers)
     position = _check_position(position)
-    from .chain import estimate_receiver
-
     estimates = {name: estimate_receiver(echo, name, **chain_options) for name in names}
     layout = layout_of(echo)
     return motion_from_receivers(layout, estimates, position)
@@ -177,8 +180,6 @@ def focus(echo: EchoData, est: MotionEstimate, tau_span: float | None = None) ->
     if not isinstance(est, MotionEstimate):
         raise TypeError(f"est must be a MotionEstimate (from estimate()), got {type(est).__name__}")
     check_echo(echo, list(est.receivers))
-    from .chain import focus_receiver
-
     images = {}
     for name, rx in est.receivers.items():
         if name in est.cannot_focus:

@@ -13,7 +13,7 @@ a node of level l + 1 is ``factor`` consecutive nodes of level l. A node's frame
   <= |T - R|^2 / (4 |X - M|) (r_near the nearest scene range).
 
 Its polar grid covers the scene within the recorded range window widened by L + max |T - R| / 2
-and, with an ``aperture`` (the smaller of ffbp's ``aperture`` and ``beam``), the angles
+and, with an ``aperture``, the angles
 |v| <= sin(aperture / 2) + |u - y| + L / r_near (a pixel that some pulse of the node sees within
 the aperture, whose sine is taken off the y axis);
 :func:`clsas.image.ffbp.polar.polar_grid` samples it.
