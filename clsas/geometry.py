@@ -44,11 +44,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .cstruct import record_dtype
+
 if TYPE_CHECKING:
     from .data import EchoData
     from .scene.targets import Scatterers
 
 MAX_ITERATIONS = 60
+# a receiver's position and element axis at one node (kernels/geometry.h ``node_t``), m and unit vector
+NODE = record_dtype([("pos", "f8", 3), ("axis", "f8", 3)])
 
 
 def iteration_tolerance(f0: float) -> float:

@@ -191,7 +191,8 @@ def _source(name: str) -> tuple[str, str]:
     return _sources[name]
 
 
-def program(name: str, defines: dict | None = None, device: str | None = None, double: bool = False):
+def program(name: str, defines: dict | None = None, device: str | None = None, double: bool = False,
+            preamble: str = ""):
     """The built pyopencl.Program for ``kernels/NAME.cl``.
 
     Parameters
@@ -203,12 +204,17 @@ def program(name: str, defines: dict | None = None, device: str | None = None, d
     double : bool
         Build with ``-D CLSAS_DOUBLE`` so that ``real_t``/``complex_t`` of ``common.h`` are
         double precision; refused when the device has no fp64.
+    preamble : str
+        C text put in front of the source, e.g. the record structs of :func:`clsas.cstruct.declare`.
     """
     cl = _import_pyopencl()
     rt = runtime(device)
     if double and not has_fp64(rt.device):
         raise RuntimeError(f"precision='double' needs fp64, which device {rt.device.name!r} lacks")
     text, digest = _source(name)
+    if preamble:
+        text = f"{preamble}\n#line 1\n{text}"
+        digest = hashlib.sha256(f"{digest}{preamble}".encode()).hexdigest()
     options = [f"-I{kernels_dir()}"]
     if double:
         options.append("-DCLSAS_DOUBLE=1")
@@ -231,10 +237,10 @@ def program(name: str, defines: dict | None = None, device: str | None = None, d
 
 
 def kernel(name: str, kernel_name: str, defines: dict | None = None, device: str | None = None,
-           double: bool = False):
+           double: bool = False, preamble: str = ""):
     """A fresh pyopencl.Kernel ``kernel_name`` from ``kernels/NAME.cl`` (see :func:`program`)."""
     cl = _import_pyopencl()
-    return cl.Kernel(program(name, defines=defines, device=device, double=double), kernel_name)
+    return cl.Kernel(program(name, defines=defines, device=device, double=double, preamble=preamble), kernel_name)
 
 
 #: Compiler output known to be harmless: PoCL's note that a 16-wide vector argument changes the

@@ -21,7 +21,8 @@
  * Both: the range-compressed sample at the delay by linear interpolation of the (upsampled)
  * record (INTERP_LINEAR) or by an 8-tap Kaiser-windowed sinc on the original samples
  * (INTERP_SINC8, taps from the nearest row of a table over the fractional offset); a record
- * reads as zero where the interpolator would need samples outside it; the phase rotation
+ * reads as zero where the interpolator would need samples outside it (taps and row lookup:
+ * interp.h, the table of clsas/interp.py); the phase rotation
  * exp(+j 2 pi f0 tau) from cycles reduced to a fraction (polynomial sin/cos, common.h);
  * accumulation in float (double with CLSAS_DOUBLE) over the launch's pulses, added once into
  * the double image at the end (blocked sum).
@@ -41,6 +42,7 @@
 #include "common.h"
 #include "loads.h"
 #include "lanes.h"
+#include "interp.h"
 
 /* Data, interpolation and sums in float, or in double with CLSAS_DOUBLE (precision="double"). */
 #ifdef CLSAS_DOUBLE
@@ -50,7 +52,7 @@ typedef double4 realv4_t;
 typedef double8 realv8;
 typedef double16 realv16_t;
 #define convert_realv8 convert_double8
-#define TAP_ROW(taps, row) convert_double16(LOAD_F16((taps) + 16 * (row)))
+#define TAP_ROW(taps, row) convert_double16(TAP_ROW8(taps, row))
 #define LOAD_R16 LOAD_D16
 #define LOAD_R4 LOAD_D4
 #else
@@ -60,14 +62,14 @@ typedef float4 realv4_t;
 typedef float8 realv8;
 typedef float16 realv16_t;
 #define convert_realv8 convert_float8
-#define TAP_ROW(taps, row) LOAD_F16((taps) + 16 * (row))
+#define TAP_ROW(taps, row) TAP_ROW8(taps, row)
 #define LOAD_R16 LOAD_F16
 #define LOAD_R4 LOAD_F4
 #endif
 
 /* One lane's 8-tap sinc: sum_j w_j s[i + j] over the record's complex samples i .. i + 7 (one
- * 16-wide load), taps[row * 16 + 2 j + {0, 1}] = w_j (each tap twice: for re and im), the
- * products summed pairwise keeping the re/im parity. Returns (re, im). */
+ * 16-wide load), w_j = taps[8 row + j] (the shared 8-tap table of interp.h, each tap repeated
+ * for re and im), the products summed pairwise keeping the re/im parity. Returns (re, im). */
 inline realv2_t sinc8_lane(__global const real_t *rec, int i, __global const float *taps, int row)
 {
     const realv16_t p = LOAD_R16(rec + 2 * i) * TAP_ROW(taps, row);
@@ -85,20 +87,21 @@ inline realv2_t sinc8_lane(__global const real_t *rec, int i, __global const flo
 /* pix[f * m_pad + m], m = 16 (ROWS g + r) + lane: f = 0, 1, 2: delta (pixel at t = 0 minus its
  *   tile's reference point, m), f = 3: |delta|^2, f = 4 (MOVING): delta . v;
  * tile_of[g]: the tile of work-item g;
- * ref[t * ref_stride + p - ref_first], float16 per (tile t, pulse p): s012 B, s3 c^2 t1_ref - B.v, s456 C,
- *   s7 c^2 t2_ref - C.v_r, s89a v_r, sb a2, sc the integer sample index of T_ref in the records (int bits),
- *   sd its fraction, se f0 T_ref reduced, sf c t1_ref;
- * params: s0 a1, s1 fs (of the data), s2 f0, s345 v, s6 sin(aperture / 2), s7 c;
+ * ref[t * ref_stride + p - ref_first]: the reference of (tile t, pulse p), a tile_ref_t: leg1 = B,
+ *   b1 = c^2 t1_ref - B.v, leg2 = C, b2 = c^2 t2_ref - C.v_r, v_rx = v_r, a2, k_ref the integer
+ *   sample index of T_ref in the records, k_frac its fraction, cycles = f0 T_ref reduced, range1 = c t1_ref;
+ * params (tile_params_t): a1, fs (of the data), f0, velocity v, half_sin = sin(aperture / 2), c;
+ * the records are declared by the launcher (clsas/image/backprojection.py, RECORDS);
  * data[p n + i]: the receiver's range-compressed record of pulse p; taps: see sinc8_lane;
  * image[m] += the sum over pulses p_first .. p_first + p_count - 1. */
-__kernel void bp_tile(__global const float *pix, __global const int *tile_of, __global const float16 *ref,
+__kernel void bp_tile(__global const float *pix, __global const int *tile_of, __global const tile_ref_t *ref,
                       const int ref_stride, const int ref_first, __global const sample_t *data, __global const float *taps,
-                      const float8 params, const int p_first, const int p_count, const int n, const int m_pad,
+                      const tile_params_t params, const int p_first, const int p_count, const int n, const int m_pad,
                       __global double2 *image)
 {
     const int g = get_global_id(0);
-    __global const float16 *tref = ref + (size_t)tile_of[g] * ref_stride;
-    const float a1 = params.s0, fs = params.s1, f0 = params.s2;
+    __global const tile_ref_t *tref = ref + (size_t)tile_of[g] * ref_stride;
+    const float a1 = params.a1, fs = params.fs, f0 = params.f0;
     float16 dx[ROWS], dy[ROWS], dz[ROWS], dd[ROWS], acc_re[ROWS], acc_im[ROWS];
 #ifdef MOVING
     float16 dv[ROWS];
@@ -120,7 +123,7 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
         /* PULSES pulses x ROWS rows = CHAINS independent dependency chains, each step done for all
          * of them before the next (the out-of-order core overlaps them); a pulse past the block's
          * end repeats the last one with weight 0 */
-        float16 R[PULSES];
+        tile_ref_t R[PULSES];
         __global const float *rec[PULSES];
         float live[PULSES];
         _Pragma("unroll") for (int j = 0; j < PULSES; ++j) {
@@ -132,30 +135,31 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
         float16 s1[CHAINS], s[CHAINS], frac[CHAINS], cs[CHAINS], sn[CHAINS];
         int16 ki[CHAINS];
         FOR_CHAINS {  /* leg 1: s1 = t1 - t1_ref */
-            const float16 n1 = 2.0f * (RJ.s0 * dx[r] + RJ.s1 * dy[r] + RJ.s2 * dz[r]) + dd[r];
+            const float16 n1 = 2.0f * (RJ.leg1[0] * dx[r] + RJ.leg1[1] * dy[r] + RJ.leg1[2] * dz[r]) + dd[r];
 #ifdef MOVING
-            const float16 b1 = RJ.s3 - dv[r];
+            const float16 b1 = RJ.b1 - dv[r];
 #else
-            const float16 b1 = (float16)RJ.s3;
+            const float16 b1 = (float16)RJ.b1;
 #endif
             s1[j] = n1 / (b1 + sqrt(b1 * b1 + a1 * n1));
         }
         FOR_CHAINS {  /* leg 2: s2 = t2 - t2_ref, e = (v_r - v) s1 - delta; s = s1 + s2 */
-            const float ux = RJ.s8 - params.s3, uy = RJ.s9 - params.s4, uz = RJ.sa - params.s5;  /* v_r - v */
+            const float ux = RJ.v_rx[0] - params.velocity[0], uy = RJ.v_rx[1] - params.velocity[1];  /* v_r - v */
+            const float uz = RJ.v_rx[2] - params.velocity[2];
             const float16 ex = ux * s1[j] - dx[r], ey = uy * s1[j] - dy[r], ez = uz * s1[j] - dz[r];
-            const float16 n2 = 2.0f * (RJ.s4 * ex + RJ.s5 * ey + RJ.s6 * ez) + (ex * ex + ey * ey + ez * ez);
-            const float16 b2 = RJ.s7 - (RJ.s8 * ex + RJ.s9 * ey + RJ.sa * ez);
-            s[j] = s1[j] + n2 / (b2 + sqrt(b2 * b2 + RJ.sb * n2));
+            const float16 n2 = 2.0f * (RJ.leg2[0] * ex + RJ.leg2[1] * ey + RJ.leg2[2] * ez) + (ex * ex + ey * ey + ez * ez);
+            const float16 b2 = RJ.b2 - (RJ.v_rx[0] * ex + RJ.v_rx[1] * ey + RJ.v_rx[2] * ez);
+            s[j] = s1[j] + n2 / (b2 + sqrt(b2 * b2 + RJ.a2 * n2));
         }
         FOR_CHAINS {  /* sample index K_ref + (frac_ref + s fs), split by truncation (floor is slow) */
-            const float16 kf = RJ.sd + s[j] * fs;
+            const float16 kf = RJ.k_frac + s[j] * fs;
             int16 k = convert_int16(kf);
             k += kf < convert_float16(k);  /* floor (a true compare is -1) */
             frac[j] = kf - convert_float16(k);
-            ki[j] = k + as_int(RJ.sc);
+            ki[j] = k + RJ.k_ref;
         }
         FOR_CHAINS {  /* carrier exp(+j 2 pi f0 tau): cycles f0 T_ref (reduced) + f0 s, reduced again */
-            float16 cyc = RJ.se + f0 * s[j];
+            float16 cyc = RJ.cycles + f0 * s[j];
             cyc -= convert_float16(convert_int16(cyc));
             expj_fraction16(cyc, &cs[j], &sn[j]);
             cs[j] *= live[j / ROWS];
@@ -163,8 +167,8 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
         }
 #ifdef APERTURE
         FOR_CHAINS {  /* sin theta = (q - tx).y / (c t1), q - tx = B + delta + v s1 */
-            const float16 keep = select((float16)0.0f, (float16)1.0f,
-                                        fabs(RJ.s1 + dy[r] + params.s4 * s1[j]) <= params.s6 * (RJ.sf + params.s7 * s1[j]));
+            const float16 keep = select((float16)0.0f, (float16)1.0f, fabs(RJ.leg1[1] + dy[r] + params.velocity[1] * s1[j])
+                                        <= params.half_sin * (RJ.range1 + params.c * s1[j]));
             cs[j] *= keep;
             sn[j] *= keep;
         }
@@ -188,7 +192,7 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
             /* samples i - 3 .. i + 4 of each lane, the taps of the nearest fractional-offset row */
             const int16 ic = clamp(ki[j] - 3, (int16)0, (int16)(n - 8));
             const float16 keep = select((float16)0.0f, (float16)1.0f, ki[j] >= (int16)3 && ki[j] < (int16)(n - 4));
-            const int16 row = convert_int16(frac[j] * (float)(TAP_ROWS - 1) + 0.5f);
+            const int16 row = NEAREST_TAP_ROW(convert_int16, frac[j]);
             /* each lane's eight complex products, summed across lanes (lanes.h) */
 #define P(L) (LOAD_F16(recj + 2 * ic.s##L) * TAP_ROW(taps, row.s##L))
             const float16 lo = csum8(P(0), P(1), P(2), P(3), P(4), P(5), P(6), P(7));
@@ -212,37 +216,38 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
 #else /* bp_block: exact double geometry */
 #include "geometry.h"
 
-/* params: c, f0, fs (of the data), dtau (node spacing), vx, vy, vz (target velocity),
- * sin of half the integration angle (APERTURE) */
-
 /* pix[f * m_pad + m]: pixel m's x, y, z at t = 0 (f = 0, 1, 2);
- * pulse[p]: tx.xyz, eta, t0 fs (window start in samples of the data), the records' first sample
- *   (an integer, counted from t0 at the data's rate);
- * nodes[p N_NODES + k]: receiver position.xyz (and axis) at fast time k dtau;
+ * pulse[p] (bp_pulse_t): tx, the transmitter at emission; eta; t0_fs, the window start in
+ * samples of the data; first, the records' first sample (counted from t0 at the data's rate);
+ * nodes[p N_NODES + k] (node_t): the receiver's position at fast time k dtau;
+ * params (bp_block_params_t): c, f0, fs (of the data), dtau (node spacing), velocity (of the
+ * pixels), half_sin = sin(aperture / 2) (APERTURE);
+ * the records are declared by the launcher (clsas/image/backprojection.py, RECORDS);
  * data[p n + i]: the receiver's range-compressed record of pulse p;
  * pulses p_first .. p_first + p_count - 1 of the buffers are summed by this launch;
  * taps: see sinc8_lane (row r: fractional offset r / (TAP_ROWS - 1), samples i - 3 .. i + 4; the
  * row nearest to the pixel's offset is used);
  * image[m] += the block's sum. */
-__kernel void bp_block(__global const double *pix, __global const double8 *pulse,
-                       __global const double8 *nodes, __global const sample_t *data,
-                       __global const float *taps, const double8 params,
+__kernel void bp_block(__global const double *pix, __global const bp_pulse_t *pulse,
+                       __global const node_t *nodes, __global const sample_t *data,
+                       __global const float *taps, const bp_block_params_t params,
                        const int p_first, const int p_count, const int n, const int m_pad,
                        __global double2 *image)
 {
     const int g = get_global_id(0);
     const int m0 = 8 * g;
-    const double c = params.s0, f0 = params.s1, fs = params.s2, dtau = params.s3;
+    const double c = params.c, f0 = params.f0, fs = params.fs, dtau = params.dtau;
     const vec8 p0 = v8(vload8(0, pix + m0), vload8(0, pix + m_pad + m0), vload8(0, pix + 2 * m_pad + m0));
-    const vec8 vel = v8_splat(params.s456);
+    const double3 velocity = vload3(0, params.velocity);
+    const vec8 vel = v8_splat(velocity);
     realv8 acc_re = (realv8)0, acc_im = (realv8)0;
     for (int p = p_first; p < p_first + p_count; ++p) {
-        const double8 pl = pulse[p];
-        const vec8 tx = v8_splat(pl.s012);
-        const vec8 q_emit = v8_add(p0, v8_scale(vel, (double8)pl.s3));
-        __global const double8 *nd = nodes + (size_t)p * N_NODES;
+        const bp_pulse_t pl = pulse[p];
+        const vec8 tx = v8_splat(vload3(0, pl.tx));
+        const vec8 q_emit = v8_add(p0, v8_scale(vel, (double8)pl.eta));
+        __global const node_t *nd = nodes + (size_t)p * N_NODES;
 #ifndef STOP_AND_GO
-        const double8 t1 = meet_time8_uniform(v8_sub(q_emit, tx), params.s456, c);
+        const double8 t1 = meet_time8_uniform(v8_sub(q_emit, tx), velocity, c);
         const vec8 q = v8_add(q_emit, v8_scale(vel, t1));
         const double8 tau = reception8(nd, t1, q, c, dtau);
 #else
@@ -251,11 +256,11 @@ __kernel void bp_block(__global const double *pix, __global const double8 *pulse
         const double8 tau = (sqrt(v8_dot(out, out)) + sqrt(v8_dot(back, back))) / c;
 #endif
         /* fractional sample index in the record, split in double into integer and fraction */
-        const double8 k = tau * fs - pl.s4;
+        const double8 k = tau * fs - pl.t0_fs;
         long8 kl = convert_long8(k);
         kl += (k < convert_double8(kl));  /* floor (a true compare is -1) */
         const realv8 frac = convert_realv8(k - convert_double8(kl));
-        kl -= (long)pl.s5;  /* the records start pl.s5 samples into the window (after the split: exact) */
+        kl -= (long)pl.first;  /* the records start pl.first samples into the window (after the split: exact) */
         /* carrier exp(+j 2 pi f0 tau), cycles reduced in double */
         double8 cyc = f0 * tau;
         cyc -= convert_double8(convert_long8(cyc));
@@ -269,7 +274,7 @@ __kernel void bp_block(__global const double *pix, __global const double8 *pulse
         {
             const vec8 d = v8_sub(q, tx);
             const double8 s = d.y / sqrt(v8_dot(d, d));  /* sin of the angle off broadside (y: heading) */
-            const realv8 keep = convert_realv8(select((double8)0.0, (double8)1.0, fabs(s) <= params.s7));
+            const realv8 keep = convert_realv8(select((double8)0.0, (double8)1.0, fabs(s) <= params.half_sin));
             cs *= keep;
             sn *= keep;
         }
@@ -293,7 +298,7 @@ __kernel void bp_block(__global const double *pix, __global const double8 *pulse
          * fractional-offset row; zero unless all eight samples exist */
         const long8 ic = clamp(kl - 3, (long8)0, (long8)(n - 8));
         const realv8 keep = convert_realv8(select((double8)0.0, (double8)1.0, kl >= 3 && kl < (long8)(n - 4)));
-        const int8 row = convert_int8(frac * (real_t)(TAP_ROWS - 1) + (real_t)0.5);
+        const int8 row = NEAREST_TAP_ROW(convert_int8, frac);
         real_t v[16];
 #define TAPS8(L) vstore2(sinc8_lane(rec, ic.s##L, taps, row.s##L), L, v);
         TAPS8(0) TAPS8(1) TAPS8(2) TAPS8(3) TAPS8(4) TAPS8(5) TAPS8(6) TAPS8(7)

@@ -43,38 +43,33 @@ typedef float4 path_t;
 #define MAKE_PATH(st, fr, re, im) ((float4)(as_float(st), (float)(fr), (float)(re), (float)(im)))
 #endif
 
-/* params: c, f0, fs, wavelength, tx_length, dtau (node spacing, s), unused, unused */
-#define P_C(pr) ((pr).s0)
-#define P_F0(pr) ((pr).s1)
-#define P_FS(pr) ((pr).s2)
-#define P_LAMBDA(pr) ((pr).s3)
-#define P_LTX(pr) ((pr).s4)
-#define P_DTAU(pr) ((pr).s5)
-
 /* soa[((h * 8 + field) * n_pad + j]: the scatterers in receiver h's delay order j (padded to a
  * multiple of 8 with zero-reflectivity copies), fields p0.xyz, vel.xyz, refl re, im;
  * order[h n_pad + j]: their original index (for the occlusion weights);
- * pulse[p]: tx.xyz, eta, tx axis.xyz; nodes[(h P + p) N_NODES + k]: position.xyz, axis.xyz at
- * fast time k dtau; rx[h]: t0_h fs (window start in samples: the echo centre is
- * u = tau fs - t0_h fs), element length; weights[(h P + p) N + n] (PATH_WEIGHTS only).
+ * pulse[p]: the transmitter at emission, the emission time and the transmitter's element axis;
+ * nodes[(h P + p) N_NODES + k]: receiver h's position and element axis at fast time k dtau;
+ * rx[h]: t0_h fs (window start in samples: the echo centre is u = tau fs - t0_h fs) and the
+ * element length; params: c, f0, fs, wavelength, tx_length, dtau (node spacing, s);
+ * weights[(h P + p) N + n] (PATH_WEIGHTS only). The records (echo_pulse_t, node_t, echo_rx_t,
+ * echo_params_t) are declared by the launcher (clsas/simulate/echo/synth.py, RECORDS).
  * One work-item: paths j = 8 g .. 8 g + 7 of (pulse p, receiver h); output at (h P + p) n_pad + j. */
-__kernel void echo_paths(__global const double *soa, __global const double8 *pulse,
-                         __global const double8 *nodes, __global const double2 *rx,
+__kernel void echo_paths(__global const double *soa, __global const echo_pulse_t *pulse,
+                         __global const node_t *nodes, __global const echo_rx_t *rx,
                          __global const int *order, __global const float *weights,
-                         const double8 params, const int n_scat, const int n_pad, const int n_pulses,
+                         const echo_params_t params, const int n_scat, const int n_pad, const int n_pulses,
                          __global path_t *paths)
 {
     const int g = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
     const int j0 = 8 * g;
-    const double c = P_C(params), dtau = P_DTAU(params);
+    const double c = params.c, dtau = params.dtau;
     __global const double *f = soa + (size_t)h * 8 * n_pad + j0;
     const vec8 p0 = v8(vload8(0, f), vload8(0, f + n_pad), vload8(0, f + 2 * n_pad));
     const vec8 vel = v8(vload8(0, f + 3 * n_pad), vload8(0, f + 4 * n_pad), vload8(0, f + 5 * n_pad));
     const double8 refl_re = vload8(0, f + 6 * n_pad), refl_im = vload8(0, f + 7 * n_pad);
-    const double8 pl = pulse[p];
-    const vec8 tx = v8_splat(pl.s012);
-    const vec8 q_emit = v8_add(p0, v8_scale(vel, (double8)pl.s3));
-    __global const double8 *nd = nodes + ((size_t)h * n_pulses + p) * N_NODES;
+    const echo_pulse_t pl = pulse[p];
+    const vec8 tx = v8_splat(vload3(0, pl.tx));
+    const vec8 q_emit = v8_add(p0, v8_scale(vel, (double8)pl.eta));
+    __global const node_t *nd = nodes + ((size_t)h * n_pulses + p) * N_NODES;
 #ifndef STOP_AND_GO
     const double8 t1 = meet_time8(v8_sub(q_emit, tx), vel, c);
     const vec8 q = v8_add(q_emit, v8_scale(vel, t1));
@@ -92,9 +87,9 @@ __kernel void echo_paths(__global const double *soa, __global const double8 *pul
 #else
     const double8 tau = (r1 + r2) / c;
 #endif
-    const double2 rxh = rx[h];
-    double8 gain = element_gain8(P_LTX(params), out_dir, r1, v8_splat(pl.s456), P_LAMBDA(params))
-                 * element_gain8(rxh.s1, back_dir, r2, node_field(nd, t_rx, dtau, 3), P_LAMBDA(params));
+    const echo_rx_t rxh = rx[h];
+    double8 gain = element_gain8(params.tx_length, out_dir, r1, v8_splat(vload3(0, pl.tx_axis)), params.wavelength)
+                 * element_gain8(rxh.length, back_dir, r2, node_field(nd, t_rx, dtau, 1), params.wavelength);
 #ifdef SPREADING
     gain /= r1 * r2;
 #endif
@@ -107,7 +102,7 @@ __kernel void echo_paths(__global const double *soa, __global const double8 *pul
     }
 #endif
     /* carrier exp(-j 2 pi f0 tau): cycles reduced in double, then sin/cos of the fraction */
-    double8 cyc = -P_F0(params) * tau;
+    double8 cyc = -params.f0 * tau;
     cyc -= convert_double8(convert_long8(cyc));
 #ifdef CLSAS_DOUBLE
     const double8 cs = cospi(2.0 * cyc), sn = sinpi(2.0 * cyc);
@@ -117,7 +112,7 @@ __kernel void echo_paths(__global const double *soa, __global const double8 *pul
     const double8 cs = convert_double8(csf), sn = convert_double8(snf);
 #endif
     const double8 re = gain * (refl_re * cs - refl_im * sn), im = gain * (refl_re * sn + refl_im * cs);
-    const double8 u = tau * P_FS(params) - rxh.s0;
+    const double8 u = tau * params.fs - rxh.t0_fs;
     long8 fl = convert_long8(u);
     fl += (u < convert_double8(fl));  /* floor by truncation and fix-up (a true compare is -1) */
     const double8 fr = u - convert_double8(fl);

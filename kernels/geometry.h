@@ -3,8 +3,9 @@
  * NumPy twin: clsas/geometry.py (fixed-point iteration; the closed forms here agree
  * with it to its 1e-6-period tolerance, tests/test_echo.py and tests/test_backprojection.py).
  *
- * Needs N_NODES (receiver position nodes a pulse, >= 2) and SEGMENT_PASSES defined, and
- * cl_khr_fp64 enabled.
+ * Needs N_NODES (receiver position nodes a pulse, >= 2) and SEGMENT_PASSES defined, cl_khr_fp64
+ * enabled, and the receiver node record node_t (fields pos[3], axis[3]: clsas.geometry.NODE,
+ * declared in the kernel's preamble by the launcher).
  */
 #ifndef CLSAS_GEOMETRY_H
 #define CLSAS_GEOMETRY_H
@@ -48,13 +49,17 @@ inline double8 meet_time8_uniform(vec8 d, double3 w, double c)
     return (b + sqrt(b * b + a * v8_dot(d, d))) * (1.0 / a);
 }
 
-/* Receiver node field (position: offset 0, element axis: offset 3) at fast times tau, linear
- * between nodes k dtau; with two nodes the single segment serves every lane. */
-inline vec8 node_field(__global const double8 *nd, double8 tau, double dtau, int field)
+/* A node's position (field 0) or element axis (field 1) as a vector. */
+#define NODE_POS(n) vload3(0, (n).pos)
+#define NODE_FIELD(n, field) ((field) == 0 ? vload3(0, (n).pos) : vload3(0, (n).axis))
+
+/* Receiver node field (position: 0, element axis: 1) at fast times tau, linear between nodes
+ * k dtau; with two nodes the single segment serves every lane. */
+inline vec8 node_field(__global const node_t *nd, double8 tau, double dtau, int field)
 {
 #if N_NODES == 2
     const double8 w = tau / dtau;
-    const double3 a = field == 0 ? nd[0].s012 : nd[0].s345, b = field == 0 ? nd[1].s012 : nd[1].s345;
+    const double3 a = NODE_FIELD(nd[0], field), b = NODE_FIELD(nd[1], field);
     return v8(a.x + (b.x - a.x) * w, a.y + (b.y - a.y) * w, a.z + (b.z - a.z) * w);
 #else
     double t[8], x[8], y[8], z[8];
@@ -62,8 +67,8 @@ inline vec8 node_field(__global const double8 *nd, double8 tau, double dtau, int
     for (int l = 0; l < 8; ++l) {
         const int seg = clamp(convert_int(t[l] / dtau), 0, N_NODES - 2);
         const double w = t[l] / dtau - (double)seg;
-        const double3 a = field == 0 ? nd[seg].s012 : nd[seg].s345;
-        const double3 b = field == 0 ? nd[seg + 1].s012 : nd[seg + 1].s345;
+        const double3 a = NODE_FIELD(nd[seg], field);
+        const double3 b = NODE_FIELD(nd[seg + 1], field);
         const double3 r = mix(a, b, w);
         x[l] = r.x; y[l] = r.y; z[l] = r.z;
     }
@@ -76,11 +81,11 @@ inline vec8 node_field(__global const double8 *nd, double8 tau, double dtau, int
  * with R_k extended linearly; the segment is taken where t1 + |R(t1) - Q| / c falls and
  * re-chosen (SEGMENT_PASSES times) if the solution lands in another one. Exact in one pass
  * for two nodes (uniform motion). Returns the fast time of reception t1 + t2. */
-inline double8 reception8(__global const double8 *nd, double8 t1, vec8 q, double c, double dtau)
+inline double8 reception8(__global const node_t *nd, double8 t1, vec8 q, double c, double dtau)
 {
     const vec8 r_t1 = node_field(nd, t1, dtau, 0);
 #if N_NODES == 2
-    return t1 + meet_time8_uniform(v8_sub(r_t1, q), (nd[1].s012 - nd[0].s012) / dtau, c);
+    return t1 + meet_time8_uniform(v8_sub(r_t1, q), (NODE_POS(nd[1]) - NODE_POS(nd[0])) / dtau, c);
 #else
     double8 t_rx = t1 + sqrt(v8_dot(v8_sub(r_t1, q), v8_sub(r_t1, q))) / c;
     for (int pass = 0; pass < SEGMENT_PASSES; ++pass) {
@@ -89,8 +94,8 @@ inline double8 reception8(__global const double8 *nd, double8 t1, vec8 q, double
         vstore8(t1, 0, t1s);
         for (int l = 0; l < 8; ++l) {
             const int seg = clamp(convert_int(tr[l] / dtau), 0, N_NODES - 2);
-            const double3 w3 = (nd[seg + 1].s012 - nd[seg].s012) / dtau;
-            const double3 r3 = nd[seg].s012 + w3 * (t1s[l] - (double)seg * dtau);
+            const double3 w3 = (NODE_POS(nd[seg + 1]) - NODE_POS(nd[seg])) / dtau;
+            const double3 r3 = NODE_POS(nd[seg]) + w3 * (t1s[l] - (double)seg * dtau);
             wx[l] = w3.x; wy[l] = w3.y; wz[l] = w3.z;
             rx_[l] = r3.x; ry[l] = r3.y; rz[l] = r3.z;
         }

@@ -21,8 +21,7 @@ from clsas.scene.scenario import (
     Waveform,
 )
 from clsas.scene.targets import PointTargets
-from clsas.simulate import delays, simulate
-from clsas.simulate.echo import pipeline
+from clsas.simulate import SynthesisOptions, delays, simulate, synthesize
 
 
 def kiang(n_pulses=8, fs_factor=1.0, **changes):
@@ -33,14 +32,16 @@ def kiang(n_pulses=8, fs_factor=1.0, **changes):
 
 
 def reference_and_kernel(sc, precision="single", **kw):
-    ref = pipeline._synthesize(sc, "numpy", False, progress=False, max_bytes=2**31, chunk_bytes=2**26,
-                           stop_and_go=kw.get("stop_and_go", False), spreading=kw.get("spreading", False),
-                           occlusion=kw.get("occlusion"))
-    got = pipeline._synthesize(sc, "opencl", precision == "double", progress=False, max_bytes=2**31,
-                           chunk_bytes=2**26, stop_and_go=kw.get("stop_and_go", False),
-                           spreading=kw.get("spreading", False), occlusion=kw.get("occlusion"))
-    np.testing.assert_array_equal(ref["t0"], got["t0"])
-    return ref["data"], got["data"]
+    """The float64 NumPy reference (complex128) and the OpenCL kernel's samples (complex64, or
+    complex128 with precision="double") of the same options."""
+    common = dict(progress=False, max_bytes=2**31, chunk_bytes=2**26, stop_and_go=kw.get("stop_and_go", False),
+                  spreading=kw.get("spreading", False))
+    ref = synthesize(sc, SynthesisOptions(backend="numpy", dtype=np.complex128, **common), kw.get("occlusion"))
+    got = synthesize(sc, SynthesisOptions(backend="opencl", precision=precision,
+                                          dtype=np.complex128 if precision == "double" else np.complex64, **common),
+                     kw.get("occlusion"))
+    np.testing.assert_array_equal(ref.t0, got.t0)
+    return ref.data, got.data
 
 
 # ---------------------------------------------------------------- delays
@@ -328,3 +329,37 @@ def test_scales_to_1e5_scatterers_with_bounded_memory(opencl_device):
     assert out.data.shape[:2] == (3, 1024) and np.all(np.abs(out.data).max(axis=2) > 0)
     # 3 x 1024 x ~600 samples of complex64 is 15 MB; the path records of all pulses would be 4.9 GB
     assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 < 4 * 2**30
+
+
+# ---------------------------------------------------------------- options and the public reference
+
+@pytest.mark.parametrize("option,value,error", [
+    ("precision", "half", ValueError), ("dtype", np.float32, ValueError), ("dtype", "bogus", ValueError),
+    ("stop_and_go", "yes", TypeError), ("spreading", 1, TypeError), ("progress", None, TypeError),
+    ("max_bytes", 0, ValueError), ("chunk_bytes", -5, ValueError), ("max_bytes", True, TypeError),
+    ("reuse_tolerance", -1.0, ValueError), ("reuse_tolerance", np.nan, ValueError), ("backend", "cuda", ValueError),
+])
+def test_options_are_checked_once_naming_the_option(option, value, error):
+    with pytest.raises(error, match=option if option != "backend" else "backend"):
+        SynthesisOptions(**{option: value})
+
+
+def test_options_are_frozen_and_normalised():
+    opts = SynthesisOptions(backend="numpy", dtype="complex128", max_bytes=np.int64(2**30), reuse_tolerance=0)
+    assert opts.backend == "numpy" and opts.dtype == np.complex128 and not opts.double
+    assert type(opts.max_bytes) is int and type(opts.reuse_tolerance) is float
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        opts.stop_and_go = True
+
+
+def test_synthesize_gives_the_float64_reference_simulate_rounds():
+    """synthesize(backend="numpy", dtype=complex128) is the reference simulate() returns in
+    complex64: the same samples up to float32 rounding, the same windows."""
+    sc = kiang(4, targets=(PointTargets([[1989.0, 5.0, -350.0], [40.0, -2.0, -45.0]]),))
+    ref = synthesize(sc, SynthesisOptions(backend="numpy", dtype=np.complex128, progress=False))
+    echo = simulate(sc, backend="numpy", progress=False)
+    assert ref.data.dtype == np.complex128 and echo.data.dtype == np.complex64
+    np.testing.assert_array_equal(ref.t0, echo.t0)
+    np.testing.assert_array_equal(ref.data.astype(np.complex64), echo.data)
+    with pytest.raises(TypeError, match="options"):
+        synthesize(sc, {"backend": "numpy"})

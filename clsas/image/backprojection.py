@@ -13,10 +13,10 @@ which focuses a moving target, Kiang & Kiang 2022), every selected receiver h an
 s the range-compressed record sampled at ``t0_h + k / fs``: its value at tau comes from linear
 interpolation of the record FFT-upsampled by ``upsample`` in blocks (``interp="linear"``;
 :mod:`clsas.image.backprojection_records`: only the fast-time span the grid reaches) or from an
-8-tap Kaiser-windowed sinc (beta = 5, :func:`clsas.kernelmath.kaiser_sinc_tap`) on the original
-samples (``interp="sinc8"``). The rotation exp(+j 2 pi f0 tau) undoes the carrier phase
-exp(-j 2 pi f0 tau) of the baseband echo (DESIGN.md signal model), so all contributions of a
-scatterer add in phase at its pixel.
+8-tap Kaiser-windowed sinc of :mod:`clsas.interp` on the original samples (``interp="sinc8"``;
+:func:`clsas.interp.read_rows` in the reference, ``kernels/interp.h`` in the kernels). The
+rotation exp(+j 2 pi f0 tau) undoes the carrier phase exp(-j 2 pi f0 tau) of the baseband echo
+(DESIGN.md signal model), so all contributions of a scatterer add in phase at its pixel.
 
 Aperture: ``aperture`` (radians, full integration angle) keeps only the pulses that see the
 pixel within +-aperture/2 of broadside: |sin theta| <= sin(aperture / 2) with sin theta the
@@ -52,7 +52,6 @@ depend on both and are computed in every call (a few per cent of the kernels' ti
 
 from __future__ import annotations
 
-import functools
 import warnings
 
 import numpy as np
@@ -61,22 +60,32 @@ from ..progress import NOMINAL_RATES, Progress, stage
 from .. import backend as _backend
 from .. import budget, opencl, validate
 from ..data import EchoData, Grid, Image
-from ..kernelmath import kaiser_sinc_tap
-from ..geometry import legs, two_node_velocity, uniform_nodes
+from ..cstruct import declare_all, record_dtype
+from ..geometry import NODE, legs, two_node_velocity, uniform_nodes
+from ..interp import TAP_ROWS, kernel_taps, read_rows
 from .backprojection_records import PreparedRecords, check_options, fast_time_spans, prepare, reach
 from .backprojection_tiles import ERROR_FACTOR, LANES, PHASE_BUDGET, ROWS, GridPlan, Tiling, plan_tiles, tile_half_extent
 
 __all__ = ["ERROR_FACTOR", "PHASE_BUDGET", "GridPlan", "PreparedRecords", "Tiling", "backproject", "plan_tiles", "prepare",
            "reach", "tile_half_extent"]
 
-SINC_BETA = 5.0
-TAP_ROWS = 2049  # sinc8 tap table rows over the fractional offset [0, 1] (nearest row is used)
 PULSE_BLOCK = 64  # pulses a kernel launch (one reference sub-block; 32 was ~4 % slower: more launches)
 PIXEL_CHUNK = 2**22  # pixels on the device at once
 PULSES = 2  # bp_tile: pulses a work-item step (with LANES x ROWS pixels, backprojection_tiles)
 NODE_TOLERANCE = 1 / 2000  # of a wavelength: a receiver's allowed departure from linear motion over a tile
 SPAN_FACTOR = 2.5  # a tile's delay span is +-SPAN_FACTOR * half_extent / c around its reference
 REF_PULSES = 64  # pulses whose tile references are computed at once
+# the records the kernels read (kernels/backprojection.cl), declared once here: bp_tile's reference
+# of a (tile, pulse) and its parameters (float32), bp_block's pulse and parameters (float64)
+TILE_REF = record_dtype([("leg1", "f4", 3), ("b1", "f4"), ("leg2", "f4", 3), ("b2", "f4"), ("v_rx", "f4", 3),
+                         ("a2", "f4"), ("k_ref", "i4"), ("k_frac", "f4"), ("cycles", "f4"), ("range1", "f4")])
+TILE_PARAMS = record_dtype([("a1", "f4"), ("fs", "f4"), ("f0", "f4"), ("velocity", "f4", 3), ("half_sin", "f4"),
+                            ("c", "f4")])
+PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("t0_fs", "f8"), ("first", "i4")])
+BLOCK_PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("dtau", "f8"), ("velocity", "f8", 3),
+                             ("half_sin", "f8")])
+RECORDS = declare_all({"node_t": NODE, "tile_ref_t": TILE_REF, "tile_params_t": TILE_PARAMS, "bp_pulse_t": PULSE,
+                       "bp_block_params_t": BLOCK_PARAMS})
 BYTES_PER_PIXEL = 80  # what a call adds a pixel (tests/test_backprojection.py measures it)
 
 
@@ -117,31 +126,6 @@ def _aperture_keep(echo, pulses, q, half_sin):
     return np.abs(d[..., 1] / np.linalg.norm(d, axis=-1)) <= half_sin
 
 
-def _sample(records: np.ndarray, i: np.ndarray, frac: np.ndarray, interp: str) -> np.ndarray:
-    """Records (P, n) read at fractional positions i + frac (P, M), i integer, 0 <= frac < 1.
-
-    ``"linear"``: (1 - f) s[i] + f s[i + 1], zero unless both samples exist. ``"sinc8"``:
-    sum_j w_j(f) s[i + j], j = -3..4, zero unless all eight exist, with the Kaiser-windowed sinc
-    taps w_j(f) = kaiser_sinc_tap(f - j, 4, 5) evaluated at the fractional offset rounded to the
-    nearest 1/(TAP_ROWS - 1) (the OpenCL kernel's tap table; the rounding of at most 1/4096
-    sample costs at most 2 pi (fs/4) / (4096 fs) = 4e-4 rad at the edge of a band sampled at
-    twice its width).
-    """
-    n = records.shape[1]
-    rows = np.arange(records.shape[0])[:, None]
-
-    def at(j):
-        return records[rows, np.clip(j, 0, n - 1)]
-
-    if interp == "linear":
-        return np.where((i >= 0) & (i < n - 1), (1 - frac) * at(i) + frac * at(i + 1), 0)
-    row = np.floor(frac * (TAP_ROWS - 1) + 0.5) / (TAP_ROWS - 1)
-    out = np.zeros(i.shape, dtype=np.complex128)
-    for j in range(-3, 5):
-        out += kaiser_sinc_tap(row - j, 4.0, SINC_BETA) * at(i + j)
-    return np.where((i >= 3) & (i < n - 4), out, 0)
-
-
 def backproject_reference(records: PreparedRecords, plan: "GridPlan", aperture, velocity, stop_and_go, progress,
                           span: tuple[int, int]):
     """The float64 NumPy reference (vectorised over pixels, at most 2^20 pixels and a few pulses
@@ -166,7 +150,7 @@ def backproject_reference(records: PreparedRecords, plan: "GridPlan", aperture, 
             tau = t1 + t2
             k = (tau - echo.t0[h]) * fs
             whole = np.floor(k)
-            value = _sample(samples, whole.astype(np.int64) - records.offset[i], k - whole, records.interp)
+            value = read_rows(samples, whole.astype(np.int64) - records.offset[i], k - whole, records.interp)
             value *= np.exp(2j * np.pi * f0 * tau)
             if aperture is not None:
                 value *= _aperture_keep(echo, pulses, q, np.sin(aperture / 2))
@@ -176,21 +160,12 @@ def backproject_reference(records: PreparedRecords, plan: "GridPlan", aperture, 
     return image
 
 
-@functools.lru_cache(maxsize=1)
-def _tap_table() -> np.ndarray:
-    """sinc8 taps (TAP_ROWS, 16) float32: row r holds w_j(r / (TAP_ROWS - 1)), j = -3..4, each twice
-    (for the real and the imaginary part of a sample; kernels/backprojection.cl sinc8_lane). A
-    constant, computed once per process (~4 ms of Bessel functions)."""
-    frac = np.linspace(0.0, 1.0, TAP_ROWS)[:, None]
-    table = np.repeat(kaiser_sinc_tap(frac - np.arange(-3, 5)[None, :], 4.0, SINC_BETA), 2, axis=1).astype(np.float32)
-    table.flags.writeable = False
-    return table
 
 
 def tile_references(echo: EchoData, h: int, pulses: np.ndarray, centres: np.ndarray, velocity: np.ndarray,
                     stop_and_go: bool, fs: float, half_extent: float, offset: int = 0) -> tuple[np.ndarray, float]:
-    """bp_tile's per-(tile, pulse) reference (T, P, 16) float32 (layout in kernels/backprojection.cl)
-    for the T tile ``centres`` and the P ``pulses``, and the receiver's largest departure (m) from
+    """bp_tile's per-(tile, pulse) references (T, P) :data:`TILE_REF` (their meaning in
+    :func:`backproject_opencl` and kernels/backprojection.cl) for the T tile ``centres`` and the P ``pulses``, and the receiver's largest departure (m) from
     the linear motion the kernel assumes over the tiles' delay spans (0 for stop-and-go and for
     receivers with two nodes, whose motion is uniform). ``offset``: the first sample of the records
     the kernel reads, counted at ``fs`` from the window start t0 (taken off the integer part only)."""
@@ -220,18 +195,18 @@ def tile_references(echo: EchoData, h: int, pulses: np.ndarray, centres: np.ndar
     k_ref = (big_t - echo.t0[h]) * fs
     k_int = np.clip(np.floor(k_ref), -2**30, 2**30)
     cycles = f0 * big_t
-    ref = np.empty(big_t.shape + (16,), dtype=np.float32)
-    ref[..., 0:3] = b_vec
-    ref[..., 3] = c * c * t1 - b_vec @ v_k
-    ref[..., 4:7] = c_vec
-    ref[..., 7] = c * c * t2 - np.einsum("...i,...i->...", c_vec, v_r)
-    ref[..., 8:11] = v_r
-    ref[..., 11] = c * c - np.einsum("...i,...i->...", v_r, v_r)
-    ref[..., 12] = (k_int - offset).astype(np.int32).view(np.float32)
-    ref[..., 13] = np.clip(k_ref - k_int, 0.0, np.nextafter(np.float32(1), np.float32(0)))
-    ref[..., 14] = cycles - np.round(cycles)
-    ref[..., 15] = c * t1
-    return np.ascontiguousarray(ref.transpose(1, 0, 2)), departure
+    ref = np.empty(big_t.shape, dtype=TILE_REF)
+    ref["leg1"] = b_vec
+    ref["b1"] = c * c * t1 - b_vec @ v_k
+    ref["leg2"] = c_vec
+    ref["b2"] = c * c * t2 - np.einsum("...i,...i->...", c_vec, v_r)
+    ref["v_rx"] = v_r
+    ref["a2"] = c * c - np.einsum("...i,...i->...", v_r, v_r)
+    ref["k_ref"] = k_int - offset
+    ref["k_frac"] = np.clip(k_ref - k_int, 0.0, np.nextafter(np.float32(1), np.float32(0)))
+    ref["cycles"] = cycles - np.round(cycles)
+    ref["range1"] = c * t1
+    return np.ascontiguousarray(ref.T), departure
 
 
 def _exact_kernel(ctx, echo, h, pulses, fs, offset, velocity, half_sin, defines, stop_and_go, double):
@@ -241,17 +216,19 @@ def _exact_kernel(ctx, echo, h, pulses, fs, offset, velocity, half_sin, defines,
 
     dtau, pos = uniform_nodes(echo, h)
     n_nodes = pos.shape[1]
-    kern = opencl.kernel("backprojection", "bp_block", double=double, defines=dict(
+    kern = opencl.kernel("backprojection", "bp_block", double=double, preamble=RECORDS, defines=dict(
         defines, N_NODES=n_nodes, SEGMENT_PASSES=1 if n_nodes == 2 else 3, **({"STOP_AND_GO": 1} if stop_and_go else {})))
-    pulse = np.zeros((pulses.size, 8))
-    pulse[:, 0:3], pulse[:, 3], pulse[:, 4] = echo.tx_pos[pulses], echo.eta[pulses], echo.t0[h] * fs
-    pulse[:, 5] = offset
-    nodes = np.zeros((pulses.size, n_nodes, 8))
-    nodes[..., 0:3] = pos[pulses]
+    pulse = np.zeros(pulses.size, PULSE)
+    pulse["tx"], pulse["eta"], pulse["t0_fs"] = echo.tx_pos[pulses], echo.eta[pulses], echo.t0[h] * fs
+    pulse["first"] = offset
+    nodes = np.zeros((pulses.size, n_nodes), NODE)
+    nodes["pos"] = pos[pulses]
     pulse_buf, nodes_buf = (cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=a)
                             for a in (pulse, nodes))
-    params = np.array([echo.medium.sound_speed, echo.waveform.f0, fs, dtau, *velocity, half_sin])
-    return kern, pulse_buf, nodes_buf, params.view(cl.cltypes.double8)[0]
+    params = np.zeros((), BLOCK_PARAMS)
+    params["c"], params["f0"], params["fs"], params["dtau"] = echo.medium.sound_speed, echo.waveform.f0, fs, dtau
+    params["velocity"], params["half_sin"] = velocity, half_sin
+    return kern, pulse_buf, nodes_buf, params[()]
 
 
 class _Chunk:
@@ -337,7 +314,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
     pixels = plan.grid.positions.reshape(-1, 3)
     image = np.zeros(pixels.shape[0], dtype=np.complex128)
-    taps_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=_tap_table())
+    taps_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=kernel_taps(interp))
     defines = {"INTERP_LINEAR" if interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS,
                **({"APERTURE": 1} if aperture is not None else {})}
     half_sin = np.sin(aperture / 2) if aperture is not None else 1.0
@@ -364,9 +341,11 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
             bar.done(work.pop(0))  # the progress bar counts finished kernels' pixel-pulses
         return seconds
 
-    tile_kernel = opencl.kernel("backprojection", "bp_tile", defines=dict(
+    tile_kernel = opencl.kernel("backprojection", "bp_tile", preamble=RECORDS, defines=dict(
         defines, BP_TILE=1, ROWS=ROWS, PULSES=PULSES, **({"MOVING": 1} if np.any(v_k) else {})))
-    tile_params = np.array([c * c - v_k @ v_k, fs, f0, *v_k, half_sin, c], dtype=np.float32).view(cl.cltypes.float8)[0]
+    tile_params = np.zeros((), TILE_PARAMS)
+    tile_params["a1"], tile_params["fs"], tile_params["f0"] = c * c - v_k @ v_k, fs, f0
+    tile_params["velocity"], tile_params["half_sin"], tile_params["c"] = v_k, half_sin, c
     bar = Progress(pixels.shape[0] * len(records.receivers) * (span[1] - span[0]), "pixel-pulses", "back-projection (opencl)",
                    progress)
     work = []
@@ -394,7 +373,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                     for p0, count in blocks:
                         events.append(tile_kernel(
                             queue, (chunk_state.n // (LANES * ROWS),), None, chunk_state.pix, chunk_state.tile_of,
-                            ref_buf, np.int32(ref.shape[1]), np.int32(skip + s), records_buf, taps_buf, tile_params,
+                            ref_buf, np.int32(ref.shape[1]), np.int32(skip + s), records_buf, taps_buf, tile_params[()],
                             np.int32(skip + p0), np.int32(count), np.int32(n_samples), np.int32(chunk_state.n),
                             chunk_state.image))
                     continue

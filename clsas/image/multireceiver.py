@@ -104,7 +104,7 @@ def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and
         with v PRI = M d / 2); overlapping or gapped phase centres are refused.
     compensate : apply :func:`compensate_bistatic` (False shows the uncompensated PCA error).
     stop_and_go : how the echoes were made (default ``echo.provenance["stop_and_go"]``).
-    backend : where the micro-range interpolation runs (:func:`clsas.image.stolt.resample`).
+    backend : where the micro-range interpolation runs (:func:`clsas.interp.resample`).
 
     Returns
     -------

@@ -38,10 +38,11 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft
 
+from ..interp import check_options
 from .checks import check_imager
 from .rangecomp import WINDOWS, spectral_window
 from .record import along_track_wavenumbers, as_record, azimuth_weights, check_elements, image_of, nonstop_shift, unit_phasor
-from .stolt import StoltAxes, check_options, stolt
+from .stolt import StoltAxes, stolt
 
 
 def omega_k(data, receiver=0, window: str = "hamming", elements=None, deconvolve: bool = True, interp: str = "sinc8",
@@ -58,7 +59,7 @@ def omega_k(data, receiver=0, window: str = "hamming", elements=None, deconvolve
         and the pattern deconvolution (eqs. 44-45). None keeps the whole sampled band.
     deconvolve : divide by the element pattern A(k_y) (eq. 44); False keeps its taper, as
         back-projection does (for like-for-like comparisons).
-    interp, tap_window : the Stolt interpolator (:func:`clsas.image.stolt.stolt`).
+    interp, tap_window : the Stolt interpolator (:func:`clsas.image.stolt.stolt`, :mod:`clsas.interp`).
     backend : where the Stolt map (and an EchoData's path-excess interpolation) runs; the FFTs
         run on the host (scipy.fft).
     depth : the horizontal plane the image's pixel positions are placed on (default: the track's).

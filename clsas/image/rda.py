@@ -13,7 +13,7 @@ lambda f_t / (2 v) = k_u / (2 k0)):
    allows (the phase error within half a block below pi / 16 at the band edge f_tau = B / 2).
 3. Range-cell-migration correction (eq. 23): a target at closest range r lies at
    tau = 2 r / (c beta); column tau_out = 2 r / c reads tau_out / beta (windowed-sinc interpolation,
-   :func:`clsas.image.stolt.resample`).
+   :func:`clsas.interp.resample`).
 4. Azimuth compression (eq. 24): exp(+j 2 k0 beta r), with r = c tau_out / 2 (the data carry
    exp(-j sqrt(4 k0^2 - k_u^2) r - j k_u y) = exp(-j 2 k0 beta r - j k_u y)); the
    non-stop-and-go along-track shift (eq. 25); the inverse along-track FFT.
@@ -29,9 +29,9 @@ import itertools
 import numpy as np
 import scipy.fft
 
+from ..interp import resample
 from .checks import check_imager
 from .record import along_track_wavenumbers, as_record, azimuth_weights, check_elements, image_of, nonstop_shift
-from .stolt import resample
 
 
 def src_block_width(rec, beta_min: float) -> float:

@@ -28,10 +28,10 @@ import scipy.fft
 
 from .. import validate
 from ..data import EchoData, Image
+from ..interp import resample
 from ..scene.scenario import MAX_ELEMENT
 from ..scene.scenario import Medium, Waveform
 from .rangecomp import spectral_window
-from .stolt import resample
 
 STRAIGHTNESS = 0.05  # allowed deviation of the track from a line, wavelengths
 
@@ -132,7 +132,7 @@ def compensate_bistatic(data, t0: float, fs: float, d: float, speed: float, wave
     """Remove the bistatic deformation (Huang & Yang eqs. 16-17) from the compressed records
     ``data`` (n_pulses, n) of a receiver d metres ahead of the transmitter, sampled from fast
     time ``t0`` at ``fs``; the output is sampled from ``t0_out`` (default ``t0``) on the same
-    number of samples; ``backend`` runs the interpolation (:func:`clsas.image.stolt.resample`).
+    number of samples; ``backend`` runs the interpolation (:func:`clsas.interp.resample`).
     complex64 (n_pulses, n)."""
     c = medium.sound_speed
     n = data.shape[1]

@@ -1,5 +1,5 @@
 """Scene -> EchoData: echo synthesis (and, with meshes, hull occlusion)."""
 
-from .echo import delays, simulate
+from .echo import Synthesis, SynthesisOptions, delays, simulate, synthesize
 
-__all__ = ["delays", "simulate"]
+__all__ = ["Synthesis", "SynthesisOptions", "delays", "simulate", "synthesize"]

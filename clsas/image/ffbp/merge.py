@@ -9,9 +9,9 @@ sample or a pixel) the merge forms
     out(X) = sum_c J_c(r_c(X), v_c(X)) exp(+j 4 pi f0 (r_c(X) - r_p(X)) / c),
 
 the child read by the separable ``taps`` x ``taps`` windowed sinc of
-:func:`clsas.image.stolt.tap_table` (Knab's window for the oversampling ``rho``; positions in
+:func:`clsas.interp.tap_table` (Knab's window for the oversampling ``rho``; positions in
 samples i = (r - r0) / dr and j = (v - v0) / dv; the taps of a fractional offset come from the
-nearest of stolt.TAP_ROWS table rows), zero unless all taps x taps samples exist; r_p is the
+nearest of clsas.interp.TAP_ROWS table rows), zero unless all taps x taps samples exist; r_p is the
 parent's centre range for a parent grid (the parent is demodulated in turn) and 0 for pixels
 (the final stage restores the full phase, giving back-projection's image). Phases in cycles,
 2 f0 (r_c - r_p) / c, reduced to their fraction before the exponential.
@@ -25,8 +25,8 @@ from __future__ import annotations
 import numpy as np
 
 from ... import opencl
+from ...interp import TAP_ROWS, tap_table
 from ...kernelmath import expj_cycles
-from ..stolt import TAP_ROWS, tap_table
 from .polar import PolarGrid
 
 KERNEL_TAPS = (4, 8)

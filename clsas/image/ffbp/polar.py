@@ -33,7 +33,7 @@ the maxima taken over a = +-L, v over the grid's span and r = r_min (the nearest
 both bounds fall with r). The first term of W_r is the pulse band (f in f0 +- B/2), the second
 the range curvature of a long sub-aperture (its polar image is not band-limited to B alone).
 Samples every dr = 1 / (2 W_r rho) and dv = 1 / (2 W_v rho) oversample the band by rho; a
-T-tap windowed sinc (Knab's window for that oversampling, :func:`clsas.image.stolt.tap_table`)
+T-tap windowed sinc (Knab's window for that oversampling, :func:`clsas.interp.tap_table`)
 then interpolates a band-edge component with an error e_T(rho) (amplitude and phase, relative;
 tabulated by :func:`interpolation_error`). A merge tree of S interpolation stages makes 2 S
 interpolation errors (range and angle at each stage): rho is
@@ -52,7 +52,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..stolt import tap_table
+from ...interp import tap_table
 
 RHO_STEPS = np.round(np.arange(1.2, 6.01, 0.05), 2)  # oversamplings tried by the sampling rule
 SKELETON = 4096  # at most about this many pixels stand for the grid when extents are computed

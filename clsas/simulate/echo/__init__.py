@@ -1,7 +1,8 @@
-"""Echo synthesis (kernels/echo.cl): :mod:`.pipeline` (simulate, delays, noise) drives the
-NumPy reference and the OpenCL launcher of :mod:`.synth`."""
+"""Echo synthesis (kernels/echo.cl): :mod:`.pipeline` (simulate, synthesize, delays, noise) drives
+the NumPy reference and the OpenCL launcher of :mod:`.synth`, with the options of :mod:`.options`."""
 
-from .pipeline import add_noise, delays, simulate
+from .options import SynthesisOptions
+from .pipeline import Synthesis, add_noise, delays, simulate, synthesize
 from .synth import accumulate_reference
 
-__all__ = ["accumulate_reference", "add_noise", "delays", "simulate"]
+__all__ = ["Synthesis", "SynthesisOptions", "accumulate_reference", "add_noise", "delays", "simulate", "synthesize"]

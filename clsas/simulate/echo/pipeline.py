@@ -16,10 +16,11 @@ every recorded sample. Seeded by ``seed``; the same seed gives the same noise on
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ...progress import Progress, stage
-from ... import backend as _backend
 from ...data import EchoData
 from ...scene.scenario import Scenario
 from ...scene.targets import Scatterers, scatterers_of
@@ -27,6 +28,7 @@ from ..occlusion import DEFAULT_REUSE_TOLERANCE, PathWeights, has_meshes
 from ...validate import scalar
 from ..checks import SNR_DB_RANGE, check_arguments, warn_pulse_overlap
 from ..window import check_cube_size, node_span, receiver_nodes
+from .options import DEFAULT_CHUNK_BYTES, SynthesisOptions
 from .synth import _NumpySynth, _OpenCLSynth
 
 
@@ -117,9 +119,8 @@ def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_oc
     return lambda pulses: mesh(pulses) * occlusion[:, pulses]
 
 
-def _make_synth(scenario: Scenario, name: str, double: bool, occlusion, stop_and_go: bool, spreading: bool,
-                chunk_bytes: int, hull_occlusion: bool = True, reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE):
-    """The backend's synthesizer and the pulse blocks that keep its working memory under ``chunk_bytes``."""
+def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion):
+    """The backend's synthesizer and the pulse blocks that keep its working memory under ``opts.chunk_bytes``."""
     scat = scatterers_of(scenario.targets)
     if scat.count == 0:
         raise ValueError("Scenario.targets is empty: add PointTargets or a mesh target to simulate echoes")
@@ -129,18 +130,18 @@ def _make_synth(scenario: Scenario, name: str, double: bool, occlusion, stop_and
         if occlusion.shape != (n_rx, n_pulses, scat.count):
             raise ValueError(f"occlusion must have shape (n_rx, n_pulses, n_scatterers) = "
                              f"{(n_rx, n_pulses, scat.count)}, got {occlusion.shape}")
-    occlusion = _with_mesh_weights(scenario, occlusion, stop_and_go, hull_occlusion, reuse_tolerance)
-    args = (scenario, scat, occlusion, stop_and_go, spreading)
-    if name == "numpy":
+    occlusion = _with_mesh_weights(scenario, occlusion, opts.stop_and_go, opts.hull_occlusion, opts.reuse_tolerance)
+    args = (scenario, scat, occlusion, opts.stop_and_go, opts.spreading)
+    if opts.backend == "numpy":
         span = int(0.5 * scenario.waveform.duration * scenario.waveform.fs) + 2
         synth = _NumpySynth(*args)
         per_pulse = n_rx * scat.count * (16 * 8 + 48 * span)
     else:
         tau_hi = node_span(scenario, scenario.eta, _delay_bound(scenario, scat))
-        synth = _OpenCLSynth(*args, double=double,
-                             nodes=receiver_nodes(scenario, scenario.eta, tau_hi, strict=not stop_and_go))
+        synth = _OpenCLSynth(*args, double=opts.double,
+                             nodes=receiver_nodes(scenario, scenario.eta, tau_hi, strict=not opts.stop_and_go))
         per_pulse = n_rx * scat.count * 4 * 8  # path records (float4 or double4) on the device
-    return synth, _pulse_blocks(n_pulses, per_pulse, int(chunk_bytes))
+    return synth, _pulse_blocks(n_pulses, per_pulse, opts.chunk_bytes)
 
 
 def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False) -> np.ndarray:
@@ -152,18 +153,48 @@ def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = F
     """
     if not isinstance(scenario, Scenario):
         raise TypeError(f"scenario must be a Scenario, got {type(scenario).__name__}")
-    synth, blocks = _make_synth(scenario, _backend.resolve(backend), False, None, stop_and_go, False, 256 * 2**20)
+    synth, blocks = _make_synth(scenario, SynthesisOptions(backend=backend, stop_and_go=stop_and_go), None)
     return np.concatenate([synth.delays(sl) for sl in blocks], axis=1)
 
 
-def _synthesize(scenario: Scenario, name: str, double: bool, stop_and_go: bool, progress: bool, spreading: bool,
-                occlusion, max_bytes: int, chunk_bytes: int, hull_occlusion: bool = True,
-                reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE, dtype=None) -> dict:
-    """Both passes; returns the cube in ``dtype`` (default: the backend's own precision,
-    complex128 for NumPy and precision="double", complex64 otherwise) with its window and
-    receiver nodes."""
-    synth, blocks = _make_synth(scenario, name, double, occlusion, stop_and_go, spreading, chunk_bytes,
-                                hull_occlusion, reuse_tolerance)
+class Synthesis(NamedTuple):
+    """What :func:`synthesize` returns.
+
+    data : (n_rx, n_pulses, n_samples) in the options' dtype; t0 : (n_rx,) s, the windows' starts;
+    n_valid : (n_rx,) samples each window holds; origin : where the window came from (text);
+    nodes : (rx_tau (n_nodes,) s, rx_pos (n_rx, n_pulses, n_nodes, 3) m), the receivers'
+    positions over each pulse; node_error_m : their largest departure from the exact track;
+    n_scatterers : point scatterers synthesized (mesh facets included).
+    """
+
+    data: np.ndarray
+    t0: np.ndarray
+    n_valid: np.ndarray
+    origin: str
+    nodes: tuple
+    node_error_m: float
+    n_scatterers: int
+
+
+def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occlusion=None) -> Synthesis:
+    """The echo cube of ``scenario`` and its recording windows, without noise: both passes of
+    :func:`simulate` (see there for ``occlusion`` and for what ``options`` mean), with the
+    samples returned in ``options.dtype``. With ``SynthesisOptions(backend="numpy",
+    dtype=numpy.complex128)`` this is the float64 NumPy reference the OpenCL kernels are held to
+    (and ``backend="opencl", precision="double", dtype=numpy.complex128`` the double kernels'
+    own samples); :func:`simulate` wraps its complex64 result into an EchoData.
+    """
+    if not isinstance(scenario, Scenario):
+        raise TypeError(f"scenario must be a Scenario, got {type(scenario).__name__}")
+    opts = SynthesisOptions() if options is None else options
+    if not isinstance(opts, SynthesisOptions):
+        raise TypeError(f"options must be a SynthesisOptions, got {type(opts).__name__}")
+    if scenario.recording is not None:
+        _, n_valid = scenario.recording.for_receivers(scenario.n_receivers)
+        check_cube_size(scenario.n_receivers, scenario.eta.size, int(np.max(n_valid)), opts.max_bytes,
+                        "given by Scenario.recording")
+    synth, blocks = _make_synth(scenario, opts, occlusion)
+    name, double, progress, chunk_bytes = opts.backend, opts.double, opts.progress, opts.chunk_bytes
     wf = scenario.waveform
     n_rx, n_pulses, n_scat = scenario.n_receivers, scenario.eta.size, synth.scat.count
     lo = np.full((n_rx, n_scat), np.inf)
@@ -180,15 +211,14 @@ def _synthesize(scenario: Scenario, name: str, double: bool, stop_and_go: bool, 
     tau_span = node_span(scenario, scenario.eta, hi.max() + 0.5 * wf.duration + 2 / wf.fs)
     if name == "opencl" and hi.max() > synth.rx_tau[-1]:
         synth = _OpenCLSynth(*synth.args, double=double,
-                             nodes=receiver_nodes(scenario, scenario.eta, tau_span, strict=not stop_and_go))
+                             nodes=receiver_nodes(scenario, scenario.eta, tau_span, strict=not opts.stop_and_go))
     t0, n_valid, origin = _window(scenario, lo, hi)
     _check_targets_in_windows(scenario, lo, hi, t0, n_valid)
     n_samples = int(n_valid.max())
     nodes = (synth.rx_tau, synth.rx_pos, synth.rx_node_error) if name == "opencl" else \
         (lambda n: (n[0], n[1], n[3]))(receiver_nodes(scenario, scenario.eta, tau_span, strict=False))
-    check_cube_size(n_rx, n_pulses, n_samples, max_bytes, origin, n_nodes=nodes[0].size)
-    native = np.complex64 if name == "opencl" and not double else np.complex128
-    data = np.zeros((n_rx, n_pulses, n_samples), dtype=dtype or native)
+    check_cube_size(n_rx, n_pulses, n_samples, opts.max_bytes, origin, n_nodes=nodes[0].size)
+    data = np.zeros((n_rx, n_pulses, n_samples), dtype=opts.dtype)
     # pass B in blocks that also bound the records' memory (complex128 on the host, the
     # kernel's output buffer and its copy)
     per_pulse = n_rx * (synth.scat.count * 32 + 3 * 16 * n_samples)
@@ -205,13 +235,12 @@ def _synthesize(scenario: Scenario, name: str, double: bool, stop_and_go: bool, 
     synth.release()
     for h in range(n_rx):
         data[h, :, n_valid[h]:] = 0
-    return {"data": data, "t0": t0, "n_valid": n_valid, "origin": origin, "nodes": nodes[:2],
-            "node_error_m": float(nodes[2]), "n_scatterers": n_scat}
+    return Synthesis(data, t0, n_valid, origin, nodes[:2], float(nodes[2]), n_scat)
 
 
 def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False, snr_db: float | None = None,
              seed=None, precision: str = "single", progress: bool = True, spreading: bool = False,
-             occlusion=None, max_bytes: int | None = None, chunk_bytes: int = 256 * 2**20,
+             occlusion=None, max_bytes: int | None = None, chunk_bytes: int = DEFAULT_CHUNK_BYTES,
              hull_occlusion: bool = True, reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE) -> EchoData:
     """Synthesize the raw echoes of ``scenario`` (see the module docstring for the model).
 
@@ -226,7 +255,8 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         Add white Gaussian noise at this SNR (definition in the module docstring); ``seed`` seeds it.
     precision : {"single", "double"}
         Accumulation precision of the OpenCL kernel (delays are always double). The returned
-        samples are complex64 either way (DESIGN.md).
+        samples are complex64 either way (DESIGN.md); :func:`synthesize` returns them in
+        complex128 (the float64 reference).
     progress : bool
         Show tqdm progress bars over pulse blocks.
     spreading : bool
@@ -258,29 +288,25 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
     """
     max_bytes, chunk_bytes = check_arguments(scenario, snr_db, seed, max_bytes, chunk_bytes, reuse_tolerance, dict(
         stop_and_go=stop_and_go, progress=progress, spreading=spreading, hull_occlusion=hull_occlusion))
-    name = _backend.resolve(backend)
-    double = _backend.check_precision(precision)
-    if scenario.recording is not None:
-        _, n_valid = scenario.recording.for_receivers(scenario.n_receivers)
-        check_cube_size(scenario.n_receivers, scenario.eta.size, int(np.max(n_valid)), max_bytes,
-                        "given by Scenario.recording")
-    out = _synthesize(scenario, name, double, stop_and_go, progress, spreading, occlusion, int(max_bytes),
-                      int(chunk_bytes), hull_occlusion, reuse_tolerance, dtype=np.complex64)
-    data = out["data"]
+    opts = SynthesisOptions(backend=backend, precision=precision, stop_and_go=stop_and_go, spreading=spreading,
+                            hull_occlusion=hull_occlusion, reuse_tolerance=reuse_tolerance, max_bytes=max_bytes,
+                            chunk_bytes=chunk_bytes, progress=progress)
+    out = synthesize(scenario, opts, occlusion)
+    data = out.data
     if snr_db is not None:
-        add_noise(data, float(snr_db), seed, out["n_valid"])
-    rx_tau, rx_pos = out["nodes"]
+        add_noise(data, float(snr_db), seed, out.n_valid)
+    rx_tau, rx_pos = out.nodes
     n_rx = scenario.n_receivers
     return EchoData(
-        data=data, eta=scenario.eta, t0=out["t0"], fs=scenario.waveform.fs,
+        data=data, eta=scenario.eta, t0=out.t0, fs=scenario.waveform.fs,
         tx_pos=scenario.tx_position(scenario.eta), rx_pos=rx_pos, rx_tau=np.tile(rx_tau, (n_rx, 1)),
         waveform=scenario.waveform, medium=scenario.medium, receivers=scenario.receiver_names, compressed=False,
-        provenance={"algorithm": "clsas.simulate", "backend": name, "precision": precision,
-                    "stop_and_go": bool(stop_and_go), "spreading": bool(spreading), "snr_db": snr_db,
+        provenance={"algorithm": "clsas.simulate", "backend": opts.backend, "precision": opts.precision,
+                    "stop_and_go": bool(opts.stop_and_go), "spreading": bool(opts.spreading), "snr_db": snr_db,
                     "seed": seed if seed is None or isinstance(seed, int) else str(seed),
-                    "n_scatterers": out["n_scatterers"], "occlusion": occlusion is not None,
-                    "hull_occlusion": bool(hull_occlusion and has_meshes(scenario)),
-                    **({"reuse_tolerance": float(reuse_tolerance)} if hull_occlusion and has_meshes(scenario) else {}),
-                    "window": out["origin"], "n_valid": out["n_valid"].tolist(),
-                    "rx_node_error_m": out["node_error_m"]},
+                    "n_scatterers": out.n_scatterers, "occlusion": occlusion is not None,
+                    "hull_occlusion": bool(opts.hull_occlusion and has_meshes(scenario)),
+                    **({"reuse_tolerance": opts.reuse_tolerance} if opts.hull_occlusion and has_meshes(scenario) else {}),
+                    "window": out.origin, "n_valid": out.n_valid.tolist(),
+                    "rx_node_error_m": out.node_error_m},
     )

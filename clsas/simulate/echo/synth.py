@@ -31,13 +31,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from ... import opencl
+from ... import geometry, opencl
+from ...cstruct import declare_all, record_dtype
 from ...scene.scenario import Scenario
 from ...scene.targets import Scatterers
-from ... import geometry
 
 CHUNK_SCATTERERS = 16  # scatterers per bounds chunk in the OpenCL accumulation
 ROWS = 8  # 16-sample rows per work-item of the OpenCL accumulation
+# the records echo_paths reads (kernels/echo.cl): a pulse, a receiver and the launch's parameters
+PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("tx_axis", "f8", 3)])  # m, s, unit vector
+RECEIVER = record_dtype([("t0_fs", "f8"), ("length", "f8")])  # window start in samples, element length m
+PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("wavelength", "f8"), ("tx_length", "f8"),
+                       ("dtau", "f8")])  # m/s, Hz, Hz, m, m, receiver node spacing s
+RECORDS = declare_all({"node_t": geometry.NODE, "echo_pulse_t": PULSE, "echo_rx_t": RECEIVER,
+                       "echo_params_t": PARAMS})
 
 
 def accumulate_reference(start, frac, amp, alpha: float, half_len: float, n_samples: int) -> np.ndarray:
@@ -176,18 +183,20 @@ class _OpenCLSynth(_Synth):
                          ("PATH_WEIGHTS", self.occlusion is not None)):
             if on:
                 defines[flag] = 1
-        prg = opencl.program("echo", defines=defines, double=double)
+        prg = opencl.program("echo", defines=defines, double=double, preamble=RECORDS)
         self.k_paths = cl.Kernel(prg, "echo_paths")
         # delays and extents need no weights: their paths come from a build without them
         plain = {key: value for key, value in defines.items() if key != "PATH_WEIGHTS"}
         self.k_paths_plain = self.k_paths if plain == defines else \
-            cl.Kernel(opencl.program("echo", defines=plain, double=double), "echo_paths")
+            cl.Kernel(opencl.program("echo", defines=plain, double=double, preamble=RECORDS), "echo_paths")
         self.k_bounds = cl.Kernel(prg, "echo_bounds")
         self.k_extents = cl.Kernel(prg, "echo_extents")
         self.k_acc = cl.Kernel(prg, "echo_accumulate")
         wf = sc.waveform
-        self.params = np.array([c, wf.f0, wf.fs, wf.wavelength(sc.medium), sc.array.tx_length,
-                                self.rx_tau[1] - self.rx_tau[0], 0.0, 0.0])
+        self.params = np.zeros((), PARAMS)
+        self.params["c"], self.params["f0"], self.params["fs"] = c, wf.f0, wf.fs
+        self.params["wavelength"], self.params["tx_length"] = wf.wavelength(sc.medium), sc.array.tx_length
+        self.params["dtau"] = self.rx_tau[1] - self.rx_tau[0]
 
     def _delay_order(self) -> np.ndarray:
         """Per receiver, the scatterers sorted by their stop-and-go delay at the middle pulse (H, N).
@@ -206,11 +215,12 @@ class _OpenCLSynth(_Synth):
         mf = cl.mem_flags
         idx = np.arange(self.eta.size)[pulses]
         pc, h, n = idx.size, self.n_rx, self.n_pad
-        pulse = np.zeros((pc, 8))
-        pulse[:, 0:3], pulse[:, 3], pulse[:, 4:7] = self.tx[idx], self.eta[idx], self.tx_axis[idx]
-        nodes = np.zeros((h, pc, self.rx_tau.size, 8))
-        nodes[..., 0:3], nodes[..., 3:6] = self.rx_pos[:, idx], self.rx_axis[:, idx]
-        rx = np.column_stack([t0 * self.scenario.waveform.fs, self.scenario.receiver_lengths]).astype(np.float64)
+        pulse = np.zeros(pc, PULSE)
+        pulse["tx"], pulse["eta"], pulse["tx_axis"] = self.tx[idx], self.eta[idx], self.tx_axis[idx]
+        nodes = np.zeros((h, pc, self.rx_tau.size), geometry.NODE)
+        nodes["pos"], nodes["axis"] = self.rx_pos[:, idx], self.rx_axis[:, idx]
+        rx = np.zeros(h, RECEIVER)
+        rx["t0_fs"], rx["length"] = t0 * self.scenario.waveform.fs, self.scenario.receiver_lengths
         w = self.weights(pulses) if weighted else None
         w = np.ones(1, np.float32) if w is None else np.ascontiguousarray(w, dtype=np.float32)
         bufs = [cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
@@ -218,7 +228,7 @@ class _OpenCLSynth(_Synth):
         paths = cl.Buffer(ctx, mf.READ_WRITE, 4 * np.dtype(self.real).itemsize * h * pc * n)
         kernel = self.k_paths if weighted else self.k_paths_plain
         kernel(q, (n // 8, pc, h), None, self.soa_buf, bufs[0], bufs[1], bufs[2], self.order_buf, bufs[3],
-               self.params.view(cl.cltypes.double8)[0], np.int32(self.scat.count), np.int32(n), np.int32(pc), paths)
+               self.params[()], np.int32(self.scat.count), np.int32(n), np.int32(pc), paths)
         return paths, pc
 
     def release(self) -> None:

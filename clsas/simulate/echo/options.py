@@ -1,0 +1,63 @@
+"""How :func:`clsas.simulate` synthesizes: its flags as one frozen object, validated once."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ... import backend as _backend
+from ... import budget
+from ... import validate as v
+from ..occlusion import DEFAULT_REUSE_TOLERANCE
+
+DTYPES = (np.dtype(np.complex64), np.dtype(np.complex128))
+DEFAULT_CHUNK_BYTES = 256 * 2**20
+
+
+@dataclass(frozen=True)
+class SynthesisOptions:
+    """The options of :func:`clsas.simulate` and :func:`clsas.simulate.delays` (their meaning is
+    documented there), checked on construction: ValueError/TypeError naming the option.
+
+    backend : "numpy", "opencl", "auto" or None; stored resolved ("numpy" or "opencl").
+    precision : "single" or "double" (the OpenCL accumulation).
+    dtype : complex64 or complex128, the returned samples.
+    stop_and_go, spreading, hull_occlusion, progress : bool.
+    reuse_tolerance : rad, in [0, pi]. max_bytes : bytes, None for the memory budget
+    (:func:`clsas.memory_budget`); chunk_bytes : bytes.
+    """
+
+    backend: str | None = None
+    precision: str = "single"
+    dtype: object = np.complex64
+    stop_and_go: bool = False
+    spreading: bool = False
+    hull_occlusion: bool = True
+    reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE
+    max_bytes: int | None = None
+    chunk_bytes: int = DEFAULT_CHUNK_BYTES
+    progress: bool = True
+
+    def __post_init__(self):
+        _backend.check_precision(self.precision)
+        for name in ("stop_and_go", "spreading", "hull_occlusion", "progress"):
+            v.flag(name, getattr(self, name))
+        try:
+            dtype = np.dtype(self.dtype)
+        except TypeError:
+            dtype = None
+        if dtype not in DTYPES:
+            raise ValueError(f"dtype must be numpy.complex64 or numpy.complex128, got {self.dtype!r}")
+        v.scalar("reuse_tolerance", self.reuse_tolerance, low=0.0, high=np.pi, unit="rad")
+        max_bytes = budget.memory_budget() if self.max_bytes is None else budget.parse_bytes(self.max_bytes, "max_bytes")
+        object.__setattr__(self, "max_bytes", int(max_bytes))
+        object.__setattr__(self, "chunk_bytes", int(budget.parse_bytes(self.chunk_bytes, "chunk_bytes")))
+        object.__setattr__(self, "dtype", dtype)
+        object.__setattr__(self, "reuse_tolerance", float(self.reuse_tolerance))
+        object.__setattr__(self, "backend", _backend.resolve(self.backend))
+
+    @property
+    def double(self) -> bool:
+        """The OpenCL kernels accumulate in double."""
+        return self.precision == "double"
