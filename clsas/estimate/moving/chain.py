@@ -58,6 +58,9 @@ UPSAMPLE = 2
 #: An azimuth chirp with time-bandwidth product |K| T_a^2 below this has nothing to compress
 #: (the target keeps its range to the receiver: Table II case 7 at A and B).
 MIN_TIME_BANDWIDTH = 4.0
+#: Samples shifted beyond those a focus window needs (:func:`focus_bins`): the band-limited shift
+#: of a record cut there reaches the window attenuated by ~1 / (pi MARGIN) (-46 dB).
+MARGIN = 64
 #: Half-width of the focused window searched for the target's extent, s of two-way delay
 #: (+-12 m of range at 1500 m/s: the scaled Albacore is 10.35 m long).
 EXTENT_WINDOW = 0.016
@@ -164,10 +167,15 @@ def focus_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: slic
                higher_order: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Step 5: RCMC + RWC of the whole record, then azimuth compression of the range ``bins``:
     (image (n_eta, n_bins), eta axis (n_eta,) s). ``higher_order`` (n_pulses,) s: the delay's
-    terms beyond the quadratic, compensated with it (:func:`.filters.migration`)."""
+    terms beyond the quadratic, compensated with it (:func:`.filters.migration`). Only the
+    samples the shifts bring into ``bins`` are shifted (and :data:`MARGIN` more each side)."""
     shift, cycles = filters.migration(rec.eta, rec.f0, fm_rate, doppler_centroid, higher_order)
-    aligned = filters.advance(rec.x, rec.fs, shift, cycles)
-    return filters.compress(aligned[:, bins], rec.eta, fm_rate)
+    n = rec.x.shape[1]
+    start, stop, _ = bins.indices(n)
+    lo = int(np.clip(start + np.floor(shift.min() * rec.fs) - MARGIN, 0, n))
+    hi = int(np.clip(stop + np.ceil(shift.max() * rec.fs) + MARGIN, lo + 1, n))
+    aligned = filters.advance(rec.x[:, lo:hi], rec.fs, shift, cycles)
+    return filters.compress(aligned[:, start - lo:stop - lo], rec.eta, fm_rate)
 
 
 def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHOLD_DB) -> ReceiverEstimate:
