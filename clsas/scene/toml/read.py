@@ -11,6 +11,7 @@ document (tables where tables belong), the targets' kind and the mesh source.
 from __future__ import annotations
 
 import difflib
+import functools
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -51,12 +52,15 @@ class _Where:
 
 class _Reader:
     def __init__(self, text: str, source: str, base: Path | None):
-        self.source, self.base = source, base
-        self.lines = KeyLines(text)
+        self.source, self.base, self.text = source, base, text
         try:
             self.doc = tomllib.loads(text)
         except tomllib.TOMLDecodeError as err:
             raise ScenarioFileError(f"{source}: not valid TOML: {err}") from None
+
+    @functools.cached_property
+    def lines(self) -> KeyLines:
+        return KeyLines(self.text)  # scanned only when a message needs a line
 
     def fail(self, where: _Where | None, key: str | None, message: str, cause=None):
         path = (key or "") if where is None else where.label + (f".{key}" if key else "")
