@@ -133,6 +133,17 @@ class Trajectory:
                         yaw=hold(self.heading), error_times=times)
 
 
+# Range blocks holding less than this fraction of a ping pair's median block energy are left
+# out: beyond the seafloor's swath only range sidelobes and the far edges of the beam remain,
+# scatterers seen at large look angles only, whose phase-centre error (D sin^2 theta / r per
+# pair as a yaw, see _pca_delay) is far from the beam's mean. Measured on Heremans' nine-point
+# scene: such blocks read -950 .. +860 urad of yaw where the seafloor's read 0 +- 15.
+WEAK_BLOCK = 0.1
+# Blocks further than this many scaled median absolute deviations from a pair's median are left
+# out of its mean (see estimate).
+OUTLIER = 3.0
+
+
 def _parabola(y_minus, y0, y_plus):
     """Vertex offset (in samples, within [-0.5, 0.5] for a true maximum) and value of the parabola
     through (-1, y_minus), (0, y0), (1, y_plus) (Heremans et al. 2009, eq. 67)."""
@@ -156,18 +167,43 @@ def _vee(y_minus, y0, y_plus):
     return np.clip(q / (1 + np.abs(q)), -0.5, 0.5)
 
 
-def _pca_phase(array: Array, i: np.ndarray, j: np.ndarray, r: np.ndarray, speed: float, f0: float,
-               c: float) -> np.ndarray:
-    """exp(-j 2 pi f0 dt_pca) per couple and range block, complex (couple, block): removes the
-    difference of the couple members' phase-centre errors (eqs. 48-49, broadside:
-    eps_h = sigma_h^2 / (4 r)). sigma_h is the along-track separation of the transmitter at
-    emission and hydrophone h at reception, o_h - o_tx + v 2 r / c: the platform moves on while
-    the echo travels. Left in, the difference reads as a yaw (its part linear along the couples:
-    1.53 m x 2 u / r at Heremans' geometry, 7.7 mrad at 100 m) and as a sway (its constant part,
-    through the v 2 r / c term: 0.65 mm a ping pair there)."""
-    sigma = (array.rx_offsets[:, 1] - array.tx_offset[1])[:, None] + speed * 2 * r[None, :] / c
-    dt = (sigma[i] ** 2 - sigma[j] ** 2) / (4 * r[None, :] * c)
-    return np.exp(-2j * np.pi * f0 * dt)
+def beam_sin2(array: Array, f0: float, c: float) -> float:
+    """<sin^2 theta> over the two-way power pattern of the transmitter and the hydrophones,
+    P(theta) = sinc^2(L_tx sin(theta) / lambda) sinc^2(L_rx sin(theta) / lambda) (clsas's element
+    directivity, squared once for the transmit leg and once for the receive leg), theta the look
+    angle off broadside over a seafloor that fills the beam: the weight of a scatterer at theta in
+    the couples' correlations. 0 if both elements are omnidirectional (length 0: the beam is
+    then the scene's, which the array cannot know). Heremans' 21.88 cm elements at 3 cm: 1.2e-3."""
+    lam = c / f0
+    lengths = (array.tx_length, float(np.mean(array.rx_length)))
+    if max(lengths) == 0:
+        return 0.0
+    sin_t = np.sin(np.linspace(-np.pi / 2, np.pi / 2, 20001))
+    power = np.prod([np.sinc(length * sin_t / lam) ** 2 for length in lengths], axis=0)
+    return float(np.sum(sin_t**2 * power) / np.sum(power))
+
+
+def _pca_delay(array: Array, i: np.ndarray, j: np.ndarray, r: np.ndarray, speed: float, c: float,
+               sin2: float) -> np.ndarray:
+    """dt_pca, s (couple,) + r.shape: the difference, ping p + 1 minus ping p, of the couple
+    members' phase-centre errors at range r (m, any shape) (eqs. 48-49). Two-way path of a
+    transmitter and a hydrophone a separation sigma apart along the track, to a scatterer at
+    range r and look angle theta off broadside: 2 |S - M| + sigma^2 cos^2(theta) / (4 r), M
+    their midpoint (the phase centre; the sigma^3 terms cancel between the two legs). sigma_h
+    is the separation of the transmitter at emission and hydrophone h at reception,
+    o_h - o_tx + v 2 r / c: the platform moves on while the echo travels. A range block
+    mixes scatterers across the beam, so cos^2 is replaced by its mean over the beam,
+    1 - ``sin2`` (:func:`beam_sin2`).
+
+    Left in, the difference reads as a yaw (its part linear along the couples: 1.53 m x 2 u / r
+    at Heremans' geometry, 7.7 mrad at 100 m) and as a sway (its constant part, through the
+    v 2 r / c term: 0.65 mm a ping pair there). Taken at the block's centre range instead of
+    each sample's, it leaves 7.7 mrad x (r_scatterer - r_block) / r: tens of urad for a bright
+    point off the block centre. Left at broadside (sin2 = 0), it leaves D <sin^2 theta> / r per
+    ping pair as a yaw (D = v PRT, the couples' separation; 9 urad a pair at Heremans' 100 m),
+    which integrates into a quadratic cross-track error along the track."""
+    sigma = (array.rx_offsets[:, 1] - array.tx_offset[1]).reshape((-1,) + (1,) * r.ndim) + speed * 2 * r / c
+    return (sigma[i] ** 2 - sigma[j] ** 2) * (1 - sin2) / (4 * r * c)
 
 
 def nominal_shift(array: Array, speed: float, prf: float) -> tuple[int, np.ndarray]:
@@ -282,6 +318,8 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     records, start = _aligned(echo, h)
     n_blocks = records.shape[-1] // block
     r_blocks = c / 2 * (start + (np.arange(n_blocks) + 0.5) * block / echo.fs)   # block centre ranges, m
+    r_samples = (c / 2 * (start + np.arange(n_blocks * block) / echo.fs)).reshape(n_blocks, block)
+    sin2 = beam_sin2(array, f0, c)
     data = records[..., :n_blocks * block].reshape(h, echo.n_pulses, n_blocks, block)
     step = pc[1] - pc[0]
     span = n_couples * step
@@ -294,9 +332,9 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
         i = np.arange(n_couples)                         # hydrophones at ping p + 1
         j = i + s + lag                                  # hydrophones at ping p
         f = data[j][:, :-1]                              # (couple, pair, block, sample)
-        g = data[i][:, 1:]
+        pca = np.exp(2j * np.pi * f0 * _pca_delay(array, i, j, r_samples, speed, c, sin2)).astype(np.complex64)
+        g = data[i][:, 1:] * pca[:, None]                # ping p + 1, phase-centre errors removed sample by sample
         corr = correlations(f, g, t_lags)                # (couple, pair, block, t-lag)
-        corr *= _pca_phase(array, i, j, r_blocks, speed, f0, c)[:, None, :, None]
         u = pc[i] - pc[i].mean()                         # couple positions along the track
         steer = np.exp(-1j * 4 * np.pi * f0 * np.outer(sin_theta, u) / c)   # (angle, couple)
         beams = (steer.astype(np.complex64) @ corr.reshape(n_couples, -1)).reshape((n_angles,) + corr.shape[1:])
@@ -326,6 +364,10 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     sway = -c * delays[nearest, pp, bb] / 2
     yaw = yaws[nearest, pp, bb]
     good = coherence >= min_coherence
+    energy = np.einsum("hpbk,hpbk->pb", data, np.conj(data)).real   # (pulse, block)
+    energy = energy[:-1] + energy[1:]
+    typical = np.nanmedian(np.where(good, energy, np.nan), axis=1, keepdims=True)
+    good &= energy >= WEAK_BLOCK * typical
     counts = good.sum(axis=1)
     if np.any(counts == 0):
         worst = int(np.argmin(counts))
@@ -333,13 +375,18 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
                          f"min_coherence {min_coherence} (best {coherence[worst].max():.2f}): the pings do not "
                          "correlate (too little overlap, or no seafloor return in the records)")
 
-    def median_and_error(x):
+    def robust_mean(x):
+        """The blocks' mean and its standard error, blocks beyond OUTLIER scaled MADs of the
+        median left out (speckle makes a block's error roughly Gaussian; a block holding the
+        edge of the swath or a lone bright echo can sit far out)."""
         masked = np.where(good, x, np.nan)
-        med = np.nanmedian(masked, axis=1)
-        spread = np.nanstd(masked, axis=1)
-        return med, 1.25 * spread / np.sqrt(counts)
+        med = np.nanmedian(masked, axis=1, keepdims=True)
+        mad = 1.4826 * np.nanmedian(np.abs(masked - med), axis=1, keepdims=True)
+        kept = np.where(np.abs(masked - med) <= OUTLIER * mad, masked, np.nan)
+        n = np.sum(np.isfinite(kept), axis=1)
+        return np.nanmean(kept, axis=1), np.nanstd(kept, axis=1) / np.sqrt(n)
 
-    (su, su_e), (sw, sw_e), (yw, yw_e) = (median_and_error(x) for x in (surge, sway, yaw))
+    (su, su_e), (sw, sw_e), (yw, yw_e) = (robust_mean(x) for x in (surge, sway, yaw))
     coh = np.nanmedian(np.where(good, coherence, np.nan), axis=1)
     log.info("dpca: %d ping pairs, %d couples, %d range blocks; median coherence %.2f", echo.n_pulses - 1,
              n_couples, n_blocks, float(np.median(coh)))
