@@ -36,14 +36,34 @@ period from the phase of V at the best beam, resolved against the envelope's par
 dt = (arg V + 2 pi k) / (2 pi f0) with the integer k that lands nearest -m_peak / fs. Then
 sway gamma = -c dt / 2 (eq. 69, with clsas's sign of x) and yaw xi = sin theta (eq. 70).
 
-Surge (eq. 68): the beam peak's magnitude is largest for the x-lag whose couples coincide; a
-parabola through the best lag and its neighbours gives the fractional lag B, and the surge
-(the along-track advance beyond D) is B Delta_PC = B d / 2.
+Two passes. Pass 1 scans t-lags -t_lags..t_lags on the records as they are. A fractional-
+sample misalignment of f and g makes the correlation's phase at the integer t-lag depend on
+the speckle, differently at every couple: yaw noise that grows with the sway between the pings
+(20 cm of sway at 40 s read 87 urad RMS of yaw a pair on noise-free speckle, 15 urad with the
+envelopes aligned). Pass 2 advances ping p + 1's envelope (not its carrier phase) by the
+pair's pass-1 delay (correlate.advance) and scans +-FINE_T_LAGS again: yaw and sway come from
+it, at pass 1's best x-lag.
+
+Surge (eq. 68): the beam peak's magnitude is largest for the x-lag whose couples coincide;
+the fractional lag B comes from the best lag and its neighbours through the coherence the
+beam predicts for a displaced pair of phase centres (geometry.xlag_offset: the Fourier
+transform of the two-way power pattern; a parabola reads half the offset, a V 0.85 of it),
+and the surge (the along-track advance beyond D) is B Delta_PC = B d / 2. A single bright
+scatterer stays coherent at every x-lag: surge is unobservable from blocks that a point
+dominates, which are left out of it (pairs.BRIGHT_BLOCK); from points alone it is not
+observable at all (fly Trajectory.platform(surge=False) then).
+
+Phase-centre errors (eqs. 48-49, geometry.pca_delay): removed sample by sample at each
+sample's range before correlating, with the beam's mean cos^2 of the look angle. What is left
+is inherent to the phase-centre approximation: D (sin^2 theta - <sin^2 theta>) / r of yaw per
+scatterer; a seafloor that fills the beam averages it out, a bright point off broadside reads
+it (tens of urad a pair at 8 m along track at 100 m).
 
 Range blocks and uncertainty: the fast-time axis is cut into blocks; each block gives its own
-estimate of the three quantities, the reported value is the median over blocks whose beam peak
-reaches ``min_coherence``, and its uncertainty is 1.25 x (the blocks' standard deviation) /
-sqrt(number of blocks) (the standard error of a median).
+estimate of the three quantities. Blocks whose beam peak is below ``min_coherence`` or whose
+energy is below pairs.WEAK_BLOCK of the pair's median block (beyond the seafloor's swath) are
+left out; the reported value is the mean of the remaining blocks within pairs.OUTLIER scaled
+median absolute deviations of their median, and its uncertainty that mean's standard error.
 
 The hot loop, the correlations over ping pairs, x-lags, couples, t-lags and samples, is one
 vectorised NumPy contraction per t-lag over every pair, couple and block at once, and the

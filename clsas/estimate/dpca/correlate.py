@@ -4,6 +4,7 @@ the hydrophones' records on one fast-time grid, and the three-point peak finders
 from __future__ import annotations
 
 import numpy as np
+import scipy.fft
 
 from ...data import EchoData
 
@@ -18,17 +19,13 @@ def parabola(y_minus, y0, y_plus):
     return off, y0 - 0.25 * (y_minus - y_plus) * off
 
 
-def vee(y_minus, y0, y_plus):
-    """Vertex offset of the symmetric V (|slope| equal on both sides) through three
-    points at -1, 0, 1: the x-lag peak. The coherence of two phase centres falls off linearly
-    with their displacement (the overlap of two element apertures), rho(e) = 1 - |e| / w; from
-    y0 = 1 - |e|/w and y_+- = 1 - |1 -+ e|/w follows q = (y+ - y-) / (2 y0 - y+ - y-) =
-    e / (1 - |e|), so e = q / (1 + |q|). (A parabola through the same points returns q / 2:
-    half the true offset for small e.)"""
+def peak_ratio(y_minus, y0, y_plus):
+    """q = (y+ - y-) / (2 y0 - y+ - y-) of three samples at -1, 0, 1 around a maximum (0 where
+    the middle one is not above the mean of its neighbours): odd in the vertex offset, which
+    :func:`clsas.estimate.dpca.geometry.xlag_offset` reads from it for the x-lag peak."""
     den = 2 * y0 - y_plus - y_minus
     with np.errstate(divide="ignore", invalid="ignore"):
-        q = np.where(den > 0, (y_plus - y_minus) / den, 0.0)
-    return np.clip(q / (1 + np.abs(q)), -0.5, 0.5)
+        return np.where(den > 0, (y_plus - y_minus) / den, 0.0)
 
 
 def correlations(f: np.ndarray, g: np.ndarray, t_lags: int) -> np.ndarray:
@@ -65,3 +62,14 @@ def aligned(echo: EchoData, h: int) -> tuple[np.ndarray, float]:
     for k in range(h):
         out[k, :, shift[k]:shift[k] + echo.n_samples] = echo.data[k]
     return out, start
+
+
+def advance(records: np.ndarray, dt: np.ndarray, fs: float, workers: int | None = -1) -> np.ndarray:
+    """records (..., pulse, sample) with each pulse's envelope advanced by dt (s, (pulse,)), its
+    carrier phase kept: x(t) -> x(t + dt) at baseband, by exp(+j 2 pi f dt) over the baseband
+    frequencies f (circular: dt of a few samples wraps that many at the record's ends);
+    complex64."""
+    f = scipy.fft.fftfreq(records.shape[-1], 1 / fs)
+    spec = scipy.fft.fft(records, axis=-1, workers=workers)
+    spec *= np.exp(2j * np.pi * np.asarray(dt)[:, None] * f[None, :]).astype(np.complex64)
+    return scipy.fft.ifft(spec, axis=-1, workers=workers).astype(np.complex64)

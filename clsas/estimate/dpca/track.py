@@ -20,8 +20,9 @@ class Trajectory:
 
     eta : s (n_pulses,); along, cross : m, the platform's reference point relative to the
     nominal straight track and to its place at the first ping (along: beyond v eta, i.e.
-    surge; cross: towards +x, i.e. sway); heading : rad (yaw, from heading0 at the first ping); along_std, cross_std, heading_std : propagated standard errors
-    (eq. 73); pairs : the PingPairs.
+    surge; cross: towards +x, i.e. sway), at :attr:`times`; heading : rad (yaw, from heading0
+    at the first ping), at :attr:`heading_times`; along_std, cross_std, heading_std :
+    propagated standard errors (eq. 73); pairs : the PingPairs.
     """
 
     eta: np.ndarray
@@ -40,9 +41,21 @@ class Trajectory:
         mean of the platform's place at emission and at reception."""
         return self.eta + self.pairs.two_way / 2
 
+    @property
+    def heading_times(self) -> np.ndarray:
+        """When :attr:`heading` holds, s: each ping's reception (emission plus the two-way
+        time). A phase centre sits at (o_tx sin(yaw at emission) + o_h sin(yaw at reception)) / 2
+        across track; its part that changes along the couples, the yaw DPCA reads, is the
+        hydrophones' at reception (the transmitter's is common to the couples and enters the
+        sway). Read at mid-time instead, the -D theta_p term of :func:`integrate` is off by
+        D theta' tau / 2, a sway error of v tau / 2 = 8.5 cm times the yaw step at Heremans'
+        geometry (30 urad a pair for 3 mrad / 30 s of yaw)."""
+        return self.eta + self.pairs.two_way
+
     def platform(self, speed: float, start=(0.0, 0.0, 0.0), surge: bool = True) -> Platform:
         """A clsas Platform flying this track (for :func:`with_track` and back-projection):
-        surge, sway and yaw sampled at :attr:`times`, held constant one ping interval beyond
+        surge, sway and yaw at :attr:`times` (the heading carried there from
+        :attr:`heading_times` by linear interpolation), held constant one ping interval beyond
         the first and the last so that every emission and reception is covered. ``surge=False``
         flies the nominal along-track advance instead of the estimated one (DPCA's surge is a
         random walk of its per-pair errors: on scenes with little seafloor it can hurt more
@@ -51,8 +64,9 @@ class Trajectory:
         times = np.concatenate([[self.times[0] - step], self.times, [self.times[-1] + step]])
         hold = lambda a: np.concatenate([[a[0]], a, [a[-1]]])  # noqa: E731
         along = self.along if surge else np.zeros_like(self.along)
+        heading = np.interp(self.times, self.heading_times, self.heading)
         return Platform(speed=speed, start=start, surge=hold(along), sway=hold(self.cross),
-                        yaw=hold(self.heading), error_times=times)
+                        yaw=hold(heading), error_times=times)
 
 
 def integrate(pairs: PingPairs, eta: np.ndarray, speed: float, array: Array, heading0: float = 0.0) -> Trajectory:
@@ -69,7 +83,7 @@ def integrate(pairs: PingPairs, eta: np.ndarray, speed: float, array: Array, hea
     displacement is gamma_n = X_{p+1} - X_p + pc_i sin(theta_{p+1}) - pc_j sin(theta_p)
     = dX_p + pc_i xi_p - D theta_p (small angles), so the slope along the couples is the yaw
     step xi_p, and at the couples' centre u (mean pc_i) the sway reads gamma_p = dX_p + u xi_p
-    - D theta_p. Hence
+    - D theta_p, X at mid-time and theta at reception (see Trajectory.heading_times). Hence
         theta_{p+1} = theta_p + xi_p,
         X_{p+1} = X_p + gamma_p - u xi_p + D theta_p,
         Y_{p+1} = Y_p + D + surge_p,
