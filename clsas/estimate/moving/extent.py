@@ -30,9 +30,10 @@ Extent. The image's power is smoothed over :data:`SMOOTH_CELLS` resolution cells
 (speckle), and the target is the connected region around its maximum down to :data:`EXTENT_DB`
 below it, regions less than :data:`GAP_CELLS` cells apart counting as connected (the dark gaps
 between a hull's glints): separate targets (points further apart) stay separate, a hull is one
-region. Its extent is the region's span in eta, and in tau the run
-of its range profile (the region's maximum over eta) down to :data:`RANGE_DB` below the
-profile's maximum, each end interpolated (in dB) between samples to where it crosses the level. -20 dB lies
+region. The image is Hann-weighted over the band in range
+first (the unweighted range sidelobes, -13 to -21 dB, would reach the level unevenly: a point's
+middle 0.2-0.4 of a sample off; weighted, within 0.01). Its extent is the region's span in eta
+and in tau, each end interpolated (in dB) between samples to where it crosses the level. -20 dB lies
 between a hull's body (0 to -15 dB: glints over diffuse facets) and the floor around it (blur
 skirts and other echoes, -30 to -45 dB; measured on the eight Table II cases), and below the
 near sidelobes of the unweighted compression (-13, -18 dB), which are symmetric about the peak.
@@ -49,9 +50,6 @@ from scipy.ndimage import binary_dilation, label, uniform_filter
 
 #: The extent's level below the profile's maximum, dB (module docstring).
 EXTENT_DB = 20.0
-#: The range extent's level below the target's range profile maximum, dB (the range sidelobes of
-#: the unweighted matched filter reach -21 dB: a point's middle is then within 0.03 sample).
-RANGE_DB = 10.0
 #: Smoothing of the image, resolution cells.
 SMOOTH_CELLS = 5.0
 #: Regions above the level closer than this (resolution cells, each way) are one target.
@@ -91,7 +89,7 @@ def _ends(profile: np.ndarray, axis: np.ndarray, first: int, last: int, level: f
 
 
 def extent(image: np.ndarray, eta: np.ndarray, tau: np.ndarray, eta_cell: float, tau_cell: float,
-           level_db: float = EXTENT_DB, smooth_cells: float = SMOOTH_CELLS, range_db: float = RANGE_DB) -> Extent:
+           level_db: float = EXTENT_DB, smooth_cells: float = SMOOTH_CELLS) -> Extent:
     """The extent of the target in a focused image (module docstring).
 
     Parameters
@@ -100,14 +98,19 @@ def extent(image: np.ndarray, eta: np.ndarray, tau: np.ndarray, eta_cell: float,
         RWC) and its neighbourhood.
     eta, tau : (n_eta,), (n_tau,) s, ascending, uniformly spaced.
     eta_cell, tau_cell : the azimuth and range resolution cells, s (1 / (|K| T_a), 1 / B).
-    level_db, smooth_cells, range_db : see :data:`EXTENT_DB`, :data:`SMOOTH_CELLS`, :data:`RANGE_DB`.
+    level_db, smooth_cells : see :data:`EXTENT_DB`, :data:`SMOOTH_CELLS`.
     """
     if image.ndim != 2 or image.shape != (eta.size, tau.size) or min(image.shape) < 2:
         raise ValueError(f"image must be (n_eta, n_tau) = ({eta.size}, {tau.size}) with both >= 2, got {image.shape}")
     # odd widths: an even uniform filter is centred half a sample off, which would move the extent
     widths = tuple(2 * int(round(0.5 * smooth_cells * cell / float(axis[1] - axis[0]))) + 1
                    for cell, axis in ((eta_cell, eta), (tau_cell, tau)))
-    smooth = uniform_filter(np.abs(image).astype(np.float32) ** 2, widths, mode="nearest")
+    # Hann weighting over the band in range (sidelobes -31 dB): the unweighted range sidelobes
+    # (-13 to -21 dB) reach the level and would move a point's ends unevenly
+    f = np.fft.fftfreq(tau.size, float(tau[1] - tau[0]))
+    weight = np.where(np.abs(f) <= 0.5 / tau_cell, 0.5 * (1 + np.cos(2 * np.pi * f * tau_cell)), 0.0)
+    weighted = np.fft.ifft(np.fft.fft(image, axis=1) * weight, axis=1)
+    smooth = uniform_filter(np.abs(weighted).astype(np.float32) ** 2, widths, mode="nearest")
     peak = np.unravel_index(int(np.argmax(smooth)), smooth.shape)
     level = float(smooth[peak]) * 10.0 ** (-level_db / 10.0)
     above = smooth >= level
@@ -122,11 +125,5 @@ def extent(image: np.ndarray, eta: np.ndarray, tau: np.ndarray, eta_cell: float,
     # that each end is interpolated towards its (below-level) neighbour
     eta_profile = np.maximum(masked.max(axis=1), np.where(blob.any(axis=1), 0.0, smooth[:, cols].max(axis=1)))
     tau_profile = np.maximum(masked.max(axis=0), np.where(blob.any(axis=0), 0.0, smooth[rows].max(axis=0)))
-    # in range the run down to RANGE_DB: -20 dB falls among the unweighted range sidelobes
-    # (-13, -18, -21 dB) and would move a point's middle by 0.2-0.4 of a sample
-    near = tau_profile >= float(tau_profile[cols].max()) * 10.0 ** (-range_db / 10.0)
-    j = int(np.argmax(np.where(blob.any(axis=0), tau_profile, 0.0)))
-    first = j - int(np.argmin(near[j::-1])) + 1 if not near[:j + 1].all() else 0
-    last = j + int(np.argmin(near[j:])) - 1 if not near[j:].all() else near.size - 1
     return Extent(eta=_ends(eta_profile, eta, rows[0], rows[-1], level),
-                  tau=_ends(tau_profile, tau, first, last, float(tau_profile[j]) * 10.0 ** (-range_db / 10.0)))
+                  tau=_ends(tau_profile, tau, cols[0], cols[-1], level))
