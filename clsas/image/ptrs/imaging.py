@@ -15,6 +15,23 @@ For each receiver i (offset d_i ahead of the transmitter), on its range-compress
    differential range migration are range-FFT'd, filtered and transformed back, and the
    block's own columns kept (the paper transforms the whole swath once per block; the filter
    is the same and its impulse response is shorter than the margin).
+3b. Residual range cell migration correction (``rcmc``, not in the paper). A point at range r
+   in block n keeps the residual coupling phi_de(r) - phi_de(r_ref_n) (eq. 11). Its expansion
+   in f_tau at f_tau = 0 starts with -2 pi f_tau [m(f_t; r) - m(f_t; r_ref_n)], where
+   m(f_t; r) = tau_i(T_i(-f_t / f0); r) - 2 r / c is the range cell migration (d phi_de /
+   d f_tau = -2 pi m, see :func:`clsas.image.ptrs.stationary.migration`): the residual is first
+   of all a Doppler-dependent shift of the range envelope by (c / 2) [m(r) - m(r_ref_n)]
+   ~ (r - r_ref_n) (1 / cos(theta) - 1), with no phase at the envelope's peak (phi_de vanishes at
+   f_tau = 0). On Zhang et al.'s band (|f_t| <= 50 Hz, sin(theta) <= 0.125: 1 / cos - 1 =
+   7.9e-3) a point 4 m from its reference (an 8 m sub-block's edge) is shifted by up to 3.2 cm
+   = 0.84 range cells at the band edge, 2.6 rad of phase at f_tau = B / 2: the envelope tapers
+   the azimuth spectrum (lower PSLR, wider main lobe) and eq. (13) alone cannot meet the pi / 4
+   rule beyond 2.2 m sub-blocks. The correction reads every column r of the block, in the
+   range-Doppler domain, at r + (c / 2) [m(f_t; r) - m(f_t; r_ref_n)] (m exact at r_ref_n and
+   linear in r between the nodes below; windowed-sinc interpolation, :func:`clsas.interp.resample`).
+   What remains is the part of phi_de(r) - phi_de(r_ref_n) beyond first order in f_tau, the
+   secondary-range-compression residual ~ 2 pi (r - r_ref_n) (2 / c) f_tau^2 sin^2(theta) /
+   (2 f0 cos^3(theta)): 0.17 rad at 4 m, and the pi / 4 rule allows 33 m sub-blocks.
 4. Azimuth compression (eq. 14): exp(-j phi_ac_i(f_t; r)) at every range column r.
 5. Coherent superposition (section 4.4) of the M receivers' spectra on the M x PRF grid (the
    aliases cancel when the phase centres v t + d_i / 2 interleave uniformly), the Doppler band
@@ -28,9 +45,11 @@ them: seed 003's second scheme). The azimuth modulation is tabulated at range no
 bistatic d_i^2 / (4 r) terms: the interpolation error is below 1e-3 rad beyond 20 m).
 
 Sub-block width (section 6.1.2): the residual coupling phase |phi_de(r_ref +- dr / 2) -
-phi_de(r_ref)| must stay below pi / 4 over the processed band; without ``block_width`` or
-``reference_ranges`` the width is the largest that satisfies this at every range of the swath
-(the rule evaluated with the phase's range derivative at the band's corners).
+phi_de(r_ref)| (with ``rcmc``: what step 3b leaves of it) must stay below pi / 4 over the
+processed band; without ``block_width`` or ``reference_ranges`` the width is the largest that
+satisfies this at every range of the swath (the rule evaluated with the phase's range
+derivative at the band's corners): 2.2 m for eq. (13) alone, 33 m with ``rcmc``, on the
+reproduction's band.
 """
 
 from __future__ import annotations
@@ -40,11 +59,12 @@ import numpy as np
 import scipy.fft
 
 from ...data import EchoData, Image
+from ...interp import resample
 from ..multireceiver import interleave, line_array
 from ..rangecomp import WINDOWS
 from ..record import LineRecord, azimuth_weights, check_elements, image_of
 from .phase import compress_azimuth, decouple
-from .stationary import StationaryPoints, hermite
+from .stationary import StationaryPoints, hermite, migration
 
 log = logging.getLogger("clsas")
 
@@ -89,8 +109,8 @@ def _check_width(block_width) -> None:
 
 def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None, reference_ranges=None,
                elements=None, window: str = "none", deconvolve: bool = True, points: StationaryPoints | None = None,
-               depth: float | None = None, workers: int | None = None, backend: str | None = None,
-               **window_options) -> Image:
+               depth: float | None = None, workers: int | None = None, rcmc: bool = True,
+               backend: str | None = None, **window_options) -> Image:
     """Focus a multireceiver line-array record by numerical PTRS imaging (see the module docstring).
 
     Parameters
@@ -113,7 +133,10 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
         None solves them for this call only.
     depth : the horizontal plane the pixels are placed on (default: the track's).
     workers : scipy.fft threads (default: all cores).
-    backend : where the phase multiplies run.
+    rcmc : after each sub-block's differential decoupling, move every range column's samples
+        by the residual range cell migration m(f_t; r) - m(f_t; r_ref_n) (module docstring, step
+        3b); False applies eq. (13) alone, as the paper does.
+    backend : where the phase multiplies and the interpolation run.
 
     Returns
     -------
@@ -161,7 +184,7 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     r_c = float((r[valid][0] + r[-1]) / 2)
 
     def rule_width() -> float:
-        return residual_rule_width(points, r[valid], r_c, ft_used, echo.waveform.bandwidth, f0, c)
+        return residual_rule_width(points, r[valid], r_c, ft_used, echo.waveform.bandwidth, f0, c, rcmc=rcmc)
 
     blocks = plan_blocks(r, valid, block_width, reference_ranges, rule_width)
     nodes = np.arange(r[valid][0], r[-1] + NODE_SPACING, NODE_SPACING)
@@ -169,8 +192,9 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     column_weight = (r - nodes[column_node]) / NODE_SPACING
     refs = np.array([b[2] for b in blocks])
     tables_t, tables_g = points.tables(np.concatenate([[r_c], refs, nodes]))
-    margin = _block_margin(tables_t[:, :1 + refs.size], tables_g[:, :1 + refs.size], points.slopes,
-                           np.concatenate([[r_c], refs]), c, fs)
+    mig = tables_g + points.slopes * tables_t - 2 * np.concatenate([[r_c], refs, nodes])[None, :, None] / c
+    margin = _block_margin(mig, blocks, r, nodes, fs, rcmc)
+    s0 = -ft_used / f0  # the slopes of the range-Doppler rows (f_tau = 0)
     log.info("ptrs_image: %d receivers, %d x %d 2-D grid, %d sub-blocks, margin %d columns",
              n_rx, rows.size, n_r, len(blocks), margin)
 
@@ -189,7 +213,13 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
             seg = scipy.fft.fft(rd[:, np.arange(lo - margin, lo - margin + length) % n_r], axis=1, workers=workers)
             decouple(seg, ft_used, np.fft.fftfreq(length, 1 / fs), f0, tables_g[j, 1 + b] - g_c,
                      tables_t[j, 1 + b] - t_c, points.s_first, points.ds, 2 * (r_ref - r_c) / c, backend=backend)
-            out[:, lo:hi] = scipy.fft.ifft(seg, axis=1, workers=workers)[:, margin:margin + hi - lo]
+            seg = scipy.fft.ifft(seg, axis=1, workers=workers)
+            if rcmc:
+                out[:, lo:hi] = resample(seg, _rcmc_positions(tables_g[j], tables_t[j], 1 + b, 1 + refs.size, points,
+                                                              s0, r_ref, nodes, column_node[lo:hi],
+                                                              column_weight[lo:hi], margin, c, fs), backend=backend)
+            else:
+                out[:, lo:hi] = seg[:, margin:margin + hi - lo]
         del rd
         compress_azimuth(out, ft_used, f0, tables_g[j, 1 + refs.size:], tables_t[j, 1 + refs.size:],
                          points.s_first, points.ds, column_node, column_weight, backend=backend)
@@ -203,7 +233,7 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     image = image_of(grid, full, r, "ptrs", {"receivers": [echo.receivers[h] for h in arr.receivers],
                                             "blocks": [(float(r[lo]), float(r[hi - 1]), ref) for lo, hi, ref in blocks],
                                             "r_c": r_c, "elements": elements, "window": window,
-                                            "deconvolve": deconvolve, "backend": backend,
+                                            "deconvolve": deconvolve, "rcmc": rcmc, "backend": backend,
                                             "stationary_points_solved": points.solved}, depth)
     return image
 
@@ -218,33 +248,63 @@ def decoupling_phase(points: StationaryPoints, g: np.ndarray, t: np.ndarray, r: 
 
 
 def residual_rule_width(points: StationaryPoints, r: np.ndarray, r_c: float, ft: np.ndarray, bandwidth: float,
-                        f0: float, c: float, probes: int = 5, step: float = 1.0) -> float:
+                        f0: float, c: float, probes: int = 5, step: float = 1.0, rcmc: bool = True) -> float:
     """The widest sub-block (m) whose residual coupling phase stays below pi / 4 at its edges
-    (seed 003 section 6.1.2): 2 (pi / 4) / max |d phi_de / dr| over every receiver, the
+    (seed 003 section 6.1.2): 2 (pi / 4) / max |d residual / dr| over every receiver, the
     band's corners (f_t at the band edges and 0, f_tau = +-B / 2) and ``probes`` ranges across
-    the swath (the derivative by a difference over ``step`` m)."""
+    the swath (the derivative by a difference over ``step`` m). The residual is phi_de (eq. 11)
+    or, with ``rcmc``, phi_de + 2 pi f_tau m(-f_t / f0; r), what remains after the residual
+    migration correction (module docstring)."""
     ranges = np.linspace(r[0], r[-1], probes)
     ft_c = np.array([ft.min(), 0.0, ft.max()])
     ftau_c = np.array([-bandwidth / 2, bandwidth / 2])
     t_all, g_all = points.tables(np.concatenate([ranges, ranges + step]))
+
+    def residual(j, k, rk):
+        phase = decoupling_phase(points, g_all[j, k], t_all[j, k], rk, ft_c, ftau_c, f0, c)
+        if rcmc:
+            m = migration(g_all[j, k], t_all[j, k], points.s_first, points.ds, -ft_c / f0, rk, c)
+            phase = phase + 2 * np.pi * ftau_c[None, :] * m[:, None]
+        return phase
+
     slope = 0.0
     for j in range(points.offsets.size):
         for k, rk in enumerate(ranges):
-            a = decoupling_phase(points, g_all[j, k], t_all[j, k], rk, ft_c, ftau_c, f0, c)
-            b = decoupling_phase(points, g_all[j, probes + k], t_all[j, probes + k], rk + step, ft_c, ftau_c, f0, c)
-            slope = max(slope, float(np.abs(b - a).max()) / step)
+            diff = residual(j, probes + k, rk + step) - residual(j, k, rk)
+            slope = max(slope, float(np.abs(diff).max()) / step)
     return np.inf if slope == 0 else 2 * RESIDUAL_LIMIT / slope
 
 
-def _block_margin(tables_t: np.ndarray, tables_g: np.ndarray, slopes: np.ndarray, ranges: np.ndarray, c: float,
-                  fs: float) -> int:
+def _rcmc_positions(g, t, ref, first_node, points, s0, r_ref, nodes, column_node, column_weight, margin, c, fs):
+    """Source positions (rows, columns) in a sub-block's segment for the residual range cell
+    migration correction: the block's columns (from ``margin`` on) moved by fs [m(s0; r) -
+    m(s0; r_ref)], m linear in r between the range nodes (``g``, ``t``: one receiver's tables,
+    index ``ref`` the block's reference range, from ``first_node`` on the nodes)."""
+    m_ref = migration(g[ref], t[ref], points.s_first, points.ds, s0, r_ref, c)
+    used = np.unique(np.concatenate([column_node, column_node + 1]))
+    m_nodes = np.zeros((nodes.size, s0.size))
+    m_nodes[used] = migration(g[first_node + used], t[first_node + used], points.s_first, points.ds, s0, nodes[used],
+                              c)
+    m_cols = m_nodes[column_node] * (1 - column_weight[:, None]) + m_nodes[column_node + 1] * column_weight[:, None]
+    return margin + np.arange(column_node.size)[None, :] + fs * (m_cols.T - m_ref[:, None])
+
+
+def _block_margin(mig: np.ndarray, blocks: list, r: np.ndarray, nodes: np.ndarray, fs: float, rcmc: bool) -> int:
     """Columns of margin for the overlap-save differential decoupling: the largest group delay
-    of the differential filters plus 32 samples for the compressed pulse's sidelobes.
+    of the differential filters, plus (``rcmc``) the largest residual migration within a block,
+    plus 32 samples for the compressed pulse's sidelobes and the interpolator's taps.
 
     d phi_de / d f_tau = 2 pi (2 r / c - tau(T(s); r)) (with dG/ds = -T, tau(T) = G + s T), so the
     group delay of exp(-j [phi_de(r_ref) - phi_de(r_c)]) is the difference of the two ranges'
-    migrations tau(T(s); r) - 2 r / c. ``tables_*`` are (n_receivers, n_ranges, n_s) with
-    range 0 the bulk reference r_c and the others the sub-blocks' references ``ranges[1:]``.
+    migrations m = tau(T(s); r) - 2 r / c. ``mig`` holds m (n_receivers, n_ranges, n_s) at r_c,
+    then the blocks' reference ranges, then the ``nodes``.
     """
-    migration = tables_g + slopes * tables_t - 2 * ranges[None, :, None] / c
-    return int(32 + np.ceil(fs * np.abs(migration[:, 1:] - migration[:, :1]).max(initial=0.0)))
+    n_ref = len(blocks)
+    spread = np.abs(mig[:, 1:1 + n_ref] - mig[:, :1]).max(initial=0.0)
+    if rcmc:
+        for b, (lo, hi, _) in enumerate(blocks):
+            near = 1 + n_ref + np.flatnonzero((nodes >= r[lo] - NODE_SPACING) & (nodes <= r[hi - 1] + NODE_SPACING))
+            if near.size > 1:
+                spread_b = np.abs(mig[:, near] - mig[:, 1 + b:2 + b]).max()
+                spread = max(spread, np.abs(mig[:, 1:1 + n_ref] - mig[:, :1]).max() + spread_b)
+    return int(32 + np.ceil(fs * spread))
