@@ -75,7 +75,8 @@ def test_tabulated_phase_matches_newton():
 
 def test_phase_kernels_match_reference(opencl_device):
     """kernels/ptrs.cl against the float64 NumPy references on random data and the tables of a
-    real geometry: relative L2 below 1e-6 (measured 1.8e-7, the float32 rounding of the data)."""
+    real geometry (a width that is no multiple of the kernels' 16 lanes): relative L2 below 7e-4
+    (measured 7.4e-5: the float32 phases of the kernels, ~1e-5 cycle)."""
     rng = np.random.default_rng(7)
     points = StationaryPoints().bind([0.03, 0.31, 0.59], V, C, s_max=3.7e-4)
     t, g = points.tables([53.0, 143.0, *np.arange(40.0, 70.0, 0.5)])
@@ -95,7 +96,7 @@ def test_phase_kernels_match_reference(opencl_device):
         compress_azimuth(out, ft, F0, g[0, 2:], t[0, 2:], points.s_first, points.ds, node, weight, backend=name)
         results[name] = out
     err = np.linalg.norm(results["opencl"] - results["numpy"]) / np.linalg.norm(results["numpy"])
-    assert err < 1e-6, err
+    assert err < 7e-4, err
     assert np.abs(np.abs(results["numpy"]) - np.abs(data)).max() < 1e-5  # phase only
     with pytest.raises(ValueError, match="slopes"):
         decouple(data.copy(), ft * 2, ftau, F0, g[0, 0], t[0, 0], points.s_first, points.ds, 0.0, backend="opencl")
