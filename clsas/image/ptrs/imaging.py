@@ -3,18 +3,20 @@ Zhang, Tan & Ying 2019, sections 3-4 (Fig. 2).
 
 For each receiver i (offset d_i ahead of the transmitter), on its range-compressed record:
 
-1. 2-D FFT (section 4.1): range FFT (every receiver's fast time referred to the earliest
-   receiver's start by a linear phase), slow-time FFT over its pulses at the PRF. The spectrum
-   is aliased M times; it is laid on the full Doppler grid of M x PRF (the receiver's samples
-   zero-stuffed onto the fine slow-time grid PRI / M, i.e. its spectrum repeated M times).
-2. Bulk decoupling (eq. 12) at the swath centre r_c: exp(-j phi_de_i(f_tau, f_t; r_c)) with
+1. 2-D FFT (section 4.1): every receiver's fast time referred to the earliest receiver's start
+   (a linear phase in range frequency), slow-time FFT over its pulses at the PRF. The spectrum
+   is aliased M times; row f_t of the full Doppler grid of M x PRF is its row f_t mod PRF (the
+   receiver's samples zero-stuffed onto the fine slow-time grid PRI / M).
+2. Bulk decoupling (eq. 12) at the swath centre r_c, exp(-j phi_de_i(f_tau, f_t; r_c)) with
    phi_de = Psi - phi_ac + 4 pi f_tau r / c (eqs. 7, 8, 10, 11; the range matched filter
-   conj(P) is already applied). Range IFFT: the range-Doppler domain.
-3. Differential decoupling (eq. 13) per range sub-block n: exp(-j [phi_de_i(r_ref_n) -
-   phi_de_i(r_c)]), applied by overlap-save: the block's columns plus a margin of the largest
-   differential range migration are range-FFT'd, filtered and transformed back, and the
-   block's own columns kept (the paper transforms the whole swath once per block; the filter
-   is the same and its impulse response is shorter than the margin).
+   conj(P) is already applied), and
+3. differential decoupling (eq. 13) per range sub-block n, exp(-j [phi_de_i(r_ref_n) -
+   phi_de_i(r_c)]): their product is exp(-j phi_de_i(r_ref_n)), which each sub-block applies at
+   once, by overlap-save: the block's columns plus a margin of the largest range migration are
+   range-FFT'd, filtered and transformed back, and the block's own columns kept (the paper
+   filters the whole swath with eq. 12, then once per block with eq. 13; the product is the
+   same filter, and its impulse response is shorter than the margin). This saves the
+   full-swath pass of eq. 12 and its range IFFT per receiver.
 3b. Residual range cell migration correction (``rcmc``, not in the paper). A point at range r
    in block n keeps the residual coupling phi_de(r) - phi_de(r_ref_n) (eq. 11). Its expansion
    in f_tau at f_tau = 0 starts with -2 pi f_tau [m(f_t; r) - m(f_t; r_ref_n)], where
@@ -177,54 +179,51 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     valid = r >= MIN_RANGE
     if not valid.any():
         raise ValueError("the record holds no range beyond 1 m")
-    x_edge = c * f_edge / (2 * v * (f0 - fs / 2))
-    migration = int(np.ceil(r[-1] * (1 / np.sqrt(1 - min(x_edge, 0.9) ** 2) - 1) * 2 / c * fs))
-    n_r = scipy.fft.next_fast_len(n_cols + migration + 32)
-    ftau = np.fft.fftfreq(n_r, 1 / fs)
     r_c = float((r[valid][0] + r[-1]) / 2)
 
     def rule_width() -> float:
-        return residual_rule_width(points, r[valid], r_c, ft_used, echo.waveform.bandwidth, f0, c, rcmc=rcmc)
+        return residual_rule_width(points, r[valid], ft_used, echo.waveform.bandwidth, f0, c, rcmc=rcmc)
 
     blocks = plan_blocks(r, valid, block_width, reference_ranges, rule_width)
     nodes = np.arange(r[valid][0], r[-1] + NODE_SPACING, NODE_SPACING)
     column_node = np.clip(np.floor((r - nodes[0]) / NODE_SPACING).astype(int), 0, nodes.size - 2)
     column_weight = (r - nodes[column_node]) / NODE_SPACING
     refs = np.array([b[2] for b in blocks])
-    tables_t, tables_g = points.tables(np.concatenate([[r_c], refs, nodes]))
-    mig = tables_g + points.slopes * tables_t - 2 * np.concatenate([[r_c], refs, nodes])[None, :, None] / c
+    tables_t, tables_g = points.tables(np.concatenate([refs, nodes]))
+    mig = tables_g + points.slopes * tables_t - 2 * np.concatenate([refs, nodes])[None, :, None] / c
     margin = _block_margin(mig, blocks, r, nodes, fs, rcmc)
+    n_r = scipy.fft.next_fast_len(n_cols + margin)  # the record's circular range axis, zero beyond n_cols
+    ftau = np.fft.fftfreq(n_r, 1 / fs)
     s0 = -ft_used / f0  # the slopes of the range-Doppler rows (f_tau = 0)
-    log.info("ptrs_image: %d receivers, %d x %d 2-D grid, %d sub-blocks, margin %d columns",
-             n_rx, rows.size, n_r, len(blocks), margin)
+    log.info("ptrs_image: %d receivers, %d Doppler rows x %d columns, %d sub-blocks, margin %d columns",
+             n_rx, rows.size, n_cols, len(blocks), margin)
 
     acc = np.zeros((rows.size, n_cols), np.complex64)
     out = np.zeros((rows.size, n_cols), np.complex64)  # one receiver's range-Doppler image (columns outside the blocks stay 0)
     for j, h in enumerate(arr.receivers):
+        # the receiver's record on the common range axis, then its slow-time spectrum at the PRF
+        # (n_fp rows; row f_t of the M x PRF grid is row f_t mod PRF of it: the aliases)
         spec = scipy.fft.fft(echo.data[h], n=n_r, axis=1, workers=workers)
         spec *= np.exp(-2j * np.pi * ftau * (echo.t0[h] - t0)).astype(np.complex64)
-        spec = scipy.fft.fft(spec, n=n_fp, axis=0, workers=workers)[rows % n_fp]
-        g_c, t_c = tables_g[j, 0], tables_t[j, 0]
-        decouple(spec, ft_used, ftau, f0, g_c, t_c, points.s_first, points.ds, 2 * r_c / c, backend=backend)
-        rd = scipy.fft.ifft(spec, axis=1, workers=workers)
+        rd = scipy.fft.fft(scipy.fft.ifft(spec, axis=1, workers=workers), n=n_fp, axis=0, workers=workers)
         del spec
         for b, (lo, hi, r_ref) in enumerate(blocks):
             length = scipy.fft.next_fast_len(hi - lo + 2 * margin)
             first = lo - margin
             src = rd[:, first:first + length] if 0 <= first and first + length <= n_r \
                 else rd[:, np.arange(first, first + length) % n_r]  # the record is circular in range
-            seg = scipy.fft.fft(src, axis=1, workers=workers)
-            decouple(seg, ft_used, np.fft.fftfreq(length, 1 / fs), f0, tables_g[j, 1 + b] - g_c,
-                     tables_t[j, 1 + b] - t_c, points.s_first, points.ds, 2 * (r_ref - r_c) / c, backend=backend)
+            seg = scipy.fft.fft(src[rows % n_fp], axis=1, workers=workers)
+            decouple(seg, ft_used, np.fft.fftfreq(length, 1 / fs), f0, tables_g[j, b], tables_t[j, b],
+                     points.s_first, points.ds, 2 * r_ref / c, backend=backend)
             seg = scipy.fft.ifft(seg, axis=1, workers=workers)
             if rcmc:
-                out[:, lo:hi] = resample(seg, _rcmc_positions(tables_g[j], tables_t[j], 1 + b, 1 + refs.size, points,
+                out[:, lo:hi] = resample(seg, _rcmc_positions(tables_g[j], tables_t[j], b, refs.size, points,
                                                               s0, r_ref, nodes, column_node[lo:hi],
                                                               column_weight[lo:hi], margin, c, fs), backend=backend)
             else:
                 out[:, lo:hi] = seg[:, margin:margin + hi - lo]
         del rd
-        compress_azimuth(out, ft_used, f0, tables_g[j, 1 + refs.size:], tables_t[j, 1 + refs.size:],
+        compress_azimuth(out, ft_used, f0, tables_g[j, refs.size:], tables_t[j, refs.size:],
                          points.s_first, points.ds, column_node, column_weight, backend=backend)
         acc += out
     acc *= weights[rows, None].astype(np.complex64)
@@ -250,7 +249,7 @@ def decoupling_phase(points: StationaryPoints, g: np.ndarray, t: np.ndarray, r: 
     return psi - phi_ac + 4 * np.pi * ftau[None, :] * r / c
 
 
-def residual_rule_width(points: StationaryPoints, r: np.ndarray, r_c: float, ft: np.ndarray, bandwidth: float,
+def residual_rule_width(points: StationaryPoints, r: np.ndarray, ft: np.ndarray, bandwidth: float,
                         f0: float, c: float, probes: int = 5, step: float = 1.0, rcmc: bool = True) -> float:
     """The widest sub-block (m) whose residual coupling phase stays below pi / 4 at its edges
     (seed 003 section 6.1.2): 2 (pi / 4) / max |d residual / dr| over every receiver, the
@@ -299,21 +298,21 @@ def _rcmc_positions(g, t, ref, first_node, points, s0, r_ref, nodes, column_node
 
 
 def _block_margin(mig: np.ndarray, blocks: list, r: np.ndarray, nodes: np.ndarray, fs: float, rcmc: bool) -> int:
-    """Columns of margin for the overlap-save differential decoupling: the largest group delay
-    of the differential filters, plus (``rcmc``) the largest residual migration within a block,
-    plus 32 samples for the compressed pulse's sidelobes and the interpolator's taps.
+    """Columns of margin for the overlap-save decoupling of the sub-blocks: the largest group
+    delay of their filters exp(-j phi_de(r_ref_n)), plus (``rcmc``) the largest residual
+    migration within a block, plus 32 samples for the compressed pulse's sidelobes and the
+    interpolator's taps.
 
     d phi_de / d f_tau = 2 pi (2 r / c - tau(T(s); r)) (with dG/ds = -T, tau(T) = G + s T), so the
-    group delay of exp(-j [phi_de(r_ref) - phi_de(r_c)]) is the difference of the two ranges'
-    migrations m = tau(T(s); r) - 2 r / c. ``mig`` holds m (n_receivers, n_ranges, n_s) at r_c,
-    then the blocks' reference ranges, then the ``nodes``.
+    group delay of exp(-j phi_de(r_ref)) is the range cell migration m = tau(T(s); r_ref) - 2 r_ref / c.
+    ``mig`` holds m (n_receivers, n_ranges, n_s) at the blocks' reference ranges, then at the
+    ``nodes``.
     """
     n_ref = len(blocks)
-    spread = np.abs(mig[:, 1:1 + n_ref] - mig[:, :1]).max(initial=0.0)
+    spread = np.abs(mig[:, :n_ref]).max(initial=0.0)
     if rcmc:
         for b, (lo, hi, _) in enumerate(blocks):
-            near = 1 + n_ref + np.flatnonzero((nodes >= r[lo] - NODE_SPACING) & (nodes <= r[hi - 1] + NODE_SPACING))
-            if near.size > 1:
-                spread_b = np.abs(mig[:, near] - mig[:, 1 + b:2 + b]).max()
-                spread = max(spread, np.abs(mig[:, 1:1 + n_ref] - mig[:, :1]).max() + spread_b)
+            near = n_ref + np.flatnonzero((nodes >= r[lo] - NODE_SPACING) & (nodes <= r[hi - 1] + NODE_SPACING))
+            if near.size:
+                spread = max(spread, np.abs(mig[:, :n_ref]).max() + np.abs(mig[:, near] - mig[:, b:b + 1]).max())
     return int(32 + np.ceil(fs * spread))
