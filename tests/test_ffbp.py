@@ -116,15 +116,17 @@ def test_speckle_matches_direct_backprojection(opencl_device):
 def test_merge_kernel_matches_reference(opencl_device):
     """One merge of real first-stage images into their parent's polar grid and onto pixels:
     kernel (float32 interpolation, double geometry) against the float64 reference: relative L2
-    measured 1.9e-7 (float32 rounding of 64-tap sums)."""
-    echo = echo_of("straight")
+    measured 1.9e-7 (float32 rounding of 64-tap sums). On the track with motion errors: on a
+    straight track every frame shares one axis, so the merge does not see where on the circle
+    about it a parent sample lies (a kernel bug there went unnoticed on it)."""
+    echo = echo_of("motion")
     chosen = list(range(echo.n_rx))
     tree = plan(echo, chosen, Scene.of(GRID.positions), 2, 0.1, 8, None, None)
-    from clsas.image.ffbp import _leaf
+    from clsas.image.ffbp import _FirstStage
 
     level = 1
-    kids = [(tree.grids[0][k], _leaf(echo, tree, k, tree.grids[0][k], "opencl", chosen, "linear", 8, None, False))
-            for k in tree.children[level][0]]
+    leaves = _FirstStage(echo, tree, "opencl", chosen, "linear", 8, None, False)
+    kids = [(tree.grids[0][k], leaves.image(k, tree.grids[0][k])) for k in tree.children[level][0]]
     parent = tree.grids[level][0]
     f0, c = echo.waveform.f0, echo.medium.sound_speed
     ref = merge_reference(kids, parent, f0, c, 8, tree.rho)

@@ -43,13 +43,14 @@ from tqdm.auto import tqdm
 from ... import backend as _backend
 from ...data import EchoData, Grid, Image
 from ...kernelmath import expj_cycles
-from ..backprojection import backproject
+from ..backprojection import GridPlan, backproject, prepare
 from ..backprojection_records import check_options
 from .merge import KERNEL_TAPS, merge_opencl, merge_reference
 from .polar import PolarGrid, Scene
 from .tree import Tree, plan
 
 DEFAULT_TOLERANCE = 0.1
+RECORD_BYTES = 256 * 2**20  # prepared records held at once by the first stage
 
 __all__ = ["DEFAULT_TOLERANCE", "ffbp"]
 
@@ -82,15 +83,37 @@ def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsamp
     return chosen
 
 
-def _leaf(echo, tree: Tree, node: int, grid: PolarGrid, backend, chosen, interp, upsample, aperture, stop_and_go):
-    """A first-stage image: the leaf's pulses back-projected onto its polar grid, demodulated (n_v, n_r)."""
-    p0, p1 = tree.pulses[0][node]
-    sub = echo.replace(data=echo.data[:, p0:p1], eta=echo.eta[p0:p1], tx_pos=echo.tx_pos[p0:p1],
-                       rx_pos=echo.rx_pos[:, p0:p1])
-    image = backproject(sub, Grid.points(grid.points()), backend=backend, receivers=chosen, interp=interp,
-                        upsample=upsample, aperture=aperture, stop_and_go=stop_and_go, progress=False).data
-    demodulated = image * expj_cycles(-2 * echo.waveform.f0 * grid.ranges / echo.medium.sound_speed)[None, :]
-    return demodulated.astype(np.complex64 if backend == "opencl" else np.complex128)
+class _FirstStage:
+    """The first stage: leaves back-projected by :func:`clsas.backproject` onto their polar grids'
+    points from records prepared (:func:`clsas.image.backprojection.prepare`) one block of
+    consecutive pulses at a time (at most RECORD_BYTES of prepared samples, whole leaves), so
+    that each leaf is one call on prepared records and a :class:`GridPlan` of its points."""
+
+    def __init__(self, echo, tree: Tree, backend, chosen, interp, upsample, aperture, stop_and_go):
+        self.echo, self.tree, self.backend = echo, tree, backend
+        self.options = dict(receivers=chosen, interp=interp, upsample=upsample)
+        self.call = dict(backend=backend, aperture=aperture, stop_and_go=stop_and_go, progress=False)
+        factor = upsample if interp == "linear" else 1
+        per_pulse = 8 * factor * echo.n_samples * len(chosen)
+        self.leaves_a_block = max(1, int(RECORD_BYTES // (per_pulse * tree.first)))
+        self.block, self.records = None, None
+        self.demodulate = 2 * echo.waveform.f0 / echo.medium.sound_speed
+
+    def image(self, node: int, grid: PolarGrid) -> np.ndarray:
+        """Leaf ``node``'s image on its polar grid, demodulated: (n_v, n_r)."""
+        block = node // self.leaves_a_block
+        leaves = self.tree.pulses[0]
+        if block != self.block:
+            first, last = block * self.leaves_a_block, min((block + 1) * self.leaves_a_block, len(leaves)) - 1
+            b0, b1 = leaves[first][0], leaves[last][1]
+            e = self.echo
+            sub = e.replace(data=e.data[:, b0:b1], eta=e.eta[b0:b1], tx_pos=e.tx_pos[b0:b1], rx_pos=e.rx_pos[:, b0:b1])
+            self.block, self.records, self.b0 = block, prepare(sub, **self.options), b0
+        p0, p1 = leaves[node]
+        image = backproject(self.records, GridPlan(Grid.points(grid.points())), pulses=(p0 - self.b0, p1 - self.b0),
+                            **self.call).data
+        image *= expj_cycles(-self.demodulate * grid.ranges).astype(np.complex64)[None, :]
+        return image.astype(np.complex64 if self.backend == "opencl" else np.complex128)
 
 
 def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFAULT_TOLERANCE, taps: int = 8,
@@ -131,6 +154,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
     pixels = grid.positions.reshape(-1, 3)
     flat = np.zeros(pixels.shape[0], np.complex128 if name == "numpy" else np.complex64)
     bar = tqdm(total=len(tree.pulses[0]), desc="ffbp", disable=not progress)
+    stage1 = _FirstStage(echo, tree, name, chosen, interp, upsample, aperture, stop_and_go)
 
     def build(level: int, node: int):
         grid_ = tree.grids[level][node]
@@ -138,7 +162,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
             bar.update(1)
             if grid_ is None:
                 return None
-            return grid_, _leaf(echo, tree, node, grid_, name, chosen, interp, upsample, aperture, stop_and_go)
+            return grid_, stage1.image(node, grid_)
         kids = [build(level - 1, k) for k in tree.children[level][node]]
         kids = [k for k in kids if k is not None]
         if grid_ is None or not kids:
