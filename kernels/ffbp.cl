@@ -68,6 +68,49 @@ inline float2 lane_products(const int ok, __global const float *s, const int n_r
 #endif
 #define LANE_PRODUCTS(L) lane_products(ok.s##L, img + 2 * (iv.s##L * n_r + ir.s##L), n_r, taps, row_v.s##L, row_r.s##L)
 
+/* X(r, v) (PolarGrid.points) of samples (j, i) (sixteen range indices i) of the polar grid of
+ * frame f (20 doubles, the layout of frames below) on the plane m . X = offset (plane: m 0-2,
+ * offset 3), in x, y, z; returns their ranges r. */
+inline double16 polar_points16(__global const double *f, __global const double *plane, const int j, const double16 i,
+                               double16 *x, double16 *y, double16 *z)
+{
+    const double v = f[14] + j * f[15];
+    const double3 cen = vload3(0, f), ax = vload3(1, f), e1 = vload3(2, f), e2 = vload3(3, f);
+    const double3 m = vload3(0, plane);
+    const double16 r = f[12] + i * f[13];
+    const double16 rho = r * sqrt(fmax(1.0 - v * v, 0.0));
+    double16 s = (plane[3] - dot(m, cen) - r * (v * dot(m, ax))) / (rho * dot(m, e2));
+    s = select((double16)0.0, clamp(s, -1.0, 1.0), rho > 0.0);
+    const double16 rc = rho * sqrt(1.0 - s * s), rs = rho * s, rv = r * v;
+    *x = cen.x + rv * ax.x + rc * e1.x + rs * e2.x;
+    *y = cen.y + rv * ax.y + rc * e1.y + rs * e2.y;
+    *z = cen.z + rv * ax.z + rc * e1.z + rs * e2.z;
+    return r;
+}
+
+/* bp_tile's pixel fields (kernels/backprojection.cl: f = 0, 1, 2 the offset delta of a sample from
+ * its tile's reference point, 3 |delta|^2; float, fields[f * m_pad + slot]) for the first stage's
+ * batch of polar grids (clsas/image/ffbp/leaves.py): work-item g fills slots 16 g .. 16 g + 15,
+ * sixteen consecutive range samples of one row of one tile; items[g] = (leaf, row, first range
+ * sample, tile) (rows and samples past the grid's edge are clamped to it: the launcher drops
+ * those slots); frames (20 doubles a leaf, as below), plane (m, offset), centres (3 doubles a tile). */
+__kernel void ffbp_fields(__global const int4 *items, __global const double *frames, __global const double *plane,
+                          __global const double *centres, const int m_pad, __global float *fields)
+{
+    const int g = get_global_id(0);
+    const int4 t = items[g];
+    __global const double *f = frames + FRAME * t.x;
+    const int n_r = (int)f[16], n_v = (int)f[17];
+    double16 x, y, z;
+    polar_points16(f, plane, min(t.y, n_v - 1), fmin(t.z + LANE_INDEX, (double16)(n_r - 1)), &x, &y, &z);
+    const double16 dx = x - centres[3 * t.w], dy = y - centres[3 * t.w + 1], dz = z - centres[3 * t.w + 2];
+    const size_t o = 16 * (size_t)g;
+    STORE_F16(convert_float16(dx), fields + o);
+    STORE_F16(convert_float16(dy), fields + m_pad + o);
+    STORE_F16(convert_float16(dz), fields + 2 * (size_t)m_pad + o);
+    STORE_F16(convert_float16(dx * dx + dy * dy + dz * dz), fields + 3 * (size_t)m_pad + o);
+}
+
 __kernel void ffbp_merge(__global const float2 *images, __global const long *offsets,
                          __global const double *frames, __global const float *taps,
                          __global const double *points, __global const double *params,
@@ -83,19 +126,7 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
     if (n_valid <= 0)
         return;
     first = (size_t)j * n_r_parent + i0;
-    __global const double *p = params;
-    const double v = p[14] + j * p[15];
-    const double3 cen = vload3(0, p), ax = vload3(1, p), e1 = vload3(2, p), e2 = vload3(3, p);
-    const double3 m = vload3(0, p + 20);
-    const double16 r = p[12] + (i0 + LANE_INDEX) * p[13];
-    const double16 rho = r * sqrt(fmax(1.0 - v * v, 0.0));
-    double16 s = (p[23] - dot(m, cen) - r * (v * dot(m, ax))) / (rho * dot(m, e2));
-    s = select((double16)0.0, clamp(s, -1.0, 1.0), rho > 0.0);
-    const double16 rc_ = rho * sqrt(1.0 - s * s), rs = rho * s, rv = r * v;
-    x = cen.x + rv * ax.x + rc_ * e1.x + rs * e2.x;
-    y = cen.y + rv * ax.y + rc_ * e1.y + rs * e2.y;
-    z = cen.z + rv * ax.z + rc_ * e1.z + rs * e2.z;
-    r_p = r;
+    r_p = polar_points16(params, params + 20, j, i0 + LANE_INDEX, &x, &y, &z);
 #else
     const int i0 = 16 * get_global_id(0);
     n_valid = min(16, n_out - i0);

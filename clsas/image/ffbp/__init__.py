@@ -42,17 +42,19 @@ from tqdm.auto import tqdm
 
 from ... import backend as _backend
 from ...data import EchoData, Grid, Image
-from ...kernelmath import expj_cycles
-from ..backprojection import GridPlan, backproject, prepare
-from ..backprojection_records import check_options
+from ..backprojection_records import FFT_BATCH_BYTES, check_options
+from .leaves import BATCH_POINTS, RECORD_BYTES, FirstStage
 from .merge import KERNEL_TAPS, merge_opencl, merge_reference
 from .polar import PolarGrid, Scene
 from .tree import Tree, plan
 
 DEFAULT_TOLERANCE = 0.1
-RECORD_BYTES = 256 * 2**20  # prepared records held at once by the first stage
 
-__all__ = ["DEFAULT_TOLERANCE", "ffbp"]
+__all__ = ["DEFAULT_TOLERANCE", "ffbp", "memory_plan"]
+
+SAMPLE_BYTES = 8  # a polar or image sample on OpenCL (complex64)
+LEAF_BATCH_BYTES = 81  # held a polar sample of a first-stage batch (leaves.py: images, fields, device image, copy, tiles)
+LEAF_BYTES = 200  # transient a sample of the leaf being tiled (points, padded blocks, offsets; float64)
 
 
 def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsample, aperture):
@@ -83,37 +85,30 @@ def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsamp
     return chosen
 
 
-class _FirstStage:
-    """The first stage: leaves back-projected by :func:`clsas.backproject` onto their polar grids'
-    points from records prepared (:func:`clsas.image.backprojection.prepare`) one block of
-    consecutive pulses at a time (at most RECORD_BYTES of prepared samples, whole leaves), so
-    that each leaf is one call on prepared records and a :class:`GridPlan` of its points."""
+def memory_plan(tree: Tree, n_pixels: int, factor: int) -> dict:
+    """Bytes held at most at once by :func:`ffbp` on OpenCL besides the user's grid and echo, by
+    part, from the tree's allocation plan (issue 15, item 6), and their ``total``:
 
-    def __init__(self, echo, tree: Tree, backend, chosen, interp, upsample, aperture, stop_and_go):
-        self.echo, self.tree, self.backend = echo, tree, backend
-        self.options = dict(receivers=chosen, interp=interp, upsample=upsample)
-        self.call = dict(backend=backend, aperture=aperture, stop_and_go=stop_and_go, progress=False)
-        factor = upsample if interp == "linear" else 1
-        per_pulse = 8 * factor * echo.n_samples * len(chosen)
-        self.leaves_a_block = max(1, int(RECORD_BYTES // (per_pulse * tree.first)))
-        self.block, self.records = None, None
-        self.demodulate = 2 * echo.waveform.f0 / echo.medium.sound_speed
-
-    def image(self, node: int, grid: PolarGrid) -> np.ndarray:
-        """Leaf ``node``'s image on its polar grid, demodulated: (n_v, n_r)."""
-        block = node // self.leaves_a_block
-        leaves = self.tree.pulses[0]
-        if block != self.block:
-            first, last = block * self.leaves_a_block, min((block + 1) * self.leaves_a_block, len(leaves)) - 1
-            b0, b1 = leaves[first][0], leaves[last][1]
-            e = self.echo
-            sub = e.replace(data=e.data[:, b0:b1], eta=e.eta[b0:b1], tx_pos=e.tx_pos[b0:b1], rx_pos=e.rx_pos[:, b0:b1])
-            self.block, self.records, self.b0 = block, prepare(sub, **self.options), b0
-        p0, p1 = leaves[node]
-        image = backproject(self.records, GridPlan(Grid.points(grid.points())), pulses=(p0 - self.b0, p1 - self.b0),
-                            **self.call).data
-        image *= expj_cycles(-self.demodulate * grid.ranges).astype(np.complex64)[None, :]
-        return image.astype(np.complex64 if self.backend == "opencl" else np.complex128)
+    - ``image``: the result, n_pixels complex64;
+    - ``tree``: the depth-first walk; merging a node of level l holds its ``factor`` children, their
+      concatenation for the kernel and its own image, while every level above holds up to
+      ``factor - 1`` finished siblings: at most (3 factor + 1) x the largest node of each level;
+    - ``top``: top nodes waiting for the final stage (flushed once they hold n_pixels samples, so
+      at most n_pixels + the largest top node) and their concatenation for the kernel;
+    - ``first_stage``: a batch of leaves (leaves.BATCH_POINTS samples x LEAF_BATCH_BYTES) and the
+      leaf being tiled (its samples x LEAF_BYTES);
+    - ``records``: the prepared records (leaves.RECORD_BYTES, or the whole echo's if smaller) and
+      the upsampling's spectra (backprojection_records.FFT_BATCH_BYTES, three copies).
+    """
+    largest = [max((g.size for g in level if g is not None), default=0) for level in tree.grids[:tree.top + 1]]
+    leaf_batch = min(BATCH_POINTS, sum(g.size for g in tree.grids[0] if g is not None))
+    parts = {"image": SAMPLE_BYTES * n_pixels,
+             "tree": SAMPLE_BYTES * (3 * factor + 1) * sum(largest),
+             "top": 2 * SAMPLE_BYTES * (n_pixels + largest[-1]),
+             "first_stage": LEAF_BATCH_BYTES * leaf_batch + LEAF_BYTES * largest[0],
+             "records": RECORD_BYTES + 3 * FFT_BATCH_BYTES}
+    parts["total"] = sum(parts.values())
+    return parts
 
 
 def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFAULT_TOLERANCE, taps: int = 8,
@@ -154,7 +149,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
     pixels = grid.positions.reshape(-1, 3)
     flat = np.zeros(pixels.shape[0], np.complex128 if name == "numpy" else np.complex64)
     bar = tqdm(total=len(tree.pulses[0]), desc="ffbp", disable=not progress)
-    stage1 = _FirstStage(echo, tree, name, chosen, interp, upsample, aperture, stop_and_go)
+    stage1 = FirstStage(echo, tree.pulses[0], name, chosen, interp, upsample, aperture, stop_and_go)
 
     def build(level: int, node: int):
         grid_ = tree.grids[level][node]
@@ -162,7 +157,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
             bar.update(1)
             if grid_ is None:
                 return None
-            return grid_, stage1.image(node, grid_)
+            return grid_, stage1.image(node, grid_, tree.grids[0])
         kids = [build(level - 1, k) for k in tree.children[level][node]]
         kids = [k for k in kids if k is not None]
         if grid_ is None or not kids:
@@ -192,6 +187,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
                  provenance={"algorithm": "ffbp", "backend": name, "factor": int(factor), "tolerance": float(tolerance),
                              "taps": int(taps), "first": tree.first, "levels": top + 1,
                              "oversampling": tree.rho, "polar_samples": tree.samples(),
+                             "memory_bytes": memory_plan(tree, pixels.shape[0], int(factor))["total"],
                              "interp": interp, "upsample": int(upsample),
                              "receivers": [echo.receivers[h] for h in chosen], "aperture": aperture,
                              "stop_and_go": bool(stop_and_go), "echo": dict(echo.provenance)})
