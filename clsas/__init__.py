@@ -29,6 +29,7 @@ from .scene.scenario import (
                              Waveform,
 )
 from .scene.targets import PointTargets
+from .scene.toml import load_scenario
 from .simulate import simulate
 
 __all__ = [
@@ -54,6 +55,7 @@ __all__ = [
                              "focus_moving",
                              "line_record",
                              "load",
+                             "load_scenario",
                              "memory_budget",
                              "omega_k",
                              "pca_record",

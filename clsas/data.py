@@ -13,7 +13,7 @@ import numpy as np
 
 from . import budget
 from . import validate
-from .scene.scenario import Medium, Waveform
+from .scene.scenario import Medium, Scenario, Waveform
 
 MAX_ECHO_FS = 1e11  # Hz: a waveform's largest rate (1 GHz) upsampled 64 times, with margin
 GRID_BYTES_PER_PIXEL = 80  # a plane's positions (24) and their temporaries while it is built
@@ -70,6 +70,10 @@ class EchoData:
         False for raw echoes, True after range compression.
     provenance : dict
         How the data was made (simulator or processing step and its parameters).
+    scenario : Scenario or None
+        The scenario the echoes were simulated from (None for recorded or hand-made data); kept
+        through processing steps as a record of what was simulated, and saved with the file
+        (as TOML text, :mod:`clsas.dataset`).
     """
 
     data: np.ndarray
@@ -84,6 +88,7 @@ class EchoData:
     receivers: tuple
     compressed: bool = False
     provenance: dict = field(default_factory=dict)
+    scenario: Scenario | None = None
 
     dims: ClassVar[tuple] = ("rx", "pulse", "sample")
 
@@ -118,6 +123,8 @@ class EchoData:
         object.__setattr__(self, "receivers", receivers)
         object.__setattr__(self, "compressed", bool(self.compressed))
         object.__setattr__(self, "provenance", dict(self.provenance))
+        if self.scenario is not None and not isinstance(self.scenario, Scenario):
+            raise TypeError(f"EchoData.scenario must be a Scenario or None, got {type(self.scenario).__name__}")
 
     @property
     def n_rx(self) -> int:

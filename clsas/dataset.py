@@ -17,7 +17,12 @@ An EchoData becomes (``ds.attrs["clsas_kind"] == "EchoData"``)::
     rx_pos  float64 (rx, pulse, node, xyz) receiver phase centres at the nodes, m
     rx_tau  float64 (rx, node)            fast times of the nodes, s
     attrs: Conventions, title, clsas_kind, clsas_format, clsas_version, fs (Hz), compressed
-           (0/1), waveform, medium, provenance (JSON text)
+           (0/1), waveform, medium, provenance (JSON text), and scenario: the whole Scenario
+           the echoes were simulated from as TOML text (docs/scenario-toml.md; meshes inline),
+           when there is one (``clsas.load(path).scenario`` rebuilds it;
+           ``clsas.scene.toml.scenario_from_toml(ds.attrs["scenario"])`` too). A scenario TOML
+           cannot hold (motion errors as Python functions) is left out with a warning, and
+           ``scenario_missing`` says why.
 
 An Image becomes ``image`` complex64 over its own dims, one coordinate per dim (units from
 :data:`AXIS_UNITS`: m for x, y, z, u, v, r; s for eta, tau), and the pixel positions either
@@ -29,11 +34,14 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 
 import numpy as np
 
 from .data import EchoData, Image
 from .scene.scenario import Medium, Waveform
+
+log = logging.getLogger("clsas")
 
 FORMAT = 2  # clsas_format of these datasets; 1 was the h5py layout of clsas 0.1 (io reads it)
 
@@ -113,7 +121,33 @@ def echo_to_xarray(echo: EchoData):
                    f"x {echo.n_samples} samples", echo.provenance)
     attrs.update(fs=echo.fs, compressed=int(echo.compressed),
                  waveform=to_json(dataclasses.asdict(echo.waveform)), medium=to_json(dataclasses.asdict(echo.medium)))
+    attrs.update(_scenario_attrs(echo.scenario))
     return xr.Dataset(data_vars, coords, attrs)
+
+
+def _scenario_attrs(scenario) -> dict:
+    """``{"scenario": TOML text}``, or ``{"scenario_missing": why}`` when TOML cannot hold it."""
+    if scenario is None:
+        return {}
+    from .scene.toml import scenario_to_toml
+
+    try:
+        return {"scenario": scenario_to_toml(scenario)}
+    except TypeError as err:
+        log.warning("the echo's scenario is not stored with it: %s", err)
+        return {"scenario_missing": str(err)}
+
+
+def _scenario_of(ds):
+    text = ds.attrs.get("scenario")
+    if text is None:
+        return None
+    from .scene.toml import scenario_from_toml
+
+    try:
+        return scenario_from_toml(text)
+    except ValueError as err:
+        raise ValueError(f"the scenario attribute does not describe a scenario: {err}") from None
 
 
 def _check_kind(ds, kind: str) -> None:
@@ -156,7 +190,7 @@ def echo_from_xarray(ds) -> EchoData:
         rx_pos=ds["rx_pos"].transpose("rx", "pulse", "node", "xyz").values,
         rx_tau=ds["rx_tau"].transpose("rx", "node").values, waveform=waveform, medium=medium,
         receivers=tuple(str(r) for r in ds["rx"].values), compressed=bool(int(ds.attrs.get("compressed", 0))),
-        provenance=_json_attr(ds, "provenance"))
+        provenance=_json_attr(ds, "provenance"), scenario=_scenario_of(ds))
 
 
 def plane_height(image: Image):

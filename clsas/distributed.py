@@ -105,6 +105,7 @@ def simulate(scenario: Scenario, client, pulses_per_task: int = 64, snr_db: floa
     if not isinstance(scenario, Scenario):
         raise TypeError(f"scenario must be a Scenario, got {type(scenario).__name__}")
     blocks = _blocks(scenario.eta.size, pulses_per_task)
+    given = scenario
     with stage("distributed echo synthesis", f"{scenario.n_receivers} receivers x {scenario.eta.size} pulses in "
                f"{len(blocks)} tasks"):
         if scenario.recording is None:
@@ -125,7 +126,7 @@ def simulate(scenario: Scenario, client, pulses_per_task: int = 64, snr_db: floa
     provenance = dict(parts[0].provenance, snr_db=snr_db, seed=seed if seed is None or isinstance(seed, int) else str(seed),
                       distributed={"tasks": len(blocks), "pulses_per_task": int(pulses_per_task)})
     echo = parts[0].replace(data=data, eta=scenario.eta, tx_pos=np.concatenate([p.tx_pos for p in parts]),
-                            rx_pos=rx_pos, rx_tau=rx_tau, provenance=provenance)
+                            rx_pos=rx_pos, rx_tau=rx_tau, provenance=provenance, scenario=given)
     if out is not None:
         from .io import save
 

@@ -23,3 +23,9 @@ class MemoryBudgetError(ClsasError, ValueError):
     """A request (its sizes follow from the arguments named in the message) would allocate more
     than :func:`clsas.memory_budget` allows; refused before anything is allocated. Raise the budget
     with :func:`clsas.use_memory_budget` or the ``CLSAS_MEMORY_BUDGET`` environment variable."""
+
+
+class ScenarioFileError(ClsasError, ValueError):
+    """A TOML scenario that :func:`clsas.load_scenario` cannot build: the message names the
+    file, the key path (``[waveform].bandwidth``, ``[[targets]][2].velocity``), what is wrong
+    and the line."""

@@ -101,11 +101,12 @@ def _write(ds, path: Path, level: int) -> None:
             os.fsync(f.fileno())
 
 
-def _same(a, b) -> bool:
+def _same(a, b, stored_scenario: bool) -> bool:
     if isinstance(a, EchoData):
         return (isinstance(b, EchoData) and all(np.array_equal(getattr(a, n), getattr(b, n)) for n in
                                                 ("data", "eta", "t0", "tx_pos", "rx_pos", "rx_tau"))
-                and a.receivers == b.receivers and a.fs == b.fs and a.compressed == b.compressed)
+                and a.receivers == b.receivers and a.fs == b.fs and a.compressed == b.compressed
+                and (b.scenario is not None) == stored_scenario)
     return (isinstance(b, Image) and a.dims == b.dims and np.array_equal(a.data, b.data)
             and all(np.array_equal(a.axes[d], b.axes[d]) for d in a.dims)
             and (a.positions is None) == (b.positions is None)
@@ -145,7 +146,7 @@ def save(obj: EchoData | Image, path: str | os.PathLike, compression: int = 1) -
     try:
         _write(ds, tmp, int(compression))
         back = load(tmp)
-        if not _same(obj, back):
+        if not _same(obj, back, "scenario" in ds.attrs):
             raise DataFileError(f"{path}: the file read back differs from the data written; the old file is kept")
         if _is_zarr(path) and path.exists():
             old = path.with_name(f".{path.name}.old")

@@ -6,11 +6,16 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
+import clsas
 from clsas import cli, io
+from clsas.scene import presets
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 def _clsas(*args, env=None, cwd=None):
@@ -57,10 +62,14 @@ def test_mistakes_print_one_line_not_a_traceback(tmp_path, capsys, monkeypatch):
                                                "('numpy', 'opencl', 'auto'), got 'bogus'"]
     existing = tmp_path / "file.txt"
     existing.write_text("x")
+    bad_toml = tmp_path / "bad.toml"
+    bad_toml.write_text((EXAMPLES / "sphere_and_buoy.toml").read_text().replace("bandwidth = 20e3", "bandwidth = -2"))
     cases = [
         (["demo", "--out", str(existing)], "is an existing file"),
         (["simulate", "nosuch", "-o", str(tmp_path / "e.nc")], "unknown preset 'nosuch'"),
-        (["simulate", "scene.toml", "-o", str(tmp_path / "e.nc")], "scenario files are not read by this version"),
+        (["simulate", "nosuch.toml", "-o", str(tmp_path / "e.nc")], "no such scenario file: nosuch.toml"),
+        (["simulate", str(bad_toml), "-o", str(tmp_path / "e.nc")],
+         "bad.toml: [waveform].bandwidth: must be in (0, 200000) Hz (0 < B < 2 f0), got -2 (line 12)"),
         (["image", str(existing), "-o", str(tmp_path / "i.nc")], "not a NetCDF4/HDF5 clsas file"),
         (["image", str(existing), "--grid", "1:0:1,0:1:1,0", "-o", "x.nc"], "not a NetCDF4/HDF5"),
         (["plot", str(tmp_path / "missing.nc")], "no such clsas file"),
@@ -72,8 +81,9 @@ def test_mistakes_print_one_line_not_a_traceback(tmp_path, capsys, monkeypatch):
 
 
 def test_simulate_image_plot_workflow(tmp_path, opencl_device, monkeypatch):
-    """simulate and image as a user runs them (fresh processes), then omega-k and plot in this
-    process (each fresh process pays ~1-5 s of imports and kernel builds)."""
+    """The README's two commands as a user runs them (fresh processes: the entry point, exit
+    status, output), then the other imagers, a TOML scenario and plot in this process through
+    the same main() (a fresh process pays 3-10 s of imports and kernel builds)."""
     out = _clsas("simulate", "huang2022", "--pulses", "8", "--snr", "30", "--seed", "3", "-o", "echo.nc",
                  cwd=tmp_path)
     assert out.returncode == 0, out.stderr
@@ -81,21 +91,28 @@ def test_simulate_image_plot_workflow(tmp_path, opencl_device, monkeypatch):
     with xr.open_dataset(tmp_path / "echo.nc", engine="h5netcdf") as ds:
         assert ds["echo"].dims == ("rx", "pulse", "sample") and ds["eta"].attrs["units"] == "s"
         assert json.loads(ds.attrs["provenance"])["seed"] == 3
-    out = _clsas("image", "echo.nc", "--algorithm", "bp", "--grid", "38:42:0.05,-2.5:2.5:0.05,0", "-o", "bp.nc",
-                 "--png", "bp.png", cwd=tmp_path)
+        assert ds.attrs["scenario"] == presets.point_scene("huang2022", n_pulses=8).to_toml()  # the whole scenario
+    out = _clsas("image", "echo.nc", "--algorithm", "omegak", "-o", "wk.zarr", "--png", "wk.png", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
+    assert "elements from the file's scenario: L_tx = 0.08 m, L_rx = 0.04 m" in out.stdout
+    assert io.load(tmp_path / "wk.zarr").dims == ("y", "x") and (tmp_path / "wk.png").stat().st_size > 10_000
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["--no-progress", "image", "echo.nc", "--algorithm", "bp", "--grid", "38:42:0.05,-2.5:2.5:0.05,0",
+                     "-o", "bp.nc", "--png", "bp.png"]) == 0
     image = io.load(tmp_path / "bp.nc")
     assert image.shape == (100, 80) and (tmp_path / "bp.png").stat().st_size > 10_000
     peak = np.unravel_index(np.argmax(np.abs(image.data)), image.shape)
     assert abs(image.axes["x"][peak[1]] - 40) < 0.1  # the near row of points
-    monkeypatch.chdir(tmp_path)
-    assert cli.main(["--no-progress", "image", "echo.nc", "--algorithm", "omegak", "-o", "wk.zarr"]) == 0
-    assert io.load(tmp_path / "wk.zarr").dims == ("y", "x")
     assert cli.main(["--no-progress", "image", "echo.nc", "-a", "ffbp", "--grid", "39.5:40.5:0.05,1.5:2.5:0.05,0",
                      "-o", "ffbp.nc"]) == 0
     assert io.load(tmp_path / "ffbp.nc").shape == (20, 20)
     assert cli.main(["plot", "echo.nc"]) == 0
     assert (tmp_path / "echo.png").stat().st_size > 10_000
+    scene = EXAMPLES / "huang2022_points.toml"
+    assert cli.main(["--no-progress", "simulate", str(scene), "--pulses", "4", "-o", "toml.nc"]) == 0
+    echo = io.load(tmp_path / "toml.nc")
+    assert echo.n_rx == 32 and echo.n_pulses == 4 and echo.scenario.schedule.n_pulses == 4
+    assert echo.scenario.to_toml() == clsas.load_scenario(scene).replace(schedule=echo.scenario.schedule).to_toml()
 
 
 def test_demo_runs_and_writes_its_files(tmp_path, capsys, opencl_device):

@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
 import xarray as xr
 
-from clsas import EchoData, Grid, Image, Medium, Waveform, io
+from clsas import EchoData, Grid, Image, Medium, Platform, Waveform, io, load_scenario
 from clsas.errors import DataFileError
+from clsas.scene.toml import scenario_from_toml
 
 SUFFIXES = [".nc", ".zarr"]
 ENGINES = {".nc": "h5netcdf", ".zarr": "zarr"}
@@ -218,3 +220,21 @@ def test_files_of_clsas_0_1_still_load(tmp_path, rng):
         del f["rx_tau"]
     with pytest.raises(DataFileError, match="old_echo.h5: a clsas 0.1 HDF5 file with a missing"):
         io.load(tmp_path / "old_echo.h5")
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_echo_files_carry_the_whole_scenario(tmp_path, rng, suffix, caplog):
+    """The scenario (here every part of the TOML schema, a mesh included) is stored as TOML text
+    in the attribute ``scenario`` and rebuilt on load; one TOML cannot hold is left out, saying why."""
+    scenario = load_scenario(Path(__file__).resolve().parents[1] / "examples" / "sphere_and_buoy.toml")
+    path = io.save(_echo(rng).replace(scenario=scenario), tmp_path / f"echo{suffix}")
+    back = io.load(path)
+    assert back.scenario.to_toml() == scenario.to_toml() and back.scenario.targets[1].n_facets == 320
+    with xr.open_dataset(path, engine=ENGINES[suffix]) as ds:
+        assert scenario_from_toml(ds.attrs["scenario"]).receiver_names == ("h0", "h1", "h2", "h3", "buoy")
+    wobbly = scenario.replace(platform=Platform(speed=1.0, sway=lambda t: 0 * t))
+    with caplog.at_level("WARNING", logger="clsas"):
+        back = io.load(io.save(_echo(rng).replace(scenario=wobbly), tmp_path / f"wobbly{suffix}"))
+    assert back.scenario is None and "Platform.sway is a Python function" in caplog.text
+    with pytest.raises(TypeError, match="EchoData.scenario must be a Scenario or None, got str"):
+        _echo(rng).replace(scenario="scene.toml")

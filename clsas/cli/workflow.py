@@ -24,29 +24,46 @@ DEFAULT_MAX_PIXELS = 512 * 512
 def add_simulate_arguments(parser) -> None:
     from ..scene import presets
 
-    parser.add_argument("scene", metavar="PRESET",
-                        help=f"a paper's point scene: {', '.join(sorted(presets.POINT_LAYOUTS))}")
+    parser.add_argument("scene", metavar="SCENE.toml|PRESET",
+                        help="a scenario file (TOML, docs/scenario-toml.md) or a paper's point scene: "
+                             f"{', '.join(sorted(presets.POINT_LAYOUTS))}")
     parser.add_argument("-o", "--out", required=True, help="output file: .nc (NetCDF4) or .zarr")
-    parser.add_argument("--pulses", type=int, default=None, help="number of pulses (default: the preset's)")
+    parser.add_argument("--pulses", type=int, default=None,
+                        help="number of pulses (default: the scenario's), keeping its PRF and centre")
     parser.add_argument("--snr", type=float, default=None, help="add complex white noise at this SNR, dB")
     parser.add_argument("--seed", type=int, default=None, help="noise seed (repeatable runs)")
     parser.add_argument("--backend", choices=("auto", "opencl", "numpy"), default=None,
                         help="where the kernels run (default: CLSAS_BACKEND or auto)")
 
 
+def load_scene(name: str, pulses: int | None):
+    """The Scenario of a TOML file or a preset name; ``pulses`` replaces the pulse count, keeping
+    the PRF and the schedule's centre (or its start, when the file gives one)."""
+    from ..scene import presets
+    from ..scene.scenario import PulseSchedule
+    from ..scene.toml import load_scenario
+
+    if pulses is not None and pulses < 1:
+        raise UsageError(f"--pulses must be >= 1, got {pulses}")
+    if name.endswith(".toml"):
+        scene = load_scenario(name)
+        if pulses is not None:
+            old = scene.schedule
+            scene = scene.replace(schedule=PulseSchedule(prf=old.prf, n_pulses=pulses, start=old.start))
+        return scene
+    if name not in presets.POINT_LAYOUTS:
+        raise UsageError(f"unknown preset {name!r}; give a scenario file (.toml) or one of "
+                         f"{', '.join(sorted(presets.POINT_LAYOUTS))}")
+    return presets.point_scene(name, n_pulses=pulses)
+
+
 def run_simulate(args) -> int:
     from .. import io
-    from ..scene import presets
     from ..simulate import simulate
 
-    if args.scene.endswith(".toml"):
-        raise UsageError(f"{args.scene}: scenario files are not read by this version; give a preset name "
-                         f"({', '.join(sorted(presets.POINT_LAYOUTS))})")
-    if args.scene not in presets.POINT_LAYOUTS:
-        raise UsageError(f"unknown preset {args.scene!r}; known: {', '.join(sorted(presets.POINT_LAYOUTS))}")
-    if args.pulses is not None and args.pulses < 1:
-        raise UsageError(f"--pulses must be >= 1, got {args.pulses}")
-    scene = presets.point_scene(args.scene, n_pulses=args.pulses)
+    scene = load_scene(args.scene, args.pulses)
+    if not scene.targets:
+        raise UsageError(f"{args.scene}: the scenario has no targets ([[targets]]): its echoes would be zero")
     t = time.perf_counter()
     echo = simulate(scene, snr_db=args.snr, seed=args.seed, backend=args.backend, progress=args.progress)
     took = time.perf_counter() - t
@@ -68,7 +85,8 @@ def add_image_arguments(parser) -> None:
                              f"at most {DEFAULT_MAX_PIXELS} pixels")
     parser.add_argument("--window", default=None, help="range window: none, hamming, taylor, kaiser")
     parser.add_argument("--elements", default=None, metavar="LTX,LRX",
-                        help="omegak/rda/csa: along-track element lengths, m (band limit and pattern deconvolution)")
+                        help="omegak/rda/csa: along-track element lengths, m (band limit and pattern deconvolution); "
+                             "default: those of the scenario stored in the echo file, if any")
     parser.add_argument("-o", "--out", default=None, help="image file (.nc or .zarr)")
     parser.add_argument("--png", default=None, help="also write a picture of the image with its cuts")
     parser.add_argument("--floor", type=float, default=-50.0, help="picture floor, dB (default -50)")
@@ -95,9 +113,14 @@ def default_grid(echo, max_pixels: int = DEFAULT_MAX_PIXELS):
     return Grid.plane(np.linspace(x_track + r0, x_track + r1, nx), np.linspace(y0, y1, ny), z)
 
 
-def _elements(text):
+def _elements(text, echo):
+    """--elements, else the stored scenario's transmitter and longest receiver (both directive)."""
     if text is None:
-        return None
+        array = echo.scenario.array if echo.scenario is not None else None
+        if array is None or array.n_receivers == 0 or array.tx_length <= 0 or array.rx_length.min() <= 0:
+            return None
+        print(f"elements from the file's scenario: L_tx = {array.tx_length:g} m, L_rx = {array.rx_length.max():g} m")
+        return float(array.tx_length), float(array.rx_length.max())
     try:
         ltx, lrx = (float(v) for v in text.split(","))
     except ValueError:
@@ -135,7 +158,7 @@ def run_image(args) -> int:
             raise UsageError("--grid applies to --algorithm bp and ffbp only (the frequency-domain imagers have their own grid)")
         record = pca_record(echo, backend=args.backend) if echo.n_rx > 1 else echo
         imager = {"omegak": omega_k, "rda": range_doppler, "csa": chirp_scaling}[args.algorithm]
-        image = imager(record, elements=_elements(args.elements), backend=args.backend)
+        image = imager(record, elements=_elements(args.elements, echo), backend=args.backend)
         what = f"{args.algorithm} ({echo.n_rx} receivers merged by PCA)" if echo.n_rx > 1 else args.algorithm
     took = time.perf_counter() - t
     print(f"{what}: image {' x '.join(map(str, image.shape))} ({', '.join(image.dims)}) in {took:.1f} s")

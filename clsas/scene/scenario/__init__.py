@@ -167,6 +167,14 @@ class Scenario:
         """Every receiver at times ``t``: shape ``(n_receivers,) + t.shape + (3,)``."""
         return np.stack([self.receiver_position(i, t) for i in range(self.n_receivers)])
 
+    def to_toml(self, path=None, inline_meshes: bool | None = None):
+        """This scenario as TOML: written to ``path`` (returns the Path; meshes as PLY files beside
+        it) or returned as text (``path=None``; meshes inline). See :mod:`clsas.scene.toml` and
+        docs/scenario-toml.md; :func:`clsas.load_scenario` reads it back (the same Scenario)."""
+        from ..toml import scenario_to_toml
+
+        return scenario_to_toml(self, path, inline_meshes)
+
     def replace(self, **changes) -> "Scenario":
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)

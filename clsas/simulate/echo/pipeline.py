@@ -309,4 +309,5 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
                     **({"reuse_tolerance": opts.reuse_tolerance} if opts.hull_occlusion and has_meshes(scenario) else {}),
                     "window": out.origin, "n_valid": out.n_valid.tolist(),
                     "rx_node_error_m": out.node_error_m},
+        scenario=scenario,
     )
