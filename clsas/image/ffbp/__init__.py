@@ -8,10 +8,11 @@ sub-apertures on finer polar grids, until the last ones are read at the user's p
 1. Sub-apertures (:mod:`.tree`): blocks of ``first`` consecutive pulses, every selected receiver
    of the array (a towed array's pulse is one wide sub-aperture already); a node of the merge
    tree is ``factor`` consecutive children.
-2. First stage: each leaf is back-projected by :func:`clsas.backproject` (the exact delays:
-   non-stop-and-go, two-leg bistatic, every receiver, ``interp``/``upsample``/``aperture`` as
-   there) onto its polar grid's points (:mod:`.polar`), and demodulated by its centre range:
-   J = I exp(-j 4 pi f0 r / c).
+2. First stage (:mod:`.leaves`): each leaf is back-projected with back-projection's exact
+   delays (non-stop-and-go, two-leg bistatic, every receiver, ``interp``/``upsample``/``aperture``
+   as for :func:`clsas.backproject`, on records prepared once a batch) onto its polar grid's
+   points (:mod:`.polar`), a batch of leaves a kernel launch, and demodulated by its centre
+   range: J = I exp(-j 4 pi f0 r / c).
 3. Merges (:mod:`.merge`, kernels/ffbp.cl): a parent's samples read in its children's polar
    images by a separable windowed sinc, the phase restored and re-demodulated, summed.
 4. Final stage: the top nodes read at the grid's pixels with the full phase restored, so the
@@ -22,8 +23,9 @@ The tree stops merging where one more level would cost more than it saves at the
 The error model (``tolerance`` -> oversampling of every polar grid) is derived in
 :mod:`.polar`. Memory: the tree is walked depth first, so it holds at most ``factor`` polar
 images a level (each at most about the size of the pixel grid, by the stopping rule) and top
-nodes of about the image's size waiting for the final stage, besides the image and one leaf's
-records.
+nodes of about the image's size waiting for the final stage, besides the image, one batch of
+leaves and its records: :func:`memory_plan` bounds the total from the tree (a 4096^2 image
+from 4096 pulses: 1.2-1.4 GB).
 
 Geometry: any track (sway, yaw, surge, circles: each sub-aperture's frame follows its own
 chord) and any grid on a plane (planes, slant planes, points on a plane) are exact up to the

@@ -171,6 +171,20 @@ class PolarGrid:
                                [self.r0, self.dr, self.v0, self.dv, self.n_r, self.n_v, 0.0, 0.0]])
 
 
+def _largest_step(positions: np.ndarray, axis: int) -> float:
+    """The largest distance (m) between neighbouring pixels along grid axis ``axis`` of positions
+    (..., 3), a block of about 2^20 pixels at a time (a 4096^2 grid's whole difference array
+    would be 400 MB)."""
+    moved = np.moveaxis(positions, axis, 0)
+    rows = max(2, (2**20) // max(1, moved[0].size // 3))
+    largest = 0.0
+    for start in range(0, moved.shape[0] - 1, rows - 1):
+        part = moved[start:start + rows]
+        step = np.diff(part, axis=0)
+        largest = max(largest, float(np.sqrt(np.max(np.sum(step * step, axis=-1)))))
+    return largest
+
+
 @dataclasses.dataclass(frozen=True)
 class Scene:
     """What every sub-aperture needs to know of the grid: a skeleton of its pixels (K, 3) (its
@@ -202,8 +216,7 @@ class Scene:
                 picked.append(positions[np.ix_(*full)].reshape(-1, 3))
         skeleton = np.concatenate(picked)
         # neighbours of the strided set are at most one stride apart along each axis
-        steps = [np.linalg.norm(np.diff(positions, axis=k), axis=-1).max() for k in range(len(shape))
-                 if shape[k] > 1]
+        steps = [_largest_step(positions, k) for k in range(len(shape)) if shape[k] > 1]
         margin = stride * float(np.sqrt(np.sum(np.square(steps)))) if steps else 0.0
         return cls(skeleton, margin, Plane.fit(skeleton), flat.shape[0])
 
