@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     track = dpca.integrate(pairs, echo.eta, speed, scene.array)
     t = track.times
     true_sway = sway(t) - sway(t[0])
-    true_yaw = yaw(t)
+    true_yaw = yaw(track.heading_times)
     print(f"\n{'ping':>4} {'true sway mm':>13} {'DPCA mm':>9} {'error mm':>9} {'true yaw mrad':>14} "
           f"{'DPCA mrad':>10} {'error mrad':>11}")
     for p in range(args.pings):

@@ -1,0 +1,84 @@
+"""DPCA micronavigation: surge, sway and yaw between consecutive pings from the echoes of
+overlapping phase centres (Heremans, Dupont & Acheroy 2009, section 5, eqs. 50-70), the
+trajectory they integrate to (eqs. 71-73), and the motion compensation (eqs. 74-75).
+
+Geometry (clsas axes: y along track, x across track towards the imaged side)
+-----------------------------------------------------------------------------
+The phase centre of hydrophone h is midway between the transmitter and h: along-track offset
+o_h / 2 from the transmitter, spacing Delta_PC = d / 2 for hydrophones d apart. Between two
+pings the platform advances D = v PRT; for D = (H - n) Delta_PC (eq. 50) the phase centres of
+hydrophones j = i + s at ping p coincide with those of hydrophones i at ping p + 1, with
+s = D / Delta_PC (the nominal pairing, s = 7 for Heremans' 15-hydrophone array). The
+couples of x-lag l are (j = i + s + l at ping p, i at ping p + 1) (section 5.3, Fig. 14); clsas
+uses the same H - s - lags couples i = 0 .. H - s - lags - 1 at every x-lag (the paper uses all
+couples a lag allows, 6, 7, 8, 7, 6), so the beam peaks of the lags compare like with like.
+
+What each couple sees
+---------------------
+Two coinciding phase centres see the same scatterers over the same two-way paths, so their
+range-compressed echoes f (ping p) and g (ping p + 1) differ only by the motion between the
+pings. With the ping-(p + 1) echo delayed by dt_n relative to ping p at couple n,
+g(t) = f(t - dt_n) exp(-j 2 pi f0 dt_n) at baseband, and the normalised cross-correlation of
+eq. (51), c_n[m] = sum_k f[k + m] g*[k] / sqrt(sum |f|^2 sum |g|^2), peaks at m = -dt_n fs
+with phase +2 pi f0 dt_n. A sway gamma (the phase centres moved by gamma along +x, towards
+the scene) shortens both legs: dt = -2 gamma / c for every couple. A yaw xi (rotation about
++z, clsas's Platform.yaw) moves a phase centre at along-track position u by -u xi along x:
+dt_n = 2 u_n xi / c, a delay that grows linearly along the couples.
+
+Beamforming over the couples (eqs. 52-65)
+-----------------------------------------
+A linear delay across the couples is a plane wave arriving at look angle theta: eq. (64)
+steers the couples' correlations with phase 2 pi f0 (2 u_n sin theta) / c and sums them,
+V(theta, m) = (1/N) sum_n c_n[m] exp(-j 4 pi f0 u_n sin theta / c). The best beam (the
+(theta, m) of the largest |V|, refined by the three-point parabola of eq. 67 in m and in theta)
+gives the yaw xi = sin theta and the delay. The delay is taken to a fraction of the carrier
+period from the phase of V at the best beam, resolved against the envelope's parabolic peak:
+dt = (arg V + 2 pi k) / (2 pi f0) with the integer k that lands nearest -m_peak / fs. Then
+sway gamma = -c dt / 2 (eq. 69, with clsas's sign of x) and yaw xi = sin theta (eq. 70).
+
+Two passes. Pass 1 scans t-lags -t_lags..t_lags on the records as they are. A fractional-
+sample misalignment of f and g makes the correlation's phase at the integer t-lag depend on
+the speckle, differently at every couple: yaw noise that grows with the sway between the pings
+(20 cm of sway at 40 s read 87 urad RMS of yaw a pair on noise-free speckle, 15 urad with the
+envelopes aligned). Pass 2 advances ping p + 1's envelope (not its carrier phase) by the
+pair's pass-1 delay (correlate.advance) and scans +-FINE_T_LAGS again: yaw and sway come from
+it, at pass 1's best x-lag.
+
+Surge (eq. 68): the beam peak's magnitude is largest for the x-lag whose couples coincide;
+the fractional lag B comes from the best lag and its neighbours through the coherence the
+beam predicts for a displaced pair of phase centres (geometry.xlag_offset: the Fourier
+transform of the two-way power pattern; a parabola reads half the offset, a V 0.85 of it),
+and the surge (the along-track advance beyond D) is B Delta_PC = B d / 2. A single bright
+scatterer stays coherent at every x-lag: surge is unobservable from blocks that a point
+dominates, which are left out of it (pairs.BRIGHT_BLOCK); from points alone it is not
+observable at all (fly Trajectory.platform(surge=False) then).
+
+Phase-centre errors (eqs. 48-49, geometry.pca_delay): removed sample by sample at each
+sample's range before correlating, with the beam's mean cos^2 of the look angle. What is left
+is inherent to the phase-centre approximation: D (sin^2 theta - <sin^2 theta>) / r of yaw per
+scatterer; a seafloor that fills the beam averages it out, a bright point off broadside reads
+it (tens of urad a pair at 8 m along track at 100 m).
+
+Range blocks and uncertainty: the fast-time axis is cut into blocks; each block gives its own
+estimate of the three quantities. Blocks whose beam peak is below ``min_coherence`` or whose
+energy is below pairs.WEAK_BLOCK of the pair's median block (beyond the seafloor's swath) are
+left out; the reported value is the mean of the remaining blocks within pairs.OUTLIER scaled
+median absolute deviations of their median, and its uncertainty that mean's standard error.
+
+The hot loop, the correlations over ping pairs, x-lags, couples, t-lags and samples, is one
+vectorised NumPy contraction per t-lag over every pair, couple and block at once, and the
+beamforming one complex matrix product; bench/bench_dpca.py measures it (tens of ms a ping
+pair for 15 hydrophones x 2048 samples). A blocked FFT correlation measured the same within
+noise (it computes every lag where 2 t_lags + 1 are needed), and the work per ping pair is a
+few million multiply-adds, so no OpenCL kernel: DPCA's cost is small beside the imaging.
+"""
+
+from __future__ import annotations
+
+from .correlate import correlations
+from .geometry import beam_sin2, nominal_shift
+from .pairs import PingPairs, estimate
+from .track import Trajectory, compensate, integrate, with_track
+
+__all__ = ["PingPairs", "Trajectory", "beam_sin2", "compensate", "correlations", "estimate", "integrate",
+           "nominal_shift", "with_track"]

@@ -1,0 +1,75 @@
+"""DPCA's building blocks on the records: normalised correlations over range blocks (eq. 51),
+the hydrophones' records on one fast-time grid, and the three-point peak finders (eq. 67)."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.fft
+
+from ...data import EchoData
+
+
+def parabola(y_minus, y0, y_plus):
+    """Vertex offset (in samples, within [-0.5, 0.5] for a true maximum) and value of the parabola
+    through (-1, y_minus), (0, y0), (1, y_plus) (Heremans et al. 2009, eq. 67)."""
+    den = y_minus - 2 * y0 + y_plus
+    with np.errstate(divide="ignore", invalid="ignore"):
+        off = np.where(den < 0, 0.5 * (y_minus - y_plus) / den, 0.0)
+    off = np.clip(off, -0.5, 0.5)
+    return off, y0 - 0.25 * (y_minus - y_plus) * off
+
+
+def peak_ratio(y_minus, y0, y_plus):
+    """q = (y+ - y-) / (2 y0 - y+ - y-) of three samples at -1, 0, 1 around a maximum (0 where
+    the middle one is not above the mean of its neighbours): odd in the vertex offset, which
+    :func:`clsas.estimate.dpca.geometry.xlag_offset` reads from it for the x-lag peak."""
+    den = 2 * y0 - y_plus - y_minus
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(den > 0, (y_plus - y_minus) / den, 0.0)
+
+
+def correlations(f: np.ndarray, g: np.ndarray, t_lags: int) -> np.ndarray:
+    """Normalised cross-correlations of eq. (51) over range blocks.
+
+    f, g : complex (..., n_blocks, block) — the ping-p and ping-(p + 1) records of each couple;
+    returns complex64 (..., n_blocks, 2 t_lags + 1): c[m] = sum_k f[k + m] g*[k] /
+    sqrt(sum |f|^2 sum |g|^2), m = -t_lags..t_lags, samples beyond the block ignored (the grey
+    bins of Fig. 17)."""
+    n = f.shape[-1]
+    norm = np.sqrt(np.sum(np.abs(f) ** 2, axis=-1) * np.sum(np.abs(g) ** 2, axis=-1))
+    g_conj = np.conj(g)
+    out = np.empty(f.shape[:-1] + (2 * t_lags + 1,), dtype=np.complex64)
+    for i, m in enumerate(range(-t_lags, t_lags + 1)):
+        lo, hi = max(0, -m), min(n, n - m)
+        out[..., i] = np.einsum("...k,...k->...", f[..., lo + m:hi + m], g_conj[..., lo:hi])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(norm[..., None] > 0, out / norm[..., None], 0).astype(np.complex64)
+
+
+def aligned(echo: EchoData, h: int) -> tuple[np.ndarray, float]:
+    """The first ``h`` receivers' records on one fast-time grid: (complex64 (h, pulse, sample),
+    fast time of sample 0 in s). Records whose windows start whole samples apart are shifted
+    into place (zeros outside a window); other offsets are refused."""
+    start = float(echo.t0[:h].min())
+    offset = (echo.t0[:h] - start) * echo.fs
+    shift = np.round(offset).astype(int)
+    if np.any(np.abs(offset - shift) > 1e-6):
+        raise ValueError("dpca needs the hydrophones' records to start a whole number of samples apart "
+                         f"(echo.t0 offsets {offset} samples)")
+    if not shift.any():
+        return echo.data[:h], start
+    out = np.zeros((h, echo.n_pulses, echo.n_samples + shift.max()), dtype=np.complex64)
+    for k in range(h):
+        out[k, :, shift[k]:shift[k] + echo.n_samples] = echo.data[k]
+    return out, start
+
+
+def advance(records: np.ndarray, dt: np.ndarray, fs: float, workers: int | None = -1) -> np.ndarray:
+    """records (..., pulse, sample) with each pulse's envelope advanced by dt (s, (pulse,)), its
+    carrier phase kept: x(t) -> x(t + dt) at baseband, by exp(+j 2 pi f dt) over the baseband
+    frequencies f (circular: dt of a few samples wraps that many at the record's ends);
+    complex64."""
+    f = scipy.fft.fftfreq(records.shape[-1], 1 / fs)
+    spec = scipy.fft.fft(records, axis=-1, workers=workers)
+    spec *= np.exp(2j * np.pi * np.asarray(dt)[:, None] * f[None, :]).astype(np.complex64)
+    return scipy.fft.ifft(spec, axis=-1, workers=workers).astype(np.complex64)

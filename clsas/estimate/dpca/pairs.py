@@ -1,0 +1,235 @@
+"""Surge, sway and yaw between consecutive pings (Heremans et al. 2009, eqs. 50-70); see the
+package docstring for the method."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...data import EchoData
+from ...scene.scenario import Array
+from .correlate import advance, aligned, correlations, parabola, peak_ratio
+from .geometry import beam_sin2, nominal_shift, pca_delay, xlag_offset
+
+log = logging.getLogger("clsas")
+
+
+@dataclass(frozen=True, eq=False)
+class PingPairs:
+    """Per ping pair (p, p + 1) estimates, arrays of shape (n_pulses - 1,).
+
+    surge, sway : m (along-track advance beyond v PRT; cross-track displacement towards +x)
+    yaw : rad (rotation about +z between the two pings)
+    surge_std, sway_std, yaw_std : their standard errors (m, m, rad)
+    coherence : the best beam's normalised correlation magnitude (0..1), median over blocks
+    blocks : how many range blocks entered each estimate
+    lags : the x-lags tested were -lags..lags (the couples used follow from it)
+    two_way : s, the median two-way travel time of the range blocks used
+    """
+
+    surge: np.ndarray
+    sway: np.ndarray
+    yaw: np.ndarray
+    surge_std: np.ndarray
+    sway_std: np.ndarray
+    yaw_std: np.ndarray
+    coherence: np.ndarray
+    blocks: np.ndarray
+    lags: int
+    two_way: float
+
+
+# Range blocks holding less than this fraction of a ping pair's median block energy are left
+# out: beyond the seafloor's swath only range sidelobes and the far edges of the beam remain,
+# scatterers seen at large look angles only, whose phase-centre error (D sin^2 theta / r per
+# pair as a yaw, see geometry.pca_delay) is far from the beam's mean. Measured on Heremans' nine-point
+# scene: such blocks read -950 .. +860 urad of yaw where the seafloor's read 0 +- 15.
+WEAK_BLOCK = 0.1
+# Blocks holding more than this multiple of a pair's median block energy are taken as a lone
+# bright echo's and left out of the surge (see estimate).
+BRIGHT_BLOCK = 3.0
+# Blocks further than this many scaled median absolute deviations from a pair's median are left
+# out of its mean (see estimate).
+OUTLIER = 3.0
+# t-lags of the second pass, after each pair's delay is taken out of the envelope.
+FINE_T_LAGS = 2
+
+
+def _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles) -> None:
+    if not isinstance(echo, EchoData):
+        raise TypeError(f"dpca: echo must be EchoData, got {type(echo).__name__}")
+    if not echo.compressed:
+        raise ValueError("dpca: echo must be range-compressed (clsas.range_compress) so the correlations are sharp")
+    if not isinstance(array, Array):
+        raise TypeError(f"dpca: array must be a clsas Array (the hydrophone layout), got {type(array).__name__}")
+    if array.n_receivers > echo.n_rx:
+        raise ValueError(f"dpca: the array has {array.n_receivers} hydrophones, the echo {echo.n_rx} receivers")
+    if isinstance(speed, bool) or not isinstance(speed, (int, float, np.floating, np.integer)) \
+            or not np.isfinite(speed) or speed <= 0:
+        raise ValueError(f"dpca: speed must be a positive nominal speed in m/s, got {speed!r}")
+    for name, value, lo in (("lags", lags, 1), ("t_lags", t_lags, 1), ("block", block, 8), ("n_angles", n_angles, 3)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
+            raise ValueError(f"dpca: {name} must be an integer >= {lo}, got {value!r}")
+    if not (isinstance(min_coherence, (int, float, np.floating)) and 0 <= min_coherence < 1):
+        raise ValueError(f"dpca: min_coherence must be in [0, 1), got {min_coherence!r}")
+    if echo.n_pulses < 2:
+        raise ValueError(f"dpca needs at least 2 pings, the echo has {echo.n_pulses}")
+    if echo.n_samples < block:
+        raise ValueError(f"dpca: block ({block} samples) is longer than the records ({echo.n_samples} samples)")
+    if not isinstance(lags, bool) and isinstance(t_lags, (int, np.integer)) and 2 * t_lags + 1 > block:
+        raise ValueError(f"dpca: t_lags ({t_lags}) must leave the correlation inside a block of {block} samples")
+
+
+@dataclass(frozen=True)
+class _Setup:
+    """What :func:`_scan` needs of the array, the pairing and the look angles (see estimate)."""
+
+    array: Array
+    s: int
+    lags: int
+    n_couples: int
+    pc: np.ndarray
+    r_samples: np.ndarray
+    speed: float
+    c: float
+    f0: float
+    fs: float
+    sin_theta: np.ndarray
+    sin2: float
+
+
+def _scan(setup: _Setup, prev: np.ndarray, nxt: np.ndarray, offset: np.ndarray, t_lags: int):
+    """Beam peaks over the x-lags: (peak magnitude, delay in s, yaw in rad), each of shape
+    (x-lag, pair, block). prev, nxt : (hydrophone, pair, block, sample), the records of pings p
+    and p + 1; offset : s (pair,), a delay already taken out of nxt's envelope (not its phase)."""
+    st = setup
+    n_angles = st.sin_theta.size
+    shape = (2 * st.lags + 1,) + prev.shape[1:3]
+    peaks, delays, yaws = np.empty(shape), np.empty(shape), np.empty(shape)
+    for li, lag in enumerate(range(-st.lags, st.lags + 1)):
+        i = np.arange(st.n_couples)                      # hydrophones at ping p + 1
+        j = i + st.s + lag                               # hydrophones at ping p
+        dt_pca = pca_delay(st.array, i, j, st.r_samples, st.speed, st.c, st.sin2)
+        g = nxt[i] * np.exp(2j * np.pi * st.f0 * dt_pca).astype(np.complex64)[:, None]   # phase-centre errors out
+        corr = correlations(prev[j], g, t_lags)          # (couple, pair, block, t-lag)
+        u = st.pc[i] - st.pc[i].mean()                   # couple positions along the track
+        steer = np.exp(-1j * 4 * np.pi * st.f0 * np.outer(st.sin_theta, u) / st.c)   # (angle, couple)
+        beams = (steer.astype(np.complex64) @ corr.reshape(st.n_couples, -1)).reshape((n_angles,) + corr.shape[1:])
+        beams = np.moveaxis(beams, 0, 2) / st.n_couples  # (pair, block, angle, t-lag)
+        mag = np.abs(beams)
+        flat = mag.reshape(mag.shape[:2] + (-1,)).argmax(axis=-1)
+        a, m = np.unravel_index(flat, mag.shape[2:])
+        a = np.clip(a, 1, n_angles - 2)
+        m = np.clip(m, 1, 2 * t_lags - 1)
+        pp, bb = np.indices(a.shape)
+        m_off, peak = parabola(mag[pp, bb, a, m - 1], mag[pp, bb, a, m], mag[pp, bb, a, m + 1])
+        a_off, _ = parabola(mag[pp, bb, a - 1, m], mag[pp, bb, a, m], mag[pp, bb, a + 1, m])
+        coarse = offset[:, None] - ((m - t_lags) + m_off) / st.fs
+        phase = np.angle(beams[pp, bb, a, m])
+        cycles = np.round(coarse * st.f0 - phase / (2 * np.pi))
+        delays[li] = (phase / (2 * np.pi) + cycles) / st.f0
+        ds = st.sin_theta[1] - st.sin_theta[0]
+        yaws[li] = -np.arcsin(np.clip(st.sin_theta[a] + a_off * ds, -1, 1))
+        peaks[li] = peak
+    return peaks, delays, yaws
+
+
+def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lags: int = 8, block: int = 128,
+             n_angles: int = 65, min_coherence: float = 0.5) -> PingPairs:
+    """Surge, sway and yaw between every pair of consecutive pings (see the package docstring, clsas.estimate.dpca).
+
+    Parameters
+    ----------
+    echo : range-compressed EchoData whose first ``array.n_receivers`` receivers are the array's
+        hydrophones (numbered along the track), pings at a constant PRF.
+    array : the hydrophone layout (body-frame offsets, as in the Scenario).
+    speed : nominal platform speed, m/s (e.g. the autopilot's), for the nominal pairing (eq. 50).
+    lags : x-lags -lags..lags are tested (section 5.3: 2).
+    t_lags : t-lags -t_lags..t_lags samples (section 5.4: 8).
+    block : range-block length, samples.
+    n_angles : look angles over +-asin(c / (f0 L)) (L the overlapping phase centres' length),
+        refined by a parabola.
+    min_coherence : blocks whose best beam is weaker than this are left out.
+    """
+    _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles)
+    eta = echo.eta
+    prt = np.diff(eta)
+    if not np.allclose(prt, prt[0], rtol=1e-9):
+        raise ValueError("dpca needs a constant pulse interval")
+    prf = 1.0 / prt[0]
+    s, pc = nominal_shift(array, speed, prf)
+    h = array.n_receivers
+    n_couples = h - s - lags
+    if s < 1 or n_couples < 3:
+        raise ValueError(f"dpca: at speed {speed} m/s and PRF {prf:g} Hz the platform advances {s} phase-centre "
+                         f"spacings a ping: the {h} hydrophones leave {h - s} overlapping phase centres, "
+                         f"{max(n_couples, 0)} couples at x-lag +-{lags} (needs >= 3); lower the speed or lags")
+    c = echo.medium.sound_speed
+    f0 = echo.waveform.f0
+    records, start = aligned(echo, h)
+    n_blocks = records.shape[-1] // block
+    r_blocks = c / 2 * (start + (np.arange(n_blocks) + 0.5) * block / echo.fs)   # block centre ranges, m
+    r_samples = (c / 2 * (start + np.arange(n_blocks * block) / echo.fs)).reshape(n_blocks, block)
+    sin2 = beam_sin2(array, f0, c)
+    data = records[..., :n_blocks * block].reshape(h, echo.n_pulses, n_blocks, block)
+    step = pc[1] - pc[0]
+    span = n_couples * step
+    theta_max = np.arcsin(min(1.0, c / (f0 * span)))
+    setup = _Setup(array=array, s=s, lags=lags, n_couples=n_couples, pc=pc, r_samples=r_samples, speed=speed, c=c,
+                   f0=f0, fs=echo.fs, sin_theta=np.sin(np.linspace(-theta_max, theta_max, n_angles)), sin2=sin2)
+    # Pass 1: every t-lag, on the records as they are.
+    peaks, delays, yaws = _scan(setup, data[:, :-1], data[:, 1:], np.zeros(echo.n_pulses - 1), t_lags)
+    best = np.argmax(peaks, axis=0)                      # (pair, block)
+    best = np.clip(best, 1, 2 * lags - 1)
+    pp, bb = np.indices(best.shape)
+    lag_off = xlag_offset(peak_ratio(peaks[best - 1, pp, bb], peaks[best, pp, bb], peaks[best + 1, pp, bb]),
+                          array, f0, c, step)
+    coherence = peaks.max(axis=0)
+    surge = ((best - lags) + lag_off) * step
+    nearest = np.argmax(peaks, axis=0)
+    good = coherence >= min_coherence
+    energy = np.einsum("hpbk,hpbk->pb", data, np.conj(data)).real   # (pulse, block)
+    energy = energy[:-1] + energy[1:]
+    typical = np.nanmedian(np.where(good, energy, np.nan), axis=1, keepdims=True)
+    good &= energy >= WEAK_BLOCK * typical
+    counts = good.sum(axis=1)
+    if np.any(counts == 0):
+        worst = int(np.argmin(counts))
+        raise ValueError(f"dpca: ping pair {worst}-{worst + 1} has no range block with a beam peak >= "
+                         f"min_coherence {min_coherence} (best {coherence[worst].max():.2f}): the pings do not "
+                         "correlate (too little overlap, or no seafloor return in the records)")
+
+    # Surge: a block dominated by a lone bright echo stays coherent at every x-lag (a single
+    # scatterer decorrelates only over its whole beam), so its beam peaks hardly change with the
+    # displacement and read a surge near zero; such blocks are left out of the surge where
+    # seafloor blocks remain (on Heremans' nine points they scaled the surge by 0.66).
+    seafloor = good & (energy <= BRIGHT_BLOCK * typical)
+    seafloor[seafloor.sum(axis=1) == 0] = good[seafloor.sum(axis=1) == 0]
+
+    def robust_mean(x, use=good):
+        """The blocks' mean and its standard error, blocks beyond OUTLIER scaled MADs of the
+        median left out (speckle makes a block's error roughly Gaussian; a block holding the
+        edge of the swath or a lone bright echo can sit far out)."""
+        masked = np.where(use, x, np.nan)
+        med = np.nanmedian(masked, axis=1, keepdims=True)
+        mad = 1.4826 * np.nanmedian(np.abs(masked - med), axis=1, keepdims=True)
+        kept = np.where(np.abs(masked - med) <= OUTLIER * mad, masked, np.nan)
+        n = np.sum(np.isfinite(kept), axis=1)
+        return np.nanmean(kept, axis=1), np.nanstd(kept, axis=1) / np.sqrt(n)
+
+    # Pass 2: ping p + 1's envelope advanced by the pair's delay, so that the couples' phases are
+    # read at the correlation peak (see the package docstring: a fractional-sample misalignment
+    # turns speckle into yaw noise), over FINE_T_LAGS.
+    shift, _ = robust_mean(delays[nearest, pp, bb])
+    advanced = advance(records[:, 1:], shift, echo.fs)[..., :n_blocks * block].reshape(h, -1, n_blocks, block)
+    _, delays, yaws = _scan(setup, data[:, :-1], advanced, shift, FINE_T_LAGS)
+    sway = -c * delays[nearest, pp, bb] / 2
+    yaw = yaws[nearest, pp, bb]
+    (su, su_e), (sw, sw_e), (yw, yw_e) = robust_mean(surge, seafloor), robust_mean(sway), robust_mean(yaw)
+    coh = np.nanmedian(np.where(good, coherence, np.nan), axis=1)
+    log.info("dpca: %d ping pairs, %d couples, %d range blocks; median coherence %.2f", echo.n_pulses - 1,
+             n_couples, n_blocks, float(np.median(coh)))
+    return PingPairs(surge=su, sway=sw, yaw=yw, surge_std=su_e, sway_std=sw_e, yaw_std=yw_e, coherence=coh,
+                     blocks=counts, lags=lags, two_way=float(np.median(2 * r_blocks[good.any(axis=0)] / c)))

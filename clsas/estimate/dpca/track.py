@@ -1,0 +1,152 @@
+"""The trajectory integrated from the ping pairs (eqs. 71-73), imaging along it, and the motion
+compensation of the records (eqs. 74-75)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft
+
+from ...data import EchoData
+from ...scene.scenario import Array, Platform, Scenario
+from .geometry import nominal_shift
+from .pairs import PingPairs
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """The track integrated from the ping pairs (eqs. 71-73), relative to the first ping.
+
+    eta : s (n_pulses,); along, cross : m, the platform's reference point relative to the
+    nominal straight track and to its place at the first ping (along: beyond v eta, i.e.
+    surge; cross: towards +x, i.e. sway), at :attr:`times`; heading : rad (yaw, from heading0
+    at the first ping), at :attr:`heading_times`; along_std, cross_std, heading_std :
+    propagated standard errors (eq. 73); pairs : the PingPairs.
+    """
+
+    eta: np.ndarray
+    along: np.ndarray
+    cross: np.ndarray
+    heading: np.ndarray
+    along_std: np.ndarray
+    cross_std: np.ndarray
+    heading_std: np.ndarray
+    pairs: PingPairs
+
+    @property
+    def times(self) -> np.ndarray:
+        """When the track holds these values, s: each ping's emission plus half the two-way
+        travel time to the scene. DPCA compares transmit-and-receive paths, so it measures the
+        mean of the platform's place at emission and at reception."""
+        return self.eta + self.pairs.two_way / 2
+
+    @property
+    def heading_times(self) -> np.ndarray:
+        """When :attr:`heading` holds, s: each ping's reception (emission plus the two-way
+        time). A phase centre sits at (o_tx sin(yaw at emission) + o_h sin(yaw at reception)) / 2
+        across track; its part that changes along the couples, the yaw DPCA reads, is the
+        hydrophones' at reception (the transmitter's is common to the couples and enters the
+        sway). Read at mid-time instead, the -D theta_p term of :func:`integrate` is off by
+        D theta' tau / 2, a sway error of v tau / 2 = 8.5 cm times the yaw step at Heremans'
+        geometry (30 urad a pair for 3 mrad / 30 s of yaw)."""
+        return self.eta + self.pairs.two_way
+
+    def platform(self, speed: float, start=(0.0, 0.0, 0.0), surge: bool = True) -> Platform:
+        """A clsas Platform flying this track (for :func:`with_track` and back-projection):
+        surge, sway and yaw at :attr:`times` (the heading carried there from
+        :attr:`heading_times` by linear interpolation), held constant one ping interval beyond
+        the first and the last so that every emission and reception is covered. ``surge=False``
+        flies the nominal along-track advance instead of the estimated one (DPCA's surge is a
+        random walk of its per-pair errors: on scenes with little seafloor it can hurt more
+        than the surge it corrects)."""
+        step = float(np.median(np.diff(self.eta)))
+        times = np.concatenate([[self.times[0] - step], self.times, [self.times[-1] + step]])
+        hold = lambda a: np.concatenate([[a[0]], a, [a[-1]]])  # noqa: E731
+        along = self.along if surge else np.zeros_like(self.along)
+        heading = np.interp(self.times, self.heading_times, self.heading)
+        return Platform(speed=speed, start=start, surge=hold(along), sway=hold(self.cross),
+                        yaw=hold(heading), error_times=times)
+
+
+def integrate(pairs: PingPairs, eta: np.ndarray, speed: float, array: Array, heading0: float = 0.0) -> Trajectory:
+    """The platform track from the ping pairs (eqs. 71-72) and its errors (eq. 73), relative to
+    the first ping; positions of the platform's reference point (its centre of rotation).
+
+    DPCA measures changes of heading only: ``heading0`` (rad) is the yaw at the first ping, from
+    the vehicle's compass or INS. An error e in it tilts the whole track by e (a cross-track
+    drift of D e a ping), which rotates the image slightly but does not defocus it.
+
+    Derivation (clsas's axes and Platform.rotation: a body offset b along the track sits at
+    b sin(yaw) across track). Couple n pairs hydrophone j at ping p with hydrophone i at ping
+    p + 1, body phase-centre offsets pc_j = pc_i + D (D = v PRT). Its measured cross-track
+    displacement is gamma_n = X_{p+1} - X_p + pc_i sin(theta_{p+1}) - pc_j sin(theta_p)
+    = dX_p + pc_i xi_p - D theta_p (small angles), so the slope along the couples is the yaw
+    step xi_p, and at the couples' centre u (mean pc_i) the sway reads gamma_p = dX_p + u xi_p
+    - D theta_p, X at mid-time and theta at reception (see Trajectory.heading_times). Hence
+        theta_{p+1} = theta_p + xi_p,
+        X_{p+1} = X_p + gamma_p - u xi_p + D theta_p,
+        Y_{p+1} = Y_p + D + surge_p,
+    which is eq. (71) written for the centre of rotation instead of the phase-centre group.
+    Errors accumulate as in eq. (73): var X_p = sum_l var gamma_l + sum_l (D (p - l - 1) - u)^2
+    var xi_l (the yaw of pair l enters through theta for every later pair), var theta_p =
+    sum_l var xi_l.
+    """
+    eta = np.asarray(eta, dtype=np.float64)
+    if eta.shape != (pairs.sway.size + 1,):
+        raise ValueError(f"integrate: eta must have {pairs.sway.size + 1} pings, got {eta.shape}")
+    prf = 1.0 / float(np.median(np.diff(eta)))
+    s, pc = nominal_shift(array, speed, prf)
+    u = pc[:array.n_receivers - s - pairs.lags].mean()
+    d = speed / prf
+    if not np.isfinite(heading0) or abs(heading0) > 0.5:
+        raise ValueError(f"integrate: heading0 must be a finite yaw in [-0.5, 0.5] rad, got {heading0!r}")
+    heading = heading0 + np.concatenate([[0.0], np.cumsum(pairs.yaw)])
+    cross = np.concatenate([[0.0], np.cumsum(pairs.sway - u * pairs.yaw + d * heading[:-1])])
+    along = np.concatenate([[0.0], np.cumsum(pairs.surge)])
+    n = eta.size
+    p = np.arange(n)[:, None]
+    l_ = np.arange(n - 1)[None, :]
+    before = (l_ < p).astype(np.float64)
+    arm = before * (d * (p - l_ - 1) - u)
+    cross_std = np.sqrt(before @ pairs.sway_std**2 + arm**2 @ pairs.yaw_std**2)
+    heading_std = np.sqrt(before @ pairs.yaw_std**2)
+    along_std = np.sqrt(before @ pairs.surge_std**2)
+    return Trajectory(eta=eta, along=along, cross=cross, heading=heading, along_std=along_std, cross_std=cross_std,
+                      heading_std=heading_std, pairs=pairs)
+
+
+def with_track(echo: EchoData, scenario: Scenario) -> EchoData:
+    """``echo`` with its geometry (transmitter at emission, receiver nodes) recomputed for the
+    sonar and platform of ``scenario`` (e.g. a Platform from :meth:`Trajectory.platform`), so that
+    :func:`clsas.backproject` images along that track; the samples are unchanged."""
+    if scenario.n_receivers != echo.n_rx or scenario.eta.shape != echo.eta.shape or \
+            not np.allclose(scenario.eta, echo.eta):
+        raise ValueError("with_track: the scenario must have the echo's receivers and emission times")
+    tx = scenario.tx_position(echo.eta)
+    t = echo.eta[None, :, None] + echo.rx_tau[:, None, :]
+    rx = np.stack([scenario.receiver_position(h, t[h]) for h in range(echo.n_rx)])
+    return echo.replace(tx_pos=tx, rx_pos=rx, provenance={**echo.provenance, "track": "replaced (dpca.with_track)"})
+
+
+def compensate(echo: EchoData, trajectory: Trajectory, scenario: Scenario, workers: int | None = -1) -> EchoData:
+    """Motion compensation of eqs. (74)-(75): each hydrophone's record delayed back by
+    dt = dt_sway + dt_yaw{h} (eqs. 34, 38: dt_sway = -2 sway / c, dt_yaw{h} = -(o_h - o_tx) sin(yaw) / c,
+    the receiver's cross-track move under yaw with the transmitter at the centre of rotation), by
+    the phase exp(+j 2 pi (f0 + f) dt) over the record's baseband frequencies f; the geometry is
+    replaced by the nominal straight track of ``scenario`` so that omega_k, range_doppler and
+    chirp_scaling accept the result. Surge (along-track) is not corrected by this delay model."""
+    h = scenario.array.n_receivers
+    if trajectory.eta.shape != echo.eta.shape:
+        raise ValueError("compensate: the trajectory must have one value per ping of the echo")
+    c = echo.medium.sound_speed
+    lever = scenario.array.rx_offsets[:, 1] - scenario.array.tx_offset[1]
+    dt = (-2 * trajectory.cross[None, :] - lever[:, None] * np.sin(trajectory.heading)[None, :]) / c  # (h, pulse)
+    f = scipy.fft.fftfreq(echo.n_samples, 1 / echo.fs)
+    spec = scipy.fft.fft(echo.data[:h], axis=-1, workers=workers)
+    spec *= np.exp(2j * np.pi * (echo.waveform.f0 + f)[None, None, :] * dt[..., None])
+    data = echo.data.copy()
+    data[:h] = scipy.fft.ifft(spec, axis=-1, workers=workers)
+    straight = scenario.replace(platform=Platform(speed=scenario.platform.speed, start=scenario.platform.start))
+    out = with_track(echo.replace(data=data), straight)
+    return out.replace(provenance={**echo.provenance, "motion_compensation": "dpca (Heremans et al. 2009, eqs. 74-75)"})
