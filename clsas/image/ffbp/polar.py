@@ -232,7 +232,8 @@ def frame_axes(axis: np.ndarray, centre: np.ndarray, plane: Plane) -> tuple[np.n
         raise ValueError("grid: its plane is within 6 degrees of perpendicular to the track, so a sub-aperture's "
                          "polar grid cannot represent it; image it with clsas.backproject")
     e2 = perp / norm
-    e1 = np.cross(e2, axis)
+    e1 = np.array([e2[1] * axis[2] - e2[2] * axis[1], e2[2] * axis[0] - e2[0] * axis[2],
+                   e2[0] * axis[1] - e2[1] * axis[0]])  # e2 x axis
     if e1 @ (plane.centroid - centre) < 0:
         e1 = -e1
     return e1, e2
@@ -277,7 +278,7 @@ def extent(centre: np.ndarray, axis: np.ndarray, half_length: float, scene: Scen
     None when the scene lies wholly outside the window or the angular limit."""
     e1, e2 = frame_axes(axis, centre, scene.plane)
     d = scene.skeleton - centre
-    r = np.linalg.norm(d, axis=-1)
+    r = np.sqrt(np.einsum("ij,ij->i", d, d))
     v = (d @ axis) / r
     r_lo = max(r.min() - scene.margin, window[0])
     if r_lo <= 0:

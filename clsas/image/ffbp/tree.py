@@ -77,8 +77,9 @@ class _Frames:
         self.baseline = np.linalg.norm(rx - self.tx[None], axis=-1).max(axis=0)  # (N,)
         step = max(1, echo.n_pulses // 64)  # the array's two ends every ~1/64 of the track
         track = np.concatenate([self.mids[[0, -1], ::step].reshape(-1, 3), self.mids[[0, -1], -1]])
-        d = min(float(np.min(np.linalg.norm(scene.skeleton - t, axis=-1))) for t in track) - scene.margin
-        self.r_near = float(d)
+        k = scene.skeleton
+        square = np.sum(track * track, axis=1)[:, None] + np.sum(k * k, axis=1)[None, :] - 2 * track @ k.T
+        self.r_near = float(np.sqrt(max(float(square.min()), 0.0))) - scene.margin
 
     def frame(self, p0: int, p1: int) -> tuple[np.ndarray, np.ndarray, float, float]:
         """(centre, axis, half-length, largest baseline) of the node of pulses p0..p1-1."""
@@ -91,7 +92,8 @@ class _Frames:
         centre = mids.mean(axis=0)
         d = mids - centre
         a = d @ axis
-        b = np.linalg.norm(d - a[:, None] * axis, axis=-1)
+        off = d - a[:, None] * axis
+        b = np.sqrt(np.einsum("ij,ij->i", off, off))
         base = float(self.baseline[p0:p1].max())
         return centre, axis, float(np.abs(a).max() + b.max() + base ** 2 / (4 * self.r_near)), base
 
