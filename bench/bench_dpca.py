@@ -1,15 +1,21 @@
-"""DPCA micronavigation and phase gradient autofocus: ping pairs per second, and PGA time per
-iteration.
+"""DPCA micronavigation and phase gradient autofocus: ping pairs per second, the correlation
+hot loop direct vs FFT, and PGA time per iteration.
 
 DPCA runs on a synthetic track whose pings share phase centres exactly (ping p + 1's hydrophone
 i records what ping p's hydrophone i + 7 recorded, plus noise: Heremans 2009's 15-hydrophone
 geometry), so the estimator does its full work on every pair without a simulation first:
-1000 pings (quick: 100) of 2048 samples. PGA runs on a 2048 x 2048 image (quick: 1024^2) of
-speckle and bright points blurred by a quadratic phase error; rate = iterations per second.
-Both run on the host (NumPy / scipy.fft); see clsas.estimate.dpca and clsas.estimate.autofocus.
+1000 pings (quick: 100) of 2048 samples. The correlations of eq. (51) (clsas.estimate.dpca.
+correlations) are timed by their two methods, one multiply-add pass per t-lag ("direct") and
+zero-padded block FFTs ("fft", every lag computed, 2 t_lags + 1 kept), interleaved A B A B,
+for pass 1 (t_lags 8) and pass 2 (t_lags 2), over 6 couples x 200 pairs x 16 blocks of 128
+samples. PGA runs on a 2048 x 2048 image (quick: 1024^2) of speckle and bright points blurred
+by a quadratic phase error; rate = iterations per second. All on the host (NumPy / scipy.fft).
 """
 
 from __future__ import annotations
+
+import statistics
+import time
 
 import numpy as np
 from _harness import arguments, measure, report
@@ -34,6 +40,19 @@ def dpca_track(n_pings: int, n_samples: int, rng) -> tuple[EchoData, object, flo
     return echo, scene.array, scene.platform.speed
 
 
+def interleaved(runs: dict, repeats: int) -> dict:
+    """{name: (min, median) seconds}, the runs called in turn A B A B after one warm-up each."""
+    times = {name: [] for name in runs}
+    for run in runs.values():
+        run()
+    for _ in range(repeats):
+        for name, run in runs.items():
+            start = time.perf_counter()
+            run()
+            times[name].append(time.perf_counter() - start)
+    return {name: (min(t), statistics.median(t)) for name, t in times.items()}
+
+
 def blurred_image(n: int, rng) -> Image:
     img = 0.05 * (rng.standard_normal((n, n)) + 1j * rng.standard_normal((n, n)))
     rows, cols = rng.integers(0, n, 32), rng.integers(0, n, 32)
@@ -52,6 +71,19 @@ def main() -> None:
     seconds = measure(lambda: dpca.estimate(echo, array, speed), repeats=repeats)
     report(args, "dpca", "numpy", {"pings": n_pings, "hydrophones": echo.n_rx, "samples": n_samples},
            (n_pings - 1) / seconds, "ping pairs/s", seconds, per_pair_ms=1e3 * seconds / (n_pings - 1))
+
+    shape = (6, 50 if args.quick else 200, 16, 128)
+    f = (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)).astype(np.complex64)
+    g = (0.9 * f + 0.1 * rng.standard_normal(shape)).astype(np.complex64)
+    blocks = int(np.prod(shape[:3]))
+    for t_lags in (8, dpca.pairs.FINE_T_LAGS):
+        timed = interleaved({method: (lambda method=method: dpca.correlations(f, g, t_lags, method))
+                             for method in ("direct", "fft")}, repeats=max(repeats, 5))
+        for name, (fastest, median) in timed.items():
+            report(args, f"dpca-correlations-{name}", "numpy",
+                   {"couples": shape[0], "pairs": shape[1], "blocks": shape[2], "block": shape[3], "t_lags": t_lags},
+                   blocks / median, "block correlations/s", median, min_ms=1e3 * fastest,
+                   direct_over_fft=timed["direct"][1] / timed["fft"][1])
 
     n = 1024 if args.quick else 2048
     image = blurred_image(n, rng)

@@ -2,34 +2,40 @@
 
 Each task is one call of the single-process function on a part of the work, run by a
 ``dask.distributed.Client`` (a ``LocalCluster`` on one machine, or a scheduler and workers on
-many); the client assembles the parts and, given ``out=``, saves the result with
-:func:`clsas.save` (a path ending in ``.zarr`` gives a chunked zarr store)::
+many)::
 
     from dask.distributed import Client
     client = Client(n_workers=2, threads_per_worker=1)      # or Client("tcp://scheduler:8786")
     echo = clsas.distributed.simulate(scene, client, out="echo.zarr")
     image = clsas.distributed.backproject(clsas.range_compress(echo), grid, client, out="image.zarr")
 
+With ``out`` ending in ``.zarr`` the workers write their own parts (pulse blocks, image row
+bands) into the store, chunked along those parts, and the client writes only the metadata and
+the geometry; ``gather=False`` then returns the store's Path without reading it back, so the
+client never holds the echo cube or the image. The store must be reachable from every worker
+(one machine, or a shared folder). It is written under a temporary name beside ``out`` and
+renamed when complete. Other ``out`` names (``.nc``) are written by the client from the
+gathered result (HDF5 files take one writer).
+
 Agreement with one process (measured in tests/test_distributed.py, 2 workers, 15 receivers):
 
-- :func:`simulate`: each pulse block is simulated with the whole run's recording window (the
-  scenario's ``Recording``, or one derived on the workers from every path's delay, as
-  :func:`clsas.simulate` derives it), so the blocks line up; a block's emission times are its
-  own start + k / prf (within 1e-15 s of one process's). Noise is added on the client to the
-  assembled cube exactly as :func:`clsas.simulate` adds it. NumPy backend: bit for bit; OpenCL:
-  within 1.0e-7 of the peak (float32 rounding).
+- :func:`simulate`: the recording window and the receiver nodes follow from every path's delay
+  (computed on the workers, a pulse block a task) exactly as :func:`clsas.simulate` derives
+  them, so the blocks line up and the geometry (``eta``, ``tx_pos``, ``rx_tau``, ``rx_pos``)
+  is one process's. Noise: each block's signal power is summed per pulse in float64 on its
+  worker; the client adds the noise block by block (the random stream of :func:`clsas.simulate`),
+  in the store when there is one. NumPy backend: echo and geometry bit for bit, noise included;
+  OpenCL: samples within 1.0e-7 of the peak (float32 rounding).
 - :func:`backproject`: each task images a band of grid rows with all pulses and receivers.
   NumPy backend: bit for bit. OpenCL: each band plans its own tiles (float32 geometry relative
   to a tile reference, within the kernel's 2e-3 rad PHASE_BUDGET), so pixels differ from one
   process by up to 1.3e-4 of the peak.
-
-The assembled result is held by the client (the echo cube or the image must fit in its memory);
-the workers hold one block each.
 """
 
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 
 import numpy as np
 
@@ -67,66 +73,121 @@ def _block_extent(scenario: Scenario, backend, stop_and_go: bool) -> tuple[np.nd
     return np.floor(u.min(axis=(1, 2))), np.floor(u.max(axis=(1, 2))) + 1
 
 
+def _extents(scenario: Scenario, client, pulses_per_task: int, backend, stop_and_go: bool):
+    """Earliest and latest echo centre per receiver over the whole run, s (whole samples)."""
+    futures = [client.submit(_block_extent, pulse_block(scenario, a, b), backend, stop_and_go, pure=False)
+               for a, b in _blocks(scenario.eta.size, pulses_per_task)]
+    extents = client.gather(futures)
+    fs = scenario.waveform.fs
+    return np.min([e[0] for e in extents], axis=0) / fs, np.max([e[1] for e in extents], axis=0) / fs
+
+
+def _window_of(scenario: Scenario, lo: np.ndarray, hi: np.ndarray) -> Recording:
+    wf = scenario.waveform
+    first = np.floor((lo - 0.5 * wf.duration) * wf.fs)  # the arithmetic of simulate's own window
+    last = np.ceil((hi + 0.5 * wf.duration) * wf.fs)
+    return Recording(t0=first / wf.fs, n_samples=(last - first + 1).astype(np.int64))
+
+
 def recording_window(scenario: Scenario, client, pulses_per_task: int = 64, backend=None,
                      stop_and_go: bool = False) -> Recording:
     """The recording window of the whole run as :func:`clsas.simulate` derives it: per receiver,
     from the earliest echo centre minus half the pulse to the latest plus half the pulse, in
     whole samples (the delays computed on the workers, a pulse block a task)."""
     _check_client(client)
+    return _window_of(scenario, *_extents(scenario, client, pulses_per_task, backend, stop_and_go))
+
+
+def _geometry(scenario: Scenario, hi: np.ndarray):
+    """(rx_tau (n_rx, K), rx_pos (n_rx, P, K, 3), largest interpolation error m): the receiver
+    nodes :func:`clsas.simulate` places over the recording window (``hi``: latest echo centre
+    per receiver, s)."""
+    from .simulate.window import node_span, receiver_nodes
+
     wf = scenario.waveform
-    futures = [client.submit(_block_extent, pulse_block(scenario, a, b), backend, stop_and_go, pure=False)
-               for a, b in _blocks(scenario.eta.size, pulses_per_task)]
-    extents = client.gather(futures)
-    lo = np.min([e[0] for e in extents], axis=0) / wf.fs  # s, whole samples
-    hi = np.max([e[1] for e in extents], axis=0) / wf.fs
-    first = np.floor((lo - 0.5 * wf.duration) * wf.fs)  # the arithmetic of simulate's own window
-    last = np.ceil((hi + 0.5 * wf.duration) * wf.fs)
-    return Recording(t0=first / wf.fs, n_samples=(last - first + 1).astype(np.int64))
+    span = node_span(scenario, scenario.eta, float(hi.max()) + 0.5 * wf.duration + 2 / wf.fs)
+    taus, positions, _, error = receiver_nodes(scenario, scenario.eta, span, strict=False)
+    return np.tile(taus, (scenario.n_receivers, 1)), positions, float(error)
 
 
-def _simulate_block(scenario: Scenario, kwargs: dict) -> EchoData:
+def _simulate_block(scenario: Scenario, kwargs: dict, store: str | None, first: int, n_valid) -> tuple:
+    """One pulse block: its echo (or, with ``store``, written into the store's region and
+    dropped), its signal power per pulse (for the noise) and its provenance."""
     from .simulate import simulate as simulate_one
+    from .simulate.echo import signal_power
 
-    return simulate_one(scenario, progress=False, **kwargs)
+    echo = simulate_one(scenario, progress=False, **kwargs)
+    power = signal_power(echo.data, n_valid)
+    if store is None:
+        return echo, power, echo.provenance
+    import zarr
+
+    zarr.open_group(store, mode="r+")["echo"][:, first:first + echo.n_pulses] = echo.data
+    return None, power, echo.provenance
 
 
 def simulate(scenario: Scenario, client, pulses_per_task: int = 64, snr_db: float | None = None, seed=None,
-             out=None, **kwargs) -> EchoData:
+             out=None, gather: bool = True, **kwargs):
     """:func:`clsas.simulate` over blocks of ``pulses_per_task`` pulses on the Dask ``client``.
 
     ``kwargs`` go to :func:`clsas.simulate` (``backend``, ``stop_and_go``, ``spreading``, ...).
-    Noise (``snr_db``, ``seed``) is added on the client to the assembled cube. With ``out`` the
-    echo is saved there (``.zarr`` or ``.nc``). Returns the EchoData.
+    With ``out`` ending in ``.zarr`` each worker writes its pulse blocks into the store (see the
+    module docstring); other ``out`` names are written from the gathered echo. Noise
+    (``snr_db``, ``seed``) is added by the client as :func:`clsas.simulate` adds it. Returns the
+    EchoData, or (``gather=False``, with a zarr ``out``) the store's Path.
     """
     from .simulate.echo import add_noise
-    from .simulate.window import receiver_nodes
 
     _check_client(client)
     if not isinstance(scenario, Scenario):
         raise TypeError(f"scenario must be a Scenario, got {type(scenario).__name__}")
+    store = Path(out) if out is not None and Path(out).suffix == ".zarr" else None
+    if not gather and store is None:
+        raise ValueError("gather=False needs out=... ending in .zarr (the workers write the echo there)")
     blocks = _blocks(scenario.eta.size, pulses_per_task)
+    backend, stop_and_go = kwargs.get("backend"), kwargs.get("stop_and_go", False)
     given = scenario
     with stage("distributed echo synthesis", f"{scenario.n_receivers} receivers x {scenario.eta.size} pulses in "
-               f"{len(blocks)} tasks"):
+               f"{len(blocks)} tasks" + (f", written by the workers to {store}" if store else "")):
+        lo, hi = _extents(scenario, client, pulses_per_task, backend, stop_and_go)
         if scenario.recording is None:
-            scenario = scenario.replace(recording=recording_window(scenario, client, pulses_per_task,
-                                                                   kwargs.get("backend"), kwargs.get("stop_and_go", False)))
-        futures = [client.submit(_simulate_block, pulse_block(scenario, a, b), kwargs, pure=False) for a, b in blocks]
+            scenario = scenario.replace(recording=_window_of(scenario, lo, hi))
+        rx_tau, rx_pos, node_error = _geometry(scenario, hi)
+        t0, n_valid = (np.asarray(a) for a in scenario.recording.for_receivers(scenario.n_receivers))
+        tmp = None
+        if store is not None:
+            head = EchoData(data=np.broadcast_to(np.complex64(0), (scenario.n_receivers, scenario.eta.size,
+                                                                   int(n_valid.max()))),
+                            eta=scenario.eta, t0=t0, fs=scenario.waveform.fs,
+                            tx_pos=scenario.tx_position(scenario.eta), rx_pos=rx_pos, rx_tau=rx_tau,
+                            waveform=scenario.waveform, medium=scenario.medium, receivers=scenario.receiver_names,
+                            scenario=given)
+            tmp = _zarr_template(head, store, "echo", (1, int(pulses_per_task)))
+        futures = [client.submit(_simulate_block, pulse_block(scenario, a, b), kwargs,
+                                 None if tmp is None else str(tmp), a, n_valid, pure=False) for a, b in blocks]
         parts = client.gather(futures)
-    data = np.concatenate([p.data for p in parts], axis=1)
-    if all(np.array_equal(p.rx_tau, parts[0].rx_tau) for p in parts):
-        rx_tau, rx_pos = parts[0].rx_tau, np.concatenate([p.rx_pos for p in parts], axis=1)
-    else:  # blocks spaced their nodes differently: one set over the longest span for the whole run
-        tau_hi = max(float(p.rx_tau[0, -1]) for p in parts)
-        nodes = receiver_nodes(scenario, scenario.eta, tau_hi, strict=False)
-        rx_tau, rx_pos = np.tile(nodes[0], (scenario.n_receivers, 1)), nodes[1]
-    n_valid = np.asarray(scenario.recording.for_receivers(scenario.n_receivers)[1])
+    power = (np.concatenate([p[1][0] for p in parts], axis=1), np.concatenate([p[1][1] for p in parts], axis=1))
+    provenance = dict(parts[0][2], snr_db=snr_db, seed=seed if seed is None or isinstance(seed, int) else str(seed),
+                      distributed={"tasks": len(blocks), "pulses_per_task": int(pulses_per_task),
+                                   "written_by": "workers" if store else "client"},
+                      rx_node_error_m=node_error)
+    if store is not None:
+        import zarr
+
+        group = zarr.open_group(str(tmp), mode="r+")
+        if snr_db is not None:
+            add_noise(group["echo"], float(snr_db), seed, n_valid, power=power)
+        _finish_store(tmp, store, provenance)
+        if not gather:
+            return store
+        from .io import load
+
+        return load(store)
+    data = np.concatenate([p[0].data for p in parts], axis=1)
     if snr_db is not None:
-        add_noise(data, float(snr_db), seed, n_valid)
-    provenance = dict(parts[0].provenance, snr_db=snr_db, seed=seed if seed is None or isinstance(seed, int) else str(seed),
-                      distributed={"tasks": len(blocks), "pulses_per_task": int(pulses_per_task)})
-    echo = parts[0].replace(data=data, eta=scenario.eta, tx_pos=np.concatenate([p.tx_pos for p in parts]),
-                            rx_pos=rx_pos, rx_tau=rx_tau, provenance=provenance, scenario=given)
+        add_noise(data, float(snr_db), seed, n_valid, power=power)
+    echo = parts[0][0].replace(data=data, eta=scenario.eta, tx_pos=scenario.tx_position(scenario.eta), rx_pos=rx_pos,
+                               rx_tau=rx_tau, provenance=provenance, scenario=given)
     if out is not None:
         from .io import save
 
@@ -134,11 +195,63 @@ def simulate(scenario: Scenario, client, pulses_per_task: int = 64, snr_db: floa
     return echo
 
 
-def _backproject_band(echo, grid: Grid, kwargs: dict) -> np.ndarray:
+def _zarr_template(head, store: Path, name: str, part_chunks: tuple) -> Path:
+    """Write ``head``'s dataset to a temporary store beside ``store``, with the big variable
+    ``name`` as metadata only (chunks: ``part_chunks`` on its leading axes, the rest whole,
+    cut to about :data:`clsas.io.CHUNK_BYTES`), for the workers to fill; returns its path."""
+    import tempfile
+
+    import dask.array as da
+
+    from .io import CHUNK_BYTES, _encoding
+
+    if not store.parent.is_dir():
+        raise FileNotFoundError(f"the folder {store.parent} does not exist")
+    ds = head.to_xarray()
+    var = ds[name]
+    chunks = list(part_chunks) + list(var.shape[len(part_chunks):])
+    per_row = var.dtype.itemsize * int(np.prod(chunks[:-1]))
+    chunks[-1] = int(max(1, min(chunks[-1], CHUNK_BYTES // max(per_row, 1))))
+    chunks = tuple(int(min(c, s)) if s else 1 for c, s in zip(chunks, var.shape))
+    ds[name] = var.copy(data=da.zeros(var.shape, chunks=chunks, dtype=var.dtype))
+    encoding = _encoding(ds, True, 1)
+    encoding[name]["chunks"] = chunks
+    tmp = Path(tempfile.mkdtemp(prefix=f".{store.name}.", suffix=".tmp.zarr", dir=store.parent))
+    ds.to_zarr(tmp, mode="w", compute=False, encoding=encoding, consolidated=True, zarr_format=2)
+    return tmp
+
+
+def _finish_store(tmp: Path, store: Path, provenance: dict) -> None:
+    """Record the provenance, consolidate the metadata and rename the store into place."""
+    import zarr
+
+    from .dataset import to_json
+    from .io import _remove
+
+    group = zarr.open_group(str(tmp), mode="r+")
+    group.attrs["provenance"] = to_json(provenance)
+    zarr.consolidate_metadata(str(tmp))
+    if store.exists():
+        old = store.with_name(f".{store.name}.old")
+        _remove(old)
+        store.rename(old)
+        tmp.rename(store)
+        _remove(old)
+    else:
+        tmp.rename(store)
+    log.info("the workers wrote %s", store)
+
+
+def _backproject_band(echo, grid: Grid, kwargs: dict, store: str | None, first: int):
     from .image.backprojection import backproject as backproject_one
 
     image = backproject_one(echo, grid, progress=False, **kwargs)
-    return image.data, image.provenance
+    if store is None:
+        return image.data, image.provenance
+    import zarr
+
+    zarr.open_group(store, mode="r+")["image"][first:first + image.data.shape[0]] = image.data
+    return None, image.provenance
 
 
 def grid_band(grid: Grid, first: int, stop: int) -> Grid:
@@ -148,28 +261,48 @@ def grid_band(grid: Grid, first: int, stop: int) -> Grid:
     return Grid(grid.positions[first:stop], grid.dims, axes)
 
 
-def backproject(echo: EchoData, grid: Grid, client, rows_per_task: int | None = None, out=None, **kwargs) -> Image:
+def backproject(echo: EchoData, grid: Grid, client, rows_per_task: int | None = None, out=None, gather: bool = True,
+                **kwargs):
     """:func:`clsas.backproject` over bands of grid rows on the Dask ``client``.
 
     The echo is sent to every worker once; ``rows_per_task`` (default: about 2^16 pixels a
-    task) sets the bands. ``kwargs`` go to :func:`clsas.backproject`. With ``out`` the image is
-    saved there. Returns the Image (the grid's dims, axes and positions).
+    task) sets the bands. ``kwargs`` go to :func:`clsas.backproject`. With ``out`` ending in
+    ``.zarr`` each worker writes its bands into the store; other ``out`` names are written
+    from the gathered image. Returns the Image (the grid's dims, axes and positions), or
+    (``gather=False``, with a zarr ``out``) the store's Path.
     """
     _check_client(client)
     if not isinstance(echo, EchoData) or not isinstance(grid, Grid):
         raise TypeError("backproject takes an EchoData and a Grid")
+    store = Path(out) if out is not None and Path(out).suffix == ".zarr" else None
+    if not gather and store is None:
+        raise ValueError("gather=False needs out=... ending in .zarr (the workers write the image there)")
     n_rows = grid.shape[0]
     per_row = max(1, grid.size // n_rows)
     rows = rows_per_task if rows_per_task is not None else max(1, 2**16 // per_row)
     bands = _blocks(n_rows, rows)
+    tmp = None
+    if store is not None:
+        head = Image(data=np.broadcast_to(np.complex64(0), grid.shape), dims=grid.dims, axes=grid.axes,
+                     positions=grid.positions)
+        tmp = _zarr_template(head, store, "image", (int(rows),))
     with stage("distributed back-projection", f"{grid.size} pixels x {echo.n_rx} receivers x {echo.n_pulses} pulses "
-               f"in {len(bands)} tasks"):
+               f"in {len(bands)} tasks" + (f", written by the workers to {store}" if store else "")):
         shared = client.scatter(echo, broadcast=True)
-        futures = [client.submit(_backproject_band, shared, grid_band(grid, a, b), kwargs, pure=False) for a, b in bands]
+        futures = [client.submit(_backproject_band, shared, grid_band(grid, a, b), kwargs,
+                                 None if tmp is None else str(tmp), a, pure=False) for a, b in bands]
         parts = client.gather(futures)
-    provenance = dict(parts[0][1], distributed={"tasks": len(bands), "rows_per_task": int(rows)})
+    provenance = dict(parts[0][1], distributed={"tasks": len(bands), "rows_per_task": int(rows),
+                                                "written_by": "workers" if store else "client"})
     if "exact_fallback_blocks" in provenance:
         provenance["exact_fallback_blocks"] = int(sum(p[1]["exact_fallback_blocks"] for p in parts))
+    if store is not None:
+        _finish_store(tmp, store, provenance)
+        if not gather:
+            return store
+        from .io import load
+
+        return load(store)
     image = Image(data=np.concatenate([p[0] for p in parts], axis=0), dims=grid.dims, axes=grid.axes,
                   positions=grid.positions, provenance=provenance)
     if out is not None:

@@ -65,12 +65,16 @@ energy is below pairs.WEAK_BLOCK of the pair's median block (beyond the seafloor
 left out; the reported value is the mean of the remaining blocks within pairs.OUTLIER scaled
 median absolute deviations of their median, and its uncertainty that mean's standard error.
 
-The hot loop, the correlations over ping pairs, x-lags, couples, t-lags and samples, is one
-vectorised NumPy contraction per t-lag over every pair, couple and block at once, and the
-beamforming one complex matrix product; bench/bench_dpca.py measures it (tens of ms a ping
-pair for 15 hydrophones x 2048 samples). A blocked FFT correlation measured the same within
-noise (it computes every lag where 2 t_lags + 1 are needed), and the work per ping pair is a
-few million multiply-adds, so no OpenCL kernel: DPCA's cost is small beside the imaging.
+The hot loop, the correlations over ping pairs, x-lags, couples, t-lags and samples, runs over
+every pair, couple and block at once: by zero-padded block FFTs for pass 1's 17 t-lags, by one
+multiply-add pass per t-lag for pass 2's 5 (correlate.DIRECT_T_LAGS; measured crossovers
+there). The beams are one complex matrix product, formed only at the t-lag of the couples'
+incoherent peak and its two neighbours (forming them at every t-lag took half the time).
+Measured with bench/bench_dpca.py on the 2-core machine while others ran (load ~8): 16 ms a
+ping pair over a 1000-ping track of 15 hydrophones x 2048 samples before the FFT path (16 s for
+the track), the correlations about half of it (cProfile). No OpenCL kernel: a free correlation
+would at most halve DPCA's time, and its FFT and direct NumPy forms, each used where it is the
+faster, are within 2x of each other.
 """
 
 from __future__ import annotations

@@ -35,7 +35,7 @@ def _beam(array: Array, f0: float, c: float):
     lengths = (array.tx_length, float(np.mean(array.rx_length)))
     if max(lengths) == 0:
         return None
-    sin_t = np.sin(np.linspace(-np.pi / 2, np.pi / 2, 20001))
+    sin_t = np.sin(np.linspace(-np.pi / 2, np.pi / 2, 4001))
     return sin_t, np.prod([np.sinc(length * sin_t / lam) ** 2 for length in lengths], axis=0)
 
 
@@ -68,7 +68,7 @@ def xlag_offset(q: np.ndarray, array: Array, f0: float, c: float, step: float) -
         return np.clip(q / (1 + np.abs(q)), -0.5, 0.5)
     sin_t, power = beam
     k = 2 * np.pi * f0 / c
-    eps = np.linspace(-0.5, 0.5, 201)
+    eps = np.linspace(-0.5, 0.5, 101)
     lags = (np.arange(-1, 2)[:, None] - eps[None, :]) * step                       # (3, eps)
     rho = (np.cos(2 * k * lags[..., None] * sin_t) @ power) / np.sum(power)       # (3, eps)
     q_model = (rho[2] - rho[0]) / (2 * rho[1] - rho[2] - rho[0])

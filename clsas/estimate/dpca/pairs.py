@@ -114,20 +114,22 @@ def _scan(setup: _Setup, prev: np.ndarray, nxt: np.ndarray, offset: np.ndarray, 
         dt_pca = pca_delay(st.array, i, j, st.r_samples, st.speed, st.c, st.sin2)
         g = nxt[i] * np.exp(2j * np.pi * st.f0 * dt_pca).astype(np.complex64)[:, None]   # phase-centre errors out
         corr = correlations(prev[j], g, t_lags)          # (couple, pair, block, t-lag)
+        # The t-lag of the peak is the couples' common delay (a yaw moves it by a hundredth of a
+        # sample across them): found on their incoherent sum, the beams are formed at it and
+        # its two neighbours only.
+        m = np.clip(np.abs(corr).sum(axis=0).argmax(axis=-1), 1, 2 * t_lags - 1)          # (pair, block)
+        near = np.take_along_axis(corr, (m[None, ..., None] + np.arange(-1, 2)), axis=-1)
         u = st.pc[i] - st.pc[i].mean()                   # couple positions along the track
         steer = np.exp(-1j * 4 * np.pi * st.f0 * np.outer(st.sin_theta, u) / st.c)   # (angle, couple)
-        beams = (steer.astype(np.complex64) @ corr.reshape(st.n_couples, -1)).reshape((n_angles,) + corr.shape[1:])
-        beams = np.moveaxis(beams, 0, 2) / st.n_couples  # (pair, block, angle, t-lag)
+        beams = (steer.astype(np.complex64) @ near.reshape(st.n_couples, -1)).reshape((n_angles,) + near.shape[1:])
+        beams = np.moveaxis(beams, 0, 2) / st.n_couples  # (pair, block, angle, t-lag m-1 .. m+1)
         mag = np.abs(beams)
-        flat = mag.reshape(mag.shape[:2] + (-1,)).argmax(axis=-1)
-        a, m = np.unravel_index(flat, mag.shape[2:])
-        a = np.clip(a, 1, n_angles - 2)
-        m = np.clip(m, 1, 2 * t_lags - 1)
+        a = np.clip(mag[..., 1].argmax(axis=-1), 1, n_angles - 2)
         pp, bb = np.indices(a.shape)
-        m_off, peak = parabola(mag[pp, bb, a, m - 1], mag[pp, bb, a, m], mag[pp, bb, a, m + 1])
-        a_off, _ = parabola(mag[pp, bb, a - 1, m], mag[pp, bb, a, m], mag[pp, bb, a + 1, m])
+        m_off, peak = parabola(mag[pp, bb, a, 0], mag[pp, bb, a, 1], mag[pp, bb, a, 2])
+        a_off, _ = parabola(mag[pp, bb, a - 1, 1], mag[pp, bb, a, 1], mag[pp, bb, a + 1, 1])
         coarse = offset[:, None] - ((m - t_lags) + m_off) / st.fs
-        phase = np.angle(beams[pp, bb, a, m])
+        phase = np.angle(beams[pp, bb, a, 1])
         cycles = np.round(coarse * st.f0 - phase / (2 * np.pi))
         delays[li] = (phase / (2 * np.pi) + cycles) / st.f0
         ds = st.sin_theta[1] - st.sin_theta[0]

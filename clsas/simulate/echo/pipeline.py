@@ -77,30 +77,51 @@ def _check_targets_in_windows(scenario: Scenario, lo, hi, t0, n_valid) -> None:
         )
 
 
-def add_noise(data: np.ndarray, snr_db: float, seed, n_valid=None, block: int = 64) -> np.ndarray:
-    """Add complex white Gaussian noise in place at ``snr_db`` per receiver (see the module docstring).
+def signal_power(data, n_valid=None, block: int = 64) -> tuple[np.ndarray, np.ndarray]:
+    """The signal power of the noise definition, per receiver and pulse: the sum of |s|^2
+    (float64) over the samples a receiver records where the echo is nonzero, and their count;
+    each (n_rx, n_pulses). Per pulse, so that pulse blocks computed apart (by the workers of
+    :mod:`clsas.distributed`) give the same figures bit for bit as the whole cube."""
+    n_rx, n_pulses = data.shape[:2]
+    n_valid = np.full(n_rx, data.shape[2]) if n_valid is None else np.asarray(n_valid)
+    sums = np.zeros((n_rx, n_pulses))
+    counts = np.zeros((n_rx, n_pulses), np.int64)
+    for h in range(n_rx):
+        for s in range(0, n_pulses, block):
+            mag2 = np.abs(data[h, s:s + block, :n_valid[h]]) ** 2
+            sums[h, s:s + block] = mag2.astype(np.float64).sum(axis=-1)  # a row at a time, whatever the block
+            counts[h, s:s + block] = np.count_nonzero(mag2, axis=-1)
+    return sums, counts
 
-    ``data`` is (n_rx, n_pulses, n_samples); receiver h records only its first ``n_valid[h]``
-    samples (default all), and only those get noise. Noise is drawn pulse block by pulse block
-    (same draws for the same ``seed`` whatever the backend).
+
+def add_noise(data, snr_db: float, seed, n_valid=None, block: int = 64, power=None):
+    """Add complex white Gaussian noise at ``snr_db`` per receiver (see the module docstring).
+
+    ``data`` is (n_rx, n_pulses, n_samples): a NumPy array (changed in place and returned) or
+    a zarr array (read, noised and written back a pulse block at a time). Receiver h records
+    only its first ``n_valid[h]`` samples (default all), and only those get noise. ``power``:
+    :func:`signal_power`'s (sums, counts) when already known, else computed from ``data``.
+    Noise is drawn pulse block by pulse block (same draws for the same ``seed`` whatever the
+    backend).
     """
     scalar("add_noise snr_db", snr_db, low=SNR_DB_RANGE[0], high=SNR_DB_RANGE[1], unit="dB")
     n_valid = np.full(data.shape[0], data.shape[2]) if n_valid is None else np.asarray(n_valid)
-    rng = np.random.default_rng(seed)
-    power = np.empty(data.shape[0])
+    sums, counts = signal_power(data, n_valid) if power is None else power
+    total, heard = sums.sum(axis=1), counts.sum(axis=1)
     for h in range(data.shape[0]):
-        mag2 = np.abs(data[h, :, :n_valid[h]]) ** 2
-        on = mag2 > 0
-        if not on.any():
+        if heard[h] == 0:
             raise ValueError(f"receiver {h} recorded no echo: its SNR is undefined")
-        power[h] = mag2[on].mean()
-    sigma = np.sqrt(power / 10 ** (snr_db / 10) / 2).astype(np.float32)
+    sigma = np.sqrt(total / heard / 10 ** (snr_db / 10) / 2).astype(np.float32)
+    rng = np.random.default_rng(seed)
+    in_place = isinstance(data, np.ndarray)
     for s in range(0, data.shape[1], block):
-        part = data[:, s:s + block]
+        part = data[:, s:s + block] if in_place else np.asarray(data[:, s:s + block])
         noise = rng.standard_normal(part.shape + (2,), dtype=np.float32)
         noise = (noise[..., 0] + 1j * noise[..., 1]) * sigma[:, None, None]
         for h in range(part.shape[0]):
             part[h, :, :n_valid[h]] += noise[h, :, :n_valid[h]]
+        if not in_place:
+            data[:, s:s + block] = part
     return data
 
 
