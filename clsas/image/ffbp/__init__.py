@@ -47,7 +47,7 @@ from ...data import EchoData, Grid, Image
 from ..backprojection_records import FFT_BATCH_BYTES, check_options
 from .leaves import BATCH_POINTS, RECORD_BYTES, FirstStage
 from .merge import KERNEL_TAPS, merge_opencl, merge_reference
-from .polar import PolarGrid, Scene
+from .polar import Scene
 from .tree import Tree, plan
 
 DEFAULT_TOLERANCE = 0.1
