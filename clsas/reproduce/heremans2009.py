@@ -70,7 +70,10 @@ def run(args: argparse.Namespace) -> int:
     clean = range_compress(simulate(scene, progress=False), upsample=4)
     echo = range_compress(simulate(moving, progress=False), upsample=4)
     pairs = dpca.estimate(echo, scene.array, speed)
-    track = dpca.integrate(pairs, echo.eta, speed, scene.array)
+    # DPCA measures changes of heading; the first ping's heading (at its reception, see
+    # Trajectory.heading_times) comes from the vehicle's compass: here from the truth.
+    first_reception = echo.eta[0] + pairs.two_way
+    track = dpca.integrate(pairs, echo.eta, speed, scene.array, heading0=float(yaw(first_reception)))
     t = track.times
     true_sway = sway(t) - sway(t[0])
     true_yaw = yaw(track.heading_times)
