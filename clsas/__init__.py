@@ -1,70 +1,70 @@
-"""clsas: synthetic aperture sonar simulation and imaging (OpenCL kernels, NumPy references)."""
+"""clsas: synthetic aperture sonar simulation and imaging (OpenCL kernels, NumPy references).
 
-from . import distributed
-from .backend import use_backend
-from .budget import memory_budget, use_memory_budget
-from .data import EchoData, Grid, Image
-from .errors import EstimationError
-from .estimate.moving import estimate as estimate_motion
-from .estimate.moving import focus as focus_moving
-from .image.backprojection import backproject
-from .image.csa import chirp_scaling
-from .image.ffbp import ffbp
-from .image.inclined import correct_inclined_array
-from .image.multireceiver import pca_record
-from .image.omegak import omega_k
-from .image.ptrs import ptrs_image
-from .image.rangecomp import range_compress
-from .image.rda import range_doppler
-from .image.record import line_record
-from .io import load, save
-from .scene.scenario import (
-                             Array,
-                             Medium,
-                             Platform,
-                             PulseSchedule,
-                             Recording,
-                             Scenario,
-                             Sonobuoy,
-                             Waveform,
-)
-from .scene.targets import PointTargets
-from .scene.toml import load_scenario
+The public API, re-exported. Names are imported on first use (PEP 562), so that ``import
+clsas`` and the ``clsas`` command start in a fraction of the time the whole stack (scipy's
+interpolate, optimize and special modules) takes to import; ``clsas.X`` and ``from clsas
+import X`` work as for eager imports. ``simulate`` is imported at once: a subpackage of the
+same name would otherwise shadow the function once anything imports it.
+"""
+
+import importlib
+import importlib.util
+
 from .simulate import simulate
 
-__all__ = [
-                             "Array",
-                             "EchoData",
-                             "EstimationError",
-                             "Grid",
-                             "Image",
-                             "Medium",
-                             "Platform",
-                             "PointTargets",
-                             "PulseSchedule",
-                             "Recording",
-                             "Scenario",
-                             "Sonobuoy",
-                             "Waveform",
-                             "backproject",
-                             "chirp_scaling",
-                             "correct_inclined_array",
-                             "distributed",
-                             "estimate_motion",
-                             "ffbp",
-                             "focus_moving",
-                             "line_record",
-                             "load",
-                             "load_scenario",
-                             "memory_budget",
-                             "omega_k",
-                             "pca_record",
-                             "ptrs_image",
-                             "range_compress",
-                             "range_doppler",
-                             "save",
-                             "simulate",
-                             "use_backend",
-                             "use_memory_budget",
-]
+#: public name -> (module, attribute; None for the module itself)
+_EXPORTS = {
+    "Array": (".scene.scenario", "Array"),
+    "EchoData": (".data", "EchoData"),
+    "EstimationError": (".errors", "EstimationError"),
+    "Grid": (".data", "Grid"),
+    "Image": (".data", "Image"),
+    "Medium": (".scene.scenario", "Medium"),
+    "Platform": (".scene.scenario", "Platform"),
+    "PointTargets": (".scene.targets", "PointTargets"),
+    "PulseSchedule": (".scene.scenario", "PulseSchedule"),
+    "Recording": (".scene.scenario", "Recording"),
+    "Scenario": (".scene.scenario", "Scenario"),
+    "Sonobuoy": (".scene.scenario", "Sonobuoy"),
+    "Waveform": (".scene.scenario", "Waveform"),
+    "backproject": (".image.backprojection", "backproject"),
+    "chirp_scaling": (".image.csa", "chirp_scaling"),
+    "correct_inclined_array": (".image.inclined", "correct_inclined_array"),
+    "distributed": (".distributed", None),
+    "estimate_motion": (".estimate.moving", "estimate"),
+    "ffbp": (".image.ffbp", "ffbp"),
+    "focus_moving": (".estimate.moving", "focus"),
+    "line_record": (".image.record", "line_record"),
+    "load": (".io", "load"),
+    "load_scenario": (".scene.toml", "load_scenario"),
+    "memory_budget": (".budget", "memory_budget"),
+    "omega_k": (".image.omegak", "omega_k"),
+    "pca_record": (".image.multireceiver", "pca_record"),
+    "ptrs_image": (".image.ptrs", "ptrs_image"),
+    "range_compress": (".image.rangecomp", "range_compress"),
+    "range_doppler": (".image.rda", "range_doppler"),
+    "save": (".io", "save"),
+    "use_backend": (".backend", "use_backend"),
+    "use_memory_budget": (".budget", "use_memory_budget"),
+}
+
+__all__ = sorted([*_EXPORTS, "simulate"])
 __version__ = "0.1.0"
+
+
+def __getattr__(name: str):
+    """A public name (imported now and kept), or a submodule (``clsas.backend``, ``clsas.metrics``)."""
+    if name in _EXPORTS:
+        module, attr = _EXPORTS[name]
+        value = importlib.import_module(module, __name__)
+        value = value if attr is None else getattr(value, attr)
+    elif not name.startswith("__") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
+        value = importlib.import_module(f".{name}", __name__)
+    else:
+        raise AttributeError(f"module 'clsas' has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 import xarray as xr
 
 import clsas
@@ -35,6 +36,16 @@ def test_version_and_plain_text_help(capsys):
     for command in ("simulate", "image", "plot", "bench", "info", "reproduce"):
         assert command in out
     assert "``" not in out and ":func:" not in out
+    from clsas import reproduce
+
+    with pytest.raises(SystemExit):  # the papers' help lines are read from their sources, not imported
+        cli.main(["reproduce", "--help"])
+    out = capsys.readouterr().out
+    for name in reproduce.paper_names():
+        assert f"    {name}" in out and reproduce.summary(name)[:30] in out
+    with pytest.raises(SystemExit):  # the paper named is imported, with its own options
+        cli.main(["reproduce", "heremans2009", "--help"])
+    assert "--pings" in capsys.readouterr().out
 
 
 def test_info_prints_version_backend_device_and_its_source(opencl_device, capsys):

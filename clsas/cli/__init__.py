@@ -38,7 +38,7 @@ def _version() -> str:
     return f"clsas {__version__}"
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv=None) -> argparse.ArgumentParser:
     from . import bench, demo, info, workflow
 
     parser = argparse.ArgumentParser(prog="clsas", description=DESCRIPTION,
@@ -60,21 +60,28 @@ def build_parser() -> argparse.ArgumentParser:
         one = sub.add_parser(name, help=help_text, description=help_text)
         add_arguments(one)
         one.set_defaults(run=run)
-    _add_reproductions(sub)
+    _add_reproductions(sub, sys.argv[1:] if argv is None else list(argv))
     return parser
 
 
-def _add_reproductions(sub) -> None:
-    """``clsas reproduce PAPER [options]``: one sub-command per module of :mod:`clsas.reproduce`."""
+def _add_reproductions(sub, argv: list) -> None:
+    """``clsas reproduce PAPER [options]``: one sub-command per module of :mod:`clsas.reproduce`.
+    Only the paper named on the command line is imported (the others' help lines are read from
+    their sources), so that every other command starts without importing them all."""
     from .. import reproduce
 
-    papers = reproduce.papers()
+    chosen = None
+    if "reproduce" in argv:
+        rest = [a for a in argv[argv.index("reproduce") + 1:] if not a.startswith("-")]
+        chosen = rest[0] if rest else None
     parser = sub.add_parser("reproduce", help="reproduce a source paper's tables")
     which = parser.add_subparsers(dest="paper", required=True, metavar="PAPER")
-    for name, module in papers.items():
-        one = which.add_parser(name, help=(module.__doc__ or name).strip().splitlines()[0])
-        module.add_arguments(one)
-        one.set_defaults(run=module.run)
+    for name in reproduce.paper_names():
+        one = which.add_parser(name, help=reproduce.summary(name))
+        if name == chosen:
+            module = reproduce.paper(name)
+            module.add_arguments(one)
+            one.set_defaults(run=module.run)
 
 
 def _configure_logging(verbose: int) -> None:
@@ -87,7 +94,7 @@ def _configure_logging(verbose: int) -> None:
 
 
 def main(argv=None) -> int:
-    parser = build_parser()
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     _configure_logging(args.verbose)
     if not args.progress:

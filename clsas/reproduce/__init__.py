@@ -13,12 +13,31 @@ command by adding its module; nothing here lists them.
 
 from __future__ import annotations
 
+import ast
 import importlib
+import importlib.util
 import pkgutil
 from types import ModuleType
 
 
+def paper_names() -> list[str]:
+    """The reproduction modules' names, sorted (nothing imported)."""
+    return sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_"))
+
+
+def paper(name: str) -> ModuleType:
+    """The reproduction module of ``name``."""
+    return importlib.import_module(f"{__name__}.{name}")
+
+
+def summary(name: str) -> str:
+    """The first line of ``name``'s docstring, read from its source (the module is not imported)."""
+    origin = importlib.util.find_spec(f"{__name__}.{name}").origin
+    with open(origin, encoding="utf-8") as f:
+        doc = ast.get_docstring(ast.parse(f.read())) or name
+    return doc.strip().splitlines()[0]
+
+
 def papers() -> dict[str, ModuleType]:
     """The reproduction modules by paper name, sorted."""
-    names = sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_"))
-    return {name: importlib.import_module(f"{__name__}.{name}") for name in names}
+    return {name: paper(name) for name in paper_names()}

@@ -9,7 +9,6 @@ from dataclasses import dataclass
 from typing import Callable, Union
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from ... import validate as v
 
@@ -65,6 +64,7 @@ class Platform:
             if times.size < 2 or np.any(np.diff(times) <= 0):
                 raise ValueError("Platform.error_times must hold >= 2 strictly increasing times (s)")
             object.__setattr__(self, "error_times", times)
+            from scipy.interpolate import CubicSpline  # here: scipy.interpolate costs ~1 s to import
             for comp in sampled:
                 values = v.array(f"Platform.{comp}", getattr(self, comp), (times.size,),
                                  bound=np.pi if comp in ("yaw", "pitch") else v.MAX_COORDINATE)
