@@ -52,6 +52,7 @@ class Runtime:
 
 _runtimes: dict[str, Runtime] = {}
 _programs: dict[tuple, object] = {}
+_kernels: dict[tuple, object] = {}  # (id(program), kernel name, thread) -> Kernel
 _sources: dict[str, tuple[str, str]] = {}  # kernels/NAME.cl -> (text, digest), read once per process
 
 
@@ -238,9 +239,17 @@ def program(name: str, defines: dict | None = None, device: str | None = None, d
 
 def kernel(name: str, kernel_name: str, defines: dict | None = None, device: str | None = None,
            double: bool = False, preamble: str = ""):
-    """A fresh pyopencl.Kernel ``kernel_name`` from ``kernels/NAME.cl`` (see :func:`program`)."""
+    """The pyopencl.Kernel ``kernel_name`` from ``kernels/NAME.cl`` (see :func:`program`), one per
+    (program, name, thread): a fresh Kernel looks its argument invoker up in pyopencl's on-disk
+    cache (~2-4 ms a call, measured), which calls launching many small kernels (ffbp's leaves and
+    merges) paid every time. Launch it as ``kern(queue, ...)`` (arguments set and enqueued at once)."""
     cl = _import_pyopencl()
-    return cl.Kernel(program(name, defines=defines, device=device, double=double, preamble=preamble), kernel_name)
+    prg = program(name, defines=defines, device=device, double=double, preamble=preamble)
+    key = (id(prg), kernel_name, threading.get_ident())
+    kern = _kernels.get(key)
+    if kern is None:
+        kern = _kernels[key] = cl.Kernel(prg, kernel_name)
+    return kern
 
 
 #: Compiler output known to be harmless: PoCL's note that a 16-wide vector argument changes the

@@ -93,14 +93,24 @@ inline realv2_t sinc8_lane(__global const real_t *rec, int i, __global const flo
  * params (tile_params_t): a1, fs (of the data), f0, velocity v, half_sin = sin(aperture / 2), c;
  * the records are declared by the launcher (clsas/image/backprojection.py, RECORDS);
  * data[p n + i]: the receiver's range-compressed record of pulse p; taps: see sinc8_lane;
- * image[m] += the sum over pulses p_first .. p_first + p_count - 1. */
+ * image[m] += the sum over pulses p_first .. p_first + p_count - 1.
+ * ROW_SHIFT (ffbp's first stage, clsas/image/ffbp/leaves.py: many sub-apertures a launch): pulse p
+ *   of tile t reads record row p + row_shift[t] (its reference stays ref[t * ref_stride + p - ref_first]). */
+#ifdef ROW_SHIFT
+#define ROW_SHIFT_PARAM , __global const int *row_shift
+#define TILE_ROW_SHIFT row_shift[tile_of[g]]
+#else
+#define ROW_SHIFT_PARAM
+#define TILE_ROW_SHIFT 0
+#endif
 __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __global const tile_ref_t *ref,
                       const int ref_stride, const int ref_first, __global const sample_t *data, __global const float *taps,
                       const tile_params_t params, const int p_first, const int p_count, const int n, const int m_pad,
-                      __global double2 *image)
+                      __global double2 *image ROW_SHIFT_PARAM)
 {
     const int g = get_global_id(0);
     __global const tile_ref_t *tref = ref + (size_t)tile_of[g] * ref_stride;
+    const int row_first = TILE_ROW_SHIFT;
     const float a1 = params.a1, fs = params.fs, f0 = params.f0;
     float16 dx[ROWS], dy[ROWS], dz[ROWS], dd[ROWS], acc_re[ROWS], acc_im[ROWS];
 #ifdef MOVING
@@ -129,7 +139,7 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
         _Pragma("unroll") for (int j = 0; j < PULSES; ++j) {
             const int pj = min(p + j, p_end - 1);
             R[j] = tref[pj - ref_first];
-            rec[j] = (__global const float *)(data + (size_t)pj * n);
+            rec[j] = (__global const float *)(data + (size_t)(pj + row_first) * n);
             live[j] = p + j < p_end ? 1.0f : 0.0f;
         }
         float16 s1[CHAINS], s[CHAINS], frac[CHAINS], cs[CHAINS], sn[CHAINS];

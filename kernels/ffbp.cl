@@ -3,14 +3,19 @@
  *
  * NumPy twin: clsas/image/ffbp/merge.py (merge_reference); launcher merge_opencl there.
  *
- * One work-item per output sample X: a parent sample (i, j) -> X(r, v) on the reference plane
- * (clsas/image/ffbp/polar.py, PolarGrid.points), or points[id]. For every child k:
- * r_c = |X - C_k|, v_c = u_k . (X - C_k) / r_c, positions (r_c - r0) / dr and (v_c - v0) / dv,
- * the TAPS x TAPS windowed-sinc read of the child's image (n_v, n_r, range fastest; taps from
- * the nearest of TAP_ROWS table rows; nothing unless every sample exists), times
+ * One work-item: sixteen output samples X (double16 lanes): sixteen consecutive range samples
+ * i0 .. i0 + 15 of one parent row j, X(r, v) on the reference plane (clsas/image/ffbp/polar.py,
+ * PolarGrid.points; global size (ceil(n_r / 16), n_v)), or points i0 .. i0 + 15 (global size
+ * ceil(n_out / 16); the last work-item repeats the last point and stores only its own). For every
+ * child k: r_c = |X - C_k|, v_c = u_k . (X - C_k) / r_c, positions (r_c - r0) / dr and
+ * (v_c - v0) / dv, the TAPS x TAPS windowed-sinc read of the child's image (n_v, n_r, range
+ * fastest; the taps of the nearest of TAP_ROWS table rows, interp.h; nothing unless every sample
+ * exists; a child none of the sixteen lanes falls in is skipped), times
  * exp(j 2 pi 2 f0 (r_c - r_p) / c) with r_p the parent's range (0 for points). Geometry,
- * positions and cycles in double (ranges of kilometres at 150 kHz need it), the interpolation
- * and the sum in float.
+ * positions and cycles in double (ranges of kilometres at 150 kHz need it), vectorised over the
+ * lanes; the interpolation, the phase factor and the sum in float: each lane's TAPS rows of
+ * TAPS complex samples times the range taps, weighted by the angle taps, and the lanes' complex
+ * sums formed eight at a time across lanes (lanes.h).
  *
  * frames (double, 20 a child): centre 0-2, axis 3-5, e1 6-8, e2 9-11, r0 12, dr 13, v0 14,
  * dv 15, n_r 16, n_v 17. params (double): the parent's frame 0-19 (PARENT_GRID), the plane's
@@ -20,83 +25,173 @@
 
 #include "common.h"
 #include "loads.h"
+#include "lanes.h"
+#include "interp.h"
 
 #define FRAME 20
+#define LANE_INDEX ((double16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))
 
-#ifdef PARENT_GRID
-/* X(r, v) of parent sample (i, j) (PolarGrid.points) */
-inline double3 parent_point(__global const double *p, const int i, const int j, double *r_out)
+/* One lane's complex products: its TAPS rows of TAPS samples (re, im interleaved) from s (the
+ * window's first sample, rows n_r complex samples apart) times the range taps of row row_r,
+ * summed over the rows weighted by the angle taps of row row_v; zero for a lane outside the
+ * image. TAPS = 8: a float16 of eight products (csum8 sums eight lanes' at once); TAPS = 4: the
+ * lane's complex sum. */
+#if TAPS == 8
+inline float16 lane_products(const int ok, __global const float *s, const int n_r, __global const float *taps,
+                             const int row_v, const int row_r)
 {
-    const double r = p[12] + i * p[13], v = p[14] + j * p[15];
-    const double3 cen = vload3(0, p), ax = vload3(1, p), e1 = vload3(2, p), e2 = vload3(3, p);
-    const double3 m = vload3(0, p + 20);
-    const double rho = r * sqrt(fmax(1.0 - v * v, 0.0));
-    double s = rho > 0.0 ? (p[23] - dot(m, cen) - r * v * dot(m, ax)) / (rho * dot(m, e2)) : 0.0;
-    s = clamp(s, -1.0, 1.0);
-    *r_out = r;
-    return cen + (r * v) * ax + (rho * sqrt(1.0 - s * s)) * e1 + (rho * s) * e2;
+    float16 p = (float16)0.0f;
+    if (ok) {
+        __global const float *tv = taps + 8 * row_v;
+        for (int a = 0; a < 8; ++a)
+            p += tv[a] * LOAD_F16(s + 2 * a * n_r);
+        p *= TAP_ROW8(taps, row_r);
+    }
+    return p;
 }
+#elif TAPS == 4
+inline float2 lane_products(const int ok, __global const float *s, const int n_r, __global const float *taps,
+                            const int row_v, const int row_r)
+{
+    float8 p = (float8)0.0f;
+    if (ok) {
+        __global const float *tv = taps + 4 * row_v;
+        for (int a = 0; a < 4; ++a)
+            p += tv[a] * LOAD_F8(s + 2 * a * n_r);
+        p *= LOAD_F4(taps + 4 * row_r).s00112233;
+    }
+    const float4 q = p.lo + p.hi;
+    return q.lo + q.hi;
+}
+#else
+#error "TAPS must be 4 or 8"
 #endif
+#define LANE_PRODUCTS(L) lane_products(ok.s##L, img + 2 * (iv.s##L * n_r + ir.s##L), n_r, taps, row_v.s##L, row_r.s##L)
+
+/* X(r, v) (PolarGrid.points) of samples (j, i) (sixteen range indices i) of the polar grid of
+ * frame f (20 doubles, the layout of frames below) on the plane m . X = offset (plane: m 0-2,
+ * offset 3), in x, y, z; returns their ranges r. */
+inline double16 polar_points16(__global const double *f, __global const double *plane, const int j, const double16 i,
+                               double16 *x, double16 *y, double16 *z)
+{
+    const double v = f[14] + j * f[15];
+    const double3 cen = vload3(0, f), ax = vload3(1, f), e1 = vload3(2, f), e2 = vload3(3, f);
+    const double3 m = vload3(0, plane);
+    const double16 r = f[12] + i * f[13];
+    const double16 rho = r * sqrt(fmax(1.0 - v * v, 0.0));
+    double16 s = (plane[3] - dot(m, cen) - r * (v * dot(m, ax))) / (rho * dot(m, e2));
+    s = select((double16)0.0, clamp(s, -1.0, 1.0), rho > 0.0);
+    const double16 rc = rho * sqrt(1.0 - s * s), rs = rho * s, rv = r * v;
+    *x = cen.x + rv * ax.x + rc * e1.x + rs * e2.x;
+    *y = cen.y + rv * ax.y + rc * e1.y + rs * e2.y;
+    *z = cen.z + rv * ax.z + rc * e1.z + rs * e2.z;
+    return r;
+}
+
+/* bp_tile's pixel fields (kernels/backprojection.cl: f = 0, 1, 2 the offset delta of a sample from
+ * its tile's reference point, 3 |delta|^2; float, fields[f * m_pad + slot]) for the first stage's
+ * batch of polar grids (clsas/image/ffbp/leaves.py): work-item g fills slots 16 g .. 16 g + 15,
+ * sixteen consecutive range samples of one row of one tile; items[g] = (leaf, row, first range
+ * sample, tile) (rows and samples past the grid's edge are clamped to it: the launcher drops
+ * those slots); frames (20 doubles a leaf, as below), plane (m, offset), centres (3 doubles a tile). */
+__kernel void ffbp_fields(__global const int4 *items, __global const double *frames, __global const double *plane,
+                          __global const double *centres, const int m_pad, __global float *fields)
+{
+    const int g = get_global_id(0);
+    const int4 t = items[g];
+    __global const double *f = frames + FRAME * t.x;
+    const int n_r = (int)f[16], n_v = (int)f[17];
+    double16 x, y, z;
+    polar_points16(f, plane, min(t.y, n_v - 1), fmin(t.z + LANE_INDEX, (double16)(n_r - 1)), &x, &y, &z);
+    const double16 dx = x - centres[3 * t.w], dy = y - centres[3 * t.w + 1], dz = z - centres[3 * t.w + 2];
+    const size_t o = 16 * (size_t)g;
+    STORE_F16(convert_float16(dx), fields + o);
+    STORE_F16(convert_float16(dy), fields + m_pad + o);
+    STORE_F16(convert_float16(dz), fields + 2 * (size_t)m_pad + o);
+    STORE_F16(convert_float16(dx * dx + dy * dy + dz * dz), fields + 3 * (size_t)m_pad + o);
+}
 
 __kernel void ffbp_merge(__global const float2 *images, __global const long *offsets,
                          __global const double *frames, __global const float *taps,
                          __global const double *points, __global const double *params,
                          const int n_children, const int n_out, __global float2 *out)
 {
-    const int id = get_global_id(0);
-    if (id >= n_out)
-        return;
-    double r_p = 0.0;
+    double16 x, y, z, r_p;
+    int n_valid;
+    size_t first;
 #ifdef PARENT_GRID
-    const int n_r_parent = (int)params[16];
-    const int j = id / n_r_parent;
-    const double3 x = parent_point(params, id - j * n_r_parent, j, &r_p);
+    /* X(r, v) of the parent samples (PolarGrid.points) */
+    const int n_r_parent = (int)params[16], j = get_global_id(1), i0 = 16 * get_global_id(0);
+    n_valid = min(16, n_r_parent - i0);
+    if (n_valid <= 0)
+        return;
+    first = (size_t)j * n_r_parent + i0;
+    r_p = polar_points16(params, params + 20, j, i0 + LANE_INDEX, &x, &y, &z);
 #else
-    const double3 x = vload3(id, points);
+    const int i0 = 16 * get_global_id(0);
+    n_valid = min(16, n_out - i0);
+    if (n_valid <= 0)
+        return;
+    first = i0;
+    double px[16], py[16], pz[16];
+    for (int l = 0; l < 16; ++l) {
+        const size_t q = 3 * (size_t)(i0 + min(l, n_valid - 1));
+        px[l] = points[q];
+        py[l] = points[q + 1];
+        pz[l] = points[q + 2];
+    }
+    x = vload16(0, px);
+    y = vload16(0, py);
+    z = vload16(0, pz);
+    r_p = (double16)0.0;
 #endif
     const double cycles_per_m = params[24];
-    float2 acc = (float2)(0.0f, 0.0f);
+    float16 acc_re = (float16)0.0f, acc_im = (float16)0.0f;
     for (int k = 0; k < n_children; ++k) {
         __global const double *f = frames + FRAME * k;
-        const double3 d = x - vload3(0, f);
-        const double rc = sqrt(dot(d, d));
-        const double pv = (dot(d, vload3(1, f)) / rc - f[14]) / f[15], pr = (rc - f[12]) / f[13];
-        if (!(pv >= 0.0 && pr >= 0.0))  /* outside the image (every read needs a whole window) */
-            continue;
-        const int fv = convert_int(pv), fr = convert_int(pr);  /* floor of a non-negative value
-                                                                    (PoCL's floor() is a slow emulation) */
-        const int iv = fv - (TAPS / 2 - 1), ir = fr - (TAPS / 2 - 1);
+        const double16 dx = x - f[0], dy = y - f[1], dz = z - f[2];
+        const double16 rc = sqrt(dx * dx + dy * dy + dz * dz);
+        /* positions in samples, bounded before the conversion (out-of-range converts are undefined) */
+        const double16 pv = clamp(((dx * f[3] + dy * f[4] + dz * f[5]) / rc - f[14]) / f[15], -1.0, 1e9);
+        const double16 pr = clamp((rc - f[12]) / f[13], -1.0, 1e9);
         const int n_r = (int)f[16], n_v = (int)f[17];
-        if (iv < 0 || iv > n_v - TAPS || ir < 0 || ir > n_r - TAPS)
+        const int16 fv = convert_int16(pv), fr = convert_int16(pr);  /* floor where >= 0 (PoCL's floor() is slow) */
+        const int16 iv = fv - (TAPS / 2 - 1), ir = fr - (TAPS / 2 - 1);
+        const int16 ok = convert_int16(pv >= 0.0 && pr >= 0.0) & (iv >= 0 && iv <= n_v - TAPS && ir >= 0 && ir <= n_r - TAPS);
+        const int8 ok8 = ok.lo | ok.hi;
+        const int4 ok4 = ok8.lo | ok8.hi;
+        const int2 ok2 = ok4.lo | ok4.hi;
+        if (!(ok2.x | ok2.y))  /* no lane reads this child */
             continue;
-        const int row_v = convert_int((pv - fv) * (TAP_ROWS - 1) + 0.5);
-        const int row_r = convert_int((pr - fr) * (TAP_ROWS - 1) + 0.5);
-        __global const float *img = (__global const float *)(images + offsets[k] + (long)iv * n_r + ir);
-        __global const float *tv = taps + TAPS * row_v;
+        const int16 row_v = NEAREST_TAP_ROW(convert_int16, pv - convert_double16(fv));
+        const int16 row_r = NEAREST_TAP_ROW(convert_int16, pr - convert_double16(fr));
+        __global const float *img = (__global const float *)(images + offsets[k]);
+        const double16 cycles = cycles_per_m * (rc - r_p);
+        float16 cs, sn;
+        expj_fraction16(convert_float16(cycles - convert_double16(convert_long16(cycles))), &cs, &sn);
 #if TAPS == 8
-        const float16 tr = LOAD_F8(taps + 8 * row_r).s0011223344556677;
-        float16 sum = (float16)0.0f;
-        for (int a = 0; a < 8; ++a)
-            sum += tv[a] * (LOAD_F16(img + 2 * a * n_r) * tr);
-        const float8 h = sum.lo + sum.hi;
-#elif TAPS == 4
-        const float8 tr = LOAD_F4(taps + 4 * row_r).s00112233;
-        float8 h = (float8)0.0f;
-        for (int a = 0; a < 4; ++a)
-            h += tv[a] * (LOAD_F8(img + 2 * a * n_r) * tr);
+        const float16 lo = csum8(LANE_PRODUCTS(0), LANE_PRODUCTS(1), LANE_PRODUCTS(2), LANE_PRODUCTS(3),
+                                 LANE_PRODUCTS(4), LANE_PRODUCTS(5), LANE_PRODUCTS(6), LANE_PRODUCTS(7));
+        const float16 hi = csum8(LANE_PRODUCTS(8), LANE_PRODUCTS(9), LANE_PRODUCTS(a), LANE_PRODUCTS(b),
+                                 LANE_PRODUCTS(c), LANE_PRODUCTS(d), LANE_PRODUCTS(e), LANE_PRODUCTS(f));
 #else
-#error "TAPS must be 4 or 8"
+        const float16 lo = (float16)(LANE_PRODUCTS(0), LANE_PRODUCTS(1), LANE_PRODUCTS(2), LANE_PRODUCTS(3),
+                                     LANE_PRODUCTS(4), LANE_PRODUCTS(5), LANE_PRODUCTS(6), LANE_PRODUCTS(7));
+        const float16 hi = (float16)(LANE_PRODUCTS(8), LANE_PRODUCTS(9), LANE_PRODUCTS(a), LANE_PRODUCTS(b),
+                                     LANE_PRODUCTS(c), LANE_PRODUCTS(d), LANE_PRODUCTS(e), LANE_PRODUCTS(f));
 #endif
-        const float4 q = h.lo + h.hi;
-        const float2 val = q.lo + q.hi;
-        const double cycles = cycles_per_m * (rc - r_p);
-        float cs, sn;
-        expj_fraction((float)(cycles - (double)convert_long(cycles)), &cs, &sn);
-        acc += (float2)(val.x * cs - val.y * sn, val.x * sn + val.y * cs);
+        const float16 re = (float16)(lo.even, hi.even), im = (float16)(lo.odd, hi.odd);
+        acc_re += re * cs - im * sn;
+        acc_im += re * sn + im * cs;
     }
+    float re_out[16], im_out[16];
+    vstore16(acc_re, 0, re_out);
+    vstore16(acc_im, 0, im_out);
+    for (int l = 0; l < n_valid; ++l) {
 #ifdef PARENT_GRID
-    out[id] = acc;
+        out[first + l] = (float2)(re_out[l], im_out[l]);
 #else
-    out[id] += acc;
+        out[first + l] += (float2)(re_out[l], im_out[l]);
 #endif
+    }
 }

@@ -76,6 +76,23 @@ def test_inline_meshes_and_echoes_are_identical():
         np.testing.assert_array_equal(one.data, two.data)
 
 
+def test_written_text_is_compact_and_strings_round_trip():
+    """Vectors stay on one line, arrays pack into rows of at most 100 columns, and names with
+    quotes, backslashes, non-ASCII letters or control characters read back as written."""
+    from clsas.scene.scenario import Sonobuoy
+
+    names = ('C "north"', "back\\slash", "bou\u00e9e", "tab\tand\x7fdel")
+    scenario = dataclasses.replace(presets.point_scene("huang2022", n_pulses=3),
+                                   sonobuoys=tuple(Sonobuoy((10.0 * i, 5.0, -2.0), name=n) for i, n in enumerate(names)))
+    text = scenario.to_toml()
+    assert "start = [0.0, 0.0, 0.0]" in text
+    assert max(len(line) for line in text.splitlines()) <= 100
+    assert len(text.splitlines()) < 80, "a 32-receiver array packs into rows"
+    back = scenario_from_toml(text)
+    assert_same(scenario, back)
+    assert [b.name for b in back.sonobuoys] == list(names)
+
+
 def test_examples_load_with_every_part(tmp_path):
     points = clsas.load_scenario(EXAMPLES / "huang2022_points.toml")
     np.testing.assert_allclose(points.array.rx_offsets, presets.huang2022().array.rx_offsets, rtol=0, atol=1e-15)

@@ -450,7 +450,8 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
                 raise ValueError(f"receivers {missing} were not prepared; the records hold "
                                  f"{[records.echo.receivers[h] for h in records.receivers]}")
             records = records.subset(chosen)
-        covered = records.covers(reach(records.echo, records.receivers, plan.grid.positions, velocity))
+        covered = [True] if records.whole else records.covers(reach(records.echo, records.receivers,
+                                                                    plan.grid.positions, velocity))
         if not np.all(covered):
             names = [records.echo.receivers[h] for h, ok in zip(records.receivers, covered) if not ok]
             raise ValueError(f"grid: the prepared records do not cover the fast times this grid reaches "

@@ -286,6 +286,11 @@ class PreparedRecords:
         per_pulse = 16 * max(1, int(np.max(self.length)))
         return max(64, int(UPLOAD_BYTES // per_pulse) // 64 * 64)
 
+    @property
+    def whole(self) -> bool:
+        """True when every receiver's whole record is prepared (they cover any grid)."""
+        return bool(np.all(self._bounds[:, 0] == 0) and np.all(self._bounds[:, 1] == self.echo.n_samples))
+
     def covers(self, spans: np.ndarray) -> np.ndarray:
         """(len(receivers),) bool: the prepared samples hold every sample the interpolator reads
         for delays within ``spans`` (len(receivers), 2) s."""

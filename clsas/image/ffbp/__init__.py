@@ -8,10 +8,11 @@ sub-apertures on finer polar grids, until the last ones are read at the user's p
 1. Sub-apertures (:mod:`.tree`): blocks of ``first`` consecutive pulses, every selected receiver
    of the array (a towed array's pulse is one wide sub-aperture already); a node of the merge
    tree is ``factor`` consecutive children.
-2. First stage: each leaf is back-projected by :func:`clsas.backproject` (the exact delays:
-   non-stop-and-go, two-leg bistatic, every receiver, ``interp``/``upsample``/``aperture`` as
-   there) onto its polar grid's points (:mod:`.polar`), and demodulated by its centre range:
-   J = I exp(-j 4 pi f0 r / c).
+2. First stage (:mod:`.leaves`): each leaf is back-projected with back-projection's exact
+   delays (non-stop-and-go, two-leg bistatic, every receiver, ``interp``/``upsample``/``aperture``
+   as for :func:`clsas.backproject`, on records prepared once a batch) onto its polar grid's
+   points (:mod:`.polar`), a batch of leaves a kernel launch, and demodulated by its centre
+   range: J = I exp(-j 4 pi f0 r / c).
 3. Merges (:mod:`.merge`, kernels/ffbp.cl): a parent's samples read in its children's polar
    images by a separable windowed sinc, the phase restored and re-demodulated, summed.
 4. Final stage: the top nodes read at the grid's pixels with the full phase restored, so the
@@ -22,8 +23,9 @@ The tree stops merging where one more level would cost more than it saves at the
 The error model (``tolerance`` -> oversampling of every polar grid) is derived in
 :mod:`.polar`. Memory: the tree is walked depth first, so it holds at most ``factor`` polar
 images a level (each at most about the size of the pixel grid, by the stopping rule) and top
-nodes of about the image's size waiting for the final stage, besides the image and one leaf's
-records.
+nodes of about the image's size waiting for the final stage, besides the image, one batch of
+leaves and its records: :func:`memory_plan` bounds the total from the tree (a 4096^2 image
+from 4096 pulses: 1.2-1.4 GB).
 
 Geometry: any track (sway, yaw, surge, circles: each sub-aperture's frame follows its own
 chord) and any grid on a plane (planes, slant planes, points on a plane) are exact up to the
@@ -42,16 +44,19 @@ from tqdm.auto import tqdm
 
 from ... import backend as _backend
 from ...data import EchoData, Grid, Image
-from ...kernelmath import expj_cycles
-from ..backprojection import backproject
-from ..backprojection_records import check_options
+from ..backprojection_records import FFT_BATCH_BYTES, check_options
+from .leaves import BATCH_POINTS, RECORD_BYTES, FirstStage
 from .merge import KERNEL_TAPS, merge_opencl, merge_reference
-from .polar import PolarGrid, Scene
+from .polar import Scene
 from .tree import Tree, plan
 
 DEFAULT_TOLERANCE = 0.1
 
-__all__ = ["DEFAULT_TOLERANCE", "ffbp"]
+__all__ = ["DEFAULT_TOLERANCE", "ffbp", "memory_plan"]
+
+SAMPLE_BYTES = 8  # a polar or image sample on OpenCL (complex64)
+LEAF_BATCH_BYTES = 81  # held a polar sample of a first-stage batch (leaves.py: images, fields, device image, copy, tiles)
+LEAF_BYTES = 200  # transient a sample of the leaf being tiled (points, padded blocks, offsets; float64)
 
 
 def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsample, aperture):
@@ -82,15 +87,30 @@ def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsamp
     return chosen
 
 
-def _leaf(echo, tree: Tree, node: int, grid: PolarGrid, backend, chosen, interp, upsample, aperture, stop_and_go):
-    """A first-stage image: the leaf's pulses back-projected onto its polar grid, demodulated (n_v, n_r)."""
-    p0, p1 = tree.pulses[0][node]
-    sub = echo.replace(data=echo.data[:, p0:p1], eta=echo.eta[p0:p1], tx_pos=echo.tx_pos[p0:p1],
-                       rx_pos=echo.rx_pos[:, p0:p1])
-    image = backproject(sub, Grid.points(grid.points()), backend=backend, receivers=chosen, interp=interp,
-                        upsample=upsample, aperture=aperture, stop_and_go=stop_and_go, progress=False).data
-    demodulated = image * expj_cycles(-2 * echo.waveform.f0 * grid.ranges / echo.medium.sound_speed)[None, :]
-    return demodulated.astype(np.complex64 if backend == "opencl" else np.complex128)
+def memory_plan(tree: Tree, n_pixels: int, factor: int) -> dict:
+    """Bytes held at most at once by :func:`ffbp` on OpenCL besides the user's grid and echo, by
+    part, from the tree's allocation plan (issue 15, item 6), and their ``total``:
+
+    - ``image``: the result, n_pixels complex64;
+    - ``tree``: the depth-first walk; merging a node of level l holds its ``factor`` children, their
+      concatenation for the kernel and its own image, while every level above holds up to
+      ``factor - 1`` finished siblings: at most (3 factor + 1) x the largest node of each level;
+    - ``top``: top nodes waiting for the final stage (flushed once they hold n_pixels samples, so
+      at most n_pixels + the largest top node) and their concatenation for the kernel;
+    - ``first_stage``: a batch of leaves (leaves.BATCH_POINTS samples x LEAF_BATCH_BYTES) and the
+      leaf being tiled (its samples x LEAF_BYTES);
+    - ``records``: the prepared records (leaves.RECORD_BYTES, or the whole echo's if smaller) and
+      the upsampling's spectra (backprojection_records.FFT_BATCH_BYTES, three copies).
+    """
+    largest = [max((g.size for g in level if g is not None), default=0) for level in tree.grids[:tree.top + 1]]
+    leaf_batch = min(BATCH_POINTS, sum(g.size for g in tree.grids[0] if g is not None))
+    parts = {"image": SAMPLE_BYTES * n_pixels,
+             "tree": SAMPLE_BYTES * (3 * factor + 1) * sum(largest),
+             "top": 2 * SAMPLE_BYTES * (n_pixels + largest[-1]),
+             "first_stage": LEAF_BATCH_BYTES * leaf_batch + LEAF_BYTES * largest[0],
+             "records": RECORD_BYTES + 3 * FFT_BATCH_BYTES}
+    parts["total"] = sum(parts.values())
+    return parts
 
 
 def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFAULT_TOLERANCE, taps: int = 8,
@@ -131,6 +151,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
     pixels = grid.positions.reshape(-1, 3)
     flat = np.zeros(pixels.shape[0], np.complex128 if name == "numpy" else np.complex64)
     bar = tqdm(total=len(tree.pulses[0]), desc="ffbp", disable=not progress)
+    stage1 = FirstStage(echo, tree.pulses[0], name, chosen, interp, upsample, aperture, stop_and_go)
 
     def build(level: int, node: int):
         grid_ = tree.grids[level][node]
@@ -138,7 +159,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
             bar.update(1)
             if grid_ is None:
                 return None
-            return grid_, _leaf(echo, tree, node, grid_, name, chosen, interp, upsample, aperture, stop_and_go)
+            return grid_, stage1.image(node, grid_, tree.grids[0])
         kids = [build(level - 1, k) for k in tree.children[level][node]]
         kids = [k for k in kids if k is not None]
         if grid_ is None or not kids:
@@ -168,6 +189,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
                  provenance={"algorithm": "ffbp", "backend": name, "factor": int(factor), "tolerance": float(tolerance),
                              "taps": int(taps), "first": tree.first, "levels": top + 1,
                              "oversampling": tree.rho, "polar_samples": tree.samples(),
+                             "memory_bytes": memory_plan(tree, pixels.shape[0], int(factor))["total"],
                              "interp": interp, "upsample": int(upsample),
                              "receivers": [echo.receivers[h] for h in chosen], "aperture": aperture,
                              "stop_and_go": bool(stop_and_go), "echo": dict(echo.provenance)})

@@ -31,6 +31,7 @@ from .polar import PolarGrid
 
 KERNEL_TAPS = (4, 8)
 CHUNK = 2**16  # output samples a reference step
+LANES = 16  # output samples a work-item of kernels/ffbp.cl
 
 
 def _interpolate(image: np.ndarray, grid: PolarGrid, r: np.ndarray, v: np.ndarray, table: np.ndarray) -> np.ndarray:
@@ -112,7 +113,8 @@ def merge_opencl(children, targets, f0: float, c: float, taps: int, rho: float, 
     params = np.array([*parent_frame, *plane, 2 * f0 / c])
     params_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=params)
     dst = cl.Buffer(ctx, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=result)
-    kern(rt.queue, (n_out,), None, *bufs, params_buf, np.int32(len(children)), np.int32(n_out), dst)
+    size = (-(-shape[1] // LANES), shape[0]) if parent is not None else (-(-n_out // LANES),)
+    kern(rt.queue, size, None, *bufs, params_buf, np.int32(len(children)), np.int32(n_out), dst)
     mapped, _ = cl.enqueue_map_buffer(rt.queue, dst, cl.map_flags.READ, 0, result.shape, result.dtype)
     mapped.base.release()
     return result

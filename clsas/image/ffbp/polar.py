@@ -143,9 +143,10 @@ class PolarGrid:
     def sines(self) -> np.ndarray:
         return self.v0 + self.dv * np.arange(self.n_v)
 
-    def points(self, rows: slice = slice(None)) -> np.ndarray:
-        """The 3-D points X(r, v) of the samples (n_v, n_r, 3) (or of the v rows ``rows``), m, float64."""
-        r = self.ranges[None, :]
+    def points(self, rows=slice(None), cols=slice(None)) -> np.ndarray:
+        """The 3-D points X(r, v) of the samples (n_v, n_r, 3) (or of the v rows ``rows`` and the
+        range samples ``cols``, slices or index arrays), m, float64."""
+        r = self.ranges[cols][None, :]
         v = self.sines[rows][:, None]
         m, c = self.plane.normal, self.centre
         rho = r * np.sqrt(np.clip(1 - v * v, 0.0, None))
@@ -168,6 +169,20 @@ class PolarGrid:
         dv, n_r, n_v, 0, 0 (the plane goes separately)."""
         return np.concatenate([self.centre, self.axis, self.e1, self.e2,
                                [self.r0, self.dr, self.v0, self.dv, self.n_r, self.n_v, 0.0, 0.0]])
+
+
+def _largest_step(positions: np.ndarray, axis: int) -> float:
+    """The largest distance (m) between neighbouring pixels along grid axis ``axis`` of positions
+    (..., 3), a block of about 2^20 pixels at a time (a 4096^2 grid's whole difference array
+    would be 400 MB)."""
+    moved = np.moveaxis(positions, axis, 0)
+    rows = max(2, (2**20) // max(1, moved[0].size // 3))
+    largest = 0.0
+    for start in range(0, moved.shape[0] - 1, rows - 1):
+        part = moved[start:start + rows]
+        step = np.diff(part, axis=0)
+        largest = max(largest, float(np.sqrt(np.max(np.sum(step * step, axis=-1)))))
+    return largest
 
 
 @dataclasses.dataclass(frozen=True)
@@ -201,8 +216,7 @@ class Scene:
                 picked.append(positions[np.ix_(*full)].reshape(-1, 3))
         skeleton = np.concatenate(picked)
         # neighbours of the strided set are at most one stride apart along each axis
-        steps = [np.linalg.norm(np.diff(positions, axis=k), axis=-1).max() for k in range(len(shape))
-                 if shape[k] > 1]
+        steps = [_largest_step(positions, k) for k in range(len(shape)) if shape[k] > 1]
         margin = stride * float(np.sqrt(np.sum(np.square(steps)))) if steps else 0.0
         return cls(skeleton, margin, Plane.fit(skeleton), flat.shape[0])
 
@@ -218,42 +232,74 @@ def frame_axes(axis: np.ndarray, centre: np.ndarray, plane: Plane) -> tuple[np.n
         raise ValueError("grid: its plane is within 6 degrees of perpendicular to the track, so a sub-aperture's "
                          "polar grid cannot represent it; image it with clsas.backproject")
     e2 = perp / norm
-    e1 = np.cross(e2, axis)
+    e1 = np.array([e2[1] * axis[2] - e2[2] * axis[1], e2[2] * axis[0] - e2[0] * axis[2],
+                   e2[0] * axis[1] - e2[1] * axis[0]])  # e2 x axis
     if e1 @ (plane.centroid - centre) < 0:
         e1 = -e1
     return e1, e2
 
 
-def polar_grid(centre: np.ndarray, axis: np.ndarray, half_length: float, scene: Scene, window: tuple[float, float],
-               bandwidth: float, f0: float, c: float, rho: float, taps: int,
-               sine_limit: float | None = None) -> PolarGrid | None:
-    """The polar grid of a sub-aperture with the given frame and half-length L (m) that covers the
-    scene within the recorded range window ``window`` (m, (min, max)), sampled by the rule of the
-    module docstring at oversampling ``rho``, padded by ``taps // 2 + 2`` samples on every side for the
-    interpolator; ``sine_limit`` bounds |v| (the integration angle), None for all angles. None
-    when the scene lies wholly outside the window or the angular limit."""
+@dataclasses.dataclass(frozen=True)
+class Extent:
+    """What a sub-aperture's polar grid covers, before sampling: its frame, the ranges
+    [r_lo, r_hi] (m) and sines [v_lo, v_hi] of the scene it sees, and its bands W_r (cycles per m)
+    and W_v (cycles per unit v) (the module docstring's rule)."""
+
+    centre: np.ndarray
+    axis: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    plane: Plane
+    r_lo: float
+    r_hi: float
+    v_lo: float
+    v_hi: float
+    w_r: float
+    w_v: float
+
+    def sample(self, rho: float, taps: int) -> PolarGrid:
+        """The polar grid at oversampling ``rho``, padded by ``taps // 2 + 2`` samples on every side
+        for the interpolator."""
+        dr = 1 / (2 * self.w_r * rho)
+        dv = 1 / (2 * max(self.w_v, 1e-12) * rho)
+        pad = taps // 2 + 2  # the interpolator reads taps / 2 samples either side; 2 more for frame shifts
+        n_r = int(np.ceil((self.r_hi - self.r_lo) / dr)) + 1 + 2 * pad
+        n_v = int(np.ceil((self.v_hi - self.v_lo) / dv)) + 1 + 2 * pad
+        return PolarGrid(self.centre, self.axis, self.e1, self.e2, self.plane, self.r_lo - pad * dr, dr, n_r,
+                         self.v_lo - pad * dv, dv, n_v)
+
+
+def extent(centre: np.ndarray, axis: np.ndarray, half_length: float, scene: Scene, window: tuple[float, float],
+           bandwidth: float, f0: float, c: float, sine_limit: float | None = None) -> Extent | None:
+    """The extent of the polar grid of a sub-aperture with the given frame and half-length L (m)
+    that covers the scene within the recorded range window ``window`` (m, (min, max)) and, with
+    ``sine_limit``, the sines |v| <= sine_limit (the integration angle); its range span is that of
+    the pixels within its sines (a sector of a long scene is nearer than the scene's far corners).
+    None when the scene lies wholly outside the window or the angular limit."""
     e1, e2 = frame_axes(axis, centre, scene.plane)
     d = scene.skeleton - centre
-    r = np.linalg.norm(d, axis=-1)
+    r = np.sqrt(np.einsum("ij,ij->i", d, d))
     v = (d @ axis) / r
-    r_lo, r_hi = max(r.min() - scene.margin, window[0]), min(r.max() + scene.margin, window[1])
-    if r_hi <= r_lo or r_lo <= 0:
+    r_lo = max(r.min() - scene.margin, window[0])
+    if r_lo <= 0:
         return None
-    v_margin = scene.margin / max(r_lo, 1e-9)
+    v_margin = scene.margin / r_lo
     v_lo, v_hi = max(v.min() - v_margin, -1.0), min(v.max() + v_margin, 1.0)
     if sine_limit is not None:
         v_lo, v_hi = max(v_lo, -sine_limit), min(v_hi, sine_limit)
         if v_hi <= v_lo:
             return None
+        seen = (v >= v_lo - v_margin) & (v <= v_hi + v_margin)
+        if not np.any(seen):
+            return None
+        r = r[seen]
+    r_lo, r_hi = max(r.min() - scene.margin, window[0]), min(r.max() + scene.margin, window[1])
+    if r_hi <= r_lo or r_lo <= 0:
+        return None
     f_max = f0 + bandwidth / 2
     a = np.array([-half_length, half_length])[:, None]
     vv = np.array([v_lo, v_hi, 0.0])[None, :]
     dist = np.sqrt(np.maximum(r_lo ** 2 - 2 * r_lo * a * vv + a * a, 1e-30))
     w_v = 2 * f_max * float(np.max(np.abs(r_lo * a / dist))) / c
     w_r = bandwidth / c + 2 * f_max * float(np.max(1 - (r_lo - a * vv) / dist)) / c
-    dr = 1 / (2 * w_r * rho)
-    dv = 1 / (2 * max(w_v, 1e-12) * rho)
-    pad = taps // 2 + 2  # the interpolator reads taps / 2 samples either side; 2 more for frame shifts
-    n_r = int(np.ceil((r_hi - r_lo) / dr)) + 1 + 2 * pad
-    n_v = int(np.ceil((v_hi - v_lo) / dv)) + 1 + 2 * pad
-    return PolarGrid(centre, axis, e1, e2, scene.plane, r_lo - pad * dr, dr, n_r, v_lo - pad * dv, dv, n_v)
+    return Extent(centre, axis, e1, e2, scene.plane, float(r_lo), float(r_hi), float(v_lo), float(v_hi), w_r, w_v)

@@ -16,7 +16,8 @@ Its polar grid covers the scene within the recorded range window widened by L + 
 and, with an ``aperture``, the angles
 |v| <= sin(aperture / 2) + |u - y| + L / r_near (a pixel that some pulse of the node sees within
 the aperture, whose sine is taken off the y axis);
-:func:`clsas.image.ffbp.polar.polar_grid` samples it.
+:func:`clsas.image.ffbp.polar.extent` bounds it and :meth:`~clsas.image.ffbp.polar.Extent.sample`
+samples it.
 
 Where to stop: merging level l into level l + 1 costs about factor x (the samples of level l + 1)
 interpolations and saves (nodes of level l - nodes of level l + 1) x pixels at the final stage;
@@ -32,7 +33,7 @@ import dataclasses
 import numpy as np
 
 from ...data import EchoData
-from .polar import Scene, oversampling, polar_grid
+from .polar import Scene, extent, oversampling
 
 LEAF_SAMPLES = 16  # the default first stage: the fewest pulses whose leaf grid is at least this wide in angle
 
@@ -76,8 +77,9 @@ class _Frames:
         self.baseline = np.linalg.norm(rx - self.tx[None], axis=-1).max(axis=0)  # (N,)
         step = max(1, echo.n_pulses // 64)  # the array's two ends every ~1/64 of the track
         track = np.concatenate([self.mids[[0, -1], ::step].reshape(-1, 3), self.mids[[0, -1], -1]])
-        d = min(float(np.min(np.linalg.norm(scene.skeleton - t, axis=-1))) for t in track) - scene.margin
-        self.r_near = float(d)
+        k = scene.skeleton
+        square = np.sum(track * track, axis=1)[:, None] + np.sum(k * k, axis=1)[None, :] - 2 * track @ k.T
+        self.r_near = float(np.sqrt(max(float(square.min()), 0.0))) - scene.margin
 
     def frame(self, p0: int, p1: int) -> tuple[np.ndarray, np.ndarray, float, float]:
         """(centre, axis, half-length, largest baseline) of the node of pulses p0..p1-1."""
@@ -90,7 +92,8 @@ class _Frames:
         centre = mids.mean(axis=0)
         d = mids - centre
         a = d @ axis
-        b = np.linalg.norm(d - a[:, None] * axis, axis=-1)
+        off = d - a[:, None] * axis
+        b = np.sqrt(np.einsum("ij,ij->i", off, off))
         base = float(self.baseline[p0:p1].max())
         return centre, axis, float(np.abs(a).max() + b.max() + base ** 2 / (4 * self.r_near)), base
 
@@ -107,18 +110,23 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
     t_hi = float(echo.t0[chosen].max()) + echo.n_samples / echo.fs
     sine = None if aperture is None else np.sin(aperture / 2)
     n_pixels = scene.pixels
-    cache = {}
+    extents, grids_at = {}, {}
 
     def node_grid(p0, p1, rho):
-        key = (p0, p1, rho)
-        if key not in cache:
+        """The polar grid of the node of pulses p0..p1-1 at oversampling rho (None: it sees nothing);
+        the extent (all but the sampling) is computed once a node."""
+        if (p0, p1) not in extents:
             centre, axis, half, base = frames.frame(p0, p1)
             widen = half + base / 2
             limit = None if sine is None else min(1.0, sine + float(np.linalg.norm(axis - [0.0, 1.0, 0.0]))
                                                    + half / frames.r_near)
-            cache[key] = polar_grid(centre, axis, half, scene, (c * t_lo / 2 - widen, c * t_hi / 2 + widen),
-                                    bw, f0, c, rho, taps, limit)
-        return cache[key]
+            extents[(p0, p1)] = extent(centre, axis, half, scene, (c * t_lo / 2 - widen, c * t_hi / 2 + widen),
+                                       bw, f0, c, limit)
+        key = (p0, p1, rho)
+        if key not in grids_at:
+            ext = extents[(p0, p1)]
+            grids_at[key] = None if ext is None else ext.sample(rho, taps)
+        return grids_at[key]
 
     if first is None:
         first = 1

@@ -1,12 +1,18 @@
-"""Scenario -> TOML document (a dict tomli_w writes), and meshes -> binary PLY files.
+"""Scenario -> TOML document (a dict) -> TOML text, and meshes -> binary PLY files.
 
-Floats are written by ``repr`` (tomli_w), which reads back as the same float64, so a preset
-written and read again is the same Scenario bit for bit (``tests/test_scenario_toml.py``).
+Floats are written by ``repr``, which reads back as the same float64, so a preset written and
+read again is the same Scenario bit for bit (``tests/test_scenario_toml.py``). The text is
+written here rather than by tomli_w, which puts every number of an array on its own line (a
+3-vector took five lines, a 32-receiver array 160): the schema holds only scalars, strings,
+numeric arrays and tables, and :func:`dumps` writes arrays as rows packed to 100 columns.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
+import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -113,10 +119,73 @@ def document(scenario: Scenario, mesh_file=None) -> dict:
     return doc
 
 
-def dumps(doc: dict) -> str:
-    import tomli_w
+_WIDTH = 100  # columns an array line is packed to
+_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
 
-    return _HEADER + tomli_w.dumps(doc)
+
+def _key(name: str) -> str:
+    return name if _BARE_KEY.match(name) else _string(name)
+
+
+def _string(text: str) -> str:
+    """A TOML basic string: JSON's escapes are TOML's, and TOML also forbids a raw DEL."""
+    return json.dumps(text, ensure_ascii=False).replace("\x7f", "\\u007f")
+
+
+def _scalar(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)
+    if isinstance(value, str):
+        return _string(value)
+    raise TypeError(f"a TOML scenario value must be a bool, number, string or list, got {type(value).__name__}")
+
+
+def _value(value) -> str:
+    """``value`` as TOML: an array on one line when it fits, else its items (each inline, e.g.
+    a 3-vector) packed into lines of at most ``_WIDTH`` columns."""
+    if not isinstance(value, list):
+        return _scalar(value)
+    items = [_value(item) for item in value]
+    inline = "[" + ", ".join(items) + "]"
+    if len(inline) <= _WIDTH:
+        return inline
+    lines = [""]
+    for item in items:
+        if lines[-1] and len(lines[-1]) + len(item) + 2 > _WIDTH - 4:
+            lines.append("")
+        lines[-1] += (" " if lines[-1] else "") + item + ","
+    return "[\n" + "".join(f"    {line}\n" for line in lines) + "]"
+
+
+def _is_tables(value) -> bool:
+    return isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
+
+
+def _table(table: dict, name: str) -> list:
+    """Lines of ``table``: its key = value pairs, then its sub-tables ``[name.key]`` and arrays
+    of tables ``[[name.key]]``."""
+    lines = [f"{_key(k)} = {_value(v)}\n" for k, v in table.items() if not isinstance(v, dict) and not _is_tables(v)]
+    for k, v in table.items():
+        path = f"{name}.{_key(k)}" if name else _key(k)
+        if isinstance(v, dict):
+            lines += [f"\n[{path}]\n", *_table(v, path)]
+        elif _is_tables(v):
+            for item in v:
+                lines += [f"\n[[{path}]]\n", *_table(item, path)]
+    return lines
+
+
+def dumps(doc: dict) -> str:
+    """The TOML text of ``doc`` (nested dicts and lists of scalars), after a comment header."""
+    return _HEADER + "".join(_table(doc, ""))
 
 
 def write_ply(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:

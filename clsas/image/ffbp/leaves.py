@@ -1,0 +1,210 @@
+"""The first stage of fast factorised back-projection: the leaves' polar images.
+
+Each leaf (``first`` consecutive pulses, every selected receiver) is back-projected with
+back-projection's exact delays onto its polar grid's points and demodulated by its centre range,
+J = I exp(-j 4 pi f0 r / c). Records are prepared once (:func:`clsas.image.backprojection.prepare`)
+for a *batch* of consecutive leaves (at most BATCH_POINTS polar samples and RECORD_BYTES of
+prepared samples), and on OpenCL the whole batch is one bp_tile launch a receiver and block of
+pulses (kernels/backprojection.cl built with ROW_SHIFT: a tile's pulse j reads record row
+j + row_shift[tile], the first pulse of its leaf), so a leaf costs its kernel work and no call of
+its own (a :func:`clsas.backproject` call a leaf cost ~10-40 ms of host work, measured, against
+~3 ms of kernel for a leaf of 16 pulses x 30k samples).
+
+Tiles. bp_tile's float32 geometry is relative to a reference point per tile (derivation at
+:func:`clsas.image.backprojection.backproject_opencl`); a polar grid (n_v, n_r) is a raster, so
+its tiles are blocks of ``bv`` rows x ``br`` range samples (``bv`` a multiple of ROWS, ``br`` of
+LANES: every tile is whole work-items), halved until every block's bounding box has a
+half-diagonal within :func:`clsas.image.backprojection_tiles.tile_half_extent` (the same phase
+budget as back-projection's own tiles); the reference point is the box's centre. Slots past the
+grid's edge repeat its last sample and are dropped.
+
+Leaves the batch cannot take go through :func:`clsas.backproject` one by one on the same
+prepared records (the same image up to float32 rounding): a leaf shorter than ``first`` (the
+last), and a receiver whose motion is not linear over a tile's delay span (where
+back-projection falls back to its exact double kernel). The NumPy backend always does.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ... import opencl
+from ...data import Grid
+from ...interp import TAP_ROWS, kernel_taps
+from ...kernelmath import expj_cycles
+from ..backprojection import (NODE_TOLERANCE, PULSE_BLOCK, PULSES, RECORDS, TILE_PARAMS, GridPlan, backproject, prepare,
+                              tile_references)
+from ..backprojection_tiles import LANES, ROWS, tile_half_extent
+from .polar import PolarGrid
+
+BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~81 bytes each held)
+RECORD_BYTES = 256 * 2**20  # prepared records held at once
+TILE_ROWS, TILE_SAMPLES = 8, 128  # the largest tile tried (rows x range samples)
+
+
+def _block_boxes(grid: PolarGrid, bv: int, br: int) -> tuple[np.ndarray, np.ndarray]:
+    """The bounding boxes (lo, hi: (tv, tr, 3) m) of the grid's blocks of bv rows x br range samples
+    (the last ones cut at the grid's edge), from their border samples only: a block is a region of
+    the plane bounded by two rays (its first and last rows) and two arcs (its first and last range
+    samples), and a coordinate's extremes over a region lie on its boundary."""
+    n_v, n_r = grid.n_v, grid.n_r
+    j0, i0 = np.arange(0, n_v, bv), np.arange(0, n_r, br)
+    j1, i1 = np.minimum(j0 + bv, n_v) - 1, np.minimum(i0 + br, n_r) - 1
+    rows = grid.points(rows=np.concatenate([j0, j1]))  # (2 tv, n_r, 3)
+    cols = grid.points(cols=np.concatenate([i0, i1]))  # (n_v, 2 tr, 3)
+    lo_rows, hi_rows = (f.reduceat(rows, i0, axis=1) for f in (np.minimum, np.maximum))  # (2 tv, tr, 3)
+    lo_cols, hi_cols = (f.reduceat(cols, j0, axis=0) for f in (np.minimum, np.maximum))  # (tv, 2 tr, 3)
+    tv, tr = j0.size, i0.size
+    lo = np.minimum.reduce([lo_rows[:tv], lo_rows[tv:], lo_cols[:, :tr], lo_cols[:, tr:]])
+    hi = np.maximum.reduce([hi_rows[:tv], hi_rows[tv:], hi_cols[:, :tr], hi_cols[:, tr:]])
+    return lo, hi
+
+
+def polar_tiles(grid: PolarGrid, budget: float):
+    """bp_tile's tiles of a polar grid (module docstring): (rows, first range samples, tiles) of its
+    work-items (each sixteen consecutive range samples of a row of a tile; int arrays), the
+    tiles' reference points (T, 3) m and their largest half-diagonal, m. Raises ValueError if even
+    a ROWS x LANES block is wider than ``budget``."""
+    bv, br = TILE_ROWS, TILE_SAMPLES
+    while True:
+        lo, hi = _block_boxes(grid, bv, br)
+        extent = 0.5 * float(np.sqrt(np.max(np.sum((hi - lo) ** 2, axis=-1))))
+        if extent <= budget:
+            break
+        if br > LANES:
+            br //= 2
+        elif bv > ROWS:
+            bv //= 2
+        else:
+            raise ValueError(f"a polar grid's {ROWS} x {LANES} block spans {2 * extent:.3g} m, beyond the "
+                             f"{2 * budget:.3g} m a bp_tile tile may")
+    tv, tr = lo.shape[:2]
+    # work-items tile by tile (row-major tiles), within a tile row by row, LANES samples each
+    a, b, j, q = np.meshgrid(np.arange(tv), np.arange(tr), np.arange(bv), np.arange(br // LANES), indexing="ij")
+    rows, cols, tiles = (a * bv + j).ravel(), (b * br + q * LANES).ravel(), (a * tr + b).ravel()
+    return rows, cols, tiles, (0.5 * (lo + hi)).reshape(-1, 3), extent
+
+
+class FirstStage:
+    """The leaves' demodulated polar images, made a batch at a time on first request
+    (:meth:`image`; module docstring)."""
+
+    def __init__(self, echo, pulses: list, backend: str, chosen, interp: str, upsample: int, aperture,
+                 stop_and_go: bool):
+        self.echo, self.leaves, self.backend = echo, pulses, backend
+        self.first = max(p1 - p0 for p0, p1 in pulses)
+        self.options = dict(receivers=chosen, interp=interp, upsample=upsample)
+        self.aperture, self.stop_and_go = aperture, stop_and_go
+        factor = upsample if interp == "linear" else 1
+        self.per_pulse = 8 * factor * echo.n_samples * len(chosen)
+        self.demodulate = 2 * echo.waveform.f0 / echo.medium.sound_speed
+        self.ready = {}
+
+    def image(self, node: int, grid: PolarGrid, grids: list) -> np.ndarray:
+        """Leaf ``node``'s image on its polar grid ``grid``, demodulated: (n_v, n_r) (complex64 on
+        OpenCL, complex128 on NumPy); ``grids`` all leaves' grids (None: a leaf that sees nothing),
+        from which the batch starting at ``node`` is taken."""
+        if node not in self.ready:
+            self._batch(node, grids)
+        image = self.ready.pop(node)
+        image *= expj_cycles(-self.demodulate * grid.ranges)[None, :]
+        return image.astype(np.complex64 if self.backend == "opencl" else np.complex128)
+
+    def _batch(self, node: int, grids: list) -> None:
+        batch, points, last = [], 0, node
+        for k in range(node, len(self.leaves)):
+            if grids[k] is None:
+                continue
+            if batch and (points + grids[k].size > BATCH_POINTS or
+                          (self.leaves[k][1] - self.leaves[node][0]) * self.per_pulse > RECORD_BYTES):
+                break
+            batch.append(k)
+            points += grids[k].size
+            last = k
+        b0, b1 = self.leaves[node][0], self.leaves[last][1]
+        e = self.echo
+        sub = e.replace(data=e.data[:, b0:b1], eta=e.eta[b0:b1], tx_pos=e.tx_pos[b0:b1], rx_pos=e.rx_pos[:, b0:b1])
+        records = prepare(sub, **self.options)
+        alone = [k for k in batch if self.leaves[k][1] - self.leaves[k][0] != self.first]
+        if self.backend == "opencl":
+            together = [k for k in batch if k not in alone]
+            alone += self._launch(records, together, grids, b0) if together else []
+        else:
+            alone = batch
+        for k in alone:
+            p0, p1 = self.leaves[k]
+            self.ready[k] = backproject(records, GridPlan(Grid.points(grids[k].points())), pulses=(p0 - b0, p1 - b0),
+                                        backend=self.backend, aperture=self.aperture, stop_and_go=self.stop_and_go,
+                                        progress=False).data.astype(np.complex128)
+
+    def _launch(self, records, batch: list, grids: list, b0: int) -> list:
+        """The images of the leaves ``batch`` (all ``first`` pulses long) by bp_tile launches into
+        self.ready; returns the leaves it left to :func:`clsas.backproject` (a receiver's motion not
+        linear over a tile)."""
+        import pyopencl as cl
+
+        rt = opencl.runtime()
+        ctx, queue, mf = rt.context, rt.queue, cl.mem_flags
+        echo = records.echo
+        f0, c, fs = echo.waveform.f0, echo.medium.sound_speed, records.fs
+        budget = tile_half_extent(f0, c)
+        tiles = [polar_tiles(grids[k], budget) for k in batch]
+        n_tiles = np.cumsum([0] + [t[3].shape[0] for t in tiles])
+        items = np.concatenate([np.column_stack([np.full(t[0].size, j), t[0], t[1], t[2] + n_tiles[j]])
+                                for j, t in enumerate(tiles)]).astype(np.int32)
+        m_pad = LANES * items.shape[0]
+        row_shift = np.concatenate([np.full(t[3].shape[0], self.leaves[k][0] - b0, np.int32)
+                                    for k, t in zip(batch, tiles)])
+
+        def made(a, flags=mf.READ_ONLY):
+            return cl.Buffer(ctx, flags | mf.COPY_HOST_PTR, hostbuf=a)
+
+        plane = grids[batch[0]].plane
+        pix = cl.Buffer(ctx, mf.READ_WRITE, 4 * 4 * m_pad)
+        opencl.kernel("ffbp", "ffbp_fields", defines={"TAPS": 8, "TAP_ROWS": TAP_ROWS})(
+            queue, (items.shape[0],), None, made(items), made(np.stack([grids[k].record() for k in batch])),
+            made(np.r_[plane.normal, plane.offset]), made(np.concatenate([t[3] for t in tiles])), np.int32(m_pad), pix)
+        tile_of = np.ascontiguousarray(items[::ROWS, 3])
+        defines = {"INTERP_LINEAR" if records.interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS,
+                   "BP_TILE": 1, "ROWS": ROWS, "PULSES": PULSES, "ROW_SHIFT": 1,
+                   **({"APERTURE": 1} if self.aperture is not None else {})}
+        kern = opencl.kernel("backprojection", "bp_tile", preamble=RECORDS, defines=defines)
+        params = np.zeros((), TILE_PARAMS)
+        params["a1"], params["fs"], params["f0"], params["c"] = c * c, fs, f0, c
+        params["half_sin"] = np.sin(self.aperture / 2) if self.aperture is not None else 1.0
+        tile_buf, shift_buf = made(tile_of), made(row_shift)
+        taps = made(kernel_taps(records.interp))
+        image = made(np.zeros(m_pad, np.complex128), mf.READ_WRITE)
+        tolerance = NODE_TOLERANCE * echo.waveform.wavelength(echo.medium)
+        failed = set()
+        for i, h in enumerate(records.receivers):
+            refs = []
+            for k, t in zip(batch, tiles):
+                p0, p1 = self.leaves[k]
+                ref, departure = tile_references(echo, h, np.arange(p0 - b0, p1 - b0), t[3], np.zeros(3),
+                                                 self.stop_and_go, fs, t[4], int(records.offset[i]))
+                if departure > tolerance:
+                    failed.add(k)
+                refs.append(ref)
+            if failed:
+                break
+            data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
+            ref_buf = made(np.concatenate(refs))
+            for s in range(0, self.first, PULSE_BLOCK):
+                kern(queue, (m_pad // (LANES * ROWS),), None, pix, tile_buf, ref_buf, np.int32(self.first), np.int32(0),
+                     data, taps, params[()], np.int32(s), np.int32(min(PULSE_BLOCK, self.first - s)),
+                     np.int32(n_samples), np.int32(m_pad), image, shift_buf)
+        if failed:
+            return batch
+        out = np.empty(m_pad, np.complex128)
+        cl.enqueue_copy(queue, out, image)
+        out = out.reshape(-1, LANES)
+        ends = np.cumsum([0] + [t[0].size for t in tiles])
+        for j, k in enumerate(batch):
+            g, mine = grids[k], slice(ends[j], ends[j + 1])  # the leaf's work-items
+            rows, cols = items[mine, 1], items[mine, 2][:, None] + np.arange(LANES)
+            real = (rows[:, None] < g.n_v) & (cols < g.n_r)
+            leaf = np.zeros(g.size, np.complex128)
+            leaf[(rows[:, None] * g.n_r + cols)[real]] = out[mine][real]
+            self.ready[k] = leaf.reshape(g.n_v, g.n_r)
+        return []
