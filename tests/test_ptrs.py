@@ -15,7 +15,7 @@ from _line_scenes import compare_with_backprojection
 import clsas
 from clsas.image.ptrs import StationaryPoints, delay, ptrs_image, stationary_points
 from clsas.image.ptrs.phase import compress_azimuth, decouple
-from clsas.image.ptrs.stationary import delay_derivatives, hermite, legendre_phase
+from clsas.image.ptrs.stationary import delay_derivatives, hermite, legendre_phase, migration
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets
 
@@ -63,6 +63,11 @@ def test_tabulated_phase_matches_newton():
     _, exact = legendre_phase(s[None, None, :], np.array([43.0, 204.0])[None, :, None], offsets[:, None, None], V, C)
     err = 2 * np.pi * (F0 + 10e3) * np.abs(hermite(g, t, points.s_first, points.ds, s) - exact)
     assert err.max() < 1e-6
+    # the migration m = tau(T(s)) - 2 r / c from the same interpolant (measured 1.5e-12 s)
+    t_exact = stationary_points(s[None, None, :], np.array([43.0, 204.0])[None, :, None], offsets[:, None, None], V, C)
+    m_exact = delay(t_exact, np.array([43.0, 204.0])[None, :, None], offsets[:, None, None], V, C) \
+        - 2 * np.array([43.0, 204.0])[None, :, None] / C
+    assert np.abs(migration(g, t, points.s_first, points.ds, s, np.array([43.0, 204.0]), C) - m_exact).max() < 2e-11
     assert points.solved == 2
     points.tables([204.0, 43.0])
     assert points.solved == 2
@@ -70,7 +75,8 @@ def test_tabulated_phase_matches_newton():
 
 def test_phase_kernels_match_reference(opencl_device):
     """kernels/ptrs.cl against the float64 NumPy references on random data and the tables of a
-    real geometry: relative L2 below 1e-6 (measured 1.8e-7, the float32 rounding of the data)."""
+    real geometry (a width that is no multiple of the kernels' 16 lanes): relative L2 below 7e-4
+    (measured 7.4e-5: the float32 phases of the kernels, ~1e-5 cycle)."""
     rng = np.random.default_rng(7)
     points = StationaryPoints().bind([0.03, 0.31, 0.59], V, C, s_max=3.7e-4)
     t, g = points.tables([53.0, 143.0, *np.arange(40.0, 70.0, 0.5)])
@@ -90,7 +96,7 @@ def test_phase_kernels_match_reference(opencl_device):
         compress_azimuth(out, ft, F0, g[0, 2:], t[0, 2:], points.s_first, points.ds, node, weight, backend=name)
         results[name] = out
     err = np.linalg.norm(results["opencl"] - results["numpy"]) / np.linalg.norm(results["numpy"])
-    assert err < 1e-6, err
+    assert err < 7e-4, err
     assert np.abs(np.abs(results["numpy"]) - np.abs(data)).max() < 1e-5  # phase only
     with pytest.raises(ValueError, match="slopes"):
         decouple(data.copy(), ft * 2, ftau, F0, g[0, 0], t[0, 0], points.s_first, points.ds, 0.0, backend="opencl")
@@ -111,21 +117,23 @@ def small_scene():
     return pts, clsas.range_compress(clsas.simulate(sc, backend="opencl", progress=False))
 
 
-def test_focuses_like_backprojection_and_reuses_its_stationary_points(opencl_device):
-    """Decoupled exactly at each point's range (reference_ranges), every point is where
-    back-projection puts it (within 1/10 of a cell) with PSLR and ISLR within 0.5 dB (measured
-    0.1-0.2 dB); the stationary points of that run serve a second one unchanged (no range is
-    solved again) and give the identical image."""
+def test_eight_metre_sub_blocks_match_backprojection_and_reuse_stationary_points(opencl_device):
+    """Uniform 8 m sub-blocks (points up to 4 m from their block's reference) with the residual
+    range cell migration correction: every point where back-projection puts it (within 1/10 of
+    a cell) with PSLR and ISLR within 1 dB of it (measured 0.2-0.41 dB); the stationary points
+    of that run serve a second one unchanged (no range is solved again) and give the identical
+    image."""
     pts, echo = small_scene()
     points = StationaryPoints()
-    image = ptrs_image(echo, reference_ranges=pts[:, 0], elements=(0.04, 0.02), deconvolve=False, points=points,
+    image = ptrs_image(echo, block_width=8.0, elements=(0.04, 0.02), deconvolve=False, points=points,
                        backend="opencl")
+    assert len(image.provenance["blocks"]) == 4 and image.provenance["rcmc"]
     for row in compare_with_backprojection(image, echo, pts, 0.04):
         assert row["dy"] < 0.1 and row["dx"] < 0.1, row
-        assert row["pslr"] < 0.5 and row["islr"] < 0.5, row
+        assert row["pslr"] < 1.0 and row["islr"] < 1.0, row
     solved = points.solved
     assert solved > 0 and image.provenance["stationary_points_solved"] == solved
-    again = ptrs_image(echo, reference_ranges=pts[:, 0], elements=(0.04, 0.02), deconvolve=False, points=points,
+    again = ptrs_image(echo, block_width=8.0, elements=(0.04, 0.02), deconvolve=False, points=points,
                        backend="opencl")
     assert points.solved == solved
     np.testing.assert_array_equal(again.data, image.data)
@@ -133,15 +141,25 @@ def test_focuses_like_backprojection_and_reuses_its_stationary_points(opencl_dev
 
 @pytest.mark.slow
 def test_residual_rule_width(opencl_device):
-    """Sub-blocks of the pi / 4 rule's width (2.2 m here) keep every point within 1.5 dB of
-    back-projection (measured: PSLR 0.7 dB, ISLR 1.1 dB for the point at a block's edge)."""
+    """The pi / 4 rule: 2.2 m sub-blocks for eq. (13) alone, which at 8 m leaves the point 4 m
+    from its reference 3.7 dB (PSLR) and 4.7 dB (ISLR) off back-projection; with the residual
+    migration correction the rule allows ~33 m (one block here) and every point stays within
+    1 dB (measured 0.16-0.36 dB)."""
     pts, echo = small_scene()
-    first = ptrs_image(echo, elements=(0.04, 0.02), deconvolve=False, backend="opencl")
-    widths = {round(hi - lo, 1) for lo, hi, _ in first.provenance["blocks"][1:-1]}
+    plain = ptrs_image(echo, elements=(0.04, 0.02), deconvolve=False, rcmc=False, backend="opencl")
+    widths = {round(hi - lo, 1) for lo, hi, _ in plain.provenance["blocks"][1:-1]}
     assert max(widths) < 4.0
-    for row in compare_with_backprojection(first, echo, pts, 0.04):
+    for row in compare_with_backprojection(plain, echo, pts, 0.04):
         assert row["dy"] < 0.1 and row["dx"] < 0.1, row
         assert row["pslr"] < 1.5 and row["islr"] < 1.5, row
+    eight = ptrs_image(echo, block_width=8.0, elements=(0.04, 0.02), deconvolve=False, rcmc=False, backend="opencl")
+    worst = max(max(row["pslr"], row["islr"]) for row in compare_with_backprojection(eight, echo, pts, 0.04))
+    assert worst > 3.0
+    wide = ptrs_image(echo, elements=(0.04, 0.02), deconvolve=False, backend="opencl")
+    assert len(wide.provenance["blocks"]) == 1
+    for row in compare_with_backprojection(wide, echo, pts, 0.04):
+        assert row["dy"] < 0.1 and row["dx"] < 0.1, row
+        assert row["pslr"] < 1.0 and row["islr"] < 1.0, row
 
 
 def test_bad_input(opencl_device):
@@ -165,28 +183,35 @@ def test_bad_input(opencl_device):
         ptrs_image(echo, receivers=list(range(10)))  # a part of the array leaves gaps between pings
     with pytest.raises(ValueError, match="track line"):
         ptrs_image(echo.replace(rx_pos=echo.rx_pos + np.array([0.0, 0.0, 0.3])))
+    with pytest.raises(ValueError, match="reference_range"):
+        clsas.pca_record(echo, reference_range=-1.0)
 
 
 @pytest.mark.slow
 def test_zhang_eighteen_points(opencl_device):
-    """The reproduction's scene (``clsas reproduce zhang2019``): decoupled at the paper's three
-    reference ranges, every point focuses within 1/10 of a cell of the truth with PCA and
-    back-projection, and with PTRS along track everywhere and across track for the points 1 m
-    from their reference (T6, T12, T13: the edge of the pi / 4 rule's 2.2 m sub-block; farther
-    out the residual range migration moves the peak, by 1.0 cm for T1, 10 m off); those three
-    keep PSLR within 1 dB (measured 0.4-0.9 dB) and ISLR within 1.5 dB (measured 0.4-1.3 dB)
-    of back-projection."""
+    """The reproduction's scene (``clsas reproduce zhang2019``, 30 receivers): every point
+    focuses within 1/10 of a cell of the truth with every method (with eq. 13 alone only along
+    track: farther than ~2 m from the reference the residual migration moves the peak across);
+    with uniform 8 m sub-blocks PTRS keeps PSLR and ISLR within 1 dB of back-projection at
+    every point (measured: MEASURED_8M), and at far range (T13-T18) it is closer to
+    back-projection than the paper's PCA baseline (the path excess compensated at the swath
+    centre)."""
     from clsas.reproduce import zhang2019
 
     sc, echo = zhang2019.scene()
     points = sc.targets[0].positions
     result = zhang2019.measure(echo, points)
-    near = (5, 11, 12)
     for name, rows in result.items():
         for k, q in enumerate(rows):
             assert abs(q["dy"]) < 0.1 * 0.02, (name, k, q)
-            if name != "ptrs" or k in near:
+            if name != "ptrs_eq13":
                 assert abs(q["dx"]) < 0.1 * C / (2 * 20e3), (name, k, q)
-    for k in near:
-        assert abs(result["ptrs"][k]["pslr"] - result["bp"][k]["pslr"]) < 1.0
-        assert abs(result["ptrs"][k]["islr"] - result["bp"][k]["islr"]) < 1.5
+    bp = result["bp"]
+    for k, q in enumerate(result["ptrs_8m"]):
+        assert abs(q["pslr"] - bp[k]["pslr"]) < 1.0 and abs(q["islr"] - bp[k]["islr"]) < 1.0, (k, q, bp[k])
+
+    def far_error(name):
+        return np.mean([abs(result[name][k]["pslr"] - bp[k]["pslr"]) + abs(result[name][k]["islr"] - bp[k]["islr"])
+                        for k in range(12, 18)])
+
+    assert far_error("ptrs_8m") < far_error("pca_rc")

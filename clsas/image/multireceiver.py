@@ -92,7 +92,7 @@ def line_array(echo: EchoData, receivers=None) -> LineArray:
 
 
 def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and_go: bool | None = None,
-               backend: str | None = None) -> LineRecord:
+               backend: str | None = None, reference_range: float | None = None) -> LineRecord:
     """Interleave the receivers of a line array into one monostatic-equivalent record.
 
     Parameters
@@ -105,6 +105,9 @@ def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and
     compensate : apply :func:`compensate_bistatic` (False shows the uncompensated PCA error).
     stop_and_go : how the echoes were made (default ``echo.provenance["stop_and_go"]``).
     backend : where the micro-range interpolation runs (:func:`clsas.interp.resample`).
+    reference_range : m; compensate the path excess of this one range at every range (the
+        classic range-invariant PCA correction, e.g. the baseline of Zhang et al. 2019, whose
+        residual grows away from it); None (default) compensates each range's own.
 
     Returns
     -------
@@ -120,10 +123,11 @@ def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and
         # uncompensated: no path excess (d = v = 0), only the common time axis
         d, speed, lead = (d, track.speed, nonstop) if compensate else (0.0, 0.0, False)
         rows[:, j] = compensate_bistatic(echo.data[h], echo.t0[h], echo.fs, d, speed, echo.waveform, echo.medium,
-                                         t0_out=t0, nonstop=lead, backend=backend)
+                                         t0_out=t0, nonstop=lead, backend=backend, reference_range=reference_range)
     data = rows.reshape(-1, echo.n_samples)[order]
     return LineRecord(data=data, u0=u0, du=step, t0=t0, fs=echo.fs, speed=track.speed,
                       track=(track.x, track.z),
                       waveform=echo.waveform, medium=echo.medium, nonstop=nonstop,
                       provenance={"from": "pca_record", "receivers": [echo.receivers[h] for h in chosen],
-                                  "compensated": bool(compensate), "echo": dict(echo.provenance)})
+                                  "compensated": bool(compensate), "reference_range": reference_range,
+                                  "echo": dict(echo.provenance)})

@@ -128,18 +128,24 @@ def path_excess(r, d: float, speed: float, c: float, nonstop: bool = True):
 
 
 def compensate_bistatic(data, t0: float, fs: float, d: float, speed: float, waveform, medium,
-                        t0_out: float | None = None, nonstop: bool = True, backend: str | None = None) -> np.ndarray:
+                        t0_out: float | None = None, nonstop: bool = True, backend: str | None = None,
+                        reference_range: float | None = None) -> np.ndarray:
     """Remove the bistatic deformation (Huang & Yang eqs. 16-17) from the compressed records
     ``data`` (n_pulses, n) of a receiver d metres ahead of the transmitter, sampled from fast
     time ``t0`` at ``fs``; the output is sampled from ``t0_out`` (default ``t0``) on the same
     number of samples; ``backend`` runs the interpolation (:func:`clsas.interp.resample`).
+    ``reference_range`` (m): compensate every range by the excess of that one range (the
+    range-invariant correction of the classic PCA) instead of each range's own.
     complex64 (n_pulses, n)."""
     c = medium.sound_speed
     n = data.shape[1]
     t_out = (t0 if t0_out is None else t0_out) + np.arange(n) / fs
     r = c * t_out / 2
+    if reference_range is not None and not (np.isfinite(reference_range) and reference_range > 0):
+        raise ValueError(f"reference_range must be a positive range in m (or None), got {reference_range!r}")
+    at = r if reference_range is None else np.full_like(r, float(reference_range))
     # samples before the emission (t0 may be negative) hold no echo: no excess there
-    excess = np.where(r > 0, path_excess(np.where(r > 0, r, 1.0), d, speed, c, nonstop), 0.0)
+    excess = np.where(r > 0, path_excess(np.where(r > 0, at, 1.0), d, speed, c, nonstop), 0.0)
     idx = (t_out + excess / c - t0) * fs  # the same for every pulse
     phase = np.exp(2j * np.pi * waveform.f0 * excess / c)
     oversampling = fs / waveform.bandwidth

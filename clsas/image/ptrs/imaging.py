@@ -3,18 +3,37 @@ Zhang, Tan & Ying 2019, sections 3-4 (Fig. 2).
 
 For each receiver i (offset d_i ahead of the transmitter), on its range-compressed record:
 
-1. 2-D FFT (section 4.1): range FFT (every receiver's fast time referred to the earliest
-   receiver's start by a linear phase), slow-time FFT over its pulses at the PRF. The spectrum
-   is aliased M times; it is laid on the full Doppler grid of M x PRF (the receiver's samples
-   zero-stuffed onto the fine slow-time grid PRI / M, i.e. its spectrum repeated M times).
-2. Bulk decoupling (eq. 12) at the swath centre r_c: exp(-j phi_de_i(f_tau, f_t; r_c)) with
+1. 2-D FFT (section 4.1): every receiver's fast time referred to the earliest receiver's start
+   (a linear phase in range frequency), slow-time FFT over its pulses at the PRF. The spectrum
+   is aliased M times; row f_t of the full Doppler grid of M x PRF is its row f_t mod PRF (the
+   receiver's samples zero-stuffed onto the fine slow-time grid PRI / M).
+2. Bulk decoupling (eq. 12) at the swath centre r_c, exp(-j phi_de_i(f_tau, f_t; r_c)) with
    phi_de = Psi - phi_ac + 4 pi f_tau r / c (eqs. 7, 8, 10, 11; the range matched filter
-   conj(P) is already applied). Range IFFT: the range-Doppler domain.
-3. Differential decoupling (eq. 13) per range sub-block n: exp(-j [phi_de_i(r_ref_n) -
-   phi_de_i(r_c)]), applied by overlap-save: the block's columns plus a margin of the largest
-   differential range migration are range-FFT'd, filtered and transformed back, and the
-   block's own columns kept (the paper transforms the whole swath once per block; the filter
-   is the same and its impulse response is shorter than the margin).
+   conj(P) is already applied), and
+3. differential decoupling (eq. 13) per range sub-block n, exp(-j [phi_de_i(r_ref_n) -
+   phi_de_i(r_c)]): their product is exp(-j phi_de_i(r_ref_n)), which each sub-block applies at
+   once, by overlap-save: the block's columns plus a margin of the largest range migration are
+   range-FFT'd, filtered and transformed back, and the block's own columns kept (the paper
+   filters the whole swath with eq. 12, then once per block with eq. 13; the product is the
+   same filter, and its impulse response is shorter than the margin). This saves the
+   full-swath pass of eq. 12 and its range IFFT per receiver.
+3b. Residual range cell migration correction (``rcmc``, not in the paper). A point at range r
+   in block n keeps the residual coupling phi_de(r) - phi_de(r_ref_n) (eq. 11). Its expansion
+   in f_tau at f_tau = 0 starts with -2 pi f_tau [m(f_t; r) - m(f_t; r_ref_n)], where
+   m(f_t; r) = tau_i(T_i(-f_t / f0); r) - 2 r / c is the range cell migration (d phi_de /
+   d f_tau = -2 pi m, see :func:`clsas.image.ptrs.stationary.migration`): the residual is first
+   of all a Doppler-dependent shift of the range envelope by (c / 2) [m(r) - m(r_ref_n)]
+   ~ (r - r_ref_n) (1 / cos(theta) - 1), with no phase at the envelope's peak (phi_de vanishes at
+   f_tau = 0). On Zhang et al.'s band (|f_t| <= 50 Hz, sin(theta) <= 0.125: 1 / cos - 1 =
+   7.9e-3) a point 4 m from its reference (an 8 m sub-block's edge) is shifted by up to 3.2 cm
+   = 0.84 range cells at the band edge, 2.6 rad of phase at f_tau = B / 2: the envelope tapers
+   the azimuth spectrum (lower PSLR, wider main lobe) and eq. (13) alone cannot meet the pi / 4
+   rule beyond 2.2 m sub-blocks. The correction reads every column r of the block, in the
+   range-Doppler domain, at r + (c / 2) [m(f_t; r) - m(f_t; r_ref_n)] (m exact at r_ref_n and
+   linear in r between the nodes below; windowed-sinc interpolation, :func:`clsas.interp.resample`).
+   What remains is the part of phi_de(r) - phi_de(r_ref_n) beyond first order in f_tau, the
+   secondary-range-compression residual ~ 2 pi (r - r_ref_n) (2 / c) f_tau^2 sin^2(theta) /
+   (2 f0 cos^3(theta)): 0.17 rad at 4 m, and the pi / 4 rule allows 33 m sub-blocks.
 4. Azimuth compression (eq. 14): exp(-j phi_ac_i(f_t; r)) at every range column r.
 5. Coherent superposition (section 4.4) of the M receivers' spectra on the M x PRF grid (the
    aliases cancel when the phase centres v t + d_i / 2 interleave uniformly), the Doppler band
@@ -28,9 +47,11 @@ them: seed 003's second scheme). The azimuth modulation is tabulated at range no
 bistatic d_i^2 / (4 r) terms: the interpolation error is below 1e-3 rad beyond 20 m).
 
 Sub-block width (section 6.1.2): the residual coupling phase |phi_de(r_ref +- dr / 2) -
-phi_de(r_ref)| must stay below pi / 4 over the processed band; without ``block_width`` or
-``reference_ranges`` the width is the largest that satisfies this at every range of the swath
-(the rule evaluated with the phase's range derivative at the band's corners).
+phi_de(r_ref)| (with ``rcmc``: what step 3b leaves of it) must stay below pi / 4 over the
+processed band; without ``block_width`` or ``reference_ranges`` the width is the largest that
+satisfies this at every range of the swath (the rule evaluated with the phase's range
+derivative at the band's corners): 2.2 m for eq. (13) alone, 33 m with ``rcmc``, on the
+reproduction's band.
 """
 
 from __future__ import annotations
@@ -40,11 +61,12 @@ import numpy as np
 import scipy.fft
 
 from ...data import EchoData, Image
+from ...interp import resample
 from ..multireceiver import interleave, line_array
 from ..rangecomp import WINDOWS
 from ..record import LineRecord, azimuth_weights, check_elements, image_of
 from .phase import compress_azimuth, decouple
-from .stationary import StationaryPoints, hermite
+from .stationary import StationaryPoints, hermite, migration
 
 log = logging.getLogger("clsas")
 
@@ -89,8 +111,8 @@ def _check_width(block_width) -> None:
 
 def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None, reference_ranges=None,
                elements=None, window: str = "none", deconvolve: bool = True, points: StationaryPoints | None = None,
-               depth: float | None = None, workers: int | None = None, backend: str | None = None,
-               **window_options) -> Image:
+               depth: float | None = None, workers: int | None = None, rcmc: bool = True,
+               backend: str | None = None, **window_options) -> Image:
     """Focus a multireceiver line-array record by numerical PTRS imaging (see the module docstring).
 
     Parameters
@@ -113,7 +135,10 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
         None solves them for this call only.
     depth : the horizontal plane the pixels are placed on (default: the track's).
     workers : scipy.fft threads (default: all cores).
-    backend : where the phase multiplies run.
+    rcmc : after each sub-block's differential decoupling, move every range column's samples
+        by the residual range cell migration m(f_t; r) - m(f_t; r_ref_n) (module docstring, step
+        3b); False applies eq. (13) alone, as the paper does.
+    backend : where the phase multiplies and the interpolation run.
 
     Returns
     -------
@@ -154,44 +179,51 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     valid = r >= MIN_RANGE
     if not valid.any():
         raise ValueError("the record holds no range beyond 1 m")
-    x_edge = c * f_edge / (2 * v * (f0 - fs / 2))
-    migration = int(np.ceil(r[-1] * (1 / np.sqrt(1 - min(x_edge, 0.9) ** 2) - 1) * 2 / c * fs))
-    n_r = scipy.fft.next_fast_len(n_cols + migration + 32)
-    ftau = np.fft.fftfreq(n_r, 1 / fs)
     r_c = float((r[valid][0] + r[-1]) / 2)
 
     def rule_width() -> float:
-        return residual_rule_width(points, r[valid], r_c, ft_used, echo.waveform.bandwidth, f0, c)
+        return residual_rule_width(points, r[valid], ft_used, echo.waveform.bandwidth, f0, c, rcmc=rcmc)
 
     blocks = plan_blocks(r, valid, block_width, reference_ranges, rule_width)
     nodes = np.arange(r[valid][0], r[-1] + NODE_SPACING, NODE_SPACING)
     column_node = np.clip(np.floor((r - nodes[0]) / NODE_SPACING).astype(int), 0, nodes.size - 2)
     column_weight = (r - nodes[column_node]) / NODE_SPACING
     refs = np.array([b[2] for b in blocks])
-    tables_t, tables_g = points.tables(np.concatenate([[r_c], refs, nodes]))
-    margin = _block_margin(tables_t[:, :1 + refs.size], tables_g[:, :1 + refs.size], points.slopes,
-                           np.concatenate([[r_c], refs]), c, fs)
-    log.info("ptrs_image: %d receivers, %d x %d 2-D grid, %d sub-blocks, margin %d columns",
-             n_rx, rows.size, n_r, len(blocks), margin)
+    tables_t, tables_g = points.tables(np.concatenate([refs, nodes]))
+    mig = tables_g + points.slopes * tables_t - 2 * np.concatenate([refs, nodes])[None, :, None] / c
+    margin = _block_margin(mig, blocks, r, nodes, fs, rcmc)
+    n_r = scipy.fft.next_fast_len(n_cols + margin)  # the record's circular range axis, zero beyond n_cols
+    ftau = np.fft.fftfreq(n_r, 1 / fs)
+    s0 = -ft_used / f0  # the slopes of the range-Doppler rows (f_tau = 0)
+    log.info("ptrs_image: %d receivers, %d Doppler rows x %d columns, %d sub-blocks, margin %d columns",
+             n_rx, rows.size, n_cols, len(blocks), margin)
 
     acc = np.zeros((rows.size, n_cols), np.complex64)
+    out = np.zeros((rows.size, n_cols), np.complex64)  # one receiver's range-Doppler image (columns outside the blocks stay 0)
     for j, h in enumerate(arr.receivers):
+        # the receiver's record on the common range axis, then its slow-time spectrum at the PRF
+        # (n_fp rows; row f_t of the M x PRF grid is row f_t mod PRF of it: the aliases)
         spec = scipy.fft.fft(echo.data[h], n=n_r, axis=1, workers=workers)
         spec *= np.exp(-2j * np.pi * ftau * (echo.t0[h] - t0)).astype(np.complex64)
-        spec = scipy.fft.fft(spec, n=n_fp, axis=0, workers=workers)[rows % n_fp]
-        g_c, t_c = tables_g[j, 0], tables_t[j, 0]
-        decouple(spec, ft_used, ftau, f0, g_c, t_c, points.s_first, points.ds, 2 * r_c / c, backend=backend)
-        rd = scipy.fft.ifft(spec, axis=1, workers=workers)
+        rd = scipy.fft.fft(scipy.fft.ifft(spec, axis=1, workers=workers), n=n_fp, axis=0, workers=workers)
         del spec
-        out = np.zeros((rows.size, n_cols), np.complex64)
         for b, (lo, hi, r_ref) in enumerate(blocks):
             length = scipy.fft.next_fast_len(hi - lo + 2 * margin)
-            seg = scipy.fft.fft(rd[:, np.arange(lo - margin, lo - margin + length) % n_r], axis=1, workers=workers)
-            decouple(seg, ft_used, np.fft.fftfreq(length, 1 / fs), f0, tables_g[j, 1 + b] - g_c,
-                     tables_t[j, 1 + b] - t_c, points.s_first, points.ds, 2 * (r_ref - r_c) / c, backend=backend)
-            out[:, lo:hi] = scipy.fft.ifft(seg, axis=1, workers=workers)[:, margin:margin + hi - lo]
+            first = lo - margin
+            src = rd[:, first:first + length] if 0 <= first and first + length <= n_r \
+                else rd[:, np.arange(first, first + length) % n_r]  # the record is circular in range
+            seg = scipy.fft.fft(src[rows % n_fp], axis=1, workers=workers)
+            decouple(seg, ft_used, np.fft.fftfreq(length, 1 / fs), f0, tables_g[j, b], tables_t[j, b],
+                     points.s_first, points.ds, 2 * r_ref / c, backend=backend)
+            seg = scipy.fft.ifft(seg, axis=1, workers=workers)
+            if rcmc:
+                out[:, lo:hi] = resample(seg, _rcmc_positions(tables_g[j], tables_t[j], b, refs.size, points,
+                                                              s0, r_ref, nodes, column_node[lo:hi],
+                                                              column_weight[lo:hi], margin, c, fs), backend=backend)
+            else:
+                out[:, lo:hi] = seg[:, margin:margin + hi - lo]
         del rd
-        compress_azimuth(out, ft_used, f0, tables_g[j, 1 + refs.size:], tables_t[j, 1 + refs.size:],
+        compress_azimuth(out, ft_used, f0, tables_g[j, refs.size:], tables_t[j, refs.size:],
                          points.s_first, points.ds, column_node, column_weight, backend=backend)
         acc += out
     acc *= weights[rows, None].astype(np.complex64)
@@ -203,7 +235,7 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     image = image_of(grid, full, r, "ptrs", {"receivers": [echo.receivers[h] for h in arr.receivers],
                                             "blocks": [(float(r[lo]), float(r[hi - 1]), ref) for lo, hi, ref in blocks],
                                             "r_c": r_c, "elements": elements, "window": window,
-                                            "deconvolve": deconvolve, "backend": backend,
+                                            "deconvolve": deconvolve, "rcmc": rcmc, "backend": backend,
                                             "stationary_points_solved": points.solved}, depth)
     return image
 
@@ -217,34 +249,70 @@ def decoupling_phase(points: StationaryPoints, g: np.ndarray, t: np.ndarray, r: 
     return psi - phi_ac + 4 * np.pi * ftau[None, :] * r / c
 
 
-def residual_rule_width(points: StationaryPoints, r: np.ndarray, r_c: float, ft: np.ndarray, bandwidth: float,
-                        f0: float, c: float, probes: int = 5, step: float = 1.0) -> float:
+def residual_rule_width(points: StationaryPoints, r: np.ndarray, ft: np.ndarray, bandwidth: float,
+                        f0: float, c: float, probes: int = 5, step: float = 1.0, rcmc: bool = True) -> float:
     """The widest sub-block (m) whose residual coupling phase stays below pi / 4 at its edges
-    (seed 003 section 6.1.2): 2 (pi / 4) / max |d phi_de / dr| over every receiver, the
+    (seed 003 section 6.1.2): 2 (pi / 4) / max |d residual / dr| over every receiver, the
     band's corners (f_t at the band edges and 0, f_tau = +-B / 2) and ``probes`` ranges across
-    the swath (the derivative by a difference over ``step`` m)."""
+    the swath (the derivative by a difference over ``step`` m). The residual is phi_de (eq. 11)
+    or, with ``rcmc``, phi_de + 2 pi f_tau m(-f_t / f0; r), what remains after the residual
+    migration correction (module docstring)."""
     ranges = np.linspace(r[0], r[-1], probes)
     ft_c = np.array([ft.min(), 0.0, ft.max()])
     ftau_c = np.array([-bandwidth / 2, bandwidth / 2])
     t_all, g_all = points.tables(np.concatenate([ranges, ranges + step]))
+
+    def residual(j, k, rk):
+        phase = decoupling_phase(points, g_all[j, k], t_all[j, k], rk, ft_c, ftau_c, f0, c)
+        if rcmc:
+            m = migration(g_all[j, k], t_all[j, k], points.s_first, points.ds, -ft_c / f0, rk, c)
+            phase = phase + 2 * np.pi * ftau_c[None, :] * m[:, None]
+        return phase
+
     slope = 0.0
     for j in range(points.offsets.size):
         for k, rk in enumerate(ranges):
-            a = decoupling_phase(points, g_all[j, k], t_all[j, k], rk, ft_c, ftau_c, f0, c)
-            b = decoupling_phase(points, g_all[j, probes + k], t_all[j, probes + k], rk + step, ft_c, ftau_c, f0, c)
-            slope = max(slope, float(np.abs(b - a).max()) / step)
+            diff = residual(j, probes + k, rk + step) - residual(j, k, rk)
+            slope = max(slope, float(np.abs(diff).max()) / step)
     return np.inf if slope == 0 else 2 * RESIDUAL_LIMIT / slope
 
 
-def _block_margin(tables_t: np.ndarray, tables_g: np.ndarray, slopes: np.ndarray, ranges: np.ndarray, c: float,
-                  fs: float) -> int:
-    """Columns of margin for the overlap-save differential decoupling: the largest group delay
-    of the differential filters plus 32 samples for the compressed pulse's sidelobes.
+def _rcmc_positions(g, t, ref, first_node, points, s0, r_ref, nodes, column_node, column_weight, margin, c, fs):
+    """Source positions (rows, columns) in a sub-block's segment for the residual range cell
+    migration correction: the block's columns (from ``margin`` on) moved by fs [m(s0; r) -
+    m(s0; r_ref)] (``g``, ``t``: one receiver's tables, index ``ref`` the block's reference
+    range, from ``first_node`` on the nodes). m is taken at the block's first and last columns
+    (linear between their range nodes) and linearly between them: m is linear in r up to the
+    bistatic terms, 0.003 sample off over 33 m at 40 m range."""
+    m_ref = migration(g[ref], t[ref], points.s_first, points.ds, s0, r_ref, c)
+    ends = np.array([0, column_node.size - 1])
+    node = column_node[ends]
+    m_lo, m_hi = migration(g[first_node + node], t[first_node + node], points.s_first, points.ds, s0, nodes[node], c)
+    m_lo1, m_hi1 = migration(g[first_node + node + 1], t[first_node + node + 1], points.s_first, points.ds, s0,
+                             nodes[node + 1], c)
+    w = column_weight[ends]
+    start = fs * (m_lo + w[0] * (m_lo1 - m_lo) - m_ref)
+    slope = fs * (m_hi + w[1] * (m_hi1 - m_hi) - m_lo - w[0] * (m_lo1 - m_lo)) / max(column_node.size - 1, 1)
+    cols = np.arange(column_node.size, dtype=np.float64)
+    return (margin + start)[:, None] + cols[None, :] * (1 + slope[:, None])
+
+
+def _block_margin(mig: np.ndarray, blocks: list, r: np.ndarray, nodes: np.ndarray, fs: float, rcmc: bool) -> int:
+    """Columns of margin for the overlap-save decoupling of the sub-blocks: the largest group
+    delay of their filters exp(-j phi_de(r_ref_n)), plus (``rcmc``) the largest residual
+    migration within a block, plus 32 samples for the compressed pulse's sidelobes and the
+    interpolator's taps.
 
     d phi_de / d f_tau = 2 pi (2 r / c - tau(T(s); r)) (with dG/ds = -T, tau(T) = G + s T), so the
-    group delay of exp(-j [phi_de(r_ref) - phi_de(r_c)]) is the difference of the two ranges'
-    migrations tau(T(s); r) - 2 r / c. ``tables_*`` are (n_receivers, n_ranges, n_s) with
-    range 0 the bulk reference r_c and the others the sub-blocks' references ``ranges[1:]``.
+    group delay of exp(-j phi_de(r_ref)) is the range cell migration m = tau(T(s); r_ref) - 2 r_ref / c.
+    ``mig`` holds m (n_receivers, n_ranges, n_s) at the blocks' reference ranges, then at the
+    ``nodes``.
     """
-    migration = tables_g + slopes * tables_t - 2 * ranges[None, :, None] / c
-    return int(32 + np.ceil(fs * np.abs(migration[:, 1:] - migration[:, :1]).max(initial=0.0)))
+    n_ref = len(blocks)
+    spread = np.abs(mig[:, :n_ref]).max(initial=0.0)
+    if rcmc:
+        for b, (lo, hi, _) in enumerate(blocks):
+            near = n_ref + np.flatnonzero((nodes >= r[lo] - NODE_SPACING) & (nodes <= r[hi - 1] + NODE_SPACING))
+            if near.size:
+                spread = max(spread, np.abs(mig[:, :n_ref]).max() + np.abs(mig[:, near] - mig[:, b:b + 1]).max())
+    return int(32 + np.ceil(fs * spread))

@@ -16,10 +16,13 @@ Hermite interpolation with dG/ds = -T) and multiply complex64 data in place:
   exp(+j 2 pi f0 G(-f_t / f0; r)) (the conjugate of eq. 8's phase: eq. 14), with G tabulated at
   range nodes and interpolated linearly between them.
 
-Phases are float64 (the terms are ~1e5 cycles), reduced modulo one cycle before the float32
-phasor, in the references (:func:`clsas.image.record.unit_phasor`) and the kernels
-(CLSAS_EXPJ_FRACTION, error < 1.4e-8 before rounding) alike: the two agree to float32 rounding
-of the data (tests/test_ptrs.py bounds the relative L2 difference by 1e-6).
+The references compute the phases in float64 (the terms are ~1e5 cycles) and reduce them modulo
+one cycle before the phasor (:func:`clsas.image.record.unit_phasor`). The kernels work in float
+only: the host splits every phase into a row term and a column term (reduced to a fraction of a
+cycle in double) and a remainder of at most a few hundred cycles (the decoupling table less its
+tangent at s = 0; the azimuth modulation's step from its range node), which float holds to
+~2e-5 cycle. The two agree to 7e-5 relative L2 (tests/test_ptrs.py), far inside the float32
+phase budget of 0.01 rad.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ from ..record import unit_phasor
 from .stationary import hermite
 
 ROW_BLOCK = 64  # rows a reference step (bounds the float64 temporaries)
-LOCAL_COLUMNS = 64  # the kernels' global column count is rounded up to a multiple of this
+LANES = 16  # columns a work-item of the kernels
 
 
 def _check_data(data: np.ndarray, rows: int, what: str) -> None:
@@ -72,14 +75,31 @@ def decouple_reference(data, ft, ftau, f0, table_g, table_t, s_first, ds, kappa,
     return data
 
 
+def _decouple_tables(ft, ftau, f0, table_g, table_t, s_first, ds, kappa, row_term):
+    """The float32 arguments of the ptrs_decouple kernel (kernels/ptrs.cl): the table D less its
+    tangent at s = 0, H = D - D0 - D1 s (a few hundred cycles of phase at most, so float holds
+    it), and the row and column terms the tangent leaves, -(f0 + f_tau) (D0 + D1 s) =
+    -(f0 + f_tau) D0 + f_t D1, reduced to a fraction of a cycle in double.
+
+    Returns (inv_f, f, col: (n_cols,) each; row (n_rows, 2): -f_t / ds, row;
+    table (n_s - 1, 4): H_k, ds H'_k, H_k+1, ds H'_k+1; b = -s_first / ds)."""
+    d0, d1 = hermite(table_g, table_t, s_first, ds, 0.0, slope=True)
+    slopes = s_first + ds * np.arange(table_g.size)
+    h = table_g - d0 - d1 * slopes
+    dh = ds * (-table_t - d1)
+    table = np.stack([h[:-1], dh[:-1], h[1:], dh[1:]], axis=-1).astype(np.float32)
+    f = f0 + ftau
+    col = -f * d0 + kappa * ftau
+    row = row_term + ft * d1
+    rows = np.stack([-ft / ds, row - np.round(row)], axis=-1).astype(np.float32)
+    return (1 / f).astype(np.float32), f.astype(np.float32), (col - np.round(col)).astype(np.float32), rows, table, \
+        np.float32(-s_first / ds)
+
+
 def decouple_opencl(data, ft, ftau, f0, table_g, table_t, s_first, ds, kappa, row_term) -> np.ndarray:
     """The ptrs_decouple launcher, in place."""
-    import pyopencl as cl
-
-    table = np.ascontiguousarray(np.stack([table_g, table_t], axis=-1), dtype=np.float64)
-    params = np.array([f0, s_first, ds, kappa], dtype=np.float64).view(cl.cltypes.double4)[0]
-    _run("ptrs_decouple", data, [ft, ftau, 1 / (f0 + ftau), row_term, table],
-         [params, np.float64(1 / ds), np.int32(table_g.size), np.int32(data.shape[1])])
+    *arrays, b = _decouple_tables(ft, ftau, f0, table_g, table_t, s_first, ds, kappa, row_term)
+    _run("ptrs_decouple", data, arrays, [b, np.int32(table_g.size), np.int32(data.shape[1])])
     return data
 
 
@@ -101,8 +121,9 @@ def _azimuth_args(data, ft, f0, node_g, node_t, s_first, ds, column_node, column
     column_weight = np.ascontiguousarray(column_weight, dtype=np.float64)
     if column_node.shape != (data.shape[1],) or column_weight.shape != column_node.shape:
         raise ValueError(f"compress_azimuth: column_node and column_weight need one entry per column ({data.shape[1]})")
-    if column_node.min(initial=0) < 0 or column_node.max(initial=0) > node_g.shape[0] - 2:
-        raise ValueError(f"compress_azimuth: column_node must lie in [0, {node_g.shape[0] - 2}]")
+    if column_node.min(initial=0) < 0 or column_node.max(initial=0) > node_g.shape[0] - 2 \
+            or np.any(np.diff(column_node) < 0):
+        raise ValueError(f"compress_azimuth: column_node must be non-decreasing in [0, {node_g.shape[0] - 2}]")
     at_nodes = np.ascontiguousarray(f0 * hermite(node_g, node_t, s_first, ds, -ft / f0).T)  # (n_ft, n_nodes) cycles
     return column_node, column_weight, at_nodes
 
@@ -117,8 +138,12 @@ def compress_azimuth_reference(data, column_node, column_weight, at_nodes) -> np
 
 
 def compress_azimuth_opencl(data, column_node, column_weight, at_nodes) -> np.ndarray:
-    """The ptrs_compress_azimuth launcher, in place."""
-    _run("ptrs_compress_azimuth", data, [at_nodes, column_node, column_weight],
+    """The ptrs_compress_azimuth launcher, in place: per (row, node) the float32 pair
+    (A mod 1, A_next - A) (A ~ 1e5 cycles in double; the step between nodes ~ 1e2)."""
+    steps = np.zeros_like(at_nodes)
+    steps[:, :-1] = np.diff(at_nodes, axis=1)
+    nodes = np.stack([at_nodes - np.round(at_nodes), steps], axis=-1).astype(np.float32)
+    _run("ptrs_compress_azimuth", data, [nodes, column_node, column_weight.astype(np.float32)],
          [np.int32(at_nodes.shape[1]), np.int32(data.shape[1])])
     return data
 
@@ -150,7 +175,6 @@ def _run(kernel_name: str, data: np.ndarray, arrays: list, scalars: list) -> Non
     knl = _kernel(rt.context, kernel_name)
     buf = cl.Buffer(rt.context, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=data)
     inputs = [cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a)) for a in arrays]
-    columns = -(-data.shape[1] // LOCAL_COLUMNS) * LOCAL_COLUMNS
-    knl(rt.queue, (columns, data.shape[0]), (LOCAL_COLUMNS, 1), buf, *inputs, *scalars)
+    knl(rt.queue, (-(-data.shape[1] // LANES), data.shape[0]), None, buf, *inputs, *scalars)
     mapped, _ = cl.enqueue_map_buffer(rt.queue, buf, cl.map_flags.READ, 0, data.shape, data.dtype)
     mapped.base.release()

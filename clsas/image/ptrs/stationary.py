@@ -160,10 +160,11 @@ class StationaryPoints:
         return t, g
 
 
-def hermite(g: np.ndarray, t: np.ndarray, s_first: float, ds: float, s) -> np.ndarray:
+def hermite(g: np.ndarray, t: np.ndarray, s_first: float, ds: float, s, slope: bool = False):
     """G at slopes ``s`` by cubic Hermite interpolation of the table ``g`` (last axis, uniform
     slopes s_first + k ds) with its exact derivative dG/ds = -T (``t``, same shape as ``g``).
-    Returns float64 of shape ``g.shape[:-1] + s.shape``."""
+    Returns float64 of shape ``g.shape[:-1] + s.shape``; with ``slope``, (G, dG/ds) of the same
+    interpolant (its derivative equals -T at the table's slopes)."""
     pos = (np.asarray(s, dtype=np.float64) - s_first) / ds
     n = g.shape[-1]
     if np.any(pos < -1e-9) or np.any(pos > n - 1 + 1e-9):
@@ -172,5 +173,18 @@ def hermite(g: np.ndarray, t: np.ndarray, s_first: float, ds: float, s) -> np.nd
     u = pos - k
     u2 = u * u
     u3 = u2 * u
-    return ((2 * u3 - 3 * u2 + 1) * g[..., k] - ds * (u3 - 2 * u2 + u) * t[..., k]
-            + (-2 * u3 + 3 * u2) * g[..., k + 1] - ds * (u3 - u2) * t[..., k + 1])
+    g0, g1, t0, t1 = g[..., k], g[..., k + 1], t[..., k], t[..., k + 1]
+    value = (2 * u3 - 3 * u2 + 1) * g0 - ds * (u3 - 2 * u2 + u) * t0 + (-2 * u3 + 3 * u2) * g1 - ds * (u3 - u2) * t1
+    if not slope:
+        return value
+    return value, (6 * (u2 - u) * (g0 - g1) / ds - (3 * u2 - 4 * u + 1) * t0 - (3 * u2 - 2 * u) * t1)
+
+
+def migration(g: np.ndarray, t: np.ndarray, s_first: float, ds: float, s, r, c: float) -> np.ndarray:
+    """The range cell migration m(s; r) = tau(T(s); r) - 2 r / c = G - s dG/ds - 2 r / c, s, at
+    slopes ``s`` from the tables (g, t) of range(s) ``r`` (broadcast against g's leading axes):
+    the group delay -(1 / 2 pi) d phi_de / d f_tau at f_tau = 0 of seed 003's eq. (11), i.e.
+    where, relative to 2 r / c, a point at range r sits in the range-Doppler row f_t = -s f0."""
+    value, dg = hermite(g, t, s_first, ds, s, slope=True)
+    r = np.asarray(r, dtype=np.float64).reshape(np.shape(r) + (1,) * np.ndim(s))
+    return value - np.asarray(s) * dg - 2 * r / c
