@@ -30,10 +30,11 @@ Extent. The image's power is smoothed over :data:`SMOOTH_CELLS` resolution cells
 (speckle), and the target is the connected region around its maximum down to :data:`EXTENT_DB`
 below it, regions less than :data:`GAP_CELLS` cells apart counting as connected (the dark gaps
 between a hull's glints): separate targets (points further apart) stay separate, a hull is one
-region. The image is Hann-weighted over the band in range
-first (the unweighted range sidelobes, -13 to -21 dB, would reach the level unevenly: a point's
-middle 0.2-0.4 of a sample off; weighted, within 0.01). Its extent is the region's span in eta
-and in tau, each end interpolated (in dB) between samples to where it crosses the level. -20 dB lies
+region. Its extent in eta is the region's span; in tau, the
+run around the maximum of the region's range profile down to the same level, taken on a copy
+Hann-weighted over the band in range (the unweighted range sidelobes, -13 to -21 dB, would reach
+the level unevenly: a point's middle 0.2-0.4 of a sample off; weighted, within 0.01). Each end
+is interpolated (in dB) between samples to where it crosses the level. -20 dB lies
 between a hull's body (0 to -15 dB: glints over diffuse facets) and the floor around it (blur
 skirts and other echoes, -30 to -45 dB; measured on the eight Table II cases), and below the
 near sidelobes of the unweighted compression (-13, -18 dB), which are symmetric about the peak.
@@ -105,12 +106,13 @@ def extent(image: np.ndarray, eta: np.ndarray, tau: np.ndarray, eta_cell: float,
     # odd widths: an even uniform filter is centred half a sample off, which would move the extent
     widths = tuple(2 * int(round(0.5 * smooth_cells * cell / float(axis[1] - axis[0]))) + 1
                    for cell, axis in ((eta_cell, eta), (tau_cell, tau)))
-    # Hann weighting over the band in range (sidelobes -31 dB): the unweighted range sidelobes
-    # (-13 to -21 dB) reach the level and would move a point's ends unevenly
+    # the range extent on a copy Hann-weighted over the band (sidelobes -31 dB): the unweighted
+    # range sidelobes (-13 to -21 dB) reach the level and would move a point's ends unevenly
     f = np.fft.fftfreq(tau.size, float(tau[1] - tau[0]))
     weight = np.where(np.abs(f) <= 0.5 / tau_cell, 0.5 * (1 + np.cos(2 * np.pi * f * tau_cell)), 0.0)
-    weighted = np.fft.ifft(np.fft.fft(image, axis=1) * weight, axis=1)
-    smooth = uniform_filter(np.abs(weighted).astype(np.float32) ** 2, widths, mode="nearest")
+    weighted = uniform_filter(np.abs(np.fft.ifft(np.fft.fft(image, axis=1) * weight, axis=1)).astype(np.float32) ** 2,
+                              widths, mode="nearest")
+    smooth = uniform_filter(np.abs(image).astype(np.float32) ** 2, widths, mode="nearest")
     peak = np.unravel_index(int(np.argmax(smooth)), smooth.shape)
     level = float(smooth[peak]) * 10.0 ** (-level_db / 10.0)
     above = smooth >= level
@@ -124,6 +126,11 @@ def extent(image: np.ndarray, eta: np.ndarray, tau: np.ndarray, eta_cell: float,
     # outside the blob the profiles take the smoothed image over the blob's columns / rows, so
     # that each end is interpolated towards its (below-level) neighbour
     eta_profile = np.maximum(masked.max(axis=1), np.where(blob.any(axis=1), 0.0, smooth[:, cols].max(axis=1)))
-    tau_profile = np.maximum(masked.max(axis=0), np.where(blob.any(axis=0), 0.0, smooth[rows].max(axis=0)))
-    return Extent(eta=_ends(eta_profile, eta, rows[0], rows[-1], level),
-                  tau=_ends(tau_profile, tau, cols[0], cols[-1], level))
+    # in range: the weighted image over the region's rows, its run around the maximum
+    tau_profile = weighted[rows].max(axis=0)
+    j = int(np.argmax(np.where(blob.any(axis=0), tau_profile, 0.0)))
+    cut = float(tau_profile[j]) * 10.0 ** (-level_db / 10.0)
+    near = tau_profile >= cut
+    first = j - int(np.argmin(near[j::-1])) + 1 if not near[:j + 1].all() else 0
+    last = j + int(np.argmin(near[j:])) - 1 if not near[j:].all() else near.size - 1
+    return Extent(eta=_ends(eta_profile, eta, rows[0], rows[-1], level), tau=_ends(tau_profile, tau, first, last, cut))
