@@ -19,6 +19,13 @@ each, min and median, with the relative L2 difference of the two images:
 
 ``--scan`` adds the aperture case's ratio for 512, 1024, 2048 and 4096 pulses (512^2 pixels, one
 timed run each).
+
+Measured (2-core AVX2 EPYC, PoCL 3.1, a shared machine at load average 7-10; ratios are
+direct / ffbp, interleaved in one run, median and best): 1024^2 x 2048 aperture 8.1x (8.4x),
+ffbp 7.3 s against 59 s, relative L2 0.056; 512^2 x 1024 aperture 1.7x (2.8x), full 1.3x (1.4x).
+Aperture case at 512^2 pixels for 512, 1024, 2048, 4096 pulses: 2.1, 1.8, 2.5, 3.2x (a fixed
+512^2 grid samples the longer scene ever more coarsely along track, so merging stops at three
+levels: the ratio grows with the pixels as much as with the pulses).
 """
 
 from __future__ import annotations

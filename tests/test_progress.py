@@ -64,3 +64,28 @@ def test_simulate_and_backproject_log_their_stages(backend, caplog, capsys, monk
     assert f"back-projection ({backend}, linear): 128 pixels x 15 receivers x 8 pulses" in text
     assert text.count("done in") >= 3
     assert capsys.readouterr().err == ""  # TQDM_DISABLE: no bar
+
+
+def test_ffbp_bar_counts_pulses_through_the_first_stage_and_logs(backend, caplog, monkeypatch):
+    """ffbp's bar ends at the echo's pulses (counted as each leaf's image is formed), honours
+    TQDM_DISABLE through clsas.progress, and its stage is logged with the tree's sizes."""
+    from clsas import ffbp
+
+    monkeypatch.delenv("TQDM_DISABLE", raising=False)
+    bars, counted = [], []
+    original = progress.Progress.done
+    monkeypatch.setattr(progress.Progress, "done",  # the bars of the leaves' own back-projections are off
+                        lambda self, n: (self._bar is not None and counted.append(n), original(self, n)))
+    monkeypatch.setattr(progress.Progress, "close", lambda self: self._bar is not None and bars.append(self._bar))
+    scene = presets.point_scene("heremans2009", n_pulses=128)
+    echo = range_compress(simulate(scene, backend="numpy", progress=False))
+    grid = Grid.plane(np.linspace(98, 102, 32), np.linspace(-4, 4, 32), scene.platform.start[2])
+    counted.clear()
+    with caplog.at_level(logging.INFO, logger="clsas"):
+        image = ffbp(echo, grid, first=8, backend=backend)
+    (bar,) = bars
+    assert bar.unit == " pulse" and bar.n == bar.total == 128 == sum(counted) and len(counted) == 16
+    bar.close()
+    levels = image.provenance["levels"]
+    assert f"ffbp ({backend}): 1024 pixels x 128 pulses x 15 receivers, {levels} levels" in caplog.text
+    assert "ffbp: done in" not in caplog.text and f"ffbp ({backend}): done in" in caplog.text

@@ -40,10 +40,10 @@ not demodulate their echoes; leave them out with ``receivers=`` and image them w
 from __future__ import annotations
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from ... import backend as _backend
 from ...data import EchoData, Grid, Image
+from ...progress import Progress, stage
 from ..backprojection_records import FFT_BATCH_BYTES, check_options
 from .leaves import BATCH_POINTS, RECORD_BYTES, FirstStage
 from .merge import KERNEL_TAPS, merge_opencl, merge_reference
@@ -116,7 +116,7 @@ def memory_plan(tree: Tree, n_pixels: int, factor: int) -> dict:
 def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFAULT_TOLERANCE, taps: int = 8,
          first: int | None = None, interp: str = "linear", upsample: int = 8, receivers=None,
          aperture: float | None = None, stop_and_go: bool = False, backend: str | None = None,
-         progress: bool = False) -> Image:
+         progress: bool = True) -> Image:
     """Fast factorised back-projection of range-compressed echoes onto ``grid`` (module docstring).
 
     Parameters
@@ -150,16 +150,16 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
     merge = merge_reference if name == "numpy" else merge_opencl
     pixels = grid.positions.reshape(-1, 3)
     flat = np.zeros(pixels.shape[0], np.complex128 if name == "numpy" else np.complex64)
-    bar = tqdm(total=len(tree.pulses[0]), desc="ffbp", disable=not progress)
+    leaves = tree.pulses[0]
+    bar = Progress(leaves[-1][1] - leaves[0][0], "pulse", "ffbp", progress)  # pulses through the first stage
     stage1 = FirstStage(echo, tree.pulses[0], name, chosen, interp, upsample, aperture, stop_and_go)
 
     def build(level: int, node: int):
         grid_ = tree.grids[level][node]
         if level == 0:
-            bar.update(1)
-            if grid_ is None:
-                return None
-            return grid_, stage1.image(node, grid_, tree.grids[0])
+            image = None if grid_ is None else (grid_, stage1.image(node, grid_, tree.grids[0]))
+            bar.done(leaves[node][1] - leaves[node][0])
+            return image
         kids = [build(level - 1, k) for k in tree.children[level][node]]
         kids = [k for k in kids if k is not None]
         if grid_ is None or not kids:
@@ -177,14 +177,15 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
 
     # the top nodes go to the pixels in batches of about the image's size (one pass per batch)
     top, batch = tree.top, []
-    for node in range(len(tree.pulses[top])):
-        done = build(top, node)
-        if done is not None:
-            batch.append(done)
-            if sum(g.size for g, _ in batch) >= pixels.shape[0]:
-                flush(batch)
-    flush(batch)
-    bar.close()
+    with stage(f"ffbp ({name})", f"{pixels.shape[0]} pixels x {leaves[-1][1] - leaves[0][0]} pulses x "
+               f"{len(chosen)} receivers, {top + 1} levels, {tree.samples()} polar samples"), bar:
+        for node in range(len(tree.pulses[top])):
+            done = build(top, node)
+            if done is not None:
+                batch.append(done)
+                if sum(g.size for g, _ in batch) >= pixels.shape[0]:
+                    flush(batch)
+        flush(batch)
     return Image(data=flat.reshape(grid.shape), dims=grid.dims, axes=grid.axes, positions=grid.positions,
                  provenance={"algorithm": "ffbp", "backend": name, "factor": int(factor), "tolerance": float(tolerance),
                              "taps": int(taps), "first": tree.first, "levels": top + 1,
