@@ -371,7 +371,8 @@ def test_focused_points_sit_at_their_predicted_r_y(opencl_device):
 @pytest.mark.parametrize("case", [1, 8])
 def test_submarine_velocity_within_the_papers_bound(opencl_device, case):
     """The scaled Albacore (hull occlusion, facets <= 0.15 m), 2048 pulses, the hull's centre given:
-    |dv| / |v| < 3 % (measured 2.2 % and 1.0 %; the paper 2.15 % and 2.8 %)."""
+    |dv| / |v| within 3 % (the paper's bound; measured 0.5 % and 0.5 % with the middle of the hull's
+    image, 2.2 % and 1.0 % with its strongest glint; the paper 2.15 % and 2.8 %)."""
     import clsas
     from clsas.reproduce.kiang2022 import scene
 

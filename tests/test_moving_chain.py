@@ -66,8 +66,10 @@ def test_case1_each_receiver(case1, receiver):
     assert est.receiver == receiver
     assert est.fm_rate == pytest.approx(k, rel=K_RTOL)
     assert est.doppler_centroid == pytest.approx(f_dc, abs=FDC_ATOL)
-    # eq. (20): the focus sits at the two-way delay at eta = 0 (measured within 1/40 of a
-    # sample), and at eta_c = -(f_dc,true - f_dc) / K: ~0
+    # eq. (20): the trace sits at the two-way delay at eta = 0 (measured within 1/40 of a
+    # sample), the middle of the focused target's extent there too (measured within 0.01 of a
+    # sample) and at eta_c = -(f_dc,true - f_dc) / K: ~0
+    assert abs(est.tau_trace - tau0) < 0.1 / echo.fs
     assert abs(est.tau_c - tau0) < 0.1 / echo.fs
     assert abs(est.eta_c * k) < FDC_ATOL
     assert 20 * np.log10(est.peak_to_background) > 70  # measured 86-109 dB
@@ -218,7 +220,7 @@ def test_paper_azimuth_filter_splits_an_aliased_target(case1):
 
     sc, echo, _ = case1
     est = estimate_receiver(echo, "A")
-    rec = chain._records(echo, "A")
+    rec = chain.records(echo, "A")
     k0 = int(round((est.tau_c - rec.t0) * rec.fs))
     shift, cycles = filters.migration(rec.eta, rec.f0, est.fm_rate, est.doppler_centroid)
     line = filters.advance(rec.x, rec.fs, shift, cycles)[:, k0]

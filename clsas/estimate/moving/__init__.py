@@ -7,18 +7,23 @@
 - :func:`solve_velocity` / :func:`solve_motion`: the velocity vector (section V), and the
   position with it when it is not known;
 - :func:`estimate_receiver` / :func:`focus_receiver` (:mod:`.chain`): one receiver's chain
-  (RFRT, modified SoWVD, RCMC, Radon, RWC, azimuth compression; sections III-IV);
+  (RFRT, modified SoWVD, RCMC, Radon, RWC, azimuth compression; sections III-IV), also step by
+  step (``chain.records``, ``sowvd``, ``rcmc``, ``doppler_centroid_radon``, ``focus_bins``,
+  ``locate``); :mod:`.extent`: where an extended target's centre lies in its focused image;
+- :func:`delay_history` / :func:`higher_order_delay`: the exact delay of the model over the
+  aperture, and its terms beyond the quadratic that the chain's focus leaves;
 - :mod:`.mapping`: tau-eta -> r-y (section VI) and SSIM against a reference image;
   :mod:`.compare`: RDA, CSA and omega-k run stop-and-go with the estimated velocity (VII-A).
 """
 
 from .chain import ReceiverEstimate, estimate_receiver, focus_receiver
-from .closedforms import Predicted, closed_forms
+from .closedforms import Predicted, closed_forms, delay_history, higher_order_delay
 from .doppler import Doppler
+from .extent import Extent
 from .layout import Layout, layout_of
 from .motion import MotionEstimate, estimate, focus, motion_from_receivers
 from .velocity import MotionSolution, solve_motion, solve_velocity
 
-__all__ = ["Doppler", "Layout", "MotionEstimate", "MotionSolution", "Predicted", "ReceiverEstimate", "closed_forms",
-           "estimate", "estimate_receiver", "focus", "focus_receiver", "layout_of", "motion_from_receivers",
-           "solve_motion", "solve_velocity"]
+__all__ = ["Doppler", "Extent", "Layout", "MotionEstimate", "MotionSolution", "Predicted", "ReceiverEstimate",
+           "closed_forms", "delay_history", "estimate", "estimate_receiver", "focus", "focus_receiver",
+           "higher_order_delay", "layout_of", "motion_from_receivers", "solve_motion", "solve_velocity"]

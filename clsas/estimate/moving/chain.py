@@ -13,9 +13,19 @@ tau(eta) = tau_0 + (f_dc / f0) eta + (K / (2 f0)) eta^2 the two-way delay of the
    (section VII-C) when the echo stands out of the noise in too few pulses or no SoWVD peak
    stands out of the map's background,
 3. RCMC (eq. 17, :mod:`.filters`), Radon transform of |s_rcmc| -> slope -> f_dc (:mod:`.radon`),
-4. range-walk compensation and azimuth compression (eqs. 18-20; :func:`.filters.compress`).
-   tau_c is the trace's delay at eta = 0 (the Radon intercept; eq. 20: (R'_10 + R''_10) / c_s),
-   eta_c the focused peak's slow time: -(f_dc,true - f_dc) / K, ~0.
+4. range-walk compensation and azimuth compression (eqs. 18-20; :func:`.filters.compress`) of
+   the target's neighbourhood (:data:`EXTENT_WINDOW` around the Radon intercept, the trace's delay
+   at eta = 0; eq. 20: (R'_10 + R''_10) / c_s), and the target's extent in that image
+   (:mod:`.extent`): tau_c and eta_c are the middle of the extent, where the target's centre
+   focuses (for a point target its peak: eta_c = -(f_dc,true - f_dc) / K, ~0; on a hull the
+   middle of the hull's image rather than its strongest glint, which differs between receivers).
+
+Faint copies of a target +-c T / 2 = +-3.75 m in range (T the 5 ms pulse) are Table I's
+critical sampling, not the chain: with F_r = B = 20 kHz the rectangular chirp's spectral leakage
+beyond +-B / 2 wraps to the opposite band edge, where the matched filter's group delay differs by
+B / K_r = T. Measured on one point's range-compressed record (no window): -25 dB at 3.5-4 m
+(-35 dB with a Taylor window); at F_r = 1.25 B it is gone below the sidelobes (-37 dB), at 2 B
+-46 dB. The chain keeps the unweighted matched filter (its range resolution feeds tau_c).
 
 Several targets (section VII-B): :func:`estimate_receivers` takes the strongest SoWVD peak,
 focuses it, windows its image, undoes the chain on the window (inverse azimuth compression,
@@ -36,6 +46,7 @@ from ...errors import EstimationError
 from ...image.rangecomp import range_compress
 from . import filters, radon, trace
 from .doppler import Doppler
+from .extent import Extent, extent
 from .sowvd import SoWVD, modified_sowvd, rfrt
 
 log = logging.getLogger("clsas")
@@ -54,6 +65,12 @@ UPSAMPLE = 2
 #: An azimuth chirp with time-bandwidth product |K| T_a^2 below this has nothing to compress
 #: (the target keeps its range to the receiver: Table II case 7 at A and B).
 MIN_TIME_BANDWIDTH = 4.0
+#: Samples shifted beyond those a focus window needs (:func:`focus_bins`): the band-limited shift
+#: of a record cut there reaches the window attenuated by ~1 / (pi MARGIN) (-46 dB).
+MARGIN = 64
+#: Half-width of the focused window searched for the target's extent, s of two-way delay
+#: (+-12 m of range at 1500 m/s: the scaled Albacore is 10.35 m long).
+EXTENT_WINDOW = 0.016
 
 
 @dataclass(frozen=True)
@@ -61,11 +78,15 @@ class ReceiverEstimate(Doppler):
     """A target's Doppler parameters at one receiver, estimated from its echo.
 
     fm_rate : K_a,eq, Hz/s (SoWVD peak, eq. 14); doppler_centroid : f_dc,eq, Hz (Radon slope).
-    receiver : its name. tau_c : the trace's fast time at eta = 0 (Radon intercept), s: where the
-    focused target sits in range, (R'_10 + R''_10) / c_s in eq. (20). eta_c : the focused peak's
-    slow time, s (~0 when f_dc is right: eq. 20; nan when the target cannot be focused).
-    peak_to_background : the SoWVD peak over the map's median (linear). p0 : the lag offset
-    used, s. aperture : the record's slow-time span T_a, s.
+    receiver : its name. tau_c, eta_c : where the target's centre focuses, s: the middle of its
+    extent in the focused image (:mod:`.extent`; a point target's peak: (R'_10 + R''_10) / c_s
+    and ~0 in eq. (20)); when the target cannot be focused, tau_c is the trace's delay at eta = 0
+    (the Radon intercept) and eta_c nan. tau_trace : the Radon intercept, s (the strongest
+    track's delay at eta = 0: on a point target tau_c to a fifth of a sample; on a hull its
+    strongest glint's). peak_to_background : the SoWVD peak over the map's
+    median (linear). p0 : the lag offset used, s. aperture : the record's slow-time span T_a, s.
+    extent : the target's :class:`~.extent.Extent` in the focused image (None when it cannot be
+    focused).
     """
 
     receiver: str
@@ -74,6 +95,8 @@ class ReceiverEstimate(Doppler):
     peak_to_background: float
     p0: float
     aperture: float
+    tau_trace: float = float("nan")
+    extent: Extent | None = None
 
     @property
     def focusable(self) -> bool:
@@ -83,15 +106,16 @@ class ReceiverEstimate(Doppler):
 
 
 @dataclass(frozen=True)
-class _Records:
+class Records:
     """One receiver's range-compressed record: x (n_pulses, n_samples) at fast times
-    t0 + k / fs after each emission eta (n_pulses,)."""
+    t0 + k / fs after each emission eta (n_pulses,); f0 the carrier and bandwidth the chirp's, Hz."""
 
     x: np.ndarray
     eta: np.ndarray
     t0: float
     fs: float
     f0: float
+    bandwidth: float
     name: str
 
     @property
@@ -99,7 +123,9 @@ class _Records:
         return (self.eta.size - 1) / float(np.ptp(self.eta))
 
 
-def _records(echo: EchoData, receiver: str) -> _Records:
+def records(echo: EchoData, receiver: str) -> Records:
+    """Step 1: ``receiver``'s record of a raw ``echo``, range-compressed (eq. 8) and upsampled
+    :data:`UPSAMPLE` times, after checking the echo (raw, >= 64 uniformly spaced pulses)."""
     if not isinstance(echo, EchoData):
         raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
     if echo.compressed:
@@ -115,10 +141,13 @@ def _records(echo: EchoData, receiver: str) -> _Records:
     one = echo.replace(data=echo.data[r:r + 1], t0=echo.t0[r:r + 1], rx_pos=echo.rx_pos[r:r + 1],
                        rx_tau=echo.rx_tau[r:r + 1], receivers=(receiver,))
     comp = range_compress(one, upsample=UPSAMPLE)
-    return _Records(x=comp.data[0], eta=eta, t0=float(echo.t0[r]), fs=comp.fs, f0=echo.waveform.f0, name=receiver)
+    return Records(x=comp.data[0], eta=eta, t0=float(echo.t0[r]), fs=comp.fs, f0=echo.waveform.f0,
+                    bandwidth=echo.waveform.bandwidth, name=receiver)
 
 
-def _sowvd(rec: _Records, p0: float) -> SoWVD:
+def sowvd(rec: Records, p0: float) -> SoWVD:
+    """Step 2: the gated RFRT (eqs. 10-11) and modified SoWVD (eqs. 12-14) of ``rec``, whose peak
+    gives K_a,eq; EstimationError when the echo stands out of the noise in too few pulses."""
     gate = trace.support(rec.x, UPSAMPLE)
     coverage = float(np.mean(gate.any(axis=1)))
     if coverage < MIN_COVERAGE:
@@ -127,8 +156,13 @@ def _sowvd(rec: _Records, p0: float) -> SoWVD:
     return modified_sowvd(rfrt(rec.x, gate), rec.prf, p0)
 
 
-def _doppler_centroid_radon(rec: _Records, rcmc: np.ndarray) -> tuple[float, float]:
-    """(f_dc, tau at eta = 0) of the straight trace in |s_rcmc| (:mod:`.radon`): the slope s in
+def rcmc(rec: Records, fm_rate: float) -> np.ndarray:
+    """Step 3: ``rec`` after range cell migration correction with ``fm_rate`` (eq. 17)."""
+    return filters.advance(rec.x, rec.fs, fm_rate * rec.eta**2 / (2 * rec.f0))
+
+
+def doppler_centroid_radon(rec: Records, rcmc: np.ndarray) -> tuple[float, float]:
+    """Step 4: (f_dc, tau at eta = 0) of the straight trace in |s_rcmc| (:mod:`.radon`): the slope s in
     samples a pulse is f_dc fs / (f0 PRF). The noise floor of each range cell is taken off first."""
     image = np.abs(rcmc).astype(np.float32)
     image -= trace.floor(image)  # the noise's range profile would be a trace of slope 0
@@ -139,51 +173,42 @@ def _doppler_centroid_radon(rec: _Records, rcmc: np.ndarray) -> tuple[float, flo
     return slope * rec.f0 * rec.prf / rec.fs, rec.t0 + k_zero / rec.fs
 
 
-def _focus_bins(rec: _Records, fm_rate: float, doppler_centroid: float, bins: slice):
-    """RCMC + RWC of the whole record, then azimuth compression of the range ``bins``:
-    (image, eta axis)."""
-    shift, cycles = filters.migration(rec.eta, rec.f0, fm_rate, doppler_centroid)
-    aligned = filters.advance(rec.x, rec.fs, shift, cycles)
-    return filters.compress(aligned[:, bins], rec.eta, fm_rate)
+def focus_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: slice,
+               higher_order: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Step 5: RCMC + RWC of the whole record, then azimuth compression of the range ``bins``:
+    (image (n_eta, n_bins), eta axis (n_eta,) s). ``higher_order`` (n_pulses,) s: the delay's
+    terms beyond the quadratic, compensated with it (:func:`.filters.migration`). Only the
+    samples the shifts bring into ``bins`` are shifted (and :data:`MARGIN` more each side)."""
+    shift, cycles = filters.migration(rec.eta, rec.f0, fm_rate, doppler_centroid, higher_order)
+    n = rec.x.shape[1]
+    start, stop, _ = bins.indices(n)
+    lo = int(np.clip(start + np.floor(shift.min() * rec.fs) - MARGIN, 0, n))
+    hi = int(np.clip(stop + np.ceil(shift.max() * rec.fs) + MARGIN, lo + 1, n))
+    aligned = filters.advance(rec.x[:, lo:hi], rec.fs, shift, cycles)
+    return filters.compress(aligned[:, start - lo:stop - lo], rec.eta, fm_rate)
 
 
-def _peak(image: np.ndarray, eta_axis: np.ndarray) -> tuple[float, int, float]:
-    """(eta, range bin, sub-bin offset) of the largest |image| (parabolic refinement both ways)."""
-    mag = np.abs(image)
-    i, j = np.unravel_index(int(np.argmax(mag)), mag.shape)
-
-    def vertex(a, b, c):
-        den = a - 2 * b + c
-        return 0.5 * (a - c) / den if den < 0 else 0.0
-
-    di = vertex(*mag[i - 1:i + 2, j]) if 0 < i < mag.shape[0] - 1 else 0.0
-    dj = vertex(*mag[i, j - 1:j + 2]) if 0 < j < mag.shape[1] - 1 else 0.0
-    return float(eta_axis[i] + di * (eta_axis[1] - eta_axis[0])), int(j), float(dj)
-
-
-def _estimate(rec: _Records, p0: float, threshold_db: float) -> ReceiverEstimate:
+def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHOLD_DB) -> ReceiverEstimate:
+    """Steps 2-5 on a receiver's :func:`records`: :func:`estimate_receiver` without the range compression."""
     if isinstance(p0, bool) or not isinstance(p0, (int, float, np.number)) or not np.isfinite(p0):
         raise TypeError(f"p0 must be a finite number of seconds, got {p0!r}")
     if isinstance(threshold_db, bool) or not isinstance(threshold_db, (int, float, np.number)) \
             or not np.isfinite(threshold_db):
         raise ValueError(f"threshold_db must be a finite number of dB, got {threshold_db!r}")
-    wv = _sowvd(rec, p0)
+    wv = sowvd(rec, p0)
     ratio_db = 20 * np.log10(wv.peak_to_background) if np.isfinite(wv.peak_to_background) else np.inf
     if ratio_db < threshold_db:
         raise EstimationError(f"receiver {rec.name}: no SoWVD peak stands out of the background: "
                               f"peak-to-background {ratio_db:.1f} dB < threshold {threshold_db:.1f} dB")
     k = wv.fm_rate
-    rcmc = filters.advance(rec.x, rec.fs, k * rec.eta**2 / (2 * rec.f0))
-    f_dc, tau_c = _doppler_centroid_radon(rec, rcmc)
+    f_dc, tau_c = doppler_centroid_radon(rec, rcmc(rec, k))
     aperture = float(np.ptp(rec.eta) + 1.0 / rec.prf)
     est = ReceiverEstimate(fm_rate=k, doppler_centroid=f_dc, receiver=rec.name, tau_c=tau_c, eta_c=np.nan,
-                           peak_to_background=wv.peak_to_background, p0=wv.p0, aperture=aperture)
+                           peak_to_background=wv.peak_to_background, p0=wv.p0, aperture=aperture, tau_trace=tau_c)
     if est.focusable:
-        k0 = (tau_c - rec.t0) * rec.fs
-        bins = slice(int(max(0, np.floor(k0) - 4 * UPSAMPLE)), int(min(rec.x.shape[1], np.ceil(k0) + 4 * UPSAMPLE + 1)))
-        est = dataclasses.replace(est, eta_c=_peak(*_focus_bins(rec, k, f_dc, bins))[0])
+        est = locate(rec, est)
     log.info("receiver %s: K = %.5g Hz/s, f_dc = %.5g Hz, tau_c = %.6f s, eta_c = %.4g s, SoWVD peak-to-background "
-             "%.1f dB", rec.name, k, f_dc, tau_c, est.eta_c, ratio_db)
+             "%.1f dB", rec.name, k, f_dc, est.tau_c, est.eta_c, ratio_db)
     return est
 
 
@@ -201,10 +226,28 @@ def estimate_receiver(echo: EchoData, receiver: str, *, p0: float = P0,
     threshold_db : SoWVD peak-to-background ratio (peak over median) below which
         :class:`clsas.errors.EstimationError` is raised.
     """
-    return _estimate(_records(echo, receiver), p0, threshold_db)
+    return estimate_records(records(echo, receiver), p0, threshold_db)
 
 
-def _remove(rec: _Records, est: ReceiverEstimate, tau_halfwidth: float, eta_cells: float) -> _Records:
+def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None = None) -> ReceiverEstimate:
+    """``est`` with tau_c, eta_c and extent measured in the focused image of ``rec`` within
+    :data:`EXTENT_WINDOW` of est.tau_c (:mod:`.extent`): focused with est's K_a,eq and f_dc,eq, and
+    with ``higher_order`` (n_pulses,) s, the delay's terms beyond the quadratic, when given
+    (:func:`.closedforms.higher_order_delay` of a first velocity estimate: they blur and skew
+    the image over long apertures). K_a,eq and f_dc,eq are kept."""
+    if not est.focusable:
+        raise EstimationError(f"receiver {rec.name}: cannot locate a target that does not focus "
+                              f"(|K_a,eq| T_a^2 = {abs(est.fm_rate) * est.aperture**2:.3g} < {MIN_TIME_BANDWIDTH})")
+    k0 = (est.tau_c - rec.t0) * rec.fs
+    half = EXTENT_WINDOW * rec.fs
+    bins = slice(int(max(0, np.floor(k0 - half))), int(min(rec.x.shape[1], np.ceil(k0 + half) + 1)))
+    image, eta_axis = focus_bins(rec, est.fm_rate, est.doppler_centroid, bins, higher_order)
+    tau_axis = rec.t0 + np.arange(bins.start, bins.stop) / rec.fs
+    ext = extent(image, eta_axis, tau_axis, 1.0 / (abs(est.fm_rate) * est.aperture), 1.0 / rec.bandwidth)
+    return dataclasses.replace(est, tau_c=ext.tau_mid, eta_c=ext.eta_mid, extent=ext)
+
+
+def _remove(rec: Records, est: ReceiverEstimate, tau_halfwidth: float, eta_cells: float) -> Records:
     """``rec`` without the target of ``est`` (section VII-B): RCMC + RWC + azimuth compression,
     the focused target's window (|tau - tau_c| <= tau_halfwidth, |eta - eta_c| <= eta_cells
     azimuth resolution cells 1 / (|K| T_a)), then the inverse chain on the window (all three
@@ -233,21 +276,24 @@ def estimate_receivers(echo: EchoData, receiver: str, n_targets: int = 2, *, p0:
     """
     if isinstance(n_targets, bool) or not isinstance(n_targets, (int, np.integer)) or n_targets < 1:
         raise ValueError(f"n_targets must be an integer >= 1, got {n_targets!r}")
-    rec = _records(echo, receiver)
+    rec = records(echo, receiver)
     if tau_halfwidth is None:
         tau_halfwidth = 6.0 / echo.waveform.bandwidth
     found = []
     for i in range(n_targets):
-        found.append(_estimate(rec, p0, threshold_db))
+        found.append(estimate_records(rec, p0, threshold_db))
         if i + 1 < n_targets:
             rec = _remove(rec, found[-1], tau_halfwidth, eta_cells)
     return found
 
 
 def focus_receiver(echo: EchoData, receiver: str, rx_estimate: ReceiverEstimate, *,
-                   tau_span: float | None = None) -> Image:
+                   tau_span: float | None = None, higher_order: np.ndarray | None = None) -> Image:
     """The target focused on the tau-eta plane from ``receiver``'s raw echo with ``rx_estimate``'s
-    K_a,eq and f_dc,eq: RCMC, range-walk compensation and azimuth compression (eqs. 17-20).
+    K_a,eq and f_dc,eq: RCMC, range-walk compensation and azimuth compression (eqs. 17-20), and
+    the delay's terms beyond the quadratic, ``higher_order`` (n_pulses,) s, when given
+    (:func:`.closedforms.higher_order_delay`: the quadratic focus leaves them, which blurs
+    80 s apertures).
 
     Returns an Image with dims ("eta", "tau"): eta spans one period PRF / |K| centred on the
     focus (see :mod:`.filters`), tau the receiver's fast times (all of them, or ``tau_span``
@@ -256,7 +302,7 @@ def focus_receiver(echo: EchoData, receiver: str, rx_estimate: ReceiverEstimate,
     """
     if not isinstance(rx_estimate, Doppler):
         raise TypeError(f"rx_estimate must be a ReceiverEstimate, got {type(rx_estimate).__name__}")
-    rec = _records(echo, receiver)
+    rec = records(echo, receiver)
     aperture = float(np.ptp(rec.eta) + 1.0 / rec.prf)
     if abs(rx_estimate.fm_rate) * aperture**2 < MIN_TIME_BANDWIDTH:
         raise EstimationError(f"receiver {receiver}: cannot focus: |K_a,eq| T_a^2 = "
@@ -272,7 +318,7 @@ def focus_receiver(echo: EchoData, receiver: str, rx_estimate: ReceiverEstimate,
             raise ValueError("tau_span needs rx_estimate.tau_c")
         half = 0.5 * tau_span * rec.fs
         bins = slice(int(np.clip(np.floor(centre - half), 0, n - 1)), int(np.clip(np.ceil(centre + half) + 1, 1, n)))
-    image, eta_axis = _focus_bins(rec, rx_estimate.fm_rate, rx_estimate.doppler_centroid, bins)
+    image, eta_axis = focus_bins(rec, rx_estimate.fm_rate, rx_estimate.doppler_centroid, bins, higher_order)
     tau = rec.t0 + np.arange(bins.start, bins.stop) / rec.fs
     return Image(image, ("eta", "tau"), {"eta": eta_axis, "tau": tau},
                  provenance={"algorithm": "clsas.estimate.moving.focus_receiver", "receiver": receiver,

@@ -132,6 +132,36 @@ def delay_terms(layout: Layout, receiver: str, position, velocity, model: str = 
     return (t1 + t2).reshape(shape), (f0 * (t1p + t2p)).reshape(shape), (f0 * (t1pp + t2pp)).reshape(shape)
 
 
+def delay_history(layout: Layout, receiver: str, position, velocity, eta) -> np.ndarray:
+    """The exact non-stop-and-go two-way delay tau(eta) (s) at ``receiver`` of the point at
+    ``position`` (slow time 0) moving with ``velocity``, for emissions at slow times ``eta`` (s,
+    any shape; the result has its shape): the model whose Taylor coefficients at eta_ref are
+    :func:`delay_terms` (module docstring), evaluated in full."""
+    p, v = _vector("position", position), _vector("velocity", velocity)
+    if p.shape != (3,) or v.shape != (3,):
+        raise ValueError(f"position and velocity must have shape (3,), got {p.shape} and {v.shape}")
+    c = layout.sound_speed
+    rx, v_rx = layout.receiver(receiver)
+    dt = np.asarray(eta, dtype=np.float64)[..., None] - layout.eta_ref
+    tx = layout.tx_position + layout.tx_velocity * dt
+    q = p + v * (dt + layout.eta_ref)
+    t1 = meet_time(q - tx, np.broadcast_to(v, q.shape), c)
+    scatter = q + v * t1[..., None]
+    t2 = meet_time(rx + v_rx * (dt + t1[..., None]) - scatter, np.broadcast_to(v_rx, q.shape), c)
+    return t1 + t2
+
+
+def higher_order_delay(layout: Layout, receiver: str, position, velocity, eta) -> np.ndarray:
+    """The terms of :func:`delay_history` beyond its quadratic Taylor polynomial at eta_ref,
+    tau(eta) - (tau_c + (f_dc,eq / f0) d + (K_a,eq / (2 f0)) d^2) with d = eta - eta_ref (s, the
+    shape of ``eta``): what a focus with K_a,eq and f_dc,eq leaves uncompensated (cubic and
+    higher; ~10 carrier cycles at the ends of 25 s in Table II case 6)."""
+    tau = delay_history(layout, receiver, position, velocity, eta)
+    tau_c, f_dc, k = delay_terms(layout, receiver, position, velocity)
+    d = np.asarray(eta, dtype=np.float64) - layout.eta_ref
+    return tau - (tau_c + (f_dc / layout.f0) * d + (k / (2 * layout.f0)) * d * d)
+
+
 def closed_forms(scenario, position, velocity, receivers=None, model: str = "exact",
                  eta_ref: float | None = None) -> dict:
     """The true K_a,eq, f_dc,eq, tau_c and eta_c of a point target at every receiver.

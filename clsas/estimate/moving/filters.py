@@ -61,10 +61,16 @@ def advance(records: np.ndarray, fs: float, shift: np.ndarray, carrier_hz: np.nd
     return out
 
 
-def migration(eta: np.ndarray, f0: float, fm_rate: float, doppler_centroid: float) -> tuple[np.ndarray, np.ndarray]:
+def migration(eta: np.ndarray, f0: float, fm_rate: float, doppler_centroid: float,
+              higher_order: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(shift, carrier phase in cycles) of RCMC + RW compensation: shift = K eta^2 / (2 f0) +
-    f_dc eta / f0, cycles = f_dc eta."""
-    return fm_rate * eta**2 / (2 * f0) + doppler_centroid * eta / f0, doppler_centroid * eta
+    f_dc eta / f0, cycles = f_dc eta. ``higher_order`` (n_pulses,) s, the delay's terms beyond
+    the quadratic: added to the shift, and f0 times it to the cycles (its whole carrier phase:
+    the quadratic's is removed by :func:`compress`'s deramp)."""
+    shift, cycles = fm_rate * eta**2 / (2 * f0) + doppler_centroid * eta / f0, doppler_centroid * eta
+    if higher_order is not None:
+        shift, cycles = shift + higher_order, cycles + f0 * higher_order
+    return shift, cycles
 
 
 def compress(records: np.ndarray, eta: np.ndarray, fm_rate: float, pad: int = 2,
