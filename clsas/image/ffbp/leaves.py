@@ -35,6 +35,7 @@ from ...kernelmath import expj_cycles
 from ..backprojection import (NODE_TOLERANCE, PULSE_BLOCK, PULSES, RECORDS, TILE_PARAMS, GridPlan, backproject, prepare,
                               tile_references)
 from ..backprojection_tiles import LANES, ROWS, tile_half_extent
+from .merge import ffbp_kernel
 from .polar import PolarGrid
 
 BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~81 bytes each held)
@@ -139,7 +140,7 @@ class FirstStage:
                             dst_offset=8 * offset)
             return
         image, items, first, count = made
-        kern = opencl.kernel("ffbp", "ffbp_leaf", defines={"TAPS": 8, "TAP_ROWS": TAP_ROWS})
+        kern = ffbp_kernel("ffbp_leaf", TAPS=8, TAP_ROWS=TAP_ROWS)
         frame = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=grid.record())
         kern(rt.queue, (count,), None, image, items, np.int32(first), frame, np.float64(self.demodulate),
              np.int64(offset), out)
@@ -196,7 +197,7 @@ class FirstStage:
         plane = grids[batch[0]].plane
         pix = cl.Buffer(ctx, mf.READ_WRITE, 4 * 4 * m_pad)
         items_buf = made(items)
-        opencl.kernel("ffbp", "ffbp_fields", defines={"TAPS": 8, "TAP_ROWS": TAP_ROWS})(
+        ffbp_kernel("ffbp_fields", TAPS=8, TAP_ROWS=TAP_ROWS)(
             queue, (items.shape[0],), None, items_buf, made(np.stack([grids[k].record() for k in batch])),
             made(np.r_[plane.normal, plane.offset]), made(centres), np.int32(m_pad), pix)
         tile_of = np.ascontiguousarray(items[::ROWS, 3])
