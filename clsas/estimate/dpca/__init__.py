@@ -1,6 +1,8 @@
 """DPCA micronavigation: surge, sway and yaw between consecutive pings from the echoes of
 overlapping phase centres (Heremans, Dupont & Acheroy 2009, section 5, eqs. 50-70), the
-trajectory they integrate to (eqs. 71-73), and the motion compensation (eqs. 74-75).
+trajectory they integrate to (eqs. 71-73), and the motion compensation (eqs. 74-75: per
+hydrophone at broadside, track.compensate; over the whole beam on the interleaved
+monostatic-equivalent record for the frequency-domain imagers, record.compensate_record).
 
 Geometry (clsas axes: y along track, x across track towards the imaged side)
 -----------------------------------------------------------------------------
@@ -107,7 +109,8 @@ from __future__ import annotations
 from .correlate import correlations
 from .geometry import beam_sin2, nominal_shift
 from .pairs import PingPairs, estimate
+from .record import beam_correction, compensate_record
 from .track import Trajectory, compensate, integrate, with_track
 
-__all__ = ["PingPairs", "Trajectory", "beam_sin2", "compensate", "correlations", "estimate", "integrate",
-           "nominal_shift", "with_track"]
+__all__ = ["PingPairs", "Trajectory", "beam_correction", "beam_sin2", "compensate", "compensate_record", "correlations",
+           "estimate", "integrate", "nominal_shift", "with_track"]
