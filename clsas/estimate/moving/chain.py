@@ -229,22 +229,30 @@ def estimate_receiver(echo: EchoData, receiver: str, *, p0: float = P0,
     return estimate_records(records(echo, receiver), p0, threshold_db)
 
 
-def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None = None) -> ReceiverEstimate:
+def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None = None,
+           reference: Doppler | None = None) -> ReceiverEstimate:
     """``est`` with tau_c, eta_c and extent measured in the focused image of ``rec`` within
     :data:`EXTENT_WINDOW` of est.tau_c (:mod:`.extent`): focused with est's K_a,eq and f_dc,eq, and
     with ``higher_order`` (n_pulses,) s, the delay's terms beyond the quadratic, when given
     (:func:`.closedforms.higher_order_delay` of a first velocity estimate: they blur and skew
-    the image over long apertures). K_a,eq and f_dc,eq are kept."""
+    the image over long apertures), and with ``reference``'s K_a,eq and f_dc,eq instead of est's
+    when given (the model's Taylor coefficients that go with ``higher_order``: over 80 s the
+    SoWVD's rate is the aperture's average, 4-6 % above them, and would count the quartic
+    twice). K_a,eq and f_dc,eq are kept; eta_c is where the target focuses with them,
+    f~ - K~ eta_c being its centroid."""
     if not est.focusable:
         raise EstimationError(f"receiver {rec.name}: cannot locate a target that does not focus "
                               f"(|K_a,eq| T_a^2 = {abs(est.fm_rate) * est.aperture**2:.3g} < {MIN_TIME_BANDWIDTH})")
     k0 = (est.tau_c - rec.t0) * rec.fs
     half = EXTENT_WINDOW * rec.fs
     bins = slice(int(max(0, np.floor(k0 - half))), int(min(rec.x.shape[1], np.ceil(k0 + half) + 1)))
-    image, eta_axis = focus_bins(rec, est.fm_rate, est.doppler_centroid, bins, higher_order)
+    ref = est if reference is None else reference
+    image, eta_axis = focus_bins(rec, ref.fm_rate, ref.doppler_centroid, bins, higher_order)
     tau_axis = rec.t0 + np.arange(bins.start, bins.stop) / rec.fs
-    ext = extent(image, eta_axis, tau_axis, 1.0 / (abs(est.fm_rate) * est.aperture), 1.0 / rec.bandwidth)
-    return dataclasses.replace(est, tau_c=ext.tau_mid, eta_c=ext.eta_mid, extent=ext)
+    ext = extent(image, eta_axis, tau_axis, 1.0 / (abs(ref.fm_rate) * est.aperture), 1.0 / rec.bandwidth)
+    # the centre's centroid f_ref - K_ref eta_mid, as the eta_c of est's f~ and K~
+    eta_c = (est.doppler_centroid - ref.doppler_centroid + ref.fm_rate * ext.eta_mid) / est.fm_rate
+    return dataclasses.replace(est, tau_c=ext.tau_mid, eta_c=eta_c, extent=ext)
 
 
 def _remove(rec: Records, est: ReceiverEstimate, tau_halfwidth: float, eta_cells: float) -> Records:

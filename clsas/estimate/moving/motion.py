@@ -42,7 +42,8 @@ import numpy as np
 
 from ...data import EchoData, Image
 from .chain import MIN_TIME_BANDWIDTH, estimate_records, focus_receiver, locate, records
-from .closedforms import delay_terms, higher_order_delay
+from .closedforms import Predicted, delay_terms, higher_order_delay
+from .doppler import Doppler
 from .layout import Layout, layout_of
 from .mapping import to_ry
 from .velocity import centroid_sigma, solve_motion, solve_velocity
@@ -193,7 +194,9 @@ def estimate(echo: EchoData, position=None, receivers=None, **chain_options) -> 
         for name, rx in estimates.items():
             if rx.focusable:
                 rec = records(echo, name)  # one receiver's record at a time (Table I: ~0.7 GB each)
-                estimates[name] = locate(rec, rx, higher_order_delay(layout, name, est.position, est.velocity, rec.eta))
+                _, f_dc, k = delay_terms(layout, name, est.position, est.velocity)
+                estimates[name] = locate(rec, rx, higher_order_delay(layout, name, est.position, est.velocity, rec.eta),
+                                         Doppler(fm_rate=float(k), doppler_centroid=float(f_dc)))
         est = motion_from_receivers(layout, estimates, position)
     return est
 
@@ -214,8 +217,12 @@ def focus(echo: EchoData, est: MotionEstimate, tau_span: float | None = None) ->
     for name, rx in est.receivers.items():
         if name in est.cannot_focus:
             continue
-        image: Image = focus_receiver(echo, name, rx, tau_span=tau_span, higher_order=higher_order_delay(
-            est.layout, name, est.position, est.velocity, echo.eta))
-        eta_c = float(rx.eta_c) if np.isfinite(getattr(rx, "eta_c", np.nan)) else est.layout.eta_ref
+        # the model's whole phase history at est: its Taylor K and f_dc with the higher-order terms
+        _, f_dc, k = delay_terms(est.layout, name, est.position, est.velocity)
+        model = Predicted(fm_rate=float(k), doppler_centroid=float(f_dc), tau_c=float(rx.tau_c))
+        image: Image = focus_receiver(echo, name, model, tau_span=tau_span,
+                                      higher_order=higher_order_delay(est.layout, name, est.position, est.velocity,
+                                                                      echo.eta))
+        eta_c = -(est.centroids[name] - model.doppler_centroid) / model.fm_rate  # where the centre focuses
         images[name] = to_ry(image, est.layout, name, est.position, est.velocity, rx.tau_c, eta_c)
     return images
