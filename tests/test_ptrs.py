@@ -183,8 +183,12 @@ def test_bad_input(opencl_device):
         ptrs_image(echo, receivers=list(range(10)))  # a part of the array leaves gaps between pings
     with pytest.raises(ValueError, match="track line"):
         ptrs_image(echo.replace(rx_pos=echo.rx_pos + np.array([0.0, 0.0, 0.3])))
-    with pytest.raises(ValueError, match="reference_range"):
-        clsas.pca_record(echo, reference_range=-1.0)
+    for value, error in ((-1.0, ValueError), (np.nan, ValueError), (1e30, ValueError), ("far", TypeError)):
+        for backend in ("numpy", "opencl"):
+            with pytest.raises(error, match="reference_range"):
+                clsas.pca_record(echo, reference_range=value, backend=backend)
+    with pytest.raises(TypeError, match="rcmc"):
+        ptrs_image(echo, rcmc="yes")
 
 
 @pytest.mark.slow

@@ -141,8 +141,9 @@ def compensate_bistatic(data, t0: float, fs: float, d: float, speed: float, wave
     n = data.shape[1]
     t_out = (t0 if t0_out is None else t0_out) + np.arange(n) / fs
     r = c * t_out / 2
-    if reference_range is not None and not (np.isfinite(reference_range) and reference_range > 0):
-        raise ValueError(f"reference_range must be a positive range in m (or None), got {reference_range!r}")
+    if reference_range is not None:
+        reference_range = validate.scalar("reference_range", reference_range, low=0.0, high=float(r[-1]), low_open=True,
+                                          unit="m", why="a range the record reaches, or None")
     at = r if reference_range is None else np.full_like(r, float(reference_range))
     # samples before the emission (t0 may be negative) hold no echo: no excess there
     excess = np.where(r > 0, path_excess(np.where(r > 0, at, 1.0), d, speed, c, nonstop), 0.0)

@@ -145,6 +145,8 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     Image, dims ("y", "x"), along-track rows every v PRI / M.
     """
     _check_width(block_width)
+    if not isinstance(rcmc, (bool, np.bool_)):
+        raise TypeError(f"rcmc: must be True or False, got {rcmc!r} ({type(rcmc).__name__})")
     if window not in WINDOWS:
         raise ValueError(f"window must be one of {WINDOWS}, got {window!r}")
     if points is not None and not isinstance(points, StationaryPoints):
