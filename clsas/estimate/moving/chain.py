@@ -47,6 +47,7 @@ from ...image.rangecomp import range_compress
 from . import filters, radon, trace
 from .doppler import Doppler
 from .extent import Extent, extent
+from .sharpen import fm_rate_correction, polynomial_phase, residual_phase
 from .sowvd import SoWVD, modified_sowvd, rfrt
 
 log = logging.getLogger("clsas")
@@ -173,19 +174,82 @@ def doppler_centroid_radon(rec: Records, rcmc: np.ndarray) -> tuple[float, float
     return slope * rec.f0 * rec.prf / rec.fs, rec.t0 + k_zero / rec.fs
 
 
-def focus_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: slice,
-               higher_order: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Step 5: RCMC + RWC of the whole record, then azimuth compression of the range ``bins``:
-    (image (n_eta, n_bins), eta axis (n_eta,) s). ``higher_order`` (n_pulses,) s: the delay's
-    terms beyond the quadratic, compensated with it (:func:`.filters.migration`). Only the
-    samples the shifts bring into ``bins`` are shifted (and :data:`MARGIN` more each side)."""
+def align_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: slice,
+               higher_order: np.ndarray | None = None, walk: float = 0.0) -> np.ndarray:
+    """RCMC + RWC of the record (and ``higher_order`` (n_pulses,) s, the delay's terms beyond
+    the quadratic: :func:`.filters.migration`) cut to the range ``bins``: (n_pulses, n_bins)
+    complex64. ``walk`` (s/s) is a range walk about the middle of the record compensated in
+    range only, its phase left (:func:`sharpened_bins`). Only the samples the shifts bring into
+    ``bins`` are shifted (and :data:`MARGIN` more each side)."""
     shift, cycles = filters.migration(rec.eta, rec.f0, fm_rate, doppler_centroid, higher_order)
+    if walk:
+        shift = shift + walk * (rec.eta - 0.5 * (rec.eta[0] + rec.eta[-1]))
     n = rec.x.shape[1]
     start, stop, _ = bins.indices(n)
     lo = int(np.clip(start + np.floor(shift.min() * rec.fs) - MARGIN, 0, n))
     hi = int(np.clip(stop + np.ceil(shift.max() * rec.fs) + MARGIN, lo + 1, n))
-    aligned = filters.advance(rec.x[:, lo:hi], rec.fs, shift, cycles)
-    return filters.compress(aligned[:, start - lo:stop - lo], rec.eta, fm_rate)
+    return filters.advance(rec.x[:, lo:hi], rec.fs, shift, cycles)[:, start - lo:stop - lo]
+
+
+def focus_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: slice,
+               higher_order: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Step 5: :func:`align_bins`, then azimuth compression of the range ``bins``:
+    (image (n_eta, n_bins), eta axis (n_eta,) s)."""
+    return filters.compress(align_bins(rec, fm_rate, doppler_centroid, bins, higher_order), rec.eta, fm_rate)
+
+
+#: Alignments of :func:`sharpened_bins` at most (each followed by a sharpness search).
+SHARPEN_ALIGNMENTS = 3
+
+
+def sharpened_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: slice,
+                   higher_order: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`focus_bins` with the target's residual phase found by sharpness and removed
+    (:mod:`.sharpen`): (image, eta axis, (p2, p3, p4) cycles at the aperture's ends).
+
+    The residual is a delay error: its polynomial part phi / f0 (from the sharpness search) and
+    its linear part, which the search leaves to move the image (the centroid's error df: the
+    target focuses at eta_p = -df / K), so a range walk df / f0 = -K eta_p / f0 with eta_p the
+    image's peak. Both are compensated in range too (the walk in range only, keeping the image
+    where the centroid puts it); when they moved the record by more than a tenth of a range
+    cell 1 / B at the aperture's ends, the record is aligned again with them and searched again
+    (at most :data:`SHARPEN_ALIGNMENTS` times). On an extended target the peak is its strongest
+    scatterer, whose walk differs from the centre's (the chain's RCMC is the reference
+    point's). The Taylor terms are taken about the middle of the record (the layout's default
+    eta_ref)."""
+    eta_ref = 0.5 * float(rec.eta[0] + rec.eta[-1])
+    half = 0.5 * float(np.ptp(rec.eta))
+    n = rec.x.shape[1]
+    start, stop, _ = bins.indices(n)
+    # the record aligned once with the model over the bins and a margin; the corrections
+    # (a few range cells at most) then shift this window only
+    wide = slice(max(0, start - MARGIN), min(n, stop + MARGIN))
+    aligned = align_bins(rec, fm_rate, doppler_centroid, wide, higher_order)
+    inner = slice(start - wide.start, stop - wide.start)
+    span = rec.f0 * float(np.max(np.abs(higher_order))) if higher_order is not None else 0.0
+    d = rec.eta - eta_ref
+    delay, total, walk = np.zeros(rec.eta.shape), np.zeros(3), 0.0
+
+    def window():  # the walk in range only: its phase is where the image lies, not an error
+        if not np.any(delay) and walk == 0.0:
+            return aligned[:, inner].copy()
+        return filters.advance(aligned, rec.fs, delay + walk * d, rec.f0 * delay)[:, inner]
+
+    for _ in range(SHARPEN_ALIGNMENTS):
+        win = window()
+        p = residual_phase(win, rec.eta, fm_rate, eta_ref, span)
+        total += p
+        step = polynomial_phase(rec.eta, eta_ref, p) / rec.f0
+        win *= np.exp(2j * np.pi * rec.f0 * step).astype(np.complex64)[:, None]
+        image, eta_axis = filters.compress(win, rec.eta, fm_rate)
+        row = np.unravel_index(int(np.argmax(np.abs(image))), image.shape)[0]
+        new_walk = -fm_rate * float(eta_axis[row]) / rec.f0
+        moved = float(np.max(np.abs(step))) + abs(new_walk - walk) * half
+        delay, walk = delay + step, new_walk
+        if moved * rec.bandwidth <= 0.1:
+            return image, eta_axis, total
+    image, eta_axis = filters.compress(window(), rec.eta, fm_rate)
+    return image, eta_axis, total
 
 
 def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHOLD_DB) -> ReceiverEstimate:
@@ -296,12 +360,16 @@ def estimate_receivers(echo: EchoData, receiver: str, n_targets: int = 2, *, p0:
 
 
 def focus_receiver(echo: EchoData, receiver: str, rx_estimate: ReceiverEstimate, *,
-                   tau_span: float | None = None, higher_order: np.ndarray | None = None) -> Image:
+                   tau_span: float | None = None, higher_order: np.ndarray | None = None,
+                   sharpen: bool = False) -> Image:
     """The target focused on the tau-eta plane from ``receiver``'s raw echo with ``rx_estimate``'s
     K_a,eq and f_dc,eq: RCMC, range-walk compensation and azimuth compression (eqs. 17-20), and
     the delay's terms beyond the quadratic, ``higher_order`` (n_pulses,) s, when given
     (:func:`.closedforms.higher_order_delay`: the quadratic focus leaves them, which blurs
-    80 s apertures).
+    80 s apertures). ``sharpen``: the residual phase beyond those (what the estimate's errors
+    leave) is found by image sharpness and removed (:func:`sharpened_bins`, :mod:`.sharpen`);
+    the provenance then holds it ("residual_phase_cycles", (p2, p3, p4)) and the data's Taylor
+    FM rate ("sharpened_fm_rate", Hz/s).
 
     Returns an Image with dims ("eta", "tau"): eta spans one period PRF / |K| centred on the
     focus (see :mod:`.filters`), tau the receiver's fast times (all of them, or ``tau_span``
@@ -326,10 +394,14 @@ def focus_receiver(echo: EchoData, receiver: str, rx_estimate: ReceiverEstimate,
             raise ValueError("tau_span needs rx_estimate.tau_c")
         half = 0.5 * tau_span * rec.fs
         bins = slice(int(np.clip(np.floor(centre - half), 0, n - 1)), int(np.clip(np.ceil(centre + half) + 1, 1, n)))
-    image, eta_axis = focus_bins(rec, rx_estimate.fm_rate, rx_estimate.doppler_centroid, bins, higher_order)
+    provenance = {"algorithm": "clsas.estimate.moving.focus_receiver", "receiver": receiver,
+                  "fm_rate": float(rx_estimate.fm_rate), "doppler_centroid": float(rx_estimate.doppler_centroid),
+                  "range_upsample": UPSAMPLE, "reference": "Kiang & Kiang 2022 eqs. 17-20"}
+    if sharpen:
+        image, eta_axis, p = sharpened_bins(rec, rx_estimate.fm_rate, rx_estimate.doppler_centroid, bins, higher_order)
+        provenance.update(residual_phase_cycles=tuple(float(c) for c in p),
+                          sharpened_fm_rate=float(rx_estimate.fm_rate + fm_rate_correction(rec.eta, p[0])))
+    else:
+        image, eta_axis = focus_bins(rec, rx_estimate.fm_rate, rx_estimate.doppler_centroid, bins, higher_order)
     tau = rec.t0 + np.arange(bins.start, bins.stop) / rec.fs
-    return Image(image, ("eta", "tau"), {"eta": eta_axis, "tau": tau},
-                 provenance={"algorithm": "clsas.estimate.moving.focus_receiver", "receiver": receiver,
-                             "fm_rate": float(rx_estimate.fm_rate),
-                             "doppler_centroid": float(rx_estimate.doppler_centroid),
-                             "range_upsample": UPSAMPLE, "reference": "Kiang & Kiang 2022 eqs. 17-20"})
+    return Image(image, ("eta", "tau"), {"eta": eta_axis, "tau": tau}, provenance=provenance)
