@@ -112,7 +112,7 @@ def residual_phase(aligned: np.ndarray, eta: np.ndarray, fm_rate: float, eta_ref
     eta = np.asarray(eta, dtype=np.float64)
     # the deramp of :func:`.filters.compress` once; |FFT|^4 summed is its image's sum |I|^4
     # (the bins' order and the phase of eta_0 do not change it)
-    deramp = np.exp(1j * np.pi * fm_rate * eta**2)
+    deramp = np.exp(1j * np.pi * fm_rate * (eta - eta_ref) ** 2)
     sub = (aligned[:, np.argsort(energy)[-BINS:]] * deramp[:, None]).astype(np.complex64)
     n_eta = scipy.fft.next_fast_len(PAD * eta.size)
     half = 0.5 * float(np.ptp(eta))
