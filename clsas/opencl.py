@@ -51,6 +51,7 @@ class Runtime:
 
 
 _runtimes: dict[str, Runtime] = {}
+_runtime_by_spec: dict[str | None, Runtime] = {}  # the resolved device spec -> its Runtime, so a call costs a lookup
 _programs: dict[tuple, object] = {}
 _kernels: dict[tuple, object] = {}  # (id(program), kernel name, thread) -> Kernel
 _sources: dict[str, tuple[str, str]] = {}  # kernels/NAME.cl -> (text, digest), read once per process
@@ -113,9 +114,17 @@ def _device_key(device) -> str:
 
 
 def runtime(device: str | None = None) -> Runtime:
-    """The (device, context, queue) for ``device`` (a spec; None = the default device)."""
+    """The (device, context, queue) for ``device`` (a spec; None = the default device).
+
+    Platforms are enumerated once per resolved spec (the argument, else the environment at
+    the time of the call); later calls with the same spec are a dictionary lookup.
+    """
+    spec = _device_spec(device)
+    rt = _runtime_by_spec.get(spec)
+    if rt is not None:
+        return rt
     cl = _import_pyopencl()
-    dev = select_device(device)
+    dev = select_device(spec)
     key = _device_key(dev)
     rt = _runtimes.get(key)
     if rt is None:
@@ -125,6 +134,7 @@ def runtime(device: str | None = None) -> Runtime:
         _runtimes[key] = rt
         logging.getLogger("clsas").info("OpenCL device: %s / %s, %d compute units, OpenCL %s", dev.platform.name,
                                         dev.name, dev.max_compute_units, dev.version)
+    _runtime_by_spec[spec] = rt
     return rt
 
 

@@ -10,7 +10,8 @@
  * child k: r_c = |X - C_k|, v_c = u_k . (X - C_k) / r_c, positions (r_c - r0) / dr and
  * (v_c - v0) / dv, the TAPS x TAPS windowed-sinc read of the child's image (n_v, n_r, range
  * fastest; the taps of the nearest of TAP_ROWS table rows, interp.h; nothing unless every sample
- * exists; a child none of the sixteen lanes falls in is skipped), times
+ * exists; a child none of the sixteen lanes falls in is skipped, tested first on the lanes'
+ * bounding box, then lane by lane), times
  * exp(j 2 pi 2 f0 (r_c - r_p) / c) with r_p the parent's range (0 for points). Geometry,
  * positions and cycles in double (ranges of kilometres at 150 kHz need it), vectorised over the
  * lanes; the interpolation, the phase factor and the sum in float: each lane's TAPS rows of
@@ -19,7 +20,8 @@
  *
  * frames (double, 20 a child): centre 0-2, axis 3-5, e1 6-8, e2 9-11, r0 12, dr 13, v0 14,
  * dv 15, n_r 16, n_v 17. params (double): the parent's frame 0-19 (PARENT_GRID), the plane's
- * normal 20-22 and offset 23, 2 f0 / c (cycles per metre) 24.
+ * normal 20-22 and offset 23, 2 f0 / c (cycles per metre) 24. images holds the children at
+ * offsets (complex samples); the result goes to out from out_offset on.
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 
@@ -68,6 +70,23 @@ inline float2 lane_products(const int ok, __global const float *s, const int n_r
 #endif
 #define LANE_PRODUCTS(L) lane_products(ok.s##L, img + 2 * (iv.s##L * n_r + ir.s##L), n_r, taps, row_v.s##L, row_r.s##L)
 
+/* The smallest and the largest of sixteen lanes. */
+inline double hmin16(const double16 a)
+{
+    const double8 b = fmin(a.lo, a.hi);
+    const double4 c = fmin(b.lo, b.hi);
+    const double2 d = fmin(c.lo, c.hi);
+    return fmin(d.x, d.y);
+}
+
+inline double hmax16(const double16 a)
+{
+    const double8 b = fmax(a.lo, a.hi);
+    const double4 c = fmax(b.lo, b.hi);
+    const double2 d = fmax(c.lo, c.hi);
+    return fmax(d.x, d.y);
+}
+
 /* X(r, v) (PolarGrid.points) of samples (j, i) (sixteen range indices i) of the polar grid of
  * frame f (20 doubles, the layout of frames below) on the plane m . X = offset (plane: m 0-2,
  * offset 3), in x, y, z; returns their ranges r. */
@@ -111,11 +130,40 @@ __kernel void ffbp_fields(__global const int4 *items, __global const double *fra
     STORE_F16(convert_float16(dx * dx + dy * dy + dz * dz), fields + 3 * (size_t)m_pad + o);
 }
 
+/* The first stage's demodulated leaf image from bp_tile's slots (clsas/image/ffbp/leaves.py):
+ * work-item g of a leaf's items[first + g] = (leaf, row, first range sample, tile) holds slots
+ * 16 (first + g) .. + 15 of image; each slot inside the grid (frame: 20 doubles, as below) goes to
+ * out[out_offset + row * n_r + column] times exp(-j 2 pi cycles_per_m r) (the demodulation by its
+ * range r), complex64. */
+__kernel void ffbp_leaf(__global const double2 *image, __global const int4 *items, const int first,
+                        __global const double *frame, const double cycles_per_m, const long out_offset,
+                        __global float2 *out)
+{
+    const int g = first + get_global_id(0);
+    const int4 t = items[g];
+    const int n_r = (int)frame[16], n_v = (int)frame[17];
+    if (t.y >= n_v)
+        return;
+    const double16 cycles = cycles_per_m * (frame[12] + (t.z + LANE_INDEX) * frame[13]);
+    float16 cs, sn;
+    expj_fraction16(convert_float16(cycles - convert_double16(convert_long16(cycles))), &cs, &sn);
+    float c_out[16], s_out[16];
+    vstore16(cs, 0, c_out);
+    vstore16(sn, 0, s_out);
+    __global float2 *o = out + out_offset + (size_t)t.y * n_r + t.z;
+    for (int l = 0; l < min(16, n_r - t.z); ++l) {
+        const double2 v = image[16 * (size_t)g + l];
+        const float2 a = (float2)((float)v.x, (float)v.y);
+        o[l] = (float2)(a.x * c_out[l] + a.y * s_out[l], a.y * c_out[l] - a.x * s_out[l]);
+    }
+}
+
 __kernel void ffbp_merge(__global const float2 *images, __global const long *offsets,
                          __global const double *frames, __global const float *taps,
                          __global const double *points, __global const double *params,
-                         const int n_children, const int n_out, __global float2 *out)
+                         const int n_children, const int n_out, const long out_offset, __global float2 *out)
 {
+    out += out_offset;
     double16 x, y, z, r_p;
     int n_valid;
     size_t first;
@@ -146,14 +194,30 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
     r_p = (double16)0.0;
 #endif
     const double cycles_per_m = params[24];
+    /* the lanes' bounding box: its centre and half-diagonal, for a cheap test of each child */
+    const double3 lo = (double3)(hmin16(x), hmin16(y), hmin16(z)), hi = (double3)(hmax16(x), hmax16(y), hmax16(z));
+    const double3 mid = 0.5 * (lo + hi);
+    const double radius = 0.5 * length(hi - lo);
     float16 acc_re = (float16)0.0f, acc_im = (float16)0.0f;
     for (int k = 0; k < n_children; ++k) {
         __global const double *f = frames + FRAME * k;
+        /* skip a child whose grid no lane can fall in: the box's range from the child's centre
+         * within radius of the middle's, its sine within radius / (range - radius) (|grad v| <= 1 / r) */
+        const double3 dm = mid - vload3(0, f);
+        const double rm = length(dm);
+        if (rm + radius < f[12] || rm - radius > f[12] + (f[16] - 1.0) * f[13])
+            continue;
+        if (rm > radius) {
+            const double vm = dot(dm, vload3(1, f)) / rm, slack = radius / (rm - radius);
+            if (vm + slack < f[14] || vm - slack > f[14] + (f[17] - 1.0) * f[15])
+                continue;
+        }
         const double16 dx = x - f[0], dy = y - f[1], dz = z - f[2];
         const double16 rc = sqrt(dx * dx + dy * dy + dz * dz);
         /* positions in samples, bounded before the conversion (out-of-range converts are undefined) */
-        const double16 pv = clamp(((dx * f[3] + dy * f[4] + dz * f[5]) / rc - f[14]) / f[15], -1.0, 1e9);
-        const double16 pr = clamp((rc - f[12]) / f[13], -1.0, 1e9);
+        const double per_dv = 1.0 / f[15], per_dr = 1.0 / f[13];  /* one scalar division, not sixteen */
+        const double16 pv = clamp(((dx * f[3] + dy * f[4] + dz * f[5]) / rc - f[14]) * per_dv, -1.0, 1e9);
+        const double16 pr = clamp((rc - f[12]) * per_dr, -1.0, 1e9);
         const int n_r = (int)f[16], n_v = (int)f[17];
         const int16 fv = convert_int16(pv), fr = convert_int16(pr);  /* floor where >= 0 (PoCL's floor() is slow) */
         const int16 iv = fv - (TAPS / 2 - 1), ir = fr - (TAPS / 2 - 1);

@@ -62,6 +62,7 @@ def _no_device(monkeypatch):
 
     monkeypatch.setattr(opencl, "_all_devices", fail)
     monkeypatch.setattr(opencl, "_runtimes", {})
+    monkeypatch.setattr(opencl, "_runtime_by_spec", {})
 
 
 def test_opencl_without_device_raises_with_install_hint(monkeypatch):
@@ -110,10 +111,13 @@ def test_clsas_device_environment(monkeypatch, opencl_device):
     monkeypatch.setenv("CLSAS_DEVICE", "no-such-device-xyz")
     with pytest.raises(opencl.OpenCLUnavailable, match="CLSAS_DEVICE"):
         opencl.select_device()
+    with pytest.raises(opencl.OpenCLUnavailable, match="CLSAS_DEVICE"):
+        opencl.runtime()  # the cache is keyed by the resolved spec: a new environment is honoured
 
 
 def test_one_runtime_per_device(opencl_device):
     assert opencl.runtime() is opencl.runtime()
+    assert opencl.runtime("0:0") is opencl.runtime(opencl_device.device.name)  # two specs, one device
 
 
 def test_program_cache_keyed_by_options(opencl_device):
