@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...data import EchoData, Image
-from .chain import MIN_TIME_BANDWIDTH, estimate_records, focus_receiver, locate, records
+from .chain import MIN_TIME_BANDWIDTH, UPSAMPLE, estimate_records, focus_receiver, locate, records
 from .closedforms import Predicted, delay_terms, higher_order_delay
 from .doppler import Doppler
 from .layout import Layout, layout_of
@@ -61,6 +61,9 @@ log = logging.getLogger("clsas")
 #: Taylor coefficients at eta_ref, the focus sees the aperture (measured on point targets, Table II
 #: cases 1-8, 2048 pulses: 0.00-0.07 Hz from the closed forms).
 REFINED_SIGMA = 0.05
+#: :func:`estimate` keeps the receivers' range-compressed records between its passes up to this
+#: many bytes in all (above, each is made again when needed, one at a time).
+KEEP_RECORDS_BYTES = 256 << 20
 #: Passes of :func:`estimate` that refocus every receiver with the delay's higher-order terms at
 #: the previous pass's solution and solve again (module docstring).
 REFOCUS_PASSES = 2
@@ -194,13 +197,22 @@ def estimate(echo: EchoData, position=None, receivers=None, **chain_options) -> 
     """
     names = check_echo(echo, receivers)
     position = _check_position(position)
-    estimates = {name: estimate_records(records(echo, name), **chain_options) for name in names}
+    # the range-compressed records are kept for the refocus passes when they are small, and made
+    # again one at a time when not (Table I: ~0.7 GB each)
+    keep = len(names) * echo.n_pulses * echo.n_samples * 8 * UPSAMPLE <= KEEP_RECORDS_BYTES
+    kept, estimates = {}, {}
+    for name in names:
+        rec = records(echo, name)
+        estimates[name] = estimate_records(rec, **chain_options)
+        if keep:
+            kept[name] = rec
+    del rec
     layout = layout_of(echo)
     est = motion_from_receivers(layout, estimates, position)
     for _ in range(REFOCUS_PASSES):
         for name, rx in estimates.items():
             if rx.focusable:
-                rec = records(echo, name)  # one receiver's record at a time (Table I: ~0.7 GB each)
+                rec = kept[name] if keep else records(echo, name)
                 _, f_dc, k = delay_terms(layout, name, est.position, est.velocity)
                 estimates[name] = locate(rec, rx, higher_order_delay(layout, name, est.position, est.velocity, rec.eta),
                                          Doppler(fm_rate=float(k), doppler_centroid=float(f_dc)))

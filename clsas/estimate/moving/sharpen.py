@@ -17,11 +17,11 @@ What. With u = (eta - eta_ref) / (T_a / 2) in [-1, 1] and the residual phase wri
     phi(u) = p2 u^2 + p3 u^3 + p4 u^4          (cycles at the aperture's ends),
 
 :func:`residual_phase` finds p2, p3, p4 that maximise the image's sharpness sum |I|^4 (I the
-deramp-FFT compression of the aligned record times exp(j 2 pi phi), :func:`.filters.compress`,
-twice zero-padded: unpadded, sum |I|^4 scallops with the peak's place between bins, which biased
-the cubic term by 0.3 cycles;
+deramp-FFT compression of the aligned record times exp(j 2 pi phi), :func:`.filters.compress`;
 the compression is unitary, so sum |I|^2 is the same for every phi and sum |I|^4 alone measures
-the concentration). The linear term is left out: it only moves the image, which is how the
+the concentration). The compression is zero-padded twice (:data:`PAD`): unpadded, sum |I|^4
+scallops with the peak's place between bins, which the cubic term (it moves the peak) followed:
+0.3 cycles off on Table II case 6 at C. The linear term is left out: it only moves the image, which is how the
 chain measures the centroid (:func:`.motion.refined_centroid`). The monomials are Taylor terms
 at eta_ref, not orthogonal polynomials, on purpose: a cubic term (with its linear
 least-squares part 3/5 u) would also move the peak, and the peak must stay where the Taylor
@@ -48,6 +48,9 @@ Spans (derived from the error budget above): p2 over +-``rate_span`` |K| (T_a / 
 (the default 3 % of K: a velocity error of ~1.5 %, the hull's worst), p3 and p4 over
 +-(``order_span`` max |f0 h| + 1) cycles, h the model's higher-order delay (the default 10 % of
 it: a velocity error of a few %).
+
+The residual is also a delay error, and its range walk (the linear part, which the centroid's
+error leaves) is compensated in range by :func:`.chain.sharpened_bins`, which runs this search.
 """
 
 from __future__ import annotations
