@@ -10,7 +10,8 @@
  * child k: r_c = |X - C_k|, v_c = u_k . (X - C_k) / r_c, positions (r_c - r0) / dr and
  * (v_c - v0) / dv, the TAPS x TAPS windowed-sinc read of the child's image (n_v, n_r, range
  * fastest; the taps of the nearest of TAP_ROWS table rows, interp.h; nothing unless every sample
- * exists; a child none of the sixteen lanes falls in is skipped), times
+ * exists; a child none of the sixteen lanes falls in is skipped, tested first on the lanes'
+ * bounding box, then lane by lane), times
  * exp(j 2 pi 2 f0 (r_c - r_p) / c) with r_p the parent's range (0 for points). Geometry,
  * positions and cycles in double (ranges of kilometres at 150 kHz need it), vectorised over the
  * lanes; the interpolation, the phase factor and the sum in float: each lane's TAPS rows of
@@ -67,6 +68,23 @@ inline float2 lane_products(const int ok, __global const float *s, const int n_r
 #error "TAPS must be 4 or 8"
 #endif
 #define LANE_PRODUCTS(L) lane_products(ok.s##L, img + 2 * (iv.s##L * n_r + ir.s##L), n_r, taps, row_v.s##L, row_r.s##L)
+
+/* The smallest and the largest of sixteen lanes. */
+inline double hmin16(const double16 a)
+{
+    const double8 b = fmin(a.lo, a.hi);
+    const double4 c = fmin(b.lo, b.hi);
+    const double2 d = fmin(c.lo, c.hi);
+    return fmin(d.x, d.y);
+}
+
+inline double hmax16(const double16 a)
+{
+    const double8 b = fmax(a.lo, a.hi);
+    const double4 c = fmax(b.lo, b.hi);
+    const double2 d = fmax(c.lo, c.hi);
+    return fmax(d.x, d.y);
+}
 
 /* X(r, v) (PolarGrid.points) of samples (j, i) (sixteen range indices i) of the polar grid of
  * frame f (20 doubles, the layout of frames below) on the plane m . X = offset (plane: m 0-2,
@@ -146,9 +164,24 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
     r_p = (double16)0.0;
 #endif
     const double cycles_per_m = params[24];
+    /* the lanes' bounding box: its centre and half-diagonal, for a cheap test of each child */
+    const double3 lo = (double3)(hmin16(x), hmin16(y), hmin16(z)), hi = (double3)(hmax16(x), hmax16(y), hmax16(z));
+    const double3 mid = 0.5 * (lo + hi);
+    const double radius = 0.5 * length(hi - lo);
     float16 acc_re = (float16)0.0f, acc_im = (float16)0.0f;
     for (int k = 0; k < n_children; ++k) {
         __global const double *f = frames + FRAME * k;
+        /* skip a child whose grid no lane can fall in: the box's range from the child's centre
+         * within radius of the middle's, its sine within radius / (range - radius) (|grad v| <= 1 / r) */
+        const double3 dm = mid - vload3(0, f);
+        const double rm = length(dm);
+        if (rm + radius < f[12] || rm - radius > f[12] + (f[16] - 1.0) * f[13])
+            continue;
+        if (rm > radius) {
+            const double vm = dot(dm, vload3(1, f)) / rm, slack = radius / (rm - radius);
+            if (vm + slack < f[14] || vm - slack > f[14] + (f[17] - 1.0) * f[15])
+                continue;
+        }
         const double16 dx = x - f[0], dy = y - f[1], dz = z - f[2];
         const double16 rc = sqrt(dx * dx + dy * dy + dz * dz);
         /* positions in samples, bounded before the conversion (out-of-range converts are undefined) */

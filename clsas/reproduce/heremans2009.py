@@ -1,7 +1,8 @@
 """Heremans et al. 2009 section 5: DPCA sway and yaw vs the truth, images before/after compensation.
 
 Prints the DPCA sway and yaw per ping against the injected truth, and the nine-point image's
-azimuth PSLR, ISLR and entropy before and after motion compensation; then phase gradient
+azimuth PSLR, ISLR and entropy before and after motion compensation (back-projected; and by
+omega-k on the interleaved record compensated over the beam, dpca.compensate_record); then phase gradient
 autofocus on Kiang & Kiang 2022's cases 5, 6 and 8 (blurred in that paper, section VII-D):
 entropy, contrast and azimuth PSLR of each receiver's focused image before and after PGA.
 
@@ -25,7 +26,7 @@ import numpy as np
 from .. import metrics
 from ..data import Grid
 from ..estimate import dpca
-from ..image import backproject, range_compress
+from ..image import backproject, omega_k, pca_record, range_compress
 from ..scene import presets
 from ..scene.scenario import Platform
 from ..scene.targets import PointTargets
@@ -107,6 +108,16 @@ def run(args: argparse.Namespace) -> int:
             plot.save_figure(plot.plot_image(image, floor_db=-40, title=f"Heremans 2009: {name}"), out / f"{stem}.png")
         except ImportError:
             pass
+    # The frequency-domain imagers on the interleaved record of hydrophones 5-11 (7 phase
+    # centres a ping interleave without overlap), compensated over the whole beam.
+    receivers = list(range(4, 11))
+    records = {"motion-free": pca_record(clean, receivers),
+               "compensated over the beam": dpca.compensate_record(echo, track, scene, receivers)}
+    print(f"\n{'omega-k, PCA record':26s} {'PSLR az dB':>11} {'ISLR az dB':>11} {'entropy':>8}")
+    for name, record in records.items():
+        image = omega_k(record, elements=(d, d), window="none", deconvolve=False)
+        res = metrics.analyse_point(image, near=(0.0, R0), radius=d)
+        print(f"{name:26s} {res['y'].pslr_db:11.2f} {res['y'].islr_db:11.2f} {metrics.entropy(image):8.3f}")
     if args.kiang_cases:
         _kiang_pga(args.kiang_cases, args.kiang_targets, out)
     print(f"\nimages in {out}/")

@@ -35,7 +35,8 @@ def peak_ratio(y_minus, y0, y_plus):
 DIRECT_T_LAGS = 9
 
 
-def correlations(f: np.ndarray, g: np.ndarray, t_lags: int, method: str = "auto") -> np.ndarray:
+def correlations(f: np.ndarray, g: np.ndarray, t_lags: int, method: str = "auto", delay=None,
+                 fs: float | None = None) -> np.ndarray:
     """Normalised cross-correlations of eq. (51) over range blocks.
 
     f, g : complex (..., n_blocks, block) — the ping-p and ping-(p + 1) records of each couple;
@@ -43,15 +44,27 @@ def correlations(f: np.ndarray, g: np.ndarray, t_lags: int, method: str = "auto"
     sqrt(sum |f|^2 sum |g|^2), m = -t_lags..t_lags, samples beyond the block ignored (the grey
     bins of Fig. 17). method : "direct" (one multiply-add pass a t-lag), "fft" (each block
     zero-padded to block + t_lags, every lag computed, 2 t_lags + 1 kept) or "auto" (direct up
-    to DIRECT_T_LAGS t-lags)."""
+    to DIRECT_T_LAGS t-lags).
+
+    delay : s, broadcastable to f.shape[:-1], or None: correlate with g's envelope advanced by
+    ``delay``, g(t) -> g(t + delay) over its baseband spectrum (its phase kept: the carrier
+    part of a delay is the caller's), ``fs`` the sampling rate in Hz. A fraction of a sample
+    counts: computed by FFT with the blocks zero-padded to at least 2 block - 1 samples, so
+    that the whole linear correlation is held without wrap-around and the shift interpolates
+    it band-limited (``method`` must then be "auto" or "fft")."""
     if method not in ("auto", "direct", "fft"):
         raise ValueError(f"correlations: method must be 'auto', 'direct' or 'fft', got {method!r}")
+    if delay is not None and (method == "direct" or fs is None):
+        raise ValueError("correlations: a delay needs method 'auto' or 'fft' and the sampling rate fs")
     n = f.shape[-1]
     norm = np.sqrt(np.sum(np.abs(f) ** 2, axis=-1) * np.sum(np.abs(g) ** 2, axis=-1))
-    if method == "fft" or (method == "auto" and 2 * t_lags + 1 > DIRECT_T_LAGS):
-        size = scipy.fft.next_fast_len(n + t_lags)
-        cross = scipy.fft.ifft(scipy.fft.fft(f, size, axis=-1) * np.conj(scipy.fft.fft(g, size, axis=-1)), axis=-1)
-        out = cross[..., np.arange(-t_lags, t_lags + 1) % size]
+    if delay is not None or method == "fft" or (method == "auto" and 2 * t_lags + 1 > DIRECT_T_LAGS):
+        size = scipy.fft.next_fast_len(n + t_lags if delay is None else 2 * n - 1)
+        cross = scipy.fft.fft(f, size, axis=-1) * np.conj(scipy.fft.fft(g, size, axis=-1))
+        if delay is not None:
+            freq = scipy.fft.fftfreq(size, 1 / fs)
+            cross *= np.exp(-2j * np.pi * np.asarray(delay, dtype=np.float64)[..., None] * freq).astype(np.complex64)
+        out = scipy.fft.ifft(cross, axis=-1)[..., np.arange(-t_lags, t_lags + 1) % size]
     else:
         g_conj = np.conj(g)
         out = np.empty(f.shape[:-1] + (2 * t_lags + 1,), dtype=np.complex64)
@@ -78,14 +91,3 @@ def aligned(echo: EchoData, h: int) -> tuple[np.ndarray, float]:
     for k in range(h):
         out[k, :, shift[k]:shift[k] + echo.n_samples] = echo.data[k]
     return out, start
-
-
-def advance(records: np.ndarray, dt: np.ndarray, fs: float, workers: int | None = -1) -> np.ndarray:
-    """records (..., pulse, sample) with each pulse's envelope advanced by dt (s, (pulse,)), its
-    carrier phase kept: x(t) -> x(t + dt) at baseband, by exp(+j 2 pi f dt) over the baseband
-    frequencies f (circular: dt of a few samples wraps that many at the record's ends);
-    complex64."""
-    f = scipy.fft.fftfreq(records.shape[-1], 1 / fs)
-    spec = scipy.fft.fft(records, axis=-1, workers=workers)
-    spec *= np.exp(2j * np.pi * np.asarray(dt)[:, None] * f[None, :]).astype(np.complex64)
-    return scipy.fft.ifft(spec, axis=-1, workers=workers).astype(np.complex64)

@@ -55,7 +55,8 @@ import numpy as np
 from ...interp import tap_table
 
 RHO_STEPS = np.round(np.arange(1.2, 6.01, 0.05), 2)  # oversamplings tried by the sampling rule
-SKELETON = 4096  # at most about this many pixels stand for the grid when extents are computed
+SKELETON = 8192  # at most about this many pixels stand for the grid when extents are computed
+CHUNK_NODES = 32  # sub-apertures whose extents are computed at once (32 x ~8k skeleton points x 3 doubles)
 
 
 @lru_cache(maxsize=64)
@@ -173,23 +174,23 @@ class PolarGrid:
 
 def _largest_step(positions: np.ndarray, axis: int) -> float:
     """The largest distance (m) between neighbouring pixels along grid axis ``axis`` of positions
-    (..., 3), a block of about 2^20 pixels at a time (a 4096^2 grid's whole difference array
+    (..., 3), a block of about 2^18 pixels at a time (a 4096^2 grid's whole difference array
     would be 400 MB)."""
     moved = np.moveaxis(positions, axis, 0)
-    rows = max(2, (2**20) // max(1, moved[0].size // 3))
+    rows = max(2, (2**18) // max(1, moved[0].size // 3))
     largest = 0.0
     for start in range(0, moved.shape[0] - 1, rows - 1):
         part = moved[start:start + rows]
-        step = np.diff(part, axis=0)
-        largest = max(largest, float(np.sqrt(np.max(np.sum(step * step, axis=-1)))))
-    return largest
+        step = part[1:] - part[:-1]
+        largest = max(largest, float(np.einsum("...i,...i->...", step, step).max()))
+    return float(np.sqrt(largest))
 
 
 @dataclasses.dataclass(frozen=True)
 class Scene:
-    """What every sub-aperture needs to know of the grid: a skeleton of its pixels (K, 3) (its
-    border and a strided interior), the distance ``margin`` (m) by which a pixel can lie outside
-    the skeleton's hull, the reference plane and the number of pixels."""
+    """What every sub-aperture needs to know of the grid: a skeleton of its pixels (K, 3) (every
+    ``stride``-th pixel along each grid axis, and the last), the distance ``margin`` (m) within
+    which every pixel has a skeleton point, the reference plane and the number of pixels."""
 
     skeleton: np.ndarray
     margin: float
@@ -204,20 +205,11 @@ class Scene:
             return cls(flat.copy(), 0.0, Plane.fit(flat), flat.shape[0])
         stride = int(np.ceil((flat.shape[0] / SKELETON) ** (1 / len(shape))))
         strided = tuple(np.unique(np.r_[np.arange(0, n, stride), n - 1]) for n in shape)
-        picked = [positions[np.ix_(*strided)].reshape(-1, 3)]
-        for k, n in enumerate(shape):  # every pixel of the border, one face of the index box at a time
-            for end in (0, n - 1):
-                index = list(strided)
-                index[k] = np.array([end])
-                full = list(index)
-                for j in range(len(shape)):
-                    if j != k:
-                        full[j] = np.arange(shape[j]) if len(shape) <= 2 else strided[j]
-                picked.append(positions[np.ix_(*full)].reshape(-1, 3))
-        skeleton = np.concatenate(picked)
-        # neighbours of the strided set are at most one stride apart along each axis
+        skeleton = positions[np.ix_(*strided)].reshape(-1, 3)
+        # a pixel's index is within stride // 2 of a strided one along each axis; walking there one
+        # neighbour at a time moves at most stride // 2 of that axis's largest step per axis
         steps = [_largest_step(positions, k) for k in range(len(shape)) if shape[k] > 1]
-        margin = stride * float(np.sqrt(np.sum(np.square(steps)))) if steps else 0.0
+        margin = (stride // 2) * float(np.sum(steps)) if steps else 0.0
         return cls(skeleton, margin, Plane.fit(skeleton), flat.shape[0])
 
 
@@ -242,8 +234,9 @@ def frame_axes(axis: np.ndarray, centre: np.ndarray, plane: Plane) -> tuple[np.n
 @dataclasses.dataclass(frozen=True)
 class Extent:
     """What a sub-aperture's polar grid covers, before sampling: its frame, the ranges
-    [r_lo, r_hi] (m) and sines [v_lo, v_hi] of the scene it sees, and its bands W_r (cycles per m)
-    and W_v (cycles per unit v) (the module docstring's rule)."""
+    [r_lo, r_hi] (m) and sines [v_lo, v_hi] of the scene it sees, its bands W_r (cycles per m)
+    and W_v (cycles per unit v) (the module docstring's rule) and ``reach``, the fraction of the
+    scene's skeleton (so about the fraction of its pixels) within those ranges and sines."""
 
     centre: np.ndarray
     axis: np.ndarray
@@ -256,6 +249,7 @@ class Extent:
     v_hi: float
     w_r: float
     w_v: float
+    reach: float = 1.0
 
     def sample(self, rho: float, taps: int) -> PolarGrid:
         """The polar grid at oversampling ``rho``, padded by ``taps // 2 + 2`` samples on every side
@@ -269,37 +263,58 @@ class Extent:
                          self.v_lo - pad * dv, dv, n_v)
 
 
-def extent(centre: np.ndarray, axis: np.ndarray, half_length: float, scene: Scene, window: tuple[float, float],
-           bandwidth: float, f0: float, c: float, sine_limit: float | None = None) -> Extent | None:
-    """The extent of the polar grid of a sub-aperture with the given frame and half-length L (m)
-    that covers the scene within the recorded range window ``window`` (m, (min, max)) and, with
-    ``sine_limit``, the sines |v| <= sine_limit (the integration angle); its range span is that of
-    the pixels within its sines (a sector of a long scene is nearer than the scene's far corners).
-    None when the scene lies wholly outside the window or the angular limit."""
-    e1, e2 = frame_axes(axis, centre, scene.plane)
-    d = scene.skeleton - centre
-    r = np.sqrt(np.einsum("ij,ij->i", d, d))
-    v = (d @ axis) / r
-    r_lo = max(r.min() - scene.margin, window[0])
-    if r_lo <= 0:
-        return None
-    v_margin = scene.margin / r_lo
-    v_lo, v_hi = max(v.min() - v_margin, -1.0), min(v.max() + v_margin, 1.0)
-    if sine_limit is not None:
-        v_lo, v_hi = max(v_lo, -sine_limit), min(v_hi, sine_limit)
-        if v_hi <= v_lo:
-            return None
-        seen = (v >= v_lo - v_margin) & (v <= v_hi + v_margin)
-        if not np.any(seen):
-            return None
-        r = r[seen]
-    r_lo, r_hi = max(r.min() - scene.margin, window[0]), min(r.max() + scene.margin, window[1])
-    if r_hi <= r_lo or r_lo <= 0:
-        return None
+def extents(centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray, scene: Scene, windows: np.ndarray,
+            bandwidth: float, f0: float, c: float, sine_limits: np.ndarray | None = None) -> list:
+    """The extents of the polar grids of sub-apertures with frames (centres (n, 3) m, unit axes
+    (n, 3)) and half-lengths L (n,) m, each covering the scene within its recorded range window
+    ``windows`` (n, 2) m (min, max) and, with ``sine_limits`` (n,), the sines |v| <= its limit
+    (the integration angle); a range span is that of the pixels within its sines (a sector of a
+    long scene is nearer than the scene's far corners). A list of Extent, None where the scene
+    lies wholly outside the window or the angular limit. Vectorised over CHUNK_NODES
+    sub-apertures at a time (the skeleton's ranges and sines of each)."""
+    found = []
+    for s in range(0, len(centres), CHUNK_NODES):
+        found += _extents(centres[s:s + CHUNK_NODES], axes[s:s + CHUNK_NODES], half_lengths[s:s + CHUNK_NODES],
+                          scene, windows[s:s + CHUNK_NODES], bandwidth, f0, c,
+                          None if sine_limits is None else sine_limits[s:s + CHUNK_NODES])
+    return found
+
+
+def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine_limits) -> list:
+    d = scene.skeleton[None] - centres[:, None]  # (n, K, 3)
+    r = np.sqrt(np.einsum("nki,nki->nk", d, d))
+    v = np.einsum("nki,ni->nk", d, axes) / r
+    r_lo = np.maximum(r.min(axis=1) - scene.margin, windows[:, 0])
+    v_margin = scene.margin / np.where(r_lo > 0, r_lo, 1.0)
+    v_lo = np.maximum(v.min(axis=1) - v_margin, -1.0)
+    v_hi = np.minimum(v.max(axis=1) + v_margin, 1.0)
+    alive = r_lo > 0
+    if sine_limits is not None:
+        v_lo, v_hi = np.maximum(v_lo, -sine_limits), np.minimum(v_hi, sine_limits)
+        seen = (v >= (v_lo - v_margin)[:, None]) & (v <= (v_hi + v_margin)[:, None])
+        alive &= (v_hi > v_lo) & seen.any(axis=1)
+        r_min, r_max = np.where(seen, r, np.inf).min(axis=1), np.where(seen, r, -np.inf).max(axis=1)
+        reach = ((v >= v_lo[:, None]) & (v <= v_hi[:, None])).mean(axis=1)
+    else:
+        r_min, r_max = r.min(axis=1), r.max(axis=1)
+        reach = np.ones(len(centres))
+    with np.errstate(invalid="ignore"):
+        r_lo = np.maximum(r_min - scene.margin, windows[:, 0])
+        r_hi = np.minimum(r_max + scene.margin, windows[:, 1])
+        alive &= (r_hi > r_lo) & (r_lo > 0)
     f_max = f0 + bandwidth / 2
-    a = np.array([-half_length, half_length])[:, None]
-    vv = np.array([v_lo, v_hi, 0.0])[None, :]
-    dist = np.sqrt(np.maximum(r_lo ** 2 - 2 * r_lo * a * vv + a * a, 1e-30))
-    w_v = 2 * f_max * float(np.max(np.abs(r_lo * a / dist))) / c
-    w_r = bandwidth / c + 2 * f_max * float(np.max(1 - (r_lo - a * vv) / dist)) / c
-    return Extent(centre, axis, e1, e2, scene.plane, float(r_lo), float(r_hi), float(v_lo), float(v_hi), w_r, w_v)
+    a = np.stack([-half_lengths, half_lengths], axis=1)[:, :, None]  # (n, 2, 1)
+    vv = np.stack([v_lo, v_hi, np.zeros_like(v_lo)], axis=1)[:, None, :]  # (n, 1, 3)
+    rr = np.where(alive, r_lo, 1.0)[:, None, None]
+    dist = np.sqrt(np.maximum(rr ** 2 - 2 * rr * a * vv + a * a, 1e-30))
+    w_v = 2 * f_max * np.max(np.abs(rr * a / dist), axis=(1, 2)) / c
+    w_r = bandwidth / c + 2 * f_max * np.max(1 - (rr - a * vv) / dist, axis=(1, 2)) / c
+    found = []
+    for k in range(len(centres)):
+        if not alive[k]:
+            found.append(None)
+            continue
+        e1, e2 = frame_axes(axes[k], centres[k], scene.plane)
+        found.append(Extent(centres[k], axes[k], e1, e2, scene.plane, float(r_lo[k]), float(r_hi[k]), float(v_lo[k]),
+                            float(v_hi[k]), float(w_r[k]), float(w_v[k]), float(reach[k])))
+    return found

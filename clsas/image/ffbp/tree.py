@@ -16,14 +16,17 @@ Its polar grid covers the scene within the recorded range window widened by L + 
 and, with an ``aperture``, the angles
 |v| <= sin(aperture / 2) + |u - y| + L / r_near (a pixel that some pulse of the node sees within
 the aperture, whose sine is taken off the y axis);
-:func:`clsas.image.ffbp.polar.extent` bounds it and :meth:`~clsas.image.ffbp.polar.Extent.sample`
+:func:`clsas.image.ffbp.polar.extents` bounds it and :meth:`~clsas.image.ffbp.polar.Extent.sample`
 samples it.
 
 Where to stop: merging level l into level l + 1 costs about factor x (the samples of level l + 1)
-interpolations and saves (nodes of level l - nodes of level l + 1) x pixels at the final stage;
-the tree merges while that pays. The oversampling rho depends on the number of stages
+interpolations and saves, at the final stage, the pixels' reads of level l's nodes less those of
+level l + 1's (a node is read at the pixels its grid covers, about its extent's ``reach`` x the
+pixels: with an ``aperture`` a node sees only a sector of a long scene); the tree merges while
+that pays. The oversampling rho depends on the number of stages
 (:func:`clsas.image.ffbp.polar.oversampling`), which depends on where the tree stops: two
-rounds settle both.
+rounds settle both, and the oversampling is that of the tree's final number of stages in any case
+(the rule of the error model holds even where the rounds did not settle).
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ import dataclasses
 import numpy as np
 
 from ...data import EchoData
-from .polar import Scene, extent, oversampling
+from .polar import Scene, extents, oversampling
 
 LEAF_SAMPLES = 16  # the default first stage: the fewest pulses whose leaf grid is at least this wide in angle
 
@@ -110,23 +113,34 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
     t_hi = float(echo.t0[chosen].max()) + echo.n_samples / echo.fs
     sine = None if aperture is None else np.sin(aperture / 2)
     n_pixels = scene.pixels
-    extents, grids_at = {}, {}
+    window = np.array([c * t_lo / 2, c * t_hi / 2])
+    extents_of, grids_at = {}, {}
+
+    def find_extents(nodes):
+        """The extents (all but the sampling) of the nodes (p0, p1) not yet known, at once."""
+        nodes = [n for n in dict.fromkeys(nodes) if n not in extents_of]
+        if not nodes:
+            return
+        centres, axes, halves, bases = (np.array(x) for x in zip(*(frames.frame(p0, p1) for p0, p1 in nodes)))
+        widen = halves + bases / 2
+        limits = None if sine is None else np.minimum(1.0, sine + np.linalg.norm(axes - [0.0, 1.0, 0.0], axis=1)
+                                                      + halves / frames.r_near)
+        found = extents(centres, axes, halves, scene, window + np.stack([-widen, widen], axis=1), bw, f0, c, limits)
+        extents_of.update(zip(nodes, found))
 
     def node_grid(p0, p1, rho):
-        """The polar grid of the node of pulses p0..p1-1 at oversampling rho (None: it sees nothing);
-        the extent (all but the sampling) is computed once a node."""
-        if (p0, p1) not in extents:
-            centre, axis, half, base = frames.frame(p0, p1)
-            widen = half + base / 2
-            limit = None if sine is None else min(1.0, sine + float(np.linalg.norm(axis - [0.0, 1.0, 0.0]))
-                                                   + half / frames.r_near)
-            extents[(p0, p1)] = extent(centre, axis, half, scene, (c * t_lo / 2 - widen, c * t_hi / 2 + widen),
-                                       bw, f0, c, limit)
+        """The polar grid of the node of pulses p0..p1-1 at oversampling rho (None: it sees nothing)."""
+        find_extents([(p0, p1)])
         key = (p0, p1, rho)
         if key not in grids_at:
-            ext = extents[(p0, p1)]
+            ext = extents_of[(p0, p1)]
             grids_at[key] = None if ext is None else ext.sample(rho, taps)
         return grids_at[key]
+
+    def reach(nodes) -> float:
+        """Pixels read at the final stage a pixel if these nodes were the top ones (kernels/ffbp.cl skips
+        a node whose grid a pixel is not in)."""
+        return sum(extents_of[node].reach for node in nodes if extents_of[node] is not None)
 
     if first is None:
         first = 1
@@ -138,6 +152,7 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
             first *= factor
         first = min(first, echo.n_pulses)
     pulses, children = _levels(echo.n_pulses, first, factor)
+    find_extents([node for level in pulses for node in level])
     top = len(pulses) - 1
     for _ in range(2):
         rho = oversampling(taps, tolerance, top + 1)
@@ -151,7 +166,7 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
             level = new_top + 1
             level_grids = [node_grid(p0, p1, rho) for p0, p1 in pulses[level]]
             cost = factor * sum(g.size for g in level_grids if g is not None)
-            saving = (len(pulses[new_top]) - len(pulses[level])) * n_pixels
+            saving = n_pixels * (reach(pulses[new_top]) - reach(pulses[level]))
             if cost > saving:
                 break
             grids[level] = level_grids
@@ -159,6 +174,7 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         if new_top == top:
             break
         top = new_top
+    rho = oversampling(taps, tolerance, top + 1)  # the stages of the tree as it stands, settled or not
     grids = [[node_grid(p0, p1, rho) for p0, p1 in pulses[level]] if level <= top else [] for level in
              range(len(pulses))]
     return Tree(pulses, children, grids, top, rho, first)
