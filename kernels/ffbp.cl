@@ -20,7 +20,8 @@
  *
  * frames (double, 20 a child): centre 0-2, axis 3-5, e1 6-8, e2 9-11, r0 12, dr 13, v0 14,
  * dv 15, n_r 16, n_v 17. params (double): the parent's frame 0-19 (PARENT_GRID), the plane's
- * normal 20-22 and offset 23, 2 f0 / c (cycles per metre) 24.
+ * normal 20-22 and offset 23, 2 f0 / c (cycles per metre) 24. images holds the children at
+ * offsets (complex samples); the result goes to out from out_offset on.
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 
@@ -129,11 +130,40 @@ __kernel void ffbp_fields(__global const int4 *items, __global const double *fra
     STORE_F16(convert_float16(dx * dx + dy * dy + dz * dz), fields + 3 * (size_t)m_pad + o);
 }
 
+/* The first stage's demodulated leaf image from bp_tile's slots (clsas/image/ffbp/leaves.py):
+ * work-item g of a leaf's items[first + g] = (leaf, row, first range sample, tile) holds slots
+ * 16 (first + g) .. + 15 of image; each slot inside the grid (frame: 20 doubles, as below) goes to
+ * out[out_offset + row * n_r + column] times exp(-j 2 pi cycles_per_m r) (the demodulation by its
+ * range r), complex64. */
+__kernel void ffbp_leaf(__global const double2 *image, __global const int4 *items, const int first,
+                        __global const double *frame, const double cycles_per_m, const long out_offset,
+                        __global float2 *out)
+{
+    const int g = first + get_global_id(0);
+    const int4 t = items[g];
+    const int n_r = (int)frame[16], n_v = (int)frame[17];
+    if (t.y >= n_v)
+        return;
+    const double16 cycles = cycles_per_m * (frame[12] + (t.z + LANE_INDEX) * frame[13]);
+    float16 cs, sn;
+    expj_fraction16(convert_float16(cycles - convert_double16(convert_long16(cycles))), &cs, &sn);
+    float c_out[16], s_out[16];
+    vstore16(cs, 0, c_out);
+    vstore16(sn, 0, s_out);
+    __global float2 *o = out + out_offset + (size_t)t.y * n_r + t.z;
+    for (int l = 0; l < min(16, n_r - t.z); ++l) {
+        const double2 v = image[16 * (size_t)g + l];
+        const float2 a = (float2)((float)v.x, (float)v.y);
+        o[l] = (float2)(a.x * c_out[l] + a.y * s_out[l], a.y * c_out[l] - a.x * s_out[l]);
+    }
+}
+
 __kernel void ffbp_merge(__global const float2 *images, __global const long *offsets,
                          __global const double *frames, __global const float *taps,
                          __global const double *points, __global const double *params,
-                         const int n_children, const int n_out, __global float2 *out)
+                         const int n_children, const int n_out, const long out_offset, __global float2 *out)
 {
+    out += out_offset;
     double16 x, y, z, r_p;
     int n_valid;
     size_t first;
@@ -185,8 +215,9 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
         const double16 dx = x - f[0], dy = y - f[1], dz = z - f[2];
         const double16 rc = sqrt(dx * dx + dy * dy + dz * dz);
         /* positions in samples, bounded before the conversion (out-of-range converts are undefined) */
-        const double16 pv = clamp(((dx * f[3] + dy * f[4] + dz * f[5]) / rc - f[14]) / f[15], -1.0, 1e9);
-        const double16 pr = clamp((rc - f[12]) / f[13], -1.0, 1e9);
+        const double per_dv = 1.0 / f[15], per_dr = 1.0 / f[13];  /* one scalar division, not sixteen */
+        const double16 pv = clamp(((dx * f[3] + dy * f[4] + dz * f[5]) / rc - f[14]) * per_dv, -1.0, 1e9);
+        const double16 pr = clamp((rc - f[12]) * per_dr, -1.0, 1e9);
         const int n_r = (int)f[16], n_v = (int)f[17];
         const int16 fv = convert_int16(pv), fr = convert_int16(pr);  /* floor where >= 0 (PoCL's floor() is slow) */
         const int16 iv = fv - (TAPS / 2 - 1), ir = fr - (TAPS / 2 - 1);

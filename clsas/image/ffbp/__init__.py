@@ -19,13 +19,13 @@ sub-apertures on finer polar grids, until the last ones are read at the user's p
    result has back-projection's scaling and phase (``ffbp(...) - backproject(...)`` is small).
 
 The tree stops merging where one more level would cost more than it saves at the final stage
-(a parent polar grid finer than the pixels: the user's grid sets how far merging pays).
-The error model (``tolerance`` -> oversampling of every polar grid) is derived in
-:mod:`.polar`. Memory: the tree is walked depth first, so it holds at most ``factor`` polar
-images a level (each at most about the size of the pixel grid, by the stopping rule) and top
-nodes of about the image's size waiting for the final stage, besides the image, one batch of
-leaves and its records: :func:`memory_plan` bounds the total from the tree (a 4096^2 image
-from 4096 pulses: 1.2-1.4 GB).
+(each node is read only at the pixels its grid covers, which the final stage's kernel tests
+cheaply: with an integration angle a node sees a sector of a long scene). The error model
+(``tolerance`` -> oversampling of every polar grid) is derived in :mod:`.polar`. Memory: the
+tree is walked depth first (:mod:`.store`: on OpenCL the polar images stay on the device and the
+image comes back once), so it holds one group of ``factor`` children's images a level and a group
+of top nodes of about the image's size waiting for the final stage, besides the image, one batch
+of leaves and its records: :func:`memory_plan` bounds the total from the tree.
 
 Geometry: any track (sway, yaw, surge, circles: each sub-aperture's frame follows its own
 chord) and any grid on a plane (planes, slant planes, points on a plane) are exact up to the
@@ -46,8 +46,9 @@ from ...data import EchoData, Grid, Image
 from ...progress import Progress, stage
 from ..backprojection_records import FFT_BATCH_BYTES, check_options
 from .leaves import BATCH_POINTS, RECORD_BYTES, FirstStage
-from .merge import KERNEL_TAPS, merge_opencl, merge_reference
+from .merge import KERNEL_TAPS
 from .polar import Scene
+from .store import DeviceStore, HostStore
 from .tree import Tree, plan
 
 DEFAULT_TOLERANCE = 0.1
@@ -55,7 +56,7 @@ DEFAULT_TOLERANCE = 0.1
 __all__ = ["DEFAULT_TOLERANCE", "ffbp", "memory_plan"]
 
 SAMPLE_BYTES = 8  # a polar or image sample on OpenCL (complex64)
-LEAF_BATCH_BYTES = 81  # held a polar sample of a first-stage batch (leaves.py: images, fields, device image, copy, tiles)
+LEAF_BATCH_BYTES = 40  # held a polar sample of a first-stage batch (leaves.py: device image 16, fields 16, work-items)
 LEAF_BYTES = 200  # transient a sample of the leaf being tiled (points, padded blocks, offsets; float64)
 
 
@@ -91,12 +92,12 @@ def memory_plan(tree: Tree, n_pixels: int, factor: int) -> dict:
     """Bytes held at most at once by :func:`ffbp` on OpenCL besides the user's grid and echo, by
     part, from the tree's allocation plan (issue 15, item 6), and their ``total``:
 
-    - ``image``: the result, n_pixels complex64;
-    - ``tree``: the depth-first walk; merging a node of level l holds its ``factor`` children, their
-      concatenation for the kernel and its own image, while every level above holds up to
-      ``factor - 1`` finished siblings: at most (3 factor + 1) x the largest node of each level;
-    - ``top``: top nodes waiting for the final stage (flushed once they hold n_pixels samples, so
-      at most n_pixels + the largest top node) and their concatenation for the kernel;
+    - ``image``: the result, n_pixels complex64 on the device and its copy on the host;
+    - ``tree``: the depth-first walk (store.py): building a node of level l + 1 holds one group of
+      its ``factor`` children's images, at most factor x the largest node of level l, for every
+      level below the top at once;
+    - ``top``: the group of top nodes waiting for the final stage (closed once it holds n_pixels
+      samples, so at most n_pixels + the largest top node);
     - ``first_stage``: a batch of leaves (leaves.BATCH_POINTS samples x LEAF_BATCH_BYTES) and the
       leaf being tiled (its samples x LEAF_BYTES);
     - ``records``: the prepared records (leaves.RECORD_BYTES, or the whole echo's if smaller) and
@@ -104,13 +105,33 @@ def memory_plan(tree: Tree, n_pixels: int, factor: int) -> dict:
     """
     largest = [max((g.size for g in level if g is not None), default=0) for level in tree.grids[:tree.top + 1]]
     leaf_batch = min(BATCH_POINTS, sum(g.size for g in tree.grids[0] if g is not None))
-    parts = {"image": SAMPLE_BYTES * n_pixels,
-             "tree": SAMPLE_BYTES * (3 * factor + 1) * sum(largest),
-             "top": 2 * SAMPLE_BYTES * (n_pixels + largest[-1]),
+    parts = {"image": 2 * SAMPLE_BYTES * n_pixels,
+             "tree": SAMPLE_BYTES * factor * sum(largest[:-1]),
+             "top": SAMPLE_BYTES * (n_pixels + largest[-1]),
              "first_stage": LEAF_BATCH_BYTES * leaf_batch + LEAF_BYTES * largest[0],
              "records": RECORD_BYTES + 3 * FFT_BATCH_BYTES}
     parts["total"] = sum(parts.values())
     return parts
+
+
+def _slots(grids: list, nodes: list) -> tuple[list, list]:
+    """The nodes among ``nodes`` that have a grid, and their offsets in a group holding their images
+    one after another (one more: the group's size)."""
+    kids = [k for k in nodes if grids[k] is not None]
+    return kids, [int(o) for o in np.cumsum([0] + [grids[k].size for k in kids])]
+
+
+def _top_groups(grids: list, n_pixels: int) -> list:
+    """Consecutive top nodes in groups that hold about the image's samples (the last group closed
+    once it reaches n_pixels); nodes without a grid go with their neighbours."""
+    groups, group, size = [], [], 0
+    for node, g in enumerate(grids):
+        group.append(node)
+        size += 0 if g is None else g.size
+        if size >= n_pixels:
+            groups.append(group)
+            group, size = [], 0
+    return groups + ([group] if group else [])
 
 
 def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFAULT_TOLERANCE, taps: int = 8,
@@ -147,45 +168,42 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
     scene = Scene.of(grid.positions)
     tree = plan(echo, chosen, scene, int(factor), float(tolerance), taps, first, aperture)
     f0, c = echo.waveform.f0, echo.medium.sound_speed
-    merge = merge_reference if name == "numpy" else merge_opencl
     pixels = grid.positions.reshape(-1, 3)
-    flat = np.zeros(pixels.shape[0], np.complex128 if name == "numpy" else np.complex64)
     leaves = tree.pulses[0]
     bar = Progress(leaves[-1][1] - leaves[0][0], "pulse", "ffbp", progress)  # pulses through the first stage
     stage1 = FirstStage(echo, tree.pulses[0], name, chosen, interp, upsample, aperture, stop_and_go)
+    store = (HostStore if name == "numpy" else DeviceStore)(stage1, pixels, f0, c, taps, tree.rho)
 
-    def build(level: int, node: int):
+    def build(level: int, node: int, group, offset: int) -> bool:
+        """Node ``node`` of ``level``'s image into ``group`` from ``offset`` on; False when it has none."""
         grid_ = tree.grids[level][node]
+        if grid_ is None:
+            bar.done(tree.pulses[level][node][1] - tree.pulses[level][node][0])
+            return False
         if level == 0:
-            image = None if grid_ is None else (grid_, stage1.image(node, grid_, tree.grids[0]))
+            store.leaf(node, grid_, tree.grids[0], group, offset)
             bar.done(leaves[node][1] - leaves[node][0])
-            return image
-        kids = [build(level - 1, k) for k in tree.children[level][node]]
-        kids = [k for k in kids if k is not None]
-        if grid_ is None or not kids:
-            return None
-        return grid_, merge(kids, grid_, f0, c, taps, tree.rho)
+            return True
+        kids, offsets = _slots(tree.grids[level - 1], tree.children[level][node])
+        below = store.group(offsets[-1])
+        made = [k for k, o in zip(kids, offsets) if build(level - 1, k, below, o)]
+        if not made:
+            return False
+        store.merge([tree.grids[level - 1][k] for k in made], below, [offsets[kids.index(k)] for k in made], grid_,
+                    group, offset)
+        return True
 
-    def flush(batch):
-        if not batch:
-            return
-        if name == "numpy":
-            flat[...] += merge_reference(batch, pixels, f0, c, taps, tree.rho)
-        else:
-            merge_opencl(batch, pixels, f0, c, taps, tree.rho, out=flat)
-        batch.clear()
-
-    # the top nodes go to the pixels in batches of about the image's size (one pass per batch)
-    top, batch = tree.top, []
+    # the top nodes go to the pixels in groups of about the image's size (one pass a group)
+    top = tree.top
     with stage(f"ffbp ({name})", f"{pixels.shape[0]} pixels x {leaves[-1][1] - leaves[0][0]} pulses x "
                f"{len(chosen)} receivers, {top + 1} levels, {tree.samples()} polar samples"), bar:
-        for node in range(len(tree.pulses[top])):
-            done = build(top, node)
-            if done is not None:
-                batch.append(done)
-                if sum(g.size for g, _ in batch) >= pixels.shape[0]:
-                    flush(batch)
-        flush(batch)
+        for nodes in _top_groups(tree.grids[top], pixels.shape[0]):
+            kids, offsets = _slots(tree.grids[top], nodes)
+            group = store.group(offsets[-1])
+            made = [k for k, o in zip(kids, offsets) if build(top, k, group, o)]
+            if made:
+                store.final([tree.grids[top][k] for k in made], group, [offsets[kids.index(k)] for k in made])
+        flat = store.result()
     return Image(data=flat.reshape(grid.shape), dims=grid.dims, axes=grid.axes, positions=grid.positions,
                  provenance={"algorithm": "ffbp", "backend": name, "factor": int(factor), "tolerance": float(tolerance),
                              "taps": int(taps), "first": tree.first, "levels": top + 1,

@@ -35,6 +35,7 @@ from ...kernelmath import expj_cycles
 from ..backprojection import (NODE_TOLERANCE, PULSE_BLOCK, PULSES, RECORDS, TILE_PARAMS, GridPlan, backproject, prepare,
                               tile_references)
 from ..backprojection_tiles import LANES, ROWS, tile_half_extent
+from .merge import ffbp_kernel
 from .polar import PolarGrid
 
 BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~81 bytes each held)
@@ -60,15 +61,16 @@ def _block_boxes(grid: PolarGrid, bv: int, br: int) -> tuple[np.ndarray, np.ndar
     return lo, hi
 
 
-def polar_tiles(grid: PolarGrid, budget: float):
-    """bp_tile's tiles of a polar grid (module docstring): (rows, first range samples, tiles) of its
-    work-items (each sixteen consecutive range samples of a row of a tile; int arrays), the
-    tiles' reference points (T, 3) m and their largest half-diagonal, m. Raises ValueError if even
-    a ROWS x LANES block is wider than ``budget``."""
+def polar_tiles(grids: list, budget: float):
+    """bp_tile's tiles of polar grids (module docstring), of one size for all: their work-items
+    (I, 4) int32 (grid, row, first of sixteen consecutive range samples of that row, tile; grid by
+    grid, tile by tile, row by row), the tiles' reference points (T, 3) m, the number of tiles of
+    each grid (L,) and their largest half-diagonal, m. Raises ValueError if even a ROWS x LANES
+    block is wider than ``budget``."""
     bv, br = TILE_ROWS, TILE_SAMPLES
     while True:
-        lo, hi = _block_boxes(grid, bv, br)
-        extent = 0.5 * float(np.sqrt(np.max(np.sum((hi - lo) ** 2, axis=-1))))
+        boxes = [_block_boxes(g, bv, br) for g in grids]
+        extent = 0.5 * float(np.sqrt(max(np.max(np.sum((hi - lo) ** 2, axis=-1)) for lo, hi in boxes)))
         if extent <= budget:
             break
         if br > LANES:
@@ -78,11 +80,18 @@ def polar_tiles(grid: PolarGrid, budget: float):
         else:
             raise ValueError(f"a polar grid's {ROWS} x {LANES} block spans {2 * extent:.3g} m, beyond the "
                              f"{2 * budget:.3g} m a bp_tile tile may")
-    tv, tr = lo.shape[:2]
-    # work-items tile by tile (row-major tiles), within a tile row by row, LANES samples each
-    a, b, j, q = np.meshgrid(np.arange(tv), np.arange(tr), np.arange(bv), np.arange(br // LANES), indexing="ij")
-    rows, cols, tiles = (a * bv + j).ravel(), (b * br + q * LANES).ravel(), (a * tr + b).ravel()
-    return rows, cols, tiles, (0.5 * (lo + hi)).reshape(-1, 3), extent
+    tv_of, tr_of = (np.array([lo.shape[k] for lo, _ in boxes]) for k in (0, 1))
+    tv, tr = int(tv_of.max()), int(tr_of.max())
+    real = (np.arange(tv)[None, :, None] < tv_of[:, None, None]) & (np.arange(tr)[None, None, :] < tr_of[:, None, None])
+    tile = np.cumsum(real.reshape(-1)).reshape(real.shape) - 1  # grid by grid, row-major within a grid
+    # work-items tile by tile, within a tile row by row, LANES samples each
+    shape = (len(grids), tv, tr, bv, br // LANES)
+    l, a, b, j, q = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij", sparse=True)
+    keep = np.broadcast_to(real[:, :, :, None, None], shape)
+    items = np.stack([np.broadcast_to(x, shape)[keep] for x in (l, a * bv + j, b * br + q * LANES,
+                                                                 tile[:, :, :, None, None])], axis=1)
+    centres = np.concatenate([(0.5 * (lo + hi)).reshape(-1, 3) for lo, hi in boxes])
+    return items.astype(np.int32), centres, tv_of * tr_of, extent
 
 
 class FirstStage:
@@ -104,11 +113,40 @@ class FirstStage:
         """Leaf ``node``'s image on its polar grid ``grid``, demodulated: (n_v, n_r) (complex64 on
         OpenCL, complex128 on NumPy); ``grids`` all leaves' grids (None: a leaf that sees nothing),
         from which the batch starting at ``node`` is taken."""
+        if self.backend == "opencl":
+            import pyopencl as cl
+
+            rt = opencl.runtime()
+            out = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, 8 * grid.size)
+            self.image_into(node, grid, grids, out, 0)
+            image = np.empty((grid.n_v, grid.n_r), np.complex64)
+            cl.enqueue_copy(rt.queue, image, out)
+            return image
         if node not in self.ready:
             self._batch(node, grids)
-        image = self.ready.pop(node)
-        image *= expj_cycles(-self.demodulate * grid.ranges)[None, :]
-        return image.astype(np.complex64 if self.backend == "opencl" else np.complex128)
+        return self._demodulated(self.ready.pop(node), grid).astype(np.complex128)
+
+    def image_into(self, node: int, grid: PolarGrid, grids: list, out, offset: int) -> None:
+        """OpenCL: enqueue leaf ``node``'s demodulated complex64 image (as :meth:`image`) into the
+        device buffer ``out`` from element ``offset`` on."""
+        import pyopencl as cl
+
+        if node not in self.ready:
+            self._batch(node, grids)
+        made = self.ready.pop(node)
+        rt = opencl.runtime()
+        if isinstance(made, np.ndarray):  # a leaf made by clsas.backproject
+            cl.enqueue_copy(rt.queue, out, np.ascontiguousarray(self._demodulated(made, grid), np.complex64),
+                            dst_offset=8 * offset)
+            return
+        image, items, first, count = made
+        kern = ffbp_kernel("ffbp_leaf", TAPS=8, TAP_ROWS=TAP_ROWS)
+        frame = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=grid.record())
+        kern(rt.queue, (count,), None, image, items, np.int32(first), frame, np.float64(self.demodulate),
+             np.int64(offset), out)
+
+    def _demodulated(self, image: np.ndarray, grid: PolarGrid) -> np.ndarray:
+        return image * expj_cycles(-self.demodulate * grid.ranges)[None, :]
 
     def _batch(self, node: int, grids: list) -> None:
         batch, points, last = [], 0, node
@@ -148,22 +186,20 @@ class FirstStage:
         echo = records.echo
         f0, c, fs = echo.waveform.f0, echo.medium.sound_speed, records.fs
         budget = tile_half_extent(f0, c)
-        tiles = [polar_tiles(grids[k], budget) for k in batch]
-        n_tiles = np.cumsum([0] + [t[3].shape[0] for t in tiles])
-        items = np.concatenate([np.column_stack([np.full(t[0].size, j), t[0], t[1], t[2] + n_tiles[j]])
-                                for j, t in enumerate(tiles)]).astype(np.int32)
+        items, centres, n_tiles, extent = polar_tiles([grids[k] for k in batch], budget)
         m_pad = LANES * items.shape[0]
-        row_shift = np.concatenate([np.full(t[3].shape[0], self.leaves[k][0] - b0, np.int32)
-                                    for k, t in zip(batch, tiles)])
+        first_tile = np.cumsum(np.r_[0, n_tiles])
+        row_shift = np.repeat(np.array([self.leaves[k][0] - b0 for k in batch], np.int32), n_tiles)
 
         def made(a, flags=mf.READ_ONLY):
             return cl.Buffer(ctx, flags | mf.COPY_HOST_PTR, hostbuf=a)
 
         plane = grids[batch[0]].plane
         pix = cl.Buffer(ctx, mf.READ_WRITE, 4 * 4 * m_pad)
-        opencl.kernel("ffbp", "ffbp_fields", defines={"TAPS": 8, "TAP_ROWS": TAP_ROWS})(
-            queue, (items.shape[0],), None, made(items), made(np.stack([grids[k].record() for k in batch])),
-            made(np.r_[plane.normal, plane.offset]), made(np.concatenate([t[3] for t in tiles])), np.int32(m_pad), pix)
+        items_buf = made(items)
+        ffbp_kernel("ffbp_fields", TAPS=8, TAP_ROWS=TAP_ROWS)(
+            queue, (items.shape[0],), None, items_buf, made(np.stack([grids[k].record() for k in batch])),
+            made(np.r_[plane.normal, plane.offset]), made(centres), np.int32(m_pad), pix)
         tile_of = np.ascontiguousarray(items[::ROWS, 3])
         defines = {"INTERP_LINEAR" if records.interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS,
                    "BP_TILE": 1, "ROWS": ROWS, "PULSES": PULSES, "ROW_SHIFT": 1,
@@ -174,15 +210,17 @@ class FirstStage:
         params["half_sin"] = np.sin(self.aperture / 2) if self.aperture is not None else 1.0
         tile_buf, shift_buf = made(tile_of), made(row_shift)
         taps = made(kernel_taps(records.interp))
-        image = made(np.zeros(m_pad, np.complex128), mf.READ_WRITE)
+        image = cl.Buffer(ctx, mf.READ_WRITE, 16 * m_pad)
+        cl.enqueue_fill_buffer(queue, image, np.zeros(1, np.complex128), 0, 16 * m_pad)
         tolerance = NODE_TOLERANCE * echo.waveform.wavelength(echo.medium)
         failed = set()
         for i, h in enumerate(records.receivers):
             refs = []
-            for k, t in zip(batch, tiles):
+            for j, k in enumerate(batch):
                 p0, p1 = self.leaves[k]
-                ref, departure = tile_references(echo, h, np.arange(p0 - b0, p1 - b0), t[3], np.zeros(3),
-                                                 self.stop_and_go, fs, t[4], int(records.offset[i]))
+                ref, departure = tile_references(echo, h, np.arange(p0 - b0, p1 - b0),
+                                                 centres[first_tile[j]:first_tile[j + 1]], np.zeros(3),
+                                                 self.stop_and_go, fs, extent, int(records.offset[i]))
                 if departure > tolerance:
                     failed.add(k)
                 refs.append(ref)
@@ -196,15 +234,8 @@ class FirstStage:
                      np.int32(n_samples), np.int32(m_pad), image, shift_buf)
         if failed:
             return batch
-        out = np.empty(m_pad, np.complex128)
-        cl.enqueue_copy(queue, out, image)
-        out = out.reshape(-1, LANES)
-        ends = np.cumsum([0] + [t[0].size for t in tiles])
-        for j, k in enumerate(batch):
-            g, mine = grids[k], slice(ends[j], ends[j + 1])  # the leaf's work-items
-            rows, cols = items[mine, 1], items[mine, 2][:, None] + np.arange(LANES)
-            real = (rows[:, None] < g.n_v) & (cols < g.n_r)
-            leaf = np.zeros(g.size, np.complex128)
-            leaf[(rows[:, None] * g.n_r + cols)[real]] = out[mine][real]
-            self.ready[k] = leaf.reshape(g.n_v, g.n_r)
+        rt.queue.finish()  # the records' buffers may use host memory that the caller drops
+        ends = np.searchsorted(items[:, 0], np.arange(len(batch) + 1))
+        for j, k in enumerate(batch):  # the leaf's work-items ends[j] .. ends[j + 1] - 1 of image
+            self.ready[k] = (image, items_buf, int(ends[j]), int(ends[j + 1] - ends[j]))
         return []

@@ -22,6 +22,9 @@ the sum in float; the reference does everything in float64.
 
 from __future__ import annotations
 
+import threading
+from functools import lru_cache
+
 import numpy as np
 
 from ... import opencl
@@ -78,9 +81,39 @@ def merge_reference(children, targets, f0: float, c: float, taps: int, rho: floa
 
 
 def merge_opencl(children, targets, f0: float, c: float, taps: int, rho: float, out: np.ndarray | None = None):
-    """The ffbp_merge launcher (kernels/ffbp.cl): as :func:`merge_reference` in float32 (geometry,
-    positions and phases in double), complex64; for points, the result is *added* into ``out``
-    (M,) complex64 when given."""
+    """The ffbp_merge launcher (kernels/ffbp.cl) on host arrays: as :func:`merge_reference` in
+    float32 (geometry, positions and phases in double), complex64; for points, the result is
+    *added* into ``out`` (M,) complex64 when given. The images go to the device and the result
+    comes back (:func:`merge_device` is the launch itself)."""
+    import pyopencl as cl
+
+    rt = opencl.runtime()
+    mf = cl.mem_flags
+    images = np.concatenate([np.ascontiguousarray(img, np.complex64).reshape(-1) for _, img in children])
+    offsets = np.cumsum([0] + [img.size for _, img in children])[:-1]
+    parent = targets if isinstance(targets, PolarGrid) else None
+    if parent is not None:
+        result = np.empty((parent.n_v, parent.n_r), np.complex64)
+        points = None
+    else:
+        result = np.zeros(targets.shape[:-1], np.complex64) if out is None else out
+        points = cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                           hostbuf=np.ascontiguousarray(targets.reshape(-1, 3), np.float64))
+    src = cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=images)
+    dst = cl.Buffer(rt.context, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=result)
+    merge_device([g for g, _ in children], src, offsets, parent if parent is not None else points, f0, c, taps, rho,
+                 dst)
+    cl.enqueue_copy(rt.queue, result, dst)
+    return result
+
+
+def merge_device(grids: list, images, offsets, targets, f0: float, c: float, taps: int, rho: float, out,
+                 out_offset: int = 0) -> None:
+    """Enqueue ffbp_merge (kernels/ffbp.cl) on device buffers, without waiting: the children's
+    polar grids ``grids`` and their complex64 images in the buffer ``images`` at element
+    ``offsets``; ``targets`` the parent PolarGrid (its demodulated image is written to ``out``
+    from element ``out_offset`` on) or a buffer of exactly M points (M, 3) float64 (their values
+    are *added* into ``out`` (M,) complex64)."""
     import pyopencl as cl
 
     if taps not in KERNEL_TAPS:
@@ -88,33 +121,40 @@ def merge_opencl(children, targets, f0: float, c: float, taps: int, rho: float, 
     rt = opencl.runtime()
     ctx, mf = rt.context, cl.mem_flags
     parent = targets if isinstance(targets, PolarGrid) else None
-    images = np.concatenate([np.ascontiguousarray(img, np.complex64).reshape(-1) for _, img in children])
-    offsets = np.cumsum([0] + [img.size for _, img in children])[:-1].astype(np.int64)
-    frames = np.stack([grid.record() for grid, _ in children])
-    table = tap_table(taps, "knab", float(rho)).astype(np.float32)
     defines = {"TAPS": taps, "TAP_ROWS": TAP_ROWS}
     if parent is not None:
         defines["PARENT_GRID"] = 1
-        shape = (parent.n_v, parent.n_r)
-        plane = np.concatenate([parent.plane.normal, [parent.plane.offset]])
-        parent_frame = parent.record()
-        points = np.zeros(3)
-        result = np.empty(shape, np.complex64)
+        n_out = parent.size
+        header = np.r_[parent.record(), parent.plane.normal, parent.plane.offset]
+        points = images  # unused
+        size = (-(-parent.n_r // LANES), parent.n_v)
     else:
-        shape = targets.shape[:-1]
-        plane = np.zeros(4)
-        parent_frame = np.zeros(20)
-        points = np.ascontiguousarray(targets.reshape(-1, 3), np.float64)
-        result = np.zeros(shape, np.complex64) if out is None else out
-    n_out = int(np.prod(shape))
-    kern = opencl.kernel("ffbp", "ffbp_merge", defines=defines)
-    bufs = [cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=a) for a in
-            (images, offsets, np.ascontiguousarray(frames), table, points)]
-    params = np.array([*parent_frame, *plane, 2 * f0 / c])
-    params_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=params)
-    dst = cl.Buffer(ctx, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=result)
-    size = (-(-shape[1] // LANES), shape[0]) if parent is not None else (-(-n_out // LANES),)
-    kern(rt.queue, size, None, *bufs, params_buf, np.int32(len(children)), np.int32(n_out), dst)
-    mapped, _ = cl.enqueue_map_buffer(rt.queue, dst, cl.map_flags.READ, 0, result.shape, result.dtype)
-    mapped.base.release()
-    return result
+        n_out = targets.size // 24
+        header = np.zeros(24)
+        points = targets
+        size = (-(-n_out // LANES),)
+    kern = ffbp_kernel("ffbp_merge", **defines)
+
+    def made(a):
+        return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
+
+    kern(rt.queue, size, None, images, made(np.asarray(offsets, np.int64)), made(np.stack([g.record() for g in grids])),
+         made(_table(taps, float(rho))), points, made(np.r_[header, 2 * f0 / c]), np.int32(len(grids)),
+         np.int32(n_out), np.int64(out_offset), out)
+
+
+def ffbp_kernel(name: str, **defines):
+    """Kernel ``name`` of kernels/ffbp.cl built with ``defines``, looked up once per (runtime,
+    thread, defines): :func:`clsas.opencl.kernel` costs ~1-3 ms a call (it finds the kernels'
+    folder and hashes the build options each time), which ffbp's hundreds of small launches paid."""
+    return _ffbp_kernel(id(opencl.runtime()), threading.get_ident(), name, tuple(sorted(defines.items())))
+
+
+@lru_cache(maxsize=64)
+def _ffbp_kernel(runtime: int, thread: int, name: str, defines: tuple):
+    return opencl.kernel("ffbp", name, defines=dict(defines))
+
+
+@lru_cache(maxsize=8)
+def _table(taps: int, rho: float) -> np.ndarray:
+    return tap_table(taps, "knab", rho).astype(np.float32)

@@ -1,0 +1,78 @@
+"""Where fast factorised back-projection keeps its polar images while it walks the merge tree.
+
+The walk (:func:`clsas.image.ffbp.ffbp`) gives every node a slot in a *group*: the images of a
+parent's children, one after another, so that the parent's merge reads them where its children
+wrote them. :class:`HostStore` holds groups in NumPy arrays and merges with the float64 reference
+(the NumPy backend); :class:`DeviceStore` holds them in OpenCL buffers and only enqueues (the leaves'
+demodulation, the merges and the final stage run on the device one after another, and the image
+comes back once, at the end).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ... import opencl
+from .merge import merge_device, merge_reference
+
+
+class HostStore:
+    """Groups in complex128 arrays; leaves, merges and the final stage by the NumPy reference."""
+
+    def __init__(self, stage1, pixels: np.ndarray, f0: float, c: float, taps: int, rho: float):
+        self.stage1, self.pixels, self.args = stage1, pixels, (f0, c, taps, rho)
+        self.flat = np.zeros(pixels.shape[0], np.complex128)
+
+    def group(self, size: int) -> np.ndarray:
+        return np.empty(size, np.complex128)
+
+    def leaf(self, node: int, grid, grids: list, group: np.ndarray, offset: int) -> None:
+        group[offset:offset + grid.size] = self.stage1.image(node, grid, grids).reshape(-1)
+
+    def merge(self, grids: list, group: np.ndarray, offsets: list, parent, out: np.ndarray, offset: int) -> None:
+        out[offset:offset + parent.size] = merge_reference(_views(grids, group, offsets), parent, *self.args).reshape(-1)
+
+    def final(self, grids: list, group: np.ndarray, offsets: list) -> None:
+        self.flat += merge_reference(_views(grids, group, offsets), self.pixels, *self.args)
+
+    def result(self) -> np.ndarray:
+        return self.flat
+
+
+def _views(grids, group, offsets):
+    return [(g, group[o:o + g.size].reshape(g.n_v, g.n_r)) for g, o in zip(grids, offsets)]
+
+
+class DeviceStore:
+    """Groups in complex64 OpenCL buffers; the leaves' images by
+    :meth:`clsas.image.ffbp.leaves.FirstStage.image_into`, merges and the final stage by
+    :func:`clsas.image.ffbp.merge.merge_device`, all enqueued; the image is read back by
+    :meth:`result`. The pixels' positions are read in place (the grid outlives the call)."""
+
+    def __init__(self, stage1, pixels: np.ndarray, f0: float, c: float, taps: int, rho: float):
+        import pyopencl as cl
+
+        self.cl, self.rt = cl, opencl.runtime()
+        self.stage1, self.args = stage1, (f0, c, taps, rho)
+        mf = cl.mem_flags
+        self.host_pixels = np.ascontiguousarray(pixels, np.float64)
+        self.pixels = cl.Buffer(self.rt.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=self.host_pixels)
+        self.flat = cl.Buffer(self.rt.context, mf.READ_WRITE, 8 * pixels.shape[0])
+        cl.enqueue_fill_buffer(self.rt.queue, self.flat, np.zeros(1, np.complex64), 0, 8 * pixels.shape[0])
+
+    def group(self, size: int):
+        return self.cl.Buffer(self.rt.context, self.cl.mem_flags.READ_WRITE, 8 * max(size, 1))
+
+    def leaf(self, node: int, grid, grids: list, group, offset: int) -> None:
+        self.stage1.image_into(node, grid, grids, group, offset)
+
+    def merge(self, grids: list, group, offsets: list, parent, out, offset: int) -> None:
+        merge_device(grids, group, offsets, parent, *self.args, out, offset)
+
+    def final(self, grids: list, group, offsets: list) -> None:
+        merge_device(grids, group, offsets, self.pixels, *self.args, self.flat)
+
+    def result(self) -> np.ndarray:
+        flat = np.empty(self.host_pixels.shape[0], np.complex64)
+        self.cl.enqueue_copy(self.rt.queue, flat, self.flat)
+        return flat
