@@ -50,7 +50,10 @@ def test_pga_recovers_an_injected_phase_error(focused, seed):
     before = metrics.analyse_point(blurred, near=CENTRE, radius=d)["y"]
     after = metrics.analyse_point(result.image, near=CENTRE, radius=d)["y"]
     # measured (seeds 1-6): truth PSLR -34.0 dB, ISLR -30.2; blurred PSLR -4.7 / -6.9 (seeds 1, 2);
-    # after PGA PSLR -33.22 .. -33.28, ISLR -29.49 .. -29.83: the issue asks for PSLR within 1 dB
+    # after PGA PSLR -33.22 .. -33.28, ISLR -29.49 .. -29.83: the issue asks for PSLR within 1 dB.
+    # With the trend fitted over the occupied band (seeds 1-3): PSLR -33.26, -33.29, -33.16,
+    # peaks 0.9, 4.5, 8.0 mm off: the injected error, detrended over the whole band, keeps a
+    # linear part over the occupied half, a shift no autofocus can tell from the scene's place
     assert before.pslr_db > truth.pslr_db + 20
     assert abs(after.pslr_db - truth.pslr_db) < 1.0
     assert abs(after.islr_db - truth.islr_db) < 1.0
