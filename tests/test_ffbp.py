@@ -157,7 +157,7 @@ def test_batched_leaves_match_backproject(opencl_device):
 
 def test_numpy_and_opencl_agree(opencl_device):
     """The whole method on both backends (NumPy back-projection and merges in float64) on a
-    small patch around one point: relative L2 measured 2.8e-6 (the float32 kernels' rounding)."""
+    small patch around one point: relative L2 measured 3.2e-6 (the float32 kernels' rounding)."""
     echo = echo_of("straight")
     grid = Grid.plane(np.arange(43.7, 44.3, 0.015), np.arange(-0.3, 0.3, 0.02), DEPTH)
     a = ffbp(echo, grid, backend="numpy")

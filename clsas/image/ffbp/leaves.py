@@ -39,7 +39,7 @@ from ..backprojection_tiles import LANES, ROWS, tile_half_extent
 from .merge import ffbp_kernel
 from .polar import PolarGrid
 
-BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~81 bytes each held)
+BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~40 bytes each held)
 RECORD_BYTES = 256 * 2**20  # prepared records held at once
 TILE_ROWS, TILE_SAMPLES = 8, 128  # the largest tile tried (rows x range samples)
 
