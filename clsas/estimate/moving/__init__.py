@@ -12,6 +12,8 @@
   ``locate``); :mod:`.extent`: where an extended target's centre lies in its focused image;
 - :func:`delay_history` / :func:`higher_order_delay`: the exact delay of the model over the
   aperture, and its terms beyond the quadratic that the chain's focus leaves;
+- :mod:`.sharpen`: the residual phase of a focused target by image sharpness (what the velocity
+  error leaves over 80 s apertures);
 - :mod:`.mapping`: tau-eta -> r-y (section VI) and SSIM against a reference image;
   :mod:`.compare`: RDA, CSA and omega-k run stop-and-go with the estimated velocity (VII-A).
 """

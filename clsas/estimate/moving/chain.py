@@ -3,8 +3,8 @@
 The monostatic chain of transceiver A (section III) and the bistatic chains of receiver B and
 sonobuoy C (section IV) are the same processing of one receiver's record: only the closed forms
 of K_a,eq and f_dc,eq (eqs. 15-16, 23-25, 28, 32) differ, and the chain does not use them. With
-tau(eta) = tau_0 + (f_dc / f0) eta + (K / (2 f0)) eta^2 the two-way delay of the target
-(eqs. 1-2, 21, the R'' of C; f_dc = f_dc,eq, K = K_a,eq):
+tau(eta) = tau_0 + (f_dc / f0) d + (K / (2 f0)) d^2, d = eta - eta_ref, the two-way delay of the
+target (eqs. 1-2, 21, the R'' of C; f_dc = f_dc,eq, K = K_a,eq):
 
 1. range compression (eq. 8; :func:`clsas.range_compress`, upsampled twice so that the envelope
    stages see a well-sampled |s|),
@@ -15,10 +15,20 @@ tau(eta) = tau_0 + (f_dc / f0) eta + (K / (2 f0)) eta^2 the two-way delay of the
 3. RCMC (eq. 17, :mod:`.filters`), Radon transform of |s_rcmc| -> slope -> f_dc (:mod:`.radon`),
 4. range-walk compensation and azimuth compression (eqs. 18-20; :func:`.filters.compress`) of
    the target's neighbourhood (:data:`EXTENT_WINDOW` around the Radon intercept, the trace's delay
-   at eta = 0; eq. 20: (R'_10 + R''_10) / c_s), and the target's extent in that image
+   at eta_ref; eq. 20: (R'_10 + R''_10) / c_s), and the target's extent in that image
    (:mod:`.extent`): tau_c and eta_c are the middle of the extent, where the target's centre
-   focuses (for a point target its peak: eta_c = -(f_dc,true - f_dc) / K, ~0; on a hull the
-   middle of the hull's image rather than its strongest glint, which differs between receivers).
+   focuses (for a point target its peak: eta_c = eta_ref - (f_dc,true - f_dc) / K, ~eta_ref; on a
+   hull the middle of the hull's image rather than its strongest glint, which differs between
+   receivers).
+
+The reference slow time. The paper centres its exposure on eta = 0 and expands there. The chain
+expands about eta_ref, the middle of the record (:attr:`Records.eta_ref`), which is where
+:func:`.layout.layout_of` puts the closed forms' Taylor coefficients by default: RCMC, RWC and
+the deramp run in d, the Radon intercept is the trace's delay at the middle pulse, so K~, f~ and
+tau_c are the coefficients the velocity solver compares with the closed forms, on any schedule
+(``PulseSchedule(start=...)``). Expanded about eta = 0 instead, an exposure over 0..25.6 s
+(eta_ref = 12.8 s) gave f~ = f_dc(0) = f_dc(eta_ref) - K eta_ref (case 1 at A: 6.7 Hz against
+68.7 Hz) and a velocity 84 % off; the centred schedules, eta_ref = 0, are unchanged.
 
 Faint copies of a target +-c T / 2 = +-3.75 m in range (T the 5 ms pulse) are Table I's
 critical sampling, not the chain: with F_r = B = 20 kHz the rectangular chirp's spectral leakage
@@ -47,6 +57,7 @@ from ...image.rangecomp import range_compress
 from . import filters, radon, trace
 from .doppler import Doppler
 from .extent import Extent, extent
+from .sharpen import fm_rate_correction, polynomial_phase, residual_phase
 from .sowvd import SoWVD, modified_sowvd, rfrt
 
 log = logging.getLogger("clsas")
@@ -80,9 +91,9 @@ class ReceiverEstimate(Doppler):
     fm_rate : K_a,eq, Hz/s (SoWVD peak, eq. 14); doppler_centroid : f_dc,eq, Hz (Radon slope).
     receiver : its name. tau_c, eta_c : where the target's centre focuses, s: the middle of its
     extent in the focused image (:mod:`.extent`; a point target's peak: (R'_10 + R''_10) / c_s
-    and ~0 in eq. (20)); when the target cannot be focused, tau_c is the trace's delay at eta = 0
-    (the Radon intercept) and eta_c nan. tau_trace : the Radon intercept, s (the strongest
-    track's delay at eta = 0: on a point target tau_c to a fifth of a sample; on a hull its
+    and ~eta_ref in eq. (20)); when the target cannot be focused, tau_c is the trace's delay at
+    eta_ref (the Radon intercept) and eta_c nan. tau_trace : the Radon intercept, s (the strongest
+    track's delay at eta_ref: on a point target tau_c to a fifth of a sample; on a hull its
     strongest glint's). peak_to_background : the SoWVD peak over the map's
     median (linear). p0 : the lag offset used, s. aperture : the record's slow-time span T_a, s.
     extent : the target's :class:`~.extent.Extent` in the focused image (None when it cannot be
@@ -122,6 +133,17 @@ class Records:
     def prf(self) -> float:
         return (self.eta.size - 1) / float(np.ptp(self.eta))
 
+    @property
+    def eta_ref(self) -> float:
+        """The middle of the record, s: the slow time the chain expands the delay about (the
+        layout's default eta_ref, where the closed forms give their Taylor coefficients)."""
+        return 0.5 * float(self.eta[0] + self.eta[-1])
+
+    @property
+    def d(self) -> np.ndarray:
+        """eta - eta_ref (n_pulses,), s."""
+        return self.eta - self.eta_ref
+
 
 def records(echo: EchoData, receiver: str) -> Records:
     """Step 1: ``receiver``'s record of a raw ``echo``, range-compressed (eq. 8) and upsampled
@@ -158,34 +180,102 @@ def sowvd(rec: Records, p0: float) -> SoWVD:
 
 def rcmc(rec: Records, fm_rate: float) -> np.ndarray:
     """Step 3: ``rec`` after range cell migration correction with ``fm_rate`` (eq. 17)."""
-    return filters.advance(rec.x, rec.fs, fm_rate * rec.eta**2 / (2 * rec.f0))
+    return filters.advance(rec.x, rec.fs, fm_rate * rec.d**2 / (2 * rec.f0))
 
 
 def doppler_centroid_radon(rec: Records, rcmc: np.ndarray) -> tuple[float, float]:
-    """Step 4: (f_dc, tau at eta = 0) of the straight trace in |s_rcmc| (:mod:`.radon`): the slope s in
-    samples a pulse is f_dc fs / (f0 PRF). The noise floor of each range cell is taken off first."""
+    """Step 4: (f_dc, tau at eta_ref) of the straight trace in |s_rcmc| (:mod:`.radon`): the slope s in
+    samples a pulse is f_dc fs / (f0 PRF), f_dc at eta_ref (the RCMC's reference, the middle of the
+    record). The noise floor of each range cell is taken off first."""
     image = np.abs(rcmc).astype(np.float32)
     image -= trace.floor(image)  # the noise's range profile would be a trace of slope 0
     np.maximum(image, 0, out=image)
     slope, k_mid = radon.line_slope(image)
-    n_zero = -rec.eta[0] * rec.prf  # fractional pulse index of eta = 0
-    k_zero = k_mid + slope * (n_zero - 0.5 * (rec.eta.size - 1))
-    return slope * rec.f0 * rec.prf / rec.fs, rec.t0 + k_zero / rec.fs
+    return slope * rec.f0 * rec.prf / rec.fs, rec.t0 + k_mid / rec.fs  # k_mid: the middle pulse's
 
 
-def focus_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: slice,
-               higher_order: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Step 5: RCMC + RWC of the whole record, then azimuth compression of the range ``bins``:
-    (image (n_eta, n_bins), eta axis (n_eta,) s). ``higher_order`` (n_pulses,) s: the delay's
-    terms beyond the quadratic, compensated with it (:func:`.filters.migration`). Only the
-    samples the shifts bring into ``bins`` are shifted (and :data:`MARGIN` more each side)."""
-    shift, cycles = filters.migration(rec.eta, rec.f0, fm_rate, doppler_centroid, higher_order)
+def align_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: slice,
+               higher_order: np.ndarray | None = None, walk: float = 0.0) -> np.ndarray:
+    """RCMC + RWC of the record (and ``higher_order`` (n_pulses,) s, the delay's terms beyond
+    the quadratic: :func:`.filters.migration`) cut to the range ``bins``: (n_pulses, n_bins)
+    complex64. ``walk`` (s/s) is a range walk about the middle of the record compensated in
+    range only, its phase left (:func:`sharpened_bins`). Only the samples the shifts bring into
+    ``bins`` are shifted (and :data:`MARGIN` more each side)."""
+    shift, cycles = filters.migration(rec.d, rec.f0, fm_rate, doppler_centroid, higher_order)
+    if walk:
+        shift = shift + walk * rec.d
     n = rec.x.shape[1]
     start, stop, _ = bins.indices(n)
     lo = int(np.clip(start + np.floor(shift.min() * rec.fs) - MARGIN, 0, n))
     hi = int(np.clip(stop + np.ceil(shift.max() * rec.fs) + MARGIN, lo + 1, n))
-    aligned = filters.advance(rec.x[:, lo:hi], rec.fs, shift, cycles)
-    return filters.compress(aligned[:, start - lo:stop - lo], rec.eta, fm_rate)
+    return filters.advance(rec.x[:, lo:hi], rec.fs, shift, cycles)[:, start - lo:stop - lo]
+
+
+def compress(rec: Records, aligned: np.ndarray, fm_rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """Azimuth compression (:func:`.filters.compress`) of ``aligned`` rows of ``rec`` about its
+    eta_ref: (image, eta axis (n_eta,) s of slow time, one period centred on eta_ref)."""
+    image, axis = filters.compress(aligned, rec.d, fm_rate)
+    return image, axis + rec.eta_ref
+
+
+def focus_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: slice,
+               higher_order: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Step 5: :func:`align_bins`, then azimuth compression of the range ``bins``:
+    (image (n_eta, n_bins), eta axis (n_eta,) s)."""
+    return compress(rec, align_bins(rec, fm_rate, doppler_centroid, bins, higher_order), fm_rate)
+
+
+#: Alignments of :func:`sharpened_bins` at most (each followed by a sharpness search).
+SHARPEN_ALIGNMENTS = 3
+
+
+def sharpened_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: slice,
+                   higher_order: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`focus_bins` with the target's residual phase found by sharpness and removed
+    (:mod:`.sharpen`): (image, eta axis, (p2, p3, p4) cycles at the aperture's ends).
+
+    The residual is a delay error: its polynomial part phi / f0 (from the sharpness search) and
+    its linear part, which the search leaves to move the image (the centroid's error df: the
+    target focuses at eta_p = -df / K), so a range walk df / f0 = -K eta_p / f0 with eta_p the
+    image's peak. Both are compensated in range too (the walk in range only, keeping the image
+    where the centroid puts it); when they moved the record by more than a tenth of a range
+    cell 1 / B at the aperture's ends, the record is aligned again with them and searched again
+    (at most :data:`SHARPEN_ALIGNMENTS` times). On an extended target the peak is its strongest
+    scatterer, whose walk differs from the centre's (the chain's RCMC is the reference
+    point's). The Taylor terms are taken about the middle of the record (the layout's default
+    eta_ref)."""
+    eta_ref, d = rec.eta_ref, rec.d
+    half = 0.5 * float(np.ptp(rec.eta))
+    n = rec.x.shape[1]
+    start, stop, _ = bins.indices(n)
+    # the record aligned once with the model over the bins and a margin; the corrections
+    # (a few range cells at most) then shift this window only
+    wide = slice(max(0, start - MARGIN), min(n, stop + MARGIN))
+    aligned = align_bins(rec, fm_rate, doppler_centroid, wide, higher_order)
+    inner = slice(start - wide.start, stop - wide.start)
+    span = rec.f0 * float(np.max(np.abs(higher_order))) if higher_order is not None else 0.0
+    delay, total, walk = np.zeros(rec.eta.shape), np.zeros(3), 0.0
+
+    def window():  # the walk in range only: its phase is where the image lies, not an error
+        if not np.any(delay) and walk == 0.0:
+            return aligned[:, inner].copy()
+        return filters.advance(aligned, rec.fs, delay + walk * d, rec.f0 * delay)[:, inner]
+
+    for _ in range(SHARPEN_ALIGNMENTS):
+        win = window()
+        p = residual_phase(win, rec.eta, fm_rate, eta_ref, span)
+        total += p
+        step = polynomial_phase(rec.eta, eta_ref, p) / rec.f0
+        win *= np.exp(2j * np.pi * rec.f0 * step).astype(np.complex64)[:, None]
+        image, eta_axis = compress(rec, win, fm_rate)
+        row = np.unravel_index(int(np.argmax(np.abs(image))), image.shape)[0]
+        new_walk = -fm_rate * float(eta_axis[row] - eta_ref) / rec.f0
+        moved = float(np.max(np.abs(step))) + abs(new_walk - walk) * half
+        delay, walk = delay + step, new_walk
+        if moved * rec.bandwidth <= 0.1:
+            return image, eta_axis, total
+    image, eta_axis = compress(rec, window(), fm_rate)
+    return image, eta_axis, total
 
 
 def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHOLD_DB) -> ReceiverEstimate:
@@ -229,22 +319,31 @@ def estimate_receiver(echo: EchoData, receiver: str, *, p0: float = P0,
     return estimate_records(records(echo, receiver), p0, threshold_db)
 
 
-def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None = None) -> ReceiverEstimate:
+def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None = None,
+           reference: Doppler | None = None) -> ReceiverEstimate:
     """``est`` with tau_c, eta_c and extent measured in the focused image of ``rec`` within
     :data:`EXTENT_WINDOW` of est.tau_c (:mod:`.extent`): focused with est's K_a,eq and f_dc,eq, and
     with ``higher_order`` (n_pulses,) s, the delay's terms beyond the quadratic, when given
     (:func:`.closedforms.higher_order_delay` of a first velocity estimate: they blur and skew
-    the image over long apertures). K_a,eq and f_dc,eq are kept."""
+    the image over long apertures), and with ``reference``'s K_a,eq and f_dc,eq instead of est's
+    when given (the model's Taylor coefficients that go with ``higher_order``: over 80 s the
+    SoWVD's rate is the aperture's average, 4-6 % above them, and would count the quartic
+    twice). K_a,eq and f_dc,eq are kept; eta_c is where the target focuses with them,
+    f~ - K~ eta_c being its centroid."""
     if not est.focusable:
         raise EstimationError(f"receiver {rec.name}: cannot locate a target that does not focus "
                               f"(|K_a,eq| T_a^2 = {abs(est.fm_rate) * est.aperture**2:.3g} < {MIN_TIME_BANDWIDTH})")
     k0 = (est.tau_c - rec.t0) * rec.fs
     half = EXTENT_WINDOW * rec.fs
     bins = slice(int(max(0, np.floor(k0 - half))), int(min(rec.x.shape[1], np.ceil(k0 + half) + 1)))
-    image, eta_axis = focus_bins(rec, est.fm_rate, est.doppler_centroid, bins, higher_order)
+    ref = est if reference is None else reference
+    image, eta_axis = focus_bins(rec, ref.fm_rate, ref.doppler_centroid, bins, higher_order)
     tau_axis = rec.t0 + np.arange(bins.start, bins.stop) / rec.fs
-    ext = extent(image, eta_axis, tau_axis, 1.0 / (abs(est.fm_rate) * est.aperture), 1.0 / rec.bandwidth)
-    return dataclasses.replace(est, tau_c=ext.tau_mid, eta_c=ext.eta_mid, extent=ext)
+    ext = extent(image, eta_axis, tau_axis, 1.0 / (abs(ref.fm_rate) * est.aperture), 1.0 / rec.bandwidth)
+    # the centre's centroid f_ref - K_ref (eta_mid - eta_ref), as the eta_c of est's f~ and K~
+    eta_c = rec.eta_ref + (est.doppler_centroid - ref.doppler_centroid
+                           + ref.fm_rate * (ext.eta_mid - rec.eta_ref)) / est.fm_rate
+    return dataclasses.replace(est, tau_c=ext.tau_mid, eta_c=eta_c, extent=ext)
 
 
 def _remove(rec: Records, est: ReceiverEstimate, tau_halfwidth: float, eta_cells: float) -> Records:
@@ -255,12 +354,12 @@ def _remove(rec: Records, est: ReceiverEstimate, tau_halfwidth: float, eta_cells
     if not est.focusable:
         raise EstimationError(f"receiver {rec.name}: the target at K_a,eq = {est.fm_rate:.3g} Hz/s does not focus, "
                               "so it cannot be removed to look for the next one")
-    shift, cycles = filters.migration(rec.eta, rec.f0, est.fm_rate, est.doppler_centroid)
-    image, eta_axis = filters.compress(filters.advance(rec.x, rec.fs, shift, cycles), rec.eta, est.fm_rate)
+    shift, cycles = filters.migration(rec.d, rec.f0, est.fm_rate, est.doppler_centroid)
+    image, eta_axis = compress(rec, filters.advance(rec.x, rec.fs, shift, cycles), est.fm_rate)
     tau = rec.t0 + np.arange(rec.x.shape[1]) / rec.fs
     cell = 1.0 / (abs(est.fm_rate) * est.aperture)
     window = (np.abs(eta_axis - est.eta_c) <= eta_cells * cell)[:, None] & (np.abs(tau - est.tau_c) <= tau_halfwidth)
-    target = filters.decompress(np.where(window, image, 0), rec.eta, est.fm_rate)
+    target = filters.decompress(np.where(window, image, 0), rec.d, est.fm_rate)
     return dataclasses.replace(rec, x=rec.x - filters.advance(target, rec.fs, -shift, -cycles))
 
 
@@ -288,12 +387,16 @@ def estimate_receivers(echo: EchoData, receiver: str, n_targets: int = 2, *, p0:
 
 
 def focus_receiver(echo: EchoData, receiver: str, rx_estimate: ReceiverEstimate, *,
-                   tau_span: float | None = None, higher_order: np.ndarray | None = None) -> Image:
+                   tau_span: float | None = None, higher_order: np.ndarray | None = None,
+                   sharpen: bool = False) -> Image:
     """The target focused on the tau-eta plane from ``receiver``'s raw echo with ``rx_estimate``'s
     K_a,eq and f_dc,eq: RCMC, range-walk compensation and azimuth compression (eqs. 17-20), and
     the delay's terms beyond the quadratic, ``higher_order`` (n_pulses,) s, when given
     (:func:`.closedforms.higher_order_delay`: the quadratic focus leaves them, which blurs
-    80 s apertures).
+    80 s apertures). ``sharpen``: the residual phase beyond those (what the estimate's errors
+    leave) is found by image sharpness and removed (:func:`sharpened_bins`, :mod:`.sharpen`);
+    the provenance then holds it ("residual_phase_cycles", (p2, p3, p4)) and the data's Taylor
+    FM rate ("sharpened_fm_rate", Hz/s).
 
     Returns an Image with dims ("eta", "tau"): eta spans one period PRF / |K| centred on the
     focus (see :mod:`.filters`), tau the receiver's fast times (all of them, or ``tau_span``
@@ -318,10 +421,14 @@ def focus_receiver(echo: EchoData, receiver: str, rx_estimate: ReceiverEstimate,
             raise ValueError("tau_span needs rx_estimate.tau_c")
         half = 0.5 * tau_span * rec.fs
         bins = slice(int(np.clip(np.floor(centre - half), 0, n - 1)), int(np.clip(np.ceil(centre + half) + 1, 1, n)))
-    image, eta_axis = focus_bins(rec, rx_estimate.fm_rate, rx_estimate.doppler_centroid, bins, higher_order)
+    provenance = {"algorithm": "clsas.estimate.moving.focus_receiver", "receiver": receiver,
+                  "fm_rate": float(rx_estimate.fm_rate), "doppler_centroid": float(rx_estimate.doppler_centroid),
+                  "range_upsample": UPSAMPLE, "reference": "Kiang & Kiang 2022 eqs. 17-20"}
+    if sharpen:
+        image, eta_axis, p = sharpened_bins(rec, rx_estimate.fm_rate, rx_estimate.doppler_centroid, bins, higher_order)
+        provenance.update(residual_phase_cycles=tuple(float(c) for c in p),
+                          sharpened_fm_rate=float(rx_estimate.fm_rate + fm_rate_correction(rec.eta, p[0])))
+    else:
+        image, eta_axis = focus_bins(rec, rx_estimate.fm_rate, rx_estimate.doppler_centroid, bins, higher_order)
     tau = rec.t0 + np.arange(bins.start, bins.stop) / rec.fs
-    return Image(image, ("eta", "tau"), {"eta": eta_axis, "tau": tau},
-                 provenance={"algorithm": "clsas.estimate.moving.focus_receiver", "receiver": receiver,
-                             "fm_rate": float(rx_estimate.fm_rate),
-                             "doppler_centroid": float(rx_estimate.doppler_centroid),
-                             "range_upsample": UPSAMPLE, "reference": "Kiang & Kiang 2022 eqs. 17-20"})
+    return Image(image, ("eta", "tau"), {"eta": eta_axis, "tau": tau}, provenance=provenance)

