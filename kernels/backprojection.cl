@@ -103,10 +103,22 @@ inline realv2_t sinc8_lane(__global const real_t *rec, int i, __global const flo
 #define ROW_SHIFT_PARAM
 #define TILE_ROW_SHIFT 0
 #endif
+/* PULSE_SPAN (back-projection with an aperture, clsas/image/backprojection.py): span[t] = the
+ * pulses [x, y) tile t can see within it (a conservative bound from its references); the tile
+ * sums only those of p_first .. p_first + p_count - 1, and the aperture mask decides per pixel. */
+#ifdef PULSE_SPAN
+#define PULSE_SPAN_PARAM , __global const int2 *span
+#define TILE_BEGIN max(p_first, span[tile_of[g]].x)
+#define TILE_END min(p_first + p_count, span[tile_of[g]].y)
+#else
+#define PULSE_SPAN_PARAM
+#define TILE_BEGIN p_first
+#define TILE_END (p_first + p_count)
+#endif
 __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __global const tile_ref_t *ref,
                       const int ref_stride, const int ref_first, __global const sample_t *data, __global const float *taps,
                       const tile_params_t params, const int p_first, const int p_count, const int n, const int m_pad,
-                      __global double2 *image ROW_SHIFT_PARAM)
+                      __global double2 *image ROW_SHIFT_PARAM PULSE_SPAN_PARAM)
 {
     const int g = get_global_id(0);
     __global const tile_ref_t *tref = ref + (size_t)tile_of[g] * ref_stride;
@@ -128,8 +140,8 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
         acc_re[r] = (float16)0.0f;
         acc_im[r] = (float16)0.0f;
     }
-    const int p_end = p_first + p_count;
-    for (int p = p_first; p < p_end; p += PULSES) {
+    const int p_end = TILE_END;
+    for (int p = TILE_BEGIN; p < p_end; p += PULSES) {
         /* PULSES pulses x ROWS rows = CHAINS independent dependency chains, each step done for all
          * of them before the next (the out-of-order core overlaps them); a pulse past the block's
          * end repeats the last one with weight 0 */

@@ -64,7 +64,8 @@ from ..cstruct import declare_all, record_dtype
 from ..geometry import NODE, legs, two_node_velocity, uniform_nodes
 from ..interp import TAP_ROWS, kernel_taps, read_rows
 from .backprojection_records import PreparedRecords, check_options, fast_time_spans, prepare, reach
-from .backprojection_tiles import ERROR_FACTOR, LANES, PHASE_BUDGET, ROWS, GridPlan, Tiling, plan_tiles, tile_half_extent
+from .backprojection_tiles import (ERROR_FACTOR, LANES, PHASE_BUDGET, ROWS, GridPlan, Tiling, aperture_spans, plan_tiles,
+                                   tile_half_extent)
 
 __all__ = ["ERROR_FACTOR", "PHASE_BUDGET", "GridPlan", "PreparedRecords", "Tiling", "backproject", "plan_tiles", "prepare",
            "reach", "tile_half_extent"]
@@ -342,7 +343,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
         return seconds
 
     tile_kernel = opencl.kernel("backprojection", "bp_tile", preamble=RECORDS, defines=dict(
-        defines, BP_TILE=1, ROWS=ROWS, PULSES=PULSES, **({"MOVING": 1} if np.any(v_k) else {})))
+        defines, BP_TILE=1, ROWS=ROWS, PULSES=PULSES, **({"MOVING": 1} if np.any(v_k) else {}),
+        **({"PULSE_SPAN": 1} if aperture is not None else {})))
     tile_params = np.zeros((), TILE_PARAMS)
     tile_params["a1"], tile_params["fs"], tile_params["f0"] = c * c - v_k @ v_k, fs, f0
     tile_params["velocity"], tile_params["half_sin"], tile_params["c"] = v_k, half_sin, c
@@ -370,12 +372,16 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                                                  velocity, stop_and_go, fs, tiles.half_extent, offset)
                 if departure <= tolerance:
                     ref_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=ref)
+                    spans = () if aperture is None else (cl.Buffer(  # a tile sums only the pulses that can see it
+                        ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=aperture_spans(
+                            ref["leg1"][..., 1], ref["range1"], half_sin, tiles.half_extent, float(np.linalg.norm(v_k)), c,
+                            skip + s)),)
                     for p0, count in blocks:
                         events.append(tile_kernel(
                             queue, (chunk_state.n // (LANES * ROWS),), None, chunk_state.pix, chunk_state.tile_of,
                             ref_buf, np.int32(ref.shape[1]), np.int32(skip + s), records_buf, taps_buf, tile_params[()],
                             np.int32(skip + p0), np.int32(count), np.int32(n_samples), np.int32(chunk_state.n),
-                            chunk_state.image))
+                            chunk_state.image, *spans))
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)

@@ -133,3 +133,24 @@ class GridPlan:
                 a.flags.writeable = False
             self._fields[key] = (fields, local[::LANES * ROWS].astype(np.int32), tiles)
         return self._fields[key]
+
+
+def aperture_spans(leg1_y: np.ndarray, range1: np.ndarray, half_sin: float, half_extent: float, speed: float,
+                   c: float, first: int) -> np.ndarray:
+    """bp_tile's PULSE_SPAN: for each of T tiles the pulses [start, stop) that can see it within
+    the aperture, int32 (T, 2), from its references' along-track leg B_y and range |B| = c t1_ref
+    (m, (T, P)) for the P pulses ``first`` .. ``first + P - 1``; a tile that sees none gets (0, 0).
+
+    The kernel keeps pixel q = q_ref + delta + v s1 of a pulse when
+    |B_y + delta_y + v_y s1| <= h (|B| + c s1), h = sin(aperture / 2). With |delta| <= E (the
+    tiles' half extent) and c t1 = |B + delta + v s1|: c |s1| <= E + |v| |s1|, so
+    |v| |s1| <= E |v| / (c - |v|) and both |delta_y + v_y s1| and c s1 are at most
+    M = E c / (c - |v|). A pulse with |B_y| - M > h (|B| + M) therefore keeps no pixel of the
+    tile; the span runs from the first to the last pulse that may keep one (the mask still decides
+    every pixel in it). M gets 1 cm more for the float32 comparison (eps32 x 10 km = 1.2 mm).
+    """
+    margin = half_extent * c / (c - speed) + 0.01
+    seen = np.abs(leg1_y) - margin <= half_sin * (range1 + margin)
+    start = np.argmax(seen, axis=1)
+    stop = seen.shape[1] - np.argmax(seen[:, ::-1], axis=1)
+    return np.where(seen.any(axis=1)[:, None], np.stack([start, stop], axis=1) + first, 0).astype(np.int32)
