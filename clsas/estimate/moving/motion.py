@@ -237,7 +237,8 @@ def focus(echo: EchoData, est: MotionEstimate, tau_span: float | None = None, sh
     response reaches the resolution cell 0.886 |V_h| / (|K| T_a). Measured on points at 6400
     pulses, IRW / cell and PSLR at A, B, C: case 6 1.00, -13.3 dB (the model history alone
     1.3-3.7 cells, -0.3 to -17.6 dB, at a velocity error of 0.097 %), case 8 1.00, -13.2 to
-    -13.3 dB. The image is placed by ``est``: its centre (where the centroid
+    -13.3 dB, case 1 1.00, -13.0 to -13.4 dB (model history alone 1.1-1.3 cells, -4.4 to
+    -11.5 dB, at 0.010 %), cases 2 and 5 1.00, -13.2 to -13.3 dB. The image is placed by ``est``: its centre (where the centroid
     ``est.centroids[name]`` focuses with the model) at the model's y of the reference point.
     """
     if not isinstance(est, MotionEstimate):
