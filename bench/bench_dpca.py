@@ -6,10 +6,17 @@ i records what ping p's hydrophone i + 7 recorded, plus noise: Heremans 2009's 1
 geometry), so the estimator does its full work on every pair without a simulation first:
 1000 pings (quick: 100) of 2048 samples. The correlations of eq. (51) (clsas.estimate.dpca.
 correlations) are timed by their two methods, one multiply-add pass per t-lag ("direct") and
-zero-padded block FFTs ("fft", every lag computed, 2 t_lags + 1 kept), interleaved A B A B,
-for pass 1 (t_lags 8) and pass 2 (t_lags 2), over 6 couples x 200 pairs x 16 blocks of 128
-samples. PGA runs on a 2048 x 2048 image (quick: 1024^2) of speckle and bright points blurred
+zero-padded block FFTs ("fft", every lag computed, 2 t_lags + 1 kept), and by the form the
+estimator uses, with a fractional delay taken out of g's envelope ("fft-delay": blocks padded
+to 2 x 128 so the whole linear correlation is held), interleaved A B C A B C, for pass 1
+(t_lags 8) and pass 2 (t_lags 2), over 6 couples x 200 pairs x 16 blocks of 128 samples. PGA runs on a 2048 x 2048 image (quick: 1024^2) of speckle and bright points blurred
 by a quadratic phase error; rate = iterations per second. All on the host (NumPy / scipy.fft).
+
+Measured --quick on the 2-core machine with two other developers' jobs running (load ~5):
+DPCA 49.5 ping pairs/s (20.2 ms a pair); correlations at 17 t-lags direct 1.2x the FFT's time,
+at 5 t-lags 0.53x; the delayed FFT form 2.2-2.3x the plain FFT; PGA on 1024^2 104 ms an
+iteration. Full size, one repeat: the 1000-ping track in 14.6 s (14.6 ms a pair, peak RSS of the
+run 1.6 GB), PGA on 2048^2 0.48 s an iteration.
 """
 
 from __future__ import annotations
@@ -76,14 +83,17 @@ def main() -> None:
     f = (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)).astype(np.complex64)
     g = (0.9 * f + 0.1 * rng.standard_normal(shape)).astype(np.complex64)
     blocks = int(np.prod(shape[:3]))
+    delay = rng.uniform(-0.5, 0.5, shape[:3])          # samples (fs = 1)
     for t_lags in (8, dpca.pairs.FINE_T_LAGS):
-        timed = interleaved({method: (lambda method=method: dpca.correlations(f, g, t_lags, method))
-                             for method in ("direct", "fft")}, repeats=max(repeats, 5))
+        runs = {method: (lambda method=method: dpca.correlations(f, g, t_lags, method)) for method in ("direct", "fft")}
+        runs["fft-delay"] = lambda: dpca.correlations(f, g, t_lags, delay=delay, fs=1.0)
+        timed = interleaved(runs, repeats=max(repeats, 5))
         for name, (fastest, median) in timed.items():
             report(args, f"dpca-correlations-{name}", "numpy",
                    {"couples": shape[0], "pairs": shape[1], "blocks": shape[2], "block": shape[3], "t_lags": t_lags},
                    blocks / median, "block correlations/s", median, min_ms=1e3 * fastest,
-                   direct_over_fft=timed["direct"][1] / timed["fft"][1])
+                   direct_over_fft=timed["direct"][1] / timed["fft"][1],
+                   delay_over_fft=timed["fft-delay"][1] / timed["fft"][1])
 
     n = 1024 if args.quick else 2048
     image = blurred_image(n, rng)

@@ -14,7 +14,9 @@
  * bounding box, then lane by lane), times
  * exp(j 2 pi 2 f0 (r_c - r_p) / c) with r_p the parent's range (0 for points). Geometry,
  * positions and cycles in double (ranges of kilometres at 150 kHz need it), vectorised over the
- * lanes; the interpolation, the phase factor and the sum in float: each lane's TAPS rows of
+ * lanes (phases in cycles reduced by an int conversion, |cycles| < 2^31: ranges below ~10^4 km
+ * at 150 kHz; AVX2 has no double <-> long vector conversion, PoCL makes it sixteen scalar ones);
+ * the interpolation, the phase factor and the sum in float: each lane's TAPS rows of
  * TAPS complex samples times the range taps, weighted by the angle taps, and the lanes' complex
  * sums formed eight at a time across lanes (lanes.h).
  *
@@ -146,7 +148,7 @@ __kernel void ffbp_leaf(__global const double2 *image, __global const int4 *item
         return;
     const double16 cycles = cycles_per_m * (frame[12] + (t.z + LANE_INDEX) * frame[13]);
     float16 cs, sn;
-    expj_fraction16(convert_float16(cycles - convert_double16(convert_long16(cycles))), &cs, &sn);
+    expj_fraction16(convert_float16(cycles - convert_double16(convert_int16(cycles))), &cs, &sn);
     float c_out[16], s_out[16];
     vstore16(cs, 0, c_out);
     vstore16(sn, 0, s_out);
@@ -232,7 +234,7 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
         __global const float *img = (__global const float *)(images + offsets[k]);
         const double16 cycles = cycles_per_m * (rc - r_p);
         float16 cs, sn;
-        expj_fraction16(convert_float16(cycles - convert_double16(convert_long16(cycles))), &cs, &sn);
+        expj_fraction16(convert_float16(cycles - convert_double16(convert_int16(cycles))), &cs, &sn);
 #if TAPS == 8
         const float16 lo = csum8(LANE_PRODUCTS(0), LANE_PRODUCTS(1), LANE_PRODUCTS(2), LANE_PRODUCTS(3),
                                  LANE_PRODUCTS(4), LANE_PRODUCTS(5), LANE_PRODUCTS(6), LANE_PRODUCTS(7));

@@ -93,15 +93,18 @@ of the motion-free image (0.1-2.1 dB before; +0.2 .. +0.6 dB of it comes with th
 along the true track), peaks within 0.02 cell.
 
 The hot loop, the correlations over ping pairs, x-lags, couples, t-lags and samples, runs over
-every pair, couple and block at once: by zero-padded block FFTs for pass 1's 17 t-lags, by one
-multiply-add pass per t-lag for pass 2's 5 (correlate.DIRECT_T_LAGS; measured crossovers
-there). The beams are one complex matrix product, formed only at the t-lag of the couples'
-incoherent peak and its two neighbours (forming them at every t-lag took half the time).
-Measured with bench/bench_dpca.py on the 2-core machine while others ran (load ~8): 16 ms a
-ping pair over a 1000-ping track of 15 hydrophones x 2048 samples before the FFT path (16 s for
-the track), the correlations about half of it (cProfile). No OpenCL kernel: a free correlation
-would at most halve DPCA's time, and its FFT and direct NumPy forms, each used where it is the
-faster, are within 2x of each other.
+every pair, couple and block at once, by FFTs of the blocks zero-padded to twice their length
+with the envelope delays applied as a phase ramp over their spectra (correlate.correlations,
+``delay=``). The beams are one complex matrix product, formed only at the t-lag of the
+couples' incoherent peak and its two neighbours (forming them at every t-lag took half the
+time); pass 2 runs only at the x-lags some block found nearest. Measured with
+bench/bench_dpca.py --quick on the 2-core machine while others ran (load ~5): 20.2 ms a ping
+pair of 15 hydrophones x 2048 samples (100 pings); interleaved against the estimator before the
+envelope correction, 1.22x its median time (20.5 vs 16.8 ms). The delayed correlations take
+2.2-2.3x the plain zero-padded FFT's time (twice the padding, the ramp), which is 1.2x faster
+than the lag-by-lag sums at 17 t-lags and 0.53x at 5. No OpenCL kernel: a free correlation
+would at most halve DPCA's time, and the fractional delay that made the yaw 3x more precise
+needs the spectra, which scipy.fft computes at near memory speed.
 """
 
 from __future__ import annotations

@@ -7,6 +7,7 @@ import numpy as np
 import scipy.fft
 
 from ...data import EchoData
+from ...image.record import unit_phasor
 
 
 def parabola(y_minus, y0, y_plus):
@@ -63,7 +64,7 @@ def correlations(f: np.ndarray, g: np.ndarray, t_lags: int, method: str = "auto"
         cross = scipy.fft.fft(f, size, axis=-1) * np.conj(scipy.fft.fft(g, size, axis=-1))
         if delay is not None:
             freq = scipy.fft.fftfreq(size, 1 / fs)
-            cross *= np.exp(-2j * np.pi * np.asarray(delay, dtype=np.float64)[..., None] * freq).astype(np.complex64)
+            cross *= unit_phasor(-2 * np.pi * np.asarray(delay, dtype=np.float64)[..., None] * freq)
         out = scipy.fft.ifft(cross, axis=-1)[..., np.arange(-t_lags, t_lags + 1) % size]
     else:
         g_conj = np.conj(g)

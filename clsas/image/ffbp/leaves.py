@@ -13,10 +13,11 @@ its own (a :func:`clsas.backproject` call a leaf cost ~10-40 ms of host work, me
 Tiles. bp_tile's float32 geometry is relative to a reference point per tile (derivation at
 :func:`clsas.image.backprojection.backproject_opencl`); a polar grid (n_v, n_r) is a raster, so
 its tiles are blocks of ``bv`` rows x ``br`` range samples (``bv`` a multiple of ROWS, ``br`` of
-LANES: every tile is whole work-items), halved until every block's bounding box has a
-half-diagonal within :func:`clsas.image.backprojection_tiles.tile_half_extent` (the same phase
-budget as back-projection's own tiles); the reference point is the box's centre. Slots past the
-grid's edge repeat its last sample and are dropped.
+LANES: every tile is whole work-items) whose reference point is the block's middle sample,
+halved until every sample lies within :func:`clsas.image.backprojection_tiles.tile_half_extent`
+of its reference (the same phase budget as back-projection's own tiles), which the launcher
+checks on the offsets the ffbp_fields kernel computes for bp_tile anyway. Slots past the grid's
+edge repeat its last sample and are dropped.
 
 Leaves the batch cannot take go through :func:`clsas.backproject` one by one on the same
 prepared records (the same image up to float32 rounding): a leaf shorter than ``first`` (the
@@ -38,49 +39,18 @@ from ..backprojection_tiles import LANES, ROWS, tile_half_extent
 from .merge import ffbp_kernel
 from .polar import PolarGrid
 
-BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~81 bytes each held)
+BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~40 bytes each held)
 RECORD_BYTES = 256 * 2**20  # prepared records held at once
 TILE_ROWS, TILE_SAMPLES = 8, 128  # the largest tile tried (rows x range samples)
 
 
-def _block_boxes(grid: PolarGrid, bv: int, br: int) -> tuple[np.ndarray, np.ndarray]:
-    """The bounding boxes (lo, hi: (tv, tr, 3) m) of the grid's blocks of bv rows x br range samples
-    (the last ones cut at the grid's edge), from their border samples only: a block is a region of
-    the plane bounded by two rays (its first and last rows) and two arcs (its first and last range
-    samples), and a coordinate's extremes over a region lie on its boundary."""
-    n_v, n_r = grid.n_v, grid.n_r
-    j0, i0 = np.arange(0, n_v, bv), np.arange(0, n_r, br)
-    j1, i1 = np.minimum(j0 + bv, n_v) - 1, np.minimum(i0 + br, n_r) - 1
-    rows = grid.points(rows=np.concatenate([j0, j1]))  # (2 tv, n_r, 3)
-    cols = grid.points(cols=np.concatenate([i0, i1]))  # (n_v, 2 tr, 3)
-    lo_rows, hi_rows = (f.reduceat(rows, i0, axis=1) for f in (np.minimum, np.maximum))  # (2 tv, tr, 3)
-    lo_cols, hi_cols = (f.reduceat(cols, j0, axis=0) for f in (np.minimum, np.maximum))  # (tv, 2 tr, 3)
-    tv, tr = j0.size, i0.size
-    lo = np.minimum.reduce([lo_rows[:tv], lo_rows[tv:], lo_cols[:, :tr], lo_cols[:, tr:]])
-    hi = np.maximum.reduce([hi_rows[:tv], hi_rows[tv:], hi_cols[:, :tr], hi_cols[:, tr:]])
-    return lo, hi
-
-
-def polar_tiles(grids: list, budget: float):
-    """bp_tile's tiles of polar grids (module docstring), of one size for all: their work-items
-    (I, 4) int32 (grid, row, first of sixteen consecutive range samples of that row, tile; grid by
-    grid, tile by tile, row by row), the tiles' reference points (T, 3) m, the number of tiles of
-    each grid (L,) and their largest half-diagonal, m. Raises ValueError if even a ROWS x LANES
-    block is wider than ``budget``."""
-    bv, br = TILE_ROWS, TILE_SAMPLES
-    while True:
-        boxes = [_block_boxes(g, bv, br) for g in grids]
-        extent = 0.5 * float(np.sqrt(max(np.max(np.sum((hi - lo) ** 2, axis=-1)) for lo, hi in boxes)))
-        if extent <= budget:
-            break
-        if br > LANES:
-            br //= 2
-        elif bv > ROWS:
-            bv //= 2
-        else:
-            raise ValueError(f"a polar grid's {ROWS} x {LANES} block spans {2 * extent:.3g} m, beyond the "
-                             f"{2 * budget:.3g} m a bp_tile tile may")
-    tv_of, tr_of = (np.array([lo.shape[k] for lo, _ in boxes]) for k in (0, 1))
+def polar_tiles(grids: list, bv: int, br: int):
+    """bp_tile's tiles of polar grids (module docstring), blocks of bv rows x br range samples:
+    their work-items (I, 4) int32 (grid, row, first of sixteen consecutive range samples of that
+    row, tile; grid by grid, tile by tile, row by row), the tiles' reference points (T, 3) m (each
+    block's middle sample) and the number of tiles of each grid (L,)."""
+    tv_of = np.array([-(-g.n_v // bv) for g in grids])
+    tr_of = np.array([-(-g.n_r // br) for g in grids])
     tv, tr = int(tv_of.max()), int(tr_of.max())
     real = (np.arange(tv)[None, :, None] < tv_of[:, None, None]) & (np.arange(tr)[None, None, :] < tr_of[:, None, None])
     tile = np.cumsum(real.reshape(-1)).reshape(real.shape) - 1  # grid by grid, row-major within a grid
@@ -90,8 +60,13 @@ def polar_tiles(grids: list, budget: float):
     keep = np.broadcast_to(real[:, :, :, None, None], shape)
     items = np.stack([np.broadcast_to(x, shape)[keep] for x in (l, a * bv + j, b * br + q * LANES,
                                                                  tile[:, :, :, None, None])], axis=1)
-    centres = np.concatenate([(0.5 * (lo + hi)).reshape(-1, 3) for lo, hi in boxes])
-    return items.astype(np.int32), centres, tv_of * tr_of, extent
+    centres = []
+    for g in grids:
+        j0, i0 = np.arange(0, g.n_v, bv), np.arange(0, g.n_r, br)
+        middle_v = (j0 + np.minimum(j0 + bv, g.n_v) - 1) // 2
+        middle_r = (i0 + np.minimum(i0 + br, g.n_r) - 1) // 2
+        centres.append(g.points(rows=middle_v, cols=middle_r).reshape(-1, 3))
+    return items.astype(np.int32), np.concatenate(centres), tv_of * tr_of
 
 
 class FirstStage:
@@ -175,6 +150,27 @@ class FirstStage:
                                         backend=self.backend, aperture=self.aperture, stop_and_go=self.stop_and_go,
                                         progress=False).data.astype(np.complex128)
 
+    def _references(self, records, batch: list, centres: np.ndarray, first_tile: np.ndarray, b0: int,
+                    half_extent: float) -> tuple[list, bool]:
+        """bp_tile's tile references of every receiver (a list a receiver of the leaves' (T_leaf, first)
+        arrays), for tiles whose samples lie within ``half_extent`` of their references, and whether
+        a receiver's motion departs from linear over a tile's delay span by more than
+        NODE_TOLERANCE of a wavelength (then the batch goes to clsas.backproject)."""
+        echo = records.echo
+        tolerance = NODE_TOLERANCE * echo.waveform.wavelength(echo.medium)
+        refs = []
+        for i, h in enumerate(records.receivers):
+            refs.append([])
+            for j, k in enumerate(batch):
+                p0, p1 = self.leaves[k]
+                ref, departure = tile_references(echo, h, np.arange(p0 - b0, p1 - b0),
+                                                 centres[first_tile[j]:first_tile[j + 1]], np.zeros(3),
+                                                 self.stop_and_go, records.fs, half_extent, int(records.offset[i]))
+                if departure > tolerance:
+                    return refs, True
+                refs[-1].append(ref)
+        return refs, False
+
     def _launch(self, records, batch: list, grids: list, b0: int) -> list:
         """The images of the leaves ``batch`` (all ``first`` pulses long) by bp_tile launches into
         self.ready; returns the leaves it left to :func:`clsas.backproject` (a receiver's motion not
@@ -186,20 +182,42 @@ class FirstStage:
         echo = records.echo
         f0, c, fs = echo.waveform.f0, echo.medium.sound_speed, records.fs
         budget = tile_half_extent(f0, c)
-        items, centres, n_tiles, extent = polar_tiles([grids[k] for k in batch], budget)
-        m_pad = LANES * items.shape[0]
-        first_tile = np.cumsum(np.r_[0, n_tiles])
-        row_shift = np.repeat(np.array([self.leaves[k][0] - b0 for k in batch], np.int32), n_tiles)
 
         def made(a, flags=mf.READ_ONLY):
             return cl.Buffer(ctx, flags | mf.COPY_HOST_PTR, hostbuf=a)
 
-        plane = grids[batch[0]].plane
-        pix = cl.Buffer(ctx, mf.READ_WRITE, 4 * 4 * m_pad)
-        items_buf = made(items)
-        ffbp_kernel("ffbp_fields", TAPS=8, TAP_ROWS=TAP_ROWS)(
-            queue, (items.shape[0],), None, items_buf, made(np.stack([grids[k].record() for k in batch])),
-            made(np.r_[plane.normal, plane.offset]), made(centres), np.int32(m_pad), pix)
+        plane = made(np.r_[grids[batch[0]].plane.normal, grids[batch[0]].plane.offset])
+        frames = made(np.stack([grids[k].record() for k in batch]))
+        bv, br = TILE_ROWS, TILE_SAMPLES
+        while True:  # the largest tiles whose samples all lie within the budget of their references
+            items, centres, n_tiles = polar_tiles([grids[k] for k in batch], bv, br)
+            m_pad = LANES * items.shape[0]
+            pix = cl.Buffer(ctx, mf.READ_WRITE, 4 * 4 * m_pad)
+            items_buf = made(items)
+            ffbp_kernel("ffbp_fields", TAPS=8, TAP_ROWS=TAP_ROWS)(
+                queue, (items.shape[0],), None, items_buf, frames, plane, made(centres), np.int32(m_pad), pix)
+            square = np.empty(m_pad, np.float32)
+            copied = cl.enqueue_copy(queue, square, pix, src_offset=3 * 4 * m_pad, is_blocking=False)  # |delta|^2
+            first_tile = np.cumsum(np.r_[0, n_tiles])
+            # meanwhile the references, for the largest extent the tiles may have (a wider delay span
+            # for the linear-motion check), again for the tiles' own extent if that check fails
+            refs, failed = self._references(records, batch, centres, first_tile, b0, budget)
+            copied.wait()
+            extent = float(np.sqrt(square.max()))
+            if extent <= budget:
+                if failed:
+                    refs, failed = self._references(records, batch, centres, first_tile, b0, extent)
+                if failed:
+                    return batch
+                break
+            if br > LANES:
+                br //= 2
+            elif bv > ROWS:
+                bv //= 2
+            else:
+                raise ValueError(f"a polar grid's {ROWS} x {LANES} block reaches {extent:.3g} m from its middle, "
+                                 f"beyond the {budget:.3g} m a bp_tile tile may")
+        row_shift = np.repeat(np.array([self.leaves[k][0] - b0 for k in batch], np.int32), n_tiles)
         tile_of = np.ascontiguousarray(items[::ROWS, 3])
         defines = {"INTERP_LINEAR" if records.interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS,
                    "BP_TILE": 1, "ROWS": ROWS, "PULSES": PULSES, "ROW_SHIFT": 1,
@@ -212,28 +230,13 @@ class FirstStage:
         taps = made(kernel_taps(records.interp))
         image = cl.Buffer(ctx, mf.READ_WRITE, 16 * m_pad)
         cl.enqueue_fill_buffer(queue, image, np.zeros(1, np.complex128), 0, 16 * m_pad)
-        tolerance = NODE_TOLERANCE * echo.waveform.wavelength(echo.medium)
-        failed = set()
         for i, h in enumerate(records.receivers):
-            refs = []
-            for j, k in enumerate(batch):
-                p0, p1 = self.leaves[k]
-                ref, departure = tile_references(echo, h, np.arange(p0 - b0, p1 - b0),
-                                                 centres[first_tile[j]:first_tile[j + 1]], np.zeros(3),
-                                                 self.stop_and_go, fs, extent, int(records.offset[i]))
-                if departure > tolerance:
-                    failed.add(k)
-                refs.append(ref)
-            if failed:
-                break
             data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
-            ref_buf = made(np.concatenate(refs))
+            ref_buf = made(np.concatenate(refs[i]))
             for s in range(0, self.first, PULSE_BLOCK):
                 kern(queue, (m_pad // (LANES * ROWS),), None, pix, tile_buf, ref_buf, np.int32(self.first), np.int32(0),
                      data, taps, params[()], np.int32(s), np.int32(min(PULSE_BLOCK, self.first - s)),
                      np.int32(n_samples), np.int32(m_pad), image, shift_buf)
-        if failed:
-            return batch
         rt.queue.finish()  # the records' buffers may use host memory that the caller drops
         ends = np.searchsorted(items[:, 0], np.arange(len(batch) + 1))
         for j, k in enumerate(batch):  # the leaf's work-items ends[j] .. ends[j + 1] - 1 of image
