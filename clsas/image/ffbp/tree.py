@@ -84,21 +84,32 @@ class _Frames:
         square = np.sum(track * track, axis=1)[:, None] + np.sum(k * k, axis=1)[None, :] - 2 * track @ k.T
         self.r_near = float(np.sqrt(max(float(square.min()), 0.0))) - scene.margin
 
-    def frame(self, p0: int, p1: int) -> tuple[np.ndarray, np.ndarray, float, float]:
-        """(centre, axis, half-length, largest baseline) of the node of pulses p0..p1-1."""
+    def frames(self, nodes: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(centres (n, 3), axes (n, 3), half-lengths (n,), largest baselines (n,)) of the nodes
+        (p0, p1) (pulses p0..p1-1), vectorised over the nodes of each length."""
         n = self.tx.shape[0]
-        lo, hi = (p0, p1 - 1) if p1 - p0 > 1 else (max(p0 - 1, 0), min(p0 + 1, n - 1))
-        chord = self.tx[hi] - self.tx[lo]
-        norm = np.linalg.norm(chord)
-        axis = chord / norm if norm > 0 else np.array([0.0, 1.0, 0.0])
-        mids = self.mids[:, p0:p1].reshape(-1, 3)
-        centre = mids.mean(axis=0)
-        d = mids - centre
-        a = d @ axis
-        off = d - a[:, None] * axis
-        b = np.sqrt(np.einsum("ij,ij->i", off, off))
-        base = float(self.baseline[p0:p1].max())
-        return centre, axis, float(np.abs(a).max() + b.max() + base ** 2 / (4 * self.r_near)), base
+        centres, axes = np.empty((len(nodes), 3)), np.empty((len(nodes), 3))
+        halves, bases = np.empty(len(nodes)), np.empty(len(nodes))
+        by_length = {}
+        for i, (p0, p1) in enumerate(nodes):
+            by_length.setdefault(p1 - p0, []).append(i)
+        for length, which in by_length.items():
+            p0 = np.array([nodes[i][0] for i in which])
+            lo, hi = (p0, p0 + length - 1) if length > 1 else (np.maximum(p0 - 1, 0), np.minimum(p0 + 1, n - 1))
+            chord = self.tx[hi] - self.tx[lo]
+            norm = np.linalg.norm(chord, axis=1)[:, None]
+            axis = np.where(norm > 0, chord / np.where(norm > 0, norm, 1.0), [0.0, 1.0, 0.0])
+            pulses = p0[:, None] + np.arange(length)  # (m, length)
+            mids = np.moveaxis(self.mids[:, pulses], 0, 1).reshape(len(which), -1, 3)  # every receiver, pulse
+            centre = mids.mean(axis=1)
+            d = mids - centre[:, None]
+            along = np.einsum("mki,mi->mk", d, axis)
+            off = d - along[..., None] * axis[:, None]
+            base = self.baseline[pulses].max(axis=1)
+            centres[which], axes[which], bases[which] = centre, axis, base
+            halves[which] = (np.abs(along).max(axis=1) + np.sqrt(np.einsum("mki,mki->mk", off, off)).max(axis=1)
+                             + base ** 2 / (4 * self.r_near))
+        return centres, axes, halves, bases
 
 
 def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: float, taps: int,
@@ -121,7 +132,7 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         nodes = [n for n in dict.fromkeys(nodes) if n not in extents_of]
         if not nodes:
             return
-        centres, axes, halves, bases = (np.array(x) for x in zip(*(frames.frame(p0, p1) for p0, p1 in nodes)))
+        centres, axes, halves, bases = frames.frames(nodes)
         widen = halves + bases / 2
         limits = None if sine is None else np.minimum(1.0, sine + np.linalg.norm(axes - [0.0, 1.0, 0.0], axis=1)
                                                       + halves / frames.r_near)
