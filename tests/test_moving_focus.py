@@ -76,14 +76,16 @@ def test_point_focuses_to_its_resolution_cell_over_25_s(case6):
 @pytest.mark.slow
 @pytest.mark.parametrize("case", [6, 8])
 def test_point_focuses_to_its_resolution_cell_over_80_s(opencl_device, case):
-    """Table I's 6400 pulses at 80 Hz. Measured (case 6 / 8): IRW / cell 1.00 / 1.00, PSLR
-    -13.2 dB at A, B, C; before the fix 270-410 / 4.5-5.1 cells at 0 / -11.7 dB, and the
-    quadratic focus with K~ alone 10-13 / 4.5-5.9 cells at -3 to -4.5 dB."""
+    """Table I's 6400 pulses at 80 Hz (~3 GB, minutes). Measured at A, B, C: IRW / cell 1.00,
+    PSLR -13.2 to -13.3 dB in both cases (velocity errors 0.097 % and 0.0016 %: the sharpness
+    search removed 0.35-0.75 cycles of quadratic phase in case 6). Before the fix: case 6
+    250-410 cells at 0 dB, case 8 2.1-5.1 cells at -11.7 dB; the quadratic focus with K~
+    alone 10-13 and 4.5-5.9 cells at -2.9 to -4.5 dB."""
     sc, v, est, images = _focused(case, 6400, 80.0)
     quality = _quality(sc, v, images)
     for name, (width, pslr, offset) in quality.items():
         assert width == pytest.approx(1.0, abs=0.05), (name, quality)
-        assert -14.3 < pslr < -12.3, (name, quality)
+        assert -13.6 < pslr < -12.9, (name, quality)
 
 
 def test_residual_phase_is_found_by_sharpness(rng):

@@ -242,7 +242,8 @@ def sharpened_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: 
     cell 1 / B at the aperture's ends, the record is aligned again with them and searched again
     (at most :data:`SHARPEN_ALIGNMENTS` times). On an extended target the peak is its strongest
     scatterer, whose walk differs from the centre's (the chain's RCMC is the reference
-    point's). The Taylor terms are taken about the middle of the record (the layout's default
+    point's); a walk that would move the record by more than half the window's margin
+    (:data:`MARGIN` / 2 samples at the aperture's ends) is not applied. The Taylor terms are taken about the middle of the record (the layout's default
     eta_ref)."""
     eta_ref, d = rec.eta_ref, rec.d
     half = 0.5 * float(np.ptp(rec.eta))
@@ -270,6 +271,8 @@ def sharpened_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: 
         image, eta_axis = compress(rec, win, fm_rate)
         row = np.unravel_index(int(np.argmax(np.abs(image))), image.shape)[0]
         new_walk = -fm_rate * float(eta_axis[row] - eta_ref) / rec.f0
+        if abs(new_walk) * half * rec.fs > MARGIN / 2:  # beyond the window's margin: a far glint
+            new_walk = walk
         moved = float(np.max(np.abs(step))) + abs(new_walk - walk) * half
         delay, walk = delay + step, new_walk
         if moved * rec.bandwidth <= 0.1:
