@@ -20,17 +20,20 @@ each, min and median, with the relative L2 difference of the two images:
 ``--scan`` adds the aperture case's ratio for 512, 1024, 2048 and 4096 pulses (512^2 pixels, one
 timed run each).
 
-Measured 2026-11-23 (2-core AVX2 EPYC, PoCL 3.1, a machine shared with two other developers
-at load average 5.6-5.8; ratios are direct / ffbp, interleaved in one run, 4 timed runs: median
-and best): 1024^2 x 2048 aperture 10.1x (10.7x), ffbp 1.70 s (1.17 s) against direct 17.1 s
-(12.6 s), 3 levels of 2.9/2.5/2.4M polar samples, relative L2 0.054; full 1.6x (1.6x), ffbp
-12.6 s against 20.2 s, 4 levels, relative L2 0.0067. Earlier the same session (fe19036, load
-5-5.9): aperture 9.7x (11.0x); before the session's changes (load 7-10): 8.1x (8.4x).
-Aperture case at 512^2 pixels for 512, 1024, 2048, 4096 pulses (one timed run each): 2.4, 2.5,
-4.4, 5.0x (relative L2 0.031, 0.048, 0.055, 0.060; 3, 2, 1, 1 levels): a fixed 512^2 grid
-samples the longer scene ever more coarsely along track, so the merges stop early (at 2048 and
-4096 pulses the leaves go straight to the pixels) and the ratio grows with the pixels as much
-as with the pulses.
+Measured 2026-11-23 after direct back-projection learnt to sum, with an aperture, only the
+pulses that can see each tile (kernels/backprojection.cl PULSE_SPAN; 2-core AVX2 EPYC, PoCL 3.1,
+quiet machine, load average < 1; direct / ffbp interleaved, 3 timed runs, median and best):
+1024^2 x 2048 aperture 3.3x (3.3x), ffbp 0.88 s against direct 2.91 s (direct over every angle:
+6.85 s, so the span saves it 2.4x), 3 levels of 2.9/2.5/2.4M polar samples, relative L2 0.054;
+full 1.14x (1.36x), ffbp 6.0 s against 6.85 s, 4 levels, relative L2 0.0067. Quick (512^2 x
+1024): aperture 1.9x, full 1.8x. Before that change (direct summing every pulse, masked: 17.1 s
+at load 5.6-5.8) the aperture case measured 10.1x (10.7x) with the same ffbp.
+Aperture case at 512^2 pixels for 512, 1024, 2048, 4096 pulses (one timed run each, against
+the spanned direct): 2.1, 1.9, 1.5, 1.04x (relative L2 0.031, 0.048, 0.055, 0.060; 3, 2, 1, 1
+levels; against the unspanned direct the same ffbp measured 2.4, 2.5, 4.4, 5.0x). On a fixed
+512^2 grid the longer scene is sampled ever more coarsely along track, so the merges stop early
+(at 2048 and 4096 pulses the leaves go straight to the pixels), while the spanned direct's cost
+a pixel stays the beam's footprint: the ratio grows with the pixels, not with the pulses.
 """
 
 from __future__ import annotations

@@ -36,7 +36,6 @@ from ...kernelmath import expj_cycles
 from ..backprojection import (NODE_TOLERANCE, PULSE_BLOCK, PULSES, RECORDS, TILE_PARAMS, GridPlan, backproject, prepare,
                               tile_references)
 from ..backprojection_tiles import LANES, ROWS, tile_half_extent
-from .merge import ffbp_kernel
 from .polar import PolarGrid
 
 BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~40 bytes each held)
@@ -115,7 +114,7 @@ class FirstStage:
                             dst_offset=8 * offset)
             return
         image, items, first, count = made
-        kern = ffbp_kernel("ffbp_leaf", TAPS=8, TAP_ROWS=TAP_ROWS)
+        kern = opencl.kernel("ffbp", "ffbp_leaf", defines={"TAPS": 8, "TAP_ROWS": TAP_ROWS})
         frame = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=grid.record())
         kern(rt.queue, (count,), None, image, items, np.int32(first), frame, np.float64(self.demodulate),
              np.int64(offset), out)
@@ -194,7 +193,7 @@ class FirstStage:
             m_pad = LANES * items.shape[0]
             pix = cl.Buffer(ctx, mf.READ_WRITE, 4 * 4 * m_pad)
             items_buf = made(items)
-            ffbp_kernel("ffbp_fields", TAPS=8, TAP_ROWS=TAP_ROWS)(
+            opencl.kernel("ffbp", "ffbp_fields", defines={"TAPS": 8, "TAP_ROWS": TAP_ROWS})(
                 queue, (items.shape[0],), None, items_buf, frames, plane, made(centres), np.int32(m_pad), pix)
             square = np.empty(m_pad, np.float32)
             copied = cl.enqueue_copy(queue, square, pix, src_offset=3 * 4 * m_pad, is_blocking=False)  # |delta|^2

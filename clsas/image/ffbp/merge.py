@@ -22,7 +22,6 @@ the sum in float; the reference does everything in float64.
 
 from __future__ import annotations
 
-import threading
 from functools import lru_cache
 
 import numpy as np
@@ -133,7 +132,7 @@ def merge_device(grids: list, images, offsets, targets, f0: float, c: float, tap
         header = np.zeros(24)
         points = targets
         size = (-(-n_out // LANES),)
-    kern = ffbp_kernel("ffbp_merge", **defines)
+    kern = opencl.kernel("ffbp", "ffbp_merge", defines=defines)
 
     def made(a):
         return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
@@ -141,18 +140,6 @@ def merge_device(grids: list, images, offsets, targets, f0: float, c: float, tap
     kern(rt.queue, size, None, images, made(np.asarray(offsets, np.int64)), made(np.stack([g.record() for g in grids])),
          made(_table(taps, float(rho))), points, made(np.r_[header, 2 * f0 / c]), np.int32(len(grids)),
          np.int32(n_out), np.int64(out_offset), out)
-
-
-def ffbp_kernel(name: str, **defines):
-    """Kernel ``name`` of kernels/ffbp.cl built with ``defines``, looked up once per (runtime,
-    thread, defines): :func:`clsas.opencl.kernel` costs ~1-3 ms a call (it finds the kernels'
-    folder and hashes the build options each time), which ffbp's hundreds of small launches paid."""
-    return _ffbp_kernel(id(opencl.runtime()), threading.get_ident(), name, tuple(sorted(defines.items())))
-
-
-@lru_cache(maxsize=64)
-def _ffbp_kernel(runtime: int, thread: int, name: str, defines: tuple):
-    return opencl.kernel("ffbp", name, defines=dict(defines))
 
 
 @lru_cache(maxsize=8)
