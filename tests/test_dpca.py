@@ -344,7 +344,7 @@ def test_correlations_are_normalised_and_find_a_delay(rng):
 
 
 def test_bad_input(seafloor):
-    scene, _, echo, _ = seafloor
+    scene, _, echo, pairs = seafloor
     v = scene.platform.speed
     with pytest.raises(ValueError, match="overlapping phase centres"):
         dpca.estimate(echo, scene.array, 2.5 * v)
@@ -361,6 +361,11 @@ def test_bad_input(seafloor):
         dpca.estimate(echo, scene.array, v, t_lags=100, block=64)
     with pytest.raises(ValueError, match="receivers and emission times"):
         dpca.with_track(echo, presets.heremans2009(n_pulses=4))
+    track = dpca.integrate(pairs, echo.eta, v, scene.array)
+    with pytest.raises(ValueError, match="compensate_record: subaperture must be an even integer >= 4"):
+        dpca.compensate_record(echo, track, scene, receivers=range(4, 11), subaperture=3)
+    with pytest.raises(ValueError, match="compensate_record depth: must be a finite number"):
+        dpca.compensate_record(echo, track, scene, receivers=range(4, 11), depth=float("nan"))
 
 
 @pytest.mark.slow

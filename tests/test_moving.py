@@ -286,6 +286,8 @@ def test_stop_and_go_imagers_shift_the_target_by_f_dc_over_k(case1_echo):
 
     est = clsas.estimate_motion(case1_echo, position=CENTRE)
     proposed = clsas.focus_moving(case1_echo, est, tau_span=0.02)["A"]
+    with pytest.raises(TypeError, match="focus_moving sharpen: must be True or False"):
+        clsas.focus_moving(case1_echo, est, sharpen="no")   # a string is not silently truthy
     truth = closed_forms(case1_echo, CENTRE, presets.KIANG_CASES[1])["A"]
     expected = truth.doppler_centroid / truth.fm_rate
     r_c = np.linalg.norm(CENTRE - est.layout.tx_position)

@@ -33,6 +33,7 @@ import dataclasses
 import numpy as np
 import scipy.fft
 
+from ... import validate
 from ...data import EchoData
 from ...image.multireceiver import pca_record
 from ...image.record import LineRecord, unit_phasor
@@ -53,14 +54,18 @@ def displacement(trajectory: Trajectory, scenario: Scenario, eta: np.ndarray) ->
     return y[None, :] + pc[:, None], x
 
 
+def _check_subaperture(caller: str, subaperture) -> None:
+    if not isinstance(subaperture, (int, np.integer)) or isinstance(subaperture, bool) or subaperture < 4 \
+            or subaperture % 2:
+        raise ValueError(f"{caller}: subaperture must be an even integer >= 4 rows, got {subaperture!r}")
+
+
 def beam_correction(record: LineRecord, x: np.ndarray, n_z: float = 0.0, subaperture: int = 32,
                     workers: int | None = -1) -> LineRecord:
     """``record`` with the residual 2 x (1 - n_x) of a broadside delay correction removed over
     the beam (module docstring). x : m (n_u,), each row's cross-track displacement; n_z : the
     vertical direction cosine of the scene; subaperture : rows per sub-aperture (even, >= 4)."""
-    if not isinstance(subaperture, (int, np.integer)) or isinstance(subaperture, bool) or subaperture < 4 \
-            or subaperture % 2:
-        raise ValueError(f"beam_correction: subaperture must be an even integer >= 4 rows, got {subaperture!r}")
+    _check_subaperture("beam_correction", subaperture)
     x = np.asarray(x, dtype=np.float64)
     if x.shape != (record.n_u,):
         raise ValueError(f"beam_correction: x must have one displacement per row ({record.n_u}), got {x.shape}")
@@ -108,6 +113,9 @@ def compensate_record(echo: EchoData, trajectory: Trajectory, scenario: Scenario
     phase centres must not overlap between pings), then eq. (75) over the beam
     (:func:`beam_correction`, see the module docstring). depth : m, z of the imaged plane
     (default: the track's, a horizontal geometry)."""
+    _check_subaperture("compensate_record", subaperture)
+    if depth is not None:
+        depth = validate.scalar("compensate_record depth", depth, unit="m")
     straight = compensate(echo, trajectory, scenario, workers=workers)
     record = pca_record(straight, receivers, backend=backend)
     u, x = displacement(trajectory, scenario, echo.eta)

@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ... import validate
 from ...data import EchoData, Image
 from .chain import MIN_TIME_BANDWIDTH, UPSAMPLE, estimate_records, focus_receiver, locate, records
 from .closedforms import Predicted, delay_terms, higher_order_delay
@@ -248,6 +249,7 @@ def focus(echo: EchoData, est: MotionEstimate, tau_span: float | None = None, sh
     """
     if not isinstance(est, MotionEstimate):
         raise TypeError(f"est must be a MotionEstimate (from estimate()), got {type(est).__name__}")
+    sharpen = validate.flag("focus_moving sharpen", sharpen)
     check_echo(echo, list(est.receivers))
     images = {}
     for name, rx in est.receivers.items():
