@@ -364,6 +364,11 @@ def test_bad_input(seafloor):
     track = dpca.integrate(pairs, echo.eta, v, scene.array)
     with pytest.raises(ValueError, match="compensate_record: subaperture must be an even integer >= 4"):
         dpca.compensate_record(echo, track, scene, receivers=range(4, 11), subaperture=3)
+    f = echo.data[0, 0, None, :64]
+    with pytest.raises(ValueError, match="correlations fs: must be in"):
+        dpca.correlations(f, f, 2, delay=1e-6, fs=-1.0)
+    with pytest.raises(ValueError, match="correlations delay: must be finite"):
+        dpca.correlations(f, f, 2, delay=np.nan, fs=1e5)
     with pytest.raises(ValueError, match="compensate_record depth: must be a finite number"):
         dpca.compensate_record(echo, track, scene, receivers=range(4, 11), depth=float("nan"))
 

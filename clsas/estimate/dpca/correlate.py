@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft
 
+from ... import validate
 from ...data import EchoData
 from ...image.record import unit_phasor
 
@@ -57,6 +58,11 @@ def correlations(f: np.ndarray, g: np.ndarray, t_lags: int, method: str = "auto"
         raise ValueError(f"correlations: method must be 'auto', 'direct' or 'fft', got {method!r}")
     if delay is not None and (method == "direct" or fs is None):
         raise ValueError("correlations: a delay needs method 'auto' or 'fft' and the sampling rate fs")
+    if delay is not None:
+        fs = validate.positive("correlations fs", fs, unit="Hz")
+        delay = np.asarray(delay, dtype=np.float64)
+        if not np.all(np.isfinite(delay)):
+            raise ValueError(f"correlations delay: must be finite seconds, got {delay[~np.isfinite(delay)].flat[0]}")
     n = f.shape[-1]
     norm = np.sqrt(np.sum(np.abs(f) ** 2, axis=-1) * np.sum(np.abs(g) ** 2, axis=-1))
     if delay is not None or method == "fft" or (method == "auto" and 2 * t_lags + 1 > DIRECT_T_LAGS):
@@ -64,7 +70,7 @@ def correlations(f: np.ndarray, g: np.ndarray, t_lags: int, method: str = "auto"
         cross = scipy.fft.fft(f, size, axis=-1) * np.conj(scipy.fft.fft(g, size, axis=-1))
         if delay is not None:
             freq = scipy.fft.fftfreq(size, 1 / fs)
-            cross *= unit_phasor(-2 * np.pi * np.asarray(delay, dtype=np.float64)[..., None] * freq)
+            cross *= unit_phasor(-2 * np.pi * delay[..., None] * freq)
         out = scipy.fft.ifft(cross, axis=-1)[..., np.arange(-t_lags, t_lags + 1) % size]
     else:
         g_conj = np.conj(g)
