@@ -362,8 +362,11 @@ def test_bad_input(seafloor):
     with pytest.raises(ValueError, match="receivers and emission times"):
         dpca.with_track(echo, presets.heremans2009(n_pulses=4))
     track = dpca.integrate(pairs, echo.eta, v, scene.array)
-    with pytest.raises(ValueError, match="compensate_record: subaperture must be an even integer >= 4"):
-        dpca.compensate_record(echo, track, scene, receivers=range(4, 11), subaperture=3)
+    for bad in (3, 5, 2**30):   # too few, odd, more rows than the record has
+        with pytest.raises(ValueError, match="compensate_record: subaperture"):
+            dpca.compensate_record(echo, track, scene, receivers=range(4, 11), subaperture=bad)
+    with pytest.raises(TypeError, match="compensate_record: subaperture"):
+        dpca.compensate_record(echo, track, scene, receivers=range(4, 11), subaperture=32.0)
     f = echo.data[0, 0, None, :64]
     with pytest.raises(ValueError, match="correlations fs: must be in"):
         dpca.correlations(f, f, 2, delay=1e-6, fs=-1.0)

@@ -54,10 +54,12 @@ def displacement(trajectory: Trajectory, scenario: Scenario, eta: np.ndarray) ->
     return y[None, :] + pc[:, None], x
 
 
-def _check_subaperture(caller: str, subaperture) -> None:
-    if not isinstance(subaperture, (int, np.integer)) or isinstance(subaperture, bool) or subaperture < 4 \
-            or subaperture % 2:
-        raise ValueError(f"{caller}: subaperture must be an even integer >= 4 rows, got {subaperture!r}")
+def _check_subaperture(caller: str, subaperture, rows: int) -> None:
+    """An even number of rows in [4, max(4, rows)] (a TypeError for a non-integer)."""
+    n = validate.integer(f"{caller}: subaperture", subaperture, low=4, high=max(4, rows),
+                         why="rows per sub-aperture, even, at most the record's rows")
+    if n % 2:
+        raise ValueError(f"{caller}: subaperture must be an even integer >= 4 rows, got {n}")
 
 
 def beam_correction(record: LineRecord, x: np.ndarray, n_z: float = 0.0, subaperture: int = 32,
@@ -65,7 +67,7 @@ def beam_correction(record: LineRecord, x: np.ndarray, n_z: float = 0.0, subaper
     """``record`` with the residual 2 x (1 - n_x) of a broadside delay correction removed over
     the beam (module docstring). x : m (n_u,), each row's cross-track displacement; n_z : the
     vertical direction cosine of the scene; subaperture : rows per sub-aperture (even, >= 4)."""
-    _check_subaperture("beam_correction", subaperture)
+    _check_subaperture("beam_correction", subaperture, record.n_u)
     x = np.asarray(x, dtype=np.float64)
     if x.shape != (record.n_u,):
         raise ValueError(f"beam_correction: x must have one displacement per row ({record.n_u}), got {x.shape}")
@@ -113,7 +115,7 @@ def compensate_record(echo: EchoData, trajectory: Trajectory, scenario: Scenario
     phase centres must not overlap between pings), then eq. (75) over the beam
     (:func:`beam_correction`, see the module docstring). depth : m, z of the imaged plane
     (default: the track's, a horizontal geometry)."""
-    _check_subaperture("compensate_record", subaperture)
+    _check_subaperture("compensate_record", subaperture, len(echo.receivers) * echo.n_pulses)
     if depth is not None:
         depth = validate.scalar("compensate_record depth", depth, unit="m")
     straight = compensate(echo, trajectory, scenario, workers=workers)

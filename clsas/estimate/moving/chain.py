@@ -51,6 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ... import validate
 from ...data import EchoData, Image
 from ...errors import EstimationError
 from ...image.rangecomp import range_compress
@@ -408,6 +409,10 @@ def focus_receiver(echo: EchoData, receiver: str, rx_estimate: ReceiverEstimate,
     """
     if not isinstance(rx_estimate, Doppler):
         raise TypeError(f"rx_estimate must be a ReceiverEstimate, got {type(rx_estimate).__name__}")
+    sharpen = validate.flag("focus_receiver sharpen", sharpen)
+    if higher_order is not None:
+        higher_order = validate.array("focus_receiver higher_order", higher_order, (echo.n_pulses,), bound=1.0,
+                                      copy=False)
     rec = records(echo, receiver)
     aperture = float(np.ptp(rec.eta) + 1.0 / rec.prf)
     if abs(rx_estimate.fm_rate) * aperture**2 < MIN_TIME_BANDWIDTH:
