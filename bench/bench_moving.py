@@ -15,6 +15,9 @@ back-projection of A), of it the joint position + velocity solve 0.67 s, one rec
 0.46 s (Radon 0.13, RWC + azimuth compression of the whole record 0.13, refocus + extent 0.16);
 focus_moving (A, B, C) 0.48 s, of it the sharpness search 0.10 s a receiver (the 4 ms window's
 focus 0.014 s without it, 0.115 s with it).
+The first pass's locate sharpened (:func:`clsas.estimate.moving.chain.locate`, since the chain's
+tau_c over 80 s; A B A B in one process, load ~1.5, min over 3, A + B + C): 0.17 -> 0.62 s at
+512 pulses, 1.36 -> 4.00 s at 2048; estimate_motion then 1.59 s at 512 pulses, 10.0 s at 2048.
 """
 
 from __future__ import annotations
@@ -57,6 +60,9 @@ def main() -> None:
     steps["RWC + azimuth compression"] = measure(
         lambda: chain.focus_bins(rec, k, f_dc, slice(0, rec.x.shape[1])), repeats=repeats)
     steps["estimate_receiver (A, whole)"] = measure(lambda: chain.estimate_receiver(echo, "A"), repeats=repeats)
+
+    steps["sharpened locate (A, first pass)"] = measure(lambda: chain.locate(rec, est, sharpen=True),
+                                                        repeats=repeats)
 
     lay = layout_of(echo)
     higher = higher_order_delay(lay, "A", CENTRE, v, rec.eta)
