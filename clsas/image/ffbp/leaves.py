@@ -44,7 +44,8 @@ TILE_ROWS, TILE_SAMPLES = 8, 128  # the largest tile tried (rows x range samples
 
 
 def polar_tiles(grids: list, bv: int, br: int):
-    """bp_tile's tiles of polar grids (module docstring), blocks of bv rows x br range samples:
+    """bp_tile's tiles of polar grids (module docstring), blocks of bv rows x br range samples
+    (those at a grid's edge cut to it):
     their work-items (I, 4) int32 (grid, row, first of sixteen consecutive range samples of that
     row, tile; grid by grid, tile by tile, row by row), the tiles' reference points (T, 3) m (each
     block's middle sample) and the number of tiles of each grid (L,)."""
@@ -54,9 +55,13 @@ def polar_tiles(grids: list, bv: int, br: int):
     real = (np.arange(tv)[None, :, None] < tv_of[:, None, None]) & (np.arange(tr)[None, None, :] < tr_of[:, None, None])
     tile = np.cumsum(real.reshape(-1)).reshape(real.shape) - 1  # grid by grid, row-major within a grid
     # work-items tile by tile, within a tile row by row, LANES samples each
+    # a tile at the grid's edge keeps only its rows inside the grid (rounded up to whole work-items
+    # of ROWS rows) and its sixteen-sample groups that start inside it
     shape = (len(grids), tv, tr, bv, br // LANES)
     l, a, b, j, q = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij", sparse=True)
-    keep = np.broadcast_to(real[:, :, :, None, None], shape)
+    n_v = np.array([g.n_v for g in grids])[:, None, None, None, None]
+    n_r = np.array([g.n_r for g in grids])[:, None, None, None, None]
+    keep = real[:, :, :, None, None] & (j < -(-(n_v - a * bv) // ROWS) * ROWS) & (b * br + q * LANES < n_r)
     items = np.stack([np.broadcast_to(x, shape)[keep] for x in (l, a * bv + j, b * br + q * LANES,
                                                                  tile[:, :, :, None, None])], axis=1)
     centres = []
@@ -188,34 +193,34 @@ class FirstStage:
         plane = made(np.r_[grids[batch[0]].plane.normal, grids[batch[0]].plane.offset])
         frames = made(np.stack([grids[k].record() for k in batch]))
         bv, br = TILE_ROWS, TILE_SAMPLES
+        leaves = [grids[k] for k in batch]
         while True:  # the largest tiles whose samples all lie within the budget of their references
-            items, centres, n_tiles = polar_tiles([grids[k] for k in batch], bv, br)
+            items, centres, n_tiles = polar_tiles(leaves, bv, br)
             m_pad = LANES * items.shape[0]
             pix = cl.Buffer(ctx, mf.READ_WRITE, 4 * 4 * m_pad)
             items_buf = made(items)
             opencl.kernel("ffbp", "ffbp_fields", defines={"TAPS": 8, "TAP_ROWS": TAP_ROWS})(
                 queue, (items.shape[0],), None, items_buf, frames, plane, made(centres), np.int32(m_pad), pix)
             square = np.empty(m_pad, np.float32)
-            copied = cl.enqueue_copy(queue, square, pix, src_offset=3 * 4 * m_pad, is_blocking=False)  # |delta|^2
-            first_tile = np.cumsum(np.r_[0, n_tiles])
-            # meanwhile the references, for the largest extent the tiles may have (a wider delay span
-            # for the linear-motion check), again for the tiles' own extent if that check fails
-            refs, failed = self._references(records, batch, centres, first_tile, b0, budget)
-            copied.wait()
+            cl.enqueue_copy(queue, square, pix, src_offset=3 * 4 * m_pad)  # |delta|^2
             extent = float(np.sqrt(square.max()))
             if extent <= budget:
-                if failed:
-                    refs, failed = self._references(records, batch, centres, first_tile, b0, extent)
-                if failed:
-                    return batch
                 break
-            if br > LANES:
-                br //= 2
-            elif bv > ROWS:
-                bv //= 2
-            else:
+            if br == LANES and bv == ROWS:
                 raise ValueError(f"a polar grid's {ROWS} x {LANES} block reaches {extent:.3g} m from its middle, "
                                  f"beyond the {budget:.3g} m a bp_tile tile may")
+            # halve the tiles' longer side (at the far range, where a row spans the most)
+            along_r = br * max(g.dr for g in leaves)
+            along_v = bv * max(g.dv * (g.r0 + g.n_r * g.dr) / np.sqrt(max(1 - max(g.v0 ** 2, (g.v0 + g.n_v * g.dv) ** 2),
+                                                                            1e-6)) for g in leaves)
+            if br > LANES and (along_r >= along_v or bv == ROWS):
+                br //= 2
+            else:
+                bv //= 2
+        first_tile = np.cumsum(np.r_[0, n_tiles])
+        refs, failed = self._references(records, batch, centres, first_tile, b0, extent)
+        if failed:
+            return batch
         row_shift = np.repeat(np.array([self.leaves[k][0] - b0 for k in batch], np.int32), n_tiles)
         tile_of = np.ascontiguousarray(items[::ROWS, 3])
         defines = {"INTERP_LINEAR" if records.interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS,
