@@ -21,8 +21,10 @@ edge repeat its last sample and are dropped.
 
 Leaves the batch cannot take go through :func:`clsas.backproject` one by one on the same
 prepared records (the same image up to float32 rounding): a leaf shorter than ``first`` (the
-last), and a receiver whose motion is not linear over a tile's delay span (where
-back-projection falls back to its exact double kernel). The NumPy backend always does.
+last), a receiver whose motion is not linear over a tile's delay span (where
+back-projection falls back to its exact double kernel), and a batch whose samples lie so far
+apart (a very short leaf's coarse angles) that even a tile of ROWS x LANES of them leaves the
+budget (back-projection tiles those points its own way). The NumPy backend always does.
 """
 
 from __future__ import annotations
@@ -178,7 +180,8 @@ class FirstStage:
     def _launch(self, records, batch: list, grids: list, b0: int) -> list:
         """The images of the leaves ``batch`` (all ``first`` pulses long) by bp_tile launches into
         self.ready; returns the leaves it left to :func:`clsas.backproject` (a receiver's motion not
-        linear over a tile)."""
+        linear over a tile, or polar samples so far apart that even a tile of ROWS x LANES of them
+        spans more than bp_tile's float32 geometry allows)."""
         import pyopencl as cl
 
         rt = opencl.runtime()
@@ -206,9 +209,8 @@ class FirstStage:
             extent = float(np.sqrt(square.max()))
             if extent <= budget:
                 break
-            if br == LANES and bv == ROWS:
-                raise ValueError(f"a polar grid's {ROWS} x {LANES} block reaches {extent:.3g} m from its middle, "
-                                 f"beyond the {budget:.3g} m a bp_tile tile may")
+            if br == LANES and bv == ROWS:  # samples too far apart for any tile (a short leaf's coarse angles)
+                return batch
             # halve the tiles' longer side (at the far range, where a row spans the most)
             along_r = br * max(g.dr for g in leaves)
             along_v = bv * max(g.dv * (g.r0 + g.n_r * g.dr) / np.sqrt(max(1 - max(g.v0 ** 2, (g.v0 + g.n_v * g.dv) ** 2),
