@@ -51,21 +51,26 @@ from clsas.data import Grid
 from clsas.image.backprojection import backproject
 from clsas.image.ffbp import ffbp
 
-F0, B, FS, D, STEP, UP, DEPTH = 150e3, 20e3, 25e3, 0.1, 0.025, 8, -5.0
+F0, B, FS, UP, DEPTH = 150e3, 20e3, 25e3, 8, -5.0
+# the two sonars: element length D (m; pulses every D / 4) and the image's ranges (m)
+SONARS = {"narrow": {"element": 0.1, "ranges": (40.0, 60.0)}, "wide": {"element": 0.02, "ranges": (20.0, 40.0)}}
 
 
-def scene(n_pulses: int, n_pixels: int):
-    """The range-compressed (upsampled x UP) echo of the speckle seafloor and the image plane."""
-    half = n_pulses * STEP / 4
+def scene(n_pulses: int, n_pixels: int, sonar: str = "narrow"):
+    """The range-compressed (upsampled x UP) echo of the speckle seafloor seen by ``sonar`` and the image plane."""
+    element, (near, far) = SONARS[sonar]["element"], SONARS[sonar]["ranges"]
+    step = element / 4
+    half = n_pulses * step / 4
     rng = np.random.default_rng(0)
     n = 4000
-    pos = np.column_stack([rng.uniform(40.0, 60.0, n), rng.uniform(-half, half, n), np.full(n, DEPTH)])
+    pos = np.column_stack([rng.uniform(near, far, n), rng.uniform(-half, half, n), np.full(n, DEPTH)])
     sc = Scenario(medium=Medium(1500.0), waveform=Waveform(f0=F0, bandwidth=B, duration=5e-3, fs=FS),
-                  platform=Platform(speed=1.0), array=Array(rx_offsets=[[0.0, 0.0, 0.0]], tx_length=D, rx_length=D),
-                  schedule=PulseSchedule(prf=1.0 / STEP, n_pulses=n_pulses),
+                  platform=Platform(speed=1.0),
+                  array=Array(rx_offsets=[[0.0, 0.0, 0.0]], tx_length=element, rx_length=element),
+                  schedule=PulseSchedule(prf=1.0 / step, n_pulses=n_pulses),
                   targets=(PointTargets(pos, reflectivity=rng.standard_normal(n) + 1j * rng.standard_normal(n)),))
     echo = clsas.range_compress(clsas.simulate(sc, backend="opencl", progress=False), upsample=UP)
-    grid = Grid.plane(np.linspace(40.0, 60.0, n_pixels), np.linspace(-half, half, n_pixels), DEPTH)
+    grid = Grid.plane(np.linspace(near, far, n_pixels), np.linspace(-half, half, n_pixels), DEPTH)
     return echo, grid
 
 
@@ -88,18 +93,21 @@ def main() -> None:
     args = arguments(__doc__.splitlines()[0])
     n_pix, n_pulses = (512, 1024) if args.quick else (1024, 2048)
     repeats = args.repeats or 3
-    cases = {"aperture": {"aperture": 2 * 0.01 / D}, "full": {}}
+    # case: (sonar, options of both imagers)
+    cases = {"wide": ("wide", {}), "aperture": ("narrow", {"aperture": 2 * 0.01 / SONARS["narrow"]["element"]}),
+             "full": ("narrow", {})}
     sizes = [(n_pix, n_pulses, case, repeats) for case in cases]
     if scan:
         sizes += [(512, n, "aperture", 1) for n in (512, 1024, 2048, 4096)]
     echoes = {}
     for pix, pulses, case, reps in sizes:
-        if (pulses, pix) not in echoes:
-            echoes = {(pulses, pix): scene(pulses, pix)}
-        echo, grid = echoes[(pulses, pix)]
+        sonar, options = cases[case]
+        if (pulses, pix, sonar) not in echoes:
+            echoes = {(pulses, pix, sonar): scene(pulses, pix, sonar)}
+        echo, grid = echoes[(pulses, pix, sonar)]
         kw = dict(backend="opencl", upsample=1, progress=False)
-        runs = {"direct": lambda: backproject(echo, grid, interp="linear", **kw, **cases[case]),
-                "ffbp": lambda: ffbp(echo, grid, interp="linear", **kw, **cases[case])}
+        runs = {"direct": lambda: backproject(echo, grid, interp="linear", **kw, **options),
+                "ffbp": lambda: ffbp(echo, grid, interp="linear", **kw, **options)}
         times, images = interleaved(runs, reps)
         ref = images["direct"].data
         err = float(np.linalg.norm(images["ffbp"].data - ref) / np.linalg.norm(ref))

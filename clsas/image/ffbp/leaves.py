@@ -43,6 +43,7 @@ from .polar import PolarGrid
 BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~40 bytes each held)
 RECORD_BYTES = 256 * 2**20  # prepared records held at once
 TILE_ROWS, TILE_SAMPLES = 8, 128  # the largest tile tried (rows x range samples)
+REF_CHUNK = 2**18  # (pulse, tile) pairs whose references are computed at once (~100 bytes each held)
 
 
 def polar_tiles(grids: list, bv: int, br: int):
@@ -158,23 +159,33 @@ class FirstStage:
 
     def _references(self, records, batch: list, centres: np.ndarray, first_tile: np.ndarray, b0: int,
                     half_extent: float) -> tuple[list, bool]:
-        """bp_tile's tile references of every receiver (a list a receiver of the leaves' (T_leaf, first)
-        arrays), for tiles whose samples lie within ``half_extent`` of their references, and whether
-        a receiver's motion departs from linear over a tile's delay span by more than
-        NODE_TOLERANCE of a wavelength (then the batch goes to clsas.backproject)."""
+        """bp_tile's tile references of every receiver (a list a receiver of (T, first) arrays: the
+        batch's tiles leaf by leaf, each for its leaf's pulses), for tiles whose samples lie within
+        ``half_extent`` of their references, and whether a receiver's motion departs from linear
+        over a tile's delay span by more than NODE_TOLERANCE of a wavelength (then the batch goes
+        to clsas.backproject). Computed for REF_CHUNK (pulse, tile) pairs at a time, each leaf's
+        tiles padded to the batch's largest count by repeating its last."""
         echo = records.echo
         tolerance = NODE_TOLERANCE * echo.waveform.wavelength(echo.medium)
+        counts = np.diff(first_tile)
+        widest = int(counts.max())
+        slot = np.minimum(np.arange(widest)[None, :], counts[:, None] - 1) + first_tile[:-1, None]  # (L, widest)
+        real = np.arange(widest)[None, :] < counts[:, None]
+        starts = np.array([self.leaves[k][0] - b0 for k in batch])
+        step = max(1, REF_CHUNK // (widest * self.first))  # leaves a chunk
         refs = []
         for i, h in enumerate(records.receivers):
-            refs.append([])
-            for j, k in enumerate(batch):
-                p0, p1 = self.leaves[k]
-                ref, departure = tile_references(echo, h, np.arange(p0 - b0, p1 - b0),
-                                                 centres[first_tile[j]:first_tile[j + 1]], np.zeros(3),
-                                                 self.stop_and_go, records.fs, half_extent, int(records.offset[i]))
+            parts = []
+            for s in range(0, len(batch), step):
+                leaves = slice(s, min(s + step, len(batch)))
+                pulses = (starts[leaves, None] + np.arange(self.first)).reshape(-1)
+                points = np.repeat(centres[slot[leaves]], self.first, axis=0)  # (leaves x first, widest, 3)
+                ref, departure = tile_references(echo, h, pulses, points, np.zeros(3), self.stop_and_go, records.fs,
+                                                 half_extent, int(records.offset[i]))
                 if departure > tolerance:
                     return refs, True
-                refs[-1].append(ref)
+                parts.append(ref.reshape(widest, -1, self.first).transpose(1, 0, 2)[real[leaves]])
+            refs.append(np.concatenate(parts))
         return refs, False
 
     def _launch(self, records, batch: list, grids: list, b0: int) -> list:
@@ -238,7 +249,7 @@ class FirstStage:
         cl.enqueue_fill_buffer(queue, image, np.zeros(1, np.complex128), 0, 16 * m_pad)
         for i, h in enumerate(records.receivers):
             data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
-            ref_buf = made(np.concatenate(refs[i]))
+            ref_buf = made(refs[i])
             for s in range(0, self.first, PULSE_BLOCK):
                 kern(queue, (m_pad // (LANES * ROWS),), None, pix, tile_buf, ref_buf, np.int32(self.first), np.int32(0),
                      data, taps, params[()], np.int32(s), np.int32(min(PULSE_BLOCK, self.first - s)),
