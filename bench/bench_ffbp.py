@@ -98,6 +98,7 @@ def main() -> None:
              "full": ("narrow", {})}
     sizes = [(n_pix, n_pulses, case, repeats) for case in cases]
     if scan:
+        sizes += [(n // 2, n, "wide", 1) for n in (512, 1024, 2048, 4096)]
         sizes += [(512, n, "aperture", 1) for n in (512, 1024, 2048, 4096)]
     echoes = {}
     for pix, pulses, case, reps in sizes:
