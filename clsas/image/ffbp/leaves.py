@@ -77,6 +77,13 @@ def polar_tiles(grids: list, bv: int, br: int):
     return items.astype(np.int32), np.concatenate(centres), tv_of * tr_of
 
 
+def _row_step(grid: PolarGrid) -> float:
+    """The largest distance (m) between neighbouring angle rows of a polar grid: at its far range r,
+    r dv / cos(theta) with the largest |v| = sin(theta) (cos(theta) bounded below by 1e-3)."""
+    sine = max(abs(grid.v0), abs(grid.v0 + (grid.n_v - 1) * grid.dv))
+    return (grid.r0 + (grid.n_r - 1) * grid.dr) * grid.dv / np.sqrt(max(1.0 - sine * sine, 1e-6))
+
+
 class FirstStage:
     """The leaves' demodulated polar images, made a batch at a time on first request
     (:meth:`image`; module docstring)."""
@@ -232,10 +239,9 @@ class FirstStage:
                 break
             if br == LANES and bv == ROWS:  # samples too far apart for any tile (a short leaf's coarse angles)
                 return batch
-            # halve the tiles' longer side (at the far range, where a row spans the most)
+            # halve the tiles' longer side
             along_r = br * max(g.dr for g in leaves)
-            along_v = bv * max(g.dv * (g.r0 + g.n_r * g.dr) / np.sqrt(max(1 - max(g.v0 ** 2, (g.v0 + g.n_v * g.dv) ** 2),
-                                                                            1e-6)) for g in leaves)
+            along_v = bv * max(_row_step(g) for g in leaves)
             if br > LANES and (along_r >= along_v or bv == ROWS):
                 br //= 2
             else:
