@@ -1,39 +1,38 @@
 """Fast factorised back-projection against direct back-projection: effective rate (pixels x pulses / s).
 
-The issue's configuration: 1024^2 pixels x 2048 pulses (``--quick``: 512^2 x 1024). Scene: a
+The issue's configuration: 1024^2 pixels x 2048 pulses (``--quick``: 512^2 x 1024). Scenes: a
 monostatic sonar on a straight track 5 m above a seafloor of 4000 random complex scatterers
-(150 kHz carrier, B = 20 kHz sampled at 25 kHz, 0.1 m transmit and receive elements, so the
-beam's main lobe is 2 lambda / D = 0.2 rad and the along-track resolution D / 2 = 5 cm; pulses
-every 2.5 cm = D / 4), simulated by clsas (exact delays, element directivity), range-compressed
-and upsampled x 8 once; the image plane 40-60 m across track by half the track's length along it.
+(150 kHz carrier, B = 20 kHz sampled at 25 kHz, transmit and receive elements of length D,
+pulses every D / 4), simulated by clsas (exact delays, element directivity), range-compressed
+and upsampled x 8 once; the image plane spans the ranges below by half the track's length along
+it. Two sonars (SONARS):
+
+- ``wide``: D = 0.02 m, a 1 rad beam, ranges 20-40 m. Every pulse sees every pixel, and the
+  pixels (5 mm along track, 2 cm across) sample the along-track resolution at the nearest range
+  (about 1 cm over the 10 m track): the regime the issue's O(N^3) premise describes.
+- ``narrow``: D = 0.1 m, a 0.2 rad main lobe (2 lambda / D), ranges 40-60 m: each pixel is seen
+  by about a fifth of a 51 m track.
 
 Cases, each timing ``clsas.backproject`` (linear, upsample=1 on the upsampled records) and
 ``clsas.ffbp`` (default tolerance) interleaved (direct, ffbp, direct, ...) after one warm-up
 each, min and median, with the relative L2 difference of the two images:
 
-- ``aperture``: both with ``aperture=0.2`` (the elements' main lobe, 2 lambda / D: the same
-  hard integration-angle mask; ffbp's polar grids then cover only what each sub-aperture sees
-  within it, which is where it saves most on a long track).
-- ``full``: both over every pulse and angle (the pixels then sample the image far more coarsely
-  than its resolution along track, which limits how far merging pays).
+- ``wide``: the wide sonar, every pulse and angle.
+- ``aperture``: the narrow sonar, both with ``aperture=0.2`` (the same hard integration-angle
+  mask). Direct back-projection then sums for each tile only the pulses that can see it
+  (kernels/backprojection.cl PULSE_SPAN), so its cost a pixel is the beam's footprint (~400
+  pulses), not the track; ffbp's polar grids cover only what each sub-aperture sees.
+- ``full``: the narrow sonar over every pulse and angle (the pixels then sample the image far
+  more coarsely than its resolution along track, which limits how far merging pays).
 
-``--scan`` adds the aperture case's ratio for 512, 1024, 2048 and 4096 pulses (512^2 pixels, one
-timed run each).
+``--scan`` adds one timed run each of the wide case for 512, 1024, 2048 and 4096 pulses on
+square grids of half as many pixels a side (the aperture and the image grow together), and of
+the aperture case for the same pulses on a fixed 512^2 grid.
 
-Measured 2026-11-23 after direct back-projection learnt to sum, with an aperture, only the
-pulses that can see each tile (kernels/backprojection.cl PULSE_SPAN; 2-core AVX2 EPYC, PoCL 3.1,
-quiet machine, load average < 1; direct / ffbp interleaved, 3 timed runs, median and best):
-1024^2 x 2048 aperture 3.3x (3.3x), ffbp 0.88 s against direct 2.91 s (direct over every angle:
-6.85 s, so the span saves it 2.4x), 3 levels of 2.9/2.5/2.4M polar samples, relative L2 0.054;
-full 1.14x (1.36x), ffbp 6.0 s against 6.85 s, 4 levels, relative L2 0.0067. Quick (512^2 x
-1024): aperture 1.9x, full 1.8x. Before that change (direct summing every pulse, masked: 17.1 s
-at load 5.6-5.8) the aperture case measured 10.1x (10.7x) with the same ffbp.
-Aperture case at 512^2 pixels for 512, 1024, 2048, 4096 pulses (one timed run each, against
-the spanned direct): 2.1, 1.9, 1.5, 1.04x (relative L2 0.031, 0.048, 0.055, 0.060; 3, 2, 1, 1
-levels; against the unspanned direct the same ffbp measured 2.4, 2.5, 4.4, 5.0x). On a fixed
-512^2 grid the longer scene is sampled ever more coarsely along track, so the merges stop early
-(at 2048 and 4096 pulses the leaves go straight to the pixels), while the spanned direct's cost
-a pixel stays the beam's footprint: the ratio grows with the pixels, not with the pulses.
+Measured 2026-11-23 (2-core AVX2 EPYC, PoCL 3.1, 3 timed runs, median and best; the load average
+was about 3 from other jobs, which slows direct back-projection's long kernel more than ffbp's
+shorter ones, so quiet-machine ratios may be somewhat lower):
+RESULTS
 """
 
 from __future__ import annotations
