@@ -1,39 +1,51 @@
 """Fast factorised back-projection against direct back-projection: effective rate (pixels x pulses / s).
 
-The issue's configuration: 1024^2 pixels x 2048 pulses (``--quick``: 512^2 x 1024). Scene: a
+The issue's configuration: 1024^2 pixels x 2048 pulses (``--quick``: 512^2 x 1024). Scenes: a
 monostatic sonar on a straight track 5 m above a seafloor of 4000 random complex scatterers
-(150 kHz carrier, B = 20 kHz sampled at 25 kHz, 0.1 m transmit and receive elements, so the
-beam's main lobe is 2 lambda / D = 0.2 rad and the along-track resolution D / 2 = 5 cm; pulses
-every 2.5 cm = D / 4), simulated by clsas (exact delays, element directivity), range-compressed
-and upsampled x 8 once; the image plane 40-60 m across track by half the track's length along it.
+(150 kHz carrier, B = 20 kHz sampled at 25 kHz, transmit and receive elements of length D,
+pulses every D / 4), simulated by clsas (exact delays, element directivity), range-compressed
+and upsampled x 8 once; the image plane spans the ranges below by half the track's length along
+it. Two sonars (SONARS):
+
+- ``wide``: D = 0.02 m, a 1 rad beam, ranges 20-40 m. Every pulse sees every pixel, and the
+  pixels (5 mm along track, 2 cm across) sample the along-track resolution at the nearest range
+  (about 1 cm over the 10 m track): the regime the issue's O(N^3) premise describes.
+- ``narrow``: D = 0.1 m, a 0.2 rad main lobe (2 lambda / D), ranges 40-60 m: each pixel is seen
+  by about a fifth of a 51 m track.
 
 Cases, each timing ``clsas.backproject`` (linear, upsample=1 on the upsampled records) and
 ``clsas.ffbp`` (default tolerance) interleaved (direct, ffbp, direct, ...) after one warm-up
 each, min and median, with the relative L2 difference of the two images:
 
-- ``aperture``: both with ``aperture=0.2`` (the elements' main lobe, 2 lambda / D: the same
-  hard integration-angle mask; ffbp's polar grids then cover only what each sub-aperture sees
-  within it, which is where it saves most on a long track).
-- ``full``: both over every pulse and angle (the pixels then sample the image far more coarsely
-  than its resolution along track, which limits how far merging pays).
+- ``wide``: the wide sonar, every pulse and angle.
+- ``aperture``: the narrow sonar, both with ``aperture=0.2`` (the same hard integration-angle
+  mask). Direct back-projection then sums for each tile only the pulses that can see it
+  (kernels/backprojection.cl PULSE_SPAN), so its cost a pixel is the beam's footprint (~400
+  pulses), not the track; ffbp's polar grids cover only what each sub-aperture sees.
+- ``full``: the narrow sonar over every pulse and angle (the pixels then sample the image far
+  more coarsely than its resolution along track, which limits how far merging pays).
 
-``--scan`` adds the aperture case's ratio for 512, 1024, 2048 and 4096 pulses (512^2 pixels, one
-timed run each).
+``--scan`` adds one timed run each of the wide case for 512, 1024, 2048 and 4096 pulses on
+square grids of half as many pixels a side (the aperture and the image grow together), and of
+the aperture case for the same pulses on a fixed 512^2 grid.
 
-Measured 2026-11-23 after direct back-projection learnt to sum, with an aperture, only the
-pulses that can see each tile (kernels/backprojection.cl PULSE_SPAN; 2-core AVX2 EPYC, PoCL 3.1,
-quiet machine, load average < 1; direct / ffbp interleaved, 3 timed runs, median and best):
-1024^2 x 2048 aperture 3.3x (3.3x), ffbp 0.88 s against direct 2.91 s (direct over every angle:
-6.85 s, so the span saves it 2.4x), 3 levels of 2.9/2.5/2.4M polar samples, relative L2 0.054;
-full 1.14x (1.36x), ffbp 6.0 s against 6.85 s, 4 levels, relative L2 0.0067. Quick (512^2 x
-1024): aperture 1.9x, full 1.8x. Before that change (direct summing every pulse, masked: 17.1 s
-at load 5.6-5.8) the aperture case measured 10.1x (10.7x) with the same ffbp.
-Aperture case at 512^2 pixels for 512, 1024, 2048, 4096 pulses (one timed run each, against
-the spanned direct): 2.1, 1.9, 1.5, 1.04x (relative L2 0.031, 0.048, 0.055, 0.060; 3, 2, 1, 1
-levels; against the unspanned direct the same ffbp measured 2.4, 2.5, 4.4, 5.0x). On a fixed
-512^2 grid the longer scene is sampled ever more coarsely along track, so the merges stop early
-(at 2048 and 4096 pulses the leaves go straight to the pixels), while the spanned direct's cost
-a pixel stays the beam's footprint: the ratio grows with the pixels, not with the pulses.
+Measured 2026-11-23 (2-core AVX2 EPYC, PoCL 3.1; 3 timed runs, median (best); the load average
+was 3-5 from other jobs, which slows direct back-projection's long kernel more than ffbp's
+shorter ones: at load ~3 the wide case measured 8.6x (9.5x), at load ~5 11.2-11.9x):
+
+| case, 1024^2 x 2048 | direct | ffbp | ratio | levels, first | relative L2 |
+|---|---|---|---|---|---|
+| wide | 5.9-19.5 s | 0.69-1.74 s | 8.6-11.9x | 4, 64 | 0.0051 |
+| aperture | 4.5-7.6 s | 1.3-2.1 s | 3.5x | 3, 16 | 0.054 |
+| full | 12.5-18.0 s | 5.7-8.4 s | 2.1-2.2x | 4, 8 | 0.0067 |
+
+Scan (one timed run each, load 3-5): wide 512 / 1024 / 2048 / 4096 pulses onto 256^2 / 512^2 /
+1024^2 / 2048^2 pixels: 1.5 / 3.5 / 11.2 / 24.2x (direct 0.37 / 2.5 / 19.5 / 143 s; relative L2
+0.006 / 0.005 / 0.005 / 0.006; 1 / 3 / 4 / 6 levels): the gain grows with the aperture, as
+O(N^3) against O(N^2 log N) predicts. Aperture case on a fixed 512^2 grid: 2.7 / 2.0 / 1.6 /
+1.4x (relative L2 0.031 / 0.048 / 0.055 / 0.060): there the spanned direct's cost a pixel stays
+the beam's footprint while the fixed grid samples the longer scene ever more coarsely, so the
+merges stop early (1 level at 2048 and 4096 pulses).
 """
 
 from __future__ import annotations
@@ -51,21 +63,26 @@ from clsas.data import Grid
 from clsas.image.backprojection import backproject
 from clsas.image.ffbp import ffbp
 
-F0, B, FS, D, STEP, UP, DEPTH = 150e3, 20e3, 25e3, 0.1, 0.025, 8, -5.0
+F0, B, FS, UP, DEPTH = 150e3, 20e3, 25e3, 8, -5.0
+# the two sonars: element length D (m; pulses every D / 4) and the image's ranges (m)
+SONARS = {"narrow": {"element": 0.1, "ranges": (40.0, 60.0)}, "wide": {"element": 0.02, "ranges": (20.0, 40.0)}}
 
 
-def scene(n_pulses: int, n_pixels: int):
-    """The range-compressed (upsampled x UP) echo of the speckle seafloor and the image plane."""
-    half = n_pulses * STEP / 4
+def scene(n_pulses: int, n_pixels: int, sonar: str = "narrow"):
+    """The range-compressed (upsampled x UP) echo of the speckle seafloor seen by ``sonar`` and the image plane."""
+    element, (near, far) = SONARS[sonar]["element"], SONARS[sonar]["ranges"]
+    step = element / 4
+    half = n_pulses * step / 4
     rng = np.random.default_rng(0)
     n = 4000
-    pos = np.column_stack([rng.uniform(40.0, 60.0, n), rng.uniform(-half, half, n), np.full(n, DEPTH)])
+    pos = np.column_stack([rng.uniform(near, far, n), rng.uniform(-half, half, n), np.full(n, DEPTH)])
     sc = Scenario(medium=Medium(1500.0), waveform=Waveform(f0=F0, bandwidth=B, duration=5e-3, fs=FS),
-                  platform=Platform(speed=1.0), array=Array(rx_offsets=[[0.0, 0.0, 0.0]], tx_length=D, rx_length=D),
-                  schedule=PulseSchedule(prf=1.0 / STEP, n_pulses=n_pulses),
+                  platform=Platform(speed=1.0),
+                  array=Array(rx_offsets=[[0.0, 0.0, 0.0]], tx_length=element, rx_length=element),
+                  schedule=PulseSchedule(prf=1.0 / step, n_pulses=n_pulses),
                   targets=(PointTargets(pos, reflectivity=rng.standard_normal(n) + 1j * rng.standard_normal(n)),))
     echo = clsas.range_compress(clsas.simulate(sc, backend="opencl", progress=False), upsample=UP)
-    grid = Grid.plane(np.linspace(40.0, 60.0, n_pixels), np.linspace(-half, half, n_pixels), DEPTH)
+    grid = Grid.plane(np.linspace(near, far, n_pixels), np.linspace(-half, half, n_pixels), DEPTH)
     return echo, grid
 
 
@@ -88,18 +105,22 @@ def main() -> None:
     args = arguments(__doc__.splitlines()[0])
     n_pix, n_pulses = (512, 1024) if args.quick else (1024, 2048)
     repeats = args.repeats or 3
-    cases = {"aperture": {"aperture": 2 * 0.01 / D}, "full": {}}
+    # case: (sonar, options of both imagers)
+    cases = {"wide": ("wide", {}), "aperture": ("narrow", {"aperture": 2 * 0.01 / SONARS["narrow"]["element"]}),
+             "full": ("narrow", {})}
     sizes = [(n_pix, n_pulses, case, repeats) for case in cases]
     if scan:
+        sizes += [(n // 2, n, "wide", 1) for n in (512, 1024, 2048, 4096)]
         sizes += [(512, n, "aperture", 1) for n in (512, 1024, 2048, 4096)]
     echoes = {}
     for pix, pulses, case, reps in sizes:
-        if (pulses, pix) not in echoes:
-            echoes = {(pulses, pix): scene(pulses, pix)}
-        echo, grid = echoes[(pulses, pix)]
+        sonar, options = cases[case]
+        if (pulses, pix, sonar) not in echoes:
+            echoes = {(pulses, pix, sonar): scene(pulses, pix, sonar)}
+        echo, grid = echoes[(pulses, pix, sonar)]
         kw = dict(backend="opencl", upsample=1, progress=False)
-        runs = {"direct": lambda: backproject(echo, grid, interp="linear", **kw, **cases[case]),
-                "ffbp": lambda: ffbp(echo, grid, interp="linear", **kw, **cases[case])}
+        runs = {"direct": lambda: backproject(echo, grid, interp="linear", **kw, **options),
+                "ffbp": lambda: ffbp(echo, grid, interp="linear", **kw, **options)}
         times, images = interleaved(runs, reps)
         ref = images["direct"].data
         err = float(np.linalg.norm(images["ffbp"].data - ref) / np.linalg.norm(ref))

@@ -76,15 +76,22 @@ def outgoing(tx: np.ndarray, eta: np.ndarray, p0: np.ndarray, vel: np.ndarray, c
     """t1 (P, N) s and the scatterer positions Q (P, N, 3) at the scattering times (eq. 1a).
 
     ``tx`` (P, 3) transmitter at emission, ``eta`` (P,) emission times, ``p0`` (N, 3) m the
-    scatterers at t = 0 and ``vel`` (N, 3) m/s their velocities.
+    scatterers at t = 0 and ``vel`` (N, 3) m/s their velocities (or both (P, N, 3): each
+    pulse's own N scatterers).
     """
-    q_emit = p0[None, :, :] + vel[None, :, :] * eta[:, None, None]
+    p0, vel = _per_pulse(p0), _per_pulse(vel)
+    q_emit = p0 + vel * eta[:, None, None]
     t1 = np.linalg.norm(q_emit - tx[:, None, :], axis=-1) / c
     if stop_and_go:
         return t1, q_emit
-    t1 = _fixed_point(lambda t: np.linalg.norm(q_emit + vel[None] * t[..., None] - tx[:, None, :], axis=-1) / c,
+    t1 = _fixed_point(lambda t: np.linalg.norm(q_emit + vel * t[..., None] - tx[:, None, :], axis=-1) / c,
                       t1, tol, "outgoing path")
-    return t1, q_emit + vel[None] * t1[..., None]
+    return t1, q_emit + vel * t1[..., None]
+
+
+def _per_pulse(points: np.ndarray) -> np.ndarray:
+    """Points (N, 3) shared by every pulse as (1, N, 3); each pulse's own (P, N, 3) as they are."""
+    return points if points.ndim == 3 else points[None]
 
 
 def incoming(receiver, eta: np.ndarray, t1: np.ndarray, q: np.ndarray, c: float, tol: float, stop_and_go: bool):
@@ -202,7 +209,8 @@ def uniform_nodes(echo: EchoData, h: int) -> tuple[float, np.ndarray]:
 def legs(echo: EchoData, h: int, pulses: np.ndarray, points: np.ndarray, velocity: np.ndarray,
          stop_and_go: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The exact legs from the transmitter of ``echo``'s ``pulses`` to the M ``points`` (m, at
-    t = 0, all moving at ``velocity`` m/s) and back to receiver h (float64): t1 (len(pulses), M) s,
+    t = 0, all moving at ``velocity`` m/s; (M, 3) for every pulse, or (len(pulses), M, 3) each
+    pulse's own) and back to receiver h (float64): t1 (len(pulses), M) s,
     where the pulses meet the points q (len(pulses), M, 3) m, t2 (len(pulses), M) s and the
     receiver at reception (len(pulses), M, 3) m. The two-way delay is t1 + t2. With a receiver of
     two nodes (uniform motion) both legs are :func:`meet_time`'s closed form, else the fixed
@@ -212,7 +220,7 @@ def legs(echo: EchoData, h: int, pulses: np.ndarray, points: np.ndarray, velocit
     if not stop_and_go and echo.rx_tau[h].size == 2:
         # the target and a two-node receiver move uniformly: both fixed points in closed form
         tx = echo.tx_pos[pulses]
-        q_emit = points[None] + velocity * eta[:, None, None]
+        q_emit = _per_pulse(points) + velocity * eta[:, None, None]
         t1 = meet_time(q_emit - tx[:, None, :], velocity, c)
         q = q_emit + velocity * t1[..., None]
         v_r = two_node_velocity(echo, h, pulses)[:, None, :]

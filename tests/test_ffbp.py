@@ -155,6 +155,27 @@ def test_batched_leaves_match_backproject(opencl_device):
         assert rel_l2(got, one) < 1e-3
 
 
+def test_leaves_no_tile_can_hold_go_through_backproject(opencl_device, monkeypatch):
+    """Leaves whose polar samples lie so far apart that even bp_tile's smallest tile (ROWS x
+    LANES samples) leaves the float32 budget (a very short leaf's coarse angles; here the budget
+    is made 1 mm) are imaged by clsas.backproject one by one, not refused: the same images as
+    the direct call (measured relative L2 0, the same code)."""
+    from clsas.image.ffbp import leaves as leaves_module
+
+    monkeypatch.setattr(leaves_module, "tile_half_extent", lambda f0, c: 1e-3)
+    echo = echo_of("straight")
+    chosen = [0, 1, 2, 3]
+    tree = plan(echo, chosen, Scene.of(GRID.positions), 2, 0.1, 8, 5, None)
+    grids = tree.grids[0]
+    stage = FirstStage(echo, tree.pulses[0], "opencl", chosen, "linear", 8, None, False)
+    records = prepare(echo, receivers=chosen)
+    for k, (p0, p1) in enumerate(tree.pulses[0][:2]):
+        got = stage.image(k, grids[k], grids)
+        one = backproject(records, Grid.points(grids[k].points()), pulses=(p0, p1), backend="opencl",
+                          progress=False).data * np.exp(-4j * np.pi * echo.waveform.f0 * grids[k].ranges / echo.medium.sound_speed)
+        assert rel_l2(got, one) < 1e-6
+
+
 def test_numpy_and_opencl_agree(opencl_device):
     """The whole method on both backends (NumPy back-projection and merges in float64) on a
     small patch around one point: relative L2 measured 3.2e-6 (the float32 kernels' rounding)."""

@@ -166,7 +166,8 @@ def backproject_reference(records: PreparedRecords, plan: "GridPlan", aperture, 
 def tile_references(echo: EchoData, h: int, pulses: np.ndarray, centres: np.ndarray, velocity: np.ndarray,
                     stop_and_go: bool, fs: float, half_extent: float, offset: int = 0) -> tuple[np.ndarray, float]:
     """bp_tile's per-(tile, pulse) references (T, P) :data:`TILE_REF` (their meaning in
-    :func:`backproject_opencl` and kernels/backprojection.cl) for the T tile ``centres`` and the P ``pulses``, and the receiver's largest departure (m) from
+    :func:`backproject_opencl` and kernels/backprojection.cl) for the T tile ``centres`` ((T, 3), or
+    (P, T, 3): each pulse's own) and the P ``pulses``, and the receiver's largest departure (m) from
     the linear motion the kernel assumes over the tiles' delay spans (0 for stop-and-go and for
     receivers with two nodes, whose motion is uniform). ``offset``: the first sample of the records
     the kernel reads, counted at ``fs`` from the window start t0 (taken off the integer part only)."""

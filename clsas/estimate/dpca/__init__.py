@@ -113,7 +113,7 @@ from .correlate import correlations
 from .geometry import beam_sin2, nominal_shift
 from .pairs import PingPairs, estimate
 from .record import beam_correction, compensate_record
-from .track import Trajectory, compensate, integrate, with_track
+from .track import Trajectory, compensate, delay_records, integrate, with_track
 
 __all__ = ["PingPairs", "Trajectory", "beam_correction", "beam_sin2", "compensate", "compensate_record", "correlations",
-           "estimate", "integrate", "nominal_shift", "with_track"]
+           "delay_records", "estimate", "integrate", "nominal_shift", "with_track"]

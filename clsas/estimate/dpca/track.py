@@ -129,11 +129,31 @@ def with_track(echo: EchoData, scenario: Scenario) -> EchoData:
     return echo.replace(tx_pos=tx, rx_pos=rx, provenance={**echo.provenance, "track": "replaced (dpca.with_track)"})
 
 
+def delay_records(data: np.ndarray, dt: np.ndarray, f0: float, fs: float, workers: int | None = -1) -> np.ndarray:
+    """Baseband records ``data`` (complex, (n_rx, n_pulses, n_samples), carrier ``f0`` Hz,
+    sampled at ``fs`` Hz) with receiver h's ping p delayed by ``dt[h, p]`` s (negative: advanced):
+    the phase exp(-j 2 pi (f0 + f) dt) over the baseband frequencies f of each ping, i.e. the
+    envelope shifted by dt (circularly: dt must stay well inside the record's margins) and the
+    carrier's phase turned by -2 pi f0 dt. complex64, the shape of ``data``."""
+    data = np.asarray(data)
+    dt = np.asarray(dt, dtype=np.float64)
+    if data.ndim != 3 or dt.shape != data.shape[:2]:
+        raise ValueError(f"delay_records: dt must have shape (n_rx, n_pulses) = {data.shape[:2]} of data "
+                         f"(n_rx, n_pulses, n_samples), got dt {dt.shape} and data {data.shape}")
+    if not np.all(np.isfinite(dt)):
+        raise ValueError("delay_records: dt must be finite seconds")
+    f = scipy.fft.fftfreq(data.shape[-1], 1 / fs)
+    spec = scipy.fft.fft(data, axis=-1, workers=workers)
+    spec *= np.exp(-2j * np.pi * (f0 + f)[None, None, :] * dt[..., None])
+    return scipy.fft.ifft(spec, axis=-1, workers=workers).astype(np.complex64)
+
+
 def compensate(echo: EchoData, trajectory: Trajectory, scenario: Scenario, workers: int | None = -1) -> EchoData:
     """Motion compensation of eqs. (74)-(75): each hydrophone's record delayed back by
     dt = dt_sway + dt_yaw{h} (eqs. 34, 38: dt_sway = -2 sway / c, dt_yaw{h} = -(o_h - o_tx) sin(yaw) / c,
     the receiver's cross-track move under yaw with the transmitter at the centre of rotation), by
-    the phase exp(+j 2 pi (f0 + f) dt) over the record's baseband frequencies f; the geometry is
+    the phase exp(+j 2 pi (f0 + f) dt) over the record's baseband frequencies f (:func:`delay_records`
+    by -dt); the geometry is
     replaced by the nominal straight track of ``scenario`` so that omega_k, range_doppler and
     chirp_scaling accept the result. Surge (along-track) is not corrected by this delay model.
     The delay is exact at broadside only: a cross-track error x moves the two-way path to a
@@ -149,11 +169,8 @@ def compensate(echo: EchoData, trajectory: Trajectory, scenario: Scenario, worke
     c = echo.medium.sound_speed
     lever = scenario.array.rx_offsets[:, 1] - scenario.array.tx_offset[1]
     dt = (-2 * trajectory.cross[None, :] - lever[:, None] * np.sin(trajectory.heading)[None, :]) / c  # (h, pulse)
-    f = scipy.fft.fftfreq(echo.n_samples, 1 / echo.fs)
-    spec = scipy.fft.fft(echo.data[:h], axis=-1, workers=workers)
-    spec *= np.exp(2j * np.pi * (echo.waveform.f0 + f)[None, None, :] * dt[..., None])
     data = echo.data.copy()
-    data[:h] = scipy.fft.ifft(spec, axis=-1, workers=workers)
+    data[:h] = delay_records(echo.data[:h], -dt, echo.waveform.f0, echo.fs, workers)
     straight = scenario.replace(platform=Platform(speed=scenario.platform.speed, start=scenario.platform.start))
     out = with_track(echo.replace(data=data), straight)
     return out.replace(provenance={**echo.provenance, "motion_compensation": "dpca (Heremans et al. 2009, eqs. 74-75)"})

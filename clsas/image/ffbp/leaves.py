@@ -21,8 +21,10 @@ edge repeat its last sample and are dropped.
 
 Leaves the batch cannot take go through :func:`clsas.backproject` one by one on the same
 prepared records (the same image up to float32 rounding): a leaf shorter than ``first`` (the
-last), and a receiver whose motion is not linear over a tile's delay span (where
-back-projection falls back to its exact double kernel). The NumPy backend always does.
+last), a receiver whose motion is not linear over a tile's delay span (where
+back-projection falls back to its exact double kernel), and a batch whose samples lie so far
+apart (a very short leaf's coarse angles) that even a tile of ROWS x LANES of them leaves the
+budget (back-projection tiles those points its own way). The NumPy backend always does.
 """
 
 from __future__ import annotations
@@ -35,16 +37,19 @@ from ...interp import TAP_ROWS, kernel_taps
 from ...kernelmath import expj_cycles
 from ..backprojection import (NODE_TOLERANCE, PULSE_BLOCK, PULSES, RECORDS, TILE_PARAMS, GridPlan, backproject, prepare,
                               tile_references)
+from ..backprojection_records import reach
 from ..backprojection_tiles import LANES, ROWS, tile_half_extent
 from .polar import PolarGrid
 
 BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~40 bytes each held)
 RECORD_BYTES = 256 * 2**20  # prepared records held at once
 TILE_ROWS, TILE_SAMPLES = 8, 128  # the largest tile tried (rows x range samples)
+REF_CHUNK = 2**18  # (pulse, tile) pairs whose references are computed at once (~100 bytes each held)
 
 
 def polar_tiles(grids: list, bv: int, br: int):
-    """bp_tile's tiles of polar grids (module docstring), blocks of bv rows x br range samples:
+    """bp_tile's tiles of polar grids (module docstring), blocks of bv rows x br range samples
+    (those at a grid's edge cut to it):
     their work-items (I, 4) int32 (grid, row, first of sixteen consecutive range samples of that
     row, tile; grid by grid, tile by tile, row by row), the tiles' reference points (T, 3) m (each
     block's middle sample) and the number of tiles of each grid (L,)."""
@@ -54,9 +59,13 @@ def polar_tiles(grids: list, bv: int, br: int):
     real = (np.arange(tv)[None, :, None] < tv_of[:, None, None]) & (np.arange(tr)[None, None, :] < tr_of[:, None, None])
     tile = np.cumsum(real.reshape(-1)).reshape(real.shape) - 1  # grid by grid, row-major within a grid
     # work-items tile by tile, within a tile row by row, LANES samples each
+    # a tile at the grid's edge keeps only its rows inside the grid (rounded up to whole work-items
+    # of ROWS rows) and its sixteen-sample groups that start inside it
     shape = (len(grids), tv, tr, bv, br // LANES)
     l, a, b, j, q = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij", sparse=True)
-    keep = np.broadcast_to(real[:, :, :, None, None], shape)
+    n_v = np.array([g.n_v for g in grids])[:, None, None, None, None]
+    n_r = np.array([g.n_r for g in grids])[:, None, None, None, None]
+    keep = real[:, :, :, None, None] & (j < -(-(n_v - a * bv) // ROWS) * ROWS) & (b * br + q * LANES < n_r)
     items = np.stack([np.broadcast_to(x, shape)[keep] for x in (l, a * bv + j, b * br + q * LANES,
                                                                  tile[:, :, :, None, None])], axis=1)
     centres = []
@@ -66,6 +75,13 @@ def polar_tiles(grids: list, bv: int, br: int):
         middle_r = (i0 + np.minimum(i0 + br, g.n_r) - 1) // 2
         centres.append(g.points(rows=middle_v, cols=middle_r).reshape(-1, 3))
     return items.astype(np.int32), np.concatenate(centres), tv_of * tr_of
+
+
+def _row_step(grid: PolarGrid) -> float:
+    """The largest distance (m) between neighbouring angle rows of a polar grid: at its far range r,
+    r dv / cos(theta) with the largest |v| = sin(theta) (cos(theta) bounded below by 1e-3)."""
+    sine = max(abs(grid.v0), abs(grid.v0 + (grid.n_v - 1) * grid.dv))
+    return (grid.r0 + (grid.n_r - 1) * grid.dr) * grid.dv / np.sqrt(max(1.0 - sine * sine, 1e-6))
 
 
 class FirstStage:
@@ -136,7 +152,7 @@ class FirstStage:
         b0, b1 = self.leaves[node][0], self.leaves[last][1]
         e = self.echo
         sub = e.replace(data=e.data[:, b0:b1], eta=e.eta[b0:b1], tx_pos=e.tx_pos[b0:b1], rx_pos=e.rx_pos[:, b0:b1])
-        records = prepare(sub, **self.options)
+        records = prepare(sub, **self.options, grid=self._span(sub, [grids[k] for k in batch]))
         alone = [k for k in batch if self.leaves[k][1] - self.leaves[k][0] != self.first]
         if self.backend == "opencl":
             together = [k for k in batch if k not in alone]
@@ -149,31 +165,51 @@ class FirstStage:
                                         backend=self.backend, aperture=self.aperture, stop_and_go=self.stop_and_go,
                                         progress=False).data.astype(np.complex128)
 
+    def _span(self, sub, leaves: list) -> np.ndarray:
+        """(receivers, 2) s: the fast times the leaves' polar grids can reach in ``sub`` (their
+        pulses), so that only those samples are prepared (on a small scene far down a long record
+        that is most of the first stage's cost). By :func:`reach` of each grid's boundary: its
+        first and last range at every angle row (the box of a sector of the plane is reached on
+        them, up to an arc's sagitta between rows, r dv^2 / 8: micrometres), widened by one sample."""
+        edges = np.concatenate([g.points(cols=[0, g.n_r - 1]).reshape(-1, 3) for g in leaves])
+        return reach(sub, self.options["receivers"], edges) + np.array([-1.0, 1.0]) / sub.fs
+
     def _references(self, records, batch: list, centres: np.ndarray, first_tile: np.ndarray, b0: int,
                     half_extent: float) -> tuple[list, bool]:
-        """bp_tile's tile references of every receiver (a list a receiver of the leaves' (T_leaf, first)
-        arrays), for tiles whose samples lie within ``half_extent`` of their references, and whether
-        a receiver's motion departs from linear over a tile's delay span by more than
-        NODE_TOLERANCE of a wavelength (then the batch goes to clsas.backproject)."""
+        """bp_tile's tile references of every receiver (a list a receiver of (T, first) arrays: the
+        batch's tiles leaf by leaf, each for its leaf's pulses), for tiles whose samples lie within
+        ``half_extent`` of their references, and whether a receiver's motion departs from linear
+        over a tile's delay span by more than NODE_TOLERANCE of a wavelength (then the batch goes
+        to clsas.backproject). Computed for REF_CHUNK (pulse, tile) pairs at a time, each leaf's
+        tiles padded to the batch's largest count by repeating its last."""
         echo = records.echo
         tolerance = NODE_TOLERANCE * echo.waveform.wavelength(echo.medium)
+        counts = np.diff(first_tile)
+        widest = int(counts.max())
+        slot = np.minimum(np.arange(widest)[None, :], counts[:, None] - 1) + first_tile[:-1, None]  # (L, widest)
+        real = np.arange(widest)[None, :] < counts[:, None]
+        starts = np.array([self.leaves[k][0] - b0 for k in batch])
+        step = max(1, REF_CHUNK // (widest * self.first))  # leaves a chunk
         refs = []
         for i, h in enumerate(records.receivers):
-            refs.append([])
-            for j, k in enumerate(batch):
-                p0, p1 = self.leaves[k]
-                ref, departure = tile_references(echo, h, np.arange(p0 - b0, p1 - b0),
-                                                 centres[first_tile[j]:first_tile[j + 1]], np.zeros(3),
-                                                 self.stop_and_go, records.fs, half_extent, int(records.offset[i]))
+            parts = []
+            for s in range(0, len(batch), step):
+                leaves = slice(s, min(s + step, len(batch)))
+                pulses = (starts[leaves, None] + np.arange(self.first)).reshape(-1)
+                points = np.repeat(centres[slot[leaves]], self.first, axis=0)  # (leaves x first, widest, 3)
+                ref, departure = tile_references(echo, h, pulses, points, np.zeros(3), self.stop_and_go, records.fs,
+                                                 half_extent, int(records.offset[i]))
                 if departure > tolerance:
                     return refs, True
-                refs[-1].append(ref)
+                parts.append(ref.reshape(widest, -1, self.first).transpose(1, 0, 2)[real[leaves]])
+            refs.append(np.concatenate(parts))
         return refs, False
 
     def _launch(self, records, batch: list, grids: list, b0: int) -> list:
         """The images of the leaves ``batch`` (all ``first`` pulses long) by bp_tile launches into
         self.ready; returns the leaves it left to :func:`clsas.backproject` (a receiver's motion not
-        linear over a tile)."""
+        linear over a tile, or polar samples so far apart that even a tile of ROWS x LANES of them
+        spans more than bp_tile's float32 geometry allows)."""
         import pyopencl as cl
 
         rt = opencl.runtime()
@@ -188,34 +224,32 @@ class FirstStage:
         plane = made(np.r_[grids[batch[0]].plane.normal, grids[batch[0]].plane.offset])
         frames = made(np.stack([grids[k].record() for k in batch]))
         bv, br = TILE_ROWS, TILE_SAMPLES
+        leaves = [grids[k] for k in batch]
         while True:  # the largest tiles whose samples all lie within the budget of their references
-            items, centres, n_tiles = polar_tiles([grids[k] for k in batch], bv, br)
+            items, centres, n_tiles = polar_tiles(leaves, bv, br)
             m_pad = LANES * items.shape[0]
             pix = cl.Buffer(ctx, mf.READ_WRITE, 4 * 4 * m_pad)
             items_buf = made(items)
             opencl.kernel("ffbp", "ffbp_fields", defines={"TAPS": 8, "TAP_ROWS": TAP_ROWS})(
                 queue, (items.shape[0],), None, items_buf, frames, plane, made(centres), np.int32(m_pad), pix)
             square = np.empty(m_pad, np.float32)
-            copied = cl.enqueue_copy(queue, square, pix, src_offset=3 * 4 * m_pad, is_blocking=False)  # |delta|^2
-            first_tile = np.cumsum(np.r_[0, n_tiles])
-            # meanwhile the references, for the largest extent the tiles may have (a wider delay span
-            # for the linear-motion check), again for the tiles' own extent if that check fails
-            refs, failed = self._references(records, batch, centres, first_tile, b0, budget)
-            copied.wait()
+            cl.enqueue_copy(queue, square, pix, src_offset=3 * 4 * m_pad)  # |delta|^2
             extent = float(np.sqrt(square.max()))
             if extent <= budget:
-                if failed:
-                    refs, failed = self._references(records, batch, centres, first_tile, b0, extent)
-                if failed:
-                    return batch
                 break
-            if br > LANES:
+            if br == LANES and bv == ROWS:  # samples too far apart for any tile (a short leaf's coarse angles)
+                return batch
+            # halve the tiles' longer side
+            along_r = br * max(g.dr for g in leaves)
+            along_v = bv * max(_row_step(g) for g in leaves)
+            if br > LANES and (along_r >= along_v or bv == ROWS):
                 br //= 2
-            elif bv > ROWS:
-                bv //= 2
             else:
-                raise ValueError(f"a polar grid's {ROWS} x {LANES} block reaches {extent:.3g} m from its middle, "
-                                 f"beyond the {budget:.3g} m a bp_tile tile may")
+                bv //= 2
+        first_tile = np.cumsum(np.r_[0, n_tiles])
+        refs, failed = self._references(records, batch, centres, first_tile, b0, extent)
+        if failed:
+            return batch
         row_shift = np.repeat(np.array([self.leaves[k][0] - b0 for k in batch], np.int32), n_tiles)
         tile_of = np.ascontiguousarray(items[::ROWS, 3])
         defines = {"INTERP_LINEAR" if records.interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS,
@@ -231,7 +265,7 @@ class FirstStage:
         cl.enqueue_fill_buffer(queue, image, np.zeros(1, np.complex128), 0, 16 * m_pad)
         for i, h in enumerate(records.receivers):
             data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
-            ref_buf = made(np.concatenate(refs[i]))
+            ref_buf = made(refs[i])
             for s in range(0, self.first, PULSE_BLOCK):
                 kern(queue, (m_pad // (LANES * ROWS),), None, pix, tile_buf, ref_buf, np.int32(self.first), np.int32(0),
                      data, taps, params[()], np.int32(s), np.int32(min(PULSE_BLOCK, self.first - s)),
