@@ -403,6 +403,10 @@ def test_bad_input(seafloor):
         dpca.delay_records(echo.data, np.zeros(echo.data.shape[1]), 5e4, echo.fs)
     with pytest.raises(ValueError, match="delay_records: dt must be finite"):
         dpca.delay_records(echo.data, np.full(echo.data.shape[:2], np.nan), 5e4, echo.fs)
+    with pytest.raises(ValueError, match="delay_records fs"):
+        dpca.delay_records(echo.data, np.zeros(echo.data.shape[:2]), 5e4, 0.0)
+    with pytest.raises(ValueError, match="delay_records f0"):
+        dpca.delay_records(echo.data, np.zeros(echo.data.shape[:2]), np.nan, echo.fs)
 
 
 @pytest.mark.slow

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft
 
+from ... import validate
 from ...data import EchoData
 from ...scene.scenario import Array, Platform, Scenario
 from .geometry import nominal_shift
@@ -142,6 +143,8 @@ def delay_records(data: np.ndarray, dt: np.ndarray, f0: float, fs: float, worker
                          f"(n_rx, n_pulses, n_samples), got dt {dt.shape} and data {data.shape}")
     if not np.all(np.isfinite(dt)):
         raise ValueError("delay_records: dt must be finite seconds")
+    f0 = validate.scalar("delay_records f0", f0, low=0.0, unit="Hz")
+    fs = validate.positive("delay_records fs", fs, unit="Hz")
     f = scipy.fft.fftfreq(data.shape[-1], 1 / fs)
     spec = scipy.fft.fft(data, axis=-1, workers=workers)
     spec *= np.exp(-2j * np.pi * (f0 + f)[None, None, :] * dt[..., None])
