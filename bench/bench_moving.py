@@ -9,7 +9,7 @@ the same echo (receiver A, a 256 x 256 patch with the target's velocity) beside 
 One point target at the hull's centre moving at case 1's (0, -4, 0) m/s; Table I's 6400 pulses
 (80 s) at 80 Hz, 512 with --quick. Warm-up runs (kernel builds) are excluded; medians.
 
-Measured (--quick, 512 pulses x 1909 samples x 3 receivers, 2 shared cores at load ~5, PoCL):
+Measured (--quick, 512 pulses x 170 samples x 3 receivers, 2 shared cores at load ~5, PoCL):
 echo synthesis 0.022 s; estimate_motion (A, B, C) 2.73 s (124 x synthesis, 8.0 x the 256^2
 back-projection of A), of it the joint position + velocity solve 0.67 s, one receiver's chain
 0.46 s (Radon 0.13, RWC + azimuth compression of the whole record 0.13, refocus + extent 0.16);
