@@ -56,6 +56,7 @@ from ... import validate
 from ...data import EchoData, Image
 from ...errors import EstimationError
 from ...image.rangecomp import range_compress
+from ...image.record import unit_phasor
 from . import filters, radon, trace
 from .doppler import Doppler
 from .extent import Extent, extent
@@ -269,7 +270,7 @@ def sharpened_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: 
         p = residual_phase(win, rec.eta, fm_rate, eta_ref, span)
         total += p
         step = polynomial_phase(rec.eta, eta_ref, p) / rec.f0
-        win *= np.exp(2j * np.pi * rec.f0 * step).astype(np.complex64)[:, None]
+        win *= unit_phasor(2 * np.pi * rec.f0 * step)[:, None]
         image, eta_axis = compress(rec, win, fm_rate)
         row = np.unravel_index(int(np.argmax(np.abs(image))), image.shape)[0]
         new_walk = -fm_rate * float(eta_axis[row] - eta_ref) / rec.f0

@@ -103,9 +103,7 @@ def extent(image: np.ndarray, eta: np.ndarray, tau: np.ndarray, eta_cell: float,
     """
     if image.ndim != 2 or image.shape != (eta.size, tau.size) or min(image.shape) < 2:
         raise ValueError(f"image must be (n_eta, n_tau) = ({eta.size}, {tau.size}) with both >= 2, got {image.shape}")
-    # odd widths: an even uniform filter is centred half a sample off, which would move the extent
-    widths = tuple(2 * int(round(0.5 * smooth_cells * cell / float(axis[1] - axis[0]))) + 1
-                   for cell, axis in ((eta_cell, eta), (tau_cell, tau)))
+    widths = _odd_widths(smooth_cells, (eta_cell, eta), (tau_cell, tau))
     # the range extent on a copy Hann-weighted over the band (sidelobes -31 dB): the unweighted
     # range sidelobes (-13 to -21 dB) reach the level and would move a point's ends unevenly
     f = np.fft.fftfreq(tau.size, float(tau[1] - tau[0]))
@@ -117,8 +115,7 @@ def extent(image: np.ndarray, eta: np.ndarray, tau: np.ndarray, eta_cell: float,
     level = float(smooth[peak]) * 10.0 ** (-level_db / 10.0)
     above = smooth >= level
     # regions closer than GAP_CELLS cells (the dark gaps between a hull's glints) are one target
-    gaps = tuple(2 * int(round(0.5 * GAP_CELLS * cell / float(axis[1] - axis[0]))) + 1
-                 for cell, axis in ((eta_cell, eta), (tau_cell, tau)))
+    gaps = _odd_widths(GAP_CELLS, (eta_cell, eta), (tau_cell, tau))
     # (the dilation by a box, as a separable maximum filter: ~20x faster than binary_dilation)
     labels, _ = label(maximum_filter(above.view(np.uint8), size=gaps, mode="constant", cval=0))
     blob = above & (labels == labels[peak])
@@ -135,3 +132,10 @@ def extent(image: np.ndarray, eta: np.ndarray, tau: np.ndarray, eta_cell: float,
     first = j - int(np.argmin(near[j::-1])) + 1 if not near[:j + 1].all() else 0
     last = j + int(np.argmin(near[j:])) - 1 if not near[j:].all() else near.size - 1
     return Extent(eta=_ends(eta_profile, eta, rows[0], rows[-1], level), tau=_ends(tau_profile, tau, first, last, cut))
+
+
+def _odd_widths(cells: float, *axes) -> tuple:
+    """The odd number of samples nearest ``cells`` resolution cells along each (cell s, axis (n,) s)
+    of ``axes``: an even uniform or maximum filter is centred half a sample off, which would move
+    the extent."""
+    return tuple(2 * int(round(0.5 * cells * cell / float(axis[1] - axis[0]))) + 1 for cell, axis in axes)

@@ -63,6 +63,8 @@ import numpy as np
 import scipy.fft
 from scipy.optimize import minimize
 
+from ...image.record import unit_phasor
+
 #: Grid points of one zoom step.
 GRID = 17
 #: Span reduction per zoom step (the new span is two grid steps of the old grid).
@@ -83,10 +85,14 @@ ORDER_SPAN = 0.1
 def polynomial_phase(eta: np.ndarray, eta_ref: float, coefficients) -> np.ndarray:
     """phi(eta) = sum_k p_k u^k (cycles), u = (eta - eta_ref) / (T_a / 2), for ``coefficients``
     (p2, p3, p4) in cycles at the aperture's ends; (n_pulses,)."""
-    eta = np.asarray(eta, dtype=np.float64)
-    half = 0.5 * float(np.ptp(eta))
-    u = (eta - eta_ref) / half
+    u = aperture_time(eta, eta_ref)
     return sum(p * u ** (k + 2) for k, p in enumerate(coefficients))
+
+
+def aperture_time(eta: np.ndarray, eta_ref: float) -> np.ndarray:
+    """u = (eta - eta_ref) / (T_a / 2): slow time (s) in half-apertures about eta_ref, float64."""
+    eta = np.asarray(eta, dtype=np.float64)
+    return (eta - eta_ref) / (0.5 * float(np.ptp(eta)))
 
 
 def fm_rate_correction(eta: np.ndarray, p2: float) -> float:
@@ -123,12 +129,12 @@ def residual_phase(aligned: np.ndarray, eta: np.ndarray, fm_rate: float, eta_ref
     sub = (aligned[:, np.argsort(energy)[-BINS:]] * deramp[:, None]).astype(np.complex64)
     n_eta = scipy.fft.next_fast_len(PAD * eta.size)
     half = 0.5 * float(np.ptp(eta))
-    u = (eta - eta_ref) / half
+    u = aperture_time(eta, eta_ref)
     legendre = [(3 * u**2 - 1) / 2, (5 * u**3 - 3 * u) / 2, (35 * u**4 - 30 * u**2 + 3) / 8]
     a = [0.0, 0.0, 0.0]
 
     def sharpness(q):
-        ph = np.exp(2j * np.pi * sum(c * w for c, w in zip(q, legendre))).astype(np.complex64)
+        ph = unit_phasor(2 * np.pi * sum(c * w for c, w in zip(q, legendre)))
         mag2 = np.abs(scipy.fft.fft(sub * ph[:, None], n=n_eta, axis=0)) ** 2
         return float(np.sum(mag2 * mag2))
 
