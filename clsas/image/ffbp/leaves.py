@@ -37,7 +37,6 @@ from ...interp import TAP_ROWS, kernel_taps
 from ...kernelmath import expj_cycles
 from ..backprojection import (NODE_TOLERANCE, PULSE_BLOCK, PULSES, RECORDS, TILE_PARAMS, GridPlan, backproject, prepare,
                               tile_references)
-from ..backprojection_records import reach
 from ..backprojection_tiles import LANES, ROWS, tile_half_extent
 from .polar import PolarGrid
 
@@ -152,7 +151,11 @@ class FirstStage:
         b0, b1 = self.leaves[node][0], self.leaves[last][1]
         e = self.echo
         sub = e.replace(data=e.data[:, b0:b1], eta=e.eta[b0:b1], tx_pos=e.tx_pos[b0:b1], rx_pos=e.rx_pos[:, b0:b1])
-        records = prepare(sub, **self.options, grid=self._span(sub, [grids[k] for k in batch]))
+        # only the fast times the leaves' polar grids reach (prepare's reach of their boundary: the
+        # first and last range at every angle row bound a sector's box up to an arc's sagitta
+        # between rows, r dv^2 / 8, micrometres, inside the sample prepare adds for rounding)
+        edges = np.concatenate([grids[k].points(cols=[0, grids[k].n_r - 1]).reshape(-1, 3) for k in batch])
+        records = prepare(sub, **self.options, grid=Grid.points(edges))
         alone = [k for k in batch if self.leaves[k][1] - self.leaves[k][0] != self.first]
         if self.backend == "opencl":
             together = [k for k in batch if k not in alone]
@@ -164,15 +167,6 @@ class FirstStage:
             self.ready[k] = backproject(records, GridPlan(Grid.points(grids[k].points())), pulses=(p0 - b0, p1 - b0),
                                         backend=self.backend, aperture=self.aperture, stop_and_go=self.stop_and_go,
                                         progress=False).data.astype(np.complex128)
-
-    def _span(self, sub, leaves: list) -> np.ndarray:
-        """(receivers, 2) s: the fast times the leaves' polar grids can reach in ``sub`` (their
-        pulses), so that only those samples are prepared (on a small scene far down a long record
-        that is most of the first stage's cost). By :func:`reach` of each grid's boundary: its
-        first and last range at every angle row (the box of a sector of the plane is reached on
-        them, up to an arc's sagitta between rows, r dv^2 / 8: micrometres), widened by one sample."""
-        edges = np.concatenate([g.points(cols=[0, g.n_r - 1]).reshape(-1, 3) for g in leaves])
-        return reach(sub, self.options["receivers"], edges) + np.array([-1.0, 1.0]) / sub.fs
 
     def _references(self, records, batch: list, centres: np.ndarray, first_tile: np.ndarray, b0: int,
                     half_extent: float) -> tuple[list, bool]:
