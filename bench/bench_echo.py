@@ -19,7 +19,7 @@ from _harness import arguments, measure, report
 
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets
-from clsas.simulate import simulate
+from clsas.synthesis import simulate
 
 
 def scene(n_scatterers: int, n_pulses: int):

@@ -69,7 +69,7 @@ from _harness import arguments, report
 
 import clsas
 from clsas import Array, Medium, Platform, PointTargets, PulseSchedule, Scenario, Waveform
-from clsas.data import Grid
+from clsas.model import Grid
 from clsas.image.backprojection import backproject
 from clsas.image.ffbp import ffbp
 

@@ -26,7 +26,7 @@ import numpy as np
 from _harness import arguments, measure, report
 
 import clsas
-from clsas.data import Grid
+from clsas.model import Grid
 from clsas.estimate.moving import chain, closed_forms, higher_order_delay, layout_of, mapping, solve_motion, solve_velocity
 from clsas.estimate.moving.closedforms import delay_terms
 from clsas.scene import presets

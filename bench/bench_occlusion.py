@@ -16,8 +16,8 @@ from _harness import arguments, measure, report
 import clsas
 from clsas.scene import presets
 from clsas.scene.hulls import sphere
-from clsas.simulate.echo import pipeline
-from clsas.simulate.occlusion import PathWeights, RayCaster
+from clsas.synthesis.echo import pipeline
+from clsas.synthesis.occlusion import PathWeights, RayCaster
 
 
 def rays(rng, n):

@@ -13,7 +13,7 @@ import numpy as np
 from _harness import arguments, measure, report
 
 from clsas import EchoData, Medium, Waveform
-from clsas.data import Grid
+from clsas.model import Grid
 from clsas.image.backprojection import backproject
 from clsas.image.omegak import omega_k
 

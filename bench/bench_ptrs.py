@@ -32,7 +32,7 @@ import numpy as np
 from _harness import arguments, report
 
 import clsas
-from clsas.data import Grid
+from clsas.model import Grid
 from clsas.image.ptrs import StationaryPoints
 from clsas.image.ptrs.phase import compress_azimuth, decouple
 from clsas.scene import presets

@@ -3,30 +3,29 @@
 The public API, re-exported. Names are imported on first use (PEP 562), so that ``import
 clsas`` and the ``clsas`` command start in a fraction of the time the whole stack (scipy's
 interpolate, optimize and special modules) takes to import; ``clsas.X`` and ``from clsas
-import X`` work as for eager imports. ``simulate`` is imported at once: a subpackage of the
-same name would otherwise shadow the function once anything imports it.
+import X`` work as for eager imports.
 """
 
 import importlib
 import importlib.util
 
-from .simulate import simulate
+from .version import __version__
 
 #: public name -> (module, attribute; None for the module itself)
 _EXPORTS = {
     "Array": (".scene.scenario", "Array"),
-    "EchoData": (".data", "EchoData"),
+    "EchoData": (".model", "EchoData"),
     "EstimationError": (".errors", "EstimationError"),
-    "Grid": (".data", "Grid"),
-    "Image": (".data", "Image"),
-    "Medium": (".scene.scenario", "Medium"),
+    "Grid": (".model", "Grid"),
+    "Image": (".model", "Image"),
+    "Medium": (".model", "Medium"),
     "Platform": (".scene.scenario", "Platform"),
     "PointTargets": (".scene.targets", "PointTargets"),
     "PulseSchedule": (".scene.scenario", "PulseSchedule"),
     "Recording": (".scene.scenario", "Recording"),
     "Scenario": (".scene.scenario", "Scenario"),
     "Sonobuoy": (".scene.scenario", "Sonobuoy"),
-    "Waveform": (".scene.scenario", "Waveform"),
+    "Waveform": (".model", "Waveform"),
     "backproject": (".image.backprojection", "backproject"),
     "chirp_scaling": (".image.csa", "chirp_scaling"),
     "correct_inclined_array": (".image.inclined", "correct_inclined_array"),
@@ -35,8 +34,9 @@ _EXPORTS = {
     "ffbp": (".image.ffbp", "ffbp"),
     "focus_moving": (".estimate.moving", "focus"),
     "line_record": (".image.record", "line_record"),
+    "from_xarray": (".io", "from_xarray"),
     "load": (".io", "load"),
-    "load_scenario": (".scene.toml", "load_scenario"),
+    "load_scenario": (".io", "load_scenario"),
     "memory_budget": (".budget", "memory_budget"),
     "omega_k": (".image.omegak", "omega_k"),
     "pca_record": (".image.multireceiver", "pca_record"),
@@ -44,13 +44,14 @@ _EXPORTS = {
     "range_compress": (".image.rangecomp", "range_compress"),
     "range_doppler": (".image.rda", "range_doppler"),
     "save": (".io", "save"),
+    "scenario_to_toml": (".io", "scenario_to_toml"),
+    "simulate": (".synthesis", "simulate"),
+    "to_xarray": (".io", "to_xarray"),
     "use_backend": (".backend", "use_backend"),
     "use_memory_budget": (".budget", "use_memory_budget"),
 }
 
-__all__ = sorted([*_EXPORTS, "simulate"])
-__version__ = "0.1.0"
-
+__all__ = sorted(_EXPORTS)
 
 def __getattr__(name: str):
     """A public name (imported now and kept), or a submodule (``clsas.backend``, ``clsas.metrics``)."""

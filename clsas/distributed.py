@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .data import EchoData, Grid, Image
+from .model import EchoData, Grid, Image
 from .progress import stage
 from .scene.scenario import PulseSchedule, Recording, Scenario
 
@@ -67,7 +67,7 @@ def pulse_block(scenario: Scenario, first: int, stop: int) -> Scenario:
 def _block_extent(scenario: Scenario, backend, stop_and_go: bool) -> tuple[np.ndarray, np.ndarray]:
     """Per receiver, the echo-centre extents in whole samples (floor of the earliest, floor of the
     latest + 1), rounded as :func:`clsas.simulate` rounds them (``sample_extents``)."""
-    from .simulate import delays
+    from .synthesis import delays
 
     u = delays(scenario, backend=backend, stop_and_go=stop_and_go) * scenario.waveform.fs  # (H, P, N) samples
     return np.floor(u.min(axis=(1, 2))), np.floor(u.max(axis=(1, 2))) + 1
@@ -102,7 +102,7 @@ def _geometry(scenario: Scenario, hi: np.ndarray):
     """(rx_tau (n_rx, K), rx_pos (n_rx, P, K, 3), largest interpolation error m): the receiver
     nodes :func:`clsas.simulate` places over the recording window (``hi``: latest echo centre
     per receiver, s)."""
-    from .simulate.window import node_span, receiver_nodes
+    from .synthesis.window import node_span, receiver_nodes
 
     wf = scenario.waveform
     span = node_span(scenario, scenario.eta, float(hi.max()) + 0.5 * wf.duration + 2 / wf.fs)
@@ -113,8 +113,8 @@ def _geometry(scenario: Scenario, hi: np.ndarray):
 def _simulate_block(scenario: Scenario, kwargs: dict, store: str | None, first: int, n_valid) -> tuple:
     """One pulse block: its echo (or, with ``store``, written into the store's region and
     dropped), its signal power per pulse (for the noise) and its provenance."""
-    from .simulate import simulate as simulate_one
-    from .simulate.echo import signal_power
+    from .synthesis import simulate as simulate_one
+    from .synthesis.echo import signal_power
 
     echo = simulate_one(scenario, progress=False, **kwargs)
     power = signal_power(echo.data, n_valid)
@@ -136,7 +136,7 @@ def simulate(scenario: Scenario, client, pulses_per_task: int = 64, snr_db: floa
     (``snr_db``, ``seed``) is added by the client as :func:`clsas.simulate` adds it. Returns the
     EchoData, or (``gather=False``, with a zarr ``out``) the store's Path.
     """
-    from .simulate.echo import add_noise
+    from .synthesis.echo import add_noise
 
     _check_client(client)
     if not isinstance(scenario, Scenario):
@@ -203,11 +203,12 @@ def _zarr_template(head, store: Path, name: str, part_chunks: tuple) -> Path:
 
     import dask.array as da
 
-    from .io import CHUNK_BYTES, _encoding
+    from .io.dataset import to_xarray
+    from .io.files import CHUNK_BYTES, _encoding
 
     if not store.parent.is_dir():
         raise FileNotFoundError(f"the folder {store.parent} does not exist")
-    ds = head.to_xarray()
+    ds = to_xarray(head)
     var = ds[name]
     chunks = list(part_chunks) + list(var.shape[len(part_chunks):])
     per_row = var.dtype.itemsize * int(np.prod(chunks[:-1]))
@@ -225,8 +226,8 @@ def _finish_store(tmp: Path, store: Path, provenance: dict) -> None:
     """Record the provenance, consolidate the metadata and rename the store into place."""
     import zarr
 
-    from .dataset import to_json
-    from .io import _remove
+    from .io.dataset import to_json
+    from .io.files import _remove
 
     group = zarr.open_group(str(tmp), mode="r+")
     group.attrs["provenance"] = to_json(provenance)

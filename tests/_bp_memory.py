@@ -17,9 +17,9 @@ import time
 import numpy as np
 
 import clsas.image.backprojection as bp
-import clsas.image.backprojection_records as bp_records
+import clsas.image.backprojection.records as bp_records
 from clsas import EchoData, Medium, Waveform
-from clsas.data import Grid
+from clsas.model import Grid
 
 
 def resident_mb() -> float:

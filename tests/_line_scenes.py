@@ -10,7 +10,7 @@ import numpy as np
 
 import clsas
 from clsas import metrics
-from clsas.data import Grid, Image
+from clsas.model import Grid, Image
 from clsas.image.backprojection import backproject
 from clsas.scene import presets
 from clsas.scene.scenario import (

@@ -14,12 +14,12 @@ from _tolerances import phase_error, rel_l2
 
 import clsas
 from clsas import metrics
-from clsas.data import Grid
+from clsas.model import Grid
 from clsas.geometry import legs
-from clsas.image.backprojection import (PHASE_BUDGET, GridPlan, _aperture_keep, backproject, plan_tiles, prepare, reach,
+from clsas.image.backprojection.direct import (PHASE_BUDGET, GridPlan, _aperture_keep, backproject, plan_tiles, prepare, reach,
                                         tile_half_extent, tile_references)
-from clsas.image.backprojection_records import UPSAMPLE_BLOCK, upsample_blocks
-from clsas.image.backprojection_tiles import aperture_spans
+from clsas.image.backprojection.records import UPSAMPLE_BLOCK, upsample_blocks
+from clsas.image.backprojection.tiles import aperture_spans
 from clsas.image.rangecomp import upsample_records
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets
@@ -76,7 +76,7 @@ def test_kernel_matches_reference_options(opencl_device, kiang_echo, options):
 
 def test_aperture_sums_only_the_pulses_that_see_a_tile(opencl_device):
     """With an aperture, bp_tile sums for each tile only the pulses of its PULSE_SPAN
-    (backprojection_tiles.aperture_spans): a track 4x longer than the beam's footprint, a grid
+    (backprojection.tiles.aperture_spans): a track 4x longer than the beam's footprint, a grid
     along all of it (several tiles). Every pulse the exact mask keeps for a pixel lies in its
     tile's span, most pulses are culled, and the image matches the NumPy reference."""
     sc = clsas.Scenario(medium=clsas.Medium(1500.0), waveform=clsas.Waveform(f0=150e3, bandwidth=20e3, duration=2e-3, fs=25e3),

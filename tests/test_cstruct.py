@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from clsas import cstruct, geometry
-from clsas.image import backprojection
-from clsas.simulate.echo import synth
+from clsas.image.backprojection import direct as backprojection
+from clsas.synthesis.echo import synth
 
 RECORDS = {"node_t": geometry.NODE, "echo_pulse_t": synth.PULSE, "echo_rx_t": synth.RECEIVER,
            "echo_params_t": synth.PARAMS, "tile_ref_t": backprojection.TILE_REF,

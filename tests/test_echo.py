@@ -21,7 +21,7 @@ from clsas.scene.scenario import (
     Waveform,
 )
 from clsas.scene.targets import PointTargets
-from clsas.simulate import SynthesisOptions, delays, simulate, synthesize
+from clsas.synthesis import SynthesisOptions, delays, simulate, synthesize
 
 
 def kiang(n_pulses=8, fs_factor=1.0, **changes):

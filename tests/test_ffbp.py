@@ -18,7 +18,7 @@ from _tolerances import rel_l2
 
 import clsas
 from clsas import Medium, Waveform, metrics
-from clsas.data import EchoData, Grid, Image
+from clsas.model import EchoData, Grid, Image
 from clsas.image.backprojection import backproject, prepare
 from clsas.image.ffbp import ffbp, memory_plan
 from clsas.image.ffbp.leaves import FirstStage

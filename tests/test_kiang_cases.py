@@ -8,7 +8,7 @@ import pytest
 
 import clsas
 from clsas import metrics
-from clsas.data import Grid
+from clsas.model import Grid
 from clsas.scene import presets
 
 

@@ -19,7 +19,7 @@ import pytest
 from scipy import integrate, optimize
 
 from clsas import metrics
-from clsas.data import Image
+from clsas.model import Image
 
 IRW_RTOL = 2e-3
 DB_TOL = 0.02

@@ -12,7 +12,7 @@ from clsas.estimate.moving.velocity import solve_motion, solve_velocity
 from clsas.scene import presets
 from clsas.scene.scenario import PulseSchedule, Sonobuoy
 from clsas.scene.targets import PointTargets
-from clsas.simulate import delays
+from clsas.synthesis import delays
 
 CENTRE = np.array([1989.0, 0.0, -350.0])  # the paper's target centre at eta = 0 (section II-B)
 
@@ -400,7 +400,7 @@ def test_reproduce_kiang2022_on_points_prints_the_table(opencl_device, capsys):
 
 
 def test_reproduce_writes_a_db_image_with_metric_axes(tmp_path):
-    from clsas.data import Image
+    from clsas.model import Image
     from clsas.reproduce.kiang2022 import _save
 
     y, r = np.linspace(-1, 1, 21), np.linspace(2011, 2013, 31)

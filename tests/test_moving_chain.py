@@ -1,7 +1,7 @@
 """One receiver's moving-target chain (Kiang & Kiang 2022 sections III-IV, VII-B, VII-C):
 K_a,eq and f_dc,eq from the echo of a point target moving at a Table II case's velocity.
 
-The truth is a phase-history fit of the simulated echo's exact delays (clsas.simulate.delays):
+The truth is a phase-history fit of the simulated echo's exact delays (clsas.synthesis.delays):
 tau(eta) ~ tau0 + (f_dc / f0) eta + (K / (2 f0)) eta^2 fitted over a few pulses around eta = 0.
 The paper's bound is 3 % (K) and 3 % or 1 Hz (f_dc); the tolerances below are ~10x the errors
 measured on these reduced scenes (K within 0.1 %, f_dc within 0.06 Hz).
@@ -24,7 +24,7 @@ from clsas.estimate.moving import filters
 from clsas.estimate.moving.sowvd import modified_sowvd
 from clsas.scene import presets
 from clsas.scene.scenario import PulseSchedule
-from clsas.simulate import delays, simulate
+from clsas.synthesis import delays, simulate
 
 TARGET = (1989.0, 0.0, -350.0)
 K_RTOL = 0.01      # measured <= 0.08 %

@@ -17,7 +17,7 @@ from clsas.scene.scenario import (
     Waveform,
 )
 from clsas.scene.targets import MeshTarget
-from clsas.simulate.occlusion import (
+from clsas.synthesis.occlusion import (
     PathWeights,
     RayCaster,
     occluded_reference,
@@ -154,7 +154,7 @@ def test_bad_meshes():
 
 
 def test_scan_image_projects_the_lit_face():
-    from clsas.simulate.occlusion import scan_image
+    from clsas.synthesis.occlusion import scan_image
 
     sc, _ = shadow_scene(4)
     sc = sc.replace(targets=(MeshTarget(box((1.0, 4.0, 4.0)), position=(100.0, 0.0, 0.0)),))

@@ -23,7 +23,7 @@ import scipy.signal.windows
 from _tolerances import phase_error, rel_l2
 
 from clsas import metrics
-from clsas.data import EchoData
+from clsas.model import EchoData
 from clsas.image.rangecomp import (
     WINDOWS,
     lfm_replica,

@@ -25,7 +25,7 @@ def parse_range(text: str, what: str) -> np.ndarray:
 
 def parse_grid(text: str):
     """``"X0:X1:DX,Y0:Y1:DY,Z"`` (m) -> a horizontal Grid.plane."""
-    from ..data import Grid
+    from ..model import Grid
 
     parts = text.split(",")
     if len(parts) != 3:

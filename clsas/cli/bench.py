@@ -33,12 +33,12 @@ def _time(fn, repeat: int):
 
 def run(args) -> int:
     from .. import backend as backends
-    from ..data import Grid
+    from ..model import Grid
     from ..image import backproject, range_compress
     from ..image.multireceiver import pca_record
     from ..image.omegak import omega_k
     from ..scene import presets
-    from ..simulate import simulate
+    from ..synthesis import simulate
 
     if args.repeat < 1:
         from ._common import UsageError

@@ -25,11 +25,11 @@ def run(args) -> int:
     """Heremans et al. 2009's nine-point scene (15 hydrophones) end to end: echoes, range
     compression, back-projection, metrics of the centre point, files and a picture."""
     from .. import backend, io, kernelmath, metrics
-    from ..data import Grid
+    from ..model import Grid
     from ..image import backproject, range_compress
     from ..scene import presets
     from ..scene.targets import PointTargets
-    from ..simulate import delays, simulate
+    from ..synthesis import delays, simulate
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():

@@ -41,7 +41,7 @@ def load_scene(name: str, pulses: int | None):
     the PRF and the schedule's centre (or its start, when the file gives one)."""
     from ..scene import presets
     from ..scene.scenario import PulseSchedule
-    from ..scene.toml import load_scenario
+    from ..io import load_scenario
 
     if pulses is not None and pulses < 1:
         raise UsageError(f"--pulses must be >= 1, got {pulses}")
@@ -59,7 +59,7 @@ def load_scene(name: str, pulses: int | None):
 
 def run_simulate(args) -> int:
     from .. import io
-    from ..simulate import simulate
+    from ..synthesis import simulate
 
     scene = load_scene(args.scene, args.pulses)
     if not scene.targets:
@@ -97,7 +97,7 @@ def default_grid(echo, max_pixels: int = DEFAULT_MAX_PIXELS):
     """The horizontal plane at the track's depth covering the recorded slant ranges (receiver
     0) across track and the transmitter's span along track, at a quarter of the range
     resolution, coarsened evenly until it has at most ``max_pixels`` pixels."""
-    from ..data import Grid
+    from ..model import Grid
 
     c = echo.medium.sound_speed
     track = echo.tx_pos
@@ -130,7 +130,7 @@ def _elements(text, echo):
 
 def run_image(args) -> int:
     from .. import io
-    from ..data import EchoData
+    from ..model import EchoData
     from ..image import backproject, range_compress
     from ..image.csa import chirp_scaling
     from ..image.ffbp import ffbp
@@ -179,7 +179,7 @@ def add_plot_arguments(parser) -> None:
 
 def run_plot(args) -> int:
     from .. import io
-    from ..data import EchoData, Image
+    from ..model import EchoData, Image
 
     obj = io.load(args.file)
     out = args.png or str(Path(args.file).with_suffix(".png"))

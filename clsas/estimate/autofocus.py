@@ -48,7 +48,7 @@ import numpy as np
 import scipy.fft
 
 from .. import metrics
-from ..data import Image
+from ..model import Image
 from ..errors import EstimationError
 
 log = logging.getLogger("clsas")

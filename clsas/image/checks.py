@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from .. import budget
 from .. import validate as v
-from ..data import EchoData
+from ..model import EchoData
 from .rangecomp import check_window, check_workers
 from .record import LineRecord
 

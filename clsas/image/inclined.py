@@ -54,10 +54,11 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft
 
-from ..data import EchoData
+from ..model import EchoData
 from ..scene.scenario import Platform
 from .multireceiver import interleave
-from .record import LineRecord, check_straight_track, made_nonstop, unit_phasor
+from .record import LineRecord, check_straight_track, made_nonstop
+from ..kernelmath import unit_phasor
 
 ANGLES = ("yaw", "pitch")
 

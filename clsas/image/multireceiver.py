@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..data import EchoData
+from ..model import EchoData
 from .record import LineRecord, Track, check_straight_track, compensate_bistatic, made_nonstop
 
 

@@ -41,7 +41,8 @@ import scipy.fft
 from ..interp import check_options
 from .checks import check_imager
 from .rangecomp import WINDOWS, spectral_window
-from .record import along_track_wavenumbers, as_record, azimuth_weights, check_elements, image_of, nonstop_shift, unit_phasor
+from .record import along_track_wavenumbers, as_record, azimuth_weights, check_elements, image_of, nonstop_shift
+from ..kernelmath import unit_phasor
 from .stolt import StoltAxes, stolt
 
 

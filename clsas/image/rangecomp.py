@@ -32,8 +32,8 @@ import scipy.special
 
 from .. import budget
 from .. import validate as v
-from ..data import EchoData
-from ..scene.scenario import Waveform
+from ..model import EchoData
+from ..model import Waveform
 
 WINDOWS = ("none", "hamming", "taylor", "kaiser")
 WINDOW_OPTIONS = {"taylor_nbar": 4, "taylor_sll_db": 35.0, "kaiser_beta": 6.0}  # the defaults

@@ -27,10 +27,11 @@ import numpy as np
 import scipy.fft
 
 from .. import validate
-from ..data import EchoData, Image
+from ..model import EchoData, Image
 from ..interp import resample
+from ..kernelmath import unit_phasor
 from ..scene.scenario import MAX_ELEMENT
-from ..scene.scenario import Medium, Waveform
+from ..model import Medium, Waveform
 from .rangecomp import spectral_window
 
 STRAIGHTNESS = 0.05  # allowed deviation of the track from a line, wavelengths
@@ -227,18 +228,6 @@ def azimuth_weights(ku: np.ndarray, elements, window: str, deconvolve: bool = Tr
 def along_track_wavenumbers(rec: LineRecord, n_ku: int) -> np.ndarray:
     """k_u (rad/m) of the rows of an along-track FFT of length n_ku (FFT order)."""
     return 2 * np.pi * np.fft.fftfreq(n_ku, rec.du)
-
-
-def unit_phasor(phase: np.ndarray) -> np.ndarray:
-    """exp(j phase) as complex64 for a float64 ``phase`` (rad) of any size: reduced to
-    [-pi, pi] in float64 first, so that float32 cos and sin keep ~1e-7 rad (a phase of 1e5 rad
-    would lose 1e-2 rad in float32); ~7x faster than a complex128 exp (NumPy's float32 cos/sin
-    are SIMD)."""
-    reduced = (phase - 2 * np.pi * np.rint(phase * (0.5 / np.pi))).astype(np.float32)
-    out = np.empty(reduced.shape, np.complex64)
-    np.cos(reduced, out=out.real)
-    np.sin(reduced, out=out.imag)
-    return out
 
 
 def nonstop_shift(rec: LineRecord, ku: np.ndarray, r: np.ndarray) -> np.ndarray | float:

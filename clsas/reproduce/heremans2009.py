@@ -44,13 +44,13 @@ from pathlib import Path
 import numpy as np
 
 from .. import metrics
-from ..data import Grid
+from ..model import Grid
 from ..estimate import dpca
 from ..image import backproject, omega_k, pca_record, range_compress
 from ..scene import presets
 from ..scene.scenario import Platform
 from ..scene.targets import PointTargets
-from ..simulate import simulate
+from ..synthesis import simulate
 
 R0 = 100.0
 

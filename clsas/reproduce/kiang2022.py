@@ -124,7 +124,7 @@ def run_case(case: int, args) -> dict:
     half = 12.0 if args.targets == "submarine" else 3.0
     scan = None
     if args.targets == "submarine":
-        from ..simulate.occlusion import scan_image
+        from ..synthesis.occlusion import scan_image
 
         step = 0.05
         scan = scan_image(sc, np.arange(r_c - half, r_c + half, step), np.arange(y_c - half, y_c + half, step),

@@ -110,7 +110,7 @@ def measure(echo, points, backend: str = "opencl", cache=None) -> dict:
     """Per point: azimuth (PSLR, ISLR) dB and the location error (m, (y, x)) for each of
     :data:`METHODS` (``cache``: a StationaryPoints to fill and reuse)."""
     import clsas
-    from clsas.data import Grid, Image
+    from clsas.model import Grid, Image
 
     lam = echo.medium.sound_speed / echo.waveform.f0
     aperture = 2 * np.arcsin(lam / (2 * max(ELEMENTS)))
@@ -138,7 +138,7 @@ def _quality(image, near):
 
 
 def _patch(image, point, half_y: float, half_x: float):
-    from clsas.data import Image
+    from clsas.model import Image
 
     y, x = image.axes["y"], image.axes["x"]
     rows = np.flatnonzero(np.abs(y - point[1]) <= half_y)
@@ -153,7 +153,7 @@ def timing(echo, backend: str, points=None, bp_fraction: float = 0.125) -> dict:
     scaled). ``points``: the StationaryPoints an earlier image of this echo filled (the second
     scheme: only the few new reference ranges are solved, milliseconds)."""
     import clsas
-    from clsas.data import Grid
+    from clsas.model import Grid
     from clsas.image.ptrs import StationaryPoints
 
     points = StationaryPoints() if points is None else points

@@ -7,8 +7,8 @@ import numpy as np
 import scipy.fft
 
 from ... import validate
-from ...data import EchoData
-from ...image.record import unit_phasor
+from ...model import EchoData
+from ...kernelmath import unit_phasor
 
 
 def parabola(y_minus, y0, y_plus):

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...data import EchoData
+from ...model import EchoData
 from ...scene.scenario import Array
 from .correlate import aligned, correlations, parabola, peak_ratio
 from .geometry import beam_sin2, nominal_shift, pca_delay, xlag_offset

@@ -34,9 +34,10 @@ import numpy as np
 import scipy.fft
 
 from ... import validate
-from ...data import EchoData
+from ...model import EchoData
 from ...image.multireceiver import pca_record
-from ...image.record import LineRecord, unit_phasor
+from ...image.record import LineRecord
+from ...kernelmath import unit_phasor
 from ...scene.scenario import Scenario
 from .track import Trajectory, compensate
 

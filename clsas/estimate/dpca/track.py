@@ -9,7 +9,7 @@ import numpy as np
 import scipy.fft
 
 from ... import validate
-from ...data import EchoData
+from ...model import EchoData
 from ...scene.scenario import Array, Platform, Scenario
 from .geometry import nominal_shift
 from .pairs import PingPairs

@@ -53,10 +53,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ... import validate
-from ...data import EchoData, Image
+from ...model import EchoData, Image
 from ...errors import EstimationError
 from ...image.rangecomp import range_compress
-from ...image.record import unit_phasor
+from ...kernelmath import unit_phasor
 from . import filters, radon, trace
 from .doppler import Doppler
 from .extent import Extent, extent

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...data import EchoData, Image
+from ...model import EchoData, Image
 from .mapping import resample
 
 

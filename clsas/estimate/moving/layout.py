@@ -70,13 +70,13 @@ class Layout:
 
 def layout_of(source, eta_ref: float | None = None) -> Layout:
     """The :class:`Layout` of a :class:`~clsas.scene.scenario.Scenario` or an
-    :class:`~clsas.data.EchoData` (or a Layout, returned as is).
+    :class:`~clsas.model.EchoData` (or a Layout, returned as is).
 
     ``eta_ref`` defaults to the middle of the pulse schedule (0 for the paper's exposure,
     centred on eta = 0). Positions are fitted by straight lines over the whole exposure
     (platform motion errors average out; the closed forms assume uniform motion).
     """
-    from ...data import EchoData
+    from ...model import EchoData
     from ...scene.scenario import Scenario
 
     if isinstance(source, Layout):

@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
-from ...data import Image
+from ...model import Image
 from ...metrics import ssim
 from .closedforms import delay_terms
 from .layout import Layout

@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ... import validate
-from ...data import EchoData, Image
+from ...model import EchoData, Image
 from .chain import MIN_TIME_BANDWIDTH, UPSAMPLE, estimate_records, focus_receiver, locate, records
 from .closedforms import Predicted, delay_terms, higher_order_delay
 from .doppler import Doppler

@@ -63,7 +63,7 @@ import numpy as np
 import scipy.fft
 from scipy.optimize import minimize
 
-from ...image.record import unit_phasor
+from ...kernelmath import unit_phasor
 
 #: Grid points of one zoom step.
 GRID = 17

@@ -42,9 +42,9 @@ from __future__ import annotations
 import numpy as np
 
 from ... import backend as _backend
-from ...data import EchoData, Grid, Image
+from ...model import EchoData, Grid, Image
 from ...progress import Progress, stage
-from ..backprojection_records import FFT_BATCH_BYTES, check_options
+from ..backprojection.records import FFT_BATCH_BYTES, check_options
 from .leaves import BATCH_POINTS, RECORD_BYTES, FirstStage
 from .merge import KERNEL_TAPS
 from .polar import Scene
@@ -63,7 +63,7 @@ LEAF_BYTES = 200  # transient a sample of the leaf being tiled (points, padded b
 def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsample, aperture):
     chosen, _ = check_options(echo, receivers, interp, upsample, None)
     if not isinstance(grid, Grid):
-        raise TypeError(f"grid must be a clsas.data.Grid (Grid.plane, Grid.slant or Grid.points), got "
+        raise TypeError(f"grid must be a clsas.model.Grid (Grid.plane, Grid.slant or Grid.points), got "
                         f"{type(grid).__name__}")
     if aperture is not None and not (np.isfinite(aperture) and 0 < aperture <= np.pi):
         raise ValueError(f"aperture must be a full integration angle in (0, pi] radians, got {aperture}")
@@ -101,7 +101,7 @@ def memory_plan(tree: Tree, n_pixels: int, factor: int) -> dict:
     - ``first_stage``: a batch of leaves (leaves.BATCH_POINTS samples x LEAF_BATCH_BYTES) and the
       leaf being tiled (its samples x LEAF_BYTES);
     - ``records``: the prepared records (leaves.RECORD_BYTES, or the whole echo's if smaller) and
-      the upsampling's spectra (backprojection_records.FFT_BATCH_BYTES, three copies).
+      the upsampling's spectra (backprojection.records.FFT_BATCH_BYTES, three copies).
     """
     largest = [max((g.size for g in level if g is not None), default=0) for level in tree.grids[:tree.top + 1]]
     leaf_batch = min(BATCH_POINTS, sum(g.size for g in tree.grids[0] if g is not None))

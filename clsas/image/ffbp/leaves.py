@@ -14,7 +14,7 @@ Tiles. bp_tile's float32 geometry is relative to a reference point per tile (der
 :func:`clsas.image.backprojection.backproject_opencl`); a polar grid (n_v, n_r) is a raster, so
 its tiles are blocks of ``bv`` rows x ``br`` range samples (``bv`` a multiple of ROWS, ``br`` of
 LANES: every tile is whole work-items) whose reference point is the block's middle sample,
-halved until every sample lies within :func:`clsas.image.backprojection_tiles.tile_half_extent`
+halved until every sample lies within :func:`clsas.image.backprojection.tiles.tile_half_extent`
 of its reference (the same phase budget as back-projection's own tiles), which the launcher
 checks on the offsets the ffbp_fields kernel computes for bp_tile anyway. Slots past the grid's
 edge repeat its last sample and are dropped.
@@ -32,12 +32,12 @@ from __future__ import annotations
 import numpy as np
 
 from ... import opencl
-from ...data import Grid
+from ...model import Grid
 from ...interp import TAP_ROWS, kernel_taps
 from ...kernelmath import expj_cycles
-from ..backprojection import (NODE_TOLERANCE, PULSE_BLOCK, PULSES, RECORDS, TILE_PARAMS, GridPlan, backproject, prepare,
+from ..backprojection.direct import (NODE_TOLERANCE, PULSE_BLOCK, PULSES, RECORDS, TILE_PARAMS, GridPlan, backproject, prepare,
                               tile_references)
-from ..backprojection_tiles import LANES, ROWS, tile_half_extent
+from ..backprojection.tiles import LANES, ROWS, tile_half_extent
 from .polar import PolarGrid
 
 BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~40 bytes each held)

@@ -35,7 +35,7 @@ import dataclasses
 
 import numpy as np
 
-from ...data import EchoData
+from ...model import EchoData
 from .polar import Scene, extents, oversampling
 
 LEAF_SAMPLES = 16  # the default first stage: the fewest pulses whose leaf grid is at least this wide in angle

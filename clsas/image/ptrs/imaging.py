@@ -60,7 +60,7 @@ import logging
 import numpy as np
 import scipy.fft
 
-from ...data import EchoData, Image
+from ...model import EchoData, Image
 from ...interp import resample
 from ..multireceiver import interleave, line_array
 from ..rangecomp import WINDOWS

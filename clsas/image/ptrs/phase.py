@@ -33,7 +33,7 @@ import numpy as np
 
 from ... import backend as _backend
 from ... import opencl
-from ..record import unit_phasor
+from ...kernelmath import unit_phasor
 from .stationary import hermite
 
 ROW_BLOCK = 64  # rows a reference step (bounds the float64 temporaries)

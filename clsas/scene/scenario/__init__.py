@@ -1,6 +1,6 @@
 """What is simulated: medium, pulse, platform and array, sonobuoys, pulse schedule, recording.
 
-Conventions (DESIGN.md): SI units, radians; right-handed x, y, z with y along track (the
+Conventions (docs/design.md): SI units, radians; right-handed x, y, z with y along track (the
 platform's nominal heading), x across track towards the imaged side, z up (depth is negative
 z). Slow time ``eta`` is the emission time of a pulse; fast time ``tau`` is measured from it.
 
@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...model import ScenarioRecord
 from .platform import MOTION_COMPONENTS, Platform
 from .sonar import (
     MAX_ELEMENT,
@@ -48,7 +49,7 @@ __all__ = ["MAX_ELEMENT", "MOTION_COMPONENTS", "Array", "Medium", "Platform", "P
 
 
 @dataclass(frozen=True, eq=False)
-class Scenario:
+class Scenario(ScenarioRecord):
     """A complete sonar set-up: medium, waveform, platform with its array, sonobuoys, schedule.
 
     Receivers are numbered array hydrophones first, then sonobuoys. ``targets`` is a tuple of
@@ -166,14 +167,6 @@ class Scenario:
     def rx_positions(self, t) -> np.ndarray:
         """Every receiver at times ``t``: shape ``(n_receivers,) + t.shape + (3,)``."""
         return np.stack([self.receiver_position(i, t) for i in range(self.n_receivers)])
-
-    def to_toml(self, path=None, inline_meshes: bool | None = None):
-        """This scenario as TOML: written to ``path`` (returns the Path; meshes as PLY files beside
-        it) or returned as text (``path=None``; meshes inline). See :mod:`clsas.scene.toml` and
-        docs/scenario-toml.md; :func:`clsas.load_scenario` reads it back (the same Scenario)."""
-        from ..toml import scenario_to_toml
-
-        return scenario_to_toml(self, path, inline_meshes)
 
     def replace(self, **changes) -> "Scenario":
         """A copy with some fields changed (validated again)."""

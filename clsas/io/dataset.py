@@ -38,24 +38,13 @@ import logging
 
 import numpy as np
 
-from .data import EchoData, Image
-from .scene.scenario import Medium, Waveform
+from ..version import __version__
+from ..model import AXIS_UNITS, EchoData, Image, Medium, Waveform
+from .toml import scenario_from_toml, scenario_to_toml
 
 log = logging.getLogger("clsas")
 
 FORMAT = 2  # clsas_format of these datasets; 1 was the h5py layout of clsas 0.1 (io reads it)
-
-#: (units, long_name) of image axes by dim name; other dims get ("1", "<name> coordinate").
-AXIS_UNITS = {
-    "x": ("m", "across-track position x"),
-    "y": ("m", "along-track position y"),
-    "z": ("m", "height z (negative below the surface)"),
-    "u": ("m", "slant-plane coordinate u"),
-    "v": ("m", "slant-plane coordinate v"),
-    "r": ("m", "slant range"),
-    "eta": ("s", "slow time (emission time)"),
-    "tau": ("s", "fast time after emission"),
-}
 
 _ECHO_NAMES = ("echo", "rx", "pulse", "sample", "eta", "t0", "tau", "xyz", "node", "tx_pos", "rx_pos", "rx_tau")
 
@@ -84,8 +73,6 @@ def to_json(value) -> str:
 
 
 def _version() -> str:
-    from . import __version__
-
     return __version__
 
 
@@ -129,8 +116,6 @@ def _scenario_attrs(scenario) -> dict:
     """``{"scenario": TOML text}``, or ``{"scenario_missing": why}`` when TOML cannot hold it."""
     if scenario is None:
         return {}
-    from .scene.toml import scenario_to_toml
-
     try:
         return {"scenario": scenario_to_toml(scenario)}
     except TypeError as err:
@@ -142,8 +127,6 @@ def _scenario_of(ds):
     text = ds.attrs.get("scenario")
     if text is None:
         return None
-    from .scene.toml import scenario_from_toml
-
     try:
         return scenario_from_toml(text)
     except ValueError as err:
@@ -271,6 +254,15 @@ def image_from_xarray(ds) -> Image:
     elif layout != "axes":
         raise ValueError(f"positions_layout {layout!r} is not one of 'axes', 'plane', 'positions'")
     return Image(data=data, dims=dims, axes=axes, provenance=_json_attr(ds, "provenance"), positions=positions)
+
+
+def to_xarray(obj):
+    """The ``xarray.Dataset`` of an EchoData or an Image, with named, united coordinates."""
+    if isinstance(obj, EchoData):
+        return echo_to_xarray(obj)
+    if isinstance(obj, Image):
+        return image_to_xarray(obj)
+    raise TypeError(f"to_xarray takes an EchoData or an Image, got {type(obj).__name__}")
 
 
 def from_xarray(ds):

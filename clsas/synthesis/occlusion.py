@@ -354,9 +354,9 @@ def scan_image(scenario, r, y, eta: float = 0.0, receiver: int = 0):
     projected onto the r-y plane: r its one-way slant range from the receiver, y its along-track
     coordinate (both at the scattering time); its weight (area x angular law, as in the echo
     synthesis) is added into the pixel of the uniform axes ``r`` and ``y`` (m) that contains it.
-    Returns an :class:`clsas.data.Image` with dims ("y", "r") and real, non-negative values.
+    Returns an :class:`clsas.model.Image` with dims ("y", "r") and real, non-negative values.
     """
-    from ..data import Image
+    from ..model import Image
     from ..scene.scenario import PulseSchedule
 
     r = np.asarray(r, dtype=np.float64)

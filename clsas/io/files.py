@@ -2,7 +2,7 @@
 
 ``save(obj, "run.nc")`` writes NetCDF4/HDF5 through h5netcdf; a path ending in ``.zarr``
 writes a zarr store (a folder). The layout (named dims, a coordinate for every dim, CF
-``units`` and ``long_name``, provenance as JSON attributes) is :mod:`clsas.dataset`'s, so
+``units`` and ``long_name``, provenance as JSON attributes) is :mod:`clsas.io.dataset`'s, so
 ``xarray.open_dataset(path)`` shows the data as it is in clsas. Arrays are chunked (about
 :data:`CHUNK_BYTES` a chunk) and compressed (gzip level 1 with byte shuffle in NetCDF, zarr's
 default zstd in zarr).
@@ -28,10 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .data import EchoData, Image
-from .dataset import from_xarray, to_json
-from .errors import DataFileError
-from .scene.scenario import Medium, Waveform
+from ..errors import DataFileError
+from ..model import EchoData, Image, Medium, Waveform
+from .dataset import from_xarray, to_json, to_xarray
 
 log = logging.getLogger("clsas")
 
@@ -88,7 +87,7 @@ def _encoding(ds, zarr: bool, level: int) -> dict:
 def to_dataset(obj):
     """The xarray.Dataset :func:`save` writes for ``obj``; TypeError for anything else."""
     if isinstance(obj, (EchoData, Image)):
-        return obj.to_xarray()
+        return to_xarray(obj)
     raise TypeError(f"save() takes an EchoData or an Image, got {type(obj).__name__}")
 
 

@@ -1,4 +1,4 @@
-"""Scenarios as TOML files: :func:`load_scenario`, :func:`scenario_to_toml` (``Scenario.to_toml``).
+"""Scenarios as TOML files: :func:`load_scenario`, :func:`scenario_to_toml` (``clsas.scenario_to_toml``).
 
 The schema (docs/scenario-toml.md): one table per part of the :class:`~clsas.scene.scenario.Scenario`
 (``[medium]``, ``[waveform]``, ``[platform]`` with its motion errors, ``[array]``, ``[schedule]``,
@@ -14,7 +14,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from ..scenario import Scenario
+from ...scene.scenario import Scenario
 from .read import parse
 from .write import document, dumps, write_ply
 

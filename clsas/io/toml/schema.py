@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from ..scenario import Array, Medium, Platform, PulseSchedule, Recording, Sonobuoy, Waveform
-from ..targets import MeshTarget, PointTargets
+from ...scene.scenario import Array, Medium, Platform, PulseSchedule, Recording, Sonobuoy, Waveform
+from ...scene.targets import MeshTarget, PointTargets
 
 SCHEMA_VERSION = 1
 

@@ -47,9 +47,9 @@ import os
 import numpy as np
 import scipy.fft
 
-from .. import validate
-from ..data import EchoData, Grid
-from .rangecomp import _upsample_spectrum
+from ... import validate
+from ...model import EchoData, Grid
+from ..rangecomp import _upsample_spectrum
 
 INTERPOLATORS = ("linear", "sinc8")
 # samples an interpolator reads around floor(k) (before, after), in samples of the records it reads
@@ -326,7 +326,7 @@ def prepare(compressed: EchoData, upsample: int = 8, interp: str = "linear", rec
     interp : {"linear", "sinc8"}, the interpolator the calls will use.
     receivers : indices or names of the receivers to prepare (default: all).
     grid : None, Grid, or a fast-time span
-        Which samples to prepare: None, every sample of the records; a :class:`clsas.data.Grid`,
+        Which samples to prepare: None, every sample of the records; a :class:`clsas.model.Grid`,
         the span it can reach (:func:`reach`; ``target_velocity`` the pixels' velocity); a pair
         ``(start, stop)`` in seconds (fast time after emission), the same for every receiver, or
         an array (len(receivers), 2), one span per receiver.
@@ -360,7 +360,7 @@ def fast_time_spans(echo: EchoData, chosen, grid, velocity) -> np.ndarray:
     except (TypeError, ValueError):
         spans = None
     if spans is None or spans.shape not in ((2,), (len(chosen), 2)):
-        raise TypeError(f"grid must be None, a clsas.data.Grid or a fast-time span (start, stop) in seconds "
+        raise TypeError(f"grid must be None, a clsas.model.Grid or a fast-time span (start, stop) in seconds "
                         f"(or one per receiver, shape ({len(chosen)}, 2)), got {grid!r:.80}")
     spans = np.broadcast_to(spans, (len(chosen), 2))
     if not np.all(np.isfinite(spans)) or np.any(spans[:, 1] <= spans[:, 0]):

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scenario import MOTION_COMPONENTS, Array, PulseSchedule, Recording, Scenario
-from ..targets import MeshTarget, PointTargets
+from ...scene.scenario import MOTION_COMPONENTS, Array, PulseSchedule, Recording, Scenario
+from ...scene.targets import MeshTarget, PointTargets
 from .schema import ARRAYS_OF_TABLES, SCHEMA_VERSION, TABLES, TARGET_KINDS
 
 #: fields whose constructors take one value for all: written once when every entry is the same
@@ -102,7 +102,7 @@ def document(scenario: Scenario, mesh_file=None) -> dict:
     handled = set(TABLES) | set(ARRAYS_OF_TABLES)
     unknown = [f.name for f in dataclasses.fields(scenario) if f.name not in handled]
     if unknown:  # a field added to Scenario that the schema does not know yet
-        raise TypeError(f"Scenario fields {unknown} have no place in the TOML schema (clsas.scene.toml.schema)")
+        raise TypeError(f"Scenario fields {unknown} have no place in the TOML schema (clsas.io.toml.schema)")
     doc = {"schema_version": SCHEMA_VERSION}
     for name in TABLES:
         part = getattr(scenario, name)

@@ -17,7 +17,7 @@ DEFAULT_CHUNK_BYTES = 256 * 2**20
 
 @dataclass(frozen=True)
 class SynthesisOptions:
-    """The options of :func:`clsas.simulate` and :func:`clsas.simulate.delays` (their meaning is
+    """The options of :func:`clsas.simulate` and :func:`clsas.synthesis.delays` (their meaning is
     documented there), checked on construction: ValueError/TypeError naming the option.
 
     backend : "numpy", "opencl", "auto" or None; stored resolved ("numpy" or "opencl").

@@ -20,7 +20,7 @@ import numpy as np
 
 from ... import validate as v
 from ...errors import ScenarioFileError
-from ..scenario import Array, Medium, Scenario
+from ...scene.scenario import Array, Medium, Scenario
 from .lines import KeyLines
 
 try:

@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...progress import Progress, stage
-from ...data import EchoData
+from ...model import EchoData
 from ...scene.scenario import Scenario
 from ...scene.targets import Scatterers, scatterers_of
 from ..occlusion import DEFAULT_REUSE_TOLERANCE, PathWeights, has_meshes
@@ -128,7 +128,7 @@ def add_noise(data, snr_db: float, seed, n_valid=None, block: int = 64, power=No
 def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_occlusion: bool,
                        reuse_tolerance: float):
     """The user's occlusion factor times the mesh targets' path weights (hull visibility and
-    angular law, :class:`clsas.simulate.occlusion.PathWeights`) when the scene has meshes."""
+    angular law, :class:`clsas.synthesis.occlusion.PathWeights`) when the scene has meshes."""
     if not has_meshes(scenario):
         return occlusion
     mesh = PathWeights(scenario, stop_and_go=stop_and_go, hull_occlusion=hull_occlusion,
@@ -286,14 +286,14 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         Factor per path (1 = seen, 0 = hidden); a callable ``occlusion(pulses: slice)`` returns
         the block (n_rx, len(pulses), n_scatterers), so that memory stays bounded. Mesh targets
         multiply it by their own path weights (hull visibility by Embree ray casting and the
-        facets' angular law, :mod:`clsas.simulate.occlusion`).
+        facets' angular law, :mod:`clsas.synthesis.occlusion`).
     hull_occlusion : bool
         Cast rays for the hull occlusion of mesh targets (False keeps only back-facing
         darkness and the angular law).
     reuse_tolerance : float
         rad: a facet's hull visibility is reused between pulses whose directions from it differ
         by at most this angle and whose bracketing casts agree (0 casts every ray;
-        :class:`clsas.simulate.occlusion.PathWeights`).
+        :class:`clsas.synthesis.occlusion.PathWeights`).
     max_bytes : int, optional
         Largest echo cube allowed (complex64; default the memory budget, :func:`clsas.memory_budget`);
         larger requests are refused before allocation.

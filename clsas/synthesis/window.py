@@ -24,7 +24,7 @@ def receiver_nodes(scenario, eta: np.ndarray, tau_hi: float, max_error: float | 
     """Receiver positions and element axes at uniformly spaced fast times 0 .. ``tau_hi``.
 
     Between nodes the receiver is taken to move linearly (the OpenCL kernels and
-    :meth:`clsas.data.EchoData.rx_position` interpolate). Two nodes are exact for a straight
+    :meth:`clsas.model.EchoData.rx_position` interpolate). Two nodes are exact for a straight
     track without motion errors; with motion errors the node count doubles until linear
     interpolation is within ``max_error`` (default lambda / 10^4, i.e. 6e-4 rad of two-way
     phase) of the exact position at every segment midpoint of every pulse, up to 4097 nodes;

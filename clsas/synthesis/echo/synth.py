@@ -23,7 +23,7 @@ the issue's budget (phase error < 0.01 rad per contribution, relative L2 < 5e-3)
 of magnitude to spare. ``precision="double"`` runs the accumulation in double too.
 
 The receiver's motion during reception enters the kernel through position nodes (linear
-between them, :func:`clsas.simulate.window.receiver_nodes`); the reference evaluates the
+between them, :func:`clsas.synthesis.window.receiver_nodes`); the reference evaluates the
 scenario's trajectory exactly.
 """
 
@@ -32,6 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import geometry, opencl
+from ..paths import direct_paths
 from ...cstruct import declare_all, record_dtype
 from ...scene.scenario import Scenario
 from ...scene.targets import Scatterers
@@ -113,16 +114,16 @@ class _Synth:
 
 
 class _NumpySynth(_Synth):
-    """float64 reference: exact trajectories (geometry.paths) and accumulate_reference."""
+    """float64 reference: exact trajectories (clsas.synthesis.paths) and accumulate_reference."""
 
     def paths(self, pulses: slice):
-        tau, amp = geometry.paths(self.scenario, self.eta[pulses], self.scat, range(self.n_rx),
+        tau, amp = direct_paths(self.scenario, self.eta[pulses], self.scat, range(self.n_rx),
                                   self.stop_and_go, self.spreading)
         w = self.weights(pulses)
         return tau, amp if w is None else amp * w
 
     def delays(self, pulses: slice) -> np.ndarray:
-        return geometry.paths(self.scenario, self.eta[pulses], self.scat, range(self.n_rx), self.stop_and_go,
+        return direct_paths(self.scenario, self.eta[pulses], self.scat, range(self.n_rx), self.stop_and_go,
                               self.spreading)[0]
 
     def release(self) -> None:
@@ -205,7 +206,7 @@ class _OpenCLSynth(_Synth):
         whole chunks that cannot reach a block of samples; any order gives the same result.
         """
         mid = self.eta[self.eta.size // 2: self.eta.size // 2 + 1]
-        tau, _ = geometry.paths(self.scenario, mid, self.scat, range(self.n_rx), stop_and_go=True)
+        tau, _ = direct_paths(self.scenario, mid, self.scat, range(self.n_rx), stop_and_go=True)
         return np.argsort(tau[:, 0, :], axis=1, kind="stable")
 
     def _run_paths(self, pulses: slice, t0: np.ndarray, weighted: bool = True):

@@ -12,11 +12,11 @@ which focuses a moving target, Kiang & Kiang 2022), every selected receiver h an
 
 s the range-compressed record sampled at ``t0_h + k / fs``: its value at tau comes from linear
 interpolation of the record FFT-upsampled by ``upsample`` in blocks (``interp="linear"``;
-:mod:`clsas.image.backprojection_records`: only the fast-time span the grid reaches) or from an
+:mod:`clsas.image.backprojection.records`: only the fast-time span the grid reaches) or from an
 8-tap Kaiser-windowed sinc of :mod:`clsas.interp` on the original samples (``interp="sinc8"``;
 :func:`clsas.interp.read_rows` in the reference, ``kernels/interp.h`` in the kernels). The
 rotation exp(+j 2 pi f0 tau) undoes the carrier phase exp(-j 2 pi f0 tau) of the baseband echo
-(DESIGN.md signal model), so all contributions of a scatterer add in phase at its pixel.
+(docs/design.md signal model), so all contributions of a scatterer add in phase at its pixel.
 
 Aperture: ``aperture`` (radians, full integration angle) keeps only the pulses that see the
 pixel within +-aperture/2 of broadside: |sin theta| <= sin(aperture / 2) with sin theta the
@@ -38,7 +38,7 @@ runs the exact double kernel with the data path in double as well.
 
 Memory: the pixels are processed in chunks of at most ``PIXEL_CHUNK`` (2^22) pixels on the
 device (a 4096^2 image is four chunks of ~150 MB of device buffers each), the records a block
-of at most ``backprojection_records.UPLOAD_BYTES`` at a time (at most two blocks in flight: the
+of at most ``records.UPLOAD_BYTES`` at a time (at most two blocks in flight: the
 host waits for the kernels of the block before last), the per-(tile, pulse) references a block
 at a time; the host keeps the tile order of the pixels (12 bytes a pixel) beside the grid.
 Records prepared with :func:`prepare` are held whole instead (host and device: see that
@@ -56,15 +56,15 @@ import warnings
 
 import numpy as np
 
-from ..progress import NOMINAL_RATES, Progress, stage
-from .. import backend as _backend
-from .. import budget, opencl, validate
-from ..data import EchoData, Grid, Image
-from ..cstruct import declare_all, record_dtype
-from ..geometry import NODE, legs, two_node_velocity, uniform_nodes
-from ..interp import TAP_ROWS, kernel_taps, read_rows
-from .backprojection_records import PreparedRecords, check_options, fast_time_spans, prepare, reach
-from .backprojection_tiles import (ERROR_FACTOR, LANES, PHASE_BUDGET, ROWS, GridPlan, Tiling, aperture_spans, plan_tiles,
+from ...progress import NOMINAL_RATES, Progress, stage
+from ... import backend as _backend
+from ... import budget, opencl, validate
+from ...model import EchoData, Grid, Image
+from ...cstruct import declare_all, record_dtype
+from ...geometry import NODE, legs, two_node_velocity, uniform_nodes
+from ...interp import TAP_ROWS, kernel_taps, read_rows
+from .records import PreparedRecords, check_options, fast_time_spans, prepare, reach
+from .tiles import (ERROR_FACTOR, LANES, PHASE_BUDGET, ROWS, GridPlan, Tiling, aperture_spans, plan_tiles,
                                    tile_half_extent)
 
 __all__ = ["ERROR_FACTOR", "PHASE_BUDGET", "GridPlan", "PreparedRecords", "Tiling", "backproject", "plan_tiles", "prepare",
@@ -72,7 +72,7 @@ __all__ = ["ERROR_FACTOR", "PHASE_BUDGET", "GridPlan", "PreparedRecords", "Tilin
 
 PULSE_BLOCK = 64  # pulses a kernel launch (one reference sub-block; 32 was ~4 % slower: more launches)
 PIXEL_CHUNK = 2**22  # pixels on the device at once
-PULSES = 2  # bp_tile: pulses a work-item step (with LANES x ROWS pixels, backprojection_tiles)
+PULSES = 2  # bp_tile: pulses a work-item step (with LANES x ROWS pixels, .tiles)
 NODE_TOLERANCE = 1 / 2000  # of a wavelength: a receiver's allowed departure from linear motion over a tile
 SPAN_FACTOR = 2.5  # a tile's delay span is +-SPAN_FACTOR * half_extent / c around its reference
 REF_PULSES = 64  # pulses whose tile references are computed at once
@@ -109,7 +109,7 @@ def _pulse_span(pulses, n_pulses: int) -> tuple[int, int]:
 
 def _check_call(grid, aperture):
     if not isinstance(grid, (Grid, GridPlan)):
-        raise TypeError(f"grid must be a clsas.data.Grid (Grid.plane, Grid.slant or Grid.points) or a GridPlan, got "
+        raise TypeError(f"grid must be a clsas.model.Grid (Grid.plane, Grid.slant or Grid.points) or a GridPlan, got "
                         f"{type(grid).__name__}")
     if aperture is not None:
         validate.scalar("backproject aperture", aperture, low=0.0, high=np.pi, low_open=True, unit="rad",
@@ -418,7 +418,7 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
         records: theirs, of which a subset may be chosen).
     interp : {"linear", "sinc8"}
         Linear interpolation of data FFT-upsampled by ``upsample`` (in blocks:
-        :mod:`clsas.image.backprojection_records`), or an 8-tap windowed sinc on the original
+        :mod:`clsas.image.backprojection.records`), or an 8-tap windowed sinc on the original
         samples. Default "linear", or the prepared records' (which a different value contradicts).
     upsample : int in [1, 64], default 8 (or the prepared records'). A call on an echo upsamples
         only the fast-time span the grid reaches; to image many grids from one echo, prepare the

@@ -12,7 +12,7 @@ import dataclasses
 
 import numpy as np
 
-from ..data import Grid
+from ...model import Grid
 
 LANES, ROWS = 16, 2  # bp_tile: a work-item holds ROWS float16 vectors of pixels (tiles padded to LANES x ROWS)
 # (2 rows x 2 pulses a step beat 2 x 4 by ~7 % in interleaved kernel timings: fewer registers spilled)
@@ -99,7 +99,7 @@ class GridPlan:
 
     def __init__(self, grid: Grid):
         if not isinstance(grid, Grid):
-            raise TypeError(f"grid must be a clsas.data.Grid, got {type(grid).__name__}")
+            raise TypeError(f"grid must be a clsas.model.Grid, got {type(grid).__name__}")
         self.grid = grid
         self._tilings, self._fields = {}, {}
 

@@ -1,0 +1,101 @@
+"""Grid: the pixel positions an imager forms its image on."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import budget
+from .. import validate
+
+GRID_BYTES_PER_PIXEL = 80  # a plane's positions (24) and their temporaries while it is built
+
+
+@dataclass(frozen=True, eq=False)
+class Grid:
+    """Pixel positions to image on: any array of 3-D points with named axes.
+
+    Build one with :meth:`plane` (a horizontal plane at a depth), :meth:`slant` (a plane spanned
+    by two direction vectors, e.g. a slant-range plane) or :meth:`points` (any ``(..., 3)``
+    array, e.g. a 3-D volume).
+
+    Attributes
+    ----------
+    positions : float64 ``shape + (3,)``, m
+    dims : tuple of str, one name per axis of ``shape``
+    axes : dict name -> 1-D float64 coordinate (m, or the index for :meth:`points`)
+    """
+
+    positions: np.ndarray
+    dims: tuple
+    axes: dict
+
+    def __post_init__(self):
+        pos = validate.array("Grid.positions", self.positions, (-1,) * max(2, np.ndim(self.positions)),
+                             bound=validate.MAX_COORDINATE, copy=False)
+        if pos.ndim < 2 or pos.shape[-1] != 3:
+            raise ValueError(f"Grid.positions: must have shape (..., 3), got {pos.shape}")
+        if pos.size == 0:
+            raise ValueError("Grid is empty: give at least one pixel")
+        dims = tuple(self.dims)
+        if len(dims) != pos.ndim - 1:
+            raise ValueError(f"Grid.dims must name the {pos.ndim - 1} pixel axes, got {dims}")
+        axes = {}
+        for name, n in zip(dims, pos.shape[:-1]):
+            ax = np.asarray(self.axes.get(name, np.arange(n)), dtype=np.float64)
+            if ax.shape != (n,):
+                raise ValueError(f"Grid.axes[{name!r}] must have {n} values, got shape {ax.shape}")
+            axes[name] = ax
+        pos.flags.writeable = False
+        object.__setattr__(self, "positions", pos)
+        object.__setattr__(self, "dims", dims)
+        object.__setattr__(self, "axes", axes)
+
+    @property
+    def shape(self) -> tuple:
+        return self.positions.shape[:-1]
+
+    @property
+    def size(self) -> int:
+        return int(np.prod(self.shape))
+
+    @classmethod
+    def plane(cls, x, y, z: float) -> "Grid":
+        """Horizontal plane z = ``z`` (m, negative below the surface) on the x (across-track) and
+        y (along-track) coordinates given; dims ``("y", "x")``."""
+        x = validate.array("Grid.plane x", x if np.ndim(x) else [x], (-1,), bound=validate.MAX_COORDINATE)
+        y = validate.array("Grid.plane y", y if np.ndim(y) else [y], (-1,), bound=validate.MAX_COORDINATE)
+        if x.size == 0 or y.size == 0:
+            raise ValueError(f"Grid.plane x and y: must be non-empty, got shapes {x.shape} and {y.shape}")
+        z = validate.scalar("Grid.plane z", z, low=-validate.MAX_COORDINATE, high=validate.MAX_COORDINATE, unit="m")
+        budget.check_bytes(f"Grid.plane of {y.size} x {x.size} pixels", GRID_BYTES_PER_PIXEL * x.size * y.size,
+                           "fewer pixels (image in tiles)")
+        yy, xx = np.meshgrid(y, x, indexing="ij")
+        return cls(np.stack([xx, yy, np.full_like(xx, z)], axis=-1), ("y", "x"), {"y": y, "x": x})
+
+    @classmethod
+    def slant(cls, origin, u_direction, v_direction, u, v, dims=("v", "u")) -> "Grid":
+        """Plane ``origin + u_i u_direction + v_j v_direction`` (unit directions, m); shape (len(v), len(u))."""
+        origin = validate.vector3("Grid.slant origin", origin)
+        du = validate.vector3("Grid.slant u_direction", u_direction)
+        dv = validate.vector3("Grid.slant v_direction", v_direction)
+        for name, vec in (("u_direction", du), ("v_direction", dv)):
+            if not np.isclose(np.linalg.norm(vec), 1.0):
+                raise ValueError(f"Grid.slant {name}: must be a unit 3-vector, got {vec}")
+        u = validate.array("Grid.slant u", u if np.ndim(u) else [u], (-1,), bound=validate.MAX_COORDINATE)
+        w = validate.array("Grid.slant v", v if np.ndim(v) else [v], (-1,), bound=validate.MAX_COORDINATE)
+        budget.check_bytes(f"Grid.slant of {w.size} x {u.size} pixels", GRID_BYTES_PER_PIXEL * u.size * w.size,
+                           "fewer pixels (image in tiles)")
+        pos = origin + w[:, None, None] * dv + u[None, :, None] * du
+        return cls(pos, tuple(dims), {dims[0]: w, dims[1]: u})
+
+    @classmethod
+    def points(cls, positions, dims=None) -> "Grid":
+        """Any ``(..., 3)`` array of pixel positions (m); dims default to ``("i0", "i1", ...)``."""
+        pos = validate.array("Grid.points positions", positions, (-1,) * max(1, np.ndim(positions)),
+                             bound=validate.MAX_COORDINATE)
+        if pos.ndim == 1:
+            pos = pos[None]
+        dims = tuple(dims) if dims is not None else tuple(f"i{k}" for k in range(pos.ndim - 1))
+        return cls(pos, dims, {})
