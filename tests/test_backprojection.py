@@ -433,3 +433,10 @@ def test_grid_constructors():
     np.testing.assert_array_equal(s.positions[2, 1], [2.0, 2.0, 0.0])
     vol = Grid.points(np.zeros((2, 3, 4, 3)))
     assert vol.dims == ("i0", "i1", "i2") and vol.size == 24
+
+
+def test_prepare_checks_the_memory_budget_before_upsampling(kiang_echo):
+    """Issue 27: prepare(upsample=64) refuses within a small budget before it allocates."""
+    with clsas.use_memory_budget("2M"):
+        with pytest.raises(clsas.budget.MemoryBudgetError, match="upsample=64"):
+            prepare(kiang_echo, upsample=64)
