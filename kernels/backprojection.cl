@@ -103,9 +103,11 @@ typedef float16 realv16_t;
 __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_of, __global const tile_ref_t *ref,
                       const int ref_stride, const int ref_first, __global const sample_t *data, __global const float *taps,
                       const tile_params_t params, const int p_first, const int p_count, const int n,
-                      __global double2 *image ROW_SHIFT_PARAM PULSE_SPAN_PARAM)
+                      const int n_items, __global double2 *image ROW_SHIFT_PARAM PULSE_SPAN_PARAM)
 {
     const int g = get_global_id(0);
+    if (g >= n_items)  /* the launch is padded to whole work-groups */
+        return;
     __global const tile_ref_t *tref = ref + (size_t)tile_of[g] * ref_stride;
     const int row_first = TILE_ROW_SHIFT;
     const float a1 = params.a1, fs = params.fs, f0 = params.f0;
@@ -236,9 +238,12 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
 __kernel void bp_block(__global const bp_points_t *pix, __global const bp_pulse_t *pulse,
                        __global const node_t *nodes, __global const sample_t *data,
                        __global const float *taps, const bp_block_params_t params,
-                       const int p_first, const int p_count, const int n, __global double2 *image)
+                       const int p_first, const int p_count, const int n, const int n_items,
+                       __global double2 *image)
 {
     const int g = get_global_id(0);
+    if (g >= n_items)  /* the launch is padded to whole work-groups */
+        return;
     const int m0 = 8 * g;
     const double c = params.c, f0 = params.f0, fs = params.fs, dtau = params.dtau;
     const vec8 p0 = v8(vload8(0, pix[g].x), vload8(0, pix[g].y), vload8(0, pix[g].z));

@@ -331,9 +331,9 @@ class TileKernel:
         extra = (row_shift,) if "ROW_SHIFT" in self.defines else ()
         extra += (spans,) if self.pulse_span else ()
         n_items = tile_of.size // 4
-        return self._kernel()(queue, (n_items,), None, pixels, tile_of, refs, np.int32(ref_stride), np.int32(ref_first),
-                              records, taps, params, np.int32(p_first), np.int32(p_count), np.int32(n_samples), image,
-                              *extra)
+        return self._kernel()(queue, *opencl.work_groups(n_items), pixels, tile_of, refs, np.int32(ref_stride),
+                              np.int32(ref_first), records, taps, params, np.int32(p_first), np.int32(p_count),
+                              np.int32(n_samples), np.int32(n_items), image, *extra)
 
     def _kernel(self):
         return opencl.kernel("backprojection", "bp_tile", preamble=self.preamble, defines=self.defines)
