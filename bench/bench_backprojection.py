@@ -51,8 +51,7 @@ from _harness import arguments, report
 import clsas
 from clsas import EchoData, Medium, Waveform
 from clsas.model import Grid
-from clsas.image.backprojection import backproject, prepare
-from clsas.image.backprojection.tiles import GridPlan
+from clsas.image.backprojection import GridPlan, backproject, prepare
 from clsas.scene import presets
 
 FS = 40e3

@@ -1,6 +1,8 @@
 /* Time-domain back-projection of range-compressed echoes, one receiver and one block of
- * pulses a launch. Two kernels (NumPy twin of both: clsas/image/backprojection.py,
- * backproject_reference; launcher and the derivation of bp_tile's algebra in the same module):
+ * pulses a launch. Two kernels, each owned by one object of clsas/image/backprojection/ that
+ * declares its records (the -D options, the structs in its preamble, its parameters and the
+ * layout of its pixel fields) and launches it: bp_tile by tile_kernel.TileKernel, bp_block by
+ * exact_kernel.ExactKernel. NumPy twin of both: clsas/image/backprojection/reference.py.
  *
  * bp_tile (built with BP_TILE; precision="single"): float32 geometry relative to a reference
  *   point per (tile, pulse). One work-item: ROWS vectors of 16 pixels (float16 lanes) of one
@@ -13,35 +15,28 @@
  *     s1 = N1 / (b1 + sqrt(b1^2 + a1 N1)),  N1 = 2 B.delta + |delta|^2,  b1 = c^2 t1_ref - (B + delta).v,
  *     e = (v_r - v) s1 - delta,  s2 = N2 / (b2 + sqrt(b2^2 + a2 N2)),
  *     N2 = 2 C.e + |e|^2,  b2 = c^2 t2_ref - (C + e).v_r,  a1 = c^2 - |v|^2,  a2 = c^2 - |v_r|^2,
- *   so that every float error scales with |delta|, not with the range.
+ *   so that every float error scales with |delta|, not with the range (derivation:
+ *   clsas/image/backprojection/tile_kernel.py).
  * bp_block (otherwise): the exact delays in double per pixel and pulse (geometry.h), eight
  *   pixels (double8 lanes) a work-item; precision="double" (with CLSAS_DOUBLE) and the
  *   fallback of precision="single" when a receiver's motion is not linear over a tile.
  *
  * Both: the range-compressed sample at the delay by linear interpolation of the (upsampled)
- * record (INTERP_LINEAR) or by an 8-tap Kaiser-windowed sinc on the original samples
- * (INTERP_SINC8, taps from the nearest row of a table over the fractional offset); a record
- * reads as zero where the interpolator would need samples outside it (taps and row lookup:
- * interp.h, the table of clsas/interp.py); the phase rotation
+ * record (INTERP_LINEAR) or by the 8-tap Kaiser-windowed sinc of interp.h on the original
+ * samples (INTERP_SINC8, taps from the nearest row of the table over the fractional offset); a
+ * record reads as zero where the interpolator would need samples outside it; the phase rotation
  * exp(+j 2 pi f0 tau) from cycles reduced to a fraction (polynomial sin/cos, common.h);
  * accumulation in float (double with CLSAS_DOUBLE) over the launch's pulses, added once into
  * the double image at the end (blocked sum).
  *
- * Defines: BP_TILE (with ROWS, MOVING when the pixels move), or N_NODES and SEGMENT_PASSES
- * (geometry.h) and STOP_AND_GO for bp_block; INTERP_LINEAR or INTERP_SINC8 (with TAP_ROWS);
- * APERTURE (keep |sin theta| off broadside <= sin(aperture / 2), theta measured from the x-z
- * plane); CLSAS_DOUBLE (bp_block's data, phases and sums in double: precision="double").
- * Portable OpenCL C 1.2: no vendor builtins. Measured and dropped on this CPU (AVX-512, PoCL 3.1):
- * the hardware gather (vgatherdpd through clang's builtin) was ~20 % slower than bp_tile's
- * 16 two-sample loads and register transposes; one contiguous window permuted across lanes
- * (vpermi2ps) fits only when a row of 16 pixels needs samples within ~16 of each other, which a
- * raster row across range rarely does (1 % of rows on the bench scene), and its branch made the
- * kernel slower overall.
+ * Defines: BP_TILE (with ROWS, PULSES, MOVING when the pixels move, ROW_SHIFT, PULSE_SPAN), or
+ * N_NODES and SEGMENT_PASSES (geometry.h) and STOP_AND_GO for bp_block; INTERP_LINEAR or
+ * INTERP_SINC8 (with TAP_ROWS); APERTURE (keep |sin theta| off broadside <= sin(aperture / 2),
+ * theta measured from the x-z plane); CLSAS_DOUBLE (bp_block's data, phases and sums in double:
+ * precision="double"). Portable OpenCL C 1.2: no vendor builtins.
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #include "common.h"
-#include "loads.h"
-#include "lanes.h"
 #include "interp.h"
 
 /* Data, interpolation and sums in float, or in double with CLSAS_DOUBLE (precision="double"). */
@@ -52,7 +47,7 @@ typedef double4 realv4_t;
 typedef double8 realv8;
 typedef double16 realv16_t;
 #define convert_realv8 convert_double8
-#define TAP_ROW(taps, row) convert_double16(TAP_ROW8(taps, row))
+#define SINC8_LANES sinc8_lanes_double
 #define LOAD_R16 LOAD_D16
 #define LOAD_R4 LOAD_D4
 #else
@@ -62,21 +57,10 @@ typedef float4 realv4_t;
 typedef float8 realv8;
 typedef float16 realv16_t;
 #define convert_realv8 convert_float8
-#define TAP_ROW(taps, row) TAP_ROW8(taps, row)
+#define SINC8_LANES sinc8_lanes
 #define LOAD_R16 LOAD_F16
 #define LOAD_R4 LOAD_F4
 #endif
-
-/* One lane's 8-tap sinc: sum_j w_j s[i + j] over the record's complex samples i .. i + 7 (one
- * 16-wide load), w_j = taps[8 row + j] (the shared 8-tap table of interp.h, each tap repeated
- * for re and im), the products summed pairwise keeping the re/im parity. Returns (re, im). */
-inline realv2_t sinc8_lane(__global const real_t *rec, int i, __global const float *taps, int row)
-{
-    const realv16_t p = LOAD_R16(rec + 2 * i) * TAP_ROW(taps, row);
-    const realv8 h8 = p.lo + p.hi;
-    const realv4_t h4 = h8.lo + h8.hi;
-    return h4.lo + h4.hi;
-}
 
 #ifdef BP_TILE
 #define FOR_ROWS _Pragma("unroll") for (int r = 0; r < ROWS; ++r)
@@ -84,15 +68,16 @@ inline realv2_t sinc8_lane(__global const real_t *rec, int i, __global const flo
 #define FOR_CHAINS _Pragma("unroll") for (int j = 0, r = 0; j < CHAINS; ++j, r = j % ROWS)
 #define RJ R[j / ROWS]
 
-/* pix[f * m_pad + m], m = 16 (ROWS g + r) + lane: f = 0, 1, 2: delta (pixel at t = 0 minus its
- *   tile's reference point, m), f = 3: |delta|^2, f = 4 (MOVING): delta . v;
+/* pix[ROWS g + r] (bp_pixels_t, TileKernel.PIXELS): work-item g's row r of sixteen pixels (image
+ *   slots m = 16 (ROWS g + r) + lane): delta (the pixel at t = 0 minus its tile's reference point,
+ *   m: dx, dy, dz), dd = |delta|^2 and (MOVING) dv = delta . v;
  * tile_of[g]: the tile of work-item g;
- * ref[t * ref_stride + p - ref_first]: the reference of (tile t, pulse p), a tile_ref_t: leg1 = B,
+ * ref[t * ref_stride + p - ref_first] (tile_ref_t): the reference of (tile t, pulse p): leg1 = B,
  *   b1 = c^2 t1_ref - B.v, leg2 = C, b2 = c^2 t2_ref - C.v_r, v_rx = v_r, a2, k_ref the integer
- *   sample index of T_ref in the records, k_frac its fraction, cycles = f0 T_ref reduced, range1 = c t1_ref;
+ *   sample index of T_ref in the records, k_frac its fraction, cycles = f0 T_ref reduced,
+ *   range1 = c t1_ref;
  * params (tile_params_t): a1, fs (of the data), f0, velocity v, half_sin = sin(aperture / 2), c;
- * the records are declared by the launcher (clsas/image/backprojection.py, RECORDS);
- * data[p n + i]: the receiver's range-compressed record of pulse p; taps: see sinc8_lane;
+ * data[p n + i]: the receiver's range-compressed record of pulse p; taps: the 8-tap table (interp.h);
  * image[m] += the sum over pulses p_first .. p_first + p_count - 1.
  * ROW_SHIFT (ffbp's first stage, clsas/image/ffbp/leaves.py: many sub-apertures a launch): pulse p
  *   of tile t reads record row p + row_shift[t] (its reference stays ref[t * ref_stride + p - ref_first]). */
@@ -103,7 +88,7 @@ inline realv2_t sinc8_lane(__global const real_t *rec, int i, __global const flo
 #define ROW_SHIFT_PARAM
 #define TILE_ROW_SHIFT 0
 #endif
-/* PULSE_SPAN (back-projection with an aperture, clsas/image/backprojection.py): span[t] = the
+/* PULSE_SPAN (back-projection with an aperture, clsas/image/backprojection/tiles.py): span[t] = the
  * pulses [x, y) tile t can see within it (a conservative bound from its references); the tile
  * sums only those of p_first .. p_first + p_count - 1, and the aperture mask decides per pixel. */
 #ifdef PULSE_SPAN
@@ -115,27 +100,28 @@ inline realv2_t sinc8_lane(__global const real_t *rec, int i, __global const flo
 #define TILE_BEGIN p_first
 #define TILE_END (p_first + p_count)
 #endif
-__kernel void bp_tile(__global const float *pix, __global const int *tile_of, __global const tile_ref_t *ref,
+__kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_of, __global const tile_ref_t *ref,
                       const int ref_stride, const int ref_first, __global const sample_t *data, __global const float *taps,
-                      const tile_params_t params, const int p_first, const int p_count, const int n, const int m_pad,
+                      const tile_params_t params, const int p_first, const int p_count, const int n,
                       __global double2 *image ROW_SHIFT_PARAM PULSE_SPAN_PARAM)
 {
     const int g = get_global_id(0);
     __global const tile_ref_t *tref = ref + (size_t)tile_of[g] * ref_stride;
     const int row_first = TILE_ROW_SHIFT;
     const float a1 = params.a1, fs = params.fs, f0 = params.f0;
+    const float3 vel = vload3(0, params.velocity);
     float16 dx[ROWS], dy[ROWS], dz[ROWS], dd[ROWS], acc_re[ROWS], acc_im[ROWS];
 #ifdef MOVING
     float16 dv[ROWS];
 #endif
     FOR_ROWS {
-        const int m = 16 * (ROWS * g + r);
-        dx[r] = vload16(0, pix + m);
-        dy[r] = vload16(0, pix + m_pad + m);
-        dz[r] = vload16(0, pix + 2 * m_pad + m);
-        dd[r] = vload16(0, pix + 3 * m_pad + m);
+        __global const bp_pixels_t *px = pix + ROWS * g + r;
+        dx[r] = vload16(0, px->dx);
+        dy[r] = vload16(0, px->dy);
+        dz[r] = vload16(0, px->dz);
+        dd[r] = vload16(0, px->dd);
 #ifdef MOVING
-        dv[r] = vload16(0, pix + 4 * m_pad + m);
+        dv[r] = vload16(0, px->dv);
 #endif
         acc_re[r] = (float16)0.0f;
         acc_im[r] = (float16)0.0f;
@@ -157,7 +143,8 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
         float16 s1[CHAINS], s[CHAINS], frac[CHAINS], cs[CHAINS], sn[CHAINS];
         int16 ki[CHAINS];
         FOR_CHAINS {  /* leg 1: s1 = t1 - t1_ref */
-            const float16 n1 = 2.0f * (RJ.leg1[0] * dx[r] + RJ.leg1[1] * dy[r] + RJ.leg1[2] * dz[r]) + dd[r];
+            const float3 b = vload3(0, RJ.leg1);
+            const float16 n1 = 2.0f * (b.x * dx[r] + b.y * dy[r] + b.z * dz[r]) + dd[r];
 #ifdef MOVING
             const float16 b1 = RJ.b1 - dv[r];
 #else
@@ -166,11 +153,10 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
             s1[j] = n1 / (b1 + sqrt(b1 * b1 + a1 * n1));
         }
         FOR_CHAINS {  /* leg 2: s2 = t2 - t2_ref, e = (v_r - v) s1 - delta; s = s1 + s2 */
-            const float ux = RJ.v_rx[0] - params.velocity[0], uy = RJ.v_rx[1] - params.velocity[1];  /* v_r - v */
-            const float uz = RJ.v_rx[2] - params.velocity[2];
-            const float16 ex = ux * s1[j] - dx[r], ey = uy * s1[j] - dy[r], ez = uz * s1[j] - dz[r];
-            const float16 n2 = 2.0f * (RJ.leg2[0] * ex + RJ.leg2[1] * ey + RJ.leg2[2] * ez) + (ex * ex + ey * ey + ez * ez);
-            const float16 b2 = RJ.b2 - (RJ.v_rx[0] * ex + RJ.v_rx[1] * ey + RJ.v_rx[2] * ez);
+            const float3 v_r = vload3(0, RJ.v_rx), cc = vload3(0, RJ.leg2), u = v_r - vel;  /* u = v_r - v */
+            const float16 ex = u.x * s1[j] - dx[r], ey = u.y * s1[j] - dy[r], ez = u.z * s1[j] - dz[r];
+            const float16 n2 = 2.0f * (cc.x * ex + cc.y * ey + cc.z * ez) + (ex * ex + ey * ey + ez * ez);
+            const float16 b2 = RJ.b2 - (v_r.x * ex + v_r.y * ey + v_r.z * ez);
             s[j] = s1[j] + n2 / (b2 + sqrt(b2 * b2 + RJ.a2 * n2));
         }
         FOR_CHAINS {  /* sample index K_ref + (frac_ref + s fs), split by truncation (floor is slow) */
@@ -189,7 +175,7 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
         }
 #ifdef APERTURE
         FOR_CHAINS {  /* sin theta = (q - tx).y / (c t1), q - tx = B + delta + v s1 */
-            const float16 keep = select((float16)0.0f, (float16)1.0f, fabs(RJ.leg1[1] + dy[r] + params.velocity[1] * s1[j])
+            const float16 keep = select((float16)0.0f, (float16)1.0f, fabs(vload3(0, RJ.leg1).y + dy[r] + vel.y * s1[j])
                                         <= params.half_sin * (RJ.range1 + params.c * s1[j]));
             cs[j] *= keep;
             sn[j] *= keep;
@@ -215,11 +201,10 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
             const int16 ic = clamp(ki[j] - 3, (int16)0, (int16)(n - 8));
             const float16 keep = select((float16)0.0f, (float16)1.0f, ki[j] >= (int16)3 && ki[j] < (int16)(n - 4));
             const int16 row = NEAREST_TAP_ROW(convert_int16, frac[j]);
-            /* each lane's eight complex products, summed across lanes (lanes.h) */
-#define P(L) (LOAD_F16(recj + 2 * ic.s##L) * TAP_ROW(taps, row.s##L))
-            const float16 lo = csum8(P(0), P(1), P(2), P(3), P(4), P(5), P(6), P(7));
-            const float16 hi = csum8(P(8), P(9), P(a), P(b), P(c), P(d), P(e), P(f));
-#undef P
+#define W(L) LOAD_F16(recj + 2 * ic.s##L)
+            const float16 lo = sinc8_lanes(taps, row.lo, W(0), W(1), W(2), W(3), W(4), W(5), W(6), W(7));
+            const float16 hi = sinc8_lanes(taps, row.hi, W(8), W(9), W(a), W(b), W(c), W(d), W(e), W(f));
+#undef W
             const float16 dr = keep * (float16)(lo.even, hi.even), di = keep * (float16)(lo.odd, hi.odd);
 #endif
             acc_re[r] += dr * cs[j] - di * sn[j];
@@ -238,28 +223,25 @@ __kernel void bp_tile(__global const float *pix, __global const int *tile_of, __
 #else /* bp_block: exact double geometry */
 #include "geometry.h"
 
-/* pix[f * m_pad + m]: pixel m's x, y, z at t = 0 (f = 0, 1, 2);
+/* pix[g] (bp_points_t, ExactKernel.POINTS): work-item g's eight pixels m = 8 g + lane at t = 0 (x, y, z);
  * pulse[p] (bp_pulse_t): tx, the transmitter at emission; eta; t0_fs, the window start in
  * samples of the data; first, the records' first sample (counted from t0 at the data's rate);
  * nodes[p N_NODES + k] (node_t): the receiver's position at fast time k dtau;
  * params (bp_block_params_t): c, f0, fs (of the data), dtau (node spacing), velocity (of the
  * pixels), half_sin = sin(aperture / 2) (APERTURE);
- * the records are declared by the launcher (clsas/image/backprojection.py, RECORDS);
  * data[p n + i]: the receiver's range-compressed record of pulse p;
  * pulses p_first .. p_first + p_count - 1 of the buffers are summed by this launch;
- * taps: see sinc8_lane (row r: fractional offset r / (TAP_ROWS - 1), samples i - 3 .. i + 4; the
- * row nearest to the pixel's offset is used);
+ * taps: the 8-tap table (interp.h);
  * image[m] += the block's sum. */
-__kernel void bp_block(__global const double *pix, __global const bp_pulse_t *pulse,
+__kernel void bp_block(__global const bp_points_t *pix, __global const bp_pulse_t *pulse,
                        __global const node_t *nodes, __global const sample_t *data,
                        __global const float *taps, const bp_block_params_t params,
-                       const int p_first, const int p_count, const int n, const int m_pad,
-                       __global double2 *image)
+                       const int p_first, const int p_count, const int n, __global double2 *image)
 {
     const int g = get_global_id(0);
     const int m0 = 8 * g;
     const double c = params.c, f0 = params.f0, fs = params.fs, dtau = params.dtau;
-    const vec8 p0 = v8(vload8(0, pix + m0), vload8(0, pix + m_pad + m0), vload8(0, pix + 2 * m_pad + m0));
+    const vec8 p0 = v8(vload8(0, pix[g].x), vload8(0, pix[g].y), vload8(0, pix[g].z));
     const double3 velocity = vload3(0, params.velocity);
     const vec8 vel = v8_splat(velocity);
     realv8 acc_re = (realv8)0, acc_im = (realv8)0;
@@ -321,11 +303,9 @@ __kernel void bp_block(__global const double *pix, __global const bp_pulse_t *pu
         const long8 ic = clamp(kl - 3, (long8)0, (long8)(n - 8));
         const realv8 keep = convert_realv8(select((double8)0.0, (double8)1.0, kl >= 3 && kl < (long8)(n - 4)));
         const int8 row = NEAREST_TAP_ROW(convert_int8, frac);
-        real_t v[16];
-#define TAPS8(L) vstore2(sinc8_lane(rec, ic.s##L, taps, row.s##L), L, v);
-        TAPS8(0) TAPS8(1) TAPS8(2) TAPS8(3) TAPS8(4) TAPS8(5) TAPS8(6) TAPS8(7)
-#undef TAPS8
-        const realv16_t vv = vload16(0, v);
+#define W(L) LOAD_R16(rec + 2 * ic.s##L)
+        const realv16_t vv = SINC8_LANES(taps, row, W(0), W(1), W(2), W(3), W(4), W(5), W(6), W(7));
+#undef W
         const realv8 dr = keep * vv.even, di = keep * vv.odd;
 #endif
         acc_re += dr * cs - di * sn;

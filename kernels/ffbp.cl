@@ -20,39 +20,41 @@
  * TAPS complex samples times the range taps, weighted by the angle taps, and the lanes' complex
  * sums formed eight at a time across lanes (lanes.h).
  *
- * frames (double, 20 a child): centre 0-2, axis 3-5, e1 6-8, e2 9-11, r0 12, dr 13, v0 14,
- * dv 15, n_r 16, n_v 17. params (double): the parent's frame 0-19 (PARENT_GRID), the plane's
- * normal 20-22 and offset 23, 2 f0 / c (cycles per metre) 24. images holds the children at
- * offsets (complex samples); the result goes to out from out_offset on.
+ * The records (declared once by clsas/image/ffbp/program.py, put in front of this source):
+ * ffbp_frame_t, a polar grid's frame (PolarGrid.record): centre, axis, e1, e2 (m, unit vectors),
+ * the samples r0 + i dr (i < n_r) and v0 + j dv (j < n_v); ffbp_plane_t, the reference plane
+ * normal . X = offset; ffbp_item_t, the first stage's work-items (leaf, row, sample, tile); and
+ * bp_pixels_t, bp_tile's pixel fields (clsas/image/backprojection/tile_kernel.py).
+ * ffbp_merge: frames[k] the children's frames, images holding the children at offsets (complex
+ * samples), parent the parent's frame (PARENT_GRID), plane, cycles_per_m = 2 f0 / c; the result
+ * goes to out from out_offset on.
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 
 #include "common.h"
-#include "loads.h"
-#include "lanes.h"
 #include "interp.h"
 
-#define FRAME 20
 #define LANE_INDEX ((double16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))
 
-/* One lane's complex products: its TAPS rows of TAPS samples (re, im interleaved) from s (the
- * window's first sample, rows n_r complex samples apart) times the range taps of row row_r,
- * summed over the rows weighted by the angle taps of row row_v; zero for a lane outside the
- * image. TAPS = 8: a float16 of eight products (csum8 sums eight lanes' at once); TAPS = 4: the
- * lane's complex sum. */
+/* One lane's read of a child image: its TAPS rows of TAPS samples (re, im interleaved) from s
+ * (the window's first sample, rows n_r complex samples apart) summed over the rows weighted by
+ * the angle taps of row row_v; zero for a lane outside the image. TAPS = 8: the lane's eight
+ * complex samples of the range window (a float16), which interp.h's sinc8_lanes weights by the
+ * range taps and sums eight lanes at a time; TAPS = 4: the lane's complex sum, range taps
+ * applied. */
 #if TAPS == 8
-inline float16 lane_products(const int ok, __global const float *s, const int n_r, __global const float *taps,
-                             const int row_v, const int row_r)
+inline float16 lane_window(const int ok, __global const float *s, const int n_r, __global const float *taps,
+                           const int row_v)
 {
     float16 p = (float16)0.0f;
     if (ok) {
         __global const float *tv = taps + 8 * row_v;
         for (int a = 0; a < 8; ++a)
             p += tv[a] * LOAD_F16(s + 2 * a * n_r);
-        p *= TAP_ROW8(taps, row_r);
     }
     return p;
 }
+#define LANE_WINDOW(L) lane_window(ok.s##L, img + 2 * (iv.s##L * n_r + ir.s##L), n_r, taps, row_v.s##L)
 #elif TAPS == 4
 inline float2 lane_products(const int ok, __global const float *s, const int n_r, __global const float *taps,
                             const int row_v, const int row_r)
@@ -67,10 +69,10 @@ inline float2 lane_products(const int ok, __global const float *s, const int n_r
     const float4 q = p.lo + p.hi;
     return q.lo + q.hi;
 }
+#define LANE_PRODUCTS(L) lane_products(ok.s##L, img + 2 * (iv.s##L * n_r + ir.s##L), n_r, taps, row_v.s##L, row_r.s##L)
 #else
 #error "TAPS must be 4 or 8"
 #endif
-#define LANE_PRODUCTS(L) lane_products(ok.s##L, img + 2 * (iv.s##L * n_r + ir.s##L), n_r, taps, row_v.s##L, row_r.s##L)
 
 /* The smallest and the largest of sixteen lanes. */
 inline double hmin16(const double16 a)
@@ -90,17 +92,16 @@ inline double hmax16(const double16 a)
 }
 
 /* X(r, v) (PolarGrid.points) of samples (j, i) (sixteen range indices i) of the polar grid of
- * frame f (20 doubles, the layout of frames below) on the plane m . X = offset (plane: m 0-2,
- * offset 3), in x, y, z; returns their ranges r. */
-inline double16 polar_points16(__global const double *f, __global const double *plane, const int j, const double16 i,
+ * frame f on the plane, in x, y, z; returns their ranges r. */
+inline double16 polar_points16(const ffbp_frame_t f, const ffbp_plane_t plane, const int j, const double16 i,
                                double16 *x, double16 *y, double16 *z)
 {
-    const double v = f[14] + j * f[15];
-    const double3 cen = vload3(0, f), ax = vload3(1, f), e1 = vload3(2, f), e2 = vload3(3, f);
-    const double3 m = vload3(0, plane);
-    const double16 r = f[12] + i * f[13];
+    const double v = f.v0 + j * f.dv;
+    const double3 cen = vload3(0, f.centre), ax = vload3(0, f.axis), e1 = vload3(0, f.e1), e2 = vload3(0, f.e2);
+    const double3 m = vload3(0, plane.normal);
+    const double16 r = f.r0 + i * f.dr;
     const double16 rho = r * sqrt(fmax(1.0 - v * v, 0.0));
-    double16 s = (plane[3] - dot(m, cen) - r * (v * dot(m, ax))) / (rho * dot(m, e2));
+    double16 s = (plane.offset - dot(m, cen) - r * (v * dot(m, ax))) / (rho * dot(m, e2));
     s = select((double16)0.0, clamp(s, -1.0, 1.0), rho > 0.0);
     const double16 rc = rho * sqrt(1.0 - s * s), rs = rho * s, rv = r * v;
     *x = cen.x + rv * ax.x + rc * e1.x + rs * e2.x;
@@ -109,51 +110,51 @@ inline double16 polar_points16(__global const double *f, __global const double *
     return r;
 }
 
-/* bp_tile's pixel fields (kernels/backprojection.cl: f = 0, 1, 2 the offset delta of a sample from
- * its tile's reference point, 3 |delta|^2; float, fields[f * m_pad + slot]) for the first stage's
- * batch of polar grids (clsas/image/ffbp/leaves.py): work-item g fills slots 16 g .. 16 g + 15,
- * sixteen consecutive range samples of one row of one tile; items[g] = (leaf, row, first range
- * sample, tile) (rows and samples past the grid's edge are clamped to it: the launcher drops
- * those slots); frames (20 doubles a leaf, as below), plane (m, offset), centres (3 doubles a tile). */
-__kernel void ffbp_fields(__global const int4 *items, __global const double *frames, __global const double *plane,
-                          __global const double *centres, const int m_pad, __global float *fields)
+/* bp_tile's pixel fields (bp_pixels_t: dx, dy, dz the offset delta of a sample from its tile's
+ * reference point, dd |delta|^2) for the first stage's batch of polar grids
+ * (clsas/image/ffbp/leaves.py): work-item g fills fields[g], sixteen consecutive range samples of
+ * one row of one tile, items[g] (leaf, row, first range sample, tile; rows and samples past the
+ * grid's edge are clamped to it: the launcher drops those slots); frames[leaf], plane, centres
+ * (the tiles' reference points, m). */
+__kernel void ffbp_fields(__global const ffbp_item_t *items, __global const ffbp_frame_t *frames,
+                          const ffbp_plane_t plane, __global const double *centres, __global bp_pixels_t *fields)
 {
     const int g = get_global_id(0);
-    const int4 t = items[g];
-    __global const double *f = frames + FRAME * t.x;
-    const int n_r = (int)f[16], n_v = (int)f[17];
+    const ffbp_item_t t = items[g];
+    const ffbp_frame_t f = frames[t.leaf];
     double16 x, y, z;
-    polar_points16(f, plane, min(t.y, n_v - 1), fmin(t.z + LANE_INDEX, (double16)(n_r - 1)), &x, &y, &z);
-    const double16 dx = x - centres[3 * t.w], dy = y - centres[3 * t.w + 1], dz = z - centres[3 * t.w + 2];
-    const size_t o = 16 * (size_t)g;
-    STORE_F16(convert_float16(dx), fields + o);
-    STORE_F16(convert_float16(dy), fields + m_pad + o);
-    STORE_F16(convert_float16(dz), fields + 2 * (size_t)m_pad + o);
-    STORE_F16(convert_float16(dx * dx + dy * dy + dz * dz), fields + 3 * (size_t)m_pad + o);
+    polar_points16(f, plane, min(t.row, f.n_v - 1), fmin(t.sample + LANE_INDEX, (double16)(f.n_r - 1)), &x, &y, &z);
+    const double3 centre = vload3(t.tile, centres);
+    const double16 dx = x - centre.x, dy = y - centre.y, dz = z - centre.z;
+    __global bp_pixels_t *o = fields + g;
+    STORE_F16(convert_float16(dx), o->dx);
+    STORE_F16(convert_float16(dy), o->dy);
+    STORE_F16(convert_float16(dz), o->dz);
+    STORE_F16(convert_float16(dx * dx + dy * dy + dz * dz), o->dd);
 }
 
 /* The first stage's demodulated leaf image from bp_tile's slots (clsas/image/ffbp/leaves.py):
- * work-item g of a leaf's items[first + g] = (leaf, row, first range sample, tile) holds slots
- * 16 (first + g) .. + 15 of image; each slot inside the grid (frame: 20 doubles, as below) goes to
+ * work-item g of a leaf's items[first + g] (leaf, row, first range sample, tile) holds slots
+ * 16 (first + g) .. + 15 of image; each slot inside the leaf's grid (frame) goes to
  * out[out_offset + row * n_r + column] times exp(-j 2 pi cycles_per_m r) (the demodulation by its
  * range r), complex64. */
-__kernel void ffbp_leaf(__global const double2 *image, __global const int4 *items, const int first,
-                        __global const double *frame, const double cycles_per_m, const long out_offset,
+__kernel void ffbp_leaf(__global const double2 *image, __global const ffbp_item_t *items, const int first,
+                        const ffbp_frame_t frame, const double cycles_per_m, const long out_offset,
                         __global float2 *out)
 {
     const int g = first + get_global_id(0);
-    const int4 t = items[g];
-    const int n_r = (int)frame[16], n_v = (int)frame[17];
-    if (t.y >= n_v)
+    const ffbp_item_t t = items[g];
+    const int n_r = frame.n_r;
+    if (t.row >= frame.n_v)
         return;
-    const double16 cycles = cycles_per_m * (frame[12] + (t.z + LANE_INDEX) * frame[13]);
+    const double16 cycles = cycles_per_m * (frame.r0 + (t.sample + LANE_INDEX) * frame.dr);
     float16 cs, sn;
     expj_fraction16(convert_float16(cycles - convert_double16(convert_int16(cycles))), &cs, &sn);
     float c_out[16], s_out[16];
     vstore16(cs, 0, c_out);
     vstore16(sn, 0, s_out);
-    __global float2 *o = out + out_offset + (size_t)t.y * n_r + t.z;
-    for (int l = 0; l < min(16, n_r - t.z); ++l) {
+    __global float2 *o = out + out_offset + (size_t)t.row * n_r + t.sample;
+    for (int l = 0; l < min(16, n_r - t.sample); ++l) {
         const double2 v = image[16 * (size_t)g + l];
         const float2 a = (float2)((float)v.x, (float)v.y);
         o[l] = (float2)(a.x * c_out[l] + a.y * s_out[l], a.y * c_out[l] - a.x * s_out[l]);
@@ -161,9 +162,10 @@ __kernel void ffbp_leaf(__global const double2 *image, __global const int4 *item
 }
 
 __kernel void ffbp_merge(__global const float2 *images, __global const long *offsets,
-                         __global const double *frames, __global const float *taps,
-                         __global const double *points, __global const double *params,
-                         const int n_children, const int n_out, const long out_offset, __global float2 *out)
+                         __global const ffbp_frame_t *frames, __global const float *taps,
+                         __global const double *points, const ffbp_frame_t parent, const ffbp_plane_t plane,
+                         const double cycles_per_m, const int n_children, const int n_out, const long out_offset,
+                         __global float2 *out)
 {
     out += out_offset;
     double16 x, y, z, r_p;
@@ -171,12 +173,12 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
     size_t first;
 #ifdef PARENT_GRID
     /* X(r, v) of the parent samples (PolarGrid.points) */
-    const int n_r_parent = (int)params[16], j = get_global_id(1), i0 = 16 * get_global_id(0);
-    n_valid = min(16, n_r_parent - i0);
+    const int j = get_global_id(1), i0 = 16 * get_global_id(0);
+    n_valid = min(16, parent.n_r - i0);
     if (n_valid <= 0)
         return;
-    first = (size_t)j * n_r_parent + i0;
-    r_p = polar_points16(params, params + 20, j, i0 + LANE_INDEX, &x, &y, &z);
+    first = (size_t)j * parent.n_r + i0;
+    r_p = polar_points16(parent, plane, j, i0 + LANE_INDEX, &x, &y, &z);
 #else
     const int i0 = 16 * get_global_id(0);
     n_valid = min(16, n_out - i0);
@@ -185,42 +187,42 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
     first = i0;
     double px[16], py[16], pz[16];
     for (int l = 0; l < 16; ++l) {
-        const size_t q = 3 * (size_t)(i0 + min(l, n_valid - 1));
-        px[l] = points[q];
-        py[l] = points[q + 1];
-        pz[l] = points[q + 2];
+        const double3 q = vload3(i0 + min(l, n_valid - 1), points);
+        px[l] = q.x;
+        py[l] = q.y;
+        pz[l] = q.z;
     }
     x = vload16(0, px);
     y = vload16(0, py);
     z = vload16(0, pz);
     r_p = (double16)0.0;
 #endif
-    const double cycles_per_m = params[24];
     /* the lanes' bounding box: its centre and half-diagonal, for a cheap test of each child */
     const double3 lo = (double3)(hmin16(x), hmin16(y), hmin16(z)), hi = (double3)(hmax16(x), hmax16(y), hmax16(z));
     const double3 mid = 0.5 * (lo + hi);
     const double radius = 0.5 * length(hi - lo);
     float16 acc_re = (float16)0.0f, acc_im = (float16)0.0f;
     for (int k = 0; k < n_children; ++k) {
-        __global const double *f = frames + FRAME * k;
+        const ffbp_frame_t f = frames[k];
+        const double3 cen = vload3(0, f.centre), ax = vload3(0, f.axis);
         /* skip a child whose grid no lane can fall in: the box's range from the child's centre
          * within radius of the middle's, its sine within radius / (range - radius) (|grad v| <= 1 / r) */
-        const double3 dm = mid - vload3(0, f);
+        const double3 dm = mid - cen;
         const double rm = length(dm);
-        if (rm + radius < f[12] || rm - radius > f[12] + (f[16] - 1.0) * f[13])
+        if (rm + radius < f.r0 || rm - radius > f.r0 + (f.n_r - 1.0) * f.dr)
             continue;
         if (rm > radius) {
-            const double vm = dot(dm, vload3(1, f)) / rm, slack = radius / (rm - radius);
-            if (vm + slack < f[14] || vm - slack > f[14] + (f[17] - 1.0) * f[15])
+            const double vm = dot(dm, ax) / rm, slack = radius / (rm - radius);
+            if (vm + slack < f.v0 || vm - slack > f.v0 + (f.n_v - 1.0) * f.dv)
                 continue;
         }
-        const double16 dx = x - f[0], dy = y - f[1], dz = z - f[2];
+        const double16 dx = x - cen.x, dy = y - cen.y, dz = z - cen.z;
         const double16 rc = sqrt(dx * dx + dy * dy + dz * dz);
         /* positions in samples, bounded before the conversion (out-of-range converts are undefined) */
-        const double per_dv = 1.0 / f[15], per_dr = 1.0 / f[13];  /* one scalar division, not sixteen */
-        const double16 pv = clamp(((dx * f[3] + dy * f[4] + dz * f[5]) / rc - f[14]) * per_dv, -1.0, 1e9);
-        const double16 pr = clamp((rc - f[12]) * per_dr, -1.0, 1e9);
-        const int n_r = (int)f[16], n_v = (int)f[17];
+        const double per_dv = 1.0 / f.dv, per_dr = 1.0 / f.dr;  /* one scalar division, not sixteen */
+        const double16 pv = clamp(((dx * ax.x + dy * ax.y + dz * ax.z) / rc - f.v0) * per_dv, -1.0, 1e9);
+        const double16 pr = clamp((rc - f.r0) * per_dr, -1.0, 1e9);
+        const int n_r = f.n_r, n_v = f.n_v;
         const int16 fv = convert_int16(pv), fr = convert_int16(pr);  /* floor where >= 0 (PoCL's floor() is slow) */
         const int16 iv = fv - (TAPS / 2 - 1), ir = fr - (TAPS / 2 - 1);
         const int16 ok = convert_int16(pv >= 0.0 && pr >= 0.0) & (iv >= 0 && iv <= n_v - TAPS && ir >= 0 && ir <= n_r - TAPS);
@@ -230,16 +232,18 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
         if (!(ok2.x | ok2.y))  /* no lane reads this child */
             continue;
         const int16 row_v = NEAREST_TAP_ROW(convert_int16, pv - convert_double16(fv));
-        const int16 row_r = NEAREST_TAP_ROW(convert_int16, pr - convert_double16(fr));
+        /* the range taps' rows (row 0 for a lane outside the image, which reads zeros: its own row
+         * may lie outside the table) */
+        const int16 row_r = select((int16)0, NEAREST_TAP_ROW(convert_int16, pr - convert_double16(fr)), ok);
         __global const float *img = (__global const float *)(images + offsets[k]);
         const double16 cycles = cycles_per_m * (rc - r_p);
         float16 cs, sn;
         expj_fraction16(convert_float16(cycles - convert_double16(convert_int16(cycles))), &cs, &sn);
 #if TAPS == 8
-        const float16 lo = csum8(LANE_PRODUCTS(0), LANE_PRODUCTS(1), LANE_PRODUCTS(2), LANE_PRODUCTS(3),
-                                 LANE_PRODUCTS(4), LANE_PRODUCTS(5), LANE_PRODUCTS(6), LANE_PRODUCTS(7));
-        const float16 hi = csum8(LANE_PRODUCTS(8), LANE_PRODUCTS(9), LANE_PRODUCTS(a), LANE_PRODUCTS(b),
-                                 LANE_PRODUCTS(c), LANE_PRODUCTS(d), LANE_PRODUCTS(e), LANE_PRODUCTS(f));
+        const float16 lo = sinc8_lanes(taps, row_r.lo, LANE_WINDOW(0), LANE_WINDOW(1), LANE_WINDOW(2), LANE_WINDOW(3),
+                                       LANE_WINDOW(4), LANE_WINDOW(5), LANE_WINDOW(6), LANE_WINDOW(7));
+        const float16 hi = sinc8_lanes(taps, row_r.hi, LANE_WINDOW(8), LANE_WINDOW(9), LANE_WINDOW(a), LANE_WINDOW(b),
+                                       LANE_WINDOW(c), LANE_WINDOW(d), LANE_WINDOW(e), LANE_WINDOW(f));
 #else
         const float16 lo = (float16)(LANE_PRODUCTS(0), LANE_PRODUCTS(1), LANE_PRODUCTS(2), LANE_PRODUCTS(3),
                                      LANE_PRODUCTS(4), LANE_PRODUCTS(5), LANE_PRODUCTS(6), LANE_PRODUCTS(7));

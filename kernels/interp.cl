@@ -4,12 +4,8 @@
  * NumPy twin: clsas/interp.py (resample_rows); the launcher is in the same module (resample).
  *
  * Defines: INTERP_LINEAR or TAPS (8 or 16), TAP_ROWS, BLOCKS (kernels/interp.h). One work-item:
- * BLOCKS x 16 consecutive outputs of a row, global size (ceil(n_out / (16 BLOCKS)), n_rows).
+ * BLOCKS x 16 consecutive outputs of a row (interp.h's ROW_ITEM, as stolt_map's).
  */
-#pragma OPENCL EXTENSION cl_khr_fp64 : enable
-
-#include "loads.h"
-#include "lanes.h"
 #include "interp.h"
 
 /* Rows of src (n_src complex samples each) read at explicit fractional columns idx (double):
@@ -19,10 +15,8 @@ __kernel void resample_map(__global const float2 *src, __global const float *tap
                            __global const double *idx, const int idx_row_stride, const int n_src,
                            const int n_out, __global float2 *dst)
 {
-    const int j0 = 16 * BLOCKS * get_global_id(0), r = get_global_id(1);
+    ROW_ITEM(src, dst, n_src, n_out);
     __global const double *pos = idx + (size_t)r * idx_row_stride + j0;
-    __global const float *row = (__global const float *)(src + (size_t)r * n_src);
-    __global float *o = (__global float *)(dst + (size_t)r * n_out + j0);
     int16 i[BLOCKS];
     float16 w[BLOCKS];
 #pragma unroll

@@ -21,17 +21,13 @@
  * any interpolation, so that the long position chain overlaps the loads (4 blocks: 23 ms for a
  * 4096^2 sinc8 map where one block a work-item took 30 ms).
  * params: K0 = kx_first + 2 k0, dkx, A = c / (4 pi df), Bc = -(f0 + f_first) / df. */
-#pragma OPENCL EXTENSION cl_khr_fp64 : enable
-
-#include "loads.h"
-#include "lanes.h"
 #include "interp.h"
 
 __kernel void stolt_map(__global const float2 *src, __global const float *taps,
                         __global const double *ku2, const double4 params, const int n_src,
                         const int n_out, __global float2 *dst)
 {
-    const int j0 = 16 * BLOCKS * get_global_id(0), r = get_global_id(1);
+    ROW_ITEM(src, dst, n_src, n_out);
     /* the first output exactly in double; output l of the work-item relative to it in float,
      * d = l dkx: sqrt((K + d)^2 + k_u^2) - sqrt(K^2 + k_u^2) = d (2K + d) / (s_l + s_0), no
      * cancellation, so x = idx - floor(idx_0) is a small float (< 16 BLOCKS + 1) with error
@@ -41,8 +37,6 @@ __kernel void stolt_map(__global const float2 *src, __global const float *taps,
     const int i_first = convert_int(idx_first) - (idx_first < 0.0 ? 1 : 0);
     const float kf = (float)k_first, ku2f = (float)ku2[r], sf = (float)s_first;
     const float frac = (float)(idx_first - (double)i_first), a = (float)params.s2, dkx = (float)params.s1;
-    __global const float *row = (__global const float *)(src + (size_t)r * n_src);
-    __global float *o = (__global float *)(dst + (size_t)r * n_out + j0);
     /* all positions first, then the interpolations: the position chain (sqrt, divide,
      * floor) of one block then overlaps the loads and sums of the others */
     int16 i[BLOCKS];

@@ -16,10 +16,9 @@ import clsas
 from clsas import metrics
 from clsas.model import Grid
 from clsas.geometry import legs
-from clsas.image.backprojection.direct import (PHASE_BUDGET, GridPlan, _aperture_keep, backproject, plan_tiles, prepare, reach,
-                                        tile_half_extent, tile_references)
-from clsas.image.backprojection.records import UPSAMPLE_BLOCK, upsample_blocks
-from clsas.image.backprojection.tiles import aperture_spans
+from clsas.image.backprojection import GridPlan, TileKernel, backproject, prepare
+from clsas.image.backprojection.records import UPSAMPLE_BLOCK, reach, upsample_blocks
+from clsas.image.backprojection.tile_kernel import PHASE_BUDGET, plan_tiles, tile_half_extent
 from clsas.image.rangecomp import upsample_records
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets
@@ -76,7 +75,7 @@ def test_kernel_matches_reference_options(opencl_device, kiang_echo, options):
 
 def test_aperture_sums_only_the_pulses_that_see_a_tile(opencl_device):
     """With an aperture, bp_tile sums for each tile only the pulses of its PULSE_SPAN
-    (backprojection.tiles.aperture_spans): a track 4x longer than the beam's footprint, a grid
+    (TileKernel.spans): a track 4x longer than the beam's footprint, a grid
     along all of it (several tiles). Every pulse the exact mask keeps for a pixel lies in its
     tile's span, most pulses are culled, and the image matches the NumPy reference."""
     sc = clsas.Scenario(medium=clsas.Medium(1500.0), waveform=clsas.Waveform(f0=150e3, bandwidth=20e3, duration=2e-3, fs=25e3),
@@ -89,11 +88,13 @@ def test_aperture_sums_only_the_pulses_that_see_a_tile(opencl_device):
     half_sin, pixels = np.sin(0.1), grid.positions.reshape(-1, 3)
     tiling = plan_tiles(pixels, 150e3, 1500.0)
     pulses = np.arange(echo.n_pulses)
-    ref, _ = tile_references(echo, 0, pulses, tiling.centres, np.zeros(3), False, echo.fs, tiling.half_extent)
-    spans = aperture_spans(ref["leg1"][..., 1], ref["range1"], half_sin, tiling.half_extent, 0.0, 1500.0, 0)
+    tile = TileKernel("linear", aperture=0.2)
+    ref, _ = tile.references(echo, 0, pulses, tiling.centres, echo.fs, tiling.half_extent)
+    spans = tile.spans(ref, tiling.half_extent, 1500.0, 0)
     assert tiling.centres.shape[0] >= 4
     _, q, _, _ = legs(echo, 0, pulses, pixels, np.zeros(3), False)
-    kept = _aperture_keep(echo, pulses, q, half_sin)                       # (P, M)
+    d = q - echo.tx_pos[pulses][:, None, :]
+    kept = np.abs(d[..., 1] / np.linalg.norm(d, axis=-1)) <= half_sin     # (P, M): the reference's mask
     tile = np.empty(pixels.shape[0], int)
     tile[tiling.order[tiling.real]] = tiling.tile[tiling.real]
     p_idx, m_idx = np.nonzero(kept)

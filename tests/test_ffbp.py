@@ -160,9 +160,9 @@ def test_leaves_no_tile_can_hold_go_through_backproject(opencl_device, monkeypat
     LANES samples) leaves the float32 budget (a very short leaf's coarse angles; here the budget
     is made 1 mm) are imaged by clsas.backproject one by one, not refused: the same images as
     the direct call (measured relative L2 0, the same code)."""
-    from clsas.image.ffbp import leaves as leaves_module
+    from clsas.image.backprojection import TileKernel
 
-    monkeypatch.setattr(leaves_module, "tile_half_extent", lambda f0, c: 1e-3)
+    monkeypatch.setattr(TileKernel, "half_extent", staticmethod(lambda f0, c: 1e-3))
     echo = echo_of("straight")
     chosen = [0, 1, 2, 3]
     tree = plan(echo, chosen, Scene.of(GRID.positions), 2, 0.1, 8, 5, None)

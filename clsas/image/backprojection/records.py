@@ -198,8 +198,7 @@ class PreparedRecords:
         self.factor = self.upsample if interp == "linear" else 1
         self.fs = echo.fs * self.factor
         self._workers = workers
-        bounds = np.array([_blocks_of(spans[i], echo.t0[h], echo.fs, echo.n_samples, interp, self.factor)
-                           for i, h in enumerate(self.receivers)], dtype=np.int64).reshape(-1, 2)
+        bounds = self._samples_for(spans)
         self._bounds = bounds  # original samples [first, stop) per receiver
         self.offset = bounds[:, 0] * self.factor
         self.length = (bounds[:, 1] - bounds[:, 0]) * self.factor
@@ -211,6 +210,14 @@ class PreparedRecords:
             self._host = [self._make(i, np.arange(echo.n_pulses)) for i in range(len(self.receivers))]
             for held in self._host:
                 held.flags.writeable = False
+
+    def _samples_for(self, spans: np.ndarray) -> np.ndarray:
+        """(len(receivers), 2) int64: the original samples [first, stop) to prepare for the fast-time
+        ``spans`` (len(receivers), 2) s (:func:`_blocks_of`)."""
+        echo = self.echo
+        bounds = [_blocks_of(spans[i], echo.t0[h], echo.fs, echo.n_samples, self.interp, self.factor)
+                  for i, h in enumerate(self.receivers)]
+        return np.asarray(bounds, dtype=np.int64).reshape(-1, 2)
 
     @property
     def materialised(self) -> bool:
@@ -230,9 +237,7 @@ class PreparedRecords:
         if stop <= first:  # the grid reaches nothing of this record: zeros the kernels may load safely
             return np.zeros((pulses.size, MIN_SAMPLES), np.complex64)
         if self.factor == 1:
-            part = block[:, first:stop]
-            return part if part.dtype == np.complex64 and part.flags.c_contiguous else \
-                np.ascontiguousarray(part, dtype=np.complex64)
+            return np.ascontiguousarray(block[:, first:stop], dtype=np.complex64)  # a view when it already is
         return upsample_blocks(block, self.factor, first, stop, self._workers)
 
     def samples(self, i: int, pulses: np.ndarray) -> np.ndarray:
@@ -294,9 +299,7 @@ class PreparedRecords:
     def covers(self, spans: np.ndarray) -> np.ndarray:
         """(len(receivers),) bool: the prepared samples hold every sample the interpolator reads
         for delays within ``spans`` (len(receivers), 2) s."""
-        echo = self.echo
-        need = np.array([_blocks_of(spans[i], echo.t0[h], echo.fs, echo.n_samples, self.interp, self.factor)
-                         for i, h in enumerate(self.receivers)]).reshape(-1, 2)
+        need = self._samples_for(spans)
         empty = need[:, 1] <= need[:, 0]
         return empty | ((need[:, 0] >= self._bounds[:, 0]) & (need[:, 1] <= self._bounds[:, 1]))
 
@@ -366,3 +369,54 @@ def fast_time_spans(echo: EchoData, chosen, grid, velocity) -> np.ndarray:
     if not np.all(np.isfinite(spans)) or np.any(spans[:, 1] <= spans[:, 0]):
         raise ValueError(f"grid as a fast-time span needs finite start < stop (s), got {grid!r:.80}")
     return np.array(spans)
+
+
+def _pulse_span(pulses, n_pulses: int) -> tuple[int, int]:
+    """(start, stop) of the consecutive pulses to sum, or a ValueError naming ``pulses``."""
+    if pulses is None:
+        return 0, n_pulses
+    if isinstance(pulses, (range, slice)):
+        step = 1 if pulses.step is None else pulses.step
+        start, stop = pulses.start or 0, n_pulses if pulses.stop is None else pulses.stop
+    elif isinstance(pulses, (tuple, list)) and len(pulses) == 2:
+        (start, stop), step = pulses, 1
+    else:
+        raise ValueError(f"pulses must be None, (start, stop), a range or a slice of consecutive pulses, got {pulses!r}")
+    ok = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in (start, stop, step))
+    if not ok or step != 1 or not 0 <= start < stop <= n_pulses:
+        raise ValueError(f"pulses must select consecutive pulses start < stop within [0, {n_pulses}], got {pulses!r}")
+    return int(start), int(stop)
+
+
+def records_for(echo, grid: Grid, receivers, interp, upsample, target_velocity, pulses) -> tuple:
+    """What one :func:`clsas.backproject` call reads: (records, the pixels' velocity (3,), the
+    pulses (start, stop) to sum). ``echo`` an EchoData (its records are then prepared for
+    ``grid``'s reach block by block during the call) or :class:`PreparedRecords` (checked
+    against the options and the grid); ValueError/TypeError naming the parameter."""
+    if isinstance(echo, PreparedRecords):
+        records = echo
+        for name, asked, held in (("interp", interp, records.interp), ("upsample", upsample, records.upsample)):
+            if asked is not None and asked != held:
+                raise ValueError(f"{name}={asked!r} contradicts the prepared records' {name}={held!r}: "
+                                 f"prepare the records with {name}={asked!r}, or leave {name} out")
+        _, velocity = check_options(records.echo, None, records.interp, records.upsample, target_velocity)
+        if receivers is not None:
+            chosen = records.echo.select_receivers(receivers)
+            missing = [records.echo.receivers[h] for h in chosen if h not in records.receivers]
+            if missing:
+                raise ValueError(f"receivers {missing} were not prepared; the records hold "
+                                 f"{[records.echo.receivers[h] for h in records.receivers]}")
+            records = records.subset(chosen)
+        covered = [True] if records.whole else records.covers(reach(records.echo, records.receivers,
+                                                                    grid.positions, velocity))
+        if not np.all(covered):
+            names = [records.echo.receivers[h] for h, ok in zip(records.receivers, covered) if not ok]
+            raise ValueError(f"grid: the prepared records do not cover the fast times this grid reaches "
+                             f"(receivers {names}); prepare them with grid=None or with this grid")
+    else:
+        interp = "linear" if interp is None else interp
+        upsample = 8 if upsample is None else upsample
+        chosen, velocity = check_options(echo, receivers, interp, upsample, target_velocity)
+        records = PreparedRecords(echo, chosen, interp, int(upsample), fast_time_spans(echo, chosen, grid, velocity),
+                                  materialise=False)
+    return records, velocity, _pulse_span(pulses, records.echo.n_pulses)

@@ -10,14 +10,15 @@ j + row_shift[tile], the first pulse of its leaf), so a leaf costs its kernel wo
 its own (a :func:`clsas.backproject` call a leaf cost ~10-40 ms of host work, measured, against
 ~3 ms of kernel for a leaf of 16 pulses x 30k samples).
 
-Tiles. bp_tile's float32 geometry is relative to a reference point per tile (derivation at
-:func:`clsas.image.backprojection.backproject_opencl`); a polar grid (n_v, n_r) is a raster, so
-its tiles are blocks of ``bv`` rows x ``br`` range samples (``bv`` a multiple of ROWS, ``br`` of
-LANES: every tile is whole work-items) whose reference point is the block's middle sample,
-halved until every sample lies within :func:`clsas.image.backprojection.tiles.tile_half_extent`
-of its reference (the same phase budget as back-projection's own tiles), which the launcher
-checks on the offsets the ffbp_fields kernel computes for bp_tile anyway. Slots past the grid's
-edge repeat its last sample and are dropped.
+Tiles. bp_tile (:class:`clsas.image.backprojection.TileKernel`, which this stage uses for its
+options, records, references, parameters and launch) computes in float32 relative to a
+reference point per tile; a polar grid (n_v, n_r) is a raster, so its tiles are blocks of ``bv``
+rows x ``br`` range samples (``bv`` a multiple of ROWS, ``br`` of LANES: every tile is whole
+work-items) whose reference point is the block's middle sample, halved until every sample lies
+within :meth:`~clsas.image.backprojection.TileKernel.half_extent` of its reference (the same
+phase budget as back-projection's own tiles), which the launcher checks on the offsets the
+ffbp_fields kernel computes for bp_tile anyway. Slots past the grid's edge repeat its last
+sample and are dropped.
 
 Leaves the batch cannot take go through :func:`clsas.backproject` one by one on the same
 prepared records (the same image up to float32 rounding): a leaf shorter than ``first`` (the
@@ -32,12 +33,10 @@ from __future__ import annotations
 import numpy as np
 
 from ... import opencl
-from ...model import Grid
-from ...interp import TAP_ROWS, kernel_taps
 from ...kernelmath import expj_cycles
-from ..backprojection.direct import (NODE_TOLERANCE, PULSE_BLOCK, PULSES, RECORDS, TILE_PARAMS, GridPlan, backproject, prepare,
-                              tile_references)
-from ..backprojection.tiles import LANES, ROWS, tile_half_extent
+from ...model import Grid
+from ..backprojection import GridPlan, TileKernel, backproject, prepare
+from . import program
 from .polar import PolarGrid
 
 BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~40 bytes each held)
@@ -46,12 +45,15 @@ TILE_ROWS, TILE_SAMPLES = 8, 128  # the largest tile tried (rows x range samples
 REF_CHUNK = 2**18  # (pulse, tile) pairs whose references are computed at once (~100 bytes each held)
 
 
+LANES, ROWS = TileKernel.LANES, TileKernel.ROWS  # bp_tile's work-item: ROWS rows of LANES samples
+
+
 def polar_tiles(grids: list, bv: int, br: int):
     """bp_tile's tiles of polar grids (module docstring), blocks of bv rows x br range samples
-    (those at a grid's edge cut to it):
-    their work-items (I, 4) int32 (grid, row, first of sixteen consecutive range samples of that
-    row, tile; grid by grid, tile by tile, row by row), the tiles' reference points (T, 3) m (each
-    block's middle sample) and the number of tiles of each grid (L,)."""
+    (those at a grid's edge cut to it): their items (I,) :data:`program.ITEM` (leaf, row, the
+    first of LANES consecutive range samples of that row, tile; grid by grid, tile by tile, row by
+    row; ROWS items make a work-item), the tiles' reference points (T, 3) m (each block's middle
+    sample) and the number of tiles of each grid (L,)."""
     tv_of = np.array([-(-g.n_v // bv) for g in grids])
     tr_of = np.array([-(-g.n_r // br) for g in grids])
     tv, tr = int(tv_of.max()), int(tr_of.max())
@@ -65,15 +67,16 @@ def polar_tiles(grids: list, bv: int, br: int):
     n_v = np.array([g.n_v for g in grids])[:, None, None, None, None]
     n_r = np.array([g.n_r for g in grids])[:, None, None, None, None]
     keep = real[:, :, :, None, None] & (j < -(-(n_v - a * bv) // ROWS) * ROWS) & (b * br + q * LANES < n_r)
-    items = np.stack([np.broadcast_to(x, shape)[keep] for x in (l, a * bv + j, b * br + q * LANES,
-                                                                 tile[:, :, :, None, None])], axis=1)
+    items = np.zeros(int(np.count_nonzero(np.broadcast_to(keep, shape))), program.ITEM)
+    for name, x in zip(program.ITEM.names, (l, a * bv + j, b * br + q * LANES, tile[:, :, :, None, None])):
+        items[name] = np.broadcast_to(x, shape)[np.broadcast_to(keep, shape)]
     centres = []
     for g in grids:
         j0, i0 = np.arange(0, g.n_v, bv), np.arange(0, g.n_r, br)
         middle_v = (j0 + np.minimum(j0 + bv, g.n_v) - 1) // 2
         middle_r = (i0 + np.minimum(i0 + br, g.n_r) - 1) // 2
         centres.append(g.points(rows=middle_v, cols=middle_r).reshape(-1, 3))
-    return items.astype(np.int32), np.concatenate(centres), tv_of * tr_of
+    return items, np.concatenate(centres), tv_of * tr_of
 
 
 def _row_step(grid: PolarGrid) -> float:
@@ -129,10 +132,8 @@ class FirstStage:
                             dst_offset=8 * offset)
             return
         image, items, first, count = made
-        kern = opencl.kernel("ffbp", "ffbp_leaf", defines={"TAPS": 8, "TAP_ROWS": TAP_ROWS})
-        frame = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=grid.record())
-        kern(rt.queue, (count,), None, image, items, np.int32(first), frame, np.float64(self.demodulate),
-             np.int64(offset), out)
+        program.kernel("ffbp_leaf")(rt.queue, (count,), None, image, items, np.int32(first), program.frames([grid])[0],
+                                    np.float64(self.demodulate), np.int64(offset), out)
 
     def _demodulated(self, image: np.ndarray, grid: PolarGrid) -> np.ndarray:
         return image * expj_cycles(-self.demodulate * grid.ranges)[None, :]
@@ -168,16 +169,15 @@ class FirstStage:
                                         backend=self.backend, aperture=self.aperture, stop_and_go=self.stop_and_go,
                                         progress=False).data.astype(np.complex128)
 
-    def _references(self, records, batch: list, centres: np.ndarray, first_tile: np.ndarray, b0: int,
-                    half_extent: float) -> tuple[list, bool]:
+    def _references(self, tile: TileKernel, records, batch: list, centres: np.ndarray, first_tile: np.ndarray,
+                    b0: int, half_extent: float) -> list | None:
         """bp_tile's tile references of every receiver (a list a receiver of (T, first) arrays: the
         batch's tiles leaf by leaf, each for its leaf's pulses), for tiles whose samples lie within
-        ``half_extent`` of their references, and whether a receiver's motion departs from linear
-        over a tile's delay span by more than NODE_TOLERANCE of a wavelength (then the batch goes
-        to clsas.backproject). Computed for REF_CHUNK (pulse, tile) pairs at a time, each leaf's
-        tiles padded to the batch's largest count by repeating its last."""
+        ``half_extent`` of their references; None when a receiver's motion is not linear over a
+        tile's delay span (then the batch goes to clsas.backproject). Computed for REF_CHUNK
+        (pulse, tile) pairs at a time, each leaf's tiles padded to the batch's largest count by
+        repeating its last."""
         echo = records.echo
-        tolerance = NODE_TOLERANCE * echo.waveform.wavelength(echo.medium)
         counts = np.diff(first_tile)
         widest = int(counts.max())
         slot = np.minimum(np.arange(widest)[None, :], counts[:, None] - 1) + first_tile[:-1, None]  # (L, widest)
@@ -191,13 +191,12 @@ class FirstStage:
                 leaves = slice(s, min(s + step, len(batch)))
                 pulses = (starts[leaves, None] + np.arange(self.first)).reshape(-1)
                 points = np.repeat(centres[slot[leaves]], self.first, axis=0)  # (leaves x first, widest, 3)
-                ref, departure = tile_references(echo, h, pulses, points, np.zeros(3), self.stop_and_go, records.fs,
-                                                 half_extent, int(records.offset[i]))
-                if departure > tolerance:
-                    return refs, True
+                ref, linear = tile.references(echo, h, pulses, points, records.fs, half_extent, int(records.offset[i]))
+                if not linear:
+                    return None
                 parts.append(ref.reshape(widest, -1, self.first).transpose(1, 0, 2)[real[leaves]])
             refs.append(np.concatenate(parts))
-        return refs, False
+        return refs
 
     def _launch(self, records, batch: list, grids: list, b0: int) -> list:
         """The images of the leaves ``batch`` (all ``first`` pulses long) by bp_tile launches into
@@ -209,26 +208,26 @@ class FirstStage:
         rt = opencl.runtime()
         ctx, queue, mf = rt.context, rt.queue, cl.mem_flags
         echo = records.echo
-        f0, c, fs = echo.waveform.f0, echo.medium.sound_speed, records.fs
-        budget = tile_half_extent(f0, c)
+        f0, c = echo.waveform.f0, echo.medium.sound_speed
+        tile = TileKernel(records.interp, self.aperture, stop_and_go=self.stop_and_go, row_shift=True)
+        budget = tile.half_extent(f0, c)
 
         def made(a, flags=mf.READ_ONLY):
             return cl.Buffer(ctx, flags | mf.COPY_HOST_PTR, hostbuf=a)
 
-        plane = made(np.r_[grids[batch[0]].plane.normal, grids[batch[0]].plane.offset])
-        frames = made(np.stack([grids[k].record() for k in batch]))
+        plane = program.plane(grids[batch[0]].plane)
+        frames = made(program.frames([grids[k] for k in batch]))
         bv, br = TILE_ROWS, TILE_SAMPLES
         leaves = [grids[k] for k in batch]
         while True:  # the largest tiles whose samples all lie within the budget of their references
             items, centres, n_tiles = polar_tiles(leaves, bv, br)
-            m_pad = LANES * items.shape[0]
-            pix = cl.Buffer(ctx, mf.READ_WRITE, 4 * 4 * m_pad)
+            fields = np.empty(items.size, tile.pixels)  # one record a item: LANES samples
+            pix = cl.Buffer(ctx, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=fields)
             items_buf = made(items)
-            opencl.kernel("ffbp", "ffbp_fields", defines={"TAPS": 8, "TAP_ROWS": TAP_ROWS})(
-                queue, (items.shape[0],), None, items_buf, frames, plane, made(centres), np.int32(m_pad), pix)
-            square = np.empty(m_pad, np.float32)
-            cl.enqueue_copy(queue, square, pix, src_offset=3 * 4 * m_pad)  # |delta|^2
-            extent = float(np.sqrt(square.max()))
+            program.kernel("ffbp_fields")(queue, (items.size,), None, items_buf, frames, plane, made(centres), pix)
+            mapped, _ = cl.enqueue_map_buffer(queue, pix, cl.map_flags.READ, 0, fields.shape, fields.dtype)
+            extent = float(np.sqrt(mapped["dd"].max()))
+            mapped.base.release()
             if extent <= budget:
                 break
             if br == LANES and bv == ROWS:  # samples too far apart for any tile (a short leaf's coarse angles)
@@ -241,31 +240,23 @@ class FirstStage:
             else:
                 bv //= 2
         first_tile = np.cumsum(np.r_[0, n_tiles])
-        refs, failed = self._references(records, batch, centres, first_tile, b0, extent)
-        if failed:
+        refs = self._references(tile, records, batch, centres, first_tile, b0, extent)
+        if refs is None:
             return batch
-        row_shift = np.repeat(np.array([self.leaves[k][0] - b0 for k in batch], np.int32), n_tiles)
-        tile_of = np.ascontiguousarray(items[::ROWS, 3])
-        defines = {"INTERP_LINEAR" if records.interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS,
-                   "BP_TILE": 1, "ROWS": ROWS, "PULSES": PULSES, "ROW_SHIFT": 1,
-                   **({"APERTURE": 1} if self.aperture is not None else {})}
-        kern = opencl.kernel("backprojection", "bp_tile", preamble=RECORDS, defines=defines)
-        params = np.zeros((), TILE_PARAMS)
-        params["a1"], params["fs"], params["f0"], params["c"] = c * c, fs, f0, c
-        params["half_sin"] = np.sin(self.aperture / 2) if self.aperture is not None else 1.0
-        tile_buf, shift_buf = made(tile_of), made(row_shift)
-        taps = made(kernel_taps(records.interp))
-        image = cl.Buffer(ctx, mf.READ_WRITE, 16 * m_pad)
-        cl.enqueue_fill_buffer(queue, image, np.zeros(1, np.complex128), 0, 16 * m_pad)
+        row_shift = made(np.repeat(np.array([self.leaves[k][0] - b0 for k in batch], np.int32), n_tiles))
+        tile_of = made(np.ascontiguousarray(items["tile"][::ROWS]))
+        params, taps = tile.params(c, f0, records.fs), tile.taps(ctx)
+        image = cl.Buffer(ctx, mf.READ_WRITE, 16 * LANES * items.size)
+        cl.enqueue_fill_buffer(queue, image, np.zeros(1, np.complex128), 0, 16 * LANES * items.size)
         for i, h in enumerate(records.receivers):
             data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
             ref_buf = made(refs[i])
-            for s in range(0, self.first, PULSE_BLOCK):
-                kern(queue, (m_pad // (LANES * ROWS),), None, pix, tile_buf, ref_buf, np.int32(self.first), np.int32(0),
-                     data, taps, params[()], np.int32(s), np.int32(min(PULSE_BLOCK, self.first - s)),
-                     np.int32(n_samples), np.int32(m_pad), image, shift_buf)
+            for s in range(0, self.first, tile.PULSE_BLOCK):
+                tile.launch(queue, pixels=pix, tile_of=tile_of, refs=ref_buf, ref_stride=self.first, ref_first=0,
+                            records=data, n_samples=n_samples, taps=taps, params=params, p_first=s,
+                            p_count=min(tile.PULSE_BLOCK, self.first - s), image=image, row_shift=row_shift)
         rt.queue.finish()  # the records' buffers may use host memory that the caller drops
-        ends = np.searchsorted(items[:, 0], np.arange(len(batch) + 1))
+        ends = np.searchsorted(items["leaf"], np.arange(len(batch) + 1))
         for j, k in enumerate(batch):  # the leaf's work-items ends[j] .. ends[j + 1] - 1 of image
             self.ready[k] = (image, items_buf, int(ends[j]), int(ends[j + 1] - ends[j]))
         return []

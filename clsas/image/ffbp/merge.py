@@ -22,6 +22,7 @@ the sum in float; the reference does everything in float64.
 
 from __future__ import annotations
 
+import dataclasses
 from functools import lru_cache
 
 import numpy as np
@@ -29,11 +30,20 @@ import numpy as np
 from ... import opencl
 from ...interp import TAP_ROWS, tap_table
 from ...kernelmath import expj_cycles
+from . import program
 from .polar import PolarGrid
 
 KERNEL_TAPS = (4, 8)
 CHUNK = 2**16  # output samples a reference step
 LANES = 16  # output samples a work-item of kernels/ffbp.cl
+
+
+@dataclasses.dataclass(frozen=True)
+class DevicePoints:
+    """``count`` points (count, 3) float64, m, in the device buffer ``buffer``."""
+
+    buffer: object
+    count: int
 
 
 def _interpolate(image: np.ndarray, grid: PolarGrid, r: np.ndarray, v: np.ndarray, table: np.ndarray) -> np.ndarray:
@@ -96,8 +106,8 @@ def merge_opencl(children, targets, f0: float, c: float, taps: int, rho: float, 
         points = None
     else:
         result = np.zeros(targets.shape[:-1], np.complex64) if out is None else out
-        points = cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR,
-                           hostbuf=np.ascontiguousarray(targets.reshape(-1, 3), np.float64))
+        flat = np.ascontiguousarray(targets.reshape(-1, 3), np.float64)
+        points = DevicePoints(cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=flat), flat.shape[0])
     src = cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=images)
     dst = cl.Buffer(rt.context, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=result)
     merge_device([g for g, _ in children], src, offsets, parent if parent is not None else points, f0, c, taps, rho,
@@ -111,34 +121,29 @@ def merge_device(grids: list, images, offsets, targets, f0: float, c: float, tap
     """Enqueue ffbp_merge (kernels/ffbp.cl) on device buffers, without waiting: the children's
     polar grids ``grids`` and their complex64 images in the buffer ``images`` at element
     ``offsets``; ``targets`` the parent PolarGrid (its demodulated image is written to ``out``
-    from element ``out_offset`` on) or a buffer of exactly M points (M, 3) float64 (their values
-    are *added* into ``out`` (M,) complex64)."""
+    from element ``out_offset`` on) or :class:`DevicePoints` (their values are *added* into
+    ``out`` (count,) complex64)."""
     import pyopencl as cl
 
     if taps not in KERNEL_TAPS:
         raise ValueError(f"taps must be one of {KERNEL_TAPS} for the OpenCL merge, got {taps!r}")
     rt = opencl.runtime()
     ctx, mf = rt.context, cl.mem_flags
-    parent = targets if isinstance(targets, PolarGrid) else None
-    defines = {"TAPS": taps, "TAP_ROWS": TAP_ROWS}
-    if parent is not None:
-        defines["PARENT_GRID"] = 1
-        n_out = parent.size
-        header = np.r_[parent.record(), parent.plane.normal, parent.plane.offset]
-        points = images  # unused
-        size = (-(-parent.n_r // LANES), parent.n_v)
+    if isinstance(targets, PolarGrid):
+        kern = program.kernel("ffbp_merge", taps, PARENT_GRID=1)
+        n_out, size = targets.size, (-(-targets.n_r // LANES), targets.n_v)
+        parent, points = program.frames([targets])[0], images  # the points argument is unused
     else:
-        n_out = targets.size // 24
-        header = np.zeros(24)
-        points = targets
-        size = (-(-n_out // LANES),)
-    kern = opencl.kernel("ffbp", "ffbp_merge", defines=defines)
+        kern = program.kernel("ffbp_merge", taps)
+        n_out, size = targets.count, (-(-targets.count // LANES),)
+        parent, points = np.zeros((), program.FRAME)[()], targets.buffer
+    plane = program.plane(grids[0].plane)
 
     def made(a):
         return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
 
-    kern(rt.queue, size, None, images, made(np.asarray(offsets, np.int64)), made(np.stack([g.record() for g in grids])),
-         made(_table(taps, float(rho))), points, made(np.r_[header, 2 * f0 / c]), np.int32(len(grids)),
+    kern(rt.queue, size, None, images, made(np.asarray(offsets, np.int64)), made(program.frames(grids)),
+         made(_table(taps, float(rho))), points, parent, plane, np.float64(2 * f0 / c), np.int32(len(grids)),
          np.int32(n_out), np.int64(out_offset), out)
 
 

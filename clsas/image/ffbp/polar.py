@@ -165,12 +165,6 @@ class PolarGrid:
         r = np.linalg.norm(d, axis=-1)
         return r, (d @ self.axis) / np.where(r > 0, r, 1.0)
 
-    def record(self) -> np.ndarray:
-        """The frame as 20 doubles for kernels/ffbp.cl: centre, axis, e1, e2 (3 each), r0, dr, v0,
-        dv, n_r, n_v, 0, 0 (the plane goes separately)."""
-        return np.concatenate([self.centre, self.axis, self.e1, self.e2,
-                               [self.r0, self.dr, self.v0, self.dv, self.n_r, self.n_v, 0.0, 0.0]])
-
 
 def _largest_step(positions: np.ndarray, axis: int) -> float:
     """The largest distance (m) between neighbouring pixels along grid axis ``axis`` of positions

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import opencl
-from .merge import merge_device, merge_reference
+from .merge import DevicePoints, merge_device, merge_reference
 
 
 class HostStore:
@@ -56,7 +56,8 @@ class DeviceStore:
         self.stage1, self.args = stage1, (f0, c, taps, rho)
         mf = cl.mem_flags
         self.host_pixels = np.ascontiguousarray(pixels, np.float64)
-        self.pixels = cl.Buffer(self.rt.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=self.host_pixels)
+        self.pixels = DevicePoints(cl.Buffer(self.rt.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=self.host_pixels),
+                                   pixels.shape[0])
         self.flat = cl.Buffer(self.rt.context, mf.READ_WRITE, 8 * pixels.shape[0])
         cl.enqueue_fill_buffer(self.rt.queue, self.flat, np.zeros(1, np.complex64), 0, 8 * pixels.shape[0])
 
