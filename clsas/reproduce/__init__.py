@@ -20,9 +20,13 @@ import pkgutil
 from types import ModuleType
 
 
+NOT_PAPERS = ("report",)  # modules here that serve the reproductions
+
+
 def paper_names() -> list[str]:
     """The reproduction modules' names, sorted (nothing imported)."""
-    return sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_"))
+    return sorted(m.name for m in pkgutil.iter_modules(__path__)
+                  if not m.name.startswith("_") and m.name not in NOT_PAPERS)
 
 
 def paper(name: str) -> ModuleType:

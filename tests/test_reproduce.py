@@ -1,0 +1,128 @@
+"""The reproductions' common format (clsas/reproduce/report.py): verdicts, the check that every
+difference has a reason with evidence, the JSON file, and that every test a reason cites exists."""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import math
+import re
+from pathlib import Path
+
+import pytest
+
+from clsas import reproduce
+from clsas.reproduce import report
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _report() -> report.Report:
+    rep = report.Report("demo", "a demo table", assumptions=["c = 1500 m/s"])
+    rep.add("Table 1", "T1", "PSLR", "dB", paper=-13.3, clsas=-13.1, tolerance=0.5)
+    rep.add("Table 1", "T2", "PSLR", "dB", paper=-14.0, clsas=-11.0, tolerance=0.5, reason="window")
+    rep.add("Table 1", "T3", "ISLR", "dB", paper=None, clsas=-10.0, tolerance=0.0)
+    rep.explain("window", "the paper weights the band", ["experiment:window"])
+    rep.experiment("window", "Which window?", ("window", "PSLR"), [("none", -13.3), ("hamming", -42.0)],
+                   "hamming gives the paper's figure")
+    return rep
+
+
+def test_verdicts_follow_the_tolerance():
+    rows = _report().rows
+    assert [r.verdict for r in rows] == [report.MATCH, report.DIFFERS, report.ONLY]
+    assert rows[0].difference == pytest.approx(0.2) and rows[2].difference is None
+    nan = report.Row("T", "x", "q", "dB", paper=1.0, clsas=math.nan, tolerance=10.0)
+    assert nan.verdict == report.DIFFERS  # a value clsas could not measure never matches
+
+
+def test_check_refuses_a_difference_without_a_reason_or_evidence():
+    rep = _report()
+    rep.check()
+    rep.add("Table 1", "T4", "PSLR", "dB", paper=-14.0, clsas=-10.0, tolerance=0.5)
+    with pytest.raises(ValueError, match="T4 PSLR differs .* without a reason"):
+        rep.check()
+    rep = _report()
+    rep.explain("window", "no evidence", [])
+    with pytest.raises(ValueError, match="no evidence"):
+        rep.check()
+    rep = _report()
+    rep.explain("window", "cites nothing run", ["experiment:missing"])
+    with pytest.raises(ValueError, match="'missing', which was not run"):
+        rep.check()
+    rep = _report()
+    rep.explain("window", "bad kind", ["a hunch"])
+    with pytest.raises(ValueError, match="neither"):
+        rep.check()
+    with pytest.raises(ValueError, match="tolerance"):
+        rep.add("Table 1", "T5", "PSLR", "dB", paper=1.0, clsas=1.0, tolerance=math.nan)
+
+
+def test_printed_table_has_the_verdict_column_and_the_reasons():
+    text = _report().format()
+    assert "differs: window" in text and "match" in text and "clsas only" in text
+    assert "why window: the paper weights the band" in text and "experiment window: Which window?" in text
+    assert "1 match, 1 differ" in text and "c = 1500 m/s" in text
+
+
+def test_json_round_trip_is_atomic(tmp_path, capsys):
+    rep = _report()
+    path = tmp_path / "demo.json"
+    assert report.finish(rep, argparse.Namespace(json=str(path))) == 0
+    doc = report.load(path)
+    assert doc["format"] == report.FORMAT and doc["paper"] == "demo"
+    assert [r["verdict"] for r in doc["rows"]] == ["match", "differs", "clsas only"]
+    assert doc["counts"] == {"match": 1, "differs": 1, "clsas only": 1}
+    assert doc["experiments"][0]["rows"] == [["none", -13.3], ["hamming", -42.0]]
+    assert "load_average" in doc["machine"] and doc["assumptions"] == ["c = 1500 m/s"]
+    assert "differs: window" in capsys.readouterr().out
+    assert list(tmp_path.iterdir()) == [path]  # no temporary file left
+
+
+def test_json_path_is_checked_before_the_work(tmp_path):
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        report.check_output(argparse.Namespace(json=str(tmp_path / "no" / "x.json")))
+    with pytest.raises(IsADirectoryError, match="is a directory"):
+        report.check_output(argparse.Namespace(json=str(tmp_path)))
+    report.check_output(argparse.Namespace(json=None))
+
+
+def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path, monkeypatch):
+    path = tmp_path / "r.json"
+    path.write_text("old")
+    monkeypatch.setattr(report.json, "dump", lambda *a, **k: (_ for _ in ()).throw(OSError("disk full")))
+    with pytest.raises(OSError, match="disk full"):
+        report.write_json(_report(), path)
+    assert path.read_text() == "old" and list(tmp_path.iterdir()) == [path]
+
+
+def test_load_refuses_other_files(tmp_path):
+    bad = tmp_path / "x.json"
+    bad.write_text(json.dumps({"bench": "x"}))
+    with pytest.raises(ValueError, match="not a reproduction report"):
+        report.load(bad)
+    bad.write_text("{not json")
+    with pytest.raises(ValueError, match=str(bad.name)):
+        report.load(bad)
+
+
+def test_report_is_not_a_paper():
+    assert "report" not in reproduce.paper_names()
+
+
+def _cited_tests() -> list[str]:
+    cited = []
+    for path in sorted((ROOT / "clsas" / "reproduce").glob("*.py")):
+        cited += re.findall(r"test:(tests/test_\w+\.py::test_\w+)", path.read_text(encoding="utf-8"))
+    return cited
+
+
+def test_every_test_a_reason_cites_exists():
+    cited = _cited_tests()
+    assert cited, "the reproductions cite no test"
+    for item in cited:
+        file, name = item.split("::")
+        tree = ast.parse((ROOT / file).read_text(encoding="utf-8"))
+        names = {node.name for node in ast.walk(tree) if isinstance(node, ast.FunctionDef)}
+        assert name in names, f"{item} is cited as evidence but does not exist"
