@@ -139,3 +139,33 @@ def test_no_shadows_without_hull_occlusion(hull):
     w = weights(slice(1, 2))[0, 0, weights.seafloor_first:]
     behind = weights.seafloor.facets.positions[:, 0] > 21.5
     assert np.all(w[behind] == 0) if hull else np.all(w[behind] > 0)
+
+
+def test_weights_kernel_matches_its_numpy_twin(opencl_device):
+    """kernels/seafloor.cl against the float64 NumPy twin on rippled sand with a box, four
+    receivers and a sonobuoy, moving with sway: the weights agree within float32 (the paths whose
+    reach or facing test flips at float32 rounding aside), and so do the shadow flags."""
+    from clsas.scene.scenario import Sonobuoy
+
+    base = sonar(6, -0.2)
+    scene = base.replace(
+        platform=Platform(speed=1.0, start=(0.0, -0.2, 0.0), sway=lambda t: 0.02 * np.sin(t)),
+        array=Array(rx_offsets=[[0.0, 0.1 * k, 0.0] for k in range(4)], tx_length=0.1, rx_length=0.1),
+        sonobuoys=(Sonobuoy((5.0, 3.0, -2.0), name="buoy"),),
+        targets=(MeshTarget(hulls.box((1.0, 1.0, 1.0)), position=(20.0, 0.0, -ALTITUDE + 0.4)),),
+        seafloor=Seafloor((15.0, 25.0, -1.5, 1.5), -ALTITUDE, ripple_wavelength=0.6, ripple_height=0.05,
+                          ripple_direction=0.5, facet_spacing=0.03))
+    eta = scene.eta[1:5]
+    results = {}
+    for backend in ("numpy", "opencl"):
+        paths = PathWeights(scene, backend=backend).seafloor
+        stations, spheres = paths._stations(eta), paths._spheres(eta)
+        out = np.zeros((scene.n_receivers, eta.size, paths.count))
+        flags = np.zeros((eta.size, paths.count), dtype=bool)
+        getattr(paths, f"_unshadowed_{backend}")(stations, spheres, out, flags)
+        results[backend] = out, flags
+    (w64, f64), (w32, f32) = results["numpy"], results["opencl"]
+    both = (w64 > 0) & (w32 > 0)
+    assert both.mean() > 0.3 and ((w64 > 0) != (w32 > 0)).mean() < 1e-4
+    assert np.max(np.abs(w32[both] - w64[both]) / w64[both]) < 1e-5  # measured 9e-7
+    assert f64.any() and (f64 != f32).mean() < 1e-4

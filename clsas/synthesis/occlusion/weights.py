@@ -48,10 +48,12 @@ class PathWeights:
     5e-4 rad, three wavelengths at 150 kHz). 0 casts every ray.
     Pulses are handled in blocks of ``pulses_per_block`` (the span of the reuse), two blocks at
     a time on two threads (NumPy's array operations release the GIL; Embree's casts hold it).
+    ``backend`` computes the seafloor's weights (kernels/seafloor.cl or its NumPy twin).
     """
 
     def __init__(self, scenario, stop_and_go: bool = False, hull_occlusion: bool = True, method: str = "embree",
-                 reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE, pulses_per_block: int = 32):
+                 reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE, pulses_per_block: int = 32,
+                 backend: str | None = None):
         if not (np.isfinite(reuse_tolerance) and reuse_tolerance >= 0):
             raise ValueError(f"reuse_tolerance must be a finite angle >= 0 (rad), got {reuse_tolerance}")
         if int(pulses_per_block) < 1:
@@ -78,7 +80,7 @@ class PathWeights:
         self.seafloor = None
         if floor is not None:
             self.seafloor = SeafloorPaths(scenario, None if world is None else world[0], moving if hull_occlusion else (),
-                                          None if world is None else world[1])
+                                          None if world is None else world[1], backend)
             self.seafloor_first = start
             start += self.seafloor.count
         self.n_scatterers = start
