@@ -11,7 +11,8 @@ gives the bit-identical image, on both backends::
 
 Spans. With ``grid=`` a Grid, only the fast-time span that grid can reach is prepared (per
 receiver, over all pulses; :func:`reach`), which makes one call on a small patch cheap; with a
-``(start, stop)`` fast-time span (seconds), that span; with None, the whole records.
+``(start, stop)`` fast-time span (seconds), that span; with None, the whole records. Records that
+are not upsampled (sinc8, or upsample=1) are the echo's own, read in place whole.
 ``backproject`` refuses a grid whose reach the records do not cover.
 
 Upsampling in blocks. The records are FFT-upsampled block by block: block b holds the original
@@ -47,7 +48,7 @@ import os
 import numpy as np
 import scipy.fft
 
-from ... import validate
+from ... import budget, validate
 from ...model import EchoData, Grid
 from ..rangecomp import _upsample_spectrum
 
@@ -126,7 +127,9 @@ def reach(echo: EchoData, receivers, positions: np.ndarray, target_velocity=None
 def _blocks_of(span: np.ndarray, t0: float, fs: float, n: int, interp: str, factor: int) -> tuple[int, int]:
     """The original samples [first, stop) to prepare for a fast-time span (s): the span's samples
     widened by the interpolator's reach (in original samples, plus one for rounding), clipped to
-    the record, and for upsampled records rounded out to whole UPSAMPLE_BLOCKs."""
+    the record, and for upsampled records rounded out to whole UPSAMPLE_BLOCKs; records that are
+    not upsampled are read in place, whole ((0, n): a view costs nothing, a cut would be a copy),
+    unless the span misses them."""
     before, after = INTERP_REACH[interp]
     if factor > 1:  # the linear interpolator's two upsampled samples lie within one original sample
         before, after = 0, 1
@@ -135,6 +138,8 @@ def _blocks_of(span: np.ndarray, t0: float, fs: float, n: int, interp: str, fact
     first, stop = max(first, 0), min(stop, n)
     if first >= stop:
         return 0, 0
+    if factor == 1:
+        return 0, n
     if stop - first < MIN_SAMPLES:  # the kernels load whole windows of a record: keep at least one
         stop = min(first + MIN_SAMPLES, n)
         first = max(stop - MIN_SAMPLES, 0)
@@ -206,6 +211,12 @@ class PreparedRecords:
         self.span = np.column_stack([t0 + self.offset / self.fs, t0 + (self.offset + self.length) / self.fs])
         self._device = {}
         self._host = None
+        if materialise and self.factor > 1:  # records not upsampled are views of the echo: nothing to hold
+            held = 8.0 * echo.n_pulses * float(np.sum(np.maximum(self.length, MIN_SAMPLES)))
+            spectra = min(FFT_BATCH_BYTES, 4 * held / max(len(self.receivers), 1))
+            budget.check_bytes(f"prepare: {len(self.receivers)} receivers x {echo.n_pulses} pulses x up to "
+                               f"{int(np.max(self.length))} samples (upsample={self.upsample})", held + spectra,
+                               "prepare fewer receivers, a smaller upsample or only the span a grid reaches (grid=)")
         if materialise:
             self._host = [self._make(i, np.arange(echo.n_pulses)) for i in range(len(self.receivers))]
             for held in self._host:
