@@ -13,6 +13,7 @@ from ..occlusion import DEFAULT_REUSE_TOLERANCE
 
 DTYPES = (np.dtype(np.complex64), np.dtype(np.complex128))
 DEFAULT_CHUNK_BYTES = 256 * 2**20
+INTRA_PULSE = ("moving", "all", "none")
 
 
 @dataclass(frozen=True)
@@ -23,7 +24,10 @@ class SynthesisOptions:
     backend : "numpy", "opencl", "auto" or None; stored resolved ("numpy" or "opencl").
     precision : "single" or "double" (the OpenCL accumulation).
     dtype : complex64 or complex128, the returned samples.
-    stop_and_go, spreading, hull_occlusion, progress : bool.
+    stop_and_go, hull_occlusion, progress : bool.
+    spreading, absorption : bool, or None: on when the scenario has a seafloor.
+    multipath : 0, 1 or 2 (the most bounces a path may have), or None: 1 when the scenario has a
+    sea surface or a seafloor. intra_pulse : "moving", "all" or "none".
     reuse_tolerance : rad, in [0, pi]. max_bytes : bytes, None for the memory budget
     (:func:`clsas.memory_budget`); chunk_bytes : bytes.
     """
@@ -32,7 +36,10 @@ class SynthesisOptions:
     precision: str = "single"
     dtype: object = np.complex64
     stop_and_go: bool = False
-    spreading: bool = False
+    spreading: bool | None = None
+    absorption: bool | None = None
+    multipath: int | None = None
+    intra_pulse: str = "moving"
     hull_occlusion: bool = True
     reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE
     max_bytes: int | None = None
@@ -41,8 +48,15 @@ class SynthesisOptions:
 
     def __post_init__(self):
         _backend.check_precision(self.precision)
-        for name in ("stop_and_go", "spreading", "hull_occlusion", "progress"):
+        for name in ("stop_and_go", "hull_occlusion", "progress"):
             v.flag(name, getattr(self, name))
+        for name in ("spreading", "absorption"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, v.flag(name, getattr(self, name)))
+        if self.multipath is not None:
+            object.__setattr__(self, "multipath", v.integer("multipath", self.multipath, low=0, high=2,
+                                                            why="the most bounces a path may have, or None"))
+        v.choice("intra_pulse", self.intra_pulse, INTRA_PULSE)
         try:
             dtype = np.dtype(self.dtype)
         except TypeError:
