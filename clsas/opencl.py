@@ -265,6 +265,25 @@ def kernel(name: str, kernel_name: str, defines: dict | None = None, device: str
     return kern
 
 
+#: Work-items a work-group of the kernels launched through :func:`work_groups`.
+WORK_GROUP = 8
+
+
+def work_groups(n_items: int, group: int = WORK_GROUP) -> tuple[tuple[int], tuple[int]]:
+    """(global size, local size) for ``n_items`` work-items in work-groups of ``group``, the global
+    size padded to whole groups (the kernel returns for work-items past ``n_items``). A fixed
+    local size lets PoCL compile a kernel once: with the local size left to it, every new global
+    size may get a new one, and with it a new compilation (~0.2 s a kernel, in every process
+    that meets that size, unless its disk cache holds that exact specialisation)."""
+    return (-(-max(int(n_items), 1) // group) * group,), (group,)
+
+
+def work_groups_2d(n_x: int, n_y: int, group: int = WORK_GROUP) -> tuple[tuple[int, int], tuple[int, int]]:
+    """:func:`work_groups` for a 2-D launch of (n_x, n_y) work-items, in groups of (1, group): the
+    second dimension padded (the kernel returns for work-items past n_y)."""
+    return (max(int(n_x), 1), -(-max(int(n_y), 1) // group) * group), (1, group)
+
+
 #: Compiler output known to be harmless: PoCL's note that a 16-wide vector argument changes the
 #: ABI without AVX-512 (the kernels are compiled as a whole; nothing crosses that ABI), clang's
 #: count of such warnings, and the include-spelling lines that point at them.

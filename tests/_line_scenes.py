@@ -88,7 +88,7 @@ def compare_with_backprojection(image: Image, echo, points, band_length: float):
 
 
 def assert_agrees_with_backprojection(imager, scene: str) -> None:
-    """The issue's bar for omega-k, range-Doppler and chirp scaling: every peak within 1/10 of a
+    """The bar for the strip-map imagers: every peak within 1/10 of a
     resolution cell of back-projection's, PSLR and ISLR within 1 dB, SSIM > 0.9; ``scene`` is
     "mono" (the 3 x 3 grid) or "huang" (six points, 32 receivers through the PCA conversion)."""
     from clsas.image.multireceiver import pca_record

@@ -1,6 +1,6 @@
 """Range compression: matched filtering of LFM echoes in the frequency domain.
 
-Signal model (DESIGN.md; Kiang & Kiang 2022 eq. 7): the baseband echo of a scatterer at
+Signal model (docs/design.md; Kiang & Kiang 2022 eq. 7): the baseband echo of a scatterer at
 two-way delay tau_n is A rect((tau - tau_n)/T) exp(-j 2 pi f0 tau_n) exp(j pi K (tau - tau_n)^2).
 The matched filter correlates each fast-time record with the baseband replica
 p(t) = rect(t/T) exp(j pi K t^2):
@@ -221,10 +221,8 @@ def range_compress(echo: EchoData, window: str = "none", upsample: int = 1, work
     geometry; ``data[r, p, k]`` is the matched-filter output at fast time
     ``t0[r] + k / fs`` (a scatterer at delay tau_n peaks at tau_n).
     """
-    if not isinstance(echo, EchoData):
-        raise TypeError(f"range_compress echo: must be an EchoData, got {type(echo).__name__}")
-    if echo.compressed:
-        raise ValueError("range_compress echo: is already range-compressed (EchoData.compressed is True)")
+    v.instance("range_compress echo", echo, EchoData, "an EchoData")
+    v.compression("range_compress echo", echo, compressed=False, advice="an echo is range-compressed once")
     window_options = check_window(window, window_options, "range_compress")
     upsample = v.integer("range_compress upsample", upsample, low=1, high=MAX_UPSAMPLE)
     workers = check_workers(workers, "range_compress workers")

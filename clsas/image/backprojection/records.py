@@ -47,7 +47,7 @@ import os
 import numpy as np
 import scipy.fft
 
-from ... import validate
+from ... import budget, validate
 from ...model import EchoData, Grid
 from ..rangecomp import _upsample_spectrum
 
@@ -207,6 +207,11 @@ class PreparedRecords:
         self._device = {}
         self._host = None
         if materialise:
+            held = 8.0 * echo.n_pulses * float(np.sum(np.maximum(self.length, MIN_SAMPLES)))
+            spectra = min(FFT_BATCH_BYTES, 4 * held / max(len(self.receivers), 1)) if self.factor > 1 else 0.0
+            budget.check_bytes(f"prepare: {len(self.receivers)} receivers x {echo.n_pulses} pulses x up to "
+                               f"{int(np.max(self.length))} samples (upsample={self.upsample})", held + spectra,
+                               "prepare fewer receivers, a smaller upsample or only the span a grid reaches (grid=)")
             self._host = [self._make(i, np.arange(echo.n_pulses)) for i in range(len(self.receivers))]
             for held in self._host:
                 held.flags.writeable = False

@@ -298,7 +298,7 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
     with np.errstate(invalid="ignore"):
         r_lo = np.maximum(r_min - scene.margin, windows[:, 0])
         r_hi = np.minimum(r_max + scene.margin, windows[:, 1])
-        alive &= (r_hi > r_lo) & (r_lo > 0)
+        alive &= (r_hi >= r_lo) & (r_lo > 0)  # equal for a scene at one range (a single point)
     f_max = f0 + bandwidth / 2
     a = np.stack([-half_lengths, half_lengths], axis=1)[:, :, None]  # (n, 2, 1)
     vv = np.stack([v_lo, v_hi, np.zeros_like(v_lo)], axis=1)[:, None, :]  # (n, 1, 3)
