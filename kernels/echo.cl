@@ -267,10 +267,30 @@ __kernel void echo_extents(__global const echo_path_t *paths, const int n_pad, c
     extent[(size_t)h * n_pad + j] = (int2)(lo, hi);
 }
 
+#ifdef COMPRESSED
+/* The compressed echo's centre shift delta = lin / (2 chirp) (the range-Doppler coupling,
+ * clsas/synthesis/echo/compressed.py); 0 for plain paths. */
+inline real_t compressed_shift(const echo_path_t v)
+{
+#ifdef EXTENDED
+    return v.lin / ((real_t)2 * v.chirp);
+#else
+    return (real_t)0;
+#endif
+}
+#endif
+
 /* The first and last samples path v reaches (start - shift + frac + [lo, hi], rounded outwards;
- * plain paths: |d| <= half_len). */
+ * plain paths: |d| <= half_len; compressed: the taps -COMPRESSED .. COMPRESSED + 1 about its
+ * shifted centre's sample). */
 inline int2 path_reach(const echo_path_t v, real_t half_len)
 {
+#ifdef COMPRESSED
+    const real_t u = v.frac - compressed_shift(v);
+    int iu = convert_int(u);
+    iu -= (u < (real_t)iu);
+    return (int2)(v.start + iu - COMPRESSED, v.start + iu + COMPRESSED + 1);
+#else
 #ifdef EXTENDED
     const real_t a = v.frac + v.lo, b = v.frac + v.hi;
 #else
@@ -280,6 +300,7 @@ inline int2 path_reach(const echo_path_t v, real_t half_len)
     ia -= (a < (real_t)ia);  /* floor */
     ib += (b > (real_t)ib);  /* ceil */
     return (int2)(v.start + ia, v.start + ib);
+#endif
 }
 
 /* bounds[(h P + p) n_chunks + c] = (first, last) sample reached by the chunk's CHUNK paths. */
@@ -424,3 +445,116 @@ __kernel void echo_accumulate(__global const echo_path_t *paths, __global const 
             o[l] = (kr + l < n_valid) ? complex_new(re[l], im[l]) : complex_new((real_t)0, (real_t)0);
     }
 }
+
+#ifdef COMPRESSED
+/* Synthesis into the range-compressed domain (clsas/synthesis/echo/compressed.py, NumPy twin
+ * CompressedResponse.accumulate): each path adds c0 Y0 + c1 Y1 + c2 Y2 over the taps about its
+ * (shifted) centre u' = start + frac - delta, the tables Y linear between the PHASES + 1
+ * fractions. table[((t (PHASES + 1) + i) 2 + part) row + PAD + L + m]: table t, fraction i / PHASES,
+ * real / imaginary part, tap m (zeros in the PAD columns): the response of the pulse's core
+ * samples; the edge samples edge_lo and edge_hi (about the centre's sample), inside the pulse for
+ * some fractions only, add their value x impulse[part imp_len + PAD + lag0 + m - k] (the matched
+ * filter's impulse response). N_TABLES: 1 (plain paths: c0 = amp) or 3. The rest as
+ * echo_accumulate. */
+__kernel void echo_accumulate_compressed(__global const echo_path_t *paths, __global const int2 *bounds,
+                                         __global const real_t *table, const real_t alpha, const int row,
+                                         __global const real_t *impulse, const int imp_len, const int lag0,
+                                         const int edge_lo, const int edge_hi, const real_t half_len,
+                                         const int n_scat, const int n_pulses, const int n_pad,
+                                         const int n_valid, __global const int *shift, __global complex_t *out)
+{
+    const int b = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
+    const int k0 = 16 * ROWS * b, k_last = k0 + 16 * ROWS - 1;
+    if (k0 >= n_pad) return;
+    const size_t rec = (size_t)h * n_pulses + p;
+    const int n_chunks = (n_scat + CHUNK - 1) / CHUNK;
+    const int sh = shift[h];
+    realv_t acc_re[ROWS], acc_im[ROWS];
+    for (int r = 0; r < ROWS; ++r) acc_re[r] = acc_im[r] = (realv_t)0;
+    __global const echo_path_t *rp = paths + rec * n_scat;
+    for (int c = 0; c < n_chunks; ++c) {
+        const int2 bd = bounds[rec * n_chunks + c] - sh;
+        if (bd.y < k0 || bd.x > k_last) continue;
+        const int j1 = min(n_scat, (c + 1) * CHUNK);
+        for (int j = c * CHUNK; j < j1; ++j) {
+            const echo_path_t v = rp[j];
+            const int2 reach = path_reach(v, (real_t)0) - sh;
+            if (reach.y < k0 || reach.x > k_last) continue;
+            const int s = reach.x + COMPRESSED;  /* the shifted centre's sample */
+            const real_t frac = v.frac - compressed_shift(v);
+            const real_t pos = (frac - floor(frac)) * (real_t)PHASES;
+            const int i = min(convert_int(pos), PHASES - 1);
+            const real_t w = pos - (real_t)i;
+            real_t cre[N_TABLES], cim[N_TABLES];
+            cre[0] = v.amp[0];
+            cim[0] = v.amp[1];
+#if N_TABLES == 3
+            {
+                /* c0 = a', c1 = a' b', c2 = a' (b'^2 / 2 + q): compressed.py, module docstring */
+                const real_t delta = compressed_shift(v);
+                const real_t cyc = -v.lin * v.lin / ((real_t)4 * v.chirp);
+                const real_t m = exp(v.gamma * delta * delta - v.beta * delta);
+                const real_t red = cyc - (real_t)convert_int(cyc);
+                const real_t pc = m * cospi((real_t)2 * red), ps = m * sinpi((real_t)2 * red);
+                const real_t ar = v.amp[0] * pc - v.amp[1] * ps, ai = v.amp[0] * ps + v.amp[1] * pc;
+                const real_t b1 = v.beta - (real_t)2 * v.gamma * delta;
+                const real_t qr = (real_t)0.5 * b1 * b1 + v.gamma, qi = (real_t)2 * REAL_PI * (v.chirp - alpha);
+                cre[0] = ar;
+                cim[0] = ai;
+                cre[1] = ar * b1;
+                cim[1] = ai * b1;
+                cre[2] = ar * qr - ai * qi;
+                cim[2] = ar * qi + ai * qr;
+            }
+#endif
+            /* the edge samples' values (compressed.py, CompressedResponse.edge_weights) */
+            real_t ere[2], eim[2];
+            for (int q = 0; q < 2; ++q) {
+                const real_t d = (real_t)(q == 0 ? edge_lo : edge_hi) - (frac - floor(frac));
+                real_t pr = cre[0], pi = cim[0];
+#if N_TABLES == 3
+                pr += d * (cre[1] + d * cre[2]);
+                pi += d * (cim[1] + d * cim[2]);
+#endif
+                real_t cyc = alpha * d * d;
+                cyc -= (real_t)convert_int(cyc);
+                const real_t in = fabs(d) <= half_len ? (real_t)1 : (real_t)0;
+                const real_t cs = in * cospi((real_t)2 * cyc), sn = in * sinpi((real_t)2 * cyc);
+                ere[q] = pr * cs - pi * sn;
+                eim[q] = pr * sn + pi * cs;
+            }
+            const int a = reach.x - k0, e = reach.y - k0;
+            const int r_lo = a <= 0 ? 0 : a / 16;
+            const int r_hi = min(ROWS - 1, e / 16);
+            for (int r = r_lo; r <= r_hi; ++r) {
+                const int m0 = k0 + 16 * r - s;  /* the row's first tap */
+                const int col = PAD + COMPRESSED + m0;
+                for (int q = 0; q < 2; ++q) {
+                    if (ere[q] == (real_t)0 && eim[q] == (real_t)0) continue;
+                    __global const real_t *ip = impulse + PAD + lag0 + m0 - (q == 0 ? edge_lo : edge_hi);
+                    const realv_t yr = vload16(0, ip), yi = vload16(0, ip + imp_len);
+                    acc_re[r] += ere[q] * yr - eim[q] * yi;
+                    acc_im[r] += ere[q] * yi + eim[q] * yr;
+                }
+                for (int t = 0; t < N_TABLES; ++t) {
+                    __global const real_t *t0 = table + ((size_t)(t * (PHASES + 1) + i) * 2) * row + col;
+                    const realv_t y0r = vload16(0, t0), y0i = vload16(0, t0 + row);
+                    const realv_t y1r = vload16(0, t0 + 2 * row), y1i = vload16(0, t0 + 3 * row);
+                    const realv_t yr = y0r + w * (y1r - y0r), yi = y0i + w * (y1i - y0i);
+                    acc_re[r] += cre[t] * yr - cim[t] * yi;
+                    acc_im[r] += cre[t] * yi + cim[t] * yr;
+                }
+            }
+        }
+    }
+    for (int r = 0; r < ROWS; ++r) {
+        real_t re[16], im[16];
+        vstore16(acc_re[r], 0, re);
+        vstore16(acc_im[r], 0, im);
+        const int kr = k0 + 16 * r;
+        __global complex_t *o = out + rec * n_pad + kr;
+        for (int l = 0; l < 16; ++l)
+            o[l] = (kr + l < n_valid) ? complex_new(re[l], im[l]) : complex_new((real_t)0, (real_t)0);
+    }
+}
+#endif

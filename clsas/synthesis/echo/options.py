@@ -9,7 +9,9 @@ import numpy as np
 from ... import backend as _backend
 from ... import budget
 from ... import validate as v
+from ...image.rangecomp import WINDOWS
 from ..occlusion import DEFAULT_REUSE_TOLERANCE
+from .compressed import DEFAULT_LEVEL_DB
 
 DTYPES = (np.dtype(np.complex64), np.dtype(np.complex128))
 DEFAULT_CHUNK_BYTES = 256 * 2**20
@@ -28,6 +30,9 @@ class SynthesisOptions:
     spreading, absorption : bool, or None: on when the scenario has a seafloor.
     multipath : 0, 1 or 2 (the most bounces a path may have), or None: 1 when the scenario has a
     sea surface or a seafloor. intra_pulse : "moving", "all" or "none".
+    compressed : False (raw echoes), True or a window name of :func:`clsas.range_compress`
+    (synthesis into the range-compressed domain; True: no window); compressed_level_db : dB in
+    [-120, -10], the level re the peak below which the compressed response's taps are dropped.
     reuse_tolerance : rad, in [0, pi]. max_bytes : bytes, None for the memory budget
     (:func:`clsas.memory_budget`); chunk_bytes : bytes.
     """
@@ -40,6 +45,8 @@ class SynthesisOptions:
     absorption: bool | None = None
     multipath: int | None = None
     intra_pulse: str = "moving"
+    compressed: bool | str = False
+    compressed_level_db: float = DEFAULT_LEVEL_DB
     hull_occlusion: bool = True
     reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE
     max_bytes: int | None = None
@@ -57,6 +64,12 @@ class SynthesisOptions:
             object.__setattr__(self, "multipath", v.integer("multipath", self.multipath, low=0, high=2,
                                                             why="the most bounces a path may have, or None"))
         v.choice("intra_pulse", self.intra_pulse, INTRA_PULSE)
+        if isinstance(self.compressed, (bool, np.bool_)):
+            object.__setattr__(self, "compressed", "none" if self.compressed else False)
+        else:
+            v.choice("compressed", self.compressed, WINDOWS)
+        object.__setattr__(self, "compressed_level_db", v.scalar("compressed_level_db", self.compressed_level_db,
+                                                                 low=-120.0, high=-10.0, unit="dB"))
         try:
             dtype = np.dtype(self.dtype)
         except TypeError:

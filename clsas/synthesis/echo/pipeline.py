@@ -30,6 +30,7 @@ from ..checks import SNR_DB_RANGE, check_arguments, warn_pulse_overlap
 from ..window import check_cube_size, node_span, receiver_nodes
 from .options import DEFAULT_CHUNK_BYTES, SynthesisOptions
 from ..propagation import BandAbsorption, boundaries, path_kinds
+from .compressed import DEFAULT_LEVEL_DB, CompressedResponse
 from .synth import Physics, _NumpySynth, _OpenCLSynth, path_record
 
 
@@ -153,8 +154,11 @@ def resolve_physics(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers
     spreading = floor if opts.spreading is None else opts.spreading
     absorbing = floor if opts.absorption is None else opts.absorption
     absorption = BandAbsorption.of(scenario.medium, scenario.waveform) if absorbing else None
+    response = None if opts.compressed is False else \
+        CompressedResponse.of(scenario.waveform, opts.compressed, opts.compressed_level_db)
     return Physics(kinds=path_kinds(planes, order), intra_pulse=opts.intra_pulse, absorption=absorption,
-                   spreading=spreading, stop_and_go=opts.stop_and_go, moving=bool(np.any(scat.vel != 0)))
+                   spreading=spreading, stop_and_go=opts.stop_and_go, moving=bool(np.any(scat.vel != 0)),
+                   response=response)
 
 
 def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion):
@@ -185,17 +189,27 @@ def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion):
     return synth, _pulse_blocks(n_pulses, per_pulse, opts.chunk_bytes)
 
 
-def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False) -> np.ndarray:
+def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False, path: str = "D-D") -> np.ndarray:
     """Exact two-way delays of every (receiver, pulse, scatterer) path, s, shape (H, P, N).
 
+    ``path`` names the path kind: "D-D" the direct path, else the outgoing and the return leg's
+    bounces off the sea surface (S) and the seabed (B) in the order the wave meets them from
+    the transmitter / the receiver, e.g. "S-D", "D-B", "SB-D", "S-S" (the scenario's
+    ``surface`` and ``seafloor``; :mod:`clsas.synthesis.propagation`).
     The NumPy backend iterates the fixed point of :mod:`clsas.geometry`; the OpenCL
     kernel solves each leg in closed form (kernels/echo.cl, ``meet_time``) and returns the
     delay as the sample index it hands to the accumulation (float32 fraction: ~3e-12 s at 20 kHz).
     """
     if not isinstance(scenario, Scenario):
         raise TypeError(f"scenario must be a Scenario, got {type(scenario).__name__}")
-    synth, blocks = _make_synth(scenario, SynthesisOptions(backend=backend, stop_and_go=stop_and_go), None)
-    return np.concatenate([synth.delays(sl) for sl in blocks], axis=1)
+    names = [kind.name for kind in path_kinds(boundaries(scenario), 2)]
+    if path not in names:
+        raise ValueError(f"delays path: must be one of this scenario's path kinds {names}, got {path!r}")
+    order = sum(ch in "SB" for ch in path)
+    synth, blocks = _make_synth(scenario, SynthesisOptions(backend=backend, stop_and_go=stop_and_go, multipath=order,
+                                                           spreading=False, absorption=False), None)
+    kind = [k.name for k in synth.physics.kinds].index(path)
+    return np.concatenate([synth.delays(sl, kind) for sl in blocks], axis=1)
 
 
 class Synthesis(NamedTuple):
@@ -286,7 +300,8 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
              occlusion=None, max_bytes: int | None = None, chunk_bytes: int = DEFAULT_CHUNK_BYTES,
              hull_occlusion: bool = True, reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE,
              absorption: bool | None = None, multipath: int | None = None,
-             intra_pulse: str = "moving") -> EchoData:
+             intra_pulse: str = "moving", compressed: bool | str = False,
+             compressed_level_db: float = DEFAULT_LEVEL_DB) -> EchoData:
     """Synthesize the raw echoes of ``scenario`` (see the module docstring for the model).
 
     Parameters
@@ -322,6 +337,16 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         time-scaled and Doppler-shifted, :mod:`clsas.synthesis.paths`). "moving" (default) for
         scatterers with a velocity, "all" for every path (stationary scatterers seen from the
         moving platform too), "none" for one delay per path. Ignored with ``stop_and_go``.
+    compressed : bool or str
+        Synthesize straight into the range-compressed domain: the echo
+        ``range_compress(simulate(...), window=W)`` would give (W = "none" for True, or the
+        window named), each path's compressed point response written around its exact delay
+        over the taps where it exceeds ``compressed_level_db`` re its peak
+        (:mod:`clsas.synthesis.echo.compressed`). For large scenes (a seafloor's facets): the
+        work per path is those taps instead of the whole pulse. Not with ``snr_db`` (the noise is
+        defined on raw samples).
+    compressed_level_db : float
+        dB in [-120, -10]: where the compressed response is cut (default -40).
     occlusion : None, array (n_rx, n_pulses, n_scatterers) or callable
         Factor per path (1 = seen, 0 = hidden); a callable ``occlusion(pulses: slice)`` returns
         the block (n_rx, len(pulses), n_scatterers), so that memory stays bounded. Mesh targets
@@ -342,15 +367,19 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
 
     Returns
     -------
-    EchoData, raw (not range-compressed), complex64 (n_rx, n_pulses, n_samples). The recording
+    EchoData, raw (or with ``compressed`` range-compressed), complex64 (n_rx, n_pulses, n_samples). The recording
     window of receiver h starts at ``t0[h]`` (from the geometry: earliest echo minus T/2, to
     the latest plus T/2, unless ``Scenario.recording`` gives it); its samples beyond its own
     window length (``provenance["n_valid"]``) are zero.
     """
     max_bytes, chunk_bytes = check_arguments(scenario, snr_db, seed, max_bytes, chunk_bytes, reuse_tolerance, dict(
         stop_and_go=stop_and_go, progress=progress, hull_occlusion=hull_occlusion))
+    if compressed is not False and snr_db is not None:
+        raise ValueError(f"simulate snr_db: noise ({snr_db!r} dB) is defined on raw samples; with compressed="
+                         f"{compressed!r} simulate the raw echo with noise and range_compress it instead")
     opts = SynthesisOptions(backend=backend, precision=precision, stop_and_go=stop_and_go, spreading=spreading,
                             absorption=absorption, multipath=multipath, intra_pulse=intra_pulse,
+                            compressed=compressed, compressed_level_db=compressed_level_db,
                             hull_occlusion=hull_occlusion, reuse_tolerance=reuse_tolerance, max_bytes=max_bytes,
                             chunk_bytes=chunk_bytes, progress=progress)
     out = synthesize(scenario, opts, occlusion)
@@ -362,12 +391,16 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
     return EchoData(
         data=data, eta=scenario.eta, t0=out.t0, fs=scenario.waveform.fs,
         tx_pos=scenario.tx_position(scenario.eta), rx_pos=rx_pos, rx_tau=np.tile(rx_tau, (n_rx, 1)),
-        waveform=scenario.waveform, medium=scenario.medium, receivers=scenario.receiver_names, compressed=False,
+        waveform=scenario.waveform, medium=scenario.medium, receivers=scenario.receiver_names,
+        compressed=out.physics.response is not None,
         provenance={"algorithm": "clsas.simulate", "backend": opts.backend, "precision": opts.precision,
                     "stop_and_go": bool(opts.stop_and_go), "spreading": bool(out.physics.spreading),
                     "absorption": out.physics.absorption is not None,
                     "paths": [kind.name for kind in out.physics.kinds],
                     "intra_pulse": out.physics.intra_pulse if out.physics.doppler else "none", "snr_db": snr_db,
+                    **({"compressed": {"window": opts.compressed, "level_db": opts.compressed_level_db,
+                                       "taps": out.physics.response.taps,
+                                       "discarded_db": out.physics.response.discarded_db}} if out.physics.response else {}),
                     "seed": seed if seed is None or isinstance(seed, int) else str(seed),
                     "n_scatterers": out.n_scatterers, "occlusion": occlusion is not None,
                     "hull_occlusion": bool(opts.hull_occlusion and has_meshes(scenario)),

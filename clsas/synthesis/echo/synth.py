@@ -39,6 +39,7 @@ from ...scene.scenario import Scenario
 from ...scene.targets import Scatterers
 from ..paths import Paths, bottom_coefficient, paths
 from ..propagation import BOTTOM, DIRECT, BandAbsorption
+from .compressed import PAD, PHASES, CompressedResponse
 
 CHUNK_SCATTERERS = 16  # paths per bounds chunk in the OpenCL accumulation
 ROWS = 8  # 16-sample rows per work-item of the OpenCL accumulation
@@ -93,7 +94,9 @@ def records_preamble(real, extended: bool) -> str:
 class Physics:
     """What the paths carry, resolved for one scenario: the path ``kinds`` (direct first),
     ``intra_pulse`` ("none", "moving", "all"), ``absorption`` (None: none), ``spreading``,
-    ``stop_and_go``; ``extended``: the paths need their own chirp and envelope."""
+    ``stop_and_go``; ``response``: synthesis into the range-compressed domain with these
+    tabulated responses (None: raw echoes); ``extended``: the paths need their own chirp and
+    envelope."""
 
     kinds: tuple = (DIRECT,)
     intra_pulse: str = "none"
@@ -101,6 +104,7 @@ class Physics:
     spreading: bool = False
     stop_and_go: bool = False
     moving: bool = False
+    response: CompressedResponse | None = None
 
     @property
     def doppler(self) -> bool:
@@ -214,9 +218,9 @@ class _NumpySynth(_Synth):
         return paths(self.scenario, self.eta[pulses], self.scat, range(self.n_rx), kind, ph.stop_and_go,
                      ph.spreading, ph.intra_pulse if ph.doppler else "none", ph.absorption)
 
-    def delays(self, pulses: slice) -> np.ndarray:
-        """Direct-path delays (H, P, N), s."""
-        return self._paths(pulses, DIRECT).tau
+    def delays(self, pulses: slice, kind: int = 0) -> np.ndarray:
+        """Delays (H, P, N), s, of the paths of ``physics.kinds[kind]`` (0: direct)."""
+        return self._paths(pulses, self.physics.kinds[kind]).tau
 
     def release(self) -> None:
         """Nothing is cached by the reference."""
@@ -241,8 +245,11 @@ class _NumpySynth(_Synth):
             h, n_p, n = p.tau.shape
             laws = {k: v.reshape(h * n_p, n) for k, v in in_pulse_laws(p, wf).items()} \
                 if self.physics.extended else None
-            out = out + accumulate_reference(start.reshape(h * n_p, n), frac.reshape(h * n_p, n),
-                                             amp.reshape(h * n_p, n), self.alpha, self.half_len, n_samples, laws)
+            args = (start.reshape(h * n_p, n), frac.reshape(h * n_p, n), amp.reshape(h * n_p, n))
+            if self.physics.response is not None:
+                out = out + self.physics.response.accumulate(*args, n_samples, laws)
+            else:
+                out = out + accumulate_reference(*args, self.alpha, self.half_len, n_samples, laws)
         return out.reshape(self.n_rx, -1, n_samples)
 
 
@@ -312,6 +319,14 @@ class _OpenCLSynth(_Synth):
                 defines[flag] = 1
         if ph.doppler:
             defines["INTRA_PULSE"] = 2 if ph.intra_pulse == "all" else 1
+        if ph.response is not None:
+            defines.update(COMPRESSED=ph.response.taps, N_TABLES=3 if ph.extended else 1, PHASES=PHASES, PAD=PAD)
+            table, impulse = ph.response.planar(self.real)
+            table = np.ascontiguousarray(table[:defines["N_TABLES"]])
+            self.table_row, self.impulse_len = table.shape[-1], impulse.shape[-1]
+            self.table_buf, self.impulse_buf = (
+                cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=a)
+                for a in (table, impulse))
         preamble = records_preamble(self.real, ph.extended)
         prg = opencl.program("echo", defines=defines, double=double, preamble=preamble)
         self.k_paths = cl.Kernel(prg, "echo_paths")
@@ -321,7 +336,7 @@ class _OpenCLSynth(_Synth):
             cl.Kernel(opencl.program("echo", defines=plain, double=double, preamble=preamble), "echo_paths")
         self.k_bounds = cl.Kernel(prg, "echo_bounds")
         self.k_extents = cl.Kernel(prg, "echo_extents")
-        self.k_acc = cl.Kernel(prg, "echo_accumulate")
+        self.k_acc = cl.Kernel(prg, "echo_accumulate_compressed" if ph.response is not None else "echo_accumulate")
         wf = sc.waveform
         self.params = np.zeros((), PARAMS)
         self.params["c"], self.params["f0"], self.params["fs"] = c, wf.f0, wf.fs
@@ -392,11 +407,12 @@ class _OpenCLSynth(_Synth):
         self.cl.enqueue_copy(self.rt.queue, host, paths_buf)
         return host
 
-    def delays(self, pulses: slice) -> np.ndarray:
-        """Direct-path delays (H, P, N) of the block from the kernel, in scatterer order."""
+    def delays(self, pulses: slice, kind: int = 0) -> np.ndarray:
+        """Delays (H, P, N) of the block's paths of ``physics.kinds[kind]`` (0: direct) from the
+        kernel, in scatterer order."""
         h, n = self.n_rx, self.scat.count
         paths_buf, pc = self._run_paths(pulses, np.zeros(h), weighted=False)
-        host = self._host_paths(paths_buf, pc)[:, :, :n]
+        host = self._host_paths(paths_buf, pc)[:, :, kind * self.n_pad:kind * self.n_pad + n]
         tau = np.empty((h, pc, n))
         tau[np.arange(h)[:, None, None], np.arange(pc)[None, :, None], self.order[:, None, :]] = \
             (host["start"] + host["frac"].astype(np.float64)) / self.scenario.waveform.fs
@@ -450,8 +466,16 @@ class _OpenCLSynth(_Synth):
         n_pad = -(-n_samples // rows) * rows
         out = cl.Buffer(self.rt.context, mf.WRITE_ONLY, np.dtype(self.cplx).itemsize * h * pc * n_pad)
         shift_buf = cl.Buffer(self.rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=shift)
-        self.k_acc(q, (n_pad // rows, pc, h), None, paths_buf, bounds, self.real(self.alpha), self.real(self.half_len),
-                   np.int32(n), np.int32(pc), np.int32(n_pad), np.int32(n_samples), shift_buf, out)
+        if self.physics.response is not None:
+            resp = self.physics.response
+            self.k_acc(q, (n_pad // rows, pc, h), None, paths_buf, bounds, self.table_buf, self.real(self.alpha),
+                       np.int32(self.table_row), self.impulse_buf, np.int32(self.impulse_len), np.int32(resp.lag0),
+                       np.int32(resp.edges[0]), np.int32(resp.edges[1]), self.real(resp.half_len), np.int32(n),
+                       np.int32(pc), np.int32(n_pad), np.int32(n_samples), shift_buf, out)
+        else:
+            self.k_acc(q, (n_pad // rows, pc, h), None, paths_buf, bounds, self.real(self.alpha),
+                       self.real(self.half_len), np.int32(n), np.int32(pc), np.int32(n_pad), np.int32(n_samples),
+                       shift_buf, out)
         host = np.empty((h, pc, n_pad), self.cplx)
         cl.enqueue_copy(q, host, out)
         return host[:, :, :n_samples]
