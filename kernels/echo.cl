@@ -224,7 +224,23 @@ __kernel void echo_paths(__global const double *soa, __global const echo_pulse_t
     const double8 beta = lnf1 * kfs, gamma = lnf2 * kfs * kfs;
     const double8 centre = d2 * half_t * half_t;
     const double8 lo = (centre - half_t * (1.0 + d1)) * fs, hi = (centre + half_t * (1.0 + d1)) * fs;
-    double x_ch[8], x_li[8], x_be[8], x_ga[8], x_lo[8], x_hi[8];
+    /* the envelope's largest log over the support, folded into the amplitude (so that the float
+     * accumulation evaluates exp of at most 0 there: no overflow however steep the band loss) */
+    const double8 at_lo = (gamma * lo + beta) * lo, at_hi = (gamma * hi + beta) * hi;
+    const double8 top = clamp(-beta / (2.0 * gamma), lo, hi);
+    double8 level = fmax(at_lo, at_hi);
+    level = select(level, fmax(level, (gamma * top + beta) * top), gamma < 0.0);
+    {
+        const double8 m = exp(level);
+        double x_m[8];
+        vstore8(m, 0, x_m);
+        for (int l = 0; l < 8; ++l) {
+            x_re[l] *= x_m[l];
+            x_im[l] *= x_m[l];
+        }
+    }
+    double x_ch[8], x_li[8], x_be[8], x_ga[8], x_lo[8], x_hi[8], x_lv[8];
+    vstore8(level, 0, x_lv);
     vstore8(chirp, 0, x_ch);
     vstore8(lin, 0, x_li);
     vstore8(beta, 0, x_be);
@@ -246,6 +262,7 @@ __kernel void echo_paths(__global const double *soa, __global const echo_pulse_t
         v.gamma = (real_t)x_ga[l];
         v.lo = (real_t)x_lo[l];
         v.hi = (real_t)x_hi[l];
+        v.level = (real_t)x_lv[l];
 #endif
         o[l] = v;
     }
@@ -390,20 +407,23 @@ __kernel void echo_accumulate(__global const echo_path_t *paths, __global const 
              * E(d + 16) - E(d) = j 2 pi (chirp (32 d + 256) + 16 lin) + gamma (32 d + 256) + 16 beta,
              * its own step E(d + 32) - 2 E(d + 16) + E(d) = 512 (j 2 pi chirp + gamma) */
             const real_t lo = v.lo, hi = v.hi;
+            if (v.amp[0] == (real_t)0 && v.amp[1] == (real_t)0) continue;  /* dark (shadowed, padding) */
+            /* the envelope re its level (<= 0 on the support); exponents clamped to +-80 so that
+             * the rows outside the support (masked) cannot overflow */
             expj_cycles_v((v.chirp * d + v.lin) * d, &c0, &s0);
-            const realv_t e0 = exp((v.gamma * d + v.beta) * d);
+            const realv_t e0 = exp(clamp((v.gamma * d + v.beta) * d - v.level, (real_t)-80, (real_t)80));
             c0 *= e0;
             s0 *= e0;
             const realv_t step = (real_t)32 * d + (real_t)256;
             expj_cycles_v(v.chirp * step + (real_t)16 * v.lin, &wc, &ws);
-            const realv_t ew = exp(v.gamma * step + (real_t)16 * v.beta);
+            const realv_t ew = exp(clamp(v.gamma * step + (real_t)16 * v.beta, (real_t)-80, (real_t)80));
             wc *= ew;
             ws *= ew;
             real_t rho_c, rho_s;
             {
                 real_t r512 = v.chirp * (real_t)512;
                 r512 -= (real_t)convert_int(r512);
-                const real_t m = exp(v.gamma * (real_t)512);
+                const real_t m = exp(fmax(v.gamma * (real_t)512, (real_t)-80));
                 rho_c = m * cospi((real_t)2 * r512);
                 rho_s = m * sinpi((real_t)2 * r512);
             }
@@ -480,6 +500,7 @@ __kernel void echo_accumulate_compressed(__global const echo_path_t *paths, __gl
             const echo_path_t v = rp[j];
             const int2 reach = path_reach(v, (real_t)0) - sh;
             if (reach.y < k0 || reach.x > k_last) continue;
+            if (v.amp[0] == (real_t)0 && v.amp[1] == (real_t)0) continue;  /* dark (shadowed, padding) */
             const int s = reach.x + COMPRESSED;  /* the shifted centre's sample */
             const real_t frac = v.frac - compressed_shift(v);
             const real_t pos = (frac - floor(frac)) * (real_t)PHASES;
@@ -493,7 +514,7 @@ __kernel void echo_accumulate_compressed(__global const echo_path_t *paths, __gl
                 /* c0 = a', c1 = a' b', c2 = a' (b'^2 / 2 + q): compressed.py, module docstring */
                 const real_t delta = compressed_shift(v);
                 const real_t cyc = -v.lin * v.lin / ((real_t)4 * v.chirp);
-                const real_t m = exp(v.gamma * delta * delta - v.beta * delta);
+                const real_t m = exp(v.gamma * delta * delta - v.beta * delta - v.level);
                 const real_t red = cyc - (real_t)convert_int(cyc);
                 const real_t pc = m * cospi((real_t)2 * red), ps = m * sinpi((real_t)2 * red);
                 const real_t ar = v.amp[0] * pc - v.amp[1] * ps, ai = v.amp[0] * ps + v.amp[1] * pc;

@@ -128,7 +128,7 @@ def test_intra_pulse_doppler_matches_the_exact_per_sample_solution(backend_name,
         request.getfixturevalue("opencl_device")
     sc = doppler_scene()
     out = synthesize(sc, SynthesisOptions(backend=backend_name, progress=False, dtype=np.complex128,
-                                          precision="single"))
+                                          precision="single", intra_pulse="moving"))
     plain = synthesize(sc, SynthesisOptions(backend="numpy", progress=False, dtype=np.complex128, intra_pulse="none"))
     wf = sc.waveform
     for h in range(sc.n_receivers):
@@ -150,7 +150,7 @@ def test_compressed_peak_moves_by_the_range_doppler_coupling(backend):
     """An LFM Doppler-shifted by f_D peaks after matched filtering at tau - f_D / K (range-Doppler
     coupling); f_D = -f0 D'(0), D' from the exact delays of wavelets emitted 0.1 ms apart."""
     sc = doppler_scene()
-    rc = range_compress(simulate(sc, backend=backend, progress=False), upsample=8)
+    rc = range_compress(simulate(sc, backend=backend, progress=False, intra_pulse="moving"), upsample=8)
     wf, c = sc.waveform, sc.medium.sound_speed
     target = sc.targets[0]
     for h in range(sc.n_receivers):

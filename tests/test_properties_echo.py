@@ -74,7 +74,8 @@ def test_medium_refuses_bad_water_by_name(field, value, error):
 
 @pytest.mark.parametrize("option,value,error", [
     ("multipath", 3, ValueError), ("multipath", 1.5, TypeError), ("intra_pulse", "sometimes", ValueError),
-    ("absorption", "yes", TypeError), ("spreading", 1, TypeError)])
+    ("absorption", "yes", TypeError), ("spreading", 1, TypeError), ("spreading", None, TypeError),
+    ("multipath", None, TypeError)])
 def test_propagation_options_are_refused_by_name(option, value, error):
     with pytest.raises(error, match=option):
         SynthesisOptions(**{option: value})

@@ -28,7 +28,7 @@ from ..occlusion import DEFAULT_REUSE_TOLERANCE, PathWeights, has_meshes
 from ...validate import scalar
 from ..checks import SNR_DB_RANGE, check_arguments, warn_pulse_overlap
 from ..window import check_cube_size, node_span, receiver_nodes
-from .options import DEFAULT_CHUNK_BYTES, SynthesisOptions
+from .options import AUTO, DEFAULT_CHUNK_BYTES, SynthesisOptions, auto_flag
 from ..propagation import BandAbsorption, boundaries, path_kinds
 from .compressed import DEFAULT_LEVEL_DB, CompressedResponse
 from .synth import Physics, _NumpySynth, _OpenCLSynth, path_record
@@ -145,14 +145,14 @@ def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_oc
 
 
 def resolve_physics(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers) -> Physics:
-    """What the paths carry for ``scenario`` under ``opts`` (the None options resolved: spreading
+    """What the paths carry for ``scenario`` under ``opts`` (the "auto" options resolved: spreading
     and absorption on, and first-order multipath, in a scene with a seafloor; multipath also with
     a sea surface)."""
     floor = getattr(scenario, "seafloor", None) is not None
     planes = boundaries(scenario)
-    order = (1 if planes else 0) if opts.multipath is None else opts.multipath
-    spreading = floor if opts.spreading is None else opts.spreading
-    absorbing = floor if opts.absorption is None else opts.absorption
+    order = (1 if planes else 0) if opts.multipath == AUTO else opts.multipath
+    spreading = floor if opts.spreading == AUTO else opts.spreading
+    absorbing = floor if opts.absorption == AUTO else opts.absorption
     absorption = BandAbsorption.of(scenario.medium, scenario.waveform) if absorbing else None
     response = None if opts.compressed is False else \
         CompressedResponse.of(scenario.waveform, opts.compressed, opts.compressed_level_db)
@@ -296,11 +296,11 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
 
 
 def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False, snr_db: float | None = None,
-             seed=None, precision: str = "single", progress: bool = True, spreading: bool | None = None,
+             seed=None, precision: str = "single", progress: bool = True, spreading: bool | str = AUTO,
              occlusion=None, max_bytes: int | None = None, chunk_bytes: int = DEFAULT_CHUNK_BYTES,
              hull_occlusion: bool = True, reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE,
-             absorption: bool | None = None, multipath: int | None = None,
-             intra_pulse: str = "moving", compressed: bool | str = False,
+             absorption: bool | str = AUTO, multipath: int | str = AUTO,
+             intra_pulse: str = "none", compressed: bool | str = False,
              compressed_level_db: float = DEFAULT_LEVEL_DB) -> EchoData:
     """Synthesize the raw echoes of ``scenario`` (see the module docstring for the model).
 
@@ -319,24 +319,25 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         complex128 (the float64 reference).
     progress : bool
         Show tqdm progress bars over pulse blocks.
-    spreading : bool or None
+    spreading : bool or "auto"
         Include the spherical spreading 1 / (R1 R2) (R1, R2 the lengths of the two legs, unfolded
-        for a bouncing path). None (default): on when the scenario has a seafloor.
-    absorption : bool or None
+        for a bouncing path). "auto" (default): on when the scenario has a seafloor.
+    absorption : bool or "auto"
         Include the absorption of the water (Francois & Garrison 1982 with the Medium's
         temperature, salinity, depth and pH) over the pulse's band, per path
-        (:mod:`clsas.synthesis.propagation`). None (default): on when the scenario has a seafloor.
-    multipath : {0, 1, 2} or None
+        (:mod:`clsas.synthesis.propagation`). "auto" (default): on when the scenario has a seafloor.
+    multipath : {0, 1, 2} or "auto"
         The most bounces a path may have off the sea surface (``Scenario.surface``: reflection
         -1, Rayleigh roughness loss) and the seabed's mean plane (``Scenario.seafloor``: its
-        sediment's reflection coefficient): image sources, every path's delay exact. None
+        sediment's reflection coefficient): image sources, every path's delay exact. "auto"
         (default): 1 when the scenario has a surface or a seafloor, else 0.
     intra_pulse : {"moving", "all", "none"}
         Intra-pulse Doppler: the scatterer and the receivers keep moving while the pulse is
         emitted and received, so each fast-time sample has its own delay (the echo is
-        time-scaled and Doppler-shifted, :mod:`clsas.synthesis.paths`). "moving" (default) for
-        scatterers with a velocity, "all" for every path (stationary scatterers seen from the
-        moving platform too), "none" for one delay per path. Ignored with ``stop_and_go``.
+        time-scaled and Doppler-shifted, :mod:`clsas.synthesis.paths`). "moving" for scatterers
+        with a velocity, "all" for every path (stationary scatterers seen from the moving
+        platform too), "none" (default for now: the moving-target chain is being made robust to
+        it) for one delay per path. Ignored with ``stop_and_go``.
     compressed : bool or str
         Synthesize straight into the range-compressed domain: the echo
         ``range_compress(simulate(...), window=W)`` would give (W = "none" for True, or the
@@ -374,6 +375,8 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
     """
     max_bytes, chunk_bytes = check_arguments(scenario, snr_db, seed, max_bytes, chunk_bytes, reuse_tolerance, dict(
         stop_and_go=stop_and_go, progress=progress, hull_occlusion=hull_occlusion))
+    for name, value in (("spreading", spreading), ("absorption", absorption)):
+        auto_flag(f"simulate {name}", value)
     if compressed is not False and snr_db is not None:
         raise ValueError(f"simulate snr_db: noise ({snr_db!r} dB) is defined on raw samples; with compressed="
                          f"{compressed!r} simulate the raw echo with noise and range_compress it instead")

@@ -64,11 +64,12 @@ def path_record(real, extended: bool) -> np.dtype:
     """The path record echo_paths writes and the accumulation reads (``echo_path_t``): the echo
     centre (start sample and fraction), the amplitude with the carrier phase and, ``extended``,
     its own chirp (cycles a sample^2), Doppler shift (cycles a sample), envelope (Np a sample,
-    a sample^2) and support [lo, hi] (samples about the centre)."""
+    a sample^2), support [lo, hi] (samples about the centre) and level (Np: the envelope's
+    largest log over the support, folded into the amplitude)."""
     kind = "f8" if np.dtype(real) == np.float64 else "f4"
     fields = [("start", "i4"), ("frac", kind), ("amp", kind, 2)]
     if extended:
-        fields += [(name, kind) for name in ("chirp", "lin", "beta", "gamma", "lo", "hi")]
+        fields += [(name, kind) for name in ("chirp", "lin", "beta", "gamma", "lo", "hi", "level")]
     return record_dtype(fields)
 
 
