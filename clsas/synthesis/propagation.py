@@ -148,11 +148,15 @@ class Affine:
         lp = plane.linear()
         return Affine(lp @ self.linear, lp @ self.shift + 2.0 * float(plane.origin @ plane.normal) * plane.normal)
 
+    @property
+    def identity(self) -> bool:
+        return bool(np.array_equal(self.linear, np.eye(3)) and not np.any(self.shift))
+
     def points(self, p: np.ndarray) -> np.ndarray:
-        return p @ self.linear.T + self.shift
+        return p if self.identity else p @ self.linear.T + self.shift
 
     def vectors(self, d: np.ndarray) -> np.ndarray:
-        return d @ self.linear.T
+        return d if self.identity else d @ self.linear.T
 
 
 @dataclass(frozen=True)

@@ -364,9 +364,11 @@ class _OpenCLSynth(_Synth):
         Sorting keeps each chunk of CHUNK_SCATTERERS compact in delay, so the accumulation skips
         whole chunks that cannot reach a block of samples; any order gives the same result.
         """
-        mid = self.eta[self.eta.size // 2: self.eta.size // 2 + 1]
-        tau = paths(self.scenario, mid, self.scat, range(self.n_rx), stop_and_go=True).tau
-        return np.argsort(tau[:, 0, :], axis=1, kind="stable")
+        mid = self.eta[self.eta.size // 2]
+        q = self.scat.p0 + self.scat.vel * mid
+        out = np.linalg.norm(q - self.scenario.tx_position(mid), axis=1)
+        return np.stack([np.argsort(out + np.linalg.norm(q - self.scenario.receiver_position(h, mid), axis=1),
+                                    kind="stable") for h in range(self.n_rx)])
 
     def _run_paths(self, pulses: slice, t0: np.ndarray, weighted: bool = True):
         """The paths kernel on a pulse block, every path kind: delays and amplitudes (times the
