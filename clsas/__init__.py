@@ -42,6 +42,7 @@ _EXPORTS = {
     "load": (".io", "load"),
     "load_scenario": (".io", "load_scenario"),
     "memory_budget": (".budget", "memory_budget"),
+    "nonlinear_chirp_scaling": (".image.ncs", "nonlinear_chirp_scaling"),
     "omega_k": (".image.omegak", "omega_k"),
     "pca_record": (".image.multireceiver", "pca_record"),
     "ptrs_image": (".image.ptrs", "ptrs_image"),
