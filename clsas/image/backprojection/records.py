@@ -22,17 +22,13 @@ its spectrum zero-padded to ``upsample`` times its length (:func:`rangecomp._ups
 transformed back, and the block's own part kept. A prepared sample therefore depends on its block
 only, not on the span or on how many records are transformed at once, so records prepared for a
 wider span (or the whole record) give the same image, bit for bit, as records prepared for the
-grid itself. The guard truncates the band-limited interpolation kernel: measured on the Huang
-scene's compressed echo (fs = 1.25 B), the blocks differ from one FFT of the whole zero-padded
-record (:func:`rangecomp.upsample_records`) by 9e-4 RMS relative (4.5e-3 with white noise 10 dB
-above the echo's peak before compression), well below linear interpolation's own error on x8
-upsampled data (up to (2 pi 0.4 / 8)^2 / 8 = 1.2e-2 at fs = 1.25 B). Small FFTs (256 -> 2048
-points) stay in cache: ~1.2x the whole-record FFT's operations but no 8x-long temporaries;
-measured on that echo's 2048 records x 1693 samples (scipy.fft, two workers, busy machine,
-medians of 5): whole records 0.59 CPU-s in blocks vs 0.66 in one FFT each, a quarter of the
-record 0.16. Measured alternative: an OpenCL FFT (reikna 0.9 on PoCL, 2048 x 16384 points) ran
-20-40x slower than scipy.fft with two workers (25 s vs 0.6-1.3 s), so the upsampling stays on
-the host.
+grid itself. The guard truncates the band-limited interpolation kernel: the blocks depart from
+one FFT of the whole zero-padded record (:func:`rangecomp.upsample_records`) by far less than
+linear interpolation's own error on x8 upsampled data (up to (2 pi 0.4 / 8)^2 / 8 = 1.2e-2 at
+fs = 1.25 B; tests/test_backprojection.py holds the difference). Small FFTs (256 -> 2048 points)
+stay in cache: ~1.2x the whole-record FFT's operations but no 8x-long temporaries. An OpenCL FFT
+on PoCL was tried and was many times slower than scipy.fft with two workers, so the upsampling
+stays on the host.
 
 Device memory. A PreparedRecords holds its samples on the host (complex64, read-only); its device
 buffers are made on first OpenCL use, one per receiver (and one complex128 copy per receiver for
