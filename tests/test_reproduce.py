@@ -59,6 +59,16 @@ def test_check_refuses_a_difference_without_a_reason_or_evidence():
         rep.add("Table 1", "T5", "PSLR", "dB", paper=1.0, clsas=1.0, tolerance=math.nan)
 
 
+def test_a_row_may_have_several_reasons():
+    rep = _report()
+    rep.add("Table 1", "T4", "PSLR", "dB", paper=-14.0, clsas=-10.0, tolerance=0.5, reason="window, other")
+    with pytest.raises(ValueError, match="unknown key 'window, other'"):
+        rep.check()
+    rep.explain("other", "a second cause", ["test:tests/test_reproduce.py::test_a_row_may_have_several_reasons"])
+    rep.check()
+    assert rep.rows[-1].reason_keys == ["window", "other"] and "differs: window, other" in rep.format()
+
+
 def test_printed_table_has_the_verdict_column_and_the_reasons():
     text = _report().format()
     assert "differs: window" in text and "match" in text and "clsas only" in text

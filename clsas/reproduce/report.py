@@ -70,7 +70,8 @@ class Row:
     paper : the printed value (None: the paper gives none; the row is clsas's alone).
     clsas : clsas's value (NaN when clsas could not measure it; that differs).
     tolerance : the largest |clsas - paper| still called a match, in ``unit``.
-    reason : the key of the :class:`Reason` a difference has ("" when none is given).
+    reason : the key of the :class:`Reason` a difference has, or several keys joined by ", "
+        ("" when none is given).
     """
 
     table: str
@@ -81,6 +82,11 @@ class Row:
     clsas: float
     tolerance: float
     reason: str = ""
+
+    @property
+    def reason_keys(self) -> list:
+        """The reason's keys (several when the difference has several causes)."""
+        return [k.strip() for k in self.reason.split(",") if k.strip()]
 
     @property
     def difference(self) -> float | None:
@@ -173,7 +179,7 @@ class Report:
         its evidence names an experiment this report does not hold or is neither kind."""
         problems = []
         for row in self.rows:
-            if row.verdict == DIFFERS and row.reason not in self.reasons:
+            if row.verdict == DIFFERS and (not row.reason_keys or any(k not in self.reasons for k in row.reason_keys)):
                 problems.append(f"{row.table} {row.item} {row.quantity} differs "
                                 f"({row.clsas:g} vs {row.paper:g}) without a reason"
                                 + (f" (unknown key {row.reason!r})" if row.reason else ""))
@@ -234,7 +240,7 @@ class Report:
         counts = self.counts()
         lines += ["", f"verdicts: {counts[MATCH]} match, {counts[DIFFERS]} differ (each with its reason below), "
                       f"{counts[ONLY]} clsas only"]
-        used = {r.reason for r in self.rows if r.verdict == DIFFERS}
+        used = {k for r in self.rows if r.verdict == DIFFERS for k in r.reason_keys}
         for reason in self.reasons.values():
             tag = "" if reason.key in used else " (no row differs for it in this run)"
             lines += ["", f"why {reason.key}{tag}: {reason.text}", f"  evidence: {', '.join(reason.evidence)}"]
