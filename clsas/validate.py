@@ -170,3 +170,28 @@ def seed(name: str, value):
     if value is None or isinstance(value, (np.random.SeedSequence, np.random.BitGenerator, np.random.Generator)):
         return value
     return integer(name, value, low=0, why="or None, a SeedSequence or a Generator")
+
+
+def peak_magnitude(data) -> float:
+    """The largest |x| of a numeric array, read one slice of its first axis at a time (no
+    temporary the size of ``data``)."""
+    data = np.asarray(data)
+    if data.size == 0:
+        return 0.0
+    if data.ndim < 2:
+        return float(np.abs(data).max())
+    return max(float(np.abs(part).max()) for part in data)
+
+
+def bounded_gain(name: str, data, gain: float, dtype=np.complex64, advice: str = "") -> float:
+    """Refuse ``data`` (ValueError naming ``name``) when its largest |sample| times ``gain`` (the
+    most a linear processing of it can amplify a sample: FFT lengths, coherent sums) would leave
+    ``dtype``'s range, so that the processing cannot return inf from finite input; returns the
+    peak magnitude."""
+    peak = peak_magnitude(data)
+    largest = float(np.finfo(np.dtype(dtype)).max)
+    if peak * float(gain) > largest:
+        raise ValueError(f"{name}: samples up to {peak:.3g} would overflow {np.dtype(dtype).name} (|value| > "
+                         f"{largest:.3g}) after a gain of up to {float(gain):.3g}"
+                         + (f": {advice}" if advice else ": scale the data down"))
+    return peak

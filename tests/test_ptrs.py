@@ -189,3 +189,37 @@ def test_bad_input(opencl_device):
                 clsas.pca_record(echo, reference_range=value, backend=backend)
     with pytest.raises(TypeError, match="rcmc"):
         ptrs_image(echo, rcmc="yes")
+
+
+def test_hardening_regressions(opencl_device):
+    """Issue #27's reproducers: a huge block width was a Newton RuntimeError (now refused by
+    name; a width wider than the swath is one block referred to its middle); deconvolve="no"
+    was read as True; the budget was checked only after allocating (now before the spectra,
+    naming the sizes); samples of 3e38 returned inf (now refused before any FFT)."""
+    _, echo = small_scene()
+    with pytest.raises(ValueError, match="ptrs_image block_width"):
+        ptrs_image(echo, block_width=1e300)
+    one = ptrs_image(echo, block_width=1e6, rcmc=False)
+    (lo, hi, ref), = one.provenance["blocks"]
+    assert ref == pytest.approx((lo + hi) / 2)
+    with pytest.raises(ValueError, match=r"reference_ranges\[1\]: must be in \[.*\] m \(ranges the record holds\)"):
+        ptrs_image(echo, reference_ranges=[50.0, 5e5])
+    for name in ("deconvolve", "rcmc"):
+        with pytest.raises(TypeError, match=f"ptrs_image {name}: must be True or False"):
+            ptrs_image(echo, **{name: "no"})
+    for name, value, error in (("depth", "a", TypeError), ("workers", 0, ValueError), ("window", "box", ValueError)):
+        with pytest.raises(error, match=f"ptrs_image {name}"):
+            ptrs_image(echo, **{name: value})
+    import tracemalloc
+
+    with clsas.use_memory_budget("2M"):
+        tracemalloc.start()
+        with pytest.raises(clsas.errors.MemoryBudgetError, match="ptrs_image of 15 receivers"):
+            ptrs_image(echo)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    assert peak < 8 * 2**20, peak  # refused before its arrays (91 MiB) were allocated
+    loud = echo.replace(data=(echo.data * np.float32(3e38 / np.abs(echo.data).max())).astype(np.complex64))
+    for backend in ("numpy", "opencl"):
+        with pytest.raises(ValueError, match="ptrs_image echo.data: samples up to .*e\\+38 would overflow complex64"):
+            ptrs_image(loud, backend=backend)
