@@ -44,9 +44,9 @@ given per pulse, read from a Platform's attitude at the echoes' reception times,
 measured from the echo's own receiver positions, which record where each hydrophone was.
 
 Not corrected (as in the paper): the amplitude of the beam patterns, which turn with the array
-(on the wu2018_inclined scene the fully corrected peak stays 0.5 dB below that of an
-uninclined array), and the attitude's change during one pulse's echoes (the angles are those
-at the reference range's reception).
+(the fully corrected peak stays a fraction of a dB below that of an uninclined array), and the
+attitude's change during one pulse's echoes (the angles are those at the reference range's
+reception).
 """
 
 from __future__ import annotations

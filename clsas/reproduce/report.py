@@ -140,6 +140,7 @@ class Report:
     notes: list = field(default_factory=list)
     stages: list = field(default_factory=list)  # (name, seconds)
     started: float = field(default_factory=time.perf_counter, repr=False)
+    load_at_start: list = field(default_factory=lambda: _load_average(), repr=False)
 
     def add(self, table: str, item: str, quantity: str, unit: str, paper, clsas, tolerance: float,
             reason: str = "") -> Row:
@@ -207,7 +208,7 @@ class Report:
         """The JSON document (:data:`FORMAT`)."""
         return {
             "format": FORMAT, "paper": self.paper, "title": self.title, "clsas": __version__,
-            "machine": machine(), "settings": self.settings, "assumptions": list(self.assumptions),
+            "machine": {**machine(), "load_average_at_start": self.load_at_start}, "settings": self.settings, "assumptions": list(self.assumptions),
             "seconds": time.perf_counter() - self.started,
             "stages": [{"name": n, "seconds": s} for n, s in self.stages],
             "counts": self.counts(),
@@ -285,15 +286,17 @@ def _grid(columns, rows) -> str:
     return "\n".join("  " + "  ".join(f"{c:>{w}}" for c, w in zip(r, widths)) for r in cells)
 
 
-def machine() -> dict:
-    """Where a reproduction ran: processor, cores, the load average, Python."""
-    info = {"machine": platform.machine(), "processor": _cpu_name(), "cores": os.cpu_count(),
-            "python": platform.python_version()}
+def _load_average() -> list | None:
     try:
-        info["load_average"] = [round(x, 2) for x in os.getloadavg()]
+        return [round(x, 2) for x in os.getloadavg()]
     except OSError:
-        pass
-    return info
+        return None
+
+
+def machine() -> dict:
+    """Where a reproduction ran: processor, cores, the load average (1, 5, 15 min), Python."""
+    return {"machine": platform.machine(), "processor": _cpu_name(), "cores": os.cpu_count(),
+            "python": platform.python_version(), "load_average": _load_average()}
 
 
 def _cpu_name() -> str:

@@ -27,9 +27,8 @@ echo's spectrum, exp(-j 2 pi (f0 + f_tau) tau - j 2 pi f_t t) integrated over t,
 slopes (tau'' > 0: tau' is increasing, the root unique), to |dt| < 1e-12 s (or 8 ulp of T).
 :class:`StationaryPoints` is the paper's "second scheme": it tabulates T and G per receiver
 and range on a uniform grid of s covering the processed band, once, and serves the phase of
-any (f_tau, f_t) by cubic Hermite interpolation of G (with its exact derivative -T: the phase
-error is ~2e-9 rad on Zhang et al.'s band; tests/test_ptrs.py measures it against Newton at
-random slopes).
+any (f_tau, f_t) by cubic Hermite interpolation of G (with its exact derivative -T;
+tests/test_ptrs.py measures the phase error against Newton at random slopes).
 """
 
 from __future__ import annotations
