@@ -172,6 +172,24 @@ def seed(name: str, value):
     return integer(name, value, low=0, why="or None, a SeedSequence or a Generator")
 
 
+def instance(name: str, value, kinds, allowed: str):
+    """``value`` when it is an instance of ``kinds`` (a type or a tuple of types); otherwise a
+    TypeError naming the parameter, what is ``allowed`` (in words) and what was given."""
+    if not isinstance(value, kinds):
+        raise TypeError(f"{name}: must be {allowed}, got {_show(value)} ({type(value).__name__})")
+    return value
+
+
+def compression(name: str, echo, compressed: bool = True, advice: str = "call clsas.range_compress(echo) first"):
+    """The one check of an echo's range compression: ``echo.compressed`` must equal
+    ``compressed``; otherwise a ValueError naming the parameter, what it must be, what it is
+    and ``advice`` (what to do). Returns ``echo``."""
+    if bool(echo.compressed) != compressed:
+        want, got = ("range-compressed", "raw") if compressed else ("raw", "range-compressed")
+        raise ValueError(f"{name}: must be a {want} echo (EchoData.compressed {compressed}), got a {got} one; {advice}")
+    return echo
+
+
 def peak_magnitude(data) -> float:
     """The largest |x| of a numeric array, read one slice of its first axis at a time (no
     temporary the size of ``data``)."""
