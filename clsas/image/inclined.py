@@ -137,10 +137,8 @@ def correct_inclined_array(echo: EchoData, yaw=None, pitch=None, receivers=None,
     LineRecord (n_pulses x len(receivers) rows, every v PRI / M), for omega_k, range_doppler,
     chirp_scaling.
     """
-    if not isinstance(echo, EchoData):
-        raise TypeError(f"correct_inclined_array echo: must be an EchoData, got {type(echo).__name__}")
-    if not echo.compressed:
-        raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first")
+    v.instance("correct_inclined_array echo", echo, EchoData, "an EchoData")
+    v.compression("correct_inclined_array echo", echo)
     correct = tuple(correct) if isinstance(correct, (tuple, list)) else (correct,)
     if any(not isinstance(a, str) or a not in ANGLES for a in correct):
         raise ValueError(f"correct_inclined_array correct: must name angles among {ANGLES}, got {correct!r}")
