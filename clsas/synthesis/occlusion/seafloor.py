@@ -166,6 +166,8 @@ class SeafloorPaths:
 
         from ... import opencl
 
+        if self.count == 0:  # nothing drawn (no OpenCL buffer may be empty)
+            return
         rt = opencl.runtime()
         mf = cl.mem_flags
         n16 = -(-self.count // 16) * 16
