@@ -34,7 +34,9 @@ def main(out: str = "docs/images/mine_scene.png") -> None:
     compressed = clsas.range_compress(echo, window="hamming", upsample=2)
     grid = clsas.Grid.plane(x=np.arange(21.0, 33.0, 0.02), y=np.arange(-5.0, 5.0, 0.02), z=scene.seafloor.z)
     t = time.perf_counter()
-    ground = clsas.backproject(compressed, grid, progress=False)
+    # integrate over the element's beam (lambda / D = 0.15 rad): the track samples at D / 2, so
+    # the beam's edges and sidelobes alias into ghosts a full-aperture sum would show
+    ground = clsas.backproject(compressed, grid, aperture=0.15, progress=False)
     print(f"back-projection {ground.data.shape}: {time.perf_counter() - t:.1f} s")
     t = time.perf_counter()
     slant = clsas.omega_k(clsas.line_record(clsas.range_compress(echo, window="hamming")), window="hamming")
