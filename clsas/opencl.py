@@ -173,7 +173,7 @@ def kernels_dir() -> Path:
 
     In an installed wheel it is ``clsas/kernels`` (the build maps the top-level ``kernels/``
     there); in a source checkout (editable install) it is the top-level ``kernels/``. Found
-    once per process (the lookup costs ~0.4 ms, which every kernel launch paid).
+    once per process (every kernel launch used to pay the lookup).
     """
     packaged = Path(str(resources.files("clsas"))) / "kernels"
     if (packaged / "common.h").is_file():
@@ -254,7 +254,7 @@ def kernel(name: str, kernel_name: str, defines: dict | None = None, device: str
            double: bool = False, preamble: str = ""):
     """The pyopencl.Kernel ``kernel_name`` from ``kernels/NAME.cl`` (see :func:`program`), one per
     (program, name, thread): a fresh Kernel looks its argument invoker up in pyopencl's on-disk
-    cache (~2-4 ms a call, measured), which calls launching many small kernels (ffbp's leaves and
+    cache (milliseconds a call), which calls launching many small kernels (ffbp's leaves and
     merges) paid every time. Launch it as ``kern(queue, ...)`` (arguments set and enqueued at once)."""
     cl = _import_pyopencl()
     prg = program(name, defines=defines, device=device, double=double, preamble=preamble)

@@ -7,8 +7,7 @@ for a *batch* of consecutive leaves (at most BATCH_POINTS polar samples and RECO
 prepared samples), and on OpenCL the whole batch is one bp_tile launch a receiver and block of
 pulses (kernels/backprojection.cl built with ROW_SHIFT: a tile's pulse j reads record row
 j + row_shift[tile], the first pulse of its leaf), so a leaf costs its kernel work and no call of
-its own (a :func:`clsas.backproject` call a leaf cost ~10-40 ms of host work, measured, against
-~3 ms of kernel for a leaf of 16 pulses x 30k samples).
+its own (a :func:`clsas.backproject` call a leaf costs many times the leaf's kernel time in host work).
 
 Tiles. bp_tile (:class:`clsas.image.backprojection.TileKernel`, which this stage uses for its
 options, records, references, parameters and launch) computes in float32 relative to a

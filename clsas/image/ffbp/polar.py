@@ -41,8 +41,8 @@ the smallest oversampling with e_T(rho) <= tolerance / (2 S), so that each sub-a
 contribution to a pixel keeps its phase and relative amplitude error below ``tolerance`` up to
 the edge of the scene (the band edge is the component from the scene's edge). The bound adds
 the errors linearly: a band-edge component's interpolation error has the same sign at every
-stage (an amplitude loss), so they do not add in power (measured: an rss rule let the error
-of an 8-stage tree reach twice its tolerance).
+stage (an amplitude loss), so they do not add in power (an rss rule lets a deep tree's error
+exceed its tolerance).
 """
 
 from __future__ import annotations
