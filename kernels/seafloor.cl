@@ -6,13 +6,15 @@
  * in float64); the launcher is in the same module (SeafloorPaths._unshadowed_opencl).
  *
  * One work-item: 16 consecutive facets (float16 lanes: PoCL vectorises explicit vector types,
- * not loops across work-items, docs/POCL_NOTES) at pulse p; global size (n16 / 16, P), a loop
- * over the receivers. Facets are structure-of-arrays (x, y, z, normal x, y, z), padded to n16
- * with zero normals (never lit). Positions are float32 relative to an origin near the facets
- * (1e-5 m at 100 m: they place a ray and a grazing angle). stations[p]: the transmitter at
- * emission, then for each receiver its position at emission and its velocity (float4 .xyz).
+ * not loops across work-items, docs/POCL_NOTES) at pulse p; global size (span16 / 16, P) over
+ * the facets first16 .. first16 + span16 (those the beam can reach at these pulses: the facets
+ * are sorted along track), a loop over the receivers. Facets are structure-of-arrays (x, y, z,
+ * normal x, y, z), padded to a multiple of 16 with zero normals (never lit). Positions are
+ * float32 relative to an origin near the facets (1e-5 m at 100 m: they place a ray and a
+ * grazing angle). stations[p]: the transmitter at emission, then for each receiver its position
+ * at emission and its velocity (float4 .xyz).
  * spheres[p]: the mesh targets' bounding spheres (centre .xyz, radius .w) at that pulse.
- * out (H, P, n16), flag (P, n16).
+ * out (H, P, span16), flag (P, span16).
  */
 
 #define LANES 16
@@ -47,11 +49,12 @@ __kernel void seafloor_weights(__global const float *px, __global const float *p
                                __global const float *nx, __global const float *ny, __global const float *nz,
                                __global const float4 *stations, __global const float4 *spheres,
                                __global const float *law, const int n_law, const float reach,
-                               const float lift, const float c, const float slope, const int n16,
-                               const int n_rx, const int n_spheres, __global float *out,
+                               const float lift, const float c, const float slope, const int first16,
+                               const int span16, const int n_rx, const int n_spheres, __global float *out,
                                __global uchar *flag)
 {
-    const int g = get_global_id(0);
+    const int item = get_global_id(0);
+    const int g = first16 / LANES + item;
     const int p = get_global_id(1);
     const size_t n_pulses = get_global_size(1);
     const floatv x = vload16(g, px), y = vload16(g, py), z = vload16(g, pz);
@@ -91,8 +94,8 @@ __kernel void seafloor_weights(__global const float *px, __global const float *p
             hi[j] = law[at[j] + 1];
         }
         const floatv a = vload16(0, lo), b = vload16(0, hi);
-        vstore16(select((floatv)(0.0f), a + f * (b - a), heard), g, out + ((size_t)h * n_pulses + p) * n16);
+        vstore16(select((floatv)(0.0f), a + f * (b - a), heard), item, out + ((size_t)h * n_pulses + p) * span16);
         flagged |= heard & may_block(qx, qy, qz, rx, ry, rz, slope, sph, n_spheres);
     }
-    vstore16(convert_uchar16(flagged & 1), g, flag + (size_t)p * n16);
+    vstore16(convert_uchar16(flagged & 1), item, flag + (size_t)p * span16);
 }

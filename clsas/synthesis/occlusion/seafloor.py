@@ -178,28 +178,36 @@ class SeafloorPaths:
             self._device = tuple(cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
                                  for a in (*soa, self.law.astype(np.float32)))
         n_p, n_rx = stations.shape[0], self.scenario.n_receivers
+        spans = np.array([self.facets.reach_span(tx, self.across) for tx in stations[:, 0]])
+        first = int(spans[:, 0].min()) // 16 * 16  # the facets any of these pulses can reach
+        span = -(-(int(spans[:, 1].max()) - first) // 16) * 16
+        out[...] = 0.0
+        flags[...] = False
+        if span <= 0:
+            return
         st = np.zeros(stations.shape[:2] + (4,), np.float32)
         st[..., :3] = stations - self.origin
         st[:, 2::2, :3] = stations[:, 2::2]  # velocities are not moved
         sph = np.zeros((n_p, max(1, spheres.shape[1]), 4), np.float32)
         sph[:, :spheres.shape[1], :3] = spheres[..., :3] - self.origin
         sph[:, :spheres.shape[1], 3] = spheres[..., 3]
-        weights = np.empty((n_rx, n_p, n16), np.float32)
-        flag = np.empty((n_p, n16), np.uint8)
+        weights = np.empty((n_rx, n_p, span), np.float32)
+        flag = np.empty((n_p, span), np.uint8)
         w_buf = cl.Buffer(rt.context, mf.WRITE_ONLY, weights.nbytes)
         f_buf = cl.Buffer(rt.context, mf.WRITE_ONLY, flag.nbytes)
         knl = opencl.kernel("seafloor", "seafloor_weights")
         slope = np.float32(-np.inf if self.slope is None else self.slope)
-        knl(rt.queue, (n16 // 16, n_p), None, *self._device[:6],
+        knl(rt.queue, (span // 16, n_p), None, *self._device[:6],
             cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=st),
             cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=sph), self._device[6],
             np.int32(LAW_TABLE), np.float32(min(self.facets.reach, 1e30)), np.float32(self.lift),
-            np.float32(self.scenario.medium.sound_speed), slope, np.int32(n16), np.int32(n_rx),
+            np.float32(self.scenario.medium.sound_speed), slope, np.int32(first), np.int32(span), np.int32(n_rx),
             np.int32(spheres.shape[1]), w_buf, f_buf)
         cl.enqueue_copy(rt.queue, weights, w_buf)
         cl.enqueue_copy(rt.queue, flag, f_buf)
-        out[...] = weights[..., :self.count]
-        flags[...] = flag[:, :self.count].view(bool)
+        stop = min(first + span, self.count)
+        out[..., first:stop] = weights[..., :stop - first]
+        flags[:, first:stop] = flag[:, :stop - first].view(bool)
 
     # -- shadows --------------------------------------------------------------------------------
 
