@@ -20,7 +20,7 @@ from _harness import arguments, report
 import clsas
 from clsas.scene import presets
 from clsas.scene.seafloor import Seafloor, generate
-from clsas.synthesis.occlusion import PathWeights, seafloor_as_targets
+from clsas.synthesis.occlusion import PathWeights
 
 
 def timed(run) -> float:
@@ -99,14 +99,15 @@ def main() -> None:
     # the whole swath
     compressed = "compressed" in inspect.signature(clsas.simulate).parameters
     start = time.perf_counter()
-    flat, occlusion = seafloor_as_targets(scene)
     if compressed:
-        clsas.simulate(flat, occlusion=occlusion, compressed=True, progress=False)
-        what = "facets + weights + compressed synthesis"
+        generate.cache_clear()
+        clsas.simulate(scene, compressed=True, progress=False)
+        what = "facets + weights + compressed synthesis (spreading, absorption, bottom bounce: the defaults)"
     else:
+        paths = PathWeights(scene)
         for s in range(pulses):  # one pulse at a time: (15, 1, facets) float64 is ~0.35 GB at full size
-            occlusion(slice(s, s + 1))
-        what = "facets + weights (no compressed synthesis in clsas.simulate yet)"
+            paths(slice(s, s + 1))
+        what = "facets + weights (no compressed synthesis in clsas.simulate)"
     total = time.perf_counter() - start
     work = facets.count * pulses * n_rx
     report(args, "seafloor", "opencl", {"facets": facets.count, "pulses": pulses, "receivers": n_rx,

@@ -16,7 +16,6 @@ import numpy as np
 import clsas
 from clsas import plot
 from clsas.scene import presets
-from clsas.synthesis.occlusion import seafloor_as_targets
 
 
 def main(out: str = "docs/images/mine_scene.png") -> None:
@@ -27,9 +26,8 @@ def main(out: str = "docs/images/mine_scene.png") -> None:
 
     start = time.perf_counter()
     scene = presets.mine_scene()
-    flat, occlusion = seafloor_as_targets(scene)  # the seafloor's facets and their path weights
-    echo = clsas.simulate(flat, occlusion=occlusion, progress=False)
-    print(f"simulated {echo.data.shape} from {occlusion.path_weights.n_scatterers} scatterers: "
+    echo = clsas.simulate(scene, progress=False)  # spreading, absorption, bottom bounces: on (a seafloor)
+    print(f"simulated {echo.data.shape} from {echo.provenance['n_scatterers']} scatterers: "
           f"{time.perf_counter() - start:.1f} s")
     compressed = clsas.range_compress(echo, window="hamming", upsample=2)
     grid = clsas.Grid.plane(x=np.arange(21.0, 33.0, 0.02), y=np.arange(-5.0, 5.0, 0.02), z=scene.seafloor.z)

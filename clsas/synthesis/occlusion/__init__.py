@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from .rays import DEFAULT_REUSE_TOLERANCE, METHODS, RayCaster, occluded_reference, visibility
 from .scan import scan_image
-from .weights import PathWeights, has_meshes, needs_path_weights, scene_scatterers, seafloor_as_targets
+from .weights import PathWeights, has_meshes, needs_path_weights, scene_scatterers
 
 __all__ = ["DEFAULT_REUSE_TOLERANCE", "METHODS", "PathWeights", "RayCaster", "has_meshes", "needs_path_weights",
-           "occluded_reference", "scan_image", "scene_scatterers", "seafloor_as_targets", "visibility"]
+           "occluded_reference", "scan_image", "scene_scatterers", "visibility"]

@@ -218,33 +218,6 @@ def scene_scatterers(scenario) -> Scatterers:
     return Scatterers.concatenate(parts)
 
 
-def seafloor_as_targets(scenario, **options):
-    """The seafloor handed to :func:`clsas.simulate` explicitly: ``(flat, occlusion)``, with
-    ``flat`` the scenario without its seafloor but with the seafloor's facets as point targets
-    after its own targets, and ``occlusion(pulses)`` their path weights (1 for the targets'
-    paths, which the synthesis weights itself), so that ``clsas.simulate(flat,
-    occlusion=occlusion)`` sums the seafloor. ``options`` go to :class:`PathWeights`.
-    """
-    from ...scene.targets import PointTargets
-
-    if scenario.seafloor is None:
-        raise ValueError("seafloor_as_targets: the scenario has no seafloor (Scenario.seafloor is None)")
-    weights = PathWeights(scenario, **options)
-    floor = weights.seafloor
-    points = PointTargets(floor.facets.positions, reflectivity=floor.facets.refl)
-    flat = scenario.replace(seafloor=None, targets=scenario.targets + (points,))
-    first, n_rx = weights.seafloor_first, scenario.n_receivers
-
-    def occlusion(pulses: slice) -> np.ndarray:
-        eta = scenario.eta[pulses]
-        out = np.ones((n_rx, eta.size, first + floor.count))
-        floor.fill(eta, out[:, :, first:])
-        return out
-
-    occlusion.path_weights = weights
-    return flat, occlusion
-
-
 def relief_spacing(scenario) -> float:
     """The grid spacing of the seafloor's mesh, m: the facet spacing, or finer where the relief
     asks (an eighth of the ripples' wavelength, half the height map's spacing)."""
