@@ -403,7 +403,12 @@ def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None 
                               f"(|K_a,eq| T_a^2 = {abs(est.fm_rate) * est.aperture**2:.3g} < {MIN_TIME_BANDWIDTH})")
     k0 = (est.tau_c - rec.t0) * rec.fs
     half = EXTENT_WINDOW * rec.fs
-    bins = slice(int(max(0, np.floor(k0 - half))), int(min(rec.x.shape[1], np.ceil(k0 + half) + 1)))
+    n = rec.x.shape[1]
+    if not (np.isfinite(k0) and -half < k0 < n + half):
+        raise EstimationError(f"receiver {rec.name}: the target's trace lies outside the record (tau_c = "
+                              f"{est.tau_c:.6g} s; K_a,eq = {est.fm_rate:.4g} Hz/s may be wrong)")
+    lo = int(np.clip(np.floor(k0 - half), 0, n - 2))
+    bins = slice(lo, int(np.clip(np.ceil(k0 + half) + 1, lo + 2, n)))
     ref = est if reference is None else reference
     if sharpen:
         image, eta_axis, _ = sharpened_bins(rec, ref.fm_rate, ref.doppler_centroid, bins, higher_order)
@@ -417,11 +422,12 @@ def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None 
     return dataclasses.replace(est, tau_c=ext.tau_mid, eta_c=eta_c, extent=ext)
 
 
-def _remove(rec: Records, est: ReceiverEstimate, tau_halfwidth: float, eta_cells: float) -> Records:
+def remove_target(rec: Records, est: ReceiverEstimate, tau_halfwidth: float, eta_cells: float) -> Records:
     """``rec`` without the target of ``est`` (section VII-B): RCMC + RWC + azimuth compression,
-    the focused target's window (|tau - tau_c| <= tau_halfwidth, |eta - eta_c| <= eta_cells
-    azimuth resolution cells 1 / (|K| T_a)), then the inverse chain on the window (all three
-    steps are unitary phase filters: :mod:`.filters`), subtracted from the record."""
+    the focused target's window (its extent, :mod:`.extent`, or its tau_c and eta_c without one,
+    widened by ``tau_halfwidth`` s in range and ``eta_cells`` azimuth resolution cells
+    1 / (|K| T_a) in slow time), then the inverse chain on the window (all three steps are
+    unitary phase filters: :mod:`.filters`), subtracted from the record."""
     if not est.focusable:
         raise EstimationError(f"receiver {rec.name}: the target at K_a,eq = {est.fm_rate:.3g} Hz/s does not focus, "
                               "so it cannot be removed to look for the next one")
@@ -429,7 +435,11 @@ def _remove(rec: Records, est: ReceiverEstimate, tau_halfwidth: float, eta_cells
     image, eta_axis = compress(rec, filters.advance(rec.x, rec.fs, shift, cycles), est.fm_rate)
     tau = rec.t0 + np.arange(rec.x.shape[1]) / rec.fs
     cell = 1.0 / (abs(est.fm_rate) * est.aperture)
-    window = (np.abs(eta_axis - est.eta_c) <= eta_cells * cell)[:, None] & (np.abs(tau - est.tau_c) <= tau_halfwidth)
+    ext = est.extent
+    eta_lo, eta_hi = (ext.eta if ext is not None else (est.eta_c, est.eta_c))
+    tau_lo, tau_hi = (ext.tau if ext is not None else (est.tau_c, est.tau_c))
+    window = ((eta_axis >= eta_lo - eta_cells * cell) & (eta_axis <= eta_hi + eta_cells * cell))[:, None] \
+        & (tau >= tau_lo - tau_halfwidth) & (tau <= tau_hi + tau_halfwidth)
     target = filters.decompress(np.where(window, image, 0), rec.d, est.fm_rate)
     return dataclasses.replace(rec, x=rec.x - filters.advance(target, rec.fs, -shift, -cycles))
 
@@ -439,9 +449,9 @@ def estimate_receivers(echo: EchoData, receiver: str, n_targets: int = 2, *, p0:
                        eta_cells: float = 20.0) -> list[ReceiverEstimate]:
     """Estimates of ``n_targets`` moving targets in ``receiver``'s echo, strongest SoWVD peak
     first (Kiang & Kiang 2022 section VII-B): each target found is focused, windowed
-    (``tau_halfwidth`` s around tau_c, default 6 range resolution cells 1 / B; ``eta_cells``
-    azimuth resolution cells around eta_c), taken back through the inverse chain and removed from
-    the record before the next search. Raises EstimationError when a search finds no peak
+    (``tau_halfwidth`` s around its extent, default 6 range resolution cells 1 / B; ``eta_cells``
+    azimuth resolution cells around its extent: :func:`remove_target`), taken back through the
+    inverse chain and removed from the record before the next search. Raises EstimationError when a search finds no peak
     (:func:`estimate_receiver` for the other parameters).
     """
     if isinstance(n_targets, bool) or not isinstance(n_targets, (int, np.integer)) or n_targets < 1:
@@ -453,7 +463,7 @@ def estimate_receivers(echo: EchoData, receiver: str, n_targets: int = 2, *, p0:
     for i in range(n_targets):
         found.append(estimate_records(rec, p0, threshold_db))
         if i + 1 < n_targets:
-            rec = _remove(rec, found[-1], tau_halfwidth, eta_cells)
+            rec = remove_target(rec, found[-1], tau_halfwidth, eta_cells)
     return found
 
 

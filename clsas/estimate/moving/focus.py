@@ -48,7 +48,7 @@ from .chain import compressed_receiver, focus_receiver, records_of, sharpened_bi
 from .closedforms import Predicted, delay_terms, higher_order_delay
 from .layout import Layout
 from .mapping import along_track_speed, to_ry
-from .motion import MotionEstimate, check_echo, target_size
+from .motion import MotionEstimate, check_echo, target_extent
 from .sharpen import polynomial_phase
 
 log = logging.getLogger("clsas")
@@ -105,12 +105,18 @@ def _axes(est: MotionEstimate, half_size, spacing, tau_span):
     layout = est.layout
     q = est.position + est.velocity * layout.eta_ref
     r_c = float(np.linalg.norm(q - layout.tx_position))
-    if spacing is None:
-        spacing = 0.25 * layout.sound_speed / layout.bandwidth  # half a range resolution cell
+    if spacing is None:  # half the finer resolution cell, in range or along the track
+        cells = [0.5 * layout.sound_speed / layout.bandwidth]
+        for name in est.receivers:
+            if name not in est.cannot_focus:
+                k = abs(float(delay_terms(layout, name, est.position, est.velocity)[2]))
+                cells.append(0.886 * abs(along_track_speed(layout, name, est.position, est.velocity))
+                             / (k * layout.aperture))
+        spacing = 0.5 * min(cells)
     spacing = validate.positive("focus_moving spacing", spacing, high=100.0, unit="m")
     if half_size is None:
-        half = max(MIN_HALF_M, 0.5 * SIZE_FACTOR * target_size(layout, est.receivers, est.position, est.velocity)
-                   + MARGIN_M)
+        size = target_extent(layout, est.receivers, est.position, est.velocity)[0]
+        half = max(MIN_HALF_M, 0.5 * SIZE_FACTOR * size + MARGIN_M)
         half_r = half_y = half
     else:
         values = np.atleast_1d(np.asarray(half_size, dtype=object))
@@ -148,7 +154,8 @@ def focus(echo: EchoData, est: MotionEstimate, tau_span: float | None = None, sh
     half_size : m, the "bp" image's half-extent around the reference point, one number or
         (range, along-track); default :data:`SIZE_FACTOR` x the target's size from the chain's
         extents plus :data:`MARGIN_M` (at least :data:`MIN_HALF_M`).
-    spacing : m, the "bp" pixel spacing (default a quarter of c / B, half a range cell).
+    spacing : m, the "bp" pixel spacing (default half the finest resolution cell: c / (2 B) in
+        range, 0.886 |V_h| / (|K| T_a) along the track at the receivers that focus).
     backend, progress : of the back-projection.
     """
     if not isinstance(est, MotionEstimate):

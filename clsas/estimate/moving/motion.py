@@ -21,18 +21,20 @@ shifts the compressed chirp), so f~_dc - K~ eta_c is the centre's centroid (to ~
 against the Radon slope's fraction of a range cell over the aperture); it is used when the
 receiver focuses (|K| T_a^2 large enough) and within half a PRF of the Radon estimate.
 
-Centroid uncertainty. A refined centroid carries :data:`REFINED_SIGMA` (the focus reads the
-aperture, the closed forms are Taylor coefficients at eta_ref). And the middle of the image of a
-rigid target is the image of the given position only when the target reaches equally far both
-ways from it: the centroids are those of a point dp away from the given position, the same point
-at every receiver to first order, which moves every receiver's centroid by g_h . dp
-(g_h = d f_dc,h / d p), correlated between the receivers. With nothing known of the target's
-shape the given point may be anywhere within the target's extent: dp ~ N(0, sigma_p^2 I),
-sigma_p = :data:`MIDDLE_FRACTION` x the target's size (a uniform spread over it; the size from the
-chain's extents), propagated into the velocity's covariance (:func:`_centre_covariance`). It
-matters: the three receivers see the target from nearby directions, so the velocity's vertical
-component is poorly determined, and a reference point 2.5 m from the middle of a two-point
-target moved it by 0.06 m/s (Table II case 1, 512 pulses).
+Which point, when the position is given. The middle of the image of a rigid target is the
+image of the given position only when the target reaches equally far both ways from it: the
+centroids and delays are those of a point dp away, the same point at every receiver to first
+order, and a velocity solved at the given position with them is off (the three receivers see the
+target from nearby directions, so the vertical component is poorly determined: a reference point
+2.5 m from the middle of a two-point group moved it by 0.06 m/s in Table II case 1). So on an
+extended target (its image more than :data:`EXTENDED_CELLS` range cells beyond a point's) the
+point measured is fitted with the velocity (:func:`.velocity.solve_motion`) from the delays and
+centroids, the given position a prior with sigma = :data:`MIDDLE_FRACTION` x the target's size
+(anywhere within it, uniformly; the size from the chain's extents): the delays place the middle
+in range, the prior keeps it near the given point where the delays cannot (depth).
+:attr:`MotionEstimate.position` is then that point, ``given_position`` the one given. A refined
+centroid carries :data:`REFINED_SIGMA` (the focus reads the aperture, the closed forms are Taylor
+coefficients at eta_ref).
 
 Refocus. The chain compresses with the quadratic phase only; over long apertures the delay's
 higher-order terms (cubic and beyond, ~10 carrier cycles at the ends of 25 s in Table II case 6)
@@ -59,6 +61,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ... import validate
+from ...errors import EstimationError
 from ...model import EchoData
 from . import consistency
 from .chain import MIN_TIME_BANDWIDTH, UPSAMPLE, estimate_records, locate, records, with_rate
@@ -78,6 +81,11 @@ REFINED_SIGMA = 0.05
 #: The 1-sigma of the given position about the middle of the target's extent, as a fraction of
 #: the extent: a uniform spread over it (module docstring).
 MIDDLE_FRACTION = 1.0 / (2.0 * np.sqrt(3.0))
+#: A target whose image reaches more than this many range resolution cells c / (2 B) beyond a
+#: point's is extended: its middle is fitted (module docstring).
+EXTENDED_CELLS = 4.0
+#: A point's own extent in range at the extent's level, range cells 1 / B (:mod:`.extent`).
+POINT_CELLS = 2.0
 #: :func:`estimate` keeps the receivers' range-compressed records between its passes up to this
 #: many bytes in all (above, each is made again when needed, one at a time).
 KEEP_RECORDS_BYTES = 256 << 20
@@ -90,8 +98,10 @@ REFOCUS_PASSES = 2
 class MotionEstimate:
     """A moving target's motion from a multistatic echo.
 
-    velocity : (3,) m/s. position : (3,) m at slow time 0 (given, or estimated when
-    ``position_estimated``). receivers : {name: ReceiverEstimate} (K_a,eq, f_dc,eq, tau_c,
+    velocity : (3,) m/s. position : (3,) m at slow time 0: the point the estimate is about
+    (estimated when ``position_estimated``; when a position was given, ``given_position``, it is
+    that point, or on an extended target the middle of its image fitted near it: module
+    docstring). receivers : {name: ReceiverEstimate} (K_a,eq, f_dc,eq, tau_c,
     eta_c, ...). residual : RMS misfit of the centroid equations at the solution, Hz.
     confidence : probability in [0, 1] that the velocity error is within the paper's 3 % bound
     (:mod:`.velocity`), lowered when the receivers disagree (:mod:`.consistency`). sigma,
@@ -123,6 +133,7 @@ class MotionEstimate:
     centroid_sigmas: dict = field(default_factory=dict)
     consistency: consistency.Consistency | None = field(default=None, repr=False)
     repicked: tuple = ()
+    given_position: np.ndarray | None = None
 
     @property
     def problems(self) -> tuple:
@@ -185,54 +196,31 @@ def refined_centroid(rx, layout: Layout) -> tuple[float, float]:
     return f, centroid_sigma(f)
 
 
-def target_size(layout: Layout, receivers: dict, position, velocity) -> float:
-    """The target's size (m) in the chain's focused images: the largest along-track extent
-    |V_h| x (eta span beyond a point's own) and range extent c tau span / 2 over the receivers
-    that focused it (those with an extent)."""
-    size = 0.0
+def target_extent(layout: Layout, receivers: dict, position, velocity) -> tuple[float, float]:
+    """(size, range size), m, of the target in the chain's focused images beyond a point's own:
+    the largest along-track extent |V_h| x eta span and range extent c tau span / 2 over the
+    receivers that focused it (those with an extent); size is the larger of the two."""
+    along = across = 0.0
     for name, rx in receivers.items():
         ext = getattr(rx, "extent", None)
         if ext is None:
             continue
         point = (SMOOTH_CELLS + 1.0) / (abs(float(rx.fm_rate)) * float(getattr(rx, "aperture", layout.aperture)))
         speed = abs(along_track_speed(layout, name, position, velocity))
-        size = max(size, speed * max(0.0, float(ext.eta[1] - ext.eta[0]) - point),
-                   0.5 * layout.sound_speed * float(ext.tau[1] - ext.tau[0]))
-    return size
-
-
-def _centre_covariance(layout: Layout, receivers: dict, sol, sigmas: dict) -> np.ndarray:
-    """The velocity's covariance (3, 3) when the centroids carry their own errors ``sigmas`` and
-    are those of a point dp ~ N(0, sigma_p^2 I) away from the given position, sigma_p =
-    :data:`MIDDLE_FRACTION` of the target's size (module docstring), which moves every receiver's
-    centroid by g_h . dp (g_h = d f_dc,h / d p): Cov_f = diag(sigma_h^2) + sigma_p^2 G G^T,
-    Cov_v = (J^T Cov_f^-1 J)^-1 with J = d f_dc / d v at the solution."""
-    names = list(receivers)
-    p, v = sol.position, sol.velocity
-    eye = np.eye(3)
-    dp, dv = 0.5, 1e-3
-
-    def rows(step, at_p):
-        return np.array([[(delay_terms(layout, n, *((p + step * e, v) if at_p else (p, v + step * e)))[1]
-                           - delay_terms(layout, n, *((p - step * e, v) if at_p else (p, v - step * e)))[1])
-                          / (2 * step) for e in eye] for n in names])
-
-    jac_v, jac_p = rows(dv, False), rows(dp, True)
-    size = target_size(layout, receivers, p, v)
-    cov_f = np.diag([sigmas[n] ** 2 for n in names]) + (MIDDLE_FRACTION * size) ** 2 * jac_p @ jac_p.T
-    try:
-        return np.linalg.inv(jac_v.T @ np.linalg.solve(cov_f, jac_v))
-    except np.linalg.LinAlgError:
-        return np.full((3, 3), np.inf)
+        along = max(along, speed * max(0.0, float(ext.eta[1] - ext.eta[0]) - point))
+        across = max(across, 0.5 * layout.sound_speed * max(0.0, float(ext.tau[1] - ext.tau[0]) - POINT_CELLS
+                                                            / layout.bandwidth))
+    return max(along, across), across
 
 
 def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine: bool = True,
-                          aperture: float | None = None) -> MotionEstimate:
+                          aperture: float | None = None, quiet: bool = False) -> MotionEstimate:
     """Solve a :class:`MotionEstimate` from per-receiver estimates (anything with fm_rate,
     doppler_centroid, tau_c and eta_c: the chain's ReceiverEstimate, or the closed forms), and
     check that the solution explains every receiver's FM rate (:mod:`.consistency`).
 
-    ``aperture`` (s) decides which receivers cannot focus (default: the layout's T_a).
+    ``aperture`` (s) decides which receivers cannot focus (default: the layout's T_a). ``quiet``
+    logs the solution and its problems at DEBUG (trial solutions) instead of INFO and WARNING.
     """
     position = _check_position(position)
     if not isinstance(receivers, dict) or len(receivers) < 3:
@@ -242,32 +230,45 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
         centroids[name], sigmas[name] = refined_centroid(rx, layout) if refine else \
             (float(rx.doppler_centroid), centroid_sigma(rx.doppler_centroid))
     rates = {n: float(rx.fm_rate) for n, rx in receivers.items()}
+    delays = {n: float(rx.tau_c) for n, rx in receivers.items()}
     if position is None:
-        sol = solve_motion(layout, {n: float(rx.tau_c) for n, rx in receivers.items()}, centroids, rates, sigmas)
+        sol = solve_motion(layout, delays, centroids, rates, sigmas)
         check = consistency.check(layout, receivers, sol.position, sol.velocity, sol.fit_chi2, sol.fit_dof)
     else:
         sol = solve_velocity(layout, position, centroids, sigmas, rates)
+        size, across = target_extent(layout, receivers, position, sol.velocity)
+        if size > EXTENDED_CELLS * layout.sound_speed / (2 * layout.bandwidth):
+            # an extended target: its middle, whose centroids these are, within its size of the given point
+            sol = solve_motion(layout, delays, centroids, rates, sigmas,
+                               delay_sigma=(0.1 + 2 * MIDDLE_FRACTION * across * layout.bandwidth / layout.sound_speed)
+                               / layout.bandwidth, prior=position, prior_sigma=MIDDLE_FRACTION * size,
+                               start_velocity=sol.velocity)
         check = consistency.check(layout, receivers, sol.position, sol.velocity)
-    cov = sol.covariance
-    if position is not None:
-        cov = _centre_covariance(layout, receivers, sol, sigmas)
-    cov = cov * check.birge**2
+    cov = sol.covariance * check.birge**2
     conf = confidence(sol.velocity, cov, sol.ambiguity) * check.factor
     aperture = layout.aperture if aperture is None else float(aperture)
     tau_misfit = [float(rx.tau_c) - delay_terms(layout, n, sol.position, sol.velocity)[0] for n, rx in receivers.items()]
     range_residual = float(0.5 * layout.sound_speed * np.sqrt(np.mean(np.square(tau_misfit))))
     blind = tuple(n for n in receivers
                   if abs(delay_terms(layout, n, sol.position, sol.velocity)[2]) * aperture**2 < MIN_TIME_BANDWIDTH)
-    log.info("moving target: v = %s m/s (sigma %s), residual %.3g Hz, FM-rate chi2 %.3g (%d dof), confidence %.2f%s",
-             np.round(sol.velocity, 3), np.round(sol.sigma * check.birge, 3), sol.residual, check.chi2, check.dof,
-             conf, f"; {', '.join(blind)} cannot focus" if blind else "")
-    for problem in check.problems.values():
+    est = MotionEstimate(velocity=sol.velocity, position=sol.position, receivers=dict(receivers),
+                         residual=sol.residual, confidence=conf, sigma=np.sqrt(np.abs(np.diag(cov))),
+                         position_sigma=sol.position_sigma * check.birge, position_estimated=sol.position_estimated,
+                         centroids=centroids, cannot_focus=blind, range_residual=range_residual, layout=layout,
+                         centroid_sigmas=sigmas, consistency=check, given_position=position)
+    if not quiet:
+        announce(est)
+    return est
+
+
+def announce(est: MotionEstimate, level: int = logging.INFO) -> None:
+    """Log ``est`` (at ``level``) and each of its problems (a WARNING)."""
+    log.log(level, "moving target: v = %s m/s (sigma %s), FM-rate chi2 %.3g (%d dof), confidence %.2f%s%s",
+            np.round(est.velocity, 3), np.round(est.sigma, 3), est.consistency.chi2, est.consistency.dof,
+            est.confidence, f"; {est.note}" if est.note else "",
+            f"; receivers re-run with another FM rate: {', '.join(est.repicked)}" if est.repicked else "")
+    for problem in est.problems:
         log.warning("moving target: %s", problem)
-    return MotionEstimate(velocity=sol.velocity, position=sol.position, receivers=dict(receivers),
-                          residual=sol.residual, confidence=conf, sigma=np.sqrt(np.abs(np.diag(cov))),
-                          position_sigma=sol.position_sigma * check.birge, position_estimated=sol.position_estimated,
-                          centroids=centroids, cannot_focus=blind, range_residual=range_residual, layout=layout,
-                          centroid_sigmas=sigmas, consistency=check)
 
 
 def _refocus(layout: Layout, est: MotionEstimate, estimates: dict, record_of, position,
@@ -282,7 +283,7 @@ def _refocus(layout: Layout, est: MotionEstimate, estimates: dict, record_of, po
                 _, f_dc, k = delay_terms(layout, name, est.position, est.velocity)
                 estimates[name] = locate(rec, rx, higher_order_delay(layout, name, est.position, est.velocity, rec.eta),
                                          Doppler(fm_rate=float(k), doppler_centroid=float(f_dc)))
-        est = dataclasses.replace(motion_from_receivers(layout, estimates, position), repicked=est.repicked)
+        est = dataclasses.replace(motion_from_receivers(layout, estimates, position, quiet=True), repicked=est.repicked)
     return est
 
 
@@ -305,9 +306,14 @@ def _repick(layout: Layout, est: MotionEstimate, estimates: dict, record_of, pos
 
     def attempt(est, picks):
         trial = dict(estimates)
-        for name, pick in picks.items():
-            trial[name] = with_rate(record_of(name), estimates[name].search, pick)
-        again = _refocus(layout, motion_from_receivers(layout, trial, position), trial, record_of, position, 1)
+        try:
+            for name, pick in picks.items():
+                trial[name] = with_rate(record_of(name), estimates[name].search, pick)
+            again = _refocus(layout, motion_from_receivers(layout, trial, position, quiet=True), trial, record_of,
+                             position, 1)
+        except EstimationError as err:  # that candidate has no trace to focus
+            log.info("moving target: re-run with K = %s Hz/s failed: %s", list(picks.values()), err)
+            return est
         log.info("moving target: receivers %s re-run with K = %s Hz/s: FM-rate chi2 %.3g -> %.3g", sorted(picks),
                  [round(p, 4) for p in picks.values()], est.consistency.chi2, again.consistency.chi2)
         if again.consistency.chi2 < est.consistency.chi2:
@@ -370,5 +376,8 @@ def estimate(echo: EchoData, position=None, receivers=None, **chain_options) -> 
         return kept[name] if keep else records(echo, name)
 
     layout = layout_of(echo)
-    est = _refocus(layout, motion_from_receivers(layout, estimates, position), estimates, record_of, position)
-    return _repick(layout, est, estimates, record_of, position)
+    est = _refocus(layout, motion_from_receivers(layout, estimates, position, quiet=True), estimates, record_of,
+                   position)
+    est = _repick(layout, est, estimates, record_of, position)
+    announce(est)
+    return est

@@ -240,13 +240,21 @@ def _trilaterate(layout: Layout, names: list, tau: np.ndarray, sig_tau: np.ndarr
 
 def solve_motion(layout: Layout, delays: dict, centroids: dict, fm_rates: dict | None = None,
                  sigmas: dict | None = None, delay_sigma: float | None = None, v_max: float = 16.0,
-                 step: float = 2.0, model: str = "exact") -> MotionSolution:
+                 step: float = 2.0, model: str = "exact", prior=None, prior_sigma: float | None = None,
+                 start_velocity=None) -> MotionSolution:
     """Position and velocity jointly from the receivers' delays tau_c (s), centroids (Hz) and,
     optionally, FM rates (Hz/s), each a dict name -> value over >= 3 receivers.
 
     ``delay_sigma`` (s) defaults to a tenth of a range resolution cell, 0.1 / B (the range line
     is located to a fraction of a cell). The position is the target's at slow time 0, with the
     delays taken at ``layout.eta_ref``.
+
+    ``prior`` (3,) m with ``prior_sigma`` (m, each axis): a known position the point measured is
+    near (:func:`.motion.estimate` with a given position on an extended target: the centroids and
+    delays are those of the middle of its image, within the target's size of the given point).
+    The fit then starts there (at ``start_velocity``, or the velocity solved at the prior), adds
+    (p - prior) / prior_sigma to its residuals and leaves the FM rates out (they only rank the
+    roots of the bracketing solve); ``position_estimated`` is False.
     """
     names = _check_measurements(layout, delays, "delays", positive=True)
     _check_measurements(layout, centroids, "centroids")
@@ -266,9 +274,22 @@ def solve_motion(layout: Layout, delays: dict, centroids: dict, fm_rates: dict |
     k_meas = np.array([fm_rates[n] for n in k_names], dtype=np.float64)
     sig_k = np.array([fm_rate_sigma(k) for k in k_meas])
 
-    p0 = _trilaterate(layout, names, tau, np.full(tau.size, sig_tau), model)
-    first = solve_velocity(layout, p0, dict(zip(names, f_meas)), dict(zip(names, sig_f)),
-                           dict(zip(k_names, k_meas)) or None, v_max, step, model)
+    if prior is not None:
+        prior = _position(prior)
+        prior_sigma = validate.positive("solve_motion prior_sigma", prior_sigma, high=1e4, unit="m")
+        p0 = prior
+        if start_velocity is not None:
+            first = MotionSolution(velocity=validate.vector3("solve_motion start_velocity", start_velocity,
+                                                             bound=validate.MAX_SPEED),
+                                   position=p0, residual=np.nan, sigma=np.full(3, np.nan), confidence=np.nan)
+        else:
+            first = solve_velocity(layout, p0, dict(zip(names, f_meas)), dict(zip(names, sig_f)),
+                                   dict(zip(k_names, k_meas)) or None, v_max, step, model)
+        k_names, k_meas, sig_k = [], k_meas[:0], sig_k[:0]
+    else:
+        p0 = _trilaterate(layout, names, tau, np.full(tau.size, sig_tau), model)
+        first = solve_velocity(layout, p0, dict(zip(names, f_meas)), dict(zip(names, sig_f)),
+                               dict(zip(k_names, k_meas)) or None, v_max, step, model)
 
     def residual(x):
         p, v = x[:3], x[3:]
@@ -277,6 +298,8 @@ def solve_motion(layout: Layout, delays: dict, centroids: dict, fm_rates: dict |
                (np.array([terms[n][1] for n in names]) - f_meas) / sig_f]
         if k_names:
             out.append((np.array([terms[n][2] for n in k_names]) - k_meas) / sig_k)
+        if prior is not None:
+            out.append((p - prior) / prior_sigma)
         return np.concatenate(out)
 
     fit = least_squares(residual, np.concatenate([p0, first.velocity]), x_scale=np.array([10.0] * 3 + [1.0] * 3),
@@ -287,6 +310,6 @@ def solve_motion(layout: Layout, delays: dict, centroids: dict, fm_rates: dict |
         velocity=fit.x[3:].copy(), position=fit.x[:3].copy(),
         residual=float(np.sqrt(np.mean((fit.fun[n:2 * n] * sig_f) ** 2))),
         sigma=np.sqrt(np.abs(np.diag(cov)[3:])), confidence=confidence(fit.x[3:], cov[3:, 3:]),
-        position_estimated=True, position_sigma=np.sqrt(np.abs(np.diag(cov)[:3])),
+        position_estimated=prior is None, position_sigma=np.sqrt(np.abs(np.diag(cov)[:3])),
         alternatives=first.alternatives, covariance=cov[3:, 3:], fit_chi2=float(np.sum(fit.fun ** 2)),
         fit_dof=int(fit.fun.size - fit.x.size))
