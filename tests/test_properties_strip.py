@@ -23,7 +23,7 @@ import clsas
 from clsas.image.record import line_record
 from clsas.image.stolt import StoltAxes, stolt
 
-IMAGERS = st.sampled_from(["omega_k", "range_doppler", "chirp_scaling"])
+IMAGERS = st.sampled_from(["omega_k", "range_doppler", "chirp_scaling", "nonlinear_chirp_scaling"])
 STOLT_AXES = dict(f_first=-5e3, df=100.0, n_src=100, kx_first=-40.0, dkx=0.8, n_out=100, f0=50e3, c=1500.0)
 
 

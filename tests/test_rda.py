@@ -9,7 +9,8 @@ import scipy.fft
 from _line_scenes import assert_agrees_with_backprojection
 
 from clsas.image import rda
-from clsas.image.rda import compress_secondary, range_doppler, src_blocks
+from clsas.image.rda import compress_secondary, range_doppler
+from clsas.image.strip import range_blocks
 
 
 @pytest.mark.parametrize("scene", ["mono", "huang"])
@@ -45,7 +46,7 @@ def test_overlap_save_equals_the_whole_record_filter(rng):
     fs = 25e3
     rd, coupling = sonar_rows(rng)
     r = 40.0 + 1500.0 * np.arange(rd.shape[1]) / (2 * fs)
-    blocks = src_blocks(r, 2.0)
+    blocks = range_blocks(r, 2.0)
     assert len(blocks) == 23
     got = compress_secondary(rd, coupling, blocks, fs, workers=1)
     want = whole_record_src(rd.astype(np.complex128), coupling, blocks, fs)
@@ -71,5 +72,5 @@ def test_sub_blocks_cost_their_span_not_the_record(rng, monkeypatch):
 
     monkeypatch.setattr(rda.scipy.fft, "fft", counting(scipy.fft.fft))
     monkeypatch.setattr(rda.scipy.fft, "ifft", counting(scipy.fft.ifft))
-    compress_secondary(rd, coupling, src_blocks(r, 2.0), fs, workers=1)
+    compress_secondary(rd, coupling, range_blocks(r, 2.0), fs, workers=1)
     assert sum(counted) < 8 * rd.size

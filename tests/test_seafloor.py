@@ -247,3 +247,13 @@ def test_toml_errors_in_the_seafloor_tables_name_the_key():
         scenario_from_toml(text.replace("ripple_height =", "ripple_heigth ="))
     with pytest.raises(ScenarioFileError, match=r"\[seafloor\]: missing key z"):
         scenario_from_toml(text.replace("\nz = -10.0", ""))
+
+
+def test_heremans_seafloor_preset():
+    scene = presets.heremans2009_seafloor(n_pulses=8)
+    assert scene.seafloor.z == -15.0 and scene.seafloor.sediment is SEDIMENTS["sand"]
+    np.testing.assert_allclose(scene.targets[0].positions[:, 2], -15.0)
+    np.testing.assert_allclose(np.abs(scene.targets[0].reflectivity), 0.1)
+    assert scene.n_receivers == 15
+    with pytest.raises(ValueError, match="altitude"):
+        presets.heremans2009_seafloor(altitude=-1.0)

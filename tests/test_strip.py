@@ -19,7 +19,7 @@ from clsas.image.strip import strip_job
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets
 
-IMAGERS = ["omega_k", "range_doppler", "chirp_scaling"]
+IMAGERS = ["omega_k", "range_doppler", "chirp_scaling", "nonlinear_chirp_scaling"]
 
 
 def test_every_imager_has_the_template_signature():

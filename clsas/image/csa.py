@@ -15,7 +15,13 @@ f_eta = v k_u / (2 pi)), D_ref = D(0) = 1 and R_ref the middle of the recorded r
 3. Range FFT; range compression with SRC and bulk RCMC (C&W eq. 7.32):
    exp(j pi D / (K_m D_ref) f_tau^2) exp(j 4 pi R_ref f_tau (1 / D - 1 / D_ref) / c); range IFFT.
 4. Azimuth compression and residual-phase correction (C&W eq. 7.33):
-   exp(j 4 pi R0 f0 D / c) exp(-j 4 pi K_m (1 - D / D_ref) (R0 / D - R_ref / D_ref)^2 / c^2), R0 = c tau / 2;
+   exp(j 4 pi R0 f0 D / c) exp(-j 4 pi K_m (1 - D / D_ref) ((R0 - R_ref) / D)^2 / c^2), R0 = c tau / 2
+   (derivation: a target at R0 lies at tau_c = 2 R0 / (c D), Delta = tau_c - 2 R_ref / (c D) from
+   the scaling's centre; the scaling adds pi q2 (t + Delta)^2 to its pi K_m t^2, t = tau - tau_c,
+   q2 = K_m (D_ref / D - 1); completing the square leaves pi q2 Delta^2 (1 - q2 / (K_m + q2)) =
+   pi K_m (1 - D / D_ref) Delta^2 at the compressed peak. The form (R0 / D - R_ref / D_ref)^2
+   differs from it by a phase linear in R0 on every Doppler row and defocuses points far from
+   R_ref: tests/test_csa.py);
    the Doppler band's weights, the non-stop-and-go along-track shift (Huang & Yang 2022
    eq. 25) and the along-track IFFT are the template's (:mod:`clsas.image.strip`).
 
@@ -32,6 +38,8 @@ from ..kernelmath import unit_phasor
 from ..model import Image
 from .strip import follows_template, strip_image, strip_job
 
+BYTES_PER_SAMPLE = 64  # per padded range sample: the 2-D arrays (complex64) and the phase screens (float64)
+
 
 @follows_template
 def chirp_scaling(data, **options) -> Image:
@@ -47,6 +55,7 @@ def chirp_scaling(data, **options) -> Image:
     chirp_rate = rec.waveform.bandwidth / rec.waveform.duration
     k0 = 2 * np.pi * f0 / c
     n_r = scipy.fft.next_fast_len(rec.n_samples + int(np.ceil(rec.waveform.duration * fs)))
+    job.check_budget(n_r, BYTES_PER_SAMPLE)
     f = np.fft.fftfreq(n_r, 1 / fs)
     tau = rec.t0 + np.arange(n_r) / fs
     r0 = c * tau / 2
@@ -64,5 +73,5 @@ def chirp_scaling(data, **options) -> Image:
     two_d *= unit_phasor(np.pi * d / k_m * f[None, :] ** 2 + 4 * np.pi * r_ref * f[None, :] * (1 / d - 1) / c)  # eq. 7.32
     rd = scipy.fft.ifft(two_d, axis=1, workers=workers)
     rd *= unit_phasor(4 * np.pi * f0 * r0[None, :] * d / c
-                      - 4 * np.pi * k_m * (1 - d) * (r0[None, :] / d - r_ref) ** 2 / c**2)  # eq. 7.33
+                      - 4 * np.pi * k_m * (1 - d) * ((r0[None, :] - r_ref) / d) ** 2 / c**2)  # eq. 7.33
     return strip_image(job, rd, r0)

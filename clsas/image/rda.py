@@ -33,15 +33,13 @@ f_tau (eq. 19); the SRC is exact only at each sub-block's centre.
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 import scipy.fft
 
 from ..interp import resample
 from ..kernelmath import unit_phasor
 from ..model import Image
-from .strip import follows_template, strip_image, strip_job
+from .strip import block_segment, follows_template, range_blocks, strip_image, strip_job
 
 SRC_TOLERANCE = np.pi / 16  # rad: the SRC phase error allowed within half a sub-block (Huang & Yang 2022, after eq. 22)
 SRC_GUARD = 32  # samples added to each side of a sub-block beyond the SRC filter's longest group delay
@@ -54,14 +52,6 @@ def src_block_width(wavelength: float, c: float, bandwidth: float, beta_min: flo
     return np.inf if slope == 0 else 2 * SRC_TOLERANCE / slope
 
 
-def src_blocks(r: np.ndarray, width: float) -> list[tuple[int, int, float]]:
-    """Sub-blocks of ``width`` m over the columns of ranges ``r``: (first column, stop column,
-    centre range r_n, m), as many equal blocks as the width needs."""
-    n_blocks = max(1, min(r.size, int(np.ceil((r[-1] - r[0]) / width))))
-    edges = np.linspace(0, r.size, n_blocks + 1).astype(int)
-    return [(int(lo), int(hi), float(r[(lo + hi - 1) // 2])) for lo, hi in itertools.pairwise(edges)]
-
-
 def compress_secondary(rd: np.ndarray, coupling: np.ndarray, blocks, fs: float, workers: int) -> np.ndarray:
     """Secondary range compression of range-Doppler rows ``rd`` (n_rows, n), sub-block by
     sub-block by overlap-save (module docstring, step 2): columns [lo, hi) of block (lo, hi, r_n)
@@ -72,11 +62,8 @@ def compress_secondary(rd: np.ndarray, coupling: np.ndarray, blocks, fs: float, 
     margin = int(np.ceil(longest)) + SRC_GUARD
     out = np.empty_like(rd)
     for lo, hi, r_n in blocks:
-        pad, length = margin, scipy.fft.next_fast_len(hi - lo + 2 * margin)
-        if length >= n:  # the block's span is the whole record: one circular FFT of it
-            pad, length = 0, n
-        columns = np.arange(lo - pad, lo - pad + length) % n
-        f = np.fft.fftfreq(length, 1 / fs)
+        columns, pad = block_segment(lo, hi, margin, n)
+        f = np.fft.fftfreq(columns.size, 1 / fs)
         segment = scipy.fft.fft(rd[:, columns], axis=1, workers=workers)
         segment *= unit_phasor(np.outer(-2 * np.pi * r_n * coupling, f**2))
         out[:, lo:hi] = scipy.fft.ifft(segment, axis=1, workers=workers)[:, pad:pad + hi - lo]
@@ -99,7 +86,7 @@ def range_doppler(data, **options) -> Image:
     tau = rec.t0 + np.arange(rec.n_samples) / fs
     r = c * tau / 2
     beta_min = np.sqrt(max(1 - (job.ku_nyquist / (2 * k0)) ** 2, 1e-6))
-    blocks = src_blocks(r, src_block_width(rec.wavelength, c, rec.waveform.bandwidth, beta_min))
+    blocks = range_blocks(r, src_block_width(rec.wavelength, c, rec.waveform.bandwidth, beta_min))
     rd = compress_secondary(job.doppler(rec.data), rec.wavelength / c**2 * (1 / beta**3 - 1 / beta), blocks, fs,
                             job.workers)
     idx = (tau[None, :] / beta[:, None] - rec.t0) * fs  # eq. 23

@@ -24,6 +24,7 @@ the user names. (omega-k used to default to "hamming", range-Doppler and chirp s
 from __future__ import annotations
 
 import inspect
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,6 +84,13 @@ class StripJob:
     def ku_nyquist(self) -> float:
         """The largest |k_u| the along-track sampling holds (rad/m): the edge of the sampled band."""
         return float(np.abs(along_track_wavenumbers(self.record, self.n_ku)).max())
+
+    def check_budget(self, columns: int, bytes_per_sample: float) -> None:
+        """The memory budget for an algorithm's arrays of the kept rows by ``columns`` range
+        samples (a padded range axis), ``bytes_per_sample`` bytes a sample in all."""
+        budget.check_bytes(f"{self.algorithm} of {self.rows.size} Doppler rows x {columns} range samples",
+                           bytes_per_sample * float(self.rows.size) * columns,
+                           "image a shorter stretch of the track or of the swath at a time")
 
     def doppler(self, data: np.ndarray) -> np.ndarray:
         """The kept rows of the along-track FFT of ``data`` (n_u, n): complex (n_rows, n)."""
@@ -193,6 +201,24 @@ def strip_image(job: StripJob, focused: np.ndarray, r: np.ndarray, **provenance)
     image = image_of(rec, full, r, job.algorithm, params, job.depth, job.workers)
     v.finite_result(f"{job.algorithm}: the image", image.data, "scale the record down")
     return image
+
+
+def range_blocks(r: np.ndarray, width: float) -> list[tuple[int, int, float]]:
+    """Equal range sub-blocks at most ``width`` m wide over the columns of ranges ``r`` (m,
+    increasing): (first column, stop column, centre range, m) each."""
+    n_blocks = max(1, min(r.size, int(np.ceil((r[-1] - r[0]) / width))))
+    edges = np.linspace(0, r.size, n_blocks + 1).astype(int)
+    return [(int(lo), int(hi), float(r[(lo + hi - 1) // 2])) for lo, hi in itertools.pairwise(edges)]
+
+
+def block_segment(lo: int, hi: int, margin: int, n: int) -> tuple[np.ndarray, int]:
+    """The overlap-save segment of the columns [lo, hi) of a circular range axis of n columns,
+    with ``margin`` columns on each side: (its column indices, mod n; the position of column lo
+    in it). The whole axis, from lo on, when the segment would be as long."""
+    pad, length = margin, scipy.fft.next_fast_len(hi - lo + 2 * margin)
+    if length >= n:
+        pad, length = 0, n
+    return np.arange(lo - pad, lo - pad + length) % n, pad
 
 
 def follows_template(imager):

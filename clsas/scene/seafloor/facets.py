@@ -21,6 +21,7 @@ synthesis's per-path work; checked against the memory budget before drawing.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -141,8 +142,11 @@ def _column_limits(seafloor: Seafloor, x0: np.ndarray, x1: np.ndarray, track: np
     return lo, hi
 
 
+@functools.lru_cache(maxsize=1)
 def generate(seafloor: Seafloor, scenario) -> Facets:
-    """The facets of ``seafloor`` that ``scenario``'s transmitter beam reaches (module docstring)."""
+    """The facets of ``seafloor`` that ``scenario``'s transmitter beam reaches (module docstring),
+    read-only. The last result is kept (the echo synthesis asks twice: for the scatterers and
+    for their path weights)."""
     s = facet_spacing(seafloor, scenario)
     reach = reach_slope(seafloor, scenario)
     track = scenario.tx_position(scenario.eta)
@@ -172,4 +176,7 @@ def generate(seafloor: Seafloor, scenario) -> Facets:
     normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
     positions = np.stack([x, y, seafloor.height(x, y)], axis=-1)
     refl = np.sqrt(area) * np.exp(2j * np.pi * phase)
-    return Facets(positions, normals.astype(np.float32), refl, s, reach)
+    normals = normals.astype(np.float32)
+    for arr in (positions, normals, refl):
+        arr.flags.writeable = False
+    return Facets(positions, normals, refl, s, reach)

@@ -215,3 +215,40 @@ class Seafloor:
         z = self.height(x[None, :], y[:, None])
         margin = 0.5 * self.ripple_height
         return float(z.min()) - margin, float(z.max()) + margin
+
+    def mesh(self, spacing: float, bounds: np.ndarray | None = None):
+        """The seafloor as a triangle mesh (trimesh, world frame) over ``bounds`` (x_min, x_max,
+        y_min, y_max; default and at most ``extent``), its vertices on a grid of at most
+        ``spacing`` m (two triangles for a plane). Ray casting against it shadows the relief."""
+        import trimesh
+
+        ext = self.extent if bounds is None else np.asarray(bounds, dtype=np.float64)
+        x0, x1 = max(ext[0], self.extent[0]), min(ext[1], self.extent[1])
+        y0, y1 = max(ext[2], self.extent[2]), min(ext[3], self.extent[3])
+        if not (x0 < x1 and y0 < y1):
+            raise ValueError(f"Seafloor.mesh: bounds {np.asarray(ext).tolist()} miss the extent {self.extent.tolist()}")
+        if self.has_relief:
+            v.positive("Seafloor.mesh spacing", spacing, high=v.MAX_COORDINATE, unit="m")
+            nx, ny = int(np.ceil((x1 - x0) / spacing)) + 1, int(np.ceil((y1 - y0) / spacing)) + 1
+        else:
+            nx = ny = 2
+        budget.check_bytes(f"the seafloor's relief mesh ({nx} x {ny} vertices)", 80.0 * nx * ny,
+                           "a coarser relief mesh (a larger facet spacing)")
+        x, y = np.meshgrid(np.linspace(x0, x1, nx), np.linspace(y0, y1, ny))
+        vertices = np.column_stack([x.ravel(), y.ravel(), self.height(x, y).ravel()])
+        corner = (np.arange(ny - 1)[:, None] * nx + np.arange(nx - 1)[None, :]).ravel()
+        faces = np.concatenate([np.column_stack([corner, corner + 1, corner + nx + 1]),
+                                np.column_stack([corner, corner + nx + 1, corner + nx])])
+        return trimesh.Trimesh(vertices, faces, process=False)
+
+    def max_slope(self, samples: int = 513) -> float:
+        """An upper bound of |grad z| over ``extent``: the largest sampled on a grid of ``samples``
+        per side, plus the ripples' full slope amplitude when there are ripples (a ray leaving the
+        floor at an elevation tan e above this cannot meet the floor again)."""
+        x = np.linspace(self.extent[0], self.extent[1], samples)
+        y = np.linspace(self.extent[2], self.extent[3], samples)
+        gx, gy = self.gradient(x[None, :], y[:, None])
+        bound = float(np.hypot(gx, gy).max())
+        if self.ripple_height > 0:
+            bound += 0.5 * self.ripple_height * 2 * np.pi / self.ripple_wavelength
+        return bound
