@@ -32,6 +32,11 @@ has the reference point's range and so its FM rate; across the whole target the 
 1 / range (1 m of range at 2 km changes a quadratic phase of 25 rad by 0.3 %, which a hull's
 extent in range would put into a common estimate). The record is then advanced by that delay
 error phi / f0 and its phase rotated by phi before the back-projection.
+
+Range-Doppler coupling. With intra-pulse Doppler each compressed peak lies f_dc(eta) / K_r after
+the delay at the pulse's centre that the back-projection computes (:mod:`.layout`; three range
+cells in Table II cases 6 and 8): the record is advanced by the reference point's
+f_dc(eta) range_doppler first (the target's scatterers differ from it by a few Hz, a few ns).
 """
 
 from __future__ import annotations
@@ -45,7 +50,7 @@ from ...image.backprojection import backproject
 from ...model import EchoData, Grid, Image
 from . import filters
 from .chain import compressed_receiver, focus_receiver, records_of, sharpened_bins
-from .closedforms import Predicted, delay_terms, higher_order_delay
+from .closedforms import Predicted, delay_history, delay_terms, higher_order_delay
 from .layout import Layout
 from .mapping import along_track_speed, to_ry
 from .motion import MotionEstimate, check_echo, target_extent
@@ -92,13 +97,23 @@ def residual_phase(comp: EchoData, layout: Layout, name: str, position, velocity
     sharpness (module docstring)."""
     rec = records_of(comp)
     tau_c, f_dc, k = delay_terms(layout, name, position, velocity)
-    centre = (float(tau_c) - rec.t0) * rec.fs
+    centre = (float(tau_c + layout.range_doppler * f_dc) - rec.t0) * rec.fs  # where the compressed peak is
     half = AUTOFOCUS_CELLS * rec.fs / rec.bandwidth
     n = rec.x.shape[1]
     bins = slice(int(np.clip(np.floor(centre - half), 0, n - 1)), int(np.clip(np.ceil(centre + half) + 1, 1, n)))
     higher = higher_order_delay(layout, name, position, velocity, rec.eta)
     _, _, p = sharpened_bins(rec, float(k), float(f_dc), bins, higher)
     return polynomial_phase(rec.eta, rec.eta_ref, p), np.asarray(p, dtype=np.float64)
+
+
+def doppler_history(layout: Layout, name: str, position, velocity, eta) -> np.ndarray:
+    """f_dc(eta) = f0 d tau / d eta (Hz, the shape of ``eta``) of the model's delay history at
+    ``name`` (:func:`.closedforms.delay_history`), by central differences."""
+    eta = np.asarray(eta, dtype=np.float64)
+    step = 1e-3
+    ahead = delay_history(layout, name, position, velocity, eta + step)
+    behind = delay_history(layout, name, position, velocity, eta - step)
+    return layout.f0 * (ahead - behind) / (2 * step)
 
 
 def _axes(est: MotionEstimate, half_size, spacing, tau_span):
@@ -178,11 +193,16 @@ def focus(echo: EchoData, est: MotionEstimate, tau_span: float | None = None, sh
                       "velocity": est.velocity.tolist(), "position": est.position.tolist(),
                       "eta_ref": est.layout.eta_ref, "reference": "Kiang & Kiang 2022 section VI (r-y plane)",
                       "along_track_speed": along_track_speed(est.layout, name, est.position, est.velocity)}
+        # the compressed peaks moved back to the delay at the pulse's centre (range-Doppler
+        # coupling, :mod:`.layout`), then the residual phase phi removed (module docstring)
+        shift = est.layout.range_doppler * doppler_history(est.layout, name, est.position, est.velocity, comp.eta)
+        phi = np.zeros(comp.n_pulses)
         if sharpen:
             phi, p = residual_phase(comp, est.layout, name, est.position, est.velocity)
-            x = filters.advance(comp.data[0], comp.fs, phi / comp.waveform.f0, phi)
-            comp = comp.replace(data=x[None])
             provenance["residual_phase_cycles"] = tuple(float(c) for c in p)
+        if sharpen or np.any(shift):
+            x = filters.advance(comp.data[0], comp.fs, shift + phi / comp.waveform.f0, phi)
+            comp = comp.replace(data=x[None])
         image = backproject(comp, grid, backend=backend, target_velocity=est.velocity, progress=progress)
         images[name] = Image(image.data, ("y", "r"), {"y": y, "r": r}, positions=grid.positions,
                              provenance={**provenance, "backprojection": image.provenance})

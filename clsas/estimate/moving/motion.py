@@ -213,6 +213,12 @@ def target_extent(layout: Layout, receivers: dict, position, velocity) -> tuple[
     return max(along, across), across
 
 
+def pulse_delays(layout: Layout, receivers: dict, centroids: dict) -> dict:
+    """{name: tau_c - f_dc range_doppler}: the receivers' delays (measured at the compressed
+    peak) at the pulse's centre, where the closed forms put them (:mod:`.layout`)."""
+    return {n: float(rx.tau_c) - layout.range_doppler * centroids[n] for n, rx in receivers.items()}
+
+
 def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine: bool = True,
                           aperture: float | None = None, quiet: bool = False) -> MotionEstimate:
     """Solve a :class:`MotionEstimate` from per-receiver estimates (anything with fm_rate,
@@ -230,7 +236,7 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
         centroids[name], sigmas[name] = refined_centroid(rx, layout) if refine else \
             (float(rx.doppler_centroid), centroid_sigma(rx.doppler_centroid))
     rates = {n: float(rx.fm_rate) for n, rx in receivers.items()}
-    delays = {n: float(rx.tau_c) for n, rx in receivers.items()}
+    delays = pulse_delays(layout, receivers, centroids)
     if position is None:
         sol = solve_motion(layout, delays, centroids, rates, sigmas)
         check = consistency.check(layout, receivers, sol.position, sol.velocity, sol.fit_chi2, sol.fit_dof)
@@ -247,7 +253,7 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
     cov = sol.covariance * check.birge**2
     conf = confidence(sol.velocity, cov, sol.ambiguity) * check.factor
     aperture = layout.aperture if aperture is None else float(aperture)
-    tau_misfit = [float(rx.tau_c) - delay_terms(layout, n, sol.position, sol.velocity)[0] for n, rx in receivers.items()]
+    tau_misfit = [delays[n] - delay_terms(layout, n, sol.position, sol.velocity)[0] for n in receivers]
     range_residual = float(0.5 * layout.sound_speed * np.sqrt(np.mean(np.square(tau_misfit))))
     blind = tuple(n for n in receivers
                   if abs(delay_terms(layout, n, sol.position, sol.velocity)[2]) * aperture**2 < MIN_TIME_BANDWIDTH)
@@ -334,7 +340,7 @@ def _repick(layout: Layout, est: MotionEstimate, estimates: dict, record_of, pos
             return est
         name = todo[0]
         tried.add(name)
-        delays = {n: float(rx.tau_c) for n, rx in estimates.items()} if position is None else None
+        delays = pulse_delays(layout, estimates, est.centroids) if position is None else None
         k_pred, _, _ = consistency.predict_without(layout, estimates, est.centroids, est.centroid_sigmas, name,
                                                    est.position, est.velocity, delays)
         pick = candidate(name, k_pred)
