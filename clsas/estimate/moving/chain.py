@@ -199,7 +199,7 @@ def sowvd(rec: Records, p0: float) -> RateSearch:
     if coverage < MIN_COVERAGE:
         raise EstimationError(f"receiver {rec.name}: the echo stands out of the noise in {100 * coverage:.0f} % of "
                               f"the pulses < {100 * MIN_COVERAGE:.0f} %")
-    return rate_search(rfrt(rec.x, gate), rec.prf, p0)
+    return rate_search(rfrt(rec.x, trace.band(rec.x, gate, UPSAMPLE)), rec.prf, p0)
 
 
 def rcmc(rec: Records, fm_rate: float) -> np.ndarray:
