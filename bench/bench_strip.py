@@ -10,7 +10,8 @@ reproduction), and :func:`clsas.ptrs_image` with 8 uniform sub-blocks (its stati
 solved beforehand and reused: seed 003's second scheme, the cheaper for PTRS). The runs are
 interleaved round by round (A B C ... A B C ...), warm-up excluded; each line reports the
 median and the minimum, the ratio of medians to PTRS (``"to_ptrs8"``, < 1 is faster), the
-number of range-Doppler SRC sub-blocks, and the load average at the start and the end.
+range sub-blocks of range-Doppler's SRC and of NCS (``"src_blocks"``, ``"ncs_blocks"``), and
+the load average at the start and the end.
 """
 
 from __future__ import annotations
@@ -69,8 +70,7 @@ def main() -> None:
         pixels = images[name].data.size
         extra = {"algorithm": name, "min_seconds": min(t), "to_ptrs8": median[name] / median["ptrs8"],
                  "pixels": pixels, "load_start": load_start[0], "load_end": load_end[0]}
-        if "src_blocks" in images[name].provenance:
-            extra["src_blocks"] = images[name].provenance["src_blocks"]
+        extra.update({key: value for key, value in images[name].provenance.items() if key.endswith("_blocks")})
         report(args, "strip", "opencl", size, pixels * echo.n_pulses * echo.n_rx / median[name] / 1e9,
                "G pixel-pulses/s", median[name], **extra)
 

@@ -14,6 +14,7 @@ from .version import __version__
 #: public name -> (module, attribute; None for the module itself)
 _EXPORTS = {
     "Array": (".scene.scenario", "Array"),
+    "absorption_db_per_km": (".synthesis.propagation", "absorption_db_per_km"),
     "EchoData": (".model", "EchoData"),
     "EstimationError": (".errors", "EstimationError"),
     "Grid": (".model", "Grid"),

@@ -188,3 +188,28 @@ def compression(name: str, echo, compressed: bool = True, advice: str = "call cl
         want, got = ("range-compressed", "raw") if compressed else ("raw", "range-compressed")
         raise ValueError(f"{name}: must be a {want} echo (EchoData.compressed {compressed}), got a {got} one; {advice}")
     return echo
+
+
+def peak_magnitude(data) -> float:
+    """The largest |x| of a numeric array, read one slice of its first axis at a time (no
+    temporary the size of ``data``)."""
+    data = np.asarray(data)
+    if data.size == 0:
+        return 0.0
+    if data.ndim < 2:
+        return float(np.abs(data).max())
+    return max(float(np.abs(part).max()) for part in data)
+
+
+def bounded_gain(name: str, data, gain: float, dtype=np.complex64, advice: str = "") -> float:
+    """Refuse ``data`` (ValueError naming ``name``) when its largest |sample| times ``gain`` (the
+    most a linear processing of it can amplify a sample: FFT lengths, coherent sums) would leave
+    ``dtype``'s range, so that the processing cannot return inf from finite input; returns the
+    peak magnitude."""
+    peak = peak_magnitude(data)
+    largest = float(np.finfo(np.dtype(dtype)).max)
+    if peak * float(gain) > largest:
+        raise ValueError(f"{name}: samples up to {peak:.3g} would overflow {np.dtype(dtype).name} (|value| > "
+                         f"{largest:.3g}) after a gain of up to {float(gain):.3g}"
+                         + (f": {advice}" if advice else ": scale the data down"))
+    return peak

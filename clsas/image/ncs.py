@@ -26,20 +26,30 @@ g'''(0) = 3 (1 - D^2) / (f0^2 D^5) its expansion to third order in f is
 Per range sub-block n with reference range r_n (tau_ref = 2 r_n / (c D), Delta = tau_c - tau_ref,
 K_0 = K_m(tau_ref), K_s = dK_m / dtau_c = alpha K_0^2, so K_m ~ K_0 + K_s Delta):
 
-1. Along-track FFT (the template's rows); for each sub-block, its columns and a margin (overlap-save).
-2. Range FFT; re-spread and the cubic filter exp(j (2 pi / 3) Y f^3). By stationary phase a
-   target's chirp is then exp(j pi K_m t^2 - j (2 pi / 3) (X - Y) K_m^3 t^3), t = tau - tau_c.
-3. Range IFFT; the nonlinear scaling exp(j pi q2 dt^2 + j (2 pi / 3) q3 dt^3), dt = tau - tau_ref
+1. Along-track FFT (the template's rows).
+2. On the whole record (zero-padded so that no chirp wraps): range FFT, re-spread and a cubic
+   filter exp(j (2 pi / 3) Y f^3), range IFFT. By stationary phase a target's chirp is then
+   exp(j pi K_m t^2 - j (2 pi / 3) (X - Y) K_m^3 t^3), t = tau - tau_c.
+3. For each sub-block, its columns and a margin (overlap-save, below): the nonlinear scaling
+   exp(j pi q2 dt^2 + j (2 pi / 3) q3 dt^3), dt = tau - tau_ref
    (Davidson et al.'s scaling function). With dt = t + Delta the target's phase / pi becomes
        (K_0 + q2 + (K_s + 2 q3) Delta) t^2 + (2 / 3) (q3 - (X - Y) K^3) t^3
        + 2 (q2 Delta + q3 Delta^2) t + q2 Delta^2 + (2 / 3) q3 Delta^3,
    so q3 = -K_s / 2 makes every range's FM rate K_new = K_0 + q2 (what CSA cannot: its residual
-   SRC grows with |R - R_ref|), Y = X(tau_ref) + alpha / (2 K_0) removes the cubic term at the
-   reference, and q2 = K_0 (1 / D - 1) places the target (where its instantaneous frequency is
+   SRC grows with |R - R_ref|), Y = X(tau_ref) + alpha / (2 K_0) would remove the cubic term at
+   the reference, and q2 = K_0 (1 / D - 1) places the target (where its instantaneous frequency is
    zero, t* = -(q2 Delta + q3 Delta^2) / K_new) at tau_ref + D Delta + b Delta^2 =
    tau_ref + 2 (R - r_n) / c + b Delta^2, b = K_s / (2 K_new) = alpha K_0 D / 2.
-4. Range FFT; range compression with SRC exp(j pi f^2 / K_new) and bulk migration correction
-   exp(j 2 pi f (tau_ref - 2 r_n / c)); range IFFT: every target at 2 R / c + b Delta^2.
+4. Range FFT; range compression with SRC exp(j pi f^2 / K_new), the cubic remainder and bulk
+   migration correction exp(j 2 pi f (tau_ref - 2 r_n / c)); range IFFT: every target at
+   2 R / c + b Delta^2. Step 2 takes Y at the record's middle range, Y_mid, for all blocks; the
+   cubic coefficient c_n = q3 - (X(tau_ref) - Y_mid) K_0^3 it leaves at block n's reference
+   (zero at the middle range) is removed here: by stationary phase the chirp
+   exp(j pi K_new t^2 + j (2 pi / 3) c t^3) has the spectrum
+   exp(-j pi f^2 / K_new + j (2 pi / 3) (c / K_new^3) f^3), so the filter has the factor
+   exp(-j (2 pi / 3) (c_n / K_new^3) f^3). (One step 2 for the whole record instead of one a
+   block halves the margins: a block's compression reads half a chirp and the bulk shift
+   around its columns.)
 5. Azimuth compression exp(j 4 pi R f0 D / c) and the residual phase of step 3,
    pi (q2 Delta^2 + (2 / 3) q3 Delta^3 - (q2 Delta + q3 Delta^2)^2 / K_new), with R the column's
    range and Delta = 2 (R - r_n) / (c D). (Reading R and Delta through the shift b Delta^2
@@ -54,8 +64,9 @@ i.e. a residual migration, which blurs a point's range response and tapers its D
 The sub-blocks are as wide as keeps it within 1/16 of a range cell (b Delta^2 <= 1 / (16 B)
 at the band's largest |k_u|) and the range-variant cubic term within
 pi / 16 at f = B / 2 ((2 pi / 3) (dX / dtau_c) Delta (B / 2)^3); on a narrow swath (Wu 2018's
-points at 297-303 m) that is one block for the whole record. Each block is filtered over its
-columns and a margin of the re-spread chirp's length and the bulk shift on each side. What stays
+points at 297-303 m) that is one block for the whole record. Each block is scaled and
+compressed over its columns and a margin of half the chirp's length and the bulk shift on each
+side, at the margin's own times (the record is zero-padded, never read circularly). What stays
 approximate: the expansion to third order in f and first order in Delta for K_m, the stationary
 phase mapping (a time-bandwidth product >> 1).
 """
@@ -67,11 +78,12 @@ import scipy.fft
 
 from ..kernelmath import unit_phasor
 from ..model import Image
-from .strip import block_segment, follows_template, range_blocks, strip_image, strip_job
+from .strip import follows_template, range_blocks, strip_image, strip_job
 
 CELL_FRACTION = 1 / 16  # the residual migration b Delta^2 allowed at a block's edge, range cells
 CUBIC_TOLERANCE = np.pi / 16  # rad: the range-variant cubic phase allowed at a block's edge at f = B / 2
 GUARD = 16  # samples added to each side of a block beyond the chirp's length and the bulk shift
+BYTES_PER_SAMPLE = 64  # per padded range sample: the spread record, a block's segment and its phase screens
 FM_MARGIN = 0.5  # 1 / K - alpha tau must stay above this fraction of 1 / K (K_m finite, no sign change)
 
 
@@ -84,6 +96,12 @@ def ncs_block_width(alpha_max: float, k_max: float, f0: float, d_min: float, ban
     half_shift = np.sqrt(CELL_FRACTION / bandwidth / (alpha_max * k_max / 2))  # s of two-way time
     half_cubic = CUBIC_TOLERANCE / ((2 * np.pi / 3) * 1.5 * alpha_max / (f0 * d_min**2) * (bandwidth / 2) ** 3)
     return c * min(half_shift, half_cubic)  # a block spans +-half (s) of two-way time: c * half metres
+
+
+def cubic_term(alpha, tau_c, f0: float, d):
+    """X(tau_c) = (3 / 2) alpha tau_c / (f0 D^2), s^3: the cubic range-frequency term of a target
+    at range-Doppler delay tau_c (module docstring)."""
+    return 1.5 * alpha * tau_c / (f0 * d**2)
 
 
 @follows_template
@@ -112,29 +130,42 @@ def nonlinear_chirp_scaling(data, **options) -> Image:
     width = ncs_block_width(alpha.max(), 1 / headroom.min(), f0, d.min(), rec.waveform.bandwidth, c)
     blocks = range_blocks(r, width)
     bulk = 2 * r[-1] * (1 / d.min() - 1) / c  # s, the largest bulk migration
-    margin = int(np.ceil((rec.waveform.duration + bulk) * fs)) + GUARD
-    n_r = scipy.fft.next_fast_len(n + margin)  # zeros beyond the record: the margins never wrap into it
+    margin = int(np.ceil((rec.waveform.duration / 2 + bulk) * fs)) + GUARD  # what compressing a block reads
+    pad = max(int(np.ceil(rec.waveform.duration * fs)) + GUARD, margin)  # zeros either side: no spread chirp wraps
+    lengths = [scipy.fft.next_fast_len(hi - lo + 2 * margin) for lo, hi, _ in blocks]
+    n_p = scipy.fft.next_fast_len(max(pad + n + pad, *(pad + lo - margin + length
+                                                       for (lo, _, _), length in zip(blocks, lengths))))
 
-    rd = job.doppler(rec.data)
-    rd = np.concatenate([rd, np.zeros((rd.shape[0], n_r - n), rd.dtype)], axis=1)
-    out = np.empty((rd.shape[0], n), np.complex64)
+    job.check_budget(n_p + max(lengths), BYTES_PER_SAMPLE)
+
+    # step 2 on the whole record, its cubic filter at the middle range r_mid
+    r_mid = r[n // 2]
+    tau_mid = 2 * r_mid / (c * d)
+    k_mid = 1 / (1 / chirp_rate - alpha * tau_mid)
+    y_mid = cubic_term(alpha, tau_mid, f0, d) + alpha / (2 * k_mid)
+    f = np.fft.fftfreq(n_p, 1 / fs)[None, :]
+    spread = np.zeros((job.rows.size, n_p), np.complex64)
+    spread[:, pad:pad + n] = job.doppler(rec.data)
+    spread = scipy.fft.fft(spread, axis=1, workers=workers)
+    spread *= unit_phasor(-np.pi * f**2 / chirp_rate + (2 * np.pi / 3) * y_mid * f**3)
+    spread = scipy.fft.ifft(spread, axis=1, workers=workers)
+
+    out = np.empty((job.rows.size, n), np.complex64)
     block_of = np.empty(n, int)
-    k_refs = np.empty((len(blocks), rd.shape[0]))  # K_0 of every block and row
-    for b, (lo, hi, r_n) in enumerate(blocks):
+    k_refs = np.empty((len(blocks), job.rows.size))  # K_0 of every block and row
+    for b, ((lo, hi, r_n), length) in enumerate(zip(blocks, lengths)):
         tau_ref = 2 * r_n / (c * d)
         k_ref = 1 / (1 / chirp_rate - alpha * tau_ref)
-        x_ref = 1.5 * alpha * tau_ref / (f0 * d**2)
         q2, q3, k_new = k_ref * (1 / d - 1), -alpha * k_ref**2 / 2, k_ref / d
-        columns, pad = block_segment(lo, hi, margin, n_r)
-        f = np.fft.fftfreq(columns.size, 1 / fs)[None, :]
-        segment = scipy.fft.fft(rd[:, columns], axis=1, workers=workers)
-        segment *= unit_phasor(-np.pi * f**2 / chirp_rate + (2 * np.pi / 3) * (x_ref + alpha / (2 * k_ref)) * f**3)
-        segment = scipy.fft.ifft(segment, axis=1, workers=workers)  # step 2
-        dt = rec.t0 + columns[None, :] / fs - tau_ref
+        cubic = q3 - (cubic_term(alpha, tau_ref, f0, d) - y_mid) * k_ref**3  # left at the block's reference
+        segment = spread[:, pad + lo - margin:pad + lo - margin + length].copy()
+        dt = rec.t0 + (lo - margin + np.arange(length))[None, :] / fs - tau_ref
         segment *= unit_phasor(np.pi * q2 * dt**2 + (2 * np.pi / 3) * q3 * dt**3)  # step 3
+        f = np.fft.fftfreq(length, 1 / fs)[None, :]
         segment = scipy.fft.fft(segment, axis=1, workers=workers)
-        segment *= unit_phasor(np.pi * f**2 / k_new + 2 * np.pi * f * (tau_ref - 2 * r_n / c))  # step 4
-        out[:, lo:hi] = scipy.fft.ifft(segment, axis=1, workers=workers)[:, pad:pad + hi - lo]
+        segment *= unit_phasor(np.pi * f**2 / k_new - (2 * np.pi / 3) * cubic / k_new**3 * f**3
+                               + 2 * np.pi * f * (tau_ref - 2 * r_n / c))  # step 4
+        out[:, lo:hi] = scipy.fft.ifft(segment, axis=1, workers=workers)[:, margin:margin + hi - lo]
         block_of[lo:hi] = b
         k_refs[b] = k_ref[:, 0]
     # step 5, every column from its block's reference

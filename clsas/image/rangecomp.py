@@ -127,7 +127,7 @@ def spectral_window(u: np.ndarray, window: str = "none", *, taylor_nbar: int = 4
     """
     opts = check_window(window, dict(taylor_nbar=taylor_nbar, taylor_sll_db=taylor_sll_db, kaiser_beta=kaiser_beta),
                         "spectral_window")
-    u = v.array("spectral_window u", u, (-1,) * np.ndim(u), copy=False)
+    u = np.asarray(u, dtype=np.float64)
     if window == "none":
         return np.ones_like(u)
     inside = np.abs(u) <= 0.5
