@@ -284,6 +284,73 @@ __kernel void bp_fields(__global const double *positions, __global const int *in
     }
 }
 
+#elif defined(BP_REFS)
+/* bp_tile's references (tile_ref_t, TileKernel.reference_dtype) computed on the device, in double,
+ * for pixels moving uniformly at v (or at rest) and a receiver of two position nodes (uniform
+ * motion) or with stop-and-go: the closed forms of clsas/geometry.py's legs (meet_time), then the
+ * record's fields as TileKernel.references (its NumPy twin) makes them. Work-item i: tile
+ * t = i / n_pulses, pulse p = i % n_pulses of the job; ref[i] its reference.
+ * pulse[p] (bp_ref_pulse_t): tx, eta, rx0 = the receiver at emission, v_rx = its velocity;
+ * centres[t]: the tile's reference point at t = 0; params (bp_ref_params_t): c, f0, fs, t0 (the
+ * receiver's window start), velocity v, half_extent, rho_max, offset and bias (samples). */
+inline double meet_time(const double3 d, const double3 w, const double c)
+{
+    const double a = c * c - dot(w, w), b = dot(d, w);
+    return (b + sqrt(b * b + a * dot(d, d))) / a;
+}
+
+__kernel void bp_refs(__global const double *centres, __global const bp_ref_pulse_t *pulse, const bp_ref_params_t params,
+                      const int n_pulses, const int n_refs, __global tile_ref_t *ref)
+{
+    const int i = get_global_id(0);
+    if (i >= n_refs)  /* the launch is padded to whole work-groups */
+        return;
+    const bp_ref_pulse_t pl = pulse[i % n_pulses];
+    const double c = params.c;
+    const double3 v = vload3(0, params.velocity), tx = vload3(0, pl.tx), rx0 = vload3(0, pl.rx0);
+    const double3 v_r = vload3(0, pl.v_rx), q_emit = vload3(i / n_pulses, centres) + v * pl.eta;
+#ifdef STOP_AND_GO
+    const double3 q = q_emit, r = rx0;
+    const double t1 = length(q - tx) / c, t2 = length(r - q) / c;
+    const double3 v_k = (double3)(0.0);  /* the legs see no motion */
+#else
+    const double t1 = meet_time(q_emit - tx, v, c);
+    const double3 q = q_emit + v * t1, r_scatter = rx0 + v_r * t1;
+    const double t2 = meet_time(r_scatter - q, v_r, c);
+    const double3 r = r_scatter + v_r * t2, v_k = v;
+#endif
+    const double big_t = t1 + t2, k = (big_t - params.t0) * params.fs, cycles = params.f0 * big_t;
+    const double k_int = clamp(floor(k), -1073741824.0, 1073741824.0);
+    const double3 b = q - tx;
+    const double b1 = c * c * t1 - dot(b, v_k), a1 = c * c - dot(v_k, v_k);
+    tile_ref_t o;
+    vstore3(convert_float3(b), 0, o.leg1);
+    o.b1 = (float)b1;
+    o.k1 = (float)(0.5 / b1);
+    o.k2 = (float)(a1 / (b1 * b1));
+#ifdef MOVING
+    o.poly = 0;
+#else
+    o.poly = params.half_extent <= params.rho_max * c * t1;
+#endif
+    o.k_ref = (int)k_int - params.offset - params.bias;
+    o.k_frac = (float)(fmin(k - k_int, 0.99999994) + params.bias);
+    o.cycles = (float)(cycles - rint(cycles));
+    o.range1 = (float)(c * t1);
+#if defined(MONO)
+    const double a2 = c * c - dot(v_r, v_r);
+    vstore3(convert_float3(2.0 * v_r / a2), 0, o.w);
+    o.alpha = (float)(2.0 * c * c / a2);
+#elif !defined(SAME_LEGS)
+    const double3 cc = r - q;
+    vstore3(convert_float3(cc), 0, o.leg2);
+    o.b2 = (float)(c * c * t2 - dot(cc, v_r));
+    vstore3(convert_float3(v_r), 0, o.v_rx);
+    o.a2 = (float)(c * c - dot(v_r, v_r));
+#endif
+    ref[i] = o;
+}
+
 #else /* bp_block: exact double geometry */
 #include "geometry.h"
 

@@ -492,6 +492,34 @@ def test_prepare_checks_the_memory_budget_before_upsampling(kiang_echo):
             prepare(kiang_echo, upsample=64)
 
 
+@pytest.mark.parametrize("options", [dict(), dict(stop_and_go=True), dict(velocity=(0.5, -1.0, 0.0)),
+                                     dict(velocity=(0.5, -1.0, 0.0), stop_and_go=True)])
+def test_references_on_the_device_match_the_host(opencl_device, kiang_echo, options):
+    """bp_refs (the references in double on the device) against TileKernel.references, their NumPy
+    twin: every field within float32 rounding of the same double value (the integer sample index
+    exactly), for the monostatic receiver A, the towed receiver B and the sonobuoy C."""
+    import pyopencl as cl
+
+    centres = np.array([[30.0, 1.0, -43.0], [1989.0, 0.0, -350.0], [31.5, -2.0, -41.0]])
+    pulses = np.arange(3, 19)
+    buf = cl.Buffer(opencl_device.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=centres)
+    for h in range(kiang_echo.n_rx):
+        tile = TileKernel("linear", **options).for_receiver(kiang_echo, h)
+        host, linear = tile.references(kiang_echo, h, pulses, centres, kiang_echo.fs, 2.5, offset=17)
+        assert linear
+        dev = tile.references_on_device(opencl_device.queue, kiang_echo, h, pulses, buf, len(centres), kiang_echo.fs,
+                                        2.5, offset=17)
+        got = np.empty_like(host)
+        cl.enqueue_copy(opencl_device.queue, got, dev)
+        for name in host.dtype.names:
+            a, b = got[name].astype(np.float64), host[name].astype(np.float64)
+            if name in ("k_ref", "poly"):
+                assert np.array_equal(a, b), (h, name)
+            else:
+                scale = np.max(np.abs(b), axis=-1, keepdims=True) if b.ndim == 3 else np.abs(b)
+                assert np.all(np.abs(a - b) <= 2e-7 * np.maximum(scale, 1e-30) + 1e-30), (h, name)
+
+
 def test_one_leg_for_a_monostatic_receiver(opencl_device, kiang_echo):
     """bp_tile computes one leg for receiver A (at the transmitter): t2 = t1 with stop-and-go
     (SAME_LEGS), the closed form of the return leg with exact delays for pixels at rest (MONO);

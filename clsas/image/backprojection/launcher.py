@@ -112,16 +112,25 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
             blocks = [(p0, min(tile.PULSE_BLOCK, s + REF_PULSES - p0, pulses.size - p0))
                       for p0 in range(s, min(s + REF_PULSES, pulses.size), tile.PULSE_BLOCK)]
             if not double:
-                ref, linear = kernels[h].references(echo, h, pulses[s:s + REF_PULSES], tiles.centres[chunk_state.tiles],
-                                                    fs, tiles.half_extent, offset)
-                if linear:
-                    ref_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=ref)
-                    spans = None if not tile.pulse_span else cl.Buffer(
-                        ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=tile.spans(ref, tiles.half_extent, c, skip + s))
+                part, kernel = pulses[s:s + REF_PULSES], kernels[h]
+                ref_buf = kernel.references_on_device(queue, echo, h, part, chunk_state.centres, chunk_state.tiles.size,
+                                                      fs, tiles.half_extent, offset)
+                if ref_buf is None:  # a receiver followed between several nodes: on the host
+                    ref, linear = kernel.references(echo, h, part, tiles.centres[chunk_state.tiles], fs,
+                                                    tiles.half_extent, offset)
+                    ref_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=ref) if linear else None
+                if ref_buf is not None:
+                    spans = None
+                    if tile.pulse_span:
+                        ref, _ = cl.enqueue_map_buffer(queue, ref_buf, cl.map_flags.READ, 0,
+                                                       (chunk_state.tiles.size, part.size), kernel.reference_dtype)
+                        spans = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                                          hostbuf=tile.spans(ref, tiles.half_extent, c, skip + s))
+                        ref.base.release()
                     for p0, count in blocks:
-                        events.append(kernels[h].launch(
+                        events.append(kernel.launch(
                             queue, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
-                            ref_stride=ref.shape[1], ref_first=skip + s, records=records_buf, n_samples=n_samples,
+                            ref_stride=part.size, ref_first=skip + s, records=records_buf, n_samples=n_samples,
                             taps=taps, params=params, p_first=skip + p0, p_count=count, image=image_buf,
                             index=chunk_state.index, spans=spans))
                     continue

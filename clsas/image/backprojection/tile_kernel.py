@@ -103,6 +103,11 @@ TILE_REFS = {"same": record_dtype(_REF),
              "two": record_dtype(_REF + [("leg2", "f4", 3), ("b2", "f4"), ("v_rx", "f4", 3), ("a2", "f4")])}
 TILE_PARAMS = record_dtype([("a1", "f4"), ("fs", "f4"), ("f0", "f4"), ("velocity", "f4", 3), ("half_sin", "f4"),
                             ("c", "f4")])
+# bp_refs' records (the references computed on the device): a pulse (transmitter, emission time,
+# the receiver at emission and its velocity) and the launch's parameters
+REF_PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("rx0", "f8", 3), ("v_rx", "f8", 3)])
+REF_PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("t0", "f8"), ("velocity", "f8", 3),
+                           ("half_extent", "f8"), ("rho_max", "f8"), ("offset", "i4"), ("bias", "i4")])
 _OFFSETS = [("dx", "f4", LANES), ("dy", "f4", LANES), ("dz", "f4", LANES), ("dd", "f4", LANES)]
 PIXELS = record_dtype(_OFFSETS)
 MOVING_PIXELS = record_dtype(_OFFSETS + [("dv", "f4", LANES)])
@@ -151,6 +156,10 @@ class TileKernel:
         self.preamble = declare_all({"tile_ref_t": self.reference_dtype, "tile_params_t": TILE_PARAMS,
                                      "bp_pixels_t": self.pixels}) + _horner("LEG_POLY", LEG_POLY)
         self.field_defines = {"BP_FIELDS": 1, "ROWS": ROWS, "TAP_ROWS": TAP_ROWS, **({"MOVING": 1} if self.moving else {})}
+        self.ref_defines = {"BP_REFS": 1, "TAP_ROWS": TAP_ROWS, **({"MOVING": 1} if self.moving else {}),
+                            **({"STOP_AND_GO": 1} if self.stop_and_go else {}),
+                            **({LEG_DEFINES[legs]: 1} if LEG_DEFINES[legs] else {})}
+        self.ref_preamble = self.preamble + declare_all({"bp_ref_pulse_t": REF_PULSE, "bp_ref_params_t": REF_PARAMS})
 
     def legs_for(self, echo, h: int) -> str:
         """How bp_tile computes receiver h's return leg (see the class docstring): ``"same"`` when,
@@ -257,6 +266,36 @@ class TileKernel:
         pixel within ``half_extent`` of its reference (s within +-SPAN_FACTOR half_extent / c), so
         that k_frac + s fs is positive and the kernel's truncation is the floor."""
         return int(np.ceil(SPAN_FACTOR * half_extent * fs / c)) + 1
+
+    def references_on_device(self, queue, echo, h: int, pulses: np.ndarray, centres, n_tiles: int, fs: float,
+                             half_extent: float, offset: int = 0):
+        """Enqueue bp_refs: the references of :meth:`references` (its NumPy twin) for the
+        ``n_tiles`` tile ``centres`` (a device buffer of (T, 3) doubles) computed on the device, a
+        buffer of (T, P) :attr:`reference_dtype` records; None where the host must compute them
+        (a receiver with more than two position nodes and exact delays: :meth:`references`
+        follows its track and checks its linearity)."""
+        import pyopencl as cl
+
+        if not self.stop_and_go and echo.rx_tau[h].size > 2:
+            return None
+        rt = opencl.runtime()
+        pulse = np.zeros(pulses.size, REF_PULSE)
+        pulse["tx"], pulse["eta"] = echo.tx_pos[pulses], echo.eta[pulses]
+        pulse["rx0"] = echo.rx_position(h, np.zeros(pulses.size), pulses=pulses)
+        if not self.stop_and_go and echo.rx_tau[h].size == 2:
+            pulse["v_rx"] = two_node_velocity(echo, h, pulses)
+        c = echo.medium.sound_speed
+        params = np.zeros((), REF_PARAMS)
+        params["c"], params["f0"], params["fs"], params["t0"] = c, echo.waveform.f0, fs, echo.t0[h]
+        params["velocity"], params["half_extent"], params["rho_max"] = self.velocity, half_extent, RHO_MAX
+        params["offset"], params["bias"] = offset, self.bias(half_extent, c, fs)
+        n_refs = n_tiles * pulses.size
+        out = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, self.reference_dtype.itemsize * max(n_refs, 1))
+        pulse_buf = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=pulse)
+        opencl.kernel("backprojection", "bp_refs", preamble=self.ref_preamble, defines=self.ref_defines)(
+            queue, *opencl.work_groups(n_refs), centres, pulse_buf, params[()], np.int32(pulses.size),
+            np.int32(n_refs), out)
+        return out
 
     def spans(self, ref: np.ndarray, half_extent: float, c: float, first: int) -> np.ndarray:
         """PULSE_SPAN's pulses [start, stop) each tile of the references ``ref`` (T, P) (pulses
