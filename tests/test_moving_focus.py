@@ -26,7 +26,7 @@ from clsas.scene.targets import PointTargets
 CENTRE = np.array([1989.0, 0.0, -350.0])
 
 
-def _focused(case: int, n_pulses: int, prf: float):
+def _focused(case: int, n_pulses: int, prf: float, method: str = "paper"):
     import clsas
 
     v = np.array(presets.KIANG_CASES[case])
@@ -34,7 +34,7 @@ def _focused(case: int, n_pulses: int, prf: float):
                                                       targets=(PointTargets(CENTRE, velocity=v),))
     echo = clsas.simulate(sc, backend="opencl", progress=False)
     est = clsas.estimate_motion(echo, position=CENTRE)
-    return sc, v, est, clsas.focus_moving(echo, est, tau_span=0.004)
+    return sc, v, est, clsas.focus_moving(echo, est, tau_span=0.004, method=method)
 
 
 def _quality(sc, v, images) -> dict:

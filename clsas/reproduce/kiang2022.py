@@ -77,8 +77,9 @@ def window(image, centre_r: float, centre_y: float, half: float):
     yi = np.flatnonzero(np.abs(y - centre_y) <= half)
     if ri.size < 2 or yi.size < 2:
         return image
-    return image.replace(data=image.data[yi[0]:yi[-1] + 1, ri[0]:ri[-1] + 1],
-                         axes={"y": y[yi[0]:yi[-1] + 1], "r": r[ri[0]:ri[-1] + 1]})
+    rows, cols = slice(yi[0], yi[-1] + 1), slice(ri[0], ri[-1] + 1)
+    return image.replace(data=image.data[rows, cols], axes={"y": y[rows], "r": r[cols]},
+                         positions=None if image.positions is None else image.positions[rows, cols])
 
 
 def run_case(case: int, args) -> dict:
