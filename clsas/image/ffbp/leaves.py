@@ -213,7 +213,8 @@ class FirstStage:
                 leaves = slice(s, min(s + step, len(batch)))
                 pulses = (starts[leaves, None] + np.arange(self.first)).reshape(-1)
                 points = np.repeat(centres[slot[leaves]], self.first, axis=0)  # (leaves x first, widest, 3)
-                ref, linear = tile.references(echo, h, pulses, points, records.fs, half_extent, int(records.offset[i]))
+                ref, linear = tile.for_receiver(echo, h).references(echo, h, pulses, points, records.fs, half_extent,
+                                                                    int(records.offset[i]))
                 if not linear:
                     return None
                 parts.append(ref.reshape(widest, -1, self.first).transpose(1, 0, 2)[real[leaves]])
@@ -275,7 +276,7 @@ class FirstStage:
             data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
             ref_buf = made(refs[i])
             for s in range(0, self.first, tile.PULSE_BLOCK):
-                tile.launch(queue, pixels=pix, tile_of=tile_of, refs=ref_buf, ref_stride=self.first, ref_first=0,
+                tile.for_receiver(echo, h).launch(queue, pixels=pix, tile_of=tile_of, refs=ref_buf, ref_stride=self.first, ref_first=0,
                             records=data, n_samples=n_samples, taps=taps, params=params, p_first=s,
                             p_count=min(tile.PULSE_BLOCK, self.first - s), image=image, row_shift=row_shift)
         rt.queue.finish()  # the records' buffers may use host memory that the caller drops
