@@ -397,6 +397,23 @@ def test_reproduce_kiang2022_on_points_prints_the_table(opencl_device, capsys):
     out = capsys.readouterr().out
     assert "case 1" in out and "paper  (0.002, -3.914, 0.0)  error 2.151 %" in out
     assert "with the position estimated too" in out
+    # Table II's tau_c beside the closed forms' (issue 26 item 6), with the reasons
+    assert "A: tau 2.677/2.6834 (-6.4 ms)" in out and "why tau_c" in out and "why eta_c" in out
+
+
+def test_reproduce_kiang2022_two_targets(opencl_device, capsys):
+    """Section VII-B end to end in the CLI (issue 26 item 4): both velocities and positions."""
+    import argparse
+
+    from clsas.reproduce import kiang2022
+
+    parser = argparse.ArgumentParser()
+    kiang2022.add_arguments(parser)
+    args = parser.parse_args(["--targets", "two", "--pulses", "512", "--position", "estimated", "--backend", "opencl"])
+    assert kiang2022.run(args) == 0
+    out = capsys.readouterr().out
+    assert "target 1: v true (0.0, -4.0, 0.0)" in out and "target 2: v true (0.0, -5.0, 3.0)" in out
+    assert out.count("position estimated") == 2 and "(paper 7.203)" in out
 
 
 def test_reproduce_writes_a_db_image_with_metric_axes(tmp_path):
