@@ -160,7 +160,7 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
             g = next((node_grid(p, min(p + first, echo.n_pulses), rho0) for p in (echo.n_pulses // 2,)), None)
             if g is not None and g.n_v - 2 * taps >= LEAF_SAMPLES:
                 break
-            first *= factor
+            first *= 2  # doubling, whatever the factor (a factor of 4 would jump past the best)
         first = min(first, echo.n_pulses)
     pulses, children = _levels(echo.n_pulses, first, factor)
     find_extents([node for level in pulses for node in level])
