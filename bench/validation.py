@@ -102,6 +102,13 @@ def _table(columns, rows) -> list:
         ["| " + " | ".join(_cell(v) for v in row) + " |" for row in rows]
 
 
+def _paper(row: dict) -> str:
+    """The paper's number of a row as printed: the value, or its bound ("<=2")."""
+    if row["paper"] is None:
+        return "-"
+    return report.BOUNDS.get(row.get("kind", "value"), "") + _cell(row["paper"])
+
+
 def _machine(doc: dict) -> str:
     m = doc.get("machine", {})
     start, end = m.get("load_average_at_start"), m.get("load_average")
@@ -122,7 +129,7 @@ def render_paper(doc: dict) -> list:
         if row["table"] not in tables:
             tables.append(row["table"])
     for name in tables:
-        rows = [(r["item"], f"{r['quantity']} ({r['unit']})", r["paper"], r["clsas"], r["difference"], r["tolerance"],
+        rows = [(r["item"], f"{r['quantity']} ({r['unit']})", _paper(r), r["clsas"], r["difference"], r["tolerance"],
                  r["verdict"] if r["verdict"] != "differs" else f"differs: {r['reason']}")
                 for r in doc["rows"] if r["table"] == name]
         lines += ["", f"### {name}", ""] + _table(("item", "quantity", "paper", "clsas", "diff", "tol", "verdict"), rows)
