@@ -175,7 +175,9 @@ def render(data: Path) -> str:
              "evidence: an experiment printed below it, or a test.", "", "## Summary", ""]
     summary = [(d["paper"], d["title"], len(d["rows"]), d["counts"]["match"], d["counts"]["differs"],
                 d["counts"]["clsas only"], f"{d['seconds']:.0f} s", _machine(d)) for d in docs]
-    summary += [(name, "not in the common format yet (no --json)", "-", "-", "-", "-", "-", "-") for name in missing]
+    summary += [(name, "no JSON in docs/validation/ yet (run `python bench/validation.py --papers " + name + "`)"
+                 if takes_json(name) else "not in the common format yet (no --json)", "-", "-", "-", "-", "-", "-")
+                for name in missing]
     lines += _table(("paper", "what", "rows", "match", "differ", "clsas only", "time", "machine"), summary) + [""]
     for doc in docs:
         lines += render_paper(doc)

@@ -261,6 +261,7 @@ def timing(echo, backend: str, blocks=(1, 4, 8), bp_rows: float = 1 / BP_ROWS, r
     import clsas
     from clsas.image.ptrs import StationaryPoints
     from clsas.model import Grid
+    from clsas.progress import Progress
 
     swath = echo.medium.sound_speed * (echo.n_samples / echo.fs) / 2
     common = dict(elements=ELEMENTS, deconvolve=False, backend=backend, points=StationaryPoints(), rcmc=False)
@@ -279,17 +280,20 @@ def timing(echo, backend: str, blocks=(1, 4, 8), bp_rows: float = 1 / BP_ROWS, r
     runs["bp"] = lambda: clsas.backproject(echo, grid, backend=backend, interp="sinc8", aperture=aperture_of(echo),
                                            progress=False)
     times = {name: np.inf for name in runs}
-    for _ in range(repeats):
-        for name, work in runs.items():
+    with Progress(repeats * len(runs) + bool(numpy_rows), "timed runs", "Table 5") as bar:
+        for _ in range(repeats):
+            for name, work in runs.items():
+                start = time.perf_counter()
+                work()
+                times[name] = min(times[name], time.perf_counter() - start)
+                bar.done(1)
+        times["bp"] *= axes["y"].size / n_rows
+        if numpy_rows:
             start = time.perf_counter()
-            work()
-            times[name] = min(times[name], time.perf_counter() - start)
-    times["bp"] *= axes["y"].size / n_rows
-    if numpy_rows:
-        start = time.perf_counter()
-        clsas.backproject(echo, Grid.plane(axes["x"], axes["y"][:numpy_rows], depth), backend="numpy", interp="sinc8",
-                          aperture=aperture_of(echo), progress=False)
-        times["bp_numpy"] = (time.perf_counter() - start) * axes["y"].size / numpy_rows
+            clsas.backproject(echo, Grid.plane(axes["x"], axes["y"][:numpy_rows], depth), backend="numpy",
+                              interp="sinc8", aperture=aperture_of(echo), progress=False)
+            times["bp_numpy"] = (time.perf_counter() - start) * axes["y"].size / numpy_rows
+            bar.done(1)
     times["pixels"] = axes["y"].size * axes["x"].size
     return times
 
