@@ -187,7 +187,7 @@ def test_bad_input():
     with pytest.raises(TypeError, match="receiver must be a receiver name"):
         estimate_receiver(echo, 0)
     from clsas import range_compress
-    with pytest.raises(ValueError, match="echo must be raw"):
+    with pytest.raises(ValueError, match="echo: must be a raw echo"):
         estimate_receiver(range_compress(echo), "A")
     with pytest.raises(TypeError, match="echo must be an EchoData"):
         estimate_receiver(echo.data, "A")

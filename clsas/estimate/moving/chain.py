@@ -163,8 +163,7 @@ def compressed_receiver(echo: EchoData, receiver: str) -> EchoData:
     pulses)."""
     if not isinstance(echo, EchoData):
         raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
-    if echo.compressed:
-        raise ValueError("echo must be raw (EchoData.compressed is False): the chain range-compresses it itself")
+    validate.compression("echo", echo, compressed=False, advice="the chain range-compresses it itself (eq. 8)")
     if not isinstance(receiver, str):
         raise TypeError(f"receiver must be a receiver name (one of {echo.receivers}), got {receiver!r}")
     (r,) = echo.select_receivers(receiver, parameter="receiver")

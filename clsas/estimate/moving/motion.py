@@ -172,9 +172,8 @@ def check_echo(echo, receivers=None) -> list:
     """The receiver names to use, after checking ``echo`` is a raw EchoData with >= 3 of them."""
     if not isinstance(echo, EchoData):
         raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
-    if echo.compressed:
-        raise ValueError("echo must be raw (EchoData.compressed is False); got a range-compressed echo: the "
-                         "moving-target chain range-compresses it itself (Kiang & Kiang 2022 eq. 8)")
+    validate.compression("echo", echo, compressed=False,
+                         advice="the moving-target chain range-compresses it itself (Kiang & Kiang 2022 eq. 8)")
     names = list(echo.receivers) if receivers is None else [echo.receivers[i] for i in
                                                            echo.select_receivers(receivers, "receivers")]
     if len(names) < 3:
