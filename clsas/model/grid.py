@@ -10,6 +10,7 @@ from .. import budget
 from .. import validate
 
 GRID_BYTES_PER_PIXEL = 80  # a plane's positions (24) and their temporaries while it is built
+POSITION_BYTES_PER_PIXEL = 24  # one float64 (x, y, z): a checked copy of given positions
 
 
 @dataclass(frozen=True, eq=False)
@@ -32,21 +33,25 @@ class Grid:
     axes: dict
 
     def __post_init__(self):
+        if not (isinstance(self.positions, np.ndarray) and self.positions.dtype == np.float64):
+            _check_position_bytes("Grid.positions", self.positions)  # converted: a copy
         pos = validate.array("Grid.positions", self.positions, (-1,) * max(2, np.ndim(self.positions)),
                              bound=validate.MAX_COORDINATE, copy=False)
         if pos.ndim < 2 or pos.shape[-1] != 3:
             raise ValueError(f"Grid.positions: must have shape (..., 3), got {pos.shape}")
         if pos.size == 0:
             raise ValueError("Grid is empty: give at least one pixel")
-        dims = tuple(self.dims)
+        dims = validate.names("Grid.dims", self.dims)
         if len(dims) != pos.ndim - 1:
-            raise ValueError(f"Grid.dims must name the {pos.ndim - 1} pixel axes, got {dims}")
+            raise ValueError(f"Grid.dims: must name the {pos.ndim - 1} pixel axes, got {dims}")
+        given = validate.mapping("Grid.axes", self.axes, none_is_empty=True)
+        unknown = sorted(set(given) - set(dims), key=str)
+        if unknown:
+            raise ValueError(f"Grid.axes: has coordinates for {unknown!r}, which are not dims {dims}")
         axes = {}
         for name, n in zip(dims, pos.shape[:-1]):
-            ax = np.asarray(self.axes.get(name, np.arange(n)), dtype=np.float64)
-            if ax.shape != (n,):
-                raise ValueError(f"Grid.axes[{name!r}] must have {n} values, got shape {ax.shape}")
-            axes[name] = ax
+            axes[name] = validate.array(f"Grid.axes[{name!r}]", given.get(name, np.arange(n)), (n,),
+                                        bound=validate.MAX_COORDINATE)
         pos.flags.writeable = False
         object.__setattr__(self, "positions", pos)
         object.__setattr__(self, "dims", dims)
@@ -93,9 +98,18 @@ class Grid:
     @classmethod
     def points(cls, positions, dims=None) -> "Grid":
         """Any ``(..., 3)`` array of pixel positions (m); dims default to ``("i0", "i1", ...)``."""
+        _check_position_bytes("Grid.points positions", positions)
         pos = validate.array("Grid.points positions", positions, (-1,) * max(1, np.ndim(positions)),
                              bound=validate.MAX_COORDINATE)
         if pos.ndim == 1:
             pos = pos[None]
         dims = tuple(dims) if dims is not None else tuple(f"i{k}" for k in range(pos.ndim - 1))
         return cls(pos, dims, {})
+
+
+def _check_position_bytes(name: str, positions) -> None:
+    """The budget of a checked float64 copy of ``positions`` (from their shape: a broadcast view
+    costs its full size once copied), before anything is copied."""
+    count = validate.element_count(name, positions)
+    budget.check_bytes(f"{name} of {count // 3} pixels", POSITION_BYTES_PER_PIXEL / 3 * count,
+                       "fewer pixels (image in tiles)")
