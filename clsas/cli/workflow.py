@@ -2,7 +2,12 @@
 
     clsas simulate huang2022 -o echo.nc --pulses 128 --snr 20 --seed 1
     clsas image echo.nc --algorithm omegak -o image.nc --png image.png
-    clsas plot image.nc --png image.png
+    clsas plot image.nc -o image.png
+
+Every output is checked before any work (:func:`._common.check_outputs`): a known suffix, an
+existing folder, never the input, and an existing file only with ``--overwrite``. ``simulate``
+also checks, before the echo cube is allocated, that the cube, the synthesis's working memory
+and the save fit the memory budget (``CLSAS_MEMORY_BUDGET``).
 """
 
 from __future__ import annotations
@@ -13,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import UsageError, parse_grid, write_png
+from ._common import UsageError, add_overwrite_argument, check_outputs, parse_grid, write_png
 
 log = logging.getLogger("clsas")
 
@@ -34,6 +39,7 @@ def add_simulate_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=None, help="noise seed (repeatable runs)")
     parser.add_argument("--backend", choices=("auto", "opencl", "numpy"), default=None,
                         help="where the kernels run (default: CLSAS_BACKEND or auto)")
+    add_overwrite_argument(parser)
 
 
 def load_scene(name: str, pulses: int | None):
@@ -58,16 +64,29 @@ def load_scene(name: str, pulses: int | None):
 
 
 def run_simulate(args) -> int:
-    from .. import io
+    from .. import budget, io
     from ..synthesis import simulate
+    from ..synthesis.echo.options import DEFAULT_CHUNK_BYTES
 
+    out = check_outputs({"-o": args.out}, inputs=(args.scene,), overwrite=args.overwrite)["-o"]
     scene = load_scene(args.scene, args.pulses)
     if not scene.targets:
         raise UsageError(f"{args.scene}: the scenario has no targets ([[targets]]): its echoes would be zero")
+    allowed = budget.memory_budget()
+    cube = allowed - DEFAULT_CHUNK_BYTES - io.files.SAVE_WORKING_BYTES  # what is left for the echo itself
+    if cube <= 0:
+        raise UsageError(f"the memory budget ({allowed} bytes) leaves nothing for the echo; raise CLSAS_MEMORY_BUDGET")
     t = time.perf_counter()
-    echo = simulate(scene, snr_db=args.snr, seed=args.seed, backend=args.backend, progress=args.progress)
+    try:
+        echo = simulate(scene, snr_db=args.snr, seed=args.seed, backend=args.backend, progress=args.progress,
+                        max_bytes=cube)
+    except ValueError as err:
+        if "max_bytes" not in str(err):
+            raise
+        raise UsageError(f"{err} [here max_bytes is the memory budget of {allowed / 2**30:.3g} GiB less the "
+                         "synthesis's and the save's working memory: lower --pulses or raise CLSAS_MEMORY_BUDGET]") from None
     took = time.perf_counter() - t
-    path = io.save(echo, args.out)
+    path = io.save(echo, out)
     print(f"{args.scene}: {echo.n_rx} receivers x {echo.n_pulses} pulses x {echo.n_samples} samples "
           f"simulated in {took:.1f} s -> {path} ({_size(path) / 2**20:.1f} MiB)")
     return 0
@@ -91,6 +110,7 @@ def add_image_arguments(parser) -> None:
     parser.add_argument("--png", default=None, help="also write a picture of the image with its cuts")
     parser.add_argument("--floor", type=float, default=-50.0, help="picture floor, dB (default -50)")
     parser.add_argument("--backend", choices=("auto", "opencl", "numpy"), default=None)
+    add_overwrite_argument(parser)
 
 
 def default_grid(echo, max_pixels: int = DEFAULT_MAX_PIXELS):
@@ -138,18 +158,21 @@ def run_image(args) -> int:
     from ..image.omegak import omega_k
     from ..image.rda import range_doppler
 
+    if args.out is None and args.png is None:
+        raise UsageError("give -o IMAGE.nc and/or --png PICTURE.png: nothing would be written")
+    outputs = check_outputs({"-o": args.out}, {"--png": args.png}, inputs=(args.echo,), overwrite=args.overwrite)
+    _check_floor(args.floor)
+    grid = parse_grid(args.grid) if args.grid and args.algorithm in ("bp", "ffbp") else None
     echo = io.load(args.echo)
     if not isinstance(echo, EchoData):
         raise UsageError(f"{args.echo} holds an image, not echoes; `clsas plot` shows it")
-    if args.out is None and args.png is None:
-        raise UsageError("give -o IMAGE.nc and/or --png PICTURE.png: nothing would be written")
     t = time.perf_counter()
     if not echo.compressed:
         echo = range_compress(echo, window=args.window or "none")
     elif args.window:
         raise UsageError(f"{args.echo} is already range-compressed; --window applies to raw echoes")
     if args.algorithm in ("bp", "ffbp"):
-        grid = parse_grid(args.grid) if args.grid else default_grid(echo)
+        grid = grid if grid is not None else default_grid(echo)
         what = f"{args.algorithm} onto {grid.shape[0]} x {grid.shape[1]} pixels"
         imager = backproject if args.algorithm == "bp" else ffbp
         image = imager(echo, grid, backend=args.backend, progress=args.progress)
@@ -163,26 +186,30 @@ def run_image(args) -> int:
     took = time.perf_counter() - t
     print(f"{what}: image {' x '.join(map(str, image.shape))} ({', '.join(image.dims)}) in {took:.1f} s")
     if args.out:
-        print(f"-> {io.save(image, args.out)}")
+        print(f"-> {io.save(image, outputs['-o'])}")
     if args.png:
-        write_png(image, args.png, args.floor, f"{Path(args.echo).name}: {args.algorithm}")
+        write_png(image, outputs["--png"], args.floor, f"{Path(args.echo).name}: {args.algorithm}")
         print(f"-> {args.png}")
     return 0
 
 
 def add_plot_arguments(parser) -> None:
     parser.add_argument("file", metavar="FILE", help="an image or echo file (.nc or .zarr)")
-    parser.add_argument("--png", default=None, help="picture to write (default: FILE with .png)")
+    parser.add_argument("-o", "--out", "--png", dest="out", default=None,
+                        help="picture to write: .png, .pdf or .svg (default: FILE with .png)")
     parser.add_argument("--floor", type=float, default=-50.0, help="floor, dB (default -50)")
     parser.add_argument("--rx", default="0", help="echo files: the receiver shown (index or name)")
+    add_overwrite_argument(parser)
 
 
 def run_plot(args) -> int:
     from .. import io
     from ..model import EchoData, Image
 
+    picture = args.out or str(Path(args.file).with_suffix(".png"))
+    out = check_outputs({}, {"-o": picture}, inputs=(args.file,), overwrite=args.overwrite)["-o"]
+    _check_floor(args.floor)
     obj = io.load(args.file)
-    out = args.png or str(Path(args.file).with_suffix(".png"))
     if isinstance(obj, EchoData):
         rx = obj.select_receivers([int(args.rx) if args.rx.isdigit() else args.rx], "--rx")[0]
         shown = Image(data=obj.data[rx], dims=("eta", "tau"), axes={"eta": obj.eta, "tau": obj.fast_time(rx)})
@@ -194,6 +221,11 @@ def run_plot(args) -> int:
     write_png(shown, out, args.floor, title)
     print(f"-> {out}")
     return 0
+
+
+def _check_floor(floor: float) -> None:
+    if not (np.isfinite(floor) and -1000 <= floor < 0):
+        raise UsageError(f"--floor: must be a number of dB in [-1000, 0), got {floor:g}")
 
 
 def _size(path: Path) -> int:

@@ -37,7 +37,7 @@ import logging
 import os
 from pathlib import Path
 
-from ... import validate
+from ... import budget, validate
 from ...errors import ClsasError, DataFileError
 from ...model import EchoData, Image
 from ..dataset import to_json, to_xarray
@@ -45,11 +45,15 @@ from ..toml import scenario_from_toml
 from . import read as _read
 from . import target as _target
 from . import write as _write
-from .read import LOAD_OVERHEAD
+from .read import LOAD_OVERHEAD, LOAD_WORKING_BYTES
 from .target import NETCDF_SUFFIXES, ZARR_SUFFIX, check_target
 from .write import CHUNK_BYTES, SLAB_BYTES
 
 log = logging.getLogger("clsas")
+
+#: bytes a save holds beyond the object: a few slabs and the writers' chunk buffers
+#: (tests/test_hardening_files.py measures the peak)
+SAVE_WORKING_BYTES = 64 << 20
 
 
 def to_dataset(obj):
@@ -78,6 +82,7 @@ def save(obj: EchoData | Image, path: str | os.PathLike, compression: int = 1, o
     overwrite = validate.flag("save overwrite", overwrite)
     ds = to_dataset(obj)  # TypeError / ValueError (unstorable provenance, bad dim names) before any write
     path = check_target("save path", path, overwrite)
+    budget.check_bytes(f"save of {path} (its working buffers)", SAVE_WORKING_BYTES)
     with _target.temporary(path) as tmp:
         try:
             _write.write(ds, tmp, level)
@@ -110,7 +115,7 @@ def load(path: str | os.PathLike) -> EchoData | Image:
     """Read an EchoData or Image written by :func:`save` (or by clsas 0.1's HDF5 layout).
 
     ``path``: a ``.nc`` / HDF5 file or a ``.zarr`` store (folder). Its arrays' declared sizes
-    (times :data:`LOAD_OVERHEAD`) must fit :func:`clsas.memory_budget` (raise it with
+    (times :data:`LOAD_OVERHEAD`, plus :data:`LOAD_WORKING_BYTES`) must fit :func:`clsas.memory_budget` (raise it with
     ``clsas.use_memory_budget`` for a larger file).
 
     Raises TypeError for a path that is not a str or os.PathLike, FileNotFoundError when
@@ -121,5 +126,5 @@ def load(path: str | os.PathLike) -> EchoData | Image:
     return _read.read(_target.file_path("load path", path))
 
 
-__all__ = ["CHUNK_BYTES", "LOAD_OVERHEAD", "NETCDF_SUFFIXES", "SLAB_BYTES", "ZARR_SUFFIX", "check_target", "load",
-           "save", "to_dataset", "to_json"]
+__all__ = ["CHUNK_BYTES", "LOAD_OVERHEAD", "LOAD_WORKING_BYTES", "NETCDF_SUFFIXES", "SAVE_WORKING_BYTES", "SLAB_BYTES", "ZARR_SUFFIX",
+           "check_target", "load", "save", "to_dataset", "to_json"]
