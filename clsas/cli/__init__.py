@@ -96,6 +96,16 @@ def _configure_logging(verbose: int) -> None:
 
 
 def main(argv=None) -> int:
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # Ctrl-C while the arguments are read (the commands' own is below)
+        if os.environ.get("CLSAS_DEBUG", "") not in ("", "0"):
+            raise
+        print("clsas: interrupted", file=sys.stderr)
+        return 130
+
+
+def _main(argv) -> int:
     parser = build_parser(argv)
     args = parser.parse_args(argv)
     _configure_logging(args.verbose)
