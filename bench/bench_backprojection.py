@@ -17,6 +17,17 @@ uploads and the kernel; builds and warm-up excluded):
 - ``linear-x8`` (not with ``--quick``): the records a real x8 upsampling of that scene gives,
   32768 samples covering the same range window, to show what the longer records cost (cache).
 
+Against torchbp (``bench: "backprojection-vs-torchbp"``, when ``torchbp`` is importable; the
+rows say so when it is not): the issue's scene (512^2 px x 1024 pulses x 4096 samples, linear,
+monostatic) imaged by ``clsas.backproject`` (upsample=1) and by torchbp's Cartesian CPU
+back-projection (``torchbp.ops.backprojection_cart_2d``: a float32 distance and one square root a
+pixel and pulse, stop-and-go, linear interpolation; its speed of light stands in for the sound
+speed through its carrier argument), timed interleaved (clsas, torchbp, clsas, ...), min and
+median, for clsas with ``stop_and_go=True`` (the same delays) and with its default exact
+non-stop-and-go delays; the relative L2 difference of the stop-and-go images is reported.
+torchbp is built from source against torch (CPU) in its own environment, which must also hold
+clsas to run this bench.
+
 NumPy (the float64 reference) runs on fewer pulses (its rate does not depend on the pulse
 count). Each figure is the median of several timed runs; the fastest run is reported as
 ``min_seconds`` / ``rate_best`` beside it (the machine is shared: spread is noise).
@@ -83,6 +94,70 @@ def timings(run, repeats: int) -> list[float]:
     return out
 
 
+TORCHBP_C0 = 299792458.0  # torchbp's speed of light (csrc/cpu/util.h kC0)
+
+
+def torchbp_call(echo, grid):
+    """A function imaging ``echo`` (one receiver, stop-and-go, monostatic) on the plane ``grid``
+    with torchbp's Cartesian CPU back-projection, returning the image as (y, x) complex64; or the
+    reason it cannot."""
+    try:
+        import torch
+        import torchbp
+    except ImportError as exc:
+        return None, f"torchbp is not importable here ({exc}); build it from source in an environment with torch"
+    c, f0 = echo.medium.sound_speed, echo.waveform.f0
+    x, y = grid.axes["x"], grid.axes["y"]
+    data = torch.from_numpy(np.ascontiguousarray(echo.data[0]))
+    pos = torch.from_numpy(np.ascontiguousarray(echo.tx_pos - [0.0, 0.0, grid.positions[0, 0, 2]], np.float32))
+    spec = {"x": (x[0], x[0] + x.size * (x[1] - x[0])), "y": (y[0], y[0] + y.size * (y[1] - y[0])), "nx": x.size,
+            "ny": y.size}
+    # sample k of the record is at range c (t0 + k / fs) / 2: bins of c / (2 fs), starting at c t0 / 2; the
+    # carrier phase 4 pi fc d / C0 is clsas's 4 pi f0 d / c when fc = f0 C0 / c
+    args = dict(fc=f0 * TORCHBP_C0 / c, r_res=c / (2 * echo.fs), pos=pos, d0=-c * echo.t0[0] / 2)
+
+    def run():
+        return torchbp.ops.backprojection_cart_2d(data, spec, **args).numpy()[0].T
+
+    return run, f"torch {torch.__version__}, {torch.get_num_threads()} threads"
+
+
+def versus_torchbp(args) -> None:
+    """The torchbp rows (module docstring)."""
+    n_pix, n_pulses = (256, 256) if args.quick else (512, 1024)
+    echo, grid = scene(n_pulses, 4096, n_pix)
+    run_torchbp, note = torchbp_call(echo, grid)
+    size = {"pixels": grid.size, "pulses": n_pulses, "receivers": 1, "samples": 4096}
+    if run_torchbp is None:
+        report(args, "backprojection-vs-torchbp", "opencl", size, float("nan"), "G backprojections/s", float("nan"),
+               case="not run", note=note)
+        return
+    repeats = args.repeats or (3 if args.quick else 5)
+    work = grid.size * n_pulses / 1e9
+    theirs = run_torchbp()
+    for case, stop_and_go in (("stop-and-go", True), ("default", False)):
+        def ours():
+            return backproject(echo, grid, backend="opencl", interp="linear", upsample=1, stop_and_go=stop_and_go,
+                               progress=False)
+        image = ours()
+        run_torchbp()
+        times = {"clsas": [], "torchbp": []}
+        for _ in range(repeats):
+            for name, run in (("clsas", ours), ("torchbp", run_torchbp)):
+                start = time.perf_counter()
+                run()
+                times[name].append(time.perf_counter() - start)
+        med = {k: statistics.median(v) for k, v in times.items()}
+        agree = float(np.linalg.norm(image.data - theirs) / np.linalg.norm(image.data)) if stop_and_go else None
+        for name in ("clsas", "torchbp"):
+            report(args, "backprojection-vs-torchbp", "opencl" if name == "clsas" else "torchbp-cpu", size,
+                   work / med[name], "G backprojections/s", med[name], case=case, method=name,
+                   min_seconds=min(times[name]), rate_best=work / min(times[name]), runs=repeats,
+                   **({"ratio_median": med["torchbp"] / med["clsas"],
+                       "ratio_best": min(times["torchbp"]) / min(times["clsas"]), "torchbp": note,
+                       "rel_l2_vs_torchbp": agree} if name == "clsas" else {}))
+
+
 def fixed_cost(args) -> None:
     """The fixed-cost rows (module docstring)."""
     echo = clsas.range_compress(clsas.simulate(presets.point_scene("huang2022", n_pulses=64), backend="opencl",
@@ -121,6 +196,7 @@ def fixed_cost(args) -> None:
 
 def main() -> None:
     args = arguments(__doc__.splitlines()[0])
+    versus_torchbp(args)
     fixed_cost(args)
     n_pix = 256 if args.quick else 512
     pulses = {"opencl": 256 if args.quick else 1024, "numpy": 8 if args.quick else 16}

@@ -29,33 +29,8 @@ each, min and median, with the relative L2 difference of the two images:
 square grids of half as many pixels a side (the aperture and the image grow together), and of
 the aperture case for the same pulses on a fixed 512^2 grid.
 
-Measured 2026-11-23 on a quiet 2-core AVX2 EPYC (PoCL 3.1; load average below 1 before each
-run), median (best) of 3 timed runs:
-
-| case, 1024^2 x 2048 | direct | ffbp | ratio | levels, first | relative L2 |
-|---|---|---|---|---|---|
-| wide | 4.97 s | 0.475 s | 10.5x (11.3x) | 4, 64 | 0.0051 |
-| aperture | 2.55 s | 0.676 s | 3.8x (4.0x) | 3, 16 | 0.054 |
-| full | 6.32 s | 2.47 s | 2.6x (2.7x) | 4, 8 | 0.0067 |
-
-A second interleaved run of the wide case (5 each): 10.2x (10.4x), direct 5.2-5.6 s, ffbp
-0.50-0.61 s. ffbp's time varies more between runs than direct's (0.43-0.63 s over these runs):
-a single run can read 8-11x. Quick (512^2 x 1024): wide 3.6x (3.7x), aperture 2.1x (1.8x),
-full 1.8x (2.2x).
-
-Scan (one timed run each, quiet): wide, 512 / 1024 / 2048 / 4096 pulses onto 256^2 / 512^2 /
-1024^2 / 2048^2 pixels: 0.94 / 3.8 / 8.3 / 22.9x (direct 0.11 / 0.86 / 5.3 / 38.8 s; relative L2
-0.006 / 0.005 / 0.005 / 0.006; 1 / 3 / 4 / 6 levels): the gain grows with the aperture, as
-O(N^3) against O(N^2 log N) predicts (at load 3-5 the same scan read 1.5 / 3.5 / 11.2 / 24.2x).
-Aperture case on a fixed 512^2 grid: 2.1 / 2.1 / 1.4 / 1.1x (relative L2 0.031 / 0.048 / 0.055 /
-0.060): there the spanned direct's cost a pixel stays the beam's footprint while the fixed grid
-samples the longer scene ever more coarsely, so the merges stop early (1 level at 2048 and 4096
-pulses).
-
-Where the wide case's 0.5 s goes (profiled): the first stage's bp_tile ~0.3 s (1.41 M slots x 64
-pulses, ~3.2 ns a slot and pulse, direct back-projection's own rate), the merges and the final
-stage ~0.18 s (~20 ns a 64-tap child read), host work ~0.15 s (tile references 0.07, the plan
-0.04, the scene's skeleton 0.04).
+Each row carries the machine it was measured on (bench/_harness.py); the figures live in the
+JSON output (``--json``; ``bench/run_all.py`` collects them), not here.
 """
 
 from __future__ import annotations

@@ -14,12 +14,11 @@ sinc8) of the PTRS image's pixels (the same plane grid). The rate of each is pix
 ratios of rates are speed-ups. The closing note prints BP / PTRS beside seed 003's Table 5
 (real data, Matlab: 35,234 s vs 608 s with 4 sub-blocks, 58x; 1149 s with 8, 30.7x).
 
-Measured with ``--quick`` on a shared 2-core machine (2026-11-23): decoupling 130 M elements/s
-(NumPy 19), azimuth compression 102 (NumPy 34); BP / PTRS 14.4x (4 sub-blocks), 11.8x (8);
-PTRS is 7.3x PCA + omega-k and 1.3x PCA + range-Doppler; PTRS OpenCL / NumPy 4.2x. The ratio
-to BP is below the paper's because clsas's BP is a vectorised OpenCL kernel while the paper's
-was Matlab with sinc interpolation; PTRS's cost is M x (M N_p) x N_r per pass (every receiver
-filters the whole M x PRF Doppler grid), spent in range FFTs of the sub-block segments.
+The figures are this script's output (``--json``; docs/validation.md gathers them). PTRS's cost
+is M x (M N_p) x N_r per pass (every receiver filters the whole M x PRF Doppler grid), spent in
+range FFTs of the sub-block segments; clsas's back-projection is a vectorised OpenCL kernel
+where the paper's was Matlab with sinc interpolation, so the ratio to BP is the
+implementations' as much as the methods'.
 """
 
 from __future__ import annotations

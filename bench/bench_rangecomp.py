@@ -1,6 +1,6 @@
 """Range compression throughput: input samples per second through scipy.fft matched filtering.
 
-Range compression runs on the host (scipy.fft/pocketfft, DESIGN.md); this benchmark shows
+Range compression runs on the host (scipy.fft/pocketfft, docs/design.md); this benchmark shows
 how it scales with scipy.fft ``workers`` (1 vs all cores) in one run.
 """
 

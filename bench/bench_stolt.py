@@ -7,7 +7,8 @@ by the OpenCL path, the result mapped back). The OpenCL path is timed twice: ret
 result array (``"output": "fresh"``: its 134 MB are page-faulted in during the call) and writing
 into one reused array (``"output": "reused"``, the ``out=`` of a stream of equal blocks). The
 NumPy reference runs on fewer rows (its rate does not depend on the row count); each JSON line
-names its interpolator (``"interp"``).
+names its interpolator (``"interp"``), and the OpenCL lines carry the kernel's relative L2
+difference from the float64 reference on the reference's rows (``"rel_l2_to_reference"``).
 """
 
 from __future__ import annotations
@@ -37,6 +38,10 @@ def main() -> None:
     n = 1024 if args.quick else 4096
     rows = {"opencl": n, "numpy": 64 if args.quick else 128}
     for interp in ("linear", "sinc8"):
+        spec, ku, axes = case(rows["numpy"], n)
+        reference = stolt(spec, ku, axes, interp, backend="numpy")
+        kernel = stolt(spec, ku, axes, interp, backend="opencl")
+        error = float(np.linalg.norm(kernel - reference) / np.linalg.norm(reference))
         for backend, n_rows in rows.items():
             spec, ku, axes = case(n_rows, n)
             outputs = {"fresh": None, "reused": np.empty((n_rows, n), np.complex64)} if backend == "opencl" \
@@ -45,7 +50,8 @@ def main() -> None:
                 seconds = measure(partial(stolt, spec, ku, axes, interp, backend=backend, out=out),
                                   repeats=args.repeats or (7 if backend == "opencl" else 1))
                 report(args, "stolt", backend, {"rows": n_rows, "columns": n}, n_rows * n / seconds / 1e6,
-                       "M samples/s", seconds, interp=interp, output=output)
+                       "M samples/s", seconds, interp=interp, output=output,
+                       **({"rel_l2_to_reference": error} if backend == "opencl" else {}))
 
 
 if __name__ == "__main__":

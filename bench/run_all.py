@@ -1,20 +1,38 @@
-"""Run every bench/bench_*.py with --json (pass --quick through) and print one table."""
+"""Run every bench/bench_*.py with --json (pass --quick through), print one table and write every
+row, with the machine it was measured on (bench/_harness.py), to one JSON file (``--out``,
+default bench-results.json in the current folder).
+
+    python bench/run_all.py [--quick] [--out FILE] [--only NAME ...]
+"""
 
 from __future__ import annotations
 
+import argparse
 import json
+import os
 import subprocess
 import sys
+import tempfile
+import time
 from pathlib import Path
+
+from _harness import machine, machine_brief
 
 HERE = Path(__file__).resolve().parent
 
 
 def main() -> int:
-    quick = "--quick" in sys.argv[1:]
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="each bench's quick size")
+    parser.add_argument("--out", default="bench-results.json", help="the JSON file of every row")
+    parser.add_argument("--only", nargs="*", default=None, help="bench stems to run (e.g. backprojection ffbp)")
+    args = parser.parse_args()
     rows, failed = [], []
+    started = machine()
     for script in sorted(HERE.glob("bench_*.py")):
-        cmd = [sys.executable, str(script), "--json"] + (["--quick"] if quick else [])
+        if args.only and script.stem.removeprefix("bench_") not in args.only:
+            continue
+        cmd = [sys.executable, str(script), "--json"] + (["--quick"] if args.quick else [])
         print(f"running {script.name} ...", file=sys.stderr, flush=True)
         result = subprocess.run(cmd, capture_output=True, text=True)
         if result.returncode != 0:
@@ -22,11 +40,21 @@ def main() -> int:
             print(result.stderr, file=sys.stderr)
             continue
         rows += [json.loads(line) for line in result.stdout.splitlines() if line.startswith("{")]
+    print(f"machine at the start: {machine_brief(started)}")
     print(f"{'bench':16s} {'backend':8s} {'rate':>12s} {'unit':18s} {'seconds':>10s}  size / case")
     for r in rows:
-        extra = {k: v for k, v in r.items() if k not in ("bench", "backend", "device", "size", "rate", "unit", "seconds")}
+        extra = {k: v for k, v in r.items()
+                 if k not in ("bench", "backend", "device", "size", "rate", "unit", "seconds", "machine")}
+        load = r.get("machine", {}).get("load_average", ["?"])[0]
         print(f"{r['bench']:16s} {r['backend']:8s} {r['rate']:12.4g} {r['unit']:18s} {r['seconds']:10.4f}  "
-              f"{r['size']} {extra if extra else ''}")
+              f"{r['size']} {extra if extra else ''} load {load}")
+    report = {"machine": started, "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "quick": args.quick,
+              "rows": rows, "failed": failed}
+    out = Path(args.out)
+    with tempfile.NamedTemporaryFile("w", dir=out.resolve().parent, prefix=out.name, suffix=".tmp", delete=False) as f:
+        json.dump(report, f, indent=1)
+    os.replace(f.name, out)
+    print(f"wrote {len(rows)} rows to {out}", file=sys.stderr)
     if failed:
         print("FAILED:", ", ".join(failed), file=sys.stderr)
     return 1 if failed else 0

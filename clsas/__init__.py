@@ -14,6 +14,7 @@ from .version import __version__
 #: public name -> (module, attribute; None for the module itself)
 _EXPORTS = {
     "Array": (".scene.scenario", "Array"),
+    "absorption_db_per_km": (".synthesis.propagation", "absorption_db_per_km"),
     "EchoData": (".model", "EchoData"),
     "EstimationError": (".errors", "EstimationError"),
     "Grid": (".model", "Grid"),
@@ -24,6 +25,9 @@ _EXPORTS = {
     "PulseSchedule": (".scene.scenario", "PulseSchedule"),
     "Recording": (".scene.scenario", "Recording"),
     "Scenario": (".scene.scenario", "Scenario"),
+    "SeaSurface": (".scene.surface", "SeaSurface"),
+    "Seafloor": (".scene.seafloor", "Seafloor"),
+    "Sediment": (".scene.seafloor", "Sediment"),
     "Sonobuoy": (".scene.scenario", "Sonobuoy"),
     "Waveform": (".model", "Waveform"),
     "backproject": (".image.backprojection", "backproject"),
@@ -38,6 +42,7 @@ _EXPORTS = {
     "load": (".io", "load"),
     "load_scenario": (".io", "load_scenario"),
     "memory_budget": (".budget", "memory_budget"),
+    "nonlinear_chirp_scaling": (".image.ncs", "nonlinear_chirp_scaling"),
     "omega_k": (".image.omegak", "omega_k"),
     "pca_record": (".image.multireceiver", "pca_record"),
     "ptrs_image": (".image.ptrs", "ptrs_image"),

@@ -173,7 +173,7 @@ def kernels_dir() -> Path:
 
     In an installed wheel it is ``clsas/kernels`` (the build maps the top-level ``kernels/``
     there); in a source checkout (editable install) it is the top-level ``kernels/``. Found
-    once per process (the lookup costs ~0.4 ms, which every kernel launch paid).
+    once per process (every kernel launch used to pay the lookup).
     """
     packaged = Path(str(resources.files("clsas"))) / "kernels"
     if (packaged / "common.h").is_file():
@@ -254,7 +254,7 @@ def kernel(name: str, kernel_name: str, defines: dict | None = None, device: str
            double: bool = False, preamble: str = ""):
     """The pyopencl.Kernel ``kernel_name`` from ``kernels/NAME.cl`` (see :func:`program`), one per
     (program, name, thread): a fresh Kernel looks its argument invoker up in pyopencl's on-disk
-    cache (~2-4 ms a call, measured), which calls launching many small kernels (ffbp's leaves and
+    cache (milliseconds a call), which calls launching many small kernels (ffbp's leaves and
     merges) paid every time. Launch it as ``kern(queue, ...)`` (arguments set and enqueued at once)."""
     cl = _import_pyopencl()
     prg = program(name, defines=defines, device=device, double=double, preamble=preamble)
@@ -263,6 +263,25 @@ def kernel(name: str, kernel_name: str, defines: dict | None = None, device: str
     if kern is None:
         kern = _kernels[key] = cl.Kernel(prg, kernel_name)
     return kern
+
+
+#: Work-items a work-group of the kernels launched through :func:`work_groups`.
+WORK_GROUP = 8
+
+
+def work_groups(n_items: int, group: int = WORK_GROUP) -> tuple[tuple[int], tuple[int]]:
+    """(global size, local size) for ``n_items`` work-items in work-groups of ``group``, the global
+    size padded to whole groups (the kernel returns for work-items past ``n_items``). A fixed
+    local size lets PoCL compile a kernel once: with the local size left to it, every new global
+    size may get a new one, and with it a new compilation (~0.2 s a kernel, in every process
+    that meets that size, unless its disk cache holds that exact specialisation)."""
+    return (-(-max(int(n_items), 1) // group) * group,), (group,)
+
+
+def work_groups_2d(n_x: int, n_y: int, group: int = WORK_GROUP) -> tuple[tuple[int, int], tuple[int, int]]:
+    """:func:`work_groups` for a 2-D launch of (n_x, n_y) work-items, in groups of (1, group): the
+    second dimension padded (the kernel returns for work-items past n_y)."""
+    return (max(int(n_x), 1), -(-max(int(n_y), 1) // group) * group), (1, group)
 
 
 #: Compiler output known to be harmless: PoCL's note that a 16-wide vector argument changes the

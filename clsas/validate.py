@@ -211,3 +211,46 @@ def element_count(name: str, value) -> int:
     except (ValueError, TypeError) as err:
         raise TypeError(f"{name}: must be an array of numbers, got {_show(value)} ({err})") from None
     return int(np.prod(shape, dtype=np.float64))
+
+
+def instance(name: str, value, kinds, allowed: str):
+    """``value`` when it is an instance of ``kinds`` (a type or a tuple of types); otherwise a
+    TypeError naming the parameter, what is ``allowed`` (in words) and what was given."""
+    if not isinstance(value, kinds):
+        raise TypeError(f"{name}: must be {allowed}, got {_show(value)} ({type(value).__name__})")
+    return value
+
+
+def compression(name: str, echo, compressed: bool = True, advice: str = "call clsas.range_compress(echo) first"):
+    """The one check of an echo's range compression: ``echo.compressed`` must equal
+    ``compressed``; otherwise a ValueError naming the parameter, what it must be, what it is
+    and ``advice`` (what to do). Returns ``echo``."""
+    if bool(echo.compressed) != compressed:
+        want, got = ("range-compressed", "raw") if compressed else ("raw", "range-compressed")
+        raise ValueError(f"{name}: must be a {want} echo (EchoData.compressed {compressed}), got a {got} one; {advice}")
+    return echo
+
+
+def peak_magnitude(data) -> float:
+    """The largest |x| of a numeric array, read one slice of its first axis at a time (no
+    temporary the size of ``data``)."""
+    data = np.asarray(data)
+    if data.size == 0:
+        return 0.0
+    if data.ndim < 2:
+        return float(np.abs(data).max())
+    return max(float(np.abs(part).max()) for part in data)
+
+
+def bounded_gain(name: str, data, gain: float, dtype=np.complex64, advice: str = "") -> float:
+    """Refuse ``data`` (ValueError naming ``name``) when its largest |sample| times ``gain`` (the
+    most a linear processing of it can amplify a sample: FFT lengths, coherent sums) would leave
+    ``dtype``'s range, so that the processing cannot return inf from finite input; returns the
+    peak magnitude."""
+    peak = peak_magnitude(data)
+    largest = float(np.finfo(np.dtype(dtype)).max)
+    if peak * float(gain) > largest:
+        raise ValueError(f"{name}: samples up to {peak:.3g} would overflow {np.dtype(dtype).name} (|value| > "
+                         f"{largest:.3g}) after a gain of up to {float(gain):.3g}"
+                         + (f": {advice}" if advice else ": scale the data down"))
+    return peak

@@ -29,7 +29,7 @@
  * accumulation in float (double with CLSAS_DOUBLE) over the launch's pulses, added once into
  * the double image at the end (blocked sum).
  *
- * Defines: BP_TILE (with ROWS, PULSES, MOVING when the pixels move, ROW_SHIFT, PULSE_SPAN), or
+ * Defines: BP_TILE (with ROWS, PULSES, MOVING when the pixels move, SAME_LEGS, ROW_SHIFT, PULSE_SPAN), or
  * N_NODES and SEGMENT_PASSES (geometry.h) and STOP_AND_GO for bp_block; INTERP_LINEAR or
  * INTERP_SINC8 (with TAP_ROWS); APERTURE (keep |sin theta| off broadside <= sin(aperture / 2),
  * theta measured from the x-z plane); CLSAS_DOUBLE (bp_block's data, phases and sums in double:
@@ -68,7 +68,9 @@ typedef float16 realv16_t;
 #define FOR_CHAINS _Pragma("unroll") for (int j = 0, r = 0; j < CHAINS; ++j, r = j % ROWS)
 #define RJ R[j / ROWS]
 
-/* pix[ROWS g + r] (bp_pixels_t, TileKernel.PIXELS): work-item g's row r of sixteen pixels (image
+/* SAME_LEGS (stop-and-go with the receiver at the transmitter: a monostatic sonar): t2 = t1, so
+ * s = 2 s1 and leg 2 is not computed.
+ * pix[ROWS g + r] (bp_pixels_t, TileKernel.PIXELS): work-item g's row r of sixteen pixels (image
  *   slots m = 16 (ROWS g + r) + lane): delta (the pixel at t = 0 minus its tile's reference point,
  *   m: dx, dy, dz), dd = |delta|^2 and (MOVING) dv = delta . v;
  * tile_of[g]: the tile of work-item g;
@@ -103,9 +105,11 @@ typedef float16 realv16_t;
 __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_of, __global const tile_ref_t *ref,
                       const int ref_stride, const int ref_first, __global const sample_t *data, __global const float *taps,
                       const tile_params_t params, const int p_first, const int p_count, const int n,
-                      __global double2 *image ROW_SHIFT_PARAM PULSE_SPAN_PARAM)
+                      const int n_items, __global double2 *image ROW_SHIFT_PARAM PULSE_SPAN_PARAM)
 {
     const int g = get_global_id(0);
+    if (g >= n_items)  /* the launch is padded to whole work-groups */
+        return;
     __global const tile_ref_t *tref = ref + (size_t)tile_of[g] * ref_stride;
     const int row_first = TILE_ROW_SHIFT;
     const float a1 = params.a1, fs = params.fs, f0 = params.f0;
@@ -152,6 +156,10 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
 #endif
             s1[j] = n1 / (b1 + sqrt(b1 * b1 + a1 * n1));
         }
+#ifdef SAME_LEGS
+        FOR_CHAINS  /* monostatic stop-and-go: the echo returns along the outgoing leg, s2 = s1 */
+            s[j] = 2.0f * s1[j];
+#else
         FOR_CHAINS {  /* leg 2: s2 = t2 - t2_ref, e = (v_r - v) s1 - delta; s = s1 + s2 */
             const float3 v_r = vload3(0, RJ.v_rx), cc = vload3(0, RJ.leg2), u = v_r - vel;  /* u = v_r - v */
             const float16 ex = u.x * s1[j] - dx[r], ey = u.y * s1[j] - dy[r], ez = u.z * s1[j] - dz[r];
@@ -159,6 +167,7 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             const float16 b2 = RJ.b2 - (v_r.x * ex + v_r.y * ey + v_r.z * ez);
             s[j] = s1[j] + n2 / (b2 + sqrt(b2 * b2 + RJ.a2 * n2));
         }
+#endif
         FOR_CHAINS {  /* sample index K_ref + (frac_ref + s fs), split by truncation (floor is slow) */
             const float16 kf = RJ.k_frac + s[j] * fs;
             int16 k = convert_int16(kf);
@@ -236,9 +245,12 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
 __kernel void bp_block(__global const bp_points_t *pix, __global const bp_pulse_t *pulse,
                        __global const node_t *nodes, __global const sample_t *data,
                        __global const float *taps, const bp_block_params_t params,
-                       const int p_first, const int p_count, const int n, __global double2 *image)
+                       const int p_first, const int p_count, const int n, const int n_items,
+                       __global double2 *image)
 {
     const int g = get_global_id(0);
+    if (g >= n_items)  /* the launch is padded to whole work-groups */
+        return;
     const int m0 = 8 * g;
     const double c = params.c, f0 = params.f0, fs = params.fs, dtau = params.dtau;
     const vec8 p0 = v8(vload8(0, pix[g].x), vload8(0, pix[g].y), vload8(0, pix[g].z));

@@ -1,71 +1,120 @@
 /* Echo synthesis: exact two-way delays, path amplitudes, and accumulation of the LFM echoes.
  *
- * NumPy twin: clsas/simulate/echo/synth.py (accumulate_reference) and clsas/geometry.py
- * (paths); the launcher is clsas/simulate/echo/synth.py (_OpenCLSynth).
+ * NumPy twin: clsas/synthesis/echo/synth.py (accumulate_reference), clsas/synthesis/paths.py
+ * (paths) and clsas/geometry.py; the launcher is clsas/synthesis/echo/synth.py (_OpenCLSynth).
  *
  * Three kernels per chunk of pulses:
- *   echo_paths   one work-item per (sorted scatterer j, pulse p, receiver h): the delay
- *                tau = t1 + t2 in closed form in double (transmitter at emission,
- *                scatterer moving, receiver moving during reception, positions of the receiver
- *                linear between nodes), the amplitude (reflectivity, element patterns, spreading,
- *                occlusion) times the carrier phase exp(-j 2 pi f0 tau) (double), and the echo
- *                centre as sample u = (tau - t0_h) fs split into an integer start = floor(u) and
- *                a fraction frac = u - start (so float32 keeps 1e-7 of a sample at any range);
- *   echo_bounds  min/max start of each CHUNK consecutive (delay-sorted) scatterers;
+ *   echo_paths   one work-item per (8 sorted scatterers, pulse p, receiver h) and path kind
+ *                (direct, or bouncing off the sea surface / seabed: the launcher hands an image
+ *                transmitter and image receiver nodes, clsas/synthesis/propagation.py): the delay
+ *                tau = t1 + t2 in closed form in double (transmitter at emission, scatterer
+ *                moving, receiver moving during reception, positions of the receiver linear
+ *                between nodes), the amplitude (reflectivity, element patterns, spreading,
+ *                reflection coefficients, absorption, path weights) times the carrier phase
+ *                exp(-j 2 pi f0 tau) (double), and the echo centre as sample u = (tau - t0_h) fs
+ *                split into an integer start = floor(u) and a fraction frac = u - start (so
+ *                float32 keeps 1e-7 of a sample at any range). With EXTENDED paths also the
+ *                path's own chirp: the echo is a exp(j 2 pi (chirp d^2 + lin d) + gamma d^2 +
+ *                beta d) for lo <= d <= hi, d = k - u (samples): intra-pulse Doppler (the delay
+ *                of the wavelet emitted u seconds into the pulse, D(u) = D0 + D1 u + D2 u^2,
+ *                from the exact derivatives of the two legs, clsas/synthesis/paths.py) and the
+ *                loss over the band (absorption and surface roughness as an envelope,
+ *                clsas/synthesis/propagation.py);
+ *   echo_bounds  first and last sample reached by each CHUNK consecutive (delay-sorted) paths;
  *   echo_accumulate  one work-item per ROWS x 16 output samples of one (receiver, pulse)
- *                record: loops over the chunks whose samples can reach it and adds
- *                a exp(j 2 pi alpha d^2) for |d| <= half_len, d = k - u (samples),
- *                alpha = K / (2 fs^2) cycles per sample^2. Explicit 16-wide vectors (PoCL does
- *                not vectorise across work-items of a kernel with loops). The chirp of a path's
- *                first row is evaluated (polynomial sin/cos in float), the following rows by
- *                the exact recurrence z(d + 16) = z(d) w(d), w(d + 16) = w(d) rho with
- *                w(d) = exp(j 2 pi alpha (32 d + 256)), rho = exp(j 2 pi alpha 512): two complex
- *                vector products a row instead of a sin/cos (rounding grows by ~1e-7 a row).
+ *                record: loops over the chunks that can reach it and adds each path's echo.
+ *                Explicit 16-wide vectors (PoCL does not vectorise across work-items of a
+ *                kernel with loops). The chirp of a path's first row is evaluated (polynomial
+ *                sin/cos in float; exp for an envelope), the following rows by the exact
+ *                recurrence z(d + 16) = z(d) w(d), w(d + 16) = w(d) rho with
+ *                w(d) = exp(E(d + 16) - E(d)), rho = exp(E(d + 32) - 2 E(d + 16) + E(d)), E the
+ *                quadratic exponent: two complex vector products a row instead of a sin/cos
+ *                (rounding grows by ~1e-7 a row).
  *
  * Defines: N_NODES (>= 2), SEGMENT_PASSES (node segment re-choices), CHUNK, ROWS (16-sample
- * blocks per work-item),
- * STOP_AND_GO, SPREADING, PATH_WEIGHTS; CLSAS_DOUBLE makes the accumulation double.
+ * blocks per work-item), STOP_AND_GO, SPREADING, PATH_WEIGHTS, EXTENDED (paths with their own
+ * chirp and envelope), INTRA_PULSE (1: moving scatterers, 2: every path), ABSORPTION, BOUNCES,
+ * BOTTOM_TABLE (entries of the seabed's reflection table); CLSAS_DOUBLE makes the accumulation
+ * double. The records (echo_pulse_t, node_t, echo_rx_t, echo_params_t, echo_legs_t, echo_path_t)
+ * and the scatterer fields (SCAT_*) are declared by the launcher
+ * (clsas/synthesis/echo/synth.py, RECORDS and SCATTERER).
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #include "common.h"
 #include "geometry.h"
 
-/* One path = (start, frac, amplitude re, im) in one vector: a single 16-byte (float) or
- * 32-byte (double) load per scatterer in the accumulation. In float the integer start is
- * stored bit for bit (as_float), in double as an exact double. */
-#ifdef CLSAS_DOUBLE
-typedef double4 path_t;
-#define PATH_START(v) convert_int((v).x)
-#define MAKE_PATH(st, fr, re, im) ((double4)((double)(st), (fr), (re), (im)))
-#else
-typedef float4 path_t;
-#define PATH_START(v) as_int((v).x)
-#define MAKE_PATH(st, fr, re, im) ((float4)(as_float(st), (float)(fr), (float)(re), (float)(im)))
+#define PATH_START(v) ((v).start)
+
+/* The legs' bounces: the factor (re, im) and the log-amplitude terms per Hz (lnf1) and per Hz^2
+ * (lnf2) of the band envelope, for grazing angles sin_g (8 lanes) off bounce b of a leg. */
+#ifdef BOUNCES
+inline void bounce_law(int law, double rms, double8 sin_g, __global const double2 *bottom, double f0, double c,
+                       double8 *re, double8 *im, double8 *lnf1, double8 *lnf2)
+{
+    if (law == 1) {  /* sea surface: -exp(-q f^2), q = 2 (2 pi h sin / c)^2 */
+        const double8 k = 2.0 * M_PI * rms * sin_g / c;
+        const double8 q = 2.0 * k * k;
+        const double8 m = -exp(-q * f0 * f0);
+        *re *= m;
+        *im *= m;
+        *lnf1 -= 2.0 * q * f0;
+        *lnf2 -= q;
+    } else if (law == 2) {  /* seabed: its reflection coefficient, linear between table entries */
+        double s[8], br[8], bi[8];
+        vstore8(clamp(sin_g, 0.0, 1.0) * (double)(BOTTOM_TABLE - 1), 0, s);
+        for (int l = 0; l < 8; ++l) {
+            const int i = min(convert_int(s[l]), BOTTOM_TABLE - 2);
+            const double w = s[l] - (double)i;
+            const double2 v = bottom[i] * (1.0 - w) + bottom[i + 1] * w;
+            br[l] = v.x;
+            bi[l] = v.y;
+        }
+        const double8 vr = vload8(0, br), vi = vload8(0, bi);
+        const double8 nr = *re * vr - *im * vi;
+        *im = *re * vi + *im * vr;
+        *re = nr;
+    }
+}
 #endif
 
-/* soa[((h * 8 + field) * n_pad + j]: the scatterers in receiver h's delay order j (padded to a
- * multiple of 8 with zero-reflectivity copies), fields p0.xyz, vel.xyz, refl re, im;
- * order[h n_pad + j]: their original index (for the occlusion weights);
- * pulse[p]: the transmitter at emission, the emission time and the transmitter's element axis;
- * nodes[(h P + p) N_NODES + k]: receiver h's position and element axis at fast time k dtau;
- * rx[h]: t0_h fs (window start in samples: the echo centre is u = tau fs - t0_h fs) and the
- * element length; params: c, f0, fs, wavelength, tx_length, dtau (node spacing, s);
- * weights[(h P + p) N + n] (PATH_WEIGHTS only). The records (echo_pulse_t, node_t, echo_rx_t,
- * echo_params_t) are declared by the launcher (clsas/simulate/echo/synth.py, RECORDS).
- * One work-item: paths j = 8 g .. 8 g + 7 of (pulse p, receiver h); output at (h P + p) n_pad + j. */
+#ifdef INTRA_PULSE
+/* d/du and d2/du2 of the meeting time t(u) of |D + A u + W t| = c t (uniform motion) at u = 0,
+ * with r = D + W t the separation there (implicit differentiation of |r|^2 - c^2 t^2 = 0). */
+inline void meet_derivatives(vec8 r, double8 t, vec8 a, vec8 w, double c, double8 *d1, double8 *d2)
+{
+    const double8 ft = v8_dot(r, w) - c * c * t;
+    const double8 t1 = -v8_dot(r, a) / ft;
+    *d1 = t1;
+    *d2 = -(v8_dot(a, a) + 2.0 * v8_dot(a, w) * t1 + (v8_dot(w, w) - c * c) * t1 * t1) / ft;
+}
+#endif
+
+/* soa[((h * SCAT_FIELDS + field) * n_pad + j]: the scatterers in receiver h's delay order j
+ * (padded to a multiple of 8 with zero-reflectivity copies; fields SCAT_P0 (3), SCAT_VEL (3),
+ * SCAT_REFL (re, im)); order[h n_pad + j]: their original index (for the path weights);
+ * pulse[p]: the (image) transmitter at emission, its velocity, the emission time and its element
+ * axis; nodes[(h P + p) N_NODES + k]: receiver h's (image) position and element axis at fast
+ * time k dtau; rx[h]: t0_h fs (window start in samples) and the element length; legs: the path
+ * kind's bounces; weights[(h w_rx + p) N + n] (PATH_WEIGHTS; w_rx = 0: shared by the receivers);
+ * bottom[BOTTOM_TABLE]: the seabed's reflection coefficient at sin(grazing) = i / (size - 1).
+ * One work-item: paths j = 8 g .. 8 g + 7 of (pulse p, receiver h); output at (h P + p) stride +
+ * offset + j (the kind's slot in records of every kind's paths). */
 __kernel void echo_paths(__global const double *soa, __global const echo_pulse_t *pulse,
                          __global const node_t *nodes, __global const echo_rx_t *rx,
-                         __global const int *order, __global const float *weights,
-                         const echo_params_t params, const int n_scat, const int n_pad, const int n_pulses,
-                         __global path_t *paths)
+                         __global const int *order, __global const float *weights, __global const double2 *bottom,
+                         const echo_params_t params, const echo_legs_t legs, const int n_scat, const int n_pad,
+                         const int n_pulses, const int w_rx, const int stride, const int offset,
+                         __global echo_path_t *paths)
 {
     const int g = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
     const int j0 = 8 * g;
     const double c = params.c, dtau = params.dtau;
-    __global const double *f = soa + (size_t)h * 8 * n_pad + j0;
-    const vec8 p0 = v8(vload8(0, f), vload8(0, f + n_pad), vload8(0, f + 2 * n_pad));
-    const vec8 vel = v8(vload8(0, f + 3 * n_pad), vload8(0, f + 4 * n_pad), vload8(0, f + 5 * n_pad));
-    const double8 refl_re = vload8(0, f + 6 * n_pad), refl_im = vload8(0, f + 7 * n_pad);
+    __global const double *f = soa + (size_t)h * SCAT_FIELDS * n_pad + j0;
+    const vec8 p0 = v8(vload8(0, f + (SCAT_P0 + 0) * n_pad), vload8(0, f + (SCAT_P0 + 1) * n_pad),
+                       vload8(0, f + (SCAT_P0 + 2) * n_pad));
+    const vec8 vel = v8(vload8(0, f + (SCAT_VEL + 0) * n_pad), vload8(0, f + (SCAT_VEL + 1) * n_pad),
+                        vload8(0, f + (SCAT_VEL + 2) * n_pad));
+    const double8 refl_re = vload8(0, f + SCAT_REFL * n_pad), refl_im = vload8(0, f + (SCAT_REFL + 1) * n_pad);
     const echo_pulse_t pl = pulse[p];
     const vec8 tx = v8_splat(vload3(0, pl.tx));
     const vec8 q_emit = v8_add(p0, v8_scale(vel, (double8)pl.eta));
@@ -97,8 +146,31 @@ __kernel void echo_paths(__global const double *soa, __global const echo_pulse_t
     {
         double wl[8];
         for (int l = 0; l < 8; ++l)
-            wl[l] = (double)weights[((size_t)h * n_pulses + p) * n_scat + order[h * n_pad + j0 + l]];
+            wl[l] = (double)weights[((size_t)h * w_rx + p) * n_scat + order[h * n_pad + j0 + l]];
         gain *= vload8(0, wl);
+    }
+#endif
+    double8 fac_re = gain, fac_im = (double8)0.0, lnf1 = (double8)0.0, lnf2 = (double8)0.0;
+#ifdef BOUNCES
+    for (int b = 0; b < legs.n_out; ++b) {
+        const vec8 n = v8_splat(vload3(b, legs.out_normal));
+        bounce_law(legs.out_law[b], legs.out_rms[b], fabs(v8_dot(n, out_dir)) / r1, bottom, params.f0, c,
+                   &fac_re, &fac_im, &lnf1, &lnf2);
+    }
+    for (int b = 0; b < legs.n_back; ++b) {
+        const vec8 n = v8_splat(vload3(b, legs.back_normal));
+        bounce_law(legs.back_law[b], legs.back_rms[b], fabs(v8_dot(n, back_dir)) / r2, bottom, params.f0, c,
+                   &fac_re, &fac_im, &lnf1, &lnf2);
+    }
+#endif
+#ifdef ABSORPTION
+    {
+        const double8 length = c * tau;  /* r1 + r2: the path's length */
+        const double8 m = exp(-params.abs_a0 * length);
+        fac_re *= m;
+        fac_im *= m;
+        lnf1 -= params.abs_a1 * length;
+        lnf2 -= params.abs_a2 * length;
     }
 #endif
     /* carrier exp(-j 2 pi f0 tau): cycles reduced in double, then sin/cos of the fraction */
@@ -111,28 +183,98 @@ __kernel void echo_paths(__global const double *soa, __global const echo_pulse_t
     expj_fraction8(convert_float8(cyc), &csf, &snf);
     const double8 cs = convert_double8(csf), sn = convert_double8(snf);
 #endif
-    const double8 re = gain * (refl_re * cs - refl_im * sn), im = gain * (refl_re * sn + refl_im * cs);
+    const double8 a_re = fac_re * refl_re - fac_im * refl_im, a_im = fac_re * refl_im + fac_im * refl_re;
+    const double8 re = a_re * cs - a_im * sn, im = a_re * sn + a_im * cs;
     const double8 u = tau * params.fs - rxh.t0_fs;
     long8 fl = convert_long8(u);
     fl += (u < convert_double8(fl));  /* floor by truncation and fix-up (a true compare is -1) */
     const double8 fr = u - convert_double8(fl);
-    double a_re[8], a_im[8], a_fr[8];
-    long a_fl[8];
-    vstore8(re, 0, a_re);
-    vstore8(im, 0, a_im);
-    vstore8(fr, 0, a_fr);
-    vstore8(fl, 0, a_fl);
-    __global path_t *o = paths + ((size_t)h * n_pulses + p) * n_pad + j0;
-    for (int l = 0; l < 8; ++l) o[l] = MAKE_PATH((int)a_fl[l], a_fr[l], a_re[l], a_im[l]);
+    double x_re[8], x_im[8], x_fr[8];
+    long x_fl[8];
+    vstore8(re, 0, x_re);
+    vstore8(im, 0, x_im);
+    vstore8(fr, 0, x_fr);
+    vstore8(fl, 0, x_fl);
+#ifdef EXTENDED
+    double8 d1 = (double8)0.0, d2 = (double8)0.0;
+#if defined(INTRA_PULSE) && !defined(STOP_AND_GO)
+    {
+        /* D(u) = t1(u) + t2(u) for the wavelet emitted u seconds into the pulse: the outgoing leg
+         * |Q(u + t1) - T(u)| = c t1, the return leg |R(s + t2) - Q(s)| = c t2 with s = u + t1 */
+        double8 t1d, t1dd, t2s, t2ss;
+        const vec8 txv = v8_splat(vload3(0, pl.tx_vel));
+        meet_derivatives(out_dir, t1, v8_sub(vel, txv), vel, c, &t1d, &t1dd);
+        const vec8 rv = node_velocity(nd, t_rx, dtau);
+        meet_derivatives(v8_scale(back_dir, -1.0), t_rx - t1, v8_sub(rv, vel), rv, c, &t2s, &t2ss);
+        const double8 sd = 1.0 + t1d;
+        d1 = t1d + t2s * sd;
+        d2 = 0.5 * (t1dd + t2ss * sd * sd + t2s * t1dd);
+#if INTRA_PULSE == 1
+        const long8 moving = (vel.x != 0.0) | (vel.y != 0.0) | (vel.z != 0.0);
+        d1 = select((double8)0.0, d1, moving);
+        d2 = select((double8)0.0, d2, moving);
+#endif
+    }
+#endif
+    const double K = params.chirp_rate, fs = params.fs, f0 = params.f0, half_t = 0.5 * params.duration;
+    const double8 sc = 1.0 / (1.0 + d1);
+    const double8 kfs = K * sc / fs;  /* Hz a sample along the received chirp */
+    const double8 chirp = (0.5 * K * sc * sc - f0 * d2 * sc * sc * sc) / (fs * fs);
+    const double8 lin = -f0 * d1 * sc / fs;
+    const double8 beta = lnf1 * kfs, gamma = lnf2 * kfs * kfs;
+    const double8 centre = d2 * half_t * half_t;
+    const double8 lo = (centre - half_t * (1.0 + d1)) * fs, hi = (centre + half_t * (1.0 + d1)) * fs;
+    /* the envelope's largest log over the support, folded into the amplitude (so that the float
+     * accumulation evaluates exp of at most 0 there: no overflow however steep the band loss) */
+    const double8 at_lo = (gamma * lo + beta) * lo, at_hi = (gamma * hi + beta) * hi;
+    const double8 top = clamp(-beta / (2.0 * gamma), lo, hi);
+    double8 level = fmax(at_lo, at_hi);
+    level = select(level, fmax(level, (gamma * top + beta) * top), gamma < 0.0);
+    {
+        const double8 m = exp(level);
+        double x_m[8];
+        vstore8(m, 0, x_m);
+        for (int l = 0; l < 8; ++l) {
+            x_re[l] *= x_m[l];
+            x_im[l] *= x_m[l];
+        }
+    }
+    double x_ch[8], x_li[8], x_be[8], x_ga[8], x_lo[8], x_hi[8], x_lv[8];
+    vstore8(level, 0, x_lv);
+    vstore8(chirp, 0, x_ch);
+    vstore8(lin, 0, x_li);
+    vstore8(beta, 0, x_be);
+    vstore8(gamma, 0, x_ga);
+    vstore8(lo, 0, x_lo);
+    vstore8(hi, 0, x_hi);
+#endif
+    __global echo_path_t *o = paths + ((size_t)h * n_pulses + p) * stride + offset + j0;
+    for (int l = 0; l < 8; ++l) {
+        echo_path_t v;
+        v.start = (int)x_fl[l];
+        v.frac = (real_t)x_fr[l];
+        v.amp[0] = (real_t)x_re[l];
+        v.amp[1] = (real_t)x_im[l];
+#ifdef EXTENDED
+        v.chirp = (real_t)x_ch[l];
+        v.lin = (real_t)x_li[l];
+        v.beta = (real_t)x_be[l];
+        v.gamma = (real_t)x_ga[l];
+        v.lo = (real_t)x_lo[l];
+        v.hi = (real_t)x_hi[l];
+        v.level = (real_t)x_lv[l];
+#endif
+        o[l] = v;
+    }
 }
 
 /* extent[h n_pad + j] = (min, max) over the block's pulses of the start sample of path j
  * (the host turns them into the recording window without copying every path back). */
-__kernel void echo_extents(__global const path_t *paths, const int n_pad, const int n_pulses,
+__kernel void echo_extents(__global const echo_path_t *paths, const int n_pad, const int n_pulses,
                            __global int2 *extent)
 {
     const int j = get_global_id(0), h = get_global_id(1);
-    __global const path_t *col = paths + (size_t)h * n_pulses * n_pad + j;
+    __global const echo_path_t *col = paths + (size_t)h * n_pulses * n_pad + j;
     int lo = PATH_START(col[0]), hi = lo;
     for (int p = 1; p < n_pulses; ++p) {
         const int v = PATH_START(col[(size_t)p * n_pad]);
@@ -142,22 +284,57 @@ __kernel void echo_extents(__global const path_t *paths, const int n_pad, const 
     extent[(size_t)h * n_pad + j] = (int2)(lo, hi);
 }
 
-/* bounds[(h P + p) n_chunks + c] = (min, max) of start over the chunk's CHUNK scatterers. */
-__kernel void echo_bounds(__global const path_t *paths, const int n_scat, const int n_pulses,
-                          __global int2 *bounds)
+#ifdef COMPRESSED
+/* The compressed echo's centre shift delta = lin / (2 chirp) (the range-Doppler coupling,
+ * clsas/synthesis/echo/compressed.py); 0 for plain paths. */
+inline real_t compressed_shift(const echo_path_t v)
+{
+#ifdef EXTENDED
+    return v.lin / ((real_t)2 * v.chirp);
+#else
+    return (real_t)0;
+#endif
+}
+#endif
+
+/* The first and last samples path v reaches (start - shift + frac + [lo, hi], rounded outwards;
+ * plain paths: |d| <= half_len; compressed: the taps -COMPRESSED .. COMPRESSED + 1 about its
+ * shifted centre's sample). */
+inline int2 path_reach(const echo_path_t v, real_t half_len)
+{
+#ifdef COMPRESSED
+    const real_t u = v.frac - compressed_shift(v);
+    int iu = convert_int(u);
+    iu -= (u < (real_t)iu);
+    return (int2)(v.start + iu - COMPRESSED, v.start + iu + COMPRESSED + 1);
+#else
+#ifdef EXTENDED
+    const real_t a = v.frac + v.lo, b = v.frac + v.hi;
+#else
+    const real_t a = v.frac - half_len, b = v.frac + half_len;
+#endif
+    int ia = convert_int(a), ib = convert_int(b);
+    ia -= (a < (real_t)ia);  /* floor */
+    ib += (b > (real_t)ib);  /* ceil */
+    return (int2)(v.start + ia, v.start + ib);
+#endif
+}
+
+/* bounds[(h P + p) n_chunks + c] = (first, last) sample reached by the chunk's CHUNK paths. */
+__kernel void echo_bounds(__global const echo_path_t *paths, const real_t half_len, const int n_scat,
+                          const int n_pulses, __global int2 *bounds)
 {
     const int c = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
     const int n_chunks = (n_scat + CHUNK - 1) / CHUNK;
     if (c >= n_chunks) return;
     const size_t rec = (size_t)h * n_pulses + p;
     const int j0 = c * CHUNK, j1 = min(n_scat, j0 + CHUNK);
-    int lo = PATH_START(paths[rec * n_scat + j0]), hi = lo;
+    int2 bd = path_reach(paths[rec * n_scat + j0], half_len);
     for (int j = j0 + 1; j < j1; ++j) {
-        const int v = PATH_START(paths[rec * n_scat + j]);
-        lo = min(lo, v);
-        hi = max(hi, v);
+        const int2 r = path_reach(paths[rec * n_scat + j], half_len);
+        bd = (int2)(min(bd.x, r.x), max(bd.y, r.y));
     }
-    bounds[rec * n_chunks + c] = (int2)(lo, hi);
+    bounds[rec * n_chunks + c] = bd;
 }
 
 #ifdef CLSAS_DOUBLE
@@ -179,10 +356,11 @@ inline void expj_cycles_v(realv_t cyc, realv_t *cs, realv_t *sn)
 #endif
 
 /* out[(h P + p) n_pad + k] for the ROWS x 16 samples k of the work-item; records of n_pad samples
- * (a multiple of 16 ROWS); samples at k >= n_valid are zero. The echo centres are
+ * (a multiple of 16 ROWS); samples at k >= n_valid are zero. A path's echo centre is
  * start - shift[h] + frac (shift: integer samples between the window the starts were computed
- * for and the output window). */
-__kernel void echo_accumulate(__global const path_t *paths, __global const int2 *bounds,
+ * for and the output window); plain paths share the chirp alpha (cycles a sample^2) and the
+ * support |d| <= half_len. */
+__kernel void echo_accumulate(__global const echo_path_t *paths, __global const int2 *bounds,
                               const real_t alpha, const real_t half_len, const int n_scat,
                               const int n_pulses, const int n_pad, const int n_valid,
                               __global const int *shift, __global complex_t *out)
@@ -192,47 +370,76 @@ __kernel void echo_accumulate(__global const path_t *paths, __global const int2 
     if (k0 >= n_pad) return;
     const size_t rec = (size_t)h * n_pulses + p;
     const int n_chunks = (n_scat + CHUNK - 1) / CHUNK;
-    const int span = (int)half_len + 2;  /* a path reaches samples start - span .. start + span */
     const int sh = shift[h];
     const realv_t lane = (realv_t)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-    real_t rho_c, rho_s;  /* exp(j 2 pi alpha 512): the row step's own step */
+#ifndef EXTENDED
+    real_t rho_c, rho_s;  /* exp(j 2 pi alpha 512): the row step's own step, shared by every path */
     {
         real_t r512 = alpha * (real_t)512;
         r512 -= (real_t)convert_int(r512);
         rho_c = cospi((real_t)2 * r512);
         rho_s = sinpi((real_t)2 * r512);
     }
+#endif
     realv_t acc_re[ROWS], acc_im[ROWS];
     for (int r = 0; r < ROWS; ++r) acc_re[r] = acc_im[r] = (realv_t)0;
-    __global const path_t *rp = paths + rec * n_scat;
+    __global const echo_path_t *rp = paths + rec * n_scat;
     for (int c = 0; c < n_chunks; ++c) {
         const int2 bd = bounds[rec * n_chunks + c] - sh;
-        if (bd.y + span < k0 || bd.x - span > k_last) continue;
+        if (bd.y < k0 || bd.x > k_last) continue;
         const int j1 = min(n_scat, (c + 1) * CHUNK);
         for (int j = c * CHUNK; j < j1; ++j) {
-            const path_t v = rp[j];
-            const int s = PATH_START(v) - sh;
-            if (s + span < k0 || s - span > k_last) continue;
-            const real_t first = (real_t)(k0 - s) - v.y;  /* d of the work-item's first sample */
-            /* rows r_lo..r_hi hold the samples s - span .. s + span (integer arithmetic: PoCL's
+            const echo_path_t v = rp[j];
+            const int2 reach = path_reach(v, half_len) - sh;
+            if (reach.y < k0 || reach.x > k_last) continue;
+            const int s = v.start - sh;
+            const real_t first = (real_t)(k0 - s) - v.frac;  /* d of the work-item's first sample */
+            /* rows r_lo..r_hi hold the samples the path reaches (integer arithmetic: PoCL's
              * floor/ceil are slow); rows with a pulse edge are masked below */
-            const int a = s - span - k0, e = s + span - k0;
+            const int a = reach.x - k0, e = reach.y - k0;
             const int r_lo = a <= 0 ? 0 : a / 16;
             const int r_hi = min(ROWS - 1, e / 16);
             if (r_lo > r_hi) continue;
-            /* chirp of the first row, and its step to the next row: alpha ((d + 16)^2 - d^2)
-             * = alpha (32 d + 256) cycles; the step itself advances by alpha 512 cycles a row */
             realv_t d = lane + (first + (real_t)(16 * r_lo));
             realv_t c0, s0, wc, ws;
+#ifdef EXTENDED
+            /* E(d) = j 2 pi (chirp d^2 + lin d) + gamma d^2 + beta d; the row step
+             * E(d + 16) - E(d) = j 2 pi (chirp (32 d + 256) + 16 lin) + gamma (32 d + 256) + 16 beta,
+             * its own step E(d + 32) - 2 E(d + 16) + E(d) = 512 (j 2 pi chirp + gamma) */
+            const real_t lo = v.lo, hi = v.hi;
+            if (v.amp[0] == (real_t)0 && v.amp[1] == (real_t)0) continue;  /* dark (shadowed, padding) */
+            /* the envelope re its level (<= 0 on the support); exponents clamped to +-80 so that
+             * the rows outside the support (masked) cannot overflow */
+            expj_cycles_v((v.chirp * d + v.lin) * d, &c0, &s0);
+            const realv_t e0 = exp(clamp((v.gamma * d + v.beta) * d - v.level, (real_t)-80, (real_t)80));
+            c0 *= e0;
+            s0 *= e0;
+            const realv_t step = (real_t)32 * d + (real_t)256;
+            expj_cycles_v(v.chirp * step + (real_t)16 * v.lin, &wc, &ws);
+            const realv_t ew = exp(clamp(v.gamma * step + (real_t)16 * v.beta, (real_t)-80, (real_t)80));
+            wc *= ew;
+            ws *= ew;
+            real_t rho_c, rho_s;
+            {
+                real_t r512 = v.chirp * (real_t)512;
+                r512 -= (real_t)convert_int(r512);
+                const real_t m = exp(fmax(v.gamma * (real_t)512, (real_t)-80));
+                rho_c = m * cospi((real_t)2 * r512);
+                rho_s = m * sinpi((real_t)2 * r512);
+            }
+#else
+            const real_t lo = -half_len, hi = half_len;
             expj_cycles_v(alpha * d * d, &c0, &s0);
             expj_cycles_v(alpha * ((real_t)32 * d + (real_t)256), &wc, &ws);
-            realv_t zc = v.z * c0 - v.w * s0, zs = v.z * s0 + v.w * c0;  /* amplitude folded in */
+#endif
+            realv_t zc = v.amp[0] * c0 - v.amp[1] * s0, zs = v.amp[0] * s0 + v.amp[1] * c0;  /* amplitude folded in */
             for (int r = 0; r < ROWS; ++r) {
                 if (r < r_lo) continue;
                 if (r > r_hi) break;
-                const real_t lo = first + (real_t)(16 * r);
-                if (lo < -half_len || lo + (real_t)15 > half_len) {  /* a pulse edge in the row */
-                    const realv_t m = select((realv_t)0, (realv_t)1, fabs(lane + lo) <= half_len);
+                const real_t row0 = first + (real_t)(16 * r);
+                if (row0 < lo || row0 + (real_t)15 > hi) {  /* a pulse edge in the row */
+                    const realv_t dd = lane + row0;
+                    const realv_t m = select((realv_t)0, (realv_t)1, (dd >= lo) & (dd <= hi));
                     acc_re[r] += m * zc;
                     acc_im[r] += m * zs;
                 } else {
@@ -258,3 +465,117 @@ __kernel void echo_accumulate(__global const path_t *paths, __global const int2 
             o[l] = (kr + l < n_valid) ? complex_new(re[l], im[l]) : complex_new((real_t)0, (real_t)0);
     }
 }
+
+#ifdef COMPRESSED
+/* Synthesis into the range-compressed domain (clsas/synthesis/echo/compressed.py, NumPy twin
+ * CompressedResponse.accumulate): each path adds c0 Y0 + c1 Y1 + c2 Y2 over the taps about its
+ * (shifted) centre u' = start + frac - delta, the tables Y linear between the PHASES + 1
+ * fractions. table[((t (PHASES + 1) + i) 2 + part) row + PAD + L + m]: table t, fraction i / PHASES,
+ * real / imaginary part, tap m (zeros in the PAD columns): the response of the pulse's core
+ * samples; the edge samples edge_lo and edge_hi (about the centre's sample), inside the pulse for
+ * some fractions only, add their value x impulse[part imp_len + PAD + lag0 + m - k] (the matched
+ * filter's impulse response). N_TABLES: 1 (plain paths: c0 = amp) or 3. The rest as
+ * echo_accumulate. */
+__kernel void echo_accumulate_compressed(__global const echo_path_t *paths, __global const int2 *bounds,
+                                         __global const real_t *table, const real_t alpha, const int row,
+                                         __global const real_t *impulse, const int imp_len, const int lag0,
+                                         const int edge_lo, const int edge_hi, const real_t half_len,
+                                         const int n_scat, const int n_pulses, const int n_pad,
+                                         const int n_valid, __global const int *shift, __global complex_t *out)
+{
+    const int b = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
+    const int k0 = 16 * ROWS * b, k_last = k0 + 16 * ROWS - 1;
+    if (k0 >= n_pad) return;
+    const size_t rec = (size_t)h * n_pulses + p;
+    const int n_chunks = (n_scat + CHUNK - 1) / CHUNK;
+    const int sh = shift[h];
+    realv_t acc_re[ROWS], acc_im[ROWS];
+    for (int r = 0; r < ROWS; ++r) acc_re[r] = acc_im[r] = (realv_t)0;
+    __global const echo_path_t *rp = paths + rec * n_scat;
+    for (int c = 0; c < n_chunks; ++c) {
+        const int2 bd = bounds[rec * n_chunks + c] - sh;
+        if (bd.y < k0 || bd.x > k_last) continue;
+        const int j1 = min(n_scat, (c + 1) * CHUNK);
+        for (int j = c * CHUNK; j < j1; ++j) {
+            const echo_path_t v = rp[j];
+            const int2 reach = path_reach(v, (real_t)0) - sh;
+            if (reach.y < k0 || reach.x > k_last) continue;
+            if (v.amp[0] == (real_t)0 && v.amp[1] == (real_t)0) continue;  /* dark (shadowed, padding) */
+            const int s = reach.x + COMPRESSED;  /* the shifted centre's sample */
+            const real_t frac = v.frac - compressed_shift(v);
+            const real_t pos = (frac - floor(frac)) * (real_t)PHASES;
+            const int i = min(convert_int(pos), PHASES - 1);
+            const real_t w = pos - (real_t)i;
+            real_t cre[N_TABLES], cim[N_TABLES];
+            cre[0] = v.amp[0];
+            cim[0] = v.amp[1];
+#if N_TABLES == 3
+            {
+                /* c0 = a', c1 = a' b', c2 = a' (b'^2 / 2 + q): compressed.py, module docstring */
+                const real_t delta = compressed_shift(v);
+                const real_t cyc = -v.lin * v.lin / ((real_t)4 * v.chirp);
+                const real_t m = exp(v.gamma * delta * delta - v.beta * delta - v.level);
+                const real_t red = cyc - (real_t)convert_int(cyc);
+                const real_t pc = m * cospi((real_t)2 * red), ps = m * sinpi((real_t)2 * red);
+                const real_t ar = v.amp[0] * pc - v.amp[1] * ps, ai = v.amp[0] * ps + v.amp[1] * pc;
+                const real_t b1 = v.beta - (real_t)2 * v.gamma * delta;
+                const real_t qr = (real_t)0.5 * b1 * b1 + v.gamma, qi = (real_t)2 * REAL_PI * (v.chirp - alpha);
+                cre[0] = ar;
+                cim[0] = ai;
+                cre[1] = ar * b1;
+                cim[1] = ai * b1;
+                cre[2] = ar * qr - ai * qi;
+                cim[2] = ar * qi + ai * qr;
+            }
+#endif
+            /* the edge samples' values (compressed.py, CompressedResponse.edge_weights) */
+            real_t ere[2], eim[2];
+            for (int q = 0; q < 2; ++q) {
+                const real_t d = (real_t)(q == 0 ? edge_lo : edge_hi) - (frac - floor(frac));
+                real_t pr = cre[0], pi = cim[0];
+#if N_TABLES == 3
+                pr += d * (cre[1] + d * cre[2]);
+                pi += d * (cim[1] + d * cim[2]);
+#endif
+                real_t cyc = alpha * d * d;
+                cyc -= (real_t)convert_int(cyc);
+                const real_t in = fabs(d) <= half_len ? (real_t)1 : (real_t)0;
+                const real_t cs = in * cospi((real_t)2 * cyc), sn = in * sinpi((real_t)2 * cyc);
+                ere[q] = pr * cs - pi * sn;
+                eim[q] = pr * sn + pi * cs;
+            }
+            const int a = reach.x - k0, e = reach.y - k0;
+            const int r_lo = a <= 0 ? 0 : a / 16;
+            const int r_hi = min(ROWS - 1, e / 16);
+            for (int r = r_lo; r <= r_hi; ++r) {
+                const int m0 = k0 + 16 * r - s;  /* the row's first tap */
+                const int col = PAD + COMPRESSED + m0;
+                for (int q = 0; q < 2; ++q) {
+                    if (ere[q] == (real_t)0 && eim[q] == (real_t)0) continue;
+                    __global const real_t *ip = impulse + PAD + lag0 + m0 - (q == 0 ? edge_lo : edge_hi);
+                    const realv_t yr = vload16(0, ip), yi = vload16(0, ip + imp_len);
+                    acc_re[r] += ere[q] * yr - eim[q] * yi;
+                    acc_im[r] += ere[q] * yi + eim[q] * yr;
+                }
+                for (int t = 0; t < N_TABLES; ++t) {
+                    __global const real_t *t0 = table + ((size_t)(t * (PHASES + 1) + i) * 2) * row + col;
+                    const realv_t y0r = vload16(0, t0), y0i = vload16(0, t0 + row);
+                    const realv_t y1r = vload16(0, t0 + 2 * row), y1i = vload16(0, t0 + 3 * row);
+                    const realv_t yr = y0r + w * (y1r - y0r), yi = y0i + w * (y1i - y0i);
+                    acc_re[r] += cre[t] * yr - cim[t] * yi;
+                    acc_im[r] += cre[t] * yi + cim[t] * yr;
+                }
+            }
+        }
+    }
+    for (int r = 0; r < ROWS; ++r) {
+        real_t re[16], im[16];
+        vstore16(acc_re[r], 0, re);
+        vstore16(acc_im[r], 0, im);
+        const int kr = k0 + 16 * r;
+        __global complex_t *o = out + rec * n_pad + kr;
+        for (int l = 0; l < 16; ++l)
+            o[l] = (kr + l < n_valid) ? complex_new(re[l], im[l]) : complex_new((real_t)0, (real_t)0);
+    }
+}
+#endif

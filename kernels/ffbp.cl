@@ -117,9 +117,12 @@ inline double16 polar_points16(const ffbp_frame_t f, const ffbp_plane_t plane, c
  * grid's edge are clamped to it: the launcher drops those slots); frames[leaf], plane, centres
  * (the tiles' reference points, m). */
 __kernel void ffbp_fields(__global const ffbp_item_t *items, __global const ffbp_frame_t *frames,
-                          const ffbp_plane_t plane, __global const double *centres, __global bp_pixels_t *fields)
+                          const ffbp_plane_t plane, __global const double *centres, const int n_items,
+                          __global bp_pixels_t *fields)
 {
     const int g = get_global_id(0);
+    if (g >= n_items)  /* the launch is padded to whole work-groups */
+        return;
     const ffbp_item_t t = items[g];
     const ffbp_frame_t f = frames[t.leaf];
     double16 x, y, z;
@@ -139,9 +142,11 @@ __kernel void ffbp_fields(__global const ffbp_item_t *items, __global const ffbp
  * out[out_offset + row * n_r + column] times exp(-j 2 pi cycles_per_m r) (the demodulation by its
  * range r), complex64. */
 __kernel void ffbp_leaf(__global const double2 *image, __global const ffbp_item_t *items, const int first,
-                        const ffbp_frame_t frame, const double cycles_per_m, const long out_offset,
+                        const int count, const ffbp_frame_t frame, const double cycles_per_m, const long out_offset,
                         __global float2 *out)
 {
+    if (get_global_id(0) >= count)  /* the launch is padded to whole work-groups */
+        return;
     const int g = first + get_global_id(0);
     const ffbp_item_t t = items[g];
     const int n_r = frame.n_r;
@@ -175,14 +180,14 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
     /* X(r, v) of the parent samples (PolarGrid.points) */
     const int j = get_global_id(1), i0 = 16 * get_global_id(0);
     n_valid = min(16, parent.n_r - i0);
-    if (n_valid <= 0)
+    if (n_valid <= 0 || j >= parent.n_v)  /* the launch is padded to whole work-groups */
         return;
     first = (size_t)j * parent.n_r + i0;
     r_p = polar_points16(parent, plane, j, i0 + LANE_INDEX, &x, &y, &z);
 #else
     const int i0 = 16 * get_global_id(0);
     n_valid = min(16, n_out - i0);
-    if (n_valid <= 0)
+    if (n_valid <= 0)  /* past the points (the launch is padded to whole work-groups) */
         return;
     first = i0;
     double px[16], py[16], pz[16];

@@ -76,6 +76,23 @@ inline vec8 node_field(__global const node_t *nd, double8 tau, double dtau, int 
 #endif
 }
 
+/* Receiver velocity (m/s) at fast times tau: its node segment's (uniform within a segment). */
+inline vec8 node_velocity(__global const node_t *nd, double8 tau, double dtau)
+{
+#if N_NODES == 2
+    return v8_splat((NODE_POS(nd[1]) - NODE_POS(nd[0])) / dtau);
+#else
+    double t[8], x[8], y[8], z[8];
+    vstore8(tau, 0, t);
+    for (int l = 0; l < 8; ++l) {
+        const int seg = clamp(convert_int(t[l] / dtau), 0, N_NODES - 2);
+        const double3 w = (NODE_POS(nd[seg + 1]) - NODE_POS(nd[seg])) / dtau;
+        x[l] = w.x; y[l] = w.y; z[l] = w.z;
+    }
+    return v8(vload8(0, x), vload8(0, y), vload8(0, z));
+#endif
+}
+
 /* The receiver at reception, eta + t1 + t2: the receiver moves linearly within a node segment
  * [k dtau, (k+1) dtau] with velocity W_k, so for that segment t2 = meet_time(R_k(t1) - Q, W_k)
  * with R_k extended linearly; the segment is taken where t1 + |R(t1) - Q| / c falls and

@@ -2,9 +2,9 @@
  *
  * PoCL builds vloadN out of 8-byte pieces (eight loads and inserts for a vload16 of floats);
  * through a vector type whose alignment is lowered to its element's, clang emits one unaligned
- * vector load instead (4096^2 Stolt map, 8-tap sinc: 41 -> 29 ms). Other compilers get vloadN.
+ * vector load instead (faster: bench/bench_stolt.py). Other compilers get vloadN.
  * LOAD_F16(p) etc. read the vector at p (a __global float / double pointer); STORE_F16(v, p)
- * writes one (vstore16 is split into three stores: 4096^2 Stolt map 23.6 -> 21.6 ms).
+ * writes one (vstore16 is split into three stores).
  */
 #ifndef CLSAS_LOADS_H
 #define CLSAS_LOADS_H

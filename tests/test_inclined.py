@@ -131,3 +131,31 @@ def test_bad_input(opencl_device):
         bent = echo.tx_pos.copy()
         bent[:, 0] += 0.01 * np.sin(np.arange(echo.n_pulses))
         correct_inclined_array(echo.replace(tx_pos=bent))
+
+
+def test_hardening_regressions(opencl_device):
+    """Issue #27's reproducers: the budget was ignored, stop_and_go="no" accepted, r_ref=1e300
+    gave NaN, depth="a" raised without naming the parameter, samples of 3e38 gave inf."""
+    _, echo = inclined_echo()
+    import tracemalloc
+
+    with clsas.use_memory_budget("2M"):
+        tracemalloc.start()
+        with pytest.raises(clsas.errors.MemoryBudgetError, match="correct_inclined_array of 32 hydrophones"):
+            correct_inclined_array(echo)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    assert peak < 8 * 2**20, peak  # refused before its arrays were allocated
+    with pytest.raises(TypeError, match="correct_inclined_array stop_and_go: must be True or False"):
+        correct_inclined_array(echo, stop_and_go="no")
+    with pytest.raises(ValueError, match="correct_inclined_array r_ref"):
+        correct_inclined_array(echo, r_ref=1e300)
+    with pytest.raises(TypeError, match="correct_inclined_array depth"):
+        correct_inclined_array(echo, depth="a")
+    with pytest.raises(ValueError, match="correct_inclined_array depth"):
+        correct_inclined_array(echo, depth=-400.0, r_ref=300.0)
+    with pytest.raises(ValueError, match="correct_inclined_array workers"):
+        correct_inclined_array(echo, workers=0)
+    loud = echo.replace(data=(echo.data * np.float32(3e38 / np.abs(echo.data).max())).astype(np.complex64))
+    with pytest.raises(ValueError, match="correct_inclined_array echo.data: samples up to .*e\\+38"):
+        correct_inclined_array(loud)

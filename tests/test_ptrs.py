@@ -191,31 +191,35 @@ def test_bad_input(opencl_device):
         ptrs_image(echo, rcmc="yes")
 
 
-@pytest.mark.slow
-def test_zhang_eighteen_points(opencl_device):
-    """The reproduction's scene (``clsas reproduce zhang2019``, 30 receivers): every point
-    focuses within 1/10 of a cell of the truth with every method (with eq. 13 alone only along
-    track: farther than ~2 m from the reference the residual migration moves the peak across);
-    with uniform 8 m sub-blocks PTRS keeps PSLR and ISLR within 1 dB of back-projection at
-    every point (measured: PSLR -0.21..+0.13 dB, ISLR +0.11..+0.46 dB), and at far range (T13-T18) it is closer to
-    back-projection than the paper's PCA baseline (the path excess compensated at the swath
-    centre; measured mean |PSLR - BP| + |ISLR - BP| over T13-T18: 0.41 dB vs 2.03 dB)."""
-    from clsas.reproduce import zhang2019
+def test_hardening_regressions(opencl_device):
+    """Issue #27's reproducers: a huge block width was a Newton RuntimeError (now refused by
+    name; a width wider than the swath is one block referred to its middle); deconvolve="no"
+    was read as True; the budget was checked only after allocating (now before the spectra,
+    naming the sizes); samples of 3e38 returned inf (now refused before any FFT)."""
+    _, echo = small_scene()
+    with pytest.raises(ValueError, match="ptrs_image block_width"):
+        ptrs_image(echo, block_width=1e300)
+    one = ptrs_image(echo, block_width=1e6, rcmc=False)
+    (lo, hi, ref), = one.provenance["blocks"]
+    assert ref == pytest.approx((lo + hi) / 2)
+    with pytest.raises(ValueError, match=r"reference_ranges\[1\]: must be in \[.*\] m \(ranges the record holds\)"):
+        ptrs_image(echo, reference_ranges=[50.0, 5e5])
+    for name in ("deconvolve", "rcmc"):
+        with pytest.raises(TypeError, match=f"ptrs_image {name}: must be True or False"):
+            ptrs_image(echo, **{name: "no"})
+    for name, value, error in (("depth", "a", TypeError), ("workers", 0, ValueError), ("window", "box", ValueError)):
+        with pytest.raises(error, match=f"ptrs_image {name}"):
+            ptrs_image(echo, **{name: value})
+    import tracemalloc
 
-    sc, echo = zhang2019.scene()
-    points = sc.targets[0].positions
-    result = zhang2019.measure(echo, points)
-    for name, rows in result.items():
-        for k, q in enumerate(rows):
-            assert abs(q["dy"]) < 0.1 * 0.02, (name, k, q)
-            if name != "ptrs_eq13":
-                assert abs(q["dx"]) < 0.1 * C / (2 * 20e3), (name, k, q)
-    bp = result["bp"]
-    for k, q in enumerate(result["ptrs_8m"]):
-        assert abs(q["pslr"] - bp[k]["pslr"]) < 1.0 and abs(q["islr"] - bp[k]["islr"]) < 1.0, (k, q, bp[k])
-
-    def far_error(name):
-        return np.mean([abs(result[name][k]["pslr"] - bp[k]["pslr"]) + abs(result[name][k]["islr"] - bp[k]["islr"])
-                        for k in range(12, 18)])
-
-    assert far_error("ptrs_8m") < far_error("pca_rc")
+    with clsas.use_memory_budget("2M"):
+        tracemalloc.start()
+        with pytest.raises(clsas.errors.MemoryBudgetError, match="ptrs_image of 15 receivers"):
+            ptrs_image(echo)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    assert peak < 8 * 2**20, peak  # refused before its arrays (91 MiB) were allocated
+    loud = echo.replace(data=(echo.data * np.float32(3e38 / np.abs(echo.data).max())).astype(np.complex64))
+    for backend in ("numpy", "opencl"):
+        with pytest.raises(ValueError, match="ptrs_image echo.data: samples up to .*e\\+38 would overflow complex64"):
+            ptrs_image(loud, backend=backend)

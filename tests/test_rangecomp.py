@@ -1,4 +1,4 @@
-"""Range compression (clsas.image.rangecomp) on echoes built by hand from the DESIGN signal model.
+"""Range compression (clsas.image.rangecomp) on echoes built by hand from the signal model of docs/design.md.
 
 Baseband echo of a scatterer of amplitude A at two-way delay tau_n, sampled at t0 + k / fs:
 
@@ -42,7 +42,7 @@ def waveform(tb: float = 100.0, fs_ratio: float = 2.0, chirp_sign: int = 1) -> W
 
 
 def signal_model(wf: Waveform, t, scatterers) -> np.ndarray:
-    """DESIGN's baseband echo at fast times ``t`` of the scatterers ``[(A, tau_n), ...]`` (complex128)."""
+    """docs/design.md's baseband echo at fast times ``t`` of the scatterers ``[(A, tau_n), ...]`` (complex128)."""
     t = np.asarray(t, dtype=np.float64)
     k = wf.chirp_sign * wf.bandwidth / wf.duration
     out = np.zeros(t.shape, dtype=np.complex128)

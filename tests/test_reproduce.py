@@ -59,6 +59,16 @@ def test_check_refuses_a_difference_without_a_reason_or_evidence():
         rep.add("Table 1", "T5", "PSLR", "dB", paper=1.0, clsas=1.0, tolerance=math.nan)
 
 
+def test_a_row_may_have_several_reasons():
+    rep = _report()
+    rep.add("Table 1", "T4", "PSLR", "dB", paper=-14.0, clsas=-10.0, tolerance=0.5, reason="window, other")
+    with pytest.raises(ValueError, match="unknown key 'window, other'"):
+        rep.check()
+    rep.explain("other", "a second cause", ["test:tests/test_reproduce.py::test_a_row_may_have_several_reasons"])
+    rep.check()
+    assert rep.rows[-1].reason_keys == ["window", "other"] and "differs: window, other" in rep.format()
+
+
 def test_printed_table_has_the_verdict_column_and_the_reasons():
     text = _report().format()
     assert "differs: window" in text and "match" in text and "clsas only" in text
@@ -126,3 +136,37 @@ def test_every_test_a_reason_cites_exists():
         tree = ast.parse((ROOT / file).read_text(encoding="utf-8"))
         names = {node.name for node in ast.walk(tree) if isinstance(node, ast.FunctionDef)}
         assert name in names, f"{item} is cited as evidence but does not exist"
+
+
+def _validation_script():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("validation", ROOT / "bench" / "validation.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_validation_page_is_rendered_from_the_json(tmp_path):
+    """bench/validation.py --render: the summary, each table with its verdict column, the
+    reasons with their evidence, the experiments and the benches' figures, written atomically;
+    a reproduction without JSON is listed as not in the common format."""
+    validation = _validation_script()
+    data = tmp_path / "data"
+    data.mkdir()
+    rep = _report()
+    rep.paper = reproduce.paper_names()[0]
+    report.write_json(rep, data / f"{rep.paper}.json")
+    (data / "benches.jsonl").write_text(json.dumps({"bench": "ptrs", "backend": "opencl", "device": "cpu",
+                                                    "size": {"rows": 4}, "rate": 1.5, "unit": "M/s",
+                                                    "seconds": 0.2, "kernel": "x"}) + "\n")
+    out = tmp_path / "validation.md"
+    assert validation.main(["--render", "--data", str(data), "--out", str(out)]) == 0
+    page = out.read_text()
+    assert f"## {rep.paper}: a demo table" in page and "| T2 | PSLR (dB) | -14 | -11 | 3 | 0.5 | differs: window |" in page
+    assert "differs: window" in page and "**window**: the paper weights the band Evidence: experiment:window" in page
+    assert "### Experiment window" in page and "Finding: hamming gives the paper's figure" in page
+    assert "| ptrs | opencl | 1.5 | M/s |" in page
+    for other in reproduce.paper_names()[1:]:
+        assert f"| {other} | not in the common format yet" in page or f"## {other}" in page
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["data", "validation.md"]

@@ -31,7 +31,7 @@ def test_kernel_matches_reference(opencl_device, rng, interp, window):
     assert np.count_nonzero(ref) > 0.5 * ref.size
     # float32 data and sums; the kernel's float index relative to its first lane is within
     # ~1e-6 sample of the reference's, which can move an output to the neighbouring tap row
-    # (1/4096 sample apart): relative L2 well below the 1e-4
+    # (1/4096 sample apart): relative L2 well below 1e-4
     assert rel_l2(out, ref) < 1e-4
     assert np.array_equal(out == 0, ref == 0)
 

@@ -44,9 +44,9 @@ given per pulse, read from a Platform's attitude at the echoes' reception times,
 measured from the echo's own receiver positions, which record where each hydrophone was.
 
 Not corrected (as in the paper): the amplitude of the beam patterns, which turn with the array
-(on the wu2018_inclined scene the fully corrected peak stays 0.5 dB below that of an
-uninclined array), and the attitude's change during one pulse's echoes (the angles are those
-at the reference range's reception).
+(the fully corrected peak stays a fraction of a dB below that of an uninclined array), and the
+attitude's change during one pulse's echoes (the angles are those at the reference range's
+reception).
 """
 
 from __future__ import annotations
@@ -54,11 +54,14 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft
 
+from .. import budget
+from .. import validate as v
+from ..kernelmath import unit_phasor
 from ..model import EchoData
 from ..scene.scenario import Platform
 from .multireceiver import interleave
+from .rangecomp import check_workers
 from .record import LineRecord, check_straight_track, made_nonstop
-from ..kernelmath import unit_phasor
 
 ANGLES = ("yaw", "pitch")
 
@@ -134,27 +137,32 @@ def correct_inclined_array(echo: EchoData, yaw=None, pitch=None, receivers=None,
     LineRecord (n_pulses x len(receivers) rows, every v PRI / M), for omega_k, range_doppler,
     chirp_scaling.
     """
-    if not isinstance(echo, EchoData):
-        raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
-    if not echo.compressed:
-        raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first")
-    correct = tuple(correct)
-    if any(a not in ANGLES for a in correct):
-        raise ValueError(f"correct must name angles among {ANGLES}, got {correct!r}")
+    v.instance("correct_inclined_array echo", echo, EchoData, "an EchoData")
+    v.compression("correct_inclined_array echo", echo)
+    correct = tuple(correct) if isinstance(correct, (tuple, list)) else (correct,)
+    if any(not isinstance(a, str) or a not in ANGLES for a in correct):
+        raise ValueError(f"correct_inclined_array correct: must name angles among {ANGLES}, got {correct!r}")
+    if stop_and_go is not None:
+        v.flag("correct_inclined_array stop_and_go", stop_and_go)
+    if r_ref is not None:
+        r_ref = v.positive("correct_inclined_array r_ref", r_ref, high=v.MAX_COORDINATE, unit="m",
+                           why="the delay correction's reference range, or None for the swath's middle")
+    if depth is not None:
+        depth = v.scalar("correct_inclined_array depth", depth, low=-v.MAX_COORDINATE, high=v.MAX_COORDINATE,
+                         unit="m")
+    workers = check_workers(workers, "correct_inclined_array workers")
     chosen = echo.select_receivers(receivers)
     track = check_straight_track(echo)
     c, f0, fs = echo.medium.sound_speed, echo.waveform.f0, echo.fs
-    workers = -1 if workers is None else workers
     t0 = float(np.min(echo.t0[chosen]))
     n = echo.n_samples
     r_first, r_last = c * t0 / 2, c * (float(np.max(echo.t0[chosen])) + (n - 1) / fs) / 2
     if r_ref is None:
         r_ref = (max(r_first, 0.0) + r_last) / 2
-    if not (np.isfinite(r_ref) and r_ref > 0):
-        raise ValueError(f"r_ref must be a positive range in m, got {r_ref!r}")
-    dz = 0.0 if depth is None else float(depth) - track.z
-    if not np.isfinite(dz) or abs(dz) >= r_ref:
-        raise ValueError(f"depth {depth!r} must be finite and closer to the track than r_ref = {r_ref:.4g} m")
+    dz = 0.0 if depth is None else depth - track.z
+    if abs(dz) >= r_ref:
+        raise ValueError(f"correct_inclined_array depth: {depth!r} m must lie closer to the track (z = {track.z:g} m) "
+                         f"than r_ref = {r_ref:.4g} m")
     d, yaw_m, pitch_m = nominal_offsets(echo, chosen, track, 2 * r_ref / c)
     yaw_p, pitch_p = (_attitude(name, value, measured, echo, r_ref)
                       for name, value, measured in (("yaw", yaw, yaw_m), ("pitch", pitch, pitch_m)))
@@ -164,6 +172,12 @@ def correct_inclined_array(echo: EchoData, yaw=None, pitch=None, receivers=None,
     order, u0, step = interleave(track, d, echo.n_pulses)
 
     n_fft = scipy.fft.next_fast_len(n + int(np.ceil((np.max(echo.t0[chosen]) - t0) * fs)) + 64)
+    budget.check_bytes(f"correct_inclined_array of {len(chosen)} hydrophones x {echo.n_pulses} pulses x {n} samples",
+                       16.0 * echo.n_pulses * len(chosen) * n + 48.0 * echo.n_pulses * n_fft,
+                       "correct fewer hydrophones or pulses at a time")
+    for h in chosen:
+        v.bounded_gain("correct_inclined_array echo.data", echo.data[h], float(n_fft),
+                       advice="scale the echo down (the range FFT amplifies it)")
     f = np.fft.fftfreq(n_fft, 1 / fs)
     rows = np.empty((echo.n_pulses, len(chosen), n), dtype=np.complex64)
     for j, h in enumerate(chosen):
@@ -177,6 +191,7 @@ def correct_inclined_array(echo: EchoData, yaw=None, pitch=None, receivers=None,
         spec = scipy.fft.fft(data, n=n_fft, axis=1, workers=workers)
         spec *= unit_phasor(2 * np.pi * advance[:, None] * f[None, :])  # eq. (24)
         rows[:, j] = scipy.fft.ifft(spec, axis=1, workers=workers)[:, :n]
+    v.finite_result("correct_inclined_array record", rows, "scale the echo down")
     return LineRecord(data=rows.reshape(-1, n)[order], u0=u0, du=step, t0=t0, fs=fs, speed=track.speed,
                       track=(track.x, track.z), waveform=echo.waveform, medium=echo.medium, nonstop=nonstop,
                       provenance={"from": "correct_inclined_array", "receivers": [echo.receivers[h] for h in chosen],

@@ -30,8 +30,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import budget, validate
 from ..model import EchoData
 from .record import LineRecord, Track, check_straight_track, compensate_bistatic, made_nonstop
+
+BYTES_PER_SAMPLE = 16  # the interleaved rows and their reordered copy, complex64, per input sample
 
 
 def line_offsets(echo: EchoData, chosen, track) -> np.ndarray:
@@ -80,10 +83,8 @@ class LineArray:
 def line_array(echo: EchoData, receivers=None) -> LineArray:
     """Check that ``echo`` is a range-compressed record of receivers on the transmitter's
     straight track line (fixed along-track offsets) and describe it."""
-    if not isinstance(echo, EchoData):
-        raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
-    if not echo.compressed:
-        raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first")
+    validate.instance("echo", echo, EchoData, "an EchoData")
+    validate.compression("echo", echo)
     chosen = echo.select_receivers(receivers)
     track = check_straight_track(echo)
     offsets = line_offsets(echo, chosen, track)
@@ -114,9 +115,13 @@ def pca_record(echo: EchoData, receivers=None, compensate: bool = True, stop_and
     LineRecord with n_pulses x len(receivers) rows.
     """
     arr = line_array(echo, receivers)
+    compensate = validate.flag("pca_record compensate", compensate)
     chosen, track, offsets = arr.receivers, arr.track, arr.offsets
     nonstop = made_nonstop(echo, stop_and_go)
     order, u0, step = interleave(track, offsets, echo.n_pulses)
+    budget.check_bytes(f"pca_record of {len(chosen)} receivers x {echo.n_pulses} pulses x {echo.n_samples} samples",
+                       BYTES_PER_SAMPLE * float(len(chosen)) * echo.n_pulses * echo.n_samples,
+                       "fewer receivers or pulses at a time")
     t0 = float(np.min(echo.t0[chosen]))
     rows = np.empty((echo.n_pulses, len(chosen), echo.n_samples), dtype=np.complex64)
     for j, (h, d) in enumerate(zip(chosen, offsets)):

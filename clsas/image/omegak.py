@@ -15,15 +15,15 @@ eq. 42 is already applied), with k = 2 pi (f0 + f_b) / c:
 4. Extraction and weighting (eqs. 44-45): the rectangle |k_y| <= B_ky / 2 = 2 pi / D and
    2 k_min - 2 k0 <= k_x' <= sqrt(4 k_max^2 - (2 pi / D)^2) - 2 k0, a 2-D window over it
    (``window``: "none", "hamming", "taylor", "kaiser"; :func:`clsas.image.rangecomp.spectral_window`,
-   whose Hamming 0.54 + 0.46 cos is eq. 46's 0.5386 - 0.46164 cos to 0.2 %), and the
-   element-pattern deconvolution 1 / A(k_y) with A = sinc(L_tx k_y / 4 pi) sinc(L_rx k_y / 4 pi)
-   (the one-way pattern sinc(L sin(theta) / lambda) with sin(theta) = k_y / 2k, eq. 33, does
-   not depend on k). Without ``elements`` the whole sampled k_y band is kept, unweighted by
-   the pattern.
+   whose Hamming 0.54 + 0.46 cos is eq. 46's 0.5386 - 0.46164 cos to 0.2 %; over k_y it is the
+   template's band weighting, :mod:`clsas.image.strip`), and the element-pattern deconvolution
+   1 / A(k_y) with A = sinc(L_tx k_y / 4 pi) sinc(L_rx k_y / 4 pi) (the one-way pattern
+   sinc(L sin(theta) / lambda) with sin(theta) = k_y / 2k, eq. 33, does not depend on k).
+   Without ``elements`` the whole sampled k_y band is kept, unweighted by the pattern.
 5. Inverse FFT over k_x' (column j at r = r0 + (j - n/2) c / (2 fs)), the phase
    exp(+i (k_x'_first + 2 k0)(r - r0)) that makes a focused point's phase zero (as
-   back-projection's), the non-stop-and-go along-track shift (Huang & Yang 2022 eq. 25,
-   :func:`clsas.image.record.nonstop_shift`), and the inverse FFT over k_y.
+   back-projection's); the non-stop-and-go along-track shift (Huang & Yang 2022 eq. 25) and
+   the inverse FFT over k_y are the template's (:func:`clsas.image.strip.strip_image`).
 
 Resolution (eq. 47): delta x = alpha_w c / (2 B), delta y = alpha_w D / 2, alpha_w = 0.886 for
 no window and 1.30 for Hamming.
@@ -38,77 +38,53 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft
 
-from ..interp import check_options
-from .checks import check_imager
-from .rangecomp import WINDOWS, spectral_window
-from .record import along_track_wavenumbers, as_record, azimuth_weights, check_elements, image_of, nonstop_shift
 from ..kernelmath import unit_phasor
+from ..model import Image
+from .rangecomp import spectral_window
 from .stolt import StoltAxes, stolt
+from .strip import follows_template, strip_image, strip_job
 
 
-def omega_k(data, receiver=0, window: str = "hamming", elements=None, deconvolve: bool = True, interp: str = "sinc8",
-            tap_window: str = "kaiser", backend: str | None = None, depth: float | None = None,
-            workers: int | None = None, **window_options):
+@follows_template
+def omega_k(data, **options) -> Image:
     """Focus a straight-track strip-map record with the wavenumber algorithm (see the module docstring).
 
-    Parameters
-    ----------
-    data : LineRecord, or a range-compressed monostatic EchoData (then ``receiver`` picks the
-        receiver that sits with the transmitter).
-    window : spectral weighting over the extracted rectangle ("none", "hamming", "taylor", "kaiser").
-    elements : (L_tx, L_rx) along-track element lengths, m: the processed band 4 pi / max(L)
-        and the pattern deconvolution (eqs. 44-45). None keeps the whole sampled band.
-    deconvolve : divide by the element pattern A(k_y) (eq. 44); False keeps its taper, as
-        back-projection does (for like-for-like comparisons).
-    interp, tap_window : the Stolt interpolator (:func:`clsas.image.stolt.stolt`, :mod:`clsas.interp`).
-    backend : where the Stolt map (and an EchoData's path-excess interpolation) runs; the FFTs
-        run on the host (scipy.fft).
-    depth : the horizontal plane the image's pixel positions are placed on (default: the track's).
-    workers : scipy.fft threads (default: all cores).
-
-    Returns
-    -------
-    Image, dims ("y", "x"): along-track by across-track on the plane z = depth.
+    ``options`` are the strip-map template's (:func:`clsas.image.strip.strip_job`): ``window``
+    weights the whole extracted rectangle (k_x' and k_y), ``interp`` and ``tap_window`` are the
+    Stolt interpolator's (:func:`clsas.image.stolt.stolt`). Returns an Image, dims ("y", "x"):
+    along-track by across-track on the plane z = depth.
     """
-    window_options, workers = check_imager("omega_k", data, window, window_options, workers, depth)
-    rec = as_record(data, receiver, backend)
-    if window not in WINDOWS:
-        raise ValueError(f"window must be one of {WINDOWS}, got {window!r}")
-    check_options(interp, tap_window, 1.25)
-    elements = check_elements(elements, rec)
+    job = strip_job("omega_k", data, **options)
+    rec, workers = job.record, job.workers
     c, f0, fs = rec.medium.sound_speed, rec.waveform.f0, rec.fs
     bandwidth = rec.waveform.bandwidth
     n_r = scipy.fft.next_fast_len(rec.n_samples)
-    n_ku = scipy.fft.next_fast_len(rec.n_u)
     f = (np.arange(n_r) - n_r // 2) * fs / n_r
-    ku = along_track_wavenumbers(rec, n_ku)
     k0 = 2 * np.pi * f0 / c
     k = 2 * np.pi * (f0 + f) / c
     r0 = c * (rec.t0 + rec.n_samples / (2 * fs)) / 2
 
-    spec = scipy.fft.fftshift(scipy.fft.fft(rec.data, n=n_r, axis=1, workers=workers), axes=1)
-    spec = scipy.fft.fft(spec, n=n_ku, axis=0, workers=workers)
-    kx2 = 4 * k[None, :] ** 2 - ku[:, None] ** 2
-    propagating = kx2 > 0
-    spec *= unit_phasor(np.sqrt(np.maximum(kx2, 0.0)) * r0)
-    spec *= np.where(propagating, (np.sqrt(k / k0) * np.exp(-2j * np.pi * f * rec.t0))[None, :], 0).astype(np.complex64)
+    spec = scipy.fft.fftshift(scipy.fft.fft(job.doppler(rec.data), n=n_r, axis=1, workers=workers), axes=1)
+    kx2 = 4 * k[None, :] ** 2 - job.ku[:, None] ** 2
+    spec *= unit_phasor(np.sqrt(np.maximum(kx2, 0.0)) * r0)  # eq. 42
+    spec *= np.where(kx2 > 0, (np.sqrt(k / k0) * np.exp(-2j * np.pi * f * rec.t0))[None, :], 0).astype(np.complex64)
 
     dkx = 4 * np.pi * fs / n_r / c
     axes = StoltAxes(f_first=f[0], df=fs / n_r, n_src=n_r, kx_first=4 * np.pi * f[0] / c, dkx=dkx, n_out=n_r,
                      f0=f0, c=c)
-    mapped = stolt(spec, ku, axes, interp, tap_window, oversampling=max(fs / bandwidth, 1.01), backend=backend)
+    mapped = stolt(spec, job.ku, axes, job.interp, job.tap_window, oversampling=job.oversampling,
+                   backend=job.backend)  # eq. 41
 
-    ky_edge = 2 * np.pi / max(elements) if elements is not None else np.pi / rec.du
+    ky_edge = 2 * np.pi / max(job.elements) if job.elements is not None else np.pi / rec.du
     kx_lo = 2 * (2 * np.pi * (f0 - bandwidth / 2) / c) - 2 * k0
     kx_hi = np.sqrt(4 * (2 * np.pi * (f0 + bandwidth / 2) / c) ** 2 - ky_edge ** 2) - 2 * k0
     kxp = axes.kx_first + dkx * np.arange(n_r)
     range_w = np.where((kxp >= kx_lo) & (kxp <= kx_hi),
-                       spectral_window((kxp - (kx_lo + kx_hi) / 2) / (kx_hi - kx_lo), window, **window_options), 0.0)
-    mapped *= azimuth_weights(ku, elements, window, deconvolve, **window_options)[:, None] * range_w[None, :]
+                       spectral_window((kxp - (kx_lo + kx_hi) / 2) / (kx_hi - kx_lo), job.window,
+                                       **job.window_options), 0.0)  # eqs. 44-45 over k_x'
+    mapped *= range_w[None, :]
 
     ku_r = scipy.fft.fftshift(scipy.fft.ifft(mapped, axis=1, workers=workers), axes=1)
     r = r0 + (np.arange(n_r) - n_r // 2) * c / (2 * fs)
     ku_r *= np.exp(1j * (axes.kx_first + 2 * k0) * (r - r0)).astype(np.complex64)[None, :]
-    ku_r *= nonstop_shift(rec, ku, r)
-    return image_of(rec, ku_r, r, "omega_k", {"window": window, "elements": elements, "deconvolve": deconvolve, "interp": interp,
-                                             "tap_window": tap_window, "backend": backend}, depth)
+    return strip_image(job, ku_r, r)

@@ -1,6 +1,6 @@
 """Range compression: matched filtering of LFM echoes in the frequency domain.
 
-Signal model (DESIGN.md; Kiang & Kiang 2022 eq. 7): the baseband echo of a scatterer at
+Signal model (docs/design.md; Kiang & Kiang 2022 eq. 7): the baseband echo of a scatterer at
 two-way delay tau_n is A rect((tau - tau_n)/T) exp(-j 2 pi f0 tau_n) exp(j pi K (tau - tau_n)^2).
 The matched filter correlates each fast-time record with the baseband replica
 p(t) = rect(t/T) exp(j pi K t^2):
@@ -32,8 +32,7 @@ import scipy.special
 
 from .. import budget
 from .. import validate as v
-from ..model import EchoData
-from ..model import Waveform
+from ..model import MAX_ECHO_FS, EchoData, Waveform
 
 WINDOWS = ("none", "hamming", "taylor", "kaiser")
 WINDOW_OPTIONS = {"taylor_nbar": 4, "taylor_sll_db": 35.0, "kaiser_beta": 6.0}  # the defaults
@@ -93,7 +92,8 @@ def lfm_replica(waveform: Waveform, fs: float | None = None) -> tuple[np.ndarray
 
     Returns ``(t, p)``: times (s) and samples (complex128), symmetric about t = 0.
     """
-    fs = waveform.fs if fs is None else float(fs)
+    v.instance("lfm_replica waveform", waveform, Waveform, "a Waveform")
+    fs = waveform.fs if fs is None else v.positive("lfm_replica fs", fs, high=MAX_ECHO_FS, unit="Hz")
     half = int(np.floor(0.5 * waveform.duration * fs + 1e-9))
     t = np.arange(-half, half + 1) / fs
     return t, waveform.baseband(t)
@@ -154,8 +154,8 @@ def matched_filter(waveform: Waveform, fs: float, n_fft: int, window: str = "non
     """
     _, p = lfm_replica(waveform, fs)
     half = (p.size - 1) // 2
-    if n_fft < p.size:
-        raise ValueError(f"n_fft ({n_fft}) must hold the replica ({p.size} samples)")
+    n_fft = v.integer("matched_filter n_fft", n_fft, low=p.size, why="the replica's samples at least")
+    budget.check_bytes(f"matched_filter of {n_fft} points", 48.0 * n_fft, "a shorter FFT")
     circ = np.zeros(n_fft, dtype=np.complex128)
     circ[: half + 1] = p[half:]
     circ[n_fft - half:] = p[:half]
@@ -187,10 +187,17 @@ def upsample_records(records: np.ndarray, factor: int, workers: int | None = Non
     one end of a record to the other. Returns complex64 ``records.shape[:-1] + (n * factor,)``.
     """
     factor = v.integer("upsample factor", factor, low=1, high=MAX_UPSAMPLE)
+    records = np.asarray(records)
+    if records.dtype.kind not in "iufc":
+        raise TypeError(f"upsample_records records: must be an array of numbers, got dtype {records.dtype}")
+    if records.ndim < 1 or records.shape[-1] < 1:
+        raise ValueError(f"upsample_records records: must have samples along the last axis, got shape {records.shape}")
+    if not v.all_finite(records):
+        raise ValueError("upsample_records records: must be finite everywhere; they have NaN or inf")
     n = records.shape[-1]
     if factor == 1:
         return np.asarray(records, dtype=np.complex64)
-    workers = os.cpu_count() if workers is None else int(workers)
+    workers = check_workers(workers, "upsample_records workers")
     n_fft = scipy.fft.next_fast_len(n + max(16, n // 4), real=False)
     spec = scipy.fft.fft(records, n=n_fft, axis=-1, workers=workers)
     out = scipy.fft.ifft(_upsample_spectrum(spec, factor), axis=-1, workers=workers)[..., :n * factor]
@@ -221,10 +228,8 @@ def range_compress(echo: EchoData, window: str = "none", upsample: int = 1, work
     geometry; ``data[r, p, k]`` is the matched-filter output at fast time
     ``t0[r] + k / fs`` (a scatterer at delay tau_n peaks at tau_n).
     """
-    if not isinstance(echo, EchoData):
-        raise TypeError(f"range_compress echo: must be an EchoData, got {type(echo).__name__}")
-    if echo.compressed:
-        raise ValueError("range_compress echo: is already range-compressed (EchoData.compressed is True)")
+    v.instance("range_compress echo", echo, EchoData, "an EchoData")
+    v.compression("range_compress echo", echo, compressed=False, advice="an echo is range-compressed once")
     window_options = check_window(window, window_options, "range_compress")
     upsample = v.integer("range_compress upsample", upsample, low=1, high=MAX_UPSAMPLE)
     workers = check_workers(workers, "range_compress workers")

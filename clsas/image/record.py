@@ -27,11 +27,9 @@ import numpy as np
 import scipy.fft
 
 from .. import validate
-from ..model import EchoData, Image
+from ..model import MAX_ECHO_FS, EchoData, Image, Medium, Waveform
 from ..interp import resample
-from ..kernelmath import unit_phasor
 from ..scene.scenario import MAX_ELEMENT
-from ..model import Medium, Waveform
 from .rangecomp import spectral_window
 
 STRAIGHTNESS = 0.05  # allowed deviation of the track from a line, wavelengths
@@ -45,7 +43,7 @@ class LineRecord:
         (its phase centre), sample k at two-way fast time t0 + k / fs.
     u0, du : m. t0 : s. fs : Hz.
     speed : platform speed along +y, m/s (the along-track shift v r / c uses it).
-    track : (x, z) of the track line, m; the imaged side is +x (DESIGN's convention).
+    track : (x, z) of the track line, m; the imaged side is +x (docs/design.md's convention).
     waveform, medium : the pulse and the water.
     nonstop : whether the echoes carry the non-stop-and-go shift v r / c.
     provenance : how it was made.
@@ -62,6 +60,25 @@ class LineRecord:
     medium: Medium
     nonstop: bool
     provenance: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        data = validate.instance("LineRecord.data", self.data, np.ndarray, "a complex (n_u, n_samples) array")
+        if data.dtype.kind != "c":
+            raise TypeError(f"LineRecord.data: must be complex baseband samples, got dtype {data.dtype}")
+        if data.ndim != 2:
+            raise ValueError(f"LineRecord.data: must be 2-D (n_u, n_samples), got shape {data.shape}")
+        bounds = {"u0": dict(low=-validate.MAX_COORDINATE, high=validate.MAX_COORDINATE, unit="m"),
+                  "du": dict(low=0.0, low_open=True, high=validate.MAX_COORDINATE, unit="m"),
+                  "t0": dict(low=-validate.MAX_TIME, high=validate.MAX_TIME, unit="s"),
+                  "fs": dict(low=0.0, low_open=True, high=MAX_ECHO_FS, unit="Hz"),
+                  "speed": dict(low=0.0, high=validate.MAX_SPEED, unit="m/s")}
+        for name, bound in bounds.items():
+            object.__setattr__(self, name, validate.scalar(f"LineRecord.{name}", getattr(self, name), **bound))
+        track = validate.array("LineRecord.track (x, z)", self.track, (2,), bound=validate.MAX_COORDINATE)
+        object.__setattr__(self, "track", (float(track[0]), float(track[1])))
+        validate.instance("LineRecord.waveform", self.waveform, Waveform, "a Waveform")
+        validate.instance("LineRecord.medium", self.medium, Medium, "a Medium")
+        object.__setattr__(self, "nonstop", validate.flag("LineRecord.nonstop", self.nonstop))
 
     @property
     def n_u(self) -> int:
@@ -110,6 +127,9 @@ def check_straight_track(echo: EchoData) -> Track:
                              "use clsas.backproject for this geometry")
     if du <= 0:
         raise ValueError(f"the platform must move along +y (the along-track step is {du:.3g} m)")
+    if not echo.eta[-1] > echo.eta[0]:
+        raise ValueError(f"echo.eta: the emission times must increase along the track, got {echo.eta[0]:g} s to "
+                         f"{echo.eta[-1]:g} s")
     speed = du * (echo.n_pulses - 1) / (echo.eta[-1] - echo.eta[0])
     return Track(float(u0), float(du), float(np.mean(tx[:, 0])), float(np.mean(tx[:, 2])), float(speed), tol)
 
@@ -117,7 +137,9 @@ def check_straight_track(echo: EchoData) -> Track:
 def made_nonstop(echo: EchoData, stop_and_go: bool | None) -> bool:
     """Whether the echoes carry non-stop-and-go delays: ``not stop_and_go`` when given, else
     read from ``echo.provenance["stop_and_go"]`` (False when absent, as clsas.simulate's default)."""
-    return not (echo.provenance.get("stop_and_go", False) if stop_and_go is None else stop_and_go)
+    if stop_and_go is None:
+        return not echo.provenance.get("stop_and_go", False)
+    return not validate.flag("stop_and_go", stop_and_go)
 
 
 def path_excess(r, d: float, speed: float, c: float, nonstop: bool = True):
@@ -130,14 +152,15 @@ def path_excess(r, d: float, speed: float, c: float, nonstop: bool = True):
 
 def compensate_bistatic(data, t0: float, fs: float, d: float, speed: float, waveform, medium,
                         t0_out: float | None = None, nonstop: bool = True, backend: str | None = None,
-                        reference_range: float | None = None) -> np.ndarray:
+                        reference_range: float | None = None, interp: str = "sinc8",
+                        tap_window: str = "kaiser") -> np.ndarray:
     """Remove the bistatic deformation (Huang & Yang eqs. 16-17) from the compressed records
     ``data`` (n_pulses, n) of a receiver d metres ahead of the transmitter, sampled from fast
     time ``t0`` at ``fs``; the output is sampled from ``t0_out`` (default ``t0``) on the same
-    number of samples; ``backend`` runs the interpolation (:func:`clsas.interp.resample`).
-    ``reference_range`` (m): compensate every range by the excess of that one range (the
-    range-invariant correction of the classic PCA) instead of each range's own.
-    complex64 (n_pulses, n)."""
+    number of samples; ``interp`` and ``tap_window`` (:mod:`clsas.interp`) read the shifted
+    samples, on ``backend``. ``reference_range`` (m): compensate every range by the excess of
+    that one range (the range-invariant correction of the classic PCA) instead of each range's
+    own. complex64 (n_pulses, n)."""
     c = medium.sound_speed
     n = data.shape[1]
     t_out = (t0 if t0_out is None else t0_out) + np.arange(n) / fs
@@ -150,27 +173,31 @@ def compensate_bistatic(data, t0: float, fs: float, d: float, speed: float, wave
     excess = np.where(r > 0, path_excess(np.where(r > 0, at, 1.0), d, speed, c, nonstop), 0.0)
     idx = (t_out + excess / c - t0) * fs  # the same for every pulse
     phase = np.exp(2j * np.pi * waveform.f0 * excess / c)
-    oversampling = fs / waveform.bandwidth
-    shifted = resample(data, idx, "sinc8", oversampling=max(oversampling, 1.01), backend=backend)
-    return (shifted * phase).astype(np.complex64)
+    shifted = resample(data, idx, interp, tap_window, oversampling=oversampling(fs, waveform), backend=backend)
+    shifted *= phase  # in place: resample's budget check covers the result
+    return shifted.astype(np.complex64, copy=False)
 
 
-def line_record(echo: EchoData, receiver=0, stop_and_go: bool | None = None, backend: str | None = None) -> LineRecord:
+def oversampling(fs: float, waveform) -> float:
+    """A record's sampling rate over its occupied band (the Knab window's parameter), at least 1.01."""
+    return max(fs / waveform.bandwidth, 1.01)
+
+
+def line_record(echo: EchoData, receiver=0, stop_and_go: bool | None = None, backend: str | None = None,
+                interp: str = "sinc8", tap_window: str = "kaiser") -> LineRecord:
     """The monostatic record of ``receiver`` (index or name), which must sit with the transmitter.
 
     ``stop_and_go`` says how the echoes were made (default: ``echo.provenance["stop_and_go"]``,
     False when absent: clsas.simulate's exact delays). Non-stop-and-go records get the path
     excess of Huang & Yang eq. (4) compensated (:func:`compensate_bistatic` with d = 0, its
-    interpolation on ``backend``); their along-track shift v r / c is left to the imagers.
+    interpolation ``interp``, ``tap_window`` on ``backend``); their along-track shift v r / c is
+    left to the imagers.
     """
-    if not isinstance(echo, EchoData):
-        raise TypeError(f"line_record echo: must be an EchoData, got {type(echo).__name__}")
+    validate.instance("line_record echo", echo, EchoData, "an EchoData")
     if np.ndim(receiver) != 0:
-        raise ValueError(f"receiver must be one index or name, got {receiver!r}")
+        raise ValueError(f"receiver: must be one index or name, got {receiver!r}")
     h = echo.select_receivers(receiver, "receiver")[0]
-    if not echo.compressed:
-        raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first (the imagers "
-                         "work on compressed records; chirp scaling re-spreads them itself)")
+    validate.compression("line_record echo", echo)
     track = check_straight_track(echo)
     offset = echo.rx_position(h, np.zeros((echo.n_pulses, 1)))[:, 0] - echo.tx_pos
     if np.max(np.abs(offset)) > track.tolerance:
@@ -181,35 +208,42 @@ def line_record(echo: EchoData, receiver=0, stop_and_go: bool | None = None, bac
     data = echo.data[h]
     if nonstop:
         data = compensate_bistatic(data, echo.t0[h], echo.fs, 0.0, track.speed, echo.waveform, echo.medium,
-                                   backend=backend)
+                                   backend=backend, interp=interp, tap_window=tap_window)
     return LineRecord(data=data, u0=track.u0, du=track.du, t0=float(echo.t0[h]), fs=echo.fs, speed=track.speed,
                       track=(track.x, track.z),
                       waveform=echo.waveform, medium=echo.medium, nonstop=nonstop,
                       provenance={"from": "line_record", "receiver": echo.receivers[h], "echo": dict(echo.provenance)})
 
 
-def as_record(data, receiver=0, backend: str | None = None) -> LineRecord:
+def as_record(data, receiver=0, backend: str | None = None, interp: str = "sinc8",
+              tap_window: str = "kaiser") -> LineRecord:
     """A LineRecord as is, or the monostatic record of an EchoData (:func:`line_record`,
-    its interpolation on ``backend``)."""
+    its interpolation ``interp``, ``tap_window`` on ``backend``)."""
     if isinstance(data, LineRecord):
         return data
-    if isinstance(data, EchoData):
-        return line_record(data, receiver, backend=backend)
-    raise TypeError(f"expected a LineRecord or a monostatic EchoData, got {type(data).__name__}")
+    validate.instance("data", data, EchoData, "a LineRecord or a range-compressed monostatic EchoData")
+    return line_record(data, receiver, backend=backend, interp=interp, tap_window=tap_window)
+
+
+def element_lengths(name: str, elements) -> tuple | None:
+    """(L_tx, L_rx) in metres (one number: both), each in (0, MAX_ELEMENT], or None."""
+    if elements is None:
+        return None
+    lengths = np.broadcast_to(validate.array(name, elements, (2,) if np.ndim(elements) else (), bound=MAX_ELEMENT),
+                              (2,))
+    if np.any(lengths <= 0):
+        raise ValueError(f"{name}: must be the positive along-track lengths (L_tx, L_rx) in m, got {elements!r}")
+    return tuple(float(v) for v in lengths)
 
 
 def check_elements(elements, rec: LineRecord):
-    """(L_tx, L_rx) in metres or None; the along-track sampling must resolve the extracted band."""
-    if elements is None:
-        return None
-    lengths = np.broadcast_to(validate.array("elements (L_tx, L_rx)", elements, (2,) if np.ndim(elements) else (),
-                                             bound=MAX_ELEMENT), (2,))
-    if np.any(lengths <= 0):
-        raise ValueError(f"elements: must be the positive along-track lengths (L_tx, L_rx) in m, got {elements!r}")
-    if 2 * np.pi / lengths.max() > np.pi / rec.du * (1 + 1e-9):
-        raise ValueError(f"elements {tuple(lengths)}: the band |k_y| <= 2 pi / D needs along-track samples at most "
-                         f"D / 2 = {lengths.max() / 2:.4g} m apart, the record has {rec.du:.4g} m")
-    return tuple(float(v) for v in lengths)
+    """(L_tx, L_rx) in metres (:func:`element_lengths`) or None; the along-track sampling must
+    resolve the extracted band."""
+    lengths = element_lengths("elements (L_tx, L_rx)", elements)
+    if lengths is not None and 2 * np.pi / max(lengths) > np.pi / rec.du * (1 + 1e-9):
+        raise ValueError(f"elements {lengths}: the band |k_y| <= 2 pi / D needs along-track samples at most "
+                         f"D / 2 = {max(lengths) / 2:.4g} m apart, the record has {rec.du:.4g} m")
+    return lengths
 
 
 def azimuth_weights(ku: np.ndarray, elements, window: str, deconvolve: bool = True, **window_options) -> np.ndarray:
@@ -225,28 +259,14 @@ def azimuth_weights(ku: np.ndarray, elements, window: str, deconvolve: bool = Tr
                     / np.where(inside, pattern, 1.0), 0.0)
 
 
-def along_track_wavenumbers(rec: LineRecord, n_ku: int) -> np.ndarray:
-    """k_u (rad/m) of the rows of an along-track FFT of length n_ku (FFT order)."""
-    return 2 * np.pi * np.fft.fftfreq(n_ku, rec.du)
-
-
-def nonstop_shift(rec: LineRecord, ku: np.ndarray, r: np.ndarray) -> np.ndarray | float:
-    """exp(-j k_u v r / c) for rows ku and ranges r (Huang & Yang 2022 eq. 25 with
-    f_t = v k_u / (2 pi)): moves the echo of a target at range r from u = y - v r / c (the
-    non-stop-and-go phase centre) back to its true along-track position y; 1 for stop-and-go.
-    complex64 (len(ku), len(r))."""
-    if not rec.nonstop:
-        return 1.0
-    return unit_phasor(np.outer(ku, -rec.speed / rec.medium.sound_speed * np.asarray(r)))
-
-
 def image_of(rec: LineRecord, ku_range: np.ndarray, r: np.ndarray, algorithm: str, params: dict,
-             depth: float | None = None):
+             depth: float | None = None, workers: int = -1):
     """The Image of an imager's (k_u, r) result: inverse along-track FFT, rows at
     y = u0 + j du, columns cropped to the recorded ranges and placed on the horizontal plane
     z = ``depth`` (default: the track's depth) at x = x_track + sqrt(r^2 - (depth - z_track)^2).
 
-    ku_range : complex (n_ku, len(r)); r : slant ranges of its columns, m, increasing.
+    ku_range : complex (n_ku, len(r)); r : slant ranges of its columns, m, increasing;
+    workers : scipy.fft threads.
     """
     x_track, z_track = rec.track
     depth = z_track if depth is None else float(depth)
@@ -255,7 +275,7 @@ def image_of(rec: LineRecord, ku_range: np.ndarray, r: np.ndarray, algorithm: st
     keep = (r > abs(dz)) & (r >= c * rec.t0 / 2) & (r <= c * (rec.t0 + (rec.n_samples - 1) / rec.fs) / 2)
     if not np.any(keep):
         raise ValueError(f"depth {depth} m: no recorded range reaches that plane")
-    img = scipy.fft.ifft(ku_range[:, keep], axis=0, workers=-1)
+    img = scipy.fft.ifft(ku_range[:, keep], axis=0, workers=workers)
     y = rec.u0 + rec.du * np.arange(img.shape[0])
     x = x_track + np.sqrt(r[keep] ** 2 - dz ** 2)
     positions = np.empty((y.size, x.size, 3))

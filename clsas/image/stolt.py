@@ -19,8 +19,7 @@ The kernel (``kernels/stolt.cl``) computes the first position of each work-item'
 in double and the others relative to it in float (~1e-5 sample), and the interpolation in
 float; the reference does everything in float64 with the same table. They differ by float
 rounding, and where a position's rounding picks the neighbouring tap row (1/4096 sample
-apart): relative L2 1e-6 (linear) to 3e-5 (sinc) on the bench's 4096 x 4096 axes, bounded
-by 1e-4 in tests/test_stolt.py.
+apart): bench/bench_stolt.py reports the difference on its axes, tests/test_stolt.py bounds it.
 """
 
 from __future__ import annotations
@@ -30,7 +29,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import backend as _backend
+from .. import validate as v
 from ..interp import check_options, check_sizes, launch_rows, resample_rows
+
+MAX_AXIS = 1e12  # bound of the axes' frequencies (Hz), wavenumbers (rad/m) and sound speed: only nonsense beyond
 
 
 @dataclass(frozen=True)
@@ -53,6 +55,15 @@ class StoltAxes:
     f0: float
     c: float
 
+    def __post_init__(self):
+        for name in ("f_first", "kx_first"):
+            object.__setattr__(self, name, v.scalar(f"StoltAxes.{name}", getattr(self, name), low=-MAX_AXIS, high=MAX_AXIS))
+        for name in ("df", "dkx", "f0"):
+            object.__setattr__(self, name, v.positive(f"StoltAxes.{name}", getattr(self, name), high=MAX_AXIS))
+        object.__setattr__(self, "c", v.positive("StoltAxes.c", self.c, high=MAX_AXIS, unit="m/s"))
+        for name in ("n_src", "n_out"):
+            object.__setattr__(self, name, v.integer(f"StoltAxes.{name}", getattr(self, name), low=1, high=2**31 - 1))
+
     def index_constants(self) -> tuple[float, float, float, float]:
         """(K0, dkx, A, Bc) with idx = A sqrt((K0 + j dkx)^2 + k_u^2) + Bc (the kernel's params)."""
         k0 = 2 * np.pi * self.f0 / self.c
@@ -65,17 +76,17 @@ class StoltAxes:
         return a * np.sqrt(k[None, :] ** 2 + np.asarray(ku, dtype=np.float64)[:, None] ** 2) + b
 
 
-def _check(spectrum: np.ndarray, ku: np.ndarray, axes: StoltAxes) -> None:
-    if not isinstance(axes, StoltAxes):
-        raise TypeError(f"axes must be a StoltAxes, got {type(axes).__name__}")
-    if spectrum.ndim != 2 or spectrum.shape[1] != axes.n_src:
-        raise ValueError(f"spectrum must have shape (n_ku, axes.n_src={axes.n_src}), got {spectrum.shape}")
-    if ku.shape != (spectrum.shape[0],) or not np.all(np.isfinite(ku)):
-        raise ValueError(f"ku must hold one finite wavenumber per spectrum row ({spectrum.shape[0]}), got {ku.shape}")
-    if axes.n_out < 1 or not (axes.df > 0 and axes.dkx > 0):
-        raise ValueError(f"axes need n_out >= 1 and positive df, dkx, got {axes}")
+def _check(spectrum: np.ndarray, ku: np.ndarray, axes: StoltAxes) -> np.ndarray:
+    """The checks of :func:`stolt` on its arrays; returns ``ku`` as float64."""
+    v.instance("stolt axes", axes, StoltAxes, "a StoltAxes")
+    if spectrum.dtype.kind not in "iufc":
+        raise TypeError(f"stolt spectrum: must be an array of numbers, got dtype {spectrum.dtype}")
+    if spectrum.ndim != 2 or spectrum.shape[0] < 1 or spectrum.shape[1] != axes.n_src:
+        raise ValueError(f"stolt spectrum: must have shape (n_ku >= 1, axes.n_src={axes.n_src}), got {spectrum.shape}")
+    ku = v.array("stolt ku", ku, (spectrum.shape[0],), bound=MAX_AXIS)
     if not np.all(np.isfinite(axes.index_constants())):
-        raise ValueError(f"axes: must give finite source positions, got {axes}")
+        raise ValueError(f"stolt axes: must give finite source positions, got {axes}")
+    return ku
 
 
 def stolt_reference(spectrum, ku, axes: StoltAxes, interp: str = "sinc8", window: str = "kaiser",
@@ -127,7 +138,8 @@ def stolt(spectrum, ku, axes: StoltAxes, interp: str = "sinc8", window: str = "k
     backend : "numpy", "opencl", "auto" or None (the default backend).
     out : optional C-contiguous (n_ku, axes.n_out) array to write the result into (complex64
         for OpenCL; complex64 or complex128 for NumPy), e.g. one reused for a stream of blocks
-        of the same size: a fresh 4096 x 4096 result costs ~10 ms of page faults.
+        of the same size (a fresh result is page-faulted in during the call; bench/bench_stolt.py
+        times both).
 
     Returns
     -------
@@ -135,8 +147,7 @@ def stolt(spectrum, ku, axes: StoltAxes, interp: str = "sinc8", window: str = "k
     """
     check_options(interp, window, oversampling)
     spectrum = np.asarray(spectrum)
-    ku = np.asarray(ku, dtype=np.float64)
-    _check(spectrum, ku, axes)
+    ku = _check(spectrum, ku, axes)
     check_sizes("stolt spectrum", spectrum.shape, axes.n_out, interp, "axes.n_out")
     backend = _backend.resolve(backend)
     if out is not None:

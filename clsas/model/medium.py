@@ -19,13 +19,37 @@ MAX_DURATION = 10.0  # s, one pulse
 
 @dataclass(frozen=True)
 class Medium:
-    """The water. ``sound_speed`` in m/s, allowed [1000, 2000] (water is 1400-1600)."""
+    """The water.
+
+    Parameters
+    ----------
+    sound_speed : float
+        m/s, allowed [1000, 2000] (water is 1400-1600).
+    temperature : float
+        deg C, allowed [-2, 40]: with ``salinity``, ``depth`` and ``ph`` it sets the absorption of
+        Francois & Garrison 1982 (:func:`clsas.absorption_db_per_km`; their fit holds for
+        -2..22 deg C below 500 kHz, 0..30 deg C above).
+    salinity : float
+        ppt (psu), allowed [0, 45] (the fit: 30..35 ppt below 500 kHz, 0..40 above).
+    depth : float
+        m, >= 0 and at most 12 000: the depth at which the absorption is evaluated (its pressure
+        terms; the fit: 0..3500 m below 500 kHz, 0..10 000 m above). One depth for the whole scene.
+    ph : float
+        pH of the water, allowed [6, 9] (open ocean ~8).
+    """
 
     sound_speed: float = 1500.0
+    temperature: float = 10.0
+    salinity: float = 35.0
+    depth: float = 0.0
+    ph: float = 8.0
 
     def __post_init__(self):
-        object.__setattr__(self, "sound_speed", v.scalar("Medium.sound_speed", self.sound_speed, low=1000.0, high=2000.0,
-                                                         unit="m/s"))
+        for name, low, high, unit in (("sound_speed", 1000.0, 2000.0, "m/s"), ("temperature", -2.0, 40.0, "deg C"),
+                                      ("salinity", 0.0, 45.0, "ppt"), ("depth", 0.0, 12000.0, "m"),
+                                      ("ph", 6.0, 9.0, "")):
+            object.__setattr__(self, name, v.scalar(f"Medium.{name}", getattr(self, name), low=low, high=high,
+                                                    unit=unit))
 
 
 @dataclass(frozen=True)

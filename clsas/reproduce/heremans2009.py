@@ -30,8 +30,9 @@ The chapter's scene: 15 hydrophones 21.88 cm apart, transmitter in the middle, v
 PRT 0.6 s, f0 = 50 kHz, nine point targets around r0 = 100 m (presets.point_scene
 ("heremans2009")). The chapter does not give its motion errors or seafloor; assumed here: sway
 5 cm and yaw 3 mrad, sinusoids of 40 s and 30 s periods starting from zero at the first ping
-(the size of its Figs. 23-24), and a weak seafloor (3000 random scatterers, 26 dB below a
-point target) over 88-112 m so that every range block correlates. The chapter reports a sway
+(the size of its Figs. 23-24), and a sand seafloor 15 m below the track over 88-112 m x +-20 m
+with the nine points laid on it (presets.heremans2009_seafloor), so that every range block
+correlates. The chapter reports a sway
 error of at most 2 mm (lambda / 15) and a yaw error of the order of 1e-4 rad.
 """
 
@@ -49,8 +50,8 @@ from ..estimate import dpca
 from ..image import backproject, omega_k, pca_record, range_compress
 from ..scene import presets
 from ..scene.scenario import Platform
-from ..scene.targets import PointTargets
 from ..synthesis import simulate
+from . import report
 
 R0 = 100.0
 
@@ -67,16 +68,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--kiang-targets", choices=("points", "submarine"), default="points",
                         help="one point at the hull's centre (seconds a case, default) or the scaled hull "
                              "(minutes a case)")
+    report.add_arguments(parser)
+
+
+ALTITUDE = 15.0   # m, the seafloor below the track (presets.heremans2009_seafloor)
 
 
 def _scene(pings: int, seed: int):
-    scene = presets.point_scene("heremans2009", n_pulses=pings)
-    rng = np.random.default_rng(seed)
-    n = 3000
-    pos = np.stack([rng.uniform(88, 112, n), rng.uniform(-20, 20, n), np.zeros(n)], -1)
-    floor = PointTargets(pos, reflectivity=0.05 * (rng.normal(size=n) + 1j * rng.normal(size=n)) / np.sqrt(2))
-    scene = scene.replace(waveform=dataclasses.replace(scene.waveform, fs=2 * scene.waveform.bandwidth),
-                          targets=scene.targets + (floor,))
+    """presets.heremans2009_seafloor (the nine points on 15 m deep sand over 88-112 m x +-20 m,
+    ``seed`` its speckle) at fs = 2 B, and the assumed sway and yaw."""
+    scene = presets.heremans2009_seafloor(n_pulses=pings, altitude=ALTITUDE, seed=seed)
+    scene = scene.replace(waveform=dataclasses.replace(scene.waveform, fs=2 * scene.waveform.bandwidth))
     t0 = scene.eta[0]
     sway = lambda t: 0.05 * np.sin(2 * np.pi * (t - t0) / 40.0)  # noqa: E731
     yaw = lambda t: 0.003 * np.sin(2 * np.pi * (t - t0) / 30.0)  # noqa: E731
@@ -89,14 +91,22 @@ def run(args: argparse.Namespace) -> int:
     if not all(np.isfinite(a) and 0 <= a <= 100 for a in args.kiang_sway):
         raise SystemExit(f"clsas reproduce heremans2009: --kiang-sway amplitudes must be in [0, 100] mm, "
                          f"got {args.kiang_sway}")
+    report.check_output(args)
+    rep = report.Report("heremans2009", "Heremans, Dupont & Acheroy 2009, section 5: DPCA micronavigation", assumptions=[
+        f"the seafloor: sand {ALTITUDE:g} m below the track over 88-112 m x +-20 m (presets.heremans2009_seafloor), "
+        "the nine points laid on it at TS -20 dB", "sway 5 cm / 40 s and yaw 3 mrad / 30 s, sinusoids from zero",
+        "fs = 2 B, range compression upsampled 4x"],
+        settings={"pings": args.pings, "seed": args.seed, "kiang_cases": list(args.kiang_cases or [])})
     scene, sway, yaw = _scene(args.pings, args.seed)
     speed = scene.platform.speed
-    moving = scene.replace(platform=Platform(speed=speed, sway=sway, yaw=yaw))
-    print(f"Heremans et al. 2009: {scene.array.n_receivers} hydrophones, {args.pings} pings, nine points + seafloor; "
-          "sway 5 cm / 40 s and yaw 3 mrad / 30 s injected")
-    clean = range_compress(simulate(scene, progress=False), upsample=4)
-    echo = range_compress(simulate(moving, progress=False), upsample=4)
-    pairs = dpca.estimate(echo, scene.array, speed)
+    moving = scene.replace(platform=Platform(speed=speed, start=scene.platform.start, sway=sway, yaw=yaw))
+    print(f"Heremans et al. 2009: {scene.array.n_receivers} hydrophones, {args.pings} pings, nine points on a sand "
+          "seafloor; sway 5 cm / 40 s and yaw 3 mrad / 30 s injected")
+    with rep.stage("simulating the scene without and with the motion", estimate_s=0.4 * args.pings):
+        clean = range_compress(simulate(scene, progress=False), upsample=4)
+        echo = range_compress(simulate(moving, progress=False), upsample=4)
+    with rep.stage("DPCA over the ping pairs", estimate_s=0.1 * args.pings):
+        pairs = dpca.estimate(echo, scene.array, speed)
     # DPCA measures changes of heading; the first ping's heading (at its reception, see
     # Trajectory.heading_times) comes from the vehicle's compass: here from the truth.
     first_reception = echo.eta[0] + pairs.two_way
@@ -110,13 +120,19 @@ def run(args: argparse.Namespace) -> int:
         print(f"{p:4d} {true_sway[p] * 1e3:13.2f} {track.cross[p] * 1e3:9.2f} {(track.cross[p] - true_sway[p]) * 1e3:9.2f} "
               f"{true_yaw[p] * 1e3:14.3f} {track.heading[p] * 1e3:10.3f} {(track.heading[p] - true_yaw[p]) * 1e3:11.3f}")
     sway_err = track.cross - true_sway
+    rep.add("section 5.5", "sway", "max error (paper: at most 2 mm)", "mm", None, np.abs(sway_err).max() * 1e3, 0.0)
+    rep.add("section 5.5", "yaw", "max error (paper: ~0.1 mrad)", "mrad", None,
+            np.abs(track.heading - true_yaw).max() * 1e3, 0.0)
+    rep.add("section 5.5", "heading", "standard error at the last ping (DPCA's own)", "mrad", None,
+            track.heading_std[-1] * 1e3, 0.0)
     print(f"\nsway error: max {np.abs(sway_err).max() * 1e3:.2f} mm, RMS {np.sqrt(np.mean(sway_err**2)) * 1e3:.2f} mm "
           "(paper: at most 2 mm); yaw error: max "
           f"{np.abs(track.heading - true_yaw).max() * 1e3:.3f} mrad (paper: ~0.1 mrad)")
 
     d = scene.array.rx_length[0]
     rres = scene.medium.sound_speed / (2 * scene.waveform.bandwidth)
-    grid = Grid.plane(np.arange(93.0, 107.0, rres / 2), np.arange(-8.0, 8.0, d / 4), 0.0)
+    floor_z = scene.platform.start[2] - ALTITUDE
+    grid = Grid.plane(np.arange(93.0, 107.0, rres / 2), np.arange(-8.0, 8.0, d / 4), floor_z)
     cases = {"motion-free": clean, "uncompensated": dpca.with_track(echo, scene),
              "compensated (eqs. 74-75)": dpca.compensate(echo, track, scene),
              "along the DPCA track": dpca.with_track(echo, scene.replace(platform=track.platform(speed, surge=False)))}
@@ -124,8 +140,10 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     print(f"\n{'image':26s} {'PSLR az dB':>11} {'ISLR az dB':>11} {'entropy':>8}")
     for name, data in cases.items():
-        image = backproject(data, grid, progress=False)
+        with rep.stage(f"back-projecting the {name} image", estimate_s=0.05 * args.pings):
+            image = backproject(data, grid, progress=False)
         res = metrics.analyse_point(image, near=(0.0, R0), radius=d)
+        rep.add("section 5.6", f"centre point, {name}", "azimuth PSLR", "dB", None, res["y"].pslr_db, 0.0)
         print(f"{name:26s} {res['y'].pslr_db:11.2f} {res['y'].islr_db:11.2f} {metrics.entropy(image):8.3f}")
         try:
             from .. import plot
@@ -138,16 +156,19 @@ def run(args: argparse.Namespace) -> int:
     # centres a ping interleave without overlap), compensated over the whole beam.
     receivers = list(range(4, 11))
     records = {"motion-free": pca_record(clean, receivers),
-               "compensated over the beam": dpca.compensate_record(echo, track, scene, receivers)}
+               "compensated over the beam": dpca.compensate_record(echo, track, scene, receivers, depth=floor_z)}
     print(f"\n{'omega-k, PCA record':26s} {'PSLR az dB':>11} {'ISLR az dB':>11} {'entropy':>8}")
     for name, record in records.items():
         image = omega_k(record, elements=(d, d), window="none", deconvolve=False)
-        res = metrics.analyse_point(image, near=(0.0, R0), radius=d)
+        res = metrics.analyse_point(image, near=(0.0, float(np.hypot(R0, ALTITUDE))), radius=d)   # slant range
         print(f"{name:26s} {res['y'].pslr_db:11.2f} {res['y'].islr_db:11.2f} {metrics.entropy(image):8.3f}")
     if args.kiang_cases:
-        _kiang_pga(args.kiang_cases, args.kiang_targets, [a * 1e-3 for a in args.kiang_sway], out)
+        per_case = 600.0 if args.kiang_targets == "submarine" else 25.0
+        with rep.stage(f"PGA on Kiang & Kiang 2022 cases {list(args.kiang_cases)}",
+                       estimate_s=per_case * len(args.kiang_cases)):
+            _kiang_pga(args.kiang_cases, args.kiang_targets, [a * 1e-3 for a in args.kiang_sway], out)
     print(f"\nimages in {out}/")
-    return 0
+    return report.finish(rep, args)
 
 
 SWAY_PERIODS = (6.0, 9.0)   # s: the injected sway (x) and heave (z) of the Kiang targets

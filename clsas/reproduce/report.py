@@ -70,7 +70,8 @@ class Row:
     paper : the printed value (None: the paper gives none; the row is clsas's alone).
     clsas : clsas's value (NaN when clsas could not measure it; that differs).
     tolerance : the largest |clsas - paper| still called a match, in ``unit``.
-    reason : the key of the :class:`Reason` a difference has ("" when none is given).
+    reason : the key of the :class:`Reason` a difference has, or several keys joined by ", "
+        ("" when none is given).
     """
 
     table: str
@@ -81,6 +82,11 @@ class Row:
     clsas: float
     tolerance: float
     reason: str = ""
+
+    @property
+    def reason_keys(self) -> list:
+        """The reason's keys (several when the difference has several causes)."""
+        return [k.strip() for k in self.reason.split(",") if k.strip()]
 
     @property
     def difference(self) -> float | None:
@@ -134,6 +140,7 @@ class Report:
     notes: list = field(default_factory=list)
     stages: list = field(default_factory=list)  # (name, seconds)
     started: float = field(default_factory=time.perf_counter, repr=False)
+    load_at_start: list = field(default_factory=lambda: _load_average(), repr=False)
 
     def add(self, table: str, item: str, quantity: str, unit: str, paper, clsas, tolerance: float,
             reason: str = "") -> Row:
@@ -173,7 +180,7 @@ class Report:
         its evidence names an experiment this report does not hold or is neither kind."""
         problems = []
         for row in self.rows:
-            if row.verdict == DIFFERS and row.reason not in self.reasons:
+            if row.verdict == DIFFERS and (not row.reason_keys or any(k not in self.reasons for k in row.reason_keys)):
                 problems.append(f"{row.table} {row.item} {row.quantity} differs "
                                 f"({row.clsas:g} vs {row.paper:g}) without a reason"
                                 + (f" (unknown key {row.reason!r})" if row.reason else ""))
@@ -201,7 +208,7 @@ class Report:
         """The JSON document (:data:`FORMAT`)."""
         return {
             "format": FORMAT, "paper": self.paper, "title": self.title, "clsas": __version__,
-            "machine": machine(), "settings": self.settings, "assumptions": list(self.assumptions),
+            "machine": {**machine(), "load_average_at_start": self.load_at_start}, "settings": self.settings, "assumptions": list(self.assumptions),
             "seconds": time.perf_counter() - self.started,
             "stages": [{"name": n, "seconds": s} for n, s in self.stages],
             "counts": self.counts(),
@@ -234,7 +241,7 @@ class Report:
         counts = self.counts()
         lines += ["", f"verdicts: {counts[MATCH]} match, {counts[DIFFERS]} differ (each with its reason below), "
                       f"{counts[ONLY]} clsas only"]
-        used = {r.reason for r in self.rows if r.verdict == DIFFERS}
+        used = {k for r in self.rows if r.verdict == DIFFERS for k in r.reason_keys}
         for reason in self.reasons.values():
             tag = "" if reason.key in used else " (no row differs for it in this run)"
             lines += ["", f"why {reason.key}{tag}: {reason.text}", f"  evidence: {', '.join(reason.evidence)}"]
@@ -279,15 +286,17 @@ def _grid(columns, rows) -> str:
     return "\n".join("  " + "  ".join(f"{c:>{w}}" for c, w in zip(r, widths)) for r in cells)
 
 
-def machine() -> dict:
-    """Where a reproduction ran: processor, cores, the load average, Python."""
-    info = {"machine": platform.machine(), "processor": _cpu_name(), "cores": os.cpu_count(),
-            "python": platform.python_version()}
+def _load_average() -> list | None:
     try:
-        info["load_average"] = [round(x, 2) for x in os.getloadavg()]
+        return [round(x, 2) for x in os.getloadavg()]
     except OSError:
-        pass
-    return info
+        return None
+
+
+def machine() -> dict:
+    """Where a reproduction ran: processor, cores, the load average (1, 5, 15 min), Python."""
+    return {"machine": platform.machine(), "processor": _cpu_name(), "cores": os.cpu_count(),
+            "python": platform.python_version(), "load_average": _load_average()}
 
 
 def _cpu_name() -> str:

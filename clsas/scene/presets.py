@@ -28,6 +28,7 @@ from .scenario import (
     Sonobuoy,
     Waveform,
 )
+from .seafloor import Seafloor
 from .targets import PointTargets
 
 
@@ -230,6 +231,31 @@ def point_scene(name: str, n_pulses: int | None = None, **options) -> Scenario:
     scenario = SONARS[name](**options)
     layout = POINT_LAYOUTS[name] + np.array([0.0, 0.0, scenario.platform.start[2]])
     return scenario.replace(targets=(PointTargets(layout),))
+
+
+def heremans2009_seafloor(n_pulses: int = 32, altitude: float = 15.0, sediment: str = "sand",
+                          extent=(88.0, 112.0, -20.0, 20.0), point_ts_db: float = -20.0, seed: int = 5) -> Scenario:
+    """Heremans et al. 2009's DPCA scene on a seafloor: the chapter's sonar (:func:`heremans2009`,
+    platform at z = 0), a flat seafloor ``altitude`` m below it over ``extent`` (x_min, x_max,
+    y_min, y_max, m) of ``sediment`` with its speckle facets (seeded by ``seed``; APL-UW law),
+    and the nine points of :func:`point_scene` laid on it, of target strength ``point_ts_db``
+    (reflectivity 10^(TS / 20)).
+
+    Assumed (the chapter gives neither): the altitude (15 m: grazing 8.5 deg at r0 = 100 m,
+    where sand backscatters about -36 dB), a sand floor, the extent (the one DPCA correlated
+    over in ``clsas reproduce heremans2009``'s random-point floor) and TS = -20 dB (about 40 dB
+    above a resolution cell of the floor). Facets: one per ~4.5 cm (four per 7.5 cm x 10.9 cm
+    resolution cell), about 0.5 million over the default extent.
+    """
+    from .. import validate as v
+
+    altitude = v.positive("heremans2009_seafloor altitude", altitude, high=1e4, unit="m")
+    ts = v.scalar("heremans2009_seafloor point_ts_db", point_ts_db, low=-150.0, high=60.0, unit="dB")
+    scene = point_scene("heremans2009", n_pulses=n_pulses)
+    layout = POINT_LAYOUTS["heremans2009"] + np.array([0.0, 0.0, scene.platform.start[2] - altitude])
+    points = PointTargets(layout, reflectivity=10 ** (ts / 20))
+    floor = Seafloor(extent, scene.platform.start[2] - altitude, sediment=sediment, seed=seed)
+    return scene.replace(targets=(points,), seafloor=floor)
 
 
 # Kiang & Kiang 2022 section II-B: the Albacore model (LOA 62.13 m) scaled down six times, LOA ~10 m.

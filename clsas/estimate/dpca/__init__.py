@@ -110,10 +110,11 @@ needs the spectra, which scipy.fft computes at near memory speed.
 from __future__ import annotations
 
 from .correlate import correlations
-from .geometry import beam_sin2, nominal_shift
+from .geometry import SeafloorExtent, beam_sin2, look_moments, nominal_shift
 from .pairs import PingPairs, estimate
 from .record import beam_correction, compensate_record
 from .track import Trajectory, compensate, delay_records, integrate, with_track
 
-__all__ = ["PingPairs", "Trajectory", "beam_correction", "beam_sin2", "compensate", "compensate_record", "correlations",
-           "delay_records", "estimate", "integrate", "nominal_shift", "with_track"]
+__all__ = ["PingPairs", "SeafloorExtent", "Trajectory", "beam_correction", "beam_sin2", "compensate",
+           "compensate_record", "correlations", "delay_records", "estimate", "integrate", "look_moments",
+           "nominal_shift", "with_track"]

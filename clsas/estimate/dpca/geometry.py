@@ -3,51 +3,245 @@ and the beam's mean look angle they depend on."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
+from ... import validate
 from ...scene.scenario import Array
 
 
 def nominal_shift(array: Array, speed: float, prf: float) -> tuple[int, np.ndarray]:
     """The nominal pairing of eq. (50): (s, phase-centre along-track offsets o_h / 2 in m).
 
-    s = v PRT / Delta_PC rounded; hydrophone i + s at ping p and i at ping p + 1 coincide."""
+    s = v PRT / Delta_PC rounded; hydrophone i + s at ping p and i at ping p + 1 coincide.
+    speed : m/s (> 0); prf : Hz (> 0)."""
+    if not isinstance(array, Array):
+        raise TypeError(f"nominal_shift: array must be a clsas Array (the hydrophone layout), got {type(array).__name__}")
+    speed = validate.positive("nominal_shift speed", speed, unit="m/s", why="the nominal platform speed")
+    prf = validate.positive("nominal_shift prf", prf, unit="Hz", why="the pulse repetition frequency")
     pc = 0.5 * (array.rx_offsets[:, 1] + array.tx_offset[1])
     order = np.argsort(pc)
     if np.any(order != np.arange(pc.size)):
         raise ValueError("dpca: the hydrophones must be numbered along the track (increasing body y)")
     steps = np.diff(pc)
-    if pc.size < 3 or not np.allclose(steps, steps[0], rtol=1e-6):
+    if pc.size < 3 or not np.allclose(steps, steps[0], rtol=1e-6) or steps[0] <= 0:
         raise ValueError(f"dpca needs a uniform line of >= 3 hydrophones, got phase-centre offsets {pc}")
     shift = speed / prf / steps[0]
+    if not shift < pc.size:
+        raise ValueError(f"dpca: at speed {speed:g} m/s and PRF {prf:g} Hz the platform advances {shift:.3g} "
+                         f"phase-centre spacings a ping, more than the {pc.size} hydrophones span: no "
+                         "overlapping phase centres between pings; lower the speed")
     s = int(round(shift))
     return s, pc
 
 
-def _beam(array: Array, f0: float, c: float):
-    """(sin theta, P(theta)) over the half-space in front of the array, P the two-way power
-    pattern of the transmitter and the hydrophones, sinc^2(L_tx sin(theta) / lambda)
-    sinc^2(L_rx sin(theta) / lambda) (clsas's element directivity, squared once for the transmit
-    leg and once for the receive leg): the weight of a scatterer at look angle theta in the
-    couples' correlations, over a seafloor that fills the beam. None if both elements are
-    omnidirectional (length 0: the beam is then the scene's, which the array cannot know)."""
+def pairing(array: Array, speed: float, prf: float, lags: int) -> tuple[int, np.ndarray, int]:
+    """(s, phase-centre offsets, couples common to every x-lag -lags..lags): :func:`nominal_shift`,
+    refused when fewer than three couples remain (eq. 50 leaves H - s overlapping phase centres)."""
+    s, pc = nominal_shift(array, speed, prf)
+    h = array.n_receivers
+    n_couples = h - s - lags
+    if s < 1 or n_couples < 3:
+        raise ValueError(f"dpca: at speed {speed} m/s and PRF {prf:g} Hz the platform advances {s} phase-centre "
+                         f"spacings a ping: the {h} hydrophones leave {h - s} overlapping phase centres, "
+                         f"{max(n_couples, 0)} couples at x-lag +-{lags} (needs >= 3); lower the speed or lags")
+    return s, pc, n_couples
+
+
+def _elements(array: Array) -> tuple[float, float]:
+    """(transmitter length, mean hydrophone length), m."""
+    return float(array.tx_length), float(np.mean(array.rx_length))
+
+
+def _pattern(array: Array, f0: float, c: float, sin_t: np.ndarray) -> np.ndarray:
+    """The two-way power pattern P at along-track direction cosines ``sin_t``:
+    sinc^2(L_tx sin(theta) / lambda) sinc^2(L_rx sin(theta) / lambda) (clsas's element
+    directivity, squared once for the transmit leg and once for the receive leg)."""
     lam = c / f0
-    lengths = (array.tx_length, float(np.mean(array.rx_length)))
-    if max(lengths) == 0:
+    return np.prod([np.sinc(length * sin_t / lam) ** 2 for length in _elements(array)], axis=0)
+
+
+def _beam(array: Array, f0: float, c: float):
+    """(sin theta, P(theta)) over the half-space in front of the array, theta uniform in
+    [-90, 90] deg (a range block of a flat seafloor in the track's plane holds its scatterers
+    uniformly in theta: area r dr dtheta), P the two-way power pattern (:func:`_pattern`): the
+    weight of a scatterer at look angle theta in the couples' correlations, over a seafloor that
+    fills the beam. None if both elements are omnidirectional (length 0: the beam is then the
+    scene's, which the array cannot know)."""
+    if max(_elements(array)) == 0:
         return None
     sin_t = np.sin(np.linspace(-np.pi / 2, np.pi / 2, 4001))
-    return sin_t, np.prod([np.sinc(length * sin_t / lam) ** 2 for length in lengths], axis=0)
+    return sin_t, _pattern(array, f0, c, sin_t)
+
+
+def _check_beam_args(caller: str, array, f0, c) -> tuple[float, float]:
+    if not isinstance(array, Array):
+        raise TypeError(f"{caller}: array must be a clsas Array (the hydrophone layout), got {type(array).__name__}")
+    f0 = validate.positive(f"{caller} f0", f0, unit="Hz", why="the carrier frequency")
+    c = validate.positive(f"{caller} c", c, unit="m/s", why="the sound speed")
+    return f0, c
 
 
 def beam_sin2(array: Array, f0: float, c: float) -> float:
-    """<sin^2 theta> over the two-way power pattern (see :func:`_beam`); 0 for omnidirectional
-    elements. Heremans' 21.88 cm elements at 3 cm: 1.42e-3, (lambda / L)^2 3 / (4 pi^2) in the
-    small-angle limit (the second moment of sinc^4)."""
+    """<sin^2 theta> over the two-way power pattern (see :func:`_beam`) for a seafloor that fills
+    the beam out to +-90 deg; 0 for omnidirectional elements. (lambda / L)^2 3 / (4 pi^2) for
+    two equal elements of length L in the small-angle limit (the second moment of sinc^4).
+    f0 : carrier, Hz (> 0); c : sound speed, m/s (> 0). For a seafloor of known extent,
+    :func:`look_moments` gives the value range block by range block."""
+    f0, c = _check_beam_args("beam_sin2", array, f0, c)
     beam = _beam(array, f0, c)
     if beam is None:
         return 0.0
     sin_t, power = beam
     return float(np.sum(sin_t**2 * power) / np.sum(power))
+
+
+def main_lobe(array: Array, f0: float, c: float) -> float:
+    """The two-way main lobe's half-width as a direction cosine: lambda / L at the longer
+    element's first null (1 for omnidirectional elements: no main lobe narrower than the
+    half-space)."""
+    longest = max(_elements(array))
+    return 1.0 if longest == 0 else float(min(1.0, c / f0 / longest))
+
+
+@dataclass(frozen=True)
+class SeafloorExtent:
+    """Where the seafloor scatters, for :func:`clsas.estimate.dpca.estimate`: a flat rectangle,
+    scene frame (clsas axes: x across track towards the imaged side, y along track, z up).
+
+    x : (x_min, x_max), m, its across-track edges (horizontal; x_max may be inf)
+    y : (y_min, y_max), m, its along-track edges (either may be inf)
+    z : m, its height (the track's height comes from the echo's transmitter positions;
+        0 with a track at z = 0 is the papers' 2-D geometry)
+
+    A real seafloor fills the beam (the estimator's default, ``extent=None``); a simulated patch
+    (random point scatterers, a clsas Seafloor's ``extent``) may be narrower or wider than the
+    beam, and the phase-centre correction depends on which look angles it holds
+    (:func:`look_moments`).
+    """
+
+    x: tuple = (0.0, np.inf)
+    y: tuple = (-np.inf, np.inf)
+    z: float = 0.0
+
+    def __post_init__(self):
+        for name in ("x", "y"):
+            edges = getattr(self, name)
+            if isinstance(edges, (str, bytes)) or not hasattr(edges, "__len__") or len(edges) != 2:
+                raise TypeError(f"SeafloorExtent {name}: must be a pair (min, max) in m, got {edges!r}")
+            lo, hi = (validate.scalar(f"SeafloorExtent {name}[{k}]", v, low=-np.inf, high=np.inf, unit="m")
+                      if validate.is_number(v) and np.isfinite(float(v)) else self._infinite(name, k, v)
+                      for k, v in enumerate(edges))
+            if not lo < hi:
+                raise ValueError(f"SeafloorExtent {name}: must have min < max, got ({lo:g}, {hi:g})")
+            object.__setattr__(self, name, (lo, hi))
+        if self.x[1] <= 0:
+            raise ValueError(f"SeafloorExtent x: the seafloor must reach the imaged side (x_max > 0), got {self.x}")
+        object.__setattr__(self, "z", validate.scalar("SeafloorExtent z", self.z, unit="m"))
+
+    @staticmethod
+    def _infinite(name: str, k: int, value) -> float:
+        """+-inf where an edge may be open (x_max, y_min, y_max); anything else is refused."""
+        if not validate.is_number(value):
+            raise TypeError(f"SeafloorExtent {name}[{k}]: must be a number of m, got {value!r} "
+                            f"({type(value).__name__})")
+        v = float(value)
+        open_ok = {("x", 1): np.inf, ("y", 0): -np.inf, ("y", 1): np.inf}.get((name, k))
+        if v != open_ok:
+            raise ValueError(f"SeafloorExtent {name}[{k}]: must be finite"
+                             f"{'' if open_ok is None else f' or {open_ok}'} m, got {value!r}")
+        return v
+
+
+ANGLES = 2001   # look angles phi over [-90, 90] deg in the tables of look_moments
+
+
+SUB_RANGES = 8  # ranges per block at which look_moments cuts the seafloor
+
+
+def look_moments(array: Array, f0: float, c: float, r: np.ndarray, centre: np.ndarray,
+                 extent: SeafloorExtent | None, span: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What each range block sees of the seafloor: (<sin^2 theta>, main-lobe fraction, content),
+    each of shape (pair, block), weighted by the two-way power pattern P (:func:`_pattern`).
+
+    r : m (block,), the blocks' centre ranges; span : m, their length in range (the rectangle
+    is cut at SUB_RANGES ranges across it and the weights added: a block across the swath's
+    edge holds broadside echoes from its near part only); centre : m (pair, 3), where the
+    couples' phase centres are (scene frame) when the blocks' echoes return; extent : the seafloor's
+    rectangle, None for a seafloor that fills the beam at the track's depth (then every block
+    reads :func:`beam_sin2`, fraction and content of the whole half-space).
+
+    A range block at slant range r of a flat seafloor h below the phase centres is the ring of
+    ground range rho = sqrt(r^2 - h^2), its scatterers uniform in the ground azimuth phi
+    (area rho d rho d phi); a scatterer there is at along-track direction cosine
+    sin theta = (rho / r) sin phi. The rectangle cuts the ring to the phi with
+    rho cos(phi) in [x_min, x_max] - x_c and rho sin(phi) in [y_min, y_max] - y_c: at most two
+    arcs. <sin^2 theta> = int P sin^2 theta dphi / int P dphi over them (from cumulative tables
+    per block); main-lobe fraction: the part of int P dphi with |sin theta| < :func:`main_lobe`;
+    content: int P dphi / pi (0 where the block holds no seafloor: <sin^2> is then NaN)."""
+    f0, c = _check_beam_args("look_moments", array, f0, c)
+    r = np.asarray(r, dtype=np.float64)
+    centre = np.asarray(centre, dtype=np.float64)
+    phi = np.linspace(-np.pi / 2, np.pi / 2, ANGLES)
+    omni = max(_elements(array)) == 0
+    if extent is None:
+        # the whole half-space at the track's depth (theta = phi): the same for every block
+        beam = _beam(array, f0, c)
+        sin_t, power = (np.sin(phi), np.ones_like(phi)) if beam is None else beam
+        sin2 = 0.0 if omni else float(np.sum(sin_t**2 * power) / np.sum(power))
+        inside = np.abs(sin_t) < main_lobe(array, f0, c)
+        shape = (centre.shape[0], r.size)
+        return (np.full(shape, sin2), np.full(shape, float(np.sum(power * inside) / np.sum(power))),
+                np.full(shape, float(np.mean(power))))
+    sub = (np.arange(SUB_RANGES) + 0.5) / SUB_RANGES - 0.5
+    r_blocks, r = r, (r[:, None] + span * sub[None, :]).ravel()               # (block x sub-range,)
+    h = float(np.median(centre[:, 2])) - extent.z      # the track's height above the floor (nominal)
+    rho = np.sqrt(np.maximum(r**2 - h**2, 0.0))                               # (block,)
+    a = np.divide(rho, r, out=np.zeros_like(rho), where=r > 0)
+    sin_t = a[:, None] * np.sin(phi)                                          # (block, angle)
+    power = np.ones_like(sin_t) if omni else _pattern(array, f0, c, sin_t)
+    step = phi[1] - phi[0]
+
+    def cumulative(values):
+        """int_{-pi/2}^{phi} values dphi (trapezoids), (block, angle)."""
+        return np.concatenate([np.zeros(values.shape[:-1] + (1,)),
+                               np.cumsum(0.5 * (values[..., 1:] + values[..., :-1]) * step, axis=-1)], axis=-1)
+
+    tables = [cumulative(power), cumulative(power * sin_t**2),
+              cumulative(power * (np.abs(sin_t) < main_lobe(array, f0, c)))]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x0 = (extent.x[0] - centre[:, 0][:, None]) / rho[None, :]                # (pair, block)
+        x1 = (extent.x[1] - centre[:, 0][:, None]) / rho[None, :]
+        y0 = (extent.y[0] - centre[:, 1][:, None]) / rho[None, :]
+        y1 = (extent.y[1] - centre[:, 1][:, None]) / rho[None, :]
+    near = np.arccos(np.clip(np.nan_to_num(x1, nan=-1.0, posinf=1.0, neginf=-1.0), 0.0, 1.0))   # |phi| >= near
+    far = np.arccos(np.clip(np.nan_to_num(x0, nan=1.0, posinf=1.0, neginf=0.0), 0.0, 1.0))     # |phi| <= far
+    lo = np.arcsin(np.clip(np.nan_to_num(y0, nan=1.0, posinf=1.0, neginf=-1.0), -1.0, 1.0))
+    hi = np.arcsin(np.clip(np.nan_to_num(y1, nan=-1.0, posinf=1.0, neginf=-1.0), -1.0, 1.0))
+    totals = [np.zeros(x0.shape) for _ in tables]
+    for arc_lo, arc_hi in ((np.maximum(lo, -far), np.minimum(hi, -near)), (np.maximum(lo, near), np.minimum(hi, far))):
+        arc_hi = np.maximum(arc_hi, arc_lo)
+        k_lo, k_hi = (np.clip((edge + np.pi / 2) / step, 0, ANGLES - 1) for edge in (arc_lo, arc_hi))
+        for total, table in zip(totals, tables):
+            total += _at(table, k_hi) - _at(table, k_lo)
+    empty = np.broadcast_to(rho[None, :] <= 0, x0.shape)
+    weight, second, main = (np.where(empty, 0.0, t).reshape(x0.shape[0], r_blocks.size, SUB_RANGES).sum(axis=-1)
+                            for t in totals)
+    empty = weight <= 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sin2 = np.where(empty, np.nan, second / weight)
+        fraction = np.where(empty, 0.0, main / weight)
+    return sin2, fraction, np.where(empty, 0.0, weight / (np.pi * SUB_RANGES))
+
+
+def _at(table: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """``table`` (block, angle) linearly interpolated at fractional angle indices ``k`` (pair, block)."""
+    i = np.minimum(np.floor(k).astype(int), table.shape[-1] - 2)
+    f = k - i
+    block = np.arange(table.shape[0])[None, :]
+    lo, hi = table[block, i], table[block, i + 1]
+    return lo + f * (hi - lo)
 
 
 def xlag_offset(q: np.ndarray, array: Array, f0: float, c: float, step: float) -> np.ndarray:

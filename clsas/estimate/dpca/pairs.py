@@ -7,11 +7,14 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft
 
+from ... import budget, validate
 from ...model import EchoData
 from ...scene.scenario import Array
+from ...kernelmath import unit_phasor
 from .correlate import aligned, correlations, parabola, peak_ratio
-from .geometry import beam_sin2, nominal_shift, pca_delay, xlag_offset
+from .geometry import SeafloorExtent, look_moments, pairing, pca_delay, xlag_offset
 
 log = logging.getLogger("clsas")
 
@@ -41,15 +44,19 @@ class PingPairs:
     two_way: float
 
 
-# Range blocks holding less than this fraction of a ping pair's median block energy are left
-# out: beyond the seafloor's swath only range sidelobes and the far edges of the beam remain,
-# scatterers seen at large look angles only, whose phase-centre error (D sin^2 theta / r per
-# pair as a yaw, see geometry.pca_delay) is far from the beam's mean. Measured on Heremans' nine-point
-# scene: such blocks read -950 .. +860 urad of yaw where the seafloor's read 0 +- 15.
-WEAK_BLOCK = 0.1
+# Range blocks holding less than this fraction of a ping pair's main-lobe level (its third
+# strongest block) are left out: beyond the seafloor's swath only range sidelobes and the far
+# edges of the beam remain, scatterers seen at large look angles only, whose phase-centre error
+# (D sin^2 theta / r per pair as a yaw, see geometry.pca_delay) is far from the beam's mean. The
+# two-way pattern's first sidelobe is -26.5 dB for equal elements (lower for a longer
+# transmitter); -20 dB leaves room for the seafloor's fall with range across the swath.
+WEAK_BLOCK = 0.01
 # Blocks holding more than this multiple of a pair's median block energy are taken as a lone
 # bright echo's and left out of the surge (see estimate).
 BRIGHT_BLOCK = 3.0
+# Blocks holding less than this fraction of their seafloor's weight (over the two-way pattern)
+# inside the main lobe are left out when the seafloor's extent is given (geometry.look_moments).
+MAIN_LOBE = 0.5
 # Blocks further than this many scaled median absolute deviations from a pair's median are left
 # out of its mean (see estimate).
 OUTLIER = 3.0
@@ -57,29 +64,53 @@ OUTLIER = 3.0
 FINE_T_LAGS = 2
 
 
-def _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles) -> None:
+def _weighted_median(x: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Per row of ``x`` (pair, block): the value below which half the row's weight ``w`` (>= 0,
+    0 for blocks left out) lies; NaN for a row without weight."""
+    x = np.where(w > 0, x, np.inf)
+    order = np.argsort(x, axis=1)
+    xs, ws = np.take_along_axis(x, order, axis=1), np.take_along_axis(np.where(w > 0, w, 0.0), order, axis=1)
+    cw = np.cumsum(ws, axis=1)
+    k = np.argmax(cw >= 0.5 * cw[:, -1:], axis=1)
+    out = xs[np.arange(x.shape[0]), k]
+    return np.where(cw[:, -1] > 0, out, np.nan)
+
+
+def _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles, extent) -> None:
     if not isinstance(echo, EchoData):
-        raise TypeError(f"dpca: echo must be EchoData, got {type(echo).__name__}")
+        raise TypeError(f"dpca.estimate echo: must be EchoData, got {type(echo).__name__}")
     if not echo.compressed:
-        raise ValueError("dpca: echo must be range-compressed (clsas.range_compress) so the correlations are sharp")
+        raise ValueError("dpca.estimate echo: must be range-compressed (clsas.range_compress) so the correlations "
+                         "are sharp")
     if not isinstance(array, Array):
-        raise TypeError(f"dpca: array must be a clsas Array (the hydrophone layout), got {type(array).__name__}")
+        raise TypeError(f"dpca.estimate array: must be a clsas Array (the hydrophone layout), got {type(array).__name__}")
     if array.n_receivers > echo.n_rx:
-        raise ValueError(f"dpca: the array has {array.n_receivers} hydrophones, the echo {echo.n_rx} receivers")
-    if isinstance(speed, bool) or not isinstance(speed, (int, float, np.floating, np.integer)) \
-            or not np.isfinite(speed) or speed <= 0:
-        raise ValueError(f"dpca: speed must be a positive nominal speed in m/s, got {speed!r}")
-    for name, value, lo in (("lags", lags, 1), ("t_lags", t_lags, 1), ("block", block, 8), ("n_angles", n_angles, 3)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
-            raise ValueError(f"dpca: {name} must be an integer >= {lo}, got {value!r}")
-    if not (isinstance(min_coherence, (int, float, np.floating)) and 0 <= min_coherence < 1):
-        raise ValueError(f"dpca: min_coherence must be in [0, 1), got {min_coherence!r}")
+        raise ValueError(f"dpca.estimate array: has {array.n_receivers} hydrophones, the echo {echo.n_rx} receivers")
+    validate.positive("dpca.estimate speed", speed, unit="m/s", why="the nominal platform speed")
+    validate.integer("dpca.estimate lags", lags, low=1, high=echo.n_rx)
+    validate.integer("dpca.estimate block", block, low=8, high=max(8, echo.n_samples),
+                     why="range-block length in samples, at most the records' length")
+    validate.integer("dpca.estimate t_lags", t_lags, low=1, high=(block - 1) // 2,
+                     why="the correlation must stay inside a block")
+    validate.integer("dpca.estimate n_angles", n_angles, low=3, high=2**31)
+    validate.scalar("dpca.estimate min_coherence", min_coherence, low=0.0, high=1.0, high_open=True)
+    if extent is not None and not isinstance(extent, SeafloorExtent):
+        raise TypeError(f"dpca.estimate extent: must be a dpca.SeafloorExtent or None, got {type(extent).__name__}")
     if echo.n_pulses < 2:
-        raise ValueError(f"dpca needs at least 2 pings, the echo has {echo.n_pulses}")
-    if echo.n_samples < block:
-        raise ValueError(f"dpca: block ({block} samples) is longer than the records ({echo.n_samples} samples)")
-    if not isinstance(lags, bool) and isinstance(t_lags, (int, np.integer)) and 2 * t_lags + 1 > block:
-        raise ValueError(f"dpca: t_lags ({t_lags}) must leave the correlation inside a block of {block} samples")
+        raise ValueError(f"dpca.estimate echo: needs at least 2 pings, the echo has {echo.n_pulses}")
+
+
+def _check_budget(n_couples: int, pairs: int, blocks: int, block: int, t_lags: int, n_angles: int) -> None:
+    """Refuse before allocating what the scans need at their peak: the carrier-corrected records
+    and the delayed correlations' spectra (complex64 and their float64 phases, per couple, pair,
+    block and padded sample), and the beams over the look angles (complex64, magnitudes)."""
+    padded = scipy.fft.next_fast_len(2 * block - 1)
+    cells = n_couples * pairs * blocks
+    nbytes = max(cells * (block * 24 + padded * 32 + (2 * t_lags + 1) * 8),
+                 n_angles * pairs * blocks * 3 * 24 + n_angles * n_couples * 16)
+    budget.check_bytes(f"dpca.estimate with {pairs} ping pairs, {blocks} blocks of {block} samples, "
+                       f"{n_couples} couples, n_angles={n_angles}", nbytes,
+                       "fewer pings or samples a call, or fewer n_angles")
 
 
 @dataclass(frozen=True)
@@ -98,7 +129,7 @@ class _Setup:
     f0: float
     fs: float
     sin_theta: np.ndarray
-    sin2: float
+    cos2: np.ndarray
 
     def couples(self, lag: int, every: bool) -> np.ndarray:
         """Hydrophones i at ping p + 1 of the couples of x-lag ``lag`` (their partners at ping p
@@ -129,9 +160,10 @@ def _scan(setup: _Setup, prev: np.ndarray, nxt: np.ndarray, offset: np.ndarray, 
         # envelope at each block's centre range, together with the pair's known delay. Left in
         # the envelope (up to 0.3 samples between couples at Heremans' geometry), they made the
         # couples' correlation phases depend on the speckle: 15 urad of yaw noise a ping pair.
-        dt_pca = pca_delay(st.array, i, j, st.r_samples, st.speed, st.c, st.sin2)
-        g = nxt[i] * np.exp(2j * np.pi * st.f0 * dt_pca).astype(np.complex64)[:, None]
-        envelope = pca_delay(st.array, i, j, st.r_blocks, st.speed, st.c, st.sin2)[:, None, :] + offset[:, None]
+        dt_pca = pca_delay(st.array, i, j, st.r_samples, st.speed, st.c, 0.0)     # (couple, block, sample)
+        g = nxt[i] * unit_phasor(2 * np.pi * st.f0 * dt_pca[:, None] * st.cos2[None, :, :, None])
+        envelope = pca_delay(st.array, i, j, st.r_blocks, st.speed, st.c, 0.0)[:, None, :] * st.cos2[None] \
+            + offset[:, None]
         corr = correlations(prev[j], g, t_lags, delay=envelope, fs=st.fs)   # (couple, pair, block, t-lag)
         # The t-lag of the peak is the couples' common delay (a yaw moves it by a hundredth of a
         # sample across them): found on their incoherent sum, the beams are formed at it and
@@ -161,7 +193,7 @@ def _scan(setup: _Setup, prev: np.ndarray, nxt: np.ndarray, offset: np.ndarray, 
 
 
 def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lags: int = 8, block: int = 128,
-             n_angles: int = 65, min_coherence: float = 0.5) -> PingPairs:
+             n_angles: int = 65, min_coherence: float = 0.5, extent: SeafloorExtent | None = None) -> PingPairs:
     """Surge, sway and yaw between every pair of consecutive pings (see the package docstring, clsas.estimate.dpca).
 
     Parameters
@@ -176,34 +208,40 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     n_angles : look angles over +-asin(c / (f0 L)) (L the overlapping phase centres' length),
         refined by a parabola.
     min_coherence : blocks whose best beam is weaker than this are left out.
+    extent : where the seafloor scatters (:class:`SeafloorExtent`), or None for a seafloor that
+        fills the beam (a real one). The phase-centre correction takes each range block's mean
+        sin^2 of the look angle over the part of the beam the seafloor fills
+        (geometry.look_moments): a patch narrower than the beam, or cut off inside its
+        sidelobes, otherwise biases the yaw by D (<sin^2>_patch - <sin^2>_beam) / r a pair.
+        Blocks holding less than half their seafloor's weight in the main lobe are left out.
     """
-    _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles)
+    _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles, extent)
     eta = echo.eta
     prt = np.diff(eta)
     if not np.allclose(prt, prt[0], rtol=1e-9):
         raise ValueError("dpca needs a constant pulse interval")
     prf = 1.0 / prt[0]
-    s, pc = nominal_shift(array, speed, prf)
+    s, pc, n_couples = pairing(array, speed, prf, lags)
     h = array.n_receivers
-    n_couples = h - s - lags
-    if s < 1 or n_couples < 3:
-        raise ValueError(f"dpca: at speed {speed} m/s and PRF {prf:g} Hz the platform advances {s} phase-centre "
-                         f"spacings a ping: the {h} hydrophones leave {h - s} overlapping phase centres, "
-                         f"{max(n_couples, 0)} couples at x-lag +-{lags} (needs >= 3); lower the speed or lags")
     c = echo.medium.sound_speed
     f0 = echo.waveform.f0
+    _check_budget(h - s, echo.n_pulses - 1, echo.n_samples // block + 1, block, t_lags, n_angles)
     records, start = aligned(echo, h)
     n_blocks = records.shape[-1] // block
     r_blocks = c / 2 * (start + (np.arange(n_blocks) + 0.5) * block / echo.fs)   # block centre ranges, m
     r_samples = (c / 2 * (start + np.arange(n_blocks * block) / echo.fs)).reshape(n_blocks, block)
-    sin2 = beam_sin2(array, f0, c)
+    # where the couples' phase centres are when a block's echo returns: hydrophone i at ping p + 1
+    # (its partner i + s at ping p coincides), halfway through the two-way travel
+    centre = echo.tx_pos[1:].copy()
+    centre[:, 1] += pc[:n_couples].mean() - array.tx_offset[1] + speed * float(np.median(r_blocks)) / c
+    sin2, main_fraction, content = look_moments(array, f0, c, r_blocks, centre, extent, c / 2 * block / echo.fs)
     data = records[..., :n_blocks * block].reshape(h, echo.n_pulses, n_blocks, block)
     step = pc[1] - pc[0]
     span = n_couples * step
     theta_max = np.arcsin(min(1.0, c / (f0 * span)))
     setup = _Setup(array=array, s=s, lags=lags, n_couples=n_couples, pc=pc, r_samples=r_samples, r_blocks=r_blocks,
                    speed=speed, c=c, f0=f0, fs=echo.fs, sin_theta=np.sin(np.linspace(-theta_max, theta_max, n_angles)),
-                   sin2=sin2)
+                   cos2=1 - np.nan_to_num(sin2, nan=0.0))
     # Pass 1: every t-lag, on the records as they are.
     peaks, delays, yaws = _scan(setup, data[:, :-1], data[:, 1:], np.zeros(echo.n_pulses - 1), t_lags)
     best = np.argmax(peaks, axis=0)                      # (pair, block)
@@ -214,11 +252,19 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     coherence = peaks.max(axis=0)
     surge = ((best - lags) + lag_off) * step
     nearest = np.argmax(peaks, axis=0)
-    good = coherence >= min_coherence
+    good = (coherence >= min_coherence) & (content > 0) & (main_fraction >= MAIN_LOBE)
     energy = np.einsum("hpbk,hpbk->pb", data, np.conj(data)).real   # (pulse, block)
     energy = energy[:-1] + energy[1:]
+    # The main lobe's level: the third strongest coherent block (one or two bright echoes do not
+    # set it). Blocks far below it can hold only off-beam returns (beyond the seafloor's swath,
+    # its far along-track ends seen at wide look angles) or range sidelobes, however many of
+    # them there are: referred to the median block instead, a +-60 m seafloor whose records
+    # reach far beyond its swath let them in (they were the majority) and read -560 .. -655
+    # urad a pair.
+    ranked = np.sort(np.where(good, energy, 0.0), axis=1)[:, ::-1]
+    level = ranked[np.arange(ranked.shape[0]), np.clip(np.sum(good, axis=1) - 1, 0, 2)]
+    good &= energy >= WEAK_BLOCK * level[:, None]
     typical = np.nanmedian(np.where(good, energy, np.nan), axis=1, keepdims=True)
-    good &= energy >= WEAK_BLOCK * typical
     counts = good.sum(axis=1)
     if np.any(counts == 0):
         worst = int(np.argmin(counts))
@@ -236,12 +282,15 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     def robust_mean(x, use=good, weight=None):
         """The blocks' mean and its standard error, blocks beyond OUTLIER scaled MADs of the
         median left out (speckle makes a block's error roughly Gaussian; a block holding the
-        edge of the swath or a lone bright echo can sit far out); weighted by ``weight``
-        (pair, block) if given, the standard error then over the effective number of blocks."""
-        masked = np.where(use, x, np.nan)
-        med = np.nanmedian(masked, axis=1, keepdims=True)
-        mad = 1.4826 * np.nanmedian(np.abs(masked - med), axis=1, keepdims=True)
-        kept = np.abs(masked - med) <= OUTLIER * mad
+        edge of the swath, off-beam returns or a lone bright echo can sit far out); median and
+        MAD weighted by the blocks' energy up to the median block's (weak blocks, off-beam
+        returns among them, count for little; a bright echo's block counts as one seafloor
+        block); the mean weighted by ``weight`` (pair, block)
+        if given, the standard error then over the effective number of blocks."""
+        votes = np.where(use, np.minimum(energy, typical), 0.0)
+        med = _weighted_median(x, votes)[:, None]
+        mad = 1.4826 * _weighted_median(np.abs(x - med), votes)[:, None]
+        kept = use & (np.abs(x - med) <= OUTLIER * mad)
         w = np.where(kept, 1.0 if weight is None else weight, 0.0)
         x = np.where(kept, x, 0.0)
         mean = np.sum(w * x, axis=1) / np.sum(w, axis=1)

@@ -3,6 +3,7 @@ compensation of the records (eqs. 74-75)."""
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -11,8 +12,10 @@ import scipy.fft
 from ... import validate
 from ...model import EchoData
 from ...scene.scenario import Array, Platform, Scenario
-from .geometry import nominal_shift
+from .geometry import pairing
 from .pairs import PingPairs
+
+log = logging.getLogger("clsas")
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,6 +55,18 @@ class Trajectory:
         D theta' tau / 2, a sway error of v tau / 2 = 8.5 cm times the yaw step at Heremans'
         geometry (30 urad a pair for 3 mrad / 30 s of yaw)."""
         return self.eta + self.pairs.two_way
+
+    def trusted(self, heading: float, cross: float | None = None) -> int:
+        """How many pings from the first the track can be trusted: the pings before the
+        heading's standard error (a random walk of the per-pair yaw errors, eq. 73) first
+        exceeds ``heading`` rad, and, if given, the cross-track position's exceeds ``cross`` m.
+        Both grow along the track: heading_std as sqrt(p) for equal per-pair errors, cross_std
+        as p^1.5 (the heading errors integrated once more)."""
+        limit = validate.positive("Trajectory.trusted heading", heading, unit="rad")
+        over = self.heading_std > limit
+        if cross is not None:
+            over |= self.cross_std > validate.positive("Trajectory.trusted cross", cross, unit="m")
+        return int(np.argmax(over)) if over.any() else self.eta.size
 
     def platform(self, speed: float, start=(0.0, 0.0, 0.0), surge: bool = True) -> Platform:
         """A clsas Platform flying this track (for :func:`with_track` and back-projection):
@@ -93,15 +108,21 @@ def integrate(pairs: PingPairs, eta: np.ndarray, speed: float, array: Array, hea
     var xi_l (the yaw of pair l enters through theta for every later pair), var theta_p =
     sum_l var xi_l.
     """
-    eta = np.asarray(eta, dtype=np.float64)
-    if eta.shape != (pairs.sway.size + 1,):
-        raise ValueError(f"integrate: eta must have {pairs.sway.size + 1} pings, got {eta.shape}")
-    prf = 1.0 / float(np.median(np.diff(eta)))
-    s, pc = nominal_shift(array, speed, prf)
-    u = pc[:array.n_receivers - s - pairs.lags].mean()
+    if not isinstance(pairs, PingPairs):
+        raise TypeError(f"dpca.integrate pairs: must be the PingPairs of dpca.estimate, got {type(pairs).__name__}")
+    if not isinstance(array, Array):
+        raise TypeError(f"dpca.integrate array: must be a clsas Array (the hydrophone layout), got {type(array).__name__}")
+    eta = validate.array("dpca.integrate eta", eta, (pairs.sway.size + 1,), bound=validate.MAX_COORDINATE)
+    prt = np.diff(eta)
+    if eta.size < 2 or not np.all(prt > 0) or not np.allclose(prt, prt[0], rtol=1e-6):
+        raise ValueError("dpca.integrate eta: must be emission times at a constant pulse interval, increasing, got "
+                         f"intervals {prt.min() if prt.size else None:g} .. {prt.max() if prt.size else None:g} s")
+    speed = validate.positive("dpca.integrate speed", speed, unit="m/s", why="the nominal platform speed")
+    heading0 = validate.scalar("dpca.integrate heading0", heading0, low=-0.5, high=0.5, unit="rad")
+    prf = 1.0 / float(np.median(prt))
+    s, pc, n_couples = pairing(array, speed, prf, pairs.lags)
+    u = pc[:n_couples].mean()
     d = speed / prf
-    if not np.isfinite(heading0) or abs(heading0) > 0.5:
-        raise ValueError(f"integrate: heading0 must be a finite yaw in [-0.5, 0.5] rad, got {heading0!r}")
     heading = heading0 + np.concatenate([[0.0], np.cumsum(pairs.yaw)])
     cross = np.concatenate([[0.0], np.cumsum(pairs.sway - u * pairs.yaw + d * heading[:-1])])
     along = np.concatenate([[0.0], np.cumsum(pairs.surge)])
@@ -113,6 +134,9 @@ def integrate(pairs: PingPairs, eta: np.ndarray, speed: float, array: Array, hea
     cross_std = np.sqrt(before @ pairs.sway_std**2 + arm**2 @ pairs.yaw_std**2)
     heading_std = np.sqrt(before @ pairs.yaw_std**2)
     along_std = np.sqrt(before @ pairs.surge_std**2)
+    log.info("dpca.integrate: over %d pings the heading's uncertainty grows to %.3g urad (a random walk of "
+             "%.3g urad RMS a pair), the cross-track position's to %.3g mm", n, heading_std[-1] * 1e6,
+             float(np.sqrt(np.mean(pairs.yaw_std**2))) * 1e6, cross_std[-1] * 1e3)
     return Trajectory(eta=eta, along=along, cross=cross, heading=heading, along_std=along_std, cross_std=cross_std,
                       heading_std=heading_std, pairs=pairs)
 
@@ -137,8 +161,13 @@ def delay_records(data: np.ndarray, dt: np.ndarray, f0: float, fs: float, worker
     envelope shifted by dt (circularly: dt must stay well inside the record's margins) and the
     carrier's phase turned by -2 pi f0 dt. complex64, the shape of ``data``."""
     data = np.asarray(data)
+    if data.ndim != 3 or data.dtype.kind not in "fc":
+        raise ValueError(f"delay_records data: must be complex records (n_rx, n_pulses, n_samples), got shape "
+                         f"{data.shape} of {data.dtype}")
+    if data.shape[-1] < 1:
+        raise ValueError(f"delay_records data: the records must hold at least one sample, got shape {data.shape}")
     dt = np.asarray(dt, dtype=np.float64)
-    if data.ndim != 3 or dt.shape != data.shape[:2]:
+    if dt.shape != data.shape[:2]:
         raise ValueError(f"delay_records: dt must have shape (n_rx, n_pulses) = {data.shape[:2]} of data "
                          f"(n_rx, n_pulses, n_samples), got dt {dt.shape} and data {data.shape}")
     if not np.all(np.isfinite(dt)):

@@ -65,13 +65,14 @@ __all__ = ["backproject"]
 BYTES_PER_PIXEL = 80  # what a call adds a pixel (tests/test_backprojection.py measures it)
 
 
-def _check_call(grid, aperture):
+def _check_call(grid, aperture, stop_and_go):
     if not isinstance(grid, (Grid, GridPlan)):
         raise TypeError(f"grid must be a clsas.model.Grid (Grid.plane, Grid.slant or Grid.points) or a GridPlan, got "
                         f"{type(grid).__name__}")
     if aperture is not None:
         validate.scalar("backproject aperture", aperture, low=0.0, high=np.pi, low_open=True, unit="rad",
                         why="the full integration angle")
+    validate.flag("backproject stop_and_go", stop_and_go)
     size = grid.size if isinstance(grid, Grid) else grid.grid.size
     budget.check_bytes(f"backproject onto {size} pixels", BYTES_PER_PIXEL * float(size),
                        "image fewer pixels at a time (tiles of the grid)")
@@ -118,7 +119,7 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
     Image with the grid's dims and axes, ``positions`` the grid's pixels, complex64; its
     provenance records the options and, for OpenCL, ``kernel_seconds`` (the kernels' own time).
     """
-    _check_call(grid, aperture)
+    _check_call(grid, aperture, stop_and_go)
     plan = grid if isinstance(grid, GridPlan) else GridPlan(grid)
     records, velocity, span = records_for(echo, plan.grid, receivers, interp, upsample, target_velocity, pulses)
     double = _backend.check_precision(precision)

@@ -65,5 +65,6 @@ class ExactKernel:
         - 1 (counted from the buffers' first pulse) of the ``records`` (rows of ``n_samples``) into
         the double ``image`` (M,). Returns the event."""
         kern = opencl.kernel("backprojection", "bp_block", double=self.double, preamble=PREAMBLE, defines=self.defines)
-        return kern(queue, (self.points.size // POINTS.itemsize,), None, self.points, self.pulse, self.nodes, records,
-                    taps, self.params, np.int32(p_first), np.int32(p_count), np.int32(n_samples), image)
+        n_items = self.points.size // POINTS.itemsize
+        return kern(queue, *opencl.work_groups(n_items), self.points, self.pulse, self.nodes, records, taps,
+                    self.params, np.int32(p_first), np.int32(p_count), np.int32(n_samples), np.int32(n_items), image)

@@ -66,6 +66,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     pixels = plan.grid.positions.reshape(-1, 3)
     image = np.zeros(pixels.shape[0], dtype=np.complex128)
     tile = TileKernel(records.interp, aperture, velocity, stop_and_go)
+    kernels = {h: TileKernel(records.interp, aperture, velocity, stop_and_go, same_legs=tile.same_legs_for(echo, h))
+               for h in records.receivers}  # each receiver's variant of bp_tile (one leg for a monostatic one)
     taps = tile.taps(ctx)
     params = tile.params(c, f0, fs)
     tiles = plan.tiling(f0, c)
@@ -114,7 +116,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                     spans = None if not tile.pulse_span else cl.Buffer(
                         ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=tile.spans(ref, tiles.half_extent, c, skip + s))
                     for p0, count in blocks:
-                        events.append(tile.launch(
+                        events.append(kernels[h].launch(
                             queue, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
                             ref_stride=ref.shape[1], ref_first=skip + s, records=records_buf, n_samples=n_samples,
                             taps=taps, params=params, p_first=skip + p0, p_count=count, image=chunk_state.image,

@@ -11,7 +11,8 @@ gives the bit-identical image, on both backends::
 
 Spans. With ``grid=`` a Grid, only the fast-time span that grid can reach is prepared (per
 receiver, over all pulses; :func:`reach`), which makes one call on a small patch cheap; with a
-``(start, stop)`` fast-time span (seconds), that span; with None, the whole records.
+``(start, stop)`` fast-time span (seconds), that span; with None, the whole records. Records that
+are not upsampled (sinc8, or upsample=1) are the echo's own, read in place whole.
 ``backproject`` refuses a grid whose reach the records do not cover.
 
 Upsampling in blocks. The records are FFT-upsampled block by block: block b holds the original
@@ -21,17 +22,13 @@ its spectrum zero-padded to ``upsample`` times its length (:func:`rangecomp._ups
 transformed back, and the block's own part kept. A prepared sample therefore depends on its block
 only, not on the span or on how many records are transformed at once, so records prepared for a
 wider span (or the whole record) give the same image, bit for bit, as records prepared for the
-grid itself. The guard truncates the band-limited interpolation kernel: measured on the Huang
-scene's compressed echo (fs = 1.25 B), the blocks differ from one FFT of the whole zero-padded
-record (:func:`rangecomp.upsample_records`) by 9e-4 RMS relative (4.5e-3 with white noise 10 dB
-above the echo's peak before compression), well below linear interpolation's own error on x8
-upsampled data (up to (2 pi 0.4 / 8)^2 / 8 = 1.2e-2 at fs = 1.25 B). Small FFTs (256 -> 2048
-points) stay in cache: ~1.2x the whole-record FFT's operations but no 8x-long temporaries;
-measured on that echo's 2048 records x 1693 samples (scipy.fft, two workers, busy machine,
-medians of 5): whole records 0.59 CPU-s in blocks vs 0.66 in one FFT each, a quarter of the
-record 0.16. Measured alternative: an OpenCL FFT (reikna 0.9 on PoCL, 2048 x 16384 points) ran
-20-40x slower than scipy.fft with two workers (25 s vs 0.6-1.3 s), so the upsampling stays on
-the host.
+grid itself. The guard truncates the band-limited interpolation kernel: the blocks depart from
+one FFT of the whole zero-padded record (:func:`rangecomp.upsample_records`) by far less than
+linear interpolation's own error on x8 upsampled data (up to (2 pi 0.4 / 8)^2 / 8 = 1.2e-2 at
+fs = 1.25 B; tests/test_backprojection.py holds the difference). Small FFTs (256 -> 2048 points)
+stay in cache: ~1.2x the whole-record FFT's operations but no 8x-long temporaries. An OpenCL FFT
+on PoCL was tried and was many times slower than scipy.fft with two workers, so the upsampling
+stays on the host.
 
 Device memory. A PreparedRecords holds its samples on the host (complex64, read-only); its device
 buffers are made on first OpenCL use, one per receiver (and one complex128 copy per receiver for
@@ -47,7 +44,7 @@ import os
 import numpy as np
 import scipy.fft
 
-from ... import validate
+from ... import budget, validate
 from ...model import EchoData, Grid
 from ..rangecomp import _upsample_spectrum
 
@@ -126,7 +123,9 @@ def reach(echo: EchoData, receivers, positions: np.ndarray, target_velocity=None
 def _blocks_of(span: np.ndarray, t0: float, fs: float, n: int, interp: str, factor: int) -> tuple[int, int]:
     """The original samples [first, stop) to prepare for a fast-time span (s): the span's samples
     widened by the interpolator's reach (in original samples, plus one for rounding), clipped to
-    the record, and for upsampled records rounded out to whole UPSAMPLE_BLOCKs."""
+    the record, and for upsampled records rounded out to whole UPSAMPLE_BLOCKs; records that are
+    not upsampled are read in place, whole ((0, n): a view costs nothing, a cut would be a copy),
+    unless the span misses them."""
     before, after = INTERP_REACH[interp]
     if factor > 1:  # the linear interpolator's two upsampled samples lie within one original sample
         before, after = 0, 1
@@ -135,6 +134,8 @@ def _blocks_of(span: np.ndarray, t0: float, fs: float, n: int, interp: str, fact
     first, stop = max(first, 0), min(stop, n)
     if first >= stop:
         return 0, 0
+    if factor == 1:
+        return 0, n
     if stop - first < MIN_SAMPLES:  # the kernels load whole windows of a record: keep at least one
         stop = min(first + MIN_SAMPLES, n)
         first = max(stop - MIN_SAMPLES, 0)
@@ -206,6 +207,12 @@ class PreparedRecords:
         self.span = np.column_stack([t0 + self.offset / self.fs, t0 + (self.offset + self.length) / self.fs])
         self._device = {}
         self._host = None
+        if materialise and self.factor > 1:  # records not upsampled are views of the echo: nothing to hold
+            held = 8.0 * echo.n_pulses * float(np.sum(np.maximum(self.length, MIN_SAMPLES)))
+            spectra = min(FFT_BATCH_BYTES, 4 * held / max(len(self.receivers), 1))
+            budget.check_bytes(f"prepare: {len(self.receivers)} receivers x {echo.n_pulses} pulses x up to "
+                               f"{int(np.max(self.length))} samples (upsample={self.upsample})", held + spectra,
+                               "prepare fewer receivers, a smaller upsample or only the span a grid reaches (grid=)")
         if materialise:
             self._host = [self._make(i, np.arange(echo.n_pulses)) for i in range(len(self.receivers))]
             for held in self._host:

@@ -56,7 +56,7 @@ from ...geometry import legs, two_node_velocity, uniform_nodes
 from ...interp import TAP_ROWS, kernel_taps
 from ...model import Grid
 
-LANES, ROWS = 16, 2  # bp_tile: a work-item holds ROWS float16 vectors of pixels (tiles padded to LANES x ROWS)
+LANES, ROWS = 16, 4  # bp_tile: a work-item holds ROWS float16 vectors of pixels (tiles padded to LANES x ROWS)
 PHASE_BUDGET = 2e-3  # rad: the float32 geometry's share of the 0.01 rad phase budget
 ERROR_FACTOR = 8.0  # float32 roundings per |delta| / c of delay (the module docstring)
 
@@ -179,7 +179,7 @@ def aperture_spans(leg1_y: np.ndarray, range1: np.ndarray, half_sin: float, half
     return np.where(seen.any(axis=1)[:, None], np.stack([start, stop], axis=1) + first, 0).astype(np.int32)
 
 
-PULSES = 2  # pulses a work-item step (with ROWS vectors of LANES pixels)
+PULSES = 1  # pulses a work-item step (with ROWS vectors of LANES pixels; bench/bench_backprojection.py --variants)
 PULSE_BLOCK = 64  # pulses a launch: the float sums' block (relative error below 64 x 6e-8)
 NODE_TOLERANCE = 1 / 2000  # of a wavelength: a receiver's allowed departure from linear motion over a tile
 SPAN_FACTOR = 2.5  # a tile's delay span is +-SPAN_FACTOR * half_extent / c around its reference
@@ -198,7 +198,9 @@ MOVING_PIXELS = record_dtype(_OFFSETS + [("dv", "f4", LANES)])
 class TileKernel:
     """bp_tile for one configuration: the interpolator ``interp`` ("linear" or "sinc8"), the full
     integration angle ``aperture`` (rad, or None), the pixels' ``velocity`` (m/s), ``stop_and_go``,
-    and ``row_shift`` (ffbp's first stage: each tile reads its own leaf's rows of the records).
+    ``row_shift`` (ffbp's first stage: each tile reads its own leaf's rows of the records), and
+    ``same_legs`` (with stop-and-go, a receiver at the transmitter: :meth:`same_legs_for`; the
+    kernel then computes one leg, t2 = t1).
 
     A work-item is ROWS rows of LANES pixels of one tile (:attr:`items_per_slot`: a tile's
     slots come in whole work-items); slot m = LANES (ROWS g + r) + lane of work-item g.
@@ -207,7 +209,7 @@ class TileKernel:
     LANES, ROWS, PULSE_BLOCK = LANES, ROWS, PULSE_BLOCK
 
     def __init__(self, interp: str, aperture: float | None = None, velocity=(0.0, 0.0, 0.0),
-                 stop_and_go: bool = False, row_shift: bool = False):
+                 stop_and_go: bool = False, row_shift: bool = False, same_legs: bool = False):
         self.interp, self.aperture, self.stop_and_go = interp, aperture, bool(stop_and_go)
         self.velocity = np.asarray(velocity, dtype=np.float64)
         self.v_k = np.zeros(3) if stop_and_go else self.velocity  # the pixels' motion the legs see
@@ -218,8 +220,17 @@ class TileKernel:
         self.defines = {"INTERP_LINEAR" if interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS,
                         "BP_TILE": 1, "ROWS": ROWS, "PULSES": PULSES, **({"APERTURE": 1} if aperture is not None else {}),
                         **({"MOVING": 1} if self.moving else {}), **({"ROW_SHIFT": 1} if row_shift else {}),
+                        **({"SAME_LEGS": 1} if same_legs and self.stop_and_go else {}),
                         **({"PULSE_SPAN": 1} if self.pulse_span else {})}
         self.preamble = declare_all({"tile_ref_t": TILE_REF, "tile_params_t": TILE_PARAMS, "bp_pixels_t": self.pixels})
+
+    def same_legs_for(self, echo, h: int) -> bool:
+        """True when, with stop-and-go, receiver h of ``echo`` sits at the transmitter at every
+        emission (a monostatic sonar), to 1e-6 of a wavelength: its return leg is its outgoing one."""
+        if not self.stop_and_go or echo.rx_tau[h][0] != 0:
+            return False
+        apart = np.max(np.linalg.norm(echo.rx_pos[h][:, 0] - echo.tx_pos, axis=-1))
+        return bool(apart <= 1e-6 * echo.waveform.wavelength(echo.medium))
 
     @staticmethod
     def half_extent(f0: float, c: float) -> float:
@@ -331,9 +342,9 @@ class TileKernel:
         extra = (row_shift,) if "ROW_SHIFT" in self.defines else ()
         extra += (spans,) if self.pulse_span else ()
         n_items = tile_of.size // 4
-        return self._kernel()(queue, (n_items,), None, pixels, tile_of, refs, np.int32(ref_stride), np.int32(ref_first),
-                              records, taps, params, np.int32(p_first), np.int32(p_count), np.int32(n_samples), image,
-                              *extra)
+        return self._kernel()(queue, *opencl.work_groups(n_items), pixels, tile_of, refs, np.int32(ref_stride),
+                              np.int32(ref_first), records, taps, params, np.int32(p_first), np.int32(p_count),
+                              np.int32(n_samples), np.int32(n_items), image, *extra)
 
     def _kernel(self):
         return opencl.kernel("backprojection", "bp_tile", preamble=self.preamble, defines=self.defines)

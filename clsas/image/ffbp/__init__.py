@@ -42,6 +42,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import backend as _backend
+from ... import budget, validate
 from ...model import EchoData, Grid, Image
 from ...progress import Progress, stage
 from ..backprojection.records import FFT_BATCH_BYTES, check_options
@@ -58,26 +59,29 @@ __all__ = ["DEFAULT_TOLERANCE", "ffbp", "memory_plan"]
 SAMPLE_BYTES = 8  # a polar or image sample on OpenCL (complex64)
 LEAF_BATCH_BYTES = 40  # held a polar sample of a first-stage batch (leaves.py: device image 16, fields 16, work-items)
 LEAF_BYTES = 200  # transient a sample of the leaf being tiled (points, padded blocks, offsets; float64)
+GRID_BYTES = 2 * SAMPLE_BYTES + 24 + 3 * 8  # a pixel: the image (device, host), the pixels' copy, the scene's float temporaries
 
 
-def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsample, aperture):
+def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsample, aperture, stop_and_go):
+    """The receivers chosen, or a TypeError/ValueError naming the parameter; the grid's own memory
+    (the image and the pixels' copy: GRID_BYTES a pixel) against the budget."""
     chosen, _ = check_options(echo, receivers, interp, upsample, None)
     if not isinstance(grid, Grid):
         raise TypeError(f"grid must be a clsas.model.Grid (Grid.plane, Grid.slant or Grid.points), got "
                         f"{type(grid).__name__}")
-    if aperture is not None and not (np.isfinite(aperture) and 0 < aperture <= np.pi):
-        raise ValueError(f"aperture must be a full integration angle in (0, pi] radians, got {aperture}")
-    if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or not 2 <= factor <= 16:
-        raise ValueError(f"factor (children a merge) must be an integer in [2, 16], got {factor!r}")
-    if not (isinstance(tolerance, (int, float, np.floating)) and np.isfinite(tolerance) and 0 < tolerance < 1):
-        raise ValueError(f"tolerance (relative error of a sub-aperture's contribution) must be in (0, 1), "
-                         f"got {tolerance!r}")
-    if taps not in KERNEL_TAPS:
-        raise ValueError(f"taps (of the merge interpolator) must be one of {KERNEL_TAPS}, got {taps!r}")
-    if first is not None and (isinstance(first, bool) or not isinstance(first, (int, np.integer))
-                              or not 1 <= first <= echo.n_pulses):
-        raise ValueError(f"first (pulses a first-stage sub-aperture) must be an integer in [1, {echo.n_pulses}] "
-                         f"or None, got {first!r}")
+    if aperture is not None:
+        validate.scalar("ffbp aperture", aperture, low=0.0, high=np.pi, low_open=True, unit="rad",
+                        why="the full integration angle")
+    validate.integer("ffbp factor", factor, low=2, high=16, why="children a merge")
+    validate.scalar("ffbp tolerance", tolerance, low=0.0, high=1.0, low_open=True, high_open=True,
+                    why="relative error of a sub-aperture's contribution")
+    if taps not in KERNEL_TAPS or isinstance(taps, bool):
+        raise ValueError(f"ffbp taps: must be one of {KERNEL_TAPS} (the merge interpolator's taps), got {taps!r}")
+    if first is not None:
+        validate.integer("ffbp first", first, low=1, high=echo.n_pulses, why="pulses a first-stage sub-aperture")
+    validate.flag("ffbp stop_and_go", stop_and_go)
+    budget.check_bytes(f"ffbp onto {grid.size} pixels", GRID_BYTES * float(grid.size),
+                       "image fewer pixels at a time (tiles of the grid)")
     track = float(np.linalg.norm(np.ptp(echo.tx_pos, axis=0)))
     for h in chosen:
         moved = float(np.linalg.norm(np.ptp(echo.rx_pos[h].reshape(-1, 3), axis=0)))
@@ -88,7 +92,7 @@ def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsamp
     return chosen
 
 
-def memory_plan(tree: Tree, n_pixels: int, factor: int) -> dict:
+def memory_plan(tree: Tree, n_pixels: int, factor: int, echo_bytes: float = float("inf")) -> dict:
     """Bytes held at most at once by :func:`ffbp` on OpenCL besides the user's grid and echo, by
     part, from the tree's allocation plan (issue 15, item 6), and their ``total``:
 
@@ -100,8 +104,9 @@ def memory_plan(tree: Tree, n_pixels: int, factor: int) -> dict:
       samples, so at most n_pixels + the largest top node);
     - ``first_stage``: a batch of leaves (leaves.BATCH_POINTS samples x LEAF_BATCH_BYTES) and the
       leaf being tiled (its samples x LEAF_BYTES);
-    - ``records``: the prepared records (leaves.RECORD_BYTES, or the whole echo's if smaller) and
-      the upsampling's spectra (backprojection.records.FFT_BATCH_BYTES, three copies).
+    - ``records``: the prepared records (leaves.RECORD_BYTES, or the whole echo's prepared
+      samples ``echo_bytes`` if fewer) and the upsampling's spectra
+      (backprojection.records.FFT_BATCH_BYTES, three copies, or three times the echo's if fewer).
     """
     largest = [max((g.size for g in level if g is not None), default=0) for level in tree.grids[:tree.top + 1]]
     leaf_batch = min(BATCH_POINTS, sum(g.size for g in tree.grids[0] if g is not None))
@@ -109,7 +114,7 @@ def memory_plan(tree: Tree, n_pixels: int, factor: int) -> dict:
              "tree": SAMPLE_BYTES * factor * sum(largest[:-1]),
              "top": SAMPLE_BYTES * (n_pixels + largest[-1]),
              "first_stage": LEAF_BATCH_BYTES * leaf_batch + LEAF_BYTES * largest[0],
-             "records": RECORD_BYTES + 3 * FFT_BATCH_BYTES}
+             "records": min(RECORD_BYTES, echo_bytes) + 3 * min(FFT_BATCH_BYTES, 2 * echo_bytes)}
     parts["total"] = sum(parts.values())
     return parts
 
@@ -154,8 +159,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
         every pulse at its integration angle as back-projection does, and limits every polar
         grid to the pixels its sub-aperture sees within that angle (where FFBP saves most on a
         long track); the mask's hard edges are not band-limited, so the merges blur them and the
-        image departs from back-projection's near them (measured, bench_ffbp's speckle seafloor,
-        aperture 0.2 rad: relative L2 0.05 with 1024 pulses).
+        image departs from back-projection's near them (bench_ffbp's aperture case reports how far).
     backend : "numpy", "opencl", "auto" or None.
 
     Returns
@@ -163,10 +167,14 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
     Image on the grid (complex64) with back-projection's scaling and phase; its provenance
     records the tree (levels, oversampling, polar samples).
     """
-    chosen = _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsample, aperture)
+    chosen = _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsample, aperture, stop_and_go)
     name = _backend.resolve(backend)
     scene = Scene.of(grid.positions)
     tree = plan(echo, chosen, scene, int(factor), float(tolerance), taps, first, aperture)
+    echo_bytes = 8.0 * (upsample if interp == "linear" else 1) * echo.n_samples * echo.n_pulses * len(chosen)
+    budget.check_bytes(f"ffbp of {echo.n_pulses} pulses onto {grid.size} pixels ({tree.top + 1} levels)",
+                       memory_plan(tree, grid.size, int(factor), echo_bytes)["total"],
+                       "image fewer pixels at a time (tiles of the grid), or give a larger tolerance")
     f0, c = echo.waveform.f0, echo.medium.sound_speed
     pixels = grid.positions.reshape(-1, 3)
     leaves = tree.pulses[0]
@@ -208,7 +216,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
                  provenance={"algorithm": "ffbp", "backend": name, "factor": int(factor), "tolerance": float(tolerance),
                              "taps": int(taps), "first": tree.first, "levels": top + 1,
                              "oversampling": tree.rho, "polar_samples": tree.samples(),
-                             "memory_bytes": memory_plan(tree, pixels.shape[0], int(factor))["total"],
+                             "memory_bytes": memory_plan(tree, pixels.shape[0], int(factor), echo_bytes)["total"],
                              "interp": interp, "upsample": int(upsample),
                              "receivers": [echo.receivers[h] for h in chosen], "aperture": aperture,
                              "stop_and_go": bool(stop_and_go), "echo": dict(echo.provenance)})

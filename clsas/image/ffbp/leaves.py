@@ -7,8 +7,7 @@ for a *batch* of consecutive leaves (at most BATCH_POINTS polar samples and RECO
 prepared samples), and on OpenCL the whole batch is one bp_tile launch a receiver and block of
 pulses (kernels/backprojection.cl built with ROW_SHIFT: a tile's pulse j reads record row
 j + row_shift[tile], the first pulse of its leaf), so a leaf costs its kernel work and no call of
-its own (a :func:`clsas.backproject` call a leaf cost ~10-40 ms of host work, measured, against
-~3 ms of kernel for a leaf of 16 pulses x 30k samples).
+its own (a :func:`clsas.backproject` call a leaf costs many times the leaf's kernel time in host work).
 
 Tiles. bp_tile (:class:`clsas.image.backprojection.TileKernel`, which this stage uses for its
 options, records, references, parameters and launch) computes in float32 relative to a
@@ -132,8 +131,9 @@ class FirstStage:
                             dst_offset=8 * offset)
             return
         image, items, first, count = made
-        program.kernel("ffbp_leaf")(rt.queue, (count,), None, image, items, np.int32(first), program.frames([grid])[0],
-                                    np.float64(self.demodulate), np.int64(offset), out)
+        program.kernel("ffbp_leaf")(rt.queue, *opencl.work_groups(count), image, items, np.int32(first),
+                                    np.int32(count), program.frames([grid])[0], np.float64(self.demodulate),
+                                    np.int64(offset), out)
 
     def _demodulated(self, image: np.ndarray, grid: PolarGrid) -> np.ndarray:
         return image * expj_cycles(-self.demodulate * grid.ranges)[None, :]
@@ -224,7 +224,8 @@ class FirstStage:
             fields = np.empty(items.size, tile.pixels)  # one record a item: LANES samples
             pix = cl.Buffer(ctx, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=fields)
             items_buf = made(items)
-            program.kernel("ffbp_fields")(queue, (items.size,), None, items_buf, frames, plane, made(centres), pix)
+            program.kernel("ffbp_fields")(queue, *opencl.work_groups(items.size), items_buf, frames, plane,
+                                          made(centres), np.int32(items.size), pix)
             mapped, _ = cl.enqueue_map_buffer(queue, pix, cl.map_flags.READ, 0, fields.shape, fields.dtype)
             extent = float(np.sqrt(mapped["dd"].max()))
             mapped.base.release()

@@ -131,18 +131,18 @@ def merge_device(grids: list, images, offsets, targets, f0: float, c: float, tap
     ctx, mf = rt.context, cl.mem_flags
     if isinstance(targets, PolarGrid):
         kern = program.kernel("ffbp_merge", taps, PARENT_GRID=1)
-        n_out, size = targets.size, (-(-targets.n_r // LANES), targets.n_v)
+        n_out, size = targets.size, opencl.work_groups_2d(-(-targets.n_r // LANES), targets.n_v)
         parent, points = program.frames([targets])[0], images  # the points argument is unused
     else:
         kern = program.kernel("ffbp_merge", taps)
-        n_out, size = targets.count, (-(-targets.count // LANES),)
+        n_out, size = targets.count, opencl.work_groups(-(-targets.count // LANES))
         parent, points = np.zeros((), program.FRAME)[()], targets.buffer
     plane = program.plane(grids[0].plane)
 
     def made(a):
         return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
 
-    kern(rt.queue, size, None, images, made(np.asarray(offsets, np.int64)), made(program.frames(grids)),
+    kern(rt.queue, *size, images, made(np.asarray(offsets, np.int64)), made(program.frames(grids)),
          made(_table(taps, float(rho))), points, parent, plane, np.float64(2 * f0 / c), np.int32(len(grids)),
          np.int32(n_out), np.int64(out_offset), out)
 

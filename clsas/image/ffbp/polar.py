@@ -41,8 +41,8 @@ the smallest oversampling with e_T(rho) <= tolerance / (2 S), so that each sub-a
 contribution to a pixel keeps its phase and relative amplitude error below ``tolerance`` up to
 the edge of the scene (the band edge is the component from the scene's edge). The bound adds
 the errors linearly: a band-edge component's interpolation error has the same sign at every
-stage (an amplitude loss), so they do not add in power (measured: an rss rule let the error
-of an 8-stage tree reach twice its tolerance).
+stage (an amplitude loss), so they do not add in power (an rss rule lets a deep tree's error
+exceed its tolerance).
 """
 
 from __future__ import annotations
@@ -298,7 +298,7 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
     with np.errstate(invalid="ignore"):
         r_lo = np.maximum(r_min - scene.margin, windows[:, 0])
         r_hi = np.minimum(r_max + scene.margin, windows[:, 1])
-        alive &= (r_hi > r_lo) & (r_lo > 0)
+        alive &= (r_hi >= r_lo) & (r_lo > 0)  # equal for a scene at one range (a single point)
     f_max = f0 + bandwidth / 2
     a = np.stack([-half_lengths, half_lengths], axis=1)[:, :, None]  # (n, 2, 1)
     vv = np.stack([v_lo, v_hi, np.zeros_like(v_lo)], axis=1)[:, None, :]  # (n, 1, 3)

@@ -57,13 +57,16 @@ reproduction's band.
 from __future__ import annotations
 
 import logging
+
 import numpy as np
 import scipy.fft
 
-from ...model import EchoData, Image
+from ... import budget
+from ... import validate as v
 from ...interp import resample
+from ...model import EchoData, Image
 from ..multireceiver import interleave, line_array
-from ..rangecomp import WINDOWS
+from ..rangecomp import check_window, check_workers
 from ..record import LineRecord, azimuth_weights, check_elements, image_of
 from .phase import compress_azimuth, decouple
 from .stationary import StationaryPoints, hermite, migration
@@ -77,15 +80,19 @@ RESIDUAL_LIMIT = np.pi / 4  # rad, the sub-block rule of seed 003 section 6.1.2 
 
 def plan_blocks(r: np.ndarray, valid: np.ndarray, block_width, reference_ranges, rule_width) -> list:
     """Range sub-blocks as (first column, stop column, reference range) over the ``valid``
-    columns of ranges ``r``: ``reference_ranges`` (each column to its nearest reference), or a
-    uniform partition of ``block_width`` m (reference at each block's centre), or, when both
-    are None, of ``rule_width()`` m."""
+    columns of ranges ``r``: ``reference_ranges`` (each column to its nearest reference; each
+    must lie within the valid ranges), or a uniform partition of ``block_width`` m, or, when both
+    are None, of ``rule_width()`` m; a uniform block's reference is the middle of the ranges it
+    covers (Zhang et al. 2019 section 4.2: "the center range of the n-th sub-block")."""
     cols = np.flatnonzero(valid)
     lo_col, hi_col = int(cols[0]), int(cols[-1]) + 1
     if reference_ranges is not None:
-        refs = np.sort(np.asarray(reference_ranges, dtype=np.float64).reshape(-1))
-        if refs.size == 0 or not np.all(np.isfinite(refs)) or np.any(refs <= 0):
-            raise ValueError(f"reference_ranges must be positive ranges in m, got {reference_ranges!r}")
+        values = [reference_ranges] if np.ndim(reference_ranges) == 0 else \
+            list(np.ravel(np.asarray(reference_ranges, dtype=object)))
+        if not values:
+            raise ValueError("ptrs_image reference_ranges: must hold at least one range (m), got none")
+        refs = np.sort([v.scalar(f"ptrs_image reference_ranges[{i}]", x, low=float(r[lo_col]), high=float(r[hi_col - 1]),
+                                 unit="m", why="ranges the record holds") for i, x in enumerate(values)])
         nearest = np.argmin(np.abs(r[lo_col:hi_col, None] - refs[None, :]), axis=1)
         blocks = []
         for k, ref in enumerate(refs):
@@ -95,18 +102,51 @@ def plan_blocks(r: np.ndarray, valid: np.ndarray, block_width, reference_ranges,
         return blocks
     width = rule_width() if block_width is None else float(block_width)
     start = r[lo_col]
-    index = np.floor((r[lo_col:hi_col] - start) / width).astype(int)
+    index = np.floor((r[lo_col:hi_col] - start) / width).astype(np.int64)
+    edges = np.flatnonzero(np.diff(index)) + 1
     blocks = []
-    for k in np.unique(index):
-        mine = np.flatnonzero(index == k)
-        blocks.append((lo_col + int(mine[0]), lo_col + int(mine[-1]) + 1, float(start + (k + 0.5) * width)))
+    for a, b in zip(np.concatenate([[0], edges]), np.concatenate([edges, [index.size]])):
+        first, stop = lo_col + int(a), lo_col + int(b)
+        blocks.append((first, stop, float((r[first] + r[stop - 1]) / 2)))
     return blocks
 
 
-def _check_width(block_width) -> None:
-    if block_width is not None and not (np.isfinite(block_width) and block_width > 0):
-        raise ValueError(f"block_width must be a positive sub-block width in m (or None for the pi/4 rule), "
-                         f"got {block_width!r}")
+def _check_arguments(block_width, rcmc, window, window_options, deconvolve, points, depth, workers):
+    """The scalar arguments of :func:`ptrs_image`, checked before anything is computed; returns
+    (block_width, window options, workers)."""
+    if block_width is not None:
+        block_width = v.positive("ptrs_image block_width", block_width, high=v.MAX_COORDINATE, unit="m",
+                                 why="a sub-block width, or None for the pi/4 rule")
+    v.flag("ptrs_image rcmc", rcmc)
+    v.flag("ptrs_image deconvolve", deconvolve)
+    options = check_window(window, window_options, "ptrs_image")
+    if points is not None and not isinstance(points, StationaryPoints):
+        raise TypeError(f"ptrs_image points: must be a StationaryPoints (or None), got {type(points).__name__}")
+    if depth is not None:
+        v.scalar("ptrs_image depth", depth, low=-v.MAX_COORDINATE, high=v.MAX_COORDINATE, unit="m")
+    return block_width, options, check_workers(workers, "ptrs_image workers")
+
+
+def _check_budget(n_rx, n_p, n_fp, n_cols, n_rows, n_ft, n_tables, n_s, n_r=None, segment=0) -> None:
+    """Refuse a request over the memory budget: before the stationary-point tables (the range FFT
+    length then at least ``n_cols``), and again once it and the longest sub-block segment are
+    known (``n_r``, ``segment``)."""
+    budget.check_bytes(f"ptrs_image of {n_rx} receivers x {n_p} pulses x {n_cols} range columns",
+                       working_bytes(n_rx, n_fp, n_cols if n_r is None else n_r, n_rows, n_ft, n_cols, n_tables, n_s,
+                                     segment),
+                       "image fewer receivers, pulses or a shorter swath at a time")
+
+
+def working_bytes(n_rx: int, n_fp: int, n_r: int, n_rows: int, n_ft: int, n_cols: int, n_tables: int,
+                  n_s: int, segment: int = 0) -> float:
+    """Bytes :func:`ptrs_image` holds at its peak: one receiver's spectra (three n_fp x n_r
+    complex64 arrays: the range FFT, its inverse and the slow-time FFT), the two range-Doppler
+    accumulators (n_rows x n_cols), the full Doppler grid, its inverse FFT and the image's pixel
+    positions (n_ft x n_cols: 8 + 8 + 24 bytes), the stationary-point tables (T and G, float64,
+    n_rx x n_tables x n_s) and a sub-block's segment (n_rows x ``segment``: its gathered copy, its
+    FFT, the inverse and the interpolation's positions and output, 40 bytes)."""
+    return (24.0 * n_fp * n_r + 16.0 * n_rows * n_cols + 40.0 * n_ft * n_cols + 16.0 * n_rx * n_tables * n_s
+            + 40.0 * n_rows * segment)
 
 
 def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None, reference_ranges=None,
@@ -144,17 +184,11 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     -------
     Image, dims ("y", "x"), along-track rows every v PRI / M.
     """
-    _check_width(block_width)
-    if not isinstance(rcmc, (bool, np.bool_)):
-        raise TypeError(f"rcmc: must be True or False, got {rcmc!r} ({type(rcmc).__name__})")
-    if window not in WINDOWS:
-        raise ValueError(f"window must be one of {WINDOWS}, got {window!r}")
-    if points is not None and not isinstance(points, StationaryPoints):
-        raise TypeError(f"points must be a StationaryPoints (or None), got {type(points).__name__}")
+    block_width, window_options, workers = _check_arguments(block_width, rcmc, window, window_options, deconvolve,
+                                                            points, depth, workers)
     arr = line_array(echo, receivers)
     interleave(arr.track, arr.offsets, echo.n_pulses)  # the aliases cancel only on a uniform phase-centre grid
-    workers = -1 if workers is None else workers
-    c, f0, fs, v = echo.medium.sound_speed, echo.waveform.f0, echo.fs, arr.track.speed
+    c, f0, fs, speed = echo.medium.sound_speed, echo.waveform.f0, echo.fs, arr.track.speed
     n_rx, n_p = len(arr.receivers), echo.n_pulses
     if f0 <= fs / 2:
         raise ValueError(f"the carrier f0 = {f0:g} Hz must exceed half the sampling rate fs / 2 = {fs / 2:g} Hz")
@@ -164,15 +198,15 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     n_ft = n_rx * n_fp
     ft = np.fft.fftfreq(n_ft, arr.pri / n_rx)
     probe = LineRecord(data=np.zeros((1, 1), np.complex64), u0=arr.track.u0, du=arr.track.du / n_rx, t0=0.0, fs=fs,
-                       speed=v, track=(arr.track.x, arr.track.z), waveform=echo.waveform, medium=echo.medium,
+                       speed=speed, track=(arr.track.x, arr.track.z), waveform=echo.waveform, medium=echo.medium,
                        nonstop=False)
     elements = check_elements(elements, probe)
-    weights = azimuth_weights(2 * np.pi * ft / v, elements, window, deconvolve, **window_options)
+    weights = azimuth_weights(2 * np.pi * ft / speed, elements, window, deconvolve, **window_options)
     rows = np.flatnonzero(weights != 0)
     ft_used = ft[rows]
     f_edge = np.abs(ft_used).max()
     s_max = 1.02 * f_edge / (f0 - fs / 2)
-    points = (StationaryPoints() if points is None else points).bind(arr.offsets, v, c, s_max)
+    points = (StationaryPoints() if points is None else points).bind(arr.offsets, speed, c, s_max)
 
     # the common range axis
     t0 = float(np.min(echo.t0[arr.receivers]))
@@ -188,6 +222,7 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
 
     blocks = plan_blocks(r, valid, block_width, reference_ranges, rule_width)
     nodes = np.arange(r[valid][0], r[-1] + NODE_SPACING, NODE_SPACING)
+    _check_budget(n_rx, n_p, n_fp, n_cols, rows.size, n_ft, len(blocks) + nodes.size, points.n_s)
     column_node = np.clip(np.floor((r - nodes[0]) / NODE_SPACING).astype(int), 0, nodes.size - 2)
     column_weight = (r - nodes[column_node]) / NODE_SPACING
     refs = np.array([b[2] for b in blocks])
@@ -195,6 +230,11 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     mig = tables_g + points.slopes * tables_t - 2 * np.concatenate([refs, nodes])[None, :, None] / c
     margin = _block_margin(mig, blocks, r, nodes, fs, rcmc)
     n_r = scipy.fft.next_fast_len(n_cols + margin)  # the record's circular range axis, zero beyond n_cols
+    segment = max(scipy.fft.next_fast_len(hi - lo + 2 * margin) for lo, hi, _ in blocks)
+    _check_budget(n_rx, n_p, n_fp, n_cols, rows.size, n_ft, len(blocks) + nodes.size, points.n_s, n_r, segment)
+    for h in arr.receivers:
+        v.bounded_gain("ptrs_image echo.data", echo.data[h], float(n_r) * n_fp * n_rx,
+                       advice="scale the echo down (the FFTs and the coherent sum over receivers and pulses amplify it)")
     ftau = np.fft.fftfreq(n_r, 1 / fs)
     s0 = -ft_used / f0  # the slopes of the range-Doppler rows (f_tau = 0)
     log.info("ptrs_image: %d receivers, %d Doppler rows x %d columns, %d sub-blocks, margin %d columns",
@@ -233,6 +273,7 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     full[rows] = acc
     del acc
     full[:, ~valid] = 0
+    v.finite_result("ptrs_image image", full, "scale the echo down")
     grid = probe.replace(data=np.broadcast_to(np.complex64(0), (1, n_cols)), t0=t0)  # the output grid's axes
     image = image_of(grid, full, r, "ptrs", {"receivers": [echo.receivers[h] for h in arr.receivers],
                                             "blocks": [(float(r[lo]), float(r[hi - 1]), ref) for lo, hi, ref in blocks],

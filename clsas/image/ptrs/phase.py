@@ -21,8 +21,8 @@ one cycle before the phasor (:func:`clsas.image.record.unit_phasor`). The kernel
 only: the host splits every phase into a row term and a column term (reduced to a fraction of a
 cycle in double) and a remainder of at most a few hundred cycles (the decoupling table less its
 tangent at s = 0; the azimuth modulation's step from its range node), which float holds to
-~2e-5 cycle. The two agree to 7e-5 relative L2 (tests/test_ptrs.py), far inside the float32
-phase budget of 0.01 rad.
+~2e-5 cycle, far inside the float32 phase budget of 0.01 rad (tests/test_ptrs.py holds the two
+together).
 """
 
 from __future__ import annotations

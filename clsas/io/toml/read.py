@@ -21,6 +21,7 @@ import numpy as np
 from ... import validate as v
 from ...errors import ScenarioFileError
 from ...scene.scenario import Array, Medium, Scenario
+from ...scene.seafloor import Seafloor, Sediment
 from .lines import KeyLines
 
 try:
@@ -105,6 +106,10 @@ class _Reader:
         self.require(values, cls, where)
         if cls is Array and values.get("rx_offsets") == []:  # an array-less scenario (sonobuoys only)
             values = dict(values, rx_offsets=np.zeros((0, 3)))
+        if cls is Seafloor and isinstance(values.get("sediment"), dict):  # [seafloor.sediment]
+            inner = _Where("seafloor.sediment")
+            self.check_keys(values["sediment"], table_keys(Sediment), inner)
+            values = dict(values, sediment=self.build(Sediment, values["sediment"], inner))
         return self.build(cls, values, where)
 
     def require(self, values: dict, cls, where: _Where) -> None:

@@ -15,13 +15,17 @@ from __future__ import annotations
 import dataclasses
 
 from ...scene.scenario import Array, Medium, Platform, PulseSchedule, Recording, Sonobuoy, Waveform
+from ...scene.seafloor import Seafloor
+from ...scene.surface import SeaSurface
 from ...scene.targets import MeshTarget, PointTargets
 
 SCHEMA_VERSION = 1
 
-#: one table per part: TOML name -> class (recording is optional)
+#: one table per part: TOML name -> class (recording, seafloor and surface are optional; the
+#: seafloor's ``sediment`` is a name of clsas.scene.seafloor.SEDIMENTS or a [seafloor.sediment]
+#: table of Sediment's fields)
 TABLES = {"medium": Medium, "waveform": Waveform, "platform": Platform, "array": Array,
-          "schedule": PulseSchedule, "recording": Recording}
+          "schedule": PulseSchedule, "recording": Recording, "seafloor": Seafloor, "surface": SeaSurface}
 #: arrays of tables: TOML name -> class of each entry (targets: by their ``kind``)
 ARRAYS_OF_TABLES = {"sonobuoys": Sonobuoy, "targets": None}
 TARGET_KINDS = {"points": PointTargets, "mesh": MeshTarget}

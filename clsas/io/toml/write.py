@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ...scene.scenario import MOTION_COMPONENTS, Array, PulseSchedule, Recording, Scenario
+from ...scene.seafloor import SEDIMENTS
 from ...scene.targets import MeshTarget, PointTargets
 from .schema import ARRAYS_OF_TABLES, SCHEMA_VERSION, TABLES, TARGET_KINDS
 
@@ -72,6 +73,19 @@ def _platform(platform) -> dict:
     return _fields(platform)
 
 
+def _seafloor(floor) -> dict:
+    """The [seafloor] table: the sediment by its table name when it is the table's, else as a
+    [seafloor.sediment] sub-table; a height function cannot be written (sample it first)."""
+    if callable(floor.heights):
+        raise TypeError("Seafloor.heights is a Python function: a TOML scenario holds the relief as an array of "
+                        "heights with its spacing and origin; sample it first (Seafloor(..., heights=z(x, y), "
+                        "spacing=..., origin=...))")
+    table = _fields(floor)
+    sediment = floor.sediment
+    table["sediment"] = sediment.name if SEDIMENTS.get(sediment.name) == sediment else _fields(sediment)
+    return table
+
+
 def _target(target, index: int, mesh_file) -> dict:
     if isinstance(target, PointTargets):
         table = {"kind": "points", **_fields(target, skip=("reflectivity",))}
@@ -111,7 +125,7 @@ def document(scenario: Scenario, mesh_file=None) -> dict:
         if isinstance(part, PulseSchedule) and part.exposure is not None:
             doc[name] = _fields(part, skip=("n_pulses",))  # exposure sets n_pulses
         else:
-            doc[name] = _platform(part) if name == "platform" else _fields(part)
+            doc[name] = {"platform": _platform, "seafloor": _seafloor}.get(name, _fields)(part)
     if scenario.sonobuoys:
         doc["sonobuoys"] = [_fields(b) for b in scenario.sonobuoys]
     if scenario.targets:

@@ -31,6 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...model import ScenarioRecord
+from ..seafloor import Seafloor
+from ..surface import SeaSurface
 from .platform import MOTION_COMPONENTS, Platform
 from .sonar import (
     MAX_ELEMENT,
@@ -54,6 +56,9 @@ class Scenario(ScenarioRecord):
 
     Receivers are numbered array hydrophones first, then sonobuoys. ``targets`` is a tuple of
     target objects (:mod:`clsas.scene.targets`: point scatterers, meshes), empty by default.
+    ``seafloor`` (a :class:`clsas.Seafloor`) and ``surface`` (a :class:`clsas.SeaSurface`) are
+    the environment, None by default; the surface must lie above the seafloor's highest point
+    and above the platform's start.
 
     On construction, the along-track sampling of the array is checked against the D/2 rule:
     the largest gap between phase centres over consecutive pings (:func:`phase_centre_gap`)
@@ -71,6 +76,8 @@ class Scenario(ScenarioRecord):
     sonobuoys: tuple = ()
     recording: Recording | None = None
     targets: tuple = ()
+    seafloor: Seafloor | None = None
+    surface: SeaSurface | None = None
 
     def __post_init__(self):
         for name, cls in (("medium", Medium), ("waveform", Waveform), ("platform", Platform),
@@ -96,7 +103,23 @@ class Scenario(ScenarioRecord):
             if not isinstance(self.recording, Recording):
                 raise TypeError("Scenario.recording must be a Recording or None")
             self.recording.for_receivers(self.n_receivers)
+        self._check_environment()
         self._check_along_track_sampling()
+
+    def _check_environment(self) -> None:
+        if self.seafloor is not None and not isinstance(self.seafloor, Seafloor):
+            raise TypeError(f"Scenario.seafloor must be a Seafloor or None, got {type(self.seafloor).__name__}")
+        if self.surface is None:
+            return
+        if not isinstance(self.surface, SeaSurface):
+            raise TypeError(f"Scenario.surface must be a SeaSurface or None, got {type(self.surface).__name__}")
+        start = float(self.platform.start[2])
+        if start >= self.surface.z:
+            raise ValueError(f"Scenario.surface: the sea surface (z = {self.surface.z:g} m) must lie above the "
+                             f"platform's start (z = {start:g} m)")
+        if self.seafloor is not None and self.seafloor.height_range()[1] >= self.surface.z:
+            raise ValueError(f"Scenario.surface: the sea surface (z = {self.surface.z:g} m) must lie above the "
+                             f"seafloor's highest point (z = {self.seafloor.height_range()[1]:g} m)")
 
     def _check_along_track_sampling(self) -> None:
         arr = self.array

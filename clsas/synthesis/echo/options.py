@@ -9,10 +9,23 @@ import numpy as np
 from ... import backend as _backend
 from ... import budget
 from ... import validate as v
+from ...image.rangecomp import WINDOWS
 from ..occlusion import DEFAULT_REUSE_TOLERANCE
+from .compressed import DEFAULT_LEVEL_DB
 
 DTYPES = (np.dtype(np.complex64), np.dtype(np.complex128))
 DEFAULT_CHUNK_BYTES = 256 * 2**20
+INTRA_PULSE = ("moving", "all", "none")
+AUTO = "auto"
+
+
+def auto_flag(name: str, value):
+    """True, False, or "auto" (decided by the scenario); TypeError naming ``name`` otherwise."""
+    if isinstance(value, str) and value == AUTO:
+        return AUTO
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f'{name}: must be True, False or "auto", got {value!r} ({type(value).__name__})')
+    return bool(value)
 
 
 @dataclass(frozen=True)
@@ -23,7 +36,13 @@ class SynthesisOptions:
     backend : "numpy", "opencl", "auto" or None; stored resolved ("numpy" or "opencl").
     precision : "single" or "double" (the OpenCL accumulation).
     dtype : complex64 or complex128, the returned samples.
-    stop_and_go, spreading, hull_occlusion, progress : bool.
+    stop_and_go, hull_occlusion, progress : bool.
+    spreading, absorption : bool, or "auto": on when the scenario has a seafloor.
+    multipath : 0, 1 or 2 (the most bounces a path may have), or "auto": 1 when the scenario has
+    a sea surface or a seafloor. intra_pulse : "moving", "all" or "none".
+    compressed : False (raw echoes), True or a window name of :func:`clsas.range_compress`
+    (synthesis into the range-compressed domain; True: no window); compressed_level_db : dB in
+    [-120, -10], the level re the peak below which the compressed response's taps are dropped.
     reuse_tolerance : rad, in [0, pi]. max_bytes : bytes, None for the memory budget
     (:func:`clsas.memory_budget`); chunk_bytes : bytes.
     """
@@ -32,7 +51,12 @@ class SynthesisOptions:
     precision: str = "single"
     dtype: object = np.complex64
     stop_and_go: bool = False
-    spreading: bool = False
+    spreading: bool | str = "auto"
+    absorption: bool | str = "auto"
+    multipath: int | str = "auto"
+    intra_pulse: str = "none"
+    compressed: bool | str = False
+    compressed_level_db: float = DEFAULT_LEVEL_DB
     hull_occlusion: bool = True
     reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE
     max_bytes: int | None = None
@@ -41,8 +65,20 @@ class SynthesisOptions:
 
     def __post_init__(self):
         _backend.check_precision(self.precision)
-        for name in ("stop_and_go", "spreading", "hull_occlusion", "progress"):
+        for name in ("stop_and_go", "hull_occlusion", "progress"):
             v.flag(name, getattr(self, name))
+        for name in ("spreading", "absorption"):
+            object.__setattr__(self, name, auto_flag(name, getattr(self, name)))
+        if self.multipath != AUTO:
+            object.__setattr__(self, "multipath", v.integer("multipath", self.multipath, low=0, high=2,
+                                                            why='the most bounces a path may have, or "auto"'))
+        v.choice("intra_pulse", self.intra_pulse, INTRA_PULSE)
+        if isinstance(self.compressed, (bool, np.bool_)):
+            object.__setattr__(self, "compressed", "none" if self.compressed else False)
+        else:
+            v.choice("compressed", self.compressed, WINDOWS)
+        object.__setattr__(self, "compressed_level_db", v.scalar("compressed_level_db", self.compressed_level_db,
+                                                                 low=-120.0, high=-10.0, unit="dB"))
         try:
             dtype = np.dtype(self.dtype)
         except TypeError:

@@ -28,8 +28,10 @@ from ..occlusion import DEFAULT_REUSE_TOLERANCE, PathWeights, has_meshes
 from ...validate import scalar
 from ..checks import SNR_DB_RANGE, check_arguments, warn_pulse_overlap
 from ..window import check_cube_size, node_span, receiver_nodes
-from .options import DEFAULT_CHUNK_BYTES, SynthesisOptions
-from .synth import _NumpySynth, _OpenCLSynth
+from .options import AUTO, DEFAULT_CHUNK_BYTES, SynthesisOptions, auto_flag
+from ..propagation import BandAbsorption, boundaries, path_kinds
+from .compressed import DEFAULT_LEVEL_DB, CompressedResponse
+from .synth import Physics, _NumpySynth, _OpenCLSynth, path_record
 
 
 def _pulse_blocks(n_pulses: int, per_pulse_bytes: int, chunk_bytes: int) -> list[slice]:
@@ -37,18 +39,20 @@ def _pulse_blocks(n_pulses: int, per_pulse_bytes: int, chunk_bytes: int) -> list
     return [slice(s, min(s + size, n_pulses)) for s in range(0, n_pulses, size)]
 
 
-def _delay_bound(scenario: Scenario, scat: Scatterers) -> float:
-    """An upper bound guess of every delay (s) for the node span, from the first/middle/last pulses."""
+def _delay_bound(scenario: Scenario, scat: Scatterers, physics: Physics) -> float:
+    """An upper bound guess of every delay (s) for the node span, from the first/middle/last
+    pulses, over every path kind (image transmitters and receivers)."""
     eta = scenario.eta[[0, scenario.eta.size // 2, -1]]
     c = scenario.medium.sound_speed
-    tx = scenario.tx_position(eta)
     worst = 0.0
-    for p in range(eta.size):
-        q = scat.p0 + scat.vel * eta[p]
-        out = np.linalg.norm(q - tx[p], axis=1)
-        back = max(np.max(np.linalg.norm(q - scenario.receiver_position(h, eta[p]), axis=1))
-                   for h in range(scenario.n_receivers))
-        worst = max(worst, np.max(out) + back)
+    for kind in physics.kinds:
+        tx = kind.out.image.points(scenario.tx_position(eta))
+        for p in range(eta.size):
+            q = scat.p0 + scat.vel * eta[p]
+            out = np.linalg.norm(q - tx[p], axis=1)
+            back = max(np.max(np.linalg.norm(q - kind.back.image.points(scenario.receiver_position(h, eta[p])), axis=1))
+                       for h in range(scenario.n_receivers))
+            worst = max(worst, np.max(out) + back)
     return 1.2 * worst / c + scenario.waveform.duration
 
 
@@ -140,6 +144,23 @@ def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_oc
     return lambda pulses: mesh(pulses) * occlusion[:, pulses]
 
 
+def resolve_physics(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers) -> Physics:
+    """What the paths carry for ``scenario`` under ``opts`` (the "auto" options resolved: spreading
+    and absorption on, and first-order multipath, in a scene with a seafloor; multipath also with
+    a sea surface)."""
+    floor = getattr(scenario, "seafloor", None) is not None
+    planes = boundaries(scenario)
+    order = (1 if planes else 0) if opts.multipath == AUTO else opts.multipath
+    spreading = floor if opts.spreading == AUTO else opts.spreading
+    absorbing = floor if opts.absorption == AUTO else opts.absorption
+    absorption = BandAbsorption.of(scenario.medium, scenario.waveform) if absorbing else None
+    response = None if opts.compressed is False else \
+        CompressedResponse.of(scenario.waveform, opts.compressed, opts.compressed_level_db)
+    return Physics(kinds=path_kinds(planes, order), intra_pulse=opts.intra_pulse, absorption=absorption,
+                   spreading=spreading, stop_and_go=opts.stop_and_go, moving=bool(np.any(scat.vel != 0)),
+                   response=response)
+
+
 def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion):
     """The backend's synthesizer and the pulse blocks that keep its working memory under ``opts.chunk_bytes``."""
     scat = scatterers_of(scenario.targets)
@@ -148,34 +169,47 @@ def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion):
     n_rx, n_pulses = scenario.n_receivers, scenario.eta.size
     if occlusion is not None and not callable(occlusion):
         occlusion = np.asarray(occlusion, dtype=np.float64)
-        if occlusion.shape != (n_rx, n_pulses, scat.count):
+        if occlusion.shape not in ((n_rx, n_pulses, scat.count), (1, n_pulses, scat.count)):
             raise ValueError(f"occlusion must have shape (n_rx, n_pulses, n_scatterers) = "
-                             f"{(n_rx, n_pulses, scat.count)}, got {occlusion.shape}")
+                             f"{(n_rx, n_pulses, scat.count)} (or (1, n_pulses, n_scatterers): shared by the "
+                             f"receivers), got {occlusion.shape}")
     occlusion = _with_mesh_weights(scenario, occlusion, opts.stop_and_go, opts.hull_occlusion, opts.reuse_tolerance)
-    args = (scenario, scat, occlusion, opts.stop_and_go, opts.spreading)
+    physics = resolve_physics(scenario, opts, scat)
+    args = (scenario, scat, occlusion, physics)
+    kinds = len(physics.kinds)
     if opts.backend == "numpy":
         span = int(0.5 * scenario.waveform.duration * scenario.waveform.fs) + 2
         synth = _NumpySynth(*args)
-        per_pulse = n_rx * scat.count * (16 * 8 + 48 * span)
+        per_pulse = n_rx * scat.count * kinds * (16 * 8 + 48 * span)
     else:
-        tau_hi = node_span(scenario, scenario.eta, _delay_bound(scenario, scat))
+        tau_hi = node_span(scenario, scenario.eta, _delay_bound(scenario, scat, physics))
         synth = _OpenCLSynth(*args, double=opts.double,
                              nodes=receiver_nodes(scenario, scenario.eta, tau_hi, strict=not opts.stop_and_go))
-        per_pulse = n_rx * scat.count * 4 * 8  # path records (float4 or double4) on the device
+        per_pulse = n_rx * scat.count * kinds * path_record(synth.real, physics.extended).itemsize
     return synth, _pulse_blocks(n_pulses, per_pulse, opts.chunk_bytes)
 
 
-def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False) -> np.ndarray:
+def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False, path: str = "D-D") -> np.ndarray:
     """Exact two-way delays of every (receiver, pulse, scatterer) path, s, shape (H, P, N).
 
+    ``path`` names the path kind: "D-D" the direct path, else the outgoing and the return leg's
+    bounces off the sea surface (S) and the seabed (B) in the order the wave meets them from
+    the transmitter / the receiver, e.g. "S-D", "D-B", "SB-D", "S-S" (the scenario's
+    ``surface`` and ``seafloor``; :mod:`clsas.synthesis.propagation`).
     The NumPy backend iterates the fixed point of :mod:`clsas.geometry`; the OpenCL
     kernel solves each leg in closed form (kernels/echo.cl, ``meet_time``) and returns the
     delay as the sample index it hands to the accumulation (float32 fraction: ~3e-12 s at 20 kHz).
     """
     if not isinstance(scenario, Scenario):
         raise TypeError(f"scenario must be a Scenario, got {type(scenario).__name__}")
-    synth, blocks = _make_synth(scenario, SynthesisOptions(backend=backend, stop_and_go=stop_and_go), None)
-    return np.concatenate([synth.delays(sl) for sl in blocks], axis=1)
+    names = [kind.name for kind in path_kinds(boundaries(scenario), 2)]
+    if path not in names:
+        raise ValueError(f"delays path: must be one of this scenario's path kinds {names}, got {path!r}")
+    order = sum(ch in "SB" for ch in path)
+    synth, blocks = _make_synth(scenario, SynthesisOptions(backend=backend, stop_and_go=stop_and_go, multipath=order,
+                                                           spreading=False, absorption=False), None)
+    kind = [k.name for k in synth.physics.kinds].index(path)
+    return np.concatenate([synth.delays(sl, kind) for sl in blocks], axis=1)
 
 
 class Synthesis(NamedTuple):
@@ -185,7 +219,8 @@ class Synthesis(NamedTuple):
     n_valid : (n_rx,) samples each window holds; origin : where the window came from (text);
     nodes : (rx_tau (n_nodes,) s, rx_pos (n_rx, n_pulses, n_nodes, 3) m), the receivers'
     positions over each pulse; node_error_m : their largest departure from the exact track;
-    n_scatterers : point scatterers synthesized (mesh facets included).
+    n_scatterers : point scatterers synthesized (mesh facets included);
+    physics : what the paths carried (:class:`clsas.synthesis.echo.synth.Physics`).
     """
 
     data: np.ndarray
@@ -195,6 +230,7 @@ class Synthesis(NamedTuple):
     nodes: tuple
     node_error_m: float
     n_scatterers: int
+    physics: Physics
 
 
 def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occlusion=None) -> Synthesis:
@@ -256,13 +292,16 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
     synth.release()
     for h in range(n_rx):
         data[h, :, n_valid[h]:] = 0
-    return Synthesis(data, t0, n_valid, origin, nodes[:2], float(nodes[2]), n_scat)
+    return Synthesis(data, t0, n_valid, origin, nodes[:2], float(nodes[2]), n_scat, synth.physics)
 
 
 def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False, snr_db: float | None = None,
-             seed=None, precision: str = "single", progress: bool = True, spreading: bool = False,
+             seed=None, precision: str = "single", progress: bool = True, spreading: bool | str = AUTO,
              occlusion=None, max_bytes: int | None = None, chunk_bytes: int = DEFAULT_CHUNK_BYTES,
-             hull_occlusion: bool = True, reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE) -> EchoData:
+             hull_occlusion: bool = True, reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE,
+             absorption: bool | str = AUTO, multipath: int | str = AUTO,
+             intra_pulse: str = "none", compressed: bool | str = False,
+             compressed_level_db: float = DEFAULT_LEVEL_DB) -> EchoData:
     """Synthesize the raw echoes of ``scenario`` (see the module docstring for the model).
 
     Parameters
@@ -280,8 +319,35 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         complex128 (the float64 reference).
     progress : bool
         Show tqdm progress bars over pulse blocks.
-    spreading : bool
-        Include the spherical spreading 1 / (R1 R2).
+    spreading : bool or "auto"
+        Include the spherical spreading 1 / (R1 R2) (R1, R2 the lengths of the two legs, unfolded
+        for a bouncing path). "auto" (default): on when the scenario has a seafloor.
+    absorption : bool or "auto"
+        Include the absorption of the water (Francois & Garrison 1982 with the Medium's
+        temperature, salinity, depth and pH) over the pulse's band, per path
+        (:mod:`clsas.synthesis.propagation`). "auto" (default): on when the scenario has a seafloor.
+    multipath : {0, 1, 2} or "auto"
+        The most bounces a path may have off the sea surface (``Scenario.surface``: reflection
+        -1, Rayleigh roughness loss) and the seabed's mean plane (``Scenario.seafloor``: its
+        sediment's reflection coefficient): image sources, every path's delay exact. "auto"
+        (default): 1 when the scenario has a surface or a seafloor, else 0.
+    intra_pulse : {"moving", "all", "none"}
+        Intra-pulse Doppler: the scatterer and the receivers keep moving while the pulse is
+        emitted and received, so each fast-time sample has its own delay (the echo is
+        time-scaled and Doppler-shifted, :mod:`clsas.synthesis.paths`). "moving" for scatterers
+        with a velocity, "all" for every path (stationary scatterers seen from the moving
+        platform too), "none" (default for now: the moving-target chain is being made robust to
+        it) for one delay per path. Ignored with ``stop_and_go``.
+    compressed : bool or str
+        Synthesize straight into the range-compressed domain: the echo
+        ``range_compress(simulate(...), window=W)`` would give (W = "none" for True, or the
+        window named), each path's compressed point response written around its exact delay
+        over the taps where it exceeds ``compressed_level_db`` re its peak
+        (:mod:`clsas.synthesis.echo.compressed`). For large scenes (a seafloor's facets): the
+        work per path is those taps instead of the whole pulse. Not with ``snr_db`` (the noise is
+        defined on raw samples).
+    compressed_level_db : float
+        dB in [-120, -10]: where the compressed response is cut (default -40).
     occlusion : None, array (n_rx, n_pulses, n_scatterers) or callable
         Factor per path (1 = seen, 0 = hidden); a callable ``occlusion(pulses: slice)`` returns
         the block (n_rx, len(pulses), n_scatterers), so that memory stays bounded. Mesh targets
@@ -302,14 +368,21 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
 
     Returns
     -------
-    EchoData, raw (not range-compressed), complex64 (n_rx, n_pulses, n_samples). The recording
+    EchoData, raw (or with ``compressed`` range-compressed), complex64 (n_rx, n_pulses, n_samples). The recording
     window of receiver h starts at ``t0[h]`` (from the geometry: earliest echo minus T/2, to
     the latest plus T/2, unless ``Scenario.recording`` gives it); its samples beyond its own
     window length (``provenance["n_valid"]``) are zero.
     """
     max_bytes, chunk_bytes = check_arguments(scenario, snr_db, seed, max_bytes, chunk_bytes, reuse_tolerance, dict(
-        stop_and_go=stop_and_go, progress=progress, spreading=spreading, hull_occlusion=hull_occlusion))
+        stop_and_go=stop_and_go, progress=progress, hull_occlusion=hull_occlusion))
+    for name, value in (("spreading", spreading), ("absorption", absorption)):
+        auto_flag(f"simulate {name}", value)
+    if compressed is not False and snr_db is not None:
+        raise ValueError(f"simulate snr_db: noise ({snr_db!r} dB) is defined on raw samples; with compressed="
+                         f"{compressed!r} simulate the raw echo with noise and range_compress it instead")
     opts = SynthesisOptions(backend=backend, precision=precision, stop_and_go=stop_and_go, spreading=spreading,
+                            absorption=absorption, multipath=multipath, intra_pulse=intra_pulse,
+                            compressed=compressed, compressed_level_db=compressed_level_db,
                             hull_occlusion=hull_occlusion, reuse_tolerance=reuse_tolerance, max_bytes=max_bytes,
                             chunk_bytes=chunk_bytes, progress=progress)
     out = synthesize(scenario, opts, occlusion)
@@ -321,9 +394,16 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
     return EchoData(
         data=data, eta=scenario.eta, t0=out.t0, fs=scenario.waveform.fs,
         tx_pos=scenario.tx_position(scenario.eta), rx_pos=rx_pos, rx_tau=np.tile(rx_tau, (n_rx, 1)),
-        waveform=scenario.waveform, medium=scenario.medium, receivers=scenario.receiver_names, compressed=False,
+        waveform=scenario.waveform, medium=scenario.medium, receivers=scenario.receiver_names,
+        compressed=out.physics.response is not None,
         provenance={"algorithm": "clsas.simulate", "backend": opts.backend, "precision": opts.precision,
-                    "stop_and_go": bool(opts.stop_and_go), "spreading": bool(opts.spreading), "snr_db": snr_db,
+                    "stop_and_go": bool(opts.stop_and_go), "spreading": bool(out.physics.spreading),
+                    "absorption": out.physics.absorption is not None,
+                    "paths": [kind.name for kind in out.physics.kinds],
+                    "intra_pulse": out.physics.intra_pulse if out.physics.doppler else "none", "snr_db": snr_db,
+                    **({"compressed": {"window": opts.compressed, "level_db": opts.compressed_level_db,
+                                       "taps": out.physics.response.taps,
+                                       "discarded_db": out.physics.response.discarded_db}} if out.physics.response else {}),
                     "seed": seed if seed is None or isinstance(seed, int) else str(seed),
                     "n_scatterers": out.n_scatterers, "occlusion": occlusion is not None,
                     "hull_occlusion": bool(opts.hull_occlusion and has_meshes(scenario)),

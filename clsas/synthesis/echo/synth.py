@@ -1,7 +1,7 @@
 """Echo synthesis, the maths and its fast twin: the float64 NumPy reference and the launcher of
 ``kernels/echo.cl``, side by side (:mod:`.pipeline` drives them).
 
-Signal model (DESIGN.md): the baseband echo of path (receiver h, pulse p, scatterer n) is
+Signal model (docs/design.md): the baseband echo of path (receiver h, pulse p, scatterer n) is
 
     s(tau) = a rect((tau - tau_n) / T) exp(-j 2 pi f0 tau_n) exp(j pi K (tau - tau_n)^2),
 
@@ -29,26 +29,109 @@ scenario's trajectory exactly.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ... import geometry, opencl
-from ..paths import direct_paths
 from ...cstruct import declare_all, record_dtype
 from ...scene.scenario import Scenario
 from ...scene.targets import Scatterers
+from ..paths import Paths, bottom_coefficient, paths
+from ..propagation import BOTTOM, DIRECT, BandAbsorption
+from .compressed import PAD, PHASES, CompressedResponse
 
-CHUNK_SCATTERERS = 16  # scatterers per bounds chunk in the OpenCL accumulation
+CHUNK_SCATTERERS = 16  # paths per bounds chunk in the OpenCL accumulation
 ROWS = 8  # 16-sample rows per work-item of the OpenCL accumulation
-# the records echo_paths reads (kernels/echo.cl): a pulse, a receiver and the launch's parameters
-PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("tx_axis", "f8", 3)])  # m, s, unit vector
+BOTTOM_TABLE = 1025  # entries of the seabed's reflection table, sin(grazing) in [0, 1]
+MAX_BOUNCES = 2  # per leg
+# the records echo_paths reads (kernels/echo.cl): a pulse, a receiver, the launch's parameters and
+# the path kind's bounces
+PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("tx_axis", "f8", 3), ("tx_vel", "f8", 3)])  # m, s, 1, m/s
 RECEIVER = record_dtype([("t0_fs", "f8"), ("length", "f8")])  # window start in samples, element length m
 PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("wavelength", "f8"), ("tx_length", "f8"),
-                       ("dtau", "f8")])  # m/s, Hz, Hz, m, m, receiver node spacing s
-RECORDS = declare_all({"node_t": geometry.NODE, "echo_pulse_t": PULSE, "echo_rx_t": RECEIVER,
-                       "echo_params_t": PARAMS})
+                       ("dtau", "f8"), ("chirp_rate", "f8"), ("duration", "f8"), ("abs_a0", "f8"),
+                       ("abs_a1", "f8"), ("abs_a2", "f8")])  # m/s, Hz, Hz, m, m, s, Hz/s, s, Np/m (/Hz, /Hz^2)
+LEGS = record_dtype([("out_normal", "f8", 3 * MAX_BOUNCES), ("back_normal", "f8", 3 * MAX_BOUNCES),
+                     ("out_rms", "f8", MAX_BOUNCES), ("back_rms", "f8", MAX_BOUNCES),
+                     ("out_law", "i4", MAX_BOUNCES), ("back_law", "i4", MAX_BOUNCES), ("n_out", "i4"),
+                     ("n_back", "i4")])  # unfolded normals, rms heights m, laws (propagation.SURFACE/BOTTOM)
+# a scatterer's fields, stored field by field (structure of arrays) for the paths kernel
+SCATTERER = record_dtype([("p0", "f8", 3), ("vel", "f8", 3), ("refl", "f8", 2)])  # m, m/s, re/im
 
 
-def accumulate_reference(start, frac, amp, alpha: float, half_len: float, n_samples: int) -> np.ndarray:
+def path_record(real, extended: bool) -> np.dtype:
+    """The path record echo_paths writes and the accumulation reads (``echo_path_t``): the echo
+    centre (start sample and fraction), the amplitude with the carrier phase and, ``extended``,
+    its own chirp (cycles a sample^2), Doppler shift (cycles a sample), envelope (Np a sample,
+    a sample^2), support [lo, hi] (samples about the centre) and level (Np: the envelope's
+    largest log over the support, folded into the amplitude)."""
+    kind = "f8" if np.dtype(real) == np.float64 else "f4"
+    fields = [("start", "i4"), ("frac", kind), ("amp", kind, 2)]
+    if extended:
+        fields += [(name, kind) for name in ("chirp", "lin", "beta", "gamma", "lo", "hi", "level")]
+    return record_dtype(fields)
+
+
+def soa_defines(dtype: np.dtype, prefix: str) -> str:
+    """``#define PREFIX_FIELD offset`` (in doubles) for a record stored field by field, and
+    ``PREFIX_FIELDS`` the count: the kernel reads field F of item j at (PREFIX_F + k) n + j."""
+    lines, offset = [], 0
+    for name in dtype.names:
+        sub = dtype.fields[name][0]
+        lines.append(f"#define {prefix}_{name.upper()} {offset}")
+        offset += int(np.prod(sub.shape)) if sub.shape else 1
+    return "\n".join(lines + [f"#define {prefix}_FIELDS {offset}"]) + "\n"
+
+
+def records_preamble(real, extended: bool) -> str:
+    """The kernel's records: the structs and the scatterer fields."""
+    return declare_all({"node_t": geometry.NODE, "echo_pulse_t": PULSE, "echo_rx_t": RECEIVER,
+                        "echo_params_t": PARAMS, "echo_legs_t": LEGS,
+                        "echo_path_t": path_record(real, extended)}) + soa_defines(SCATTERER, "SCAT")
+
+
+@dataclass(frozen=True)
+class Physics:
+    """What the paths carry, resolved for one scenario: the path ``kinds`` (direct first),
+    ``intra_pulse`` ("none", "moving", "all"), ``absorption`` (None: none), ``spreading``,
+    ``stop_and_go``; ``response``: synthesis into the range-compressed domain with these
+    tabulated responses (None: raw echoes); ``extended``: the paths need their own chirp and
+    envelope."""
+
+    kinds: tuple = (DIRECT,)
+    intra_pulse: str = "none"
+    absorption: BandAbsorption | None = None
+    spreading: bool = False
+    stop_and_go: bool = False
+    moving: bool = False
+    response: CompressedResponse | None = None
+
+    @property
+    def doppler(self) -> bool:
+        """Some path gets an in-pulse delay law."""
+        return not self.stop_and_go and (self.intra_pulse == "all" or (self.intra_pulse == "moving" and self.moving))
+
+    @property
+    def extended(self) -> bool:
+        return self.doppler or self.absorption is not None or len(self.kinds) > 1
+
+
+def in_pulse_laws(p: Paths, waveform) -> dict:
+    """Each path's echo as the kernel writes it (module docstring, :mod:`clsas.synthesis.paths`):
+    chirp (cycles a sample^2), lin (cycles a sample), beta (Np a sample), gamma (Np a sample^2),
+    lo, hi (samples about the centre), each (H, P, N)."""
+    k, fs, f0, half = waveform.chirp_rate, waveform.fs, waveform.f0, 0.5 * waveform.duration
+    s = 1.0 / (1.0 + p.d1)
+    kfs = k * s / fs
+    centre = p.d2 * half * half
+    return {"chirp": (0.5 * k * s * s - f0 * p.d2 * s ** 3) / fs ** 2, "lin": -f0 * p.d1 * s / fs,
+            "beta": p.lnf1 * kfs, "gamma": p.lnf2 * kfs * kfs,
+            "lo": (centre - half * (1.0 + p.d1)) * fs, "hi": (centre + half * (1.0 + p.d1)) * fs}
+
+
+def accumulate_reference(start, frac, amp, alpha: float, half_len: float, n_samples: int,
+                         laws: dict | None = None) -> np.ndarray:
     """The echoes of every path added into records of ``n_samples`` samples (float64 reference).
 
     Parameters
@@ -61,19 +144,31 @@ def accumulate_reference(start, frac, amp, alpha: float, half_len: float, n_samp
         Chirp phase rate, cycles per sample^2 (K / (2 fs^2)).
     half_len : float
         Half the pulse length in samples (T fs / 2).
+    laws : dict of (R, N) arrays, optional
+        Each path's own chirp, lin, beta, gamma, lo, hi (:func:`in_pulse_laws`) instead of
+        alpha, 0, 0, 0, -half_len, half_len.
 
     Returns complex128 (R, n_samples): sample k of record r holds
-    sum_n amp[r, n] exp(j 2 pi alpha d^2) [|d| <= half_len], d = k - start[r, n] - frac[r, n].
+    sum_n amp exp(j 2 pi (chirp d^2 + lin d) + gamma d^2 + beta d) [lo <= d <= hi],
+    d = k - start[r, n] - frac[r, n].
     """
     start = np.asarray(start)
-    span = int(half_len) + 2
+    reach = half_len if laws is None else max(np.max(np.abs(laws["lo"]), initial=0.0),
+                                              np.max(np.abs(laws["hi"]), initial=0.0))
+    span = int(reach) + 2
     offsets = np.arange(-span, span + 1)
     out = np.zeros((start.shape[0], n_samples), dtype=np.complex128)
     for r in range(start.shape[0]):
         k = start[r][:, None] + offsets[None, :]
         d = offsets[None, :] - frac[r][:, None]
-        keep = (np.abs(d) <= half_len) & (k >= 0) & (k < n_samples)
-        vals = (amp[r][:, None] * np.exp(2j * np.pi * alpha * d * d))[keep]
+        if laws is None:
+            keep = (np.abs(d) <= half_len) & (k >= 0) & (k < n_samples)
+            vals = (amp[r][:, None] * np.exp(2j * np.pi * alpha * d * d))[keep]
+        else:
+            law = {name: value[r][:, None] for name, value in laws.items()}
+            keep = (d >= law["lo"]) & (d <= law["hi"]) & (k >= 0) & (k < n_samples)
+            exponent = 2j * np.pi * (law["chirp"] * d + law["lin"]) * d + (law["gamma"] * d + law["beta"]) * d
+            vals = (amp[r][:, None] * np.exp(exponent))[keep]
         out[r] = np.bincount(k[keep], weights=vals.real, minlength=n_samples) \
             + 1j * np.bincount(k[keep], weights=vals.imag, minlength=n_samples)
     return out
@@ -90,10 +185,10 @@ class _Synth:
     """What both backends provide: the delays of a pulse block (pass A, which also gives the
     recording window) and its records (pass B)."""
 
-    def __init__(self, scenario: Scenario, scat: Scatterers, occlusion, stop_and_go: bool, spreading: bool):
-        self.args = (scenario, scat, occlusion, stop_and_go, spreading)
-        self.scenario, self.scat, self.occlusion = scenario, scat, occlusion
-        self.stop_and_go, self.spreading = stop_and_go, spreading
+    def __init__(self, scenario: Scenario, scat: Scatterers, occlusion, physics: Physics):
+        self.args = (scenario, scat, occlusion, physics)
+        self.scenario, self.scat, self.occlusion, self.physics = scenario, scat, occlusion, physics
+        self.stop_and_go, self.spreading = physics.stop_and_go, physics.spreading
         self.eta = scenario.eta
         self.n_rx = scenario.n_receivers
         wf = scenario.waveform
@@ -101,46 +196,74 @@ class _Synth:
         self.half_len = 0.5 * wf.duration * wf.fs
 
     def weights(self, pulses: slice):
+        """The path weights of a pulse block: (H, P, N), or (1, P, N) shared by the receivers."""
         if self.occlusion is None:
             return None
         if callable(self.occlusion):
             w = np.asarray(self.occlusion(pulses), dtype=np.float64)
         else:
             w = self.occlusion[:, pulses]
-        shape = (self.n_rx, len(range(*pulses.indices(self.eta.size))), self.scat.count)
-        if w.shape != shape or not np.all(np.isfinite(w)) or np.any(w < 0):
-            raise ValueError(f"occlusion for pulses {pulses} must be finite, >= 0, with shape {shape}, got {w.shape}")
+        n_p = len(range(*pulses.indices(self.eta.size)))
+        shapes = ((self.n_rx, n_p, self.scat.count), (1, n_p, self.scat.count))
+        if w.shape not in shapes or not np.all(np.isfinite(w)) or np.any(w < 0):
+            raise ValueError(f"occlusion for pulses {pulses} must be finite, >= 0, with shape {shapes[0]} (or "
+                             f"{shapes[1]}: shared by the receivers), got {w.shape}")
         return w
 
 
 class _NumpySynth(_Synth):
     """float64 reference: exact trajectories (clsas.synthesis.paths) and accumulate_reference."""
 
-    def paths(self, pulses: slice):
-        tau, amp = direct_paths(self.scenario, self.eta[pulses], self.scat, range(self.n_rx),
-                                  self.stop_and_go, self.spreading)
-        w = self.weights(pulses)
-        return tau, amp if w is None else amp * w
+    def _paths(self, pulses: slice, kind) -> Paths:
+        ph = self.physics
+        return paths(self.scenario, self.eta[pulses], self.scat, range(self.n_rx), kind, ph.stop_and_go,
+                     ph.spreading, ph.intra_pulse if ph.doppler else "none", ph.absorption)
 
-    def delays(self, pulses: slice) -> np.ndarray:
-        return direct_paths(self.scenario, self.eta[pulses], self.scat, range(self.n_rx), self.stop_and_go,
-                              self.spreading)[0]
+    def delays(self, pulses: slice, kind: int = 0) -> np.ndarray:
+        """Delays (H, P, N), s, of the paths of ``physics.kinds[kind]`` (0: direct)."""
+        return self._paths(pulses, self.physics.kinds[kind]).tau
 
     def release(self) -> None:
         """Nothing is cached by the reference."""
 
     def extents(self, pulses: slice):
-        return sample_extents(self.delays(pulses) * self.scenario.waveform.fs)
+        lo, hi = None, None
+        for kind in self.physics.kinds:
+            a, b = sample_extents(self._paths(pulses, kind).tau * self.scenario.waveform.fs)
+            lo, hi = (a, b) if lo is None else (np.minimum(lo, a), np.maximum(hi, b))
+        return lo, hi
 
     def records(self, pulses: slice, t0: np.ndarray, n_samples: int) -> np.ndarray:
         wf = self.scenario.waveform
-        tau, amp = self.paths(pulses)
-        amp = amp * np.exp(-2j * np.pi * wf.f0 * tau)
-        start, frac = _split(tau, t0, wf.fs)
-        h, p, n = tau.shape
-        out = accumulate_reference(start.reshape(h * p, n), frac.reshape(h * p, n), amp.reshape(h * p, n),
-                                   self.alpha, self.half_len, n_samples)
-        return out.reshape(h, p, n_samples)
+        w = self.weights(pulses)
+        out = 0.0
+        for kind in self.physics.kinds:
+            p = self._paths(pulses, kind)
+            amp = p.amp * np.exp(-2j * np.pi * wf.f0 * p.tau)
+            if w is not None:
+                amp = amp * w
+            start, frac = _split(p.tau, t0, wf.fs)
+            h, n_p, n = p.tau.shape
+            laws = {k: v.reshape(h * n_p, n) for k, v in in_pulse_laws(p, wf).items()} \
+                if self.physics.extended else None
+            args = (start.reshape(h * n_p, n), frac.reshape(h * n_p, n), amp.reshape(h * n_p, n))
+            if self.physics.response is not None:
+                out = out + self.physics.response.accumulate(*args, n_samples, laws)
+            else:
+                out = out + accumulate_reference(*args, self.alpha, self.half_len, n_samples, laws)
+        return out.reshape(self.n_rx, -1, n_samples)
+
+
+def _legs_record(kind) -> np.ndarray:
+    legs = np.zeros((), LEGS)
+    for side, leg in (("out", kind.out), ("back", kind.back)):
+        normals = leg.normals
+        legs[f"n_{side}"] = len(leg.planes)
+        for b, plane in enumerate(leg.planes):
+            legs[f"{side}_normal"][3 * b:3 * b + 3] = normals[b]
+            legs[f"{side}_rms"][b] = plane.rms_height
+            legs[f"{side}_law"][b] = plane.law
+    return legs
 
 
 class _OpenCLSynth(_Synth):
@@ -158,46 +281,82 @@ class _OpenCLSynth(_Synth):
         self.cache, self.cached_bytes, self.cache_bytes = {}, 0, cache_bytes
         self.real = np.float64 if double else np.float32
         self.cplx = np.complex128 if double else np.complex64
+        ph = self.physics
+        self.path_dtype = path_record(self.real, ph.extended)
         sc, scat = self.scenario, self.scat
         c = sc.medium.sound_speed
         self.rx_tau, self.rx_pos, self.rx_axis, self.rx_node_error = nodes
         n = scat.count
         self.n_pad = -(-n // 8) * 8  # the paths kernel takes eight scatterers a work-item
+        self.stride = self.n_pad * len(ph.kinds)  # paths a record: every kind's padded scatterers
         self.order = self._delay_order()
         padded = np.concatenate([self.order, np.repeat(self.order[:, -1:], self.n_pad - n, axis=1)], axis=1)
-        fields = np.concatenate([scat.p0, scat.vel, scat.refl.real[:, None], scat.refl.imag[:, None]], axis=1)
-        soa = np.ascontiguousarray(np.transpose(fields[padded], (0, 2, 1)))  # (H, 8 fields, n_pad)
-        soa[:, 6:, n:] = 0.0  # padding scatterers reflect nothing
+        fields = np.zeros(n, SCATTERER)
+        fields["p0"], fields["vel"] = scat.p0, scat.vel
+        fields["refl"] = np.column_stack([scat.refl.real, scat.refl.imag])
+        flat = np.concatenate([fields[name].reshape(n, -1) for name in SCATTERER.names], axis=1)
+        soa = np.ascontiguousarray(np.transpose(flat[padded], (0, 2, 1)))  # (H, fields, n_pad)
+        refl = SCATTERER.fields["refl"][1] // 8  # the first reflectivity field (doubles)
+        soa[:, refl:refl + 2, n:] = 0.0  # padding scatterers reflect nothing
         mf = cl.mem_flags
         ctx = self.rt.context
         self.soa_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=soa)
         self.order_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=padded.astype(np.int32))
         self.tx = sc.tx_position(self.eta)
+        self.tx_vel = (sc.tx_position(self.eta + 1e-3) - sc.tx_position(self.eta - 1e-3)) / 2e-3
         self.tx_axis = sc.platform.rotation(self.eta)[..., :, 1]
+        self.bottom_buf = self._bottom_table()
         defines = {
             "N_NODES": self.rx_tau.size,
             "SEGMENT_PASSES": 1 if self.rx_tau.size == 2 else 3,
             "CHUNK": CHUNK_SCATTERERS,
             "ROWS": ROWS,
+            "BOTTOM_TABLE": BOTTOM_TABLE,
         }
-        for flag, on in (("STOP_AND_GO", self.stop_and_go), ("SPREADING", self.spreading),
-                         ("PATH_WEIGHTS", self.occlusion is not None)):
+        for flag, on in (("STOP_AND_GO", ph.stop_and_go), ("SPREADING", ph.spreading),
+                         ("PATH_WEIGHTS", self.occlusion is not None), ("EXTENDED", ph.extended),
+                         ("ABSORPTION", ph.absorption is not None), ("BOUNCES", len(ph.kinds) > 1)):
             if on:
                 defines[flag] = 1
-        prg = opencl.program("echo", defines=defines, double=double, preamble=RECORDS)
+        if ph.doppler:
+            defines["INTRA_PULSE"] = 2 if ph.intra_pulse == "all" else 1
+        if ph.response is not None:
+            defines.update(COMPRESSED=ph.response.taps, N_TABLES=3 if ph.extended else 1, PHASES=PHASES, PAD=PAD)
+            table, impulse = ph.response.planar(self.real)
+            table = np.ascontiguousarray(table[:defines["N_TABLES"]])
+            self.table_row, self.impulse_len = table.shape[-1], impulse.shape[-1]
+            self.table_buf, self.impulse_buf = (
+                cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=a)
+                for a in (table, impulse))
+        preamble = records_preamble(self.real, ph.extended)
+        prg = opencl.program("echo", defines=defines, double=double, preamble=preamble)
         self.k_paths = cl.Kernel(prg, "echo_paths")
         # delays and extents need no weights: their paths come from a build without them
         plain = {key: value for key, value in defines.items() if key != "PATH_WEIGHTS"}
         self.k_paths_plain = self.k_paths if plain == defines else \
-            cl.Kernel(opencl.program("echo", defines=plain, double=double, preamble=RECORDS), "echo_paths")
+            cl.Kernel(opencl.program("echo", defines=plain, double=double, preamble=preamble), "echo_paths")
         self.k_bounds = cl.Kernel(prg, "echo_bounds")
         self.k_extents = cl.Kernel(prg, "echo_extents")
-        self.k_acc = cl.Kernel(prg, "echo_accumulate")
+        self.k_acc = cl.Kernel(prg, "echo_accumulate_compressed" if ph.response is not None else "echo_accumulate")
         wf = sc.waveform
         self.params = np.zeros((), PARAMS)
         self.params["c"], self.params["f0"], self.params["fs"] = c, wf.f0, wf.fs
         self.params["wavelength"], self.params["tx_length"] = wf.wavelength(sc.medium), sc.array.tx_length
         self.params["dtau"] = self.rx_tau[1] - self.rx_tau[0]
+        self.params["chirp_rate"], self.params["duration"] = wf.chirp_rate, wf.duration
+        if ph.absorption is not None:
+            self.params["abs_a0"], self.params["abs_a1"] = ph.absorption.a0, ph.absorption.a1
+            self.params["abs_a2"] = ph.absorption.a2
+        self.legs = [_legs_record(kind) for kind in ph.kinds]
+
+    def _bottom_table(self):
+        planes = [p for kind in self.physics.kinds for p in kind.out.planes + kind.back.planes if p.law == BOTTOM]
+        table = np.zeros((BOTTOM_TABLE, 2))
+        if planes:
+            v = bottom_coefficient(planes[0], np.linspace(0.0, 1.0, BOTTOM_TABLE))
+            table[:, 0], table[:, 1] = v.real, v.imag
+        return self.cl.Buffer(self.rt.context, self.cl.mem_flags.READ_ONLY | self.cl.mem_flags.COPY_HOST_PTR,
+                              hostbuf=table)
 
     def _delay_order(self) -> np.ndarray:
         """Per receiver, the scatterers sorted by their stop-and-go delay at the middle pulse (H, N).
@@ -205,68 +364,83 @@ class _OpenCLSynth(_Synth):
         Sorting keeps each chunk of CHUNK_SCATTERERS compact in delay, so the accumulation skips
         whole chunks that cannot reach a block of samples; any order gives the same result.
         """
-        mid = self.eta[self.eta.size // 2: self.eta.size // 2 + 1]
-        tau, _ = direct_paths(self.scenario, mid, self.scat, range(self.n_rx), stop_and_go=True)
-        return np.argsort(tau[:, 0, :], axis=1, kind="stable")
+        mid = self.eta[self.eta.size // 2]
+        q = self.scat.p0 + self.scat.vel * mid
+        out = np.linalg.norm(q - self.scenario.tx_position(mid), axis=1)
+        return np.stack([np.argsort(out + np.linalg.norm(q - self.scenario.receiver_position(h, mid), axis=1),
+                                    kind="stable") for h in range(self.n_rx)])
 
     def _run_paths(self, pulses: slice, t0: np.ndarray, weighted: bool = True):
-        """The paths kernel on a pulse block: delays and amplitudes (times the occlusion weights
-        unless not ``weighted``: the delays and extents do not need them)."""
+        """The paths kernel on a pulse block, every path kind: delays and amplitudes (times the
+        occlusion weights unless not ``weighted``: the delays and extents do not need them)."""
         cl, q, ctx = self.cl, self.rt.queue, self.rt.context
         mf = cl.mem_flags
         idx = np.arange(self.eta.size)[pulses]
         pc, h, n = idx.size, self.n_rx, self.n_pad
-        pulse = np.zeros(pc, PULSE)
-        pulse["tx"], pulse["eta"], pulse["tx_axis"] = self.tx[idx], self.eta[idx], self.tx_axis[idx]
-        nodes = np.zeros((h, pc, self.rx_tau.size), geometry.NODE)
-        nodes["pos"], nodes["axis"] = self.rx_pos[:, idx], self.rx_axis[:, idx]
         rx = np.zeros(h, RECEIVER)
         rx["t0_fs"], rx["length"] = t0 * self.scenario.waveform.fs, self.scenario.receiver_lengths
         w = self.weights(pulses) if weighted else None
+        w_rx = 0 if w is None or w.shape[0] == 1 else pc
         w = np.ones(1, np.float32) if w is None else np.ascontiguousarray(w, dtype=np.float32)
-        bufs = [cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
-                for a in (pulse, nodes, rx, w)]
-        paths = cl.Buffer(ctx, mf.READ_WRITE, 4 * np.dtype(self.real).itemsize * h * pc * n)
+        w_buf, rx_buf = (cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
+                         for a in (w, rx))
+        paths_buf = cl.Buffer(ctx, mf.READ_WRITE, self.path_dtype.itemsize * h * pc * self.stride)
         kernel = self.k_paths if weighted else self.k_paths_plain
-        kernel(q, (n // 8, pc, h), None, self.soa_buf, bufs[0], bufs[1], bufs[2], self.order_buf, bufs[3],
-               self.params[()], np.int32(self.scat.count), np.int32(n), np.int32(pc), paths)
-        return paths, pc
+        for k, kind in enumerate(self.physics.kinds):
+            out_image, back_image = kind.out.image, kind.back.image
+            pulse = np.zeros(pc, PULSE)
+            pulse["tx"], pulse["eta"] = out_image.points(self.tx[idx]), self.eta[idx]
+            pulse["tx_axis"], pulse["tx_vel"] = out_image.vectors(self.tx_axis[idx]), out_image.vectors(self.tx_vel[idx])
+            nodes = np.zeros((h, pc, self.rx_tau.size), geometry.NODE)
+            nodes["pos"], nodes["axis"] = back_image.points(self.rx_pos[:, idx]), back_image.vectors(self.rx_axis[:, idx])
+            pulse_buf, node_buf = (cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
+                                   for a in (pulse, nodes))
+            kernel(q, (n // 8, pc, h), None, self.soa_buf, pulse_buf, node_buf, rx_buf, self.order_buf, w_buf,
+                   self.bottom_buf, self.params[()], self.legs[k][()], np.int32(self.scat.count), np.int32(n),
+                   np.int32(pc), np.int32(w_rx), np.int32(self.stride), np.int32(k * n), paths_buf)
+        return paths_buf, pc
 
     def release(self) -> None:
         """Drop the cached path buffers (after pass B)."""
         self.cache.clear()
         self.cached_bytes = 0
 
-    def delays(self, pulses: slice) -> np.ndarray:
-        """Two-way delays (H, P, N) of the block from the kernel, in scatterer order."""
+    def _host_paths(self, paths_buf, pc: int) -> np.ndarray:
+        host = np.empty((self.n_rx, pc, self.stride), self.path_dtype)
+        self.cl.enqueue_copy(self.rt.queue, host, paths_buf)
+        return host
+
+    def delays(self, pulses: slice, kind: int = 0) -> np.ndarray:
+        """Delays (H, P, N) of the block's paths of ``physics.kinds[kind]`` (0: direct) from the
+        kernel, in scatterer order."""
         h, n = self.n_rx, self.scat.count
-        paths, pc = self._run_paths(pulses, np.zeros(h), weighted=False)
-        host = np.empty((h, pc, self.n_pad, 4), self.real)
-        self.cl.enqueue_copy(self.rt.queue, host, paths)
-        host = host[:, :, :n]
-        start = host[..., 0].view(np.int32) if self.real == np.float32 else host[..., 0]
-        frac = host[..., 1]
+        paths_buf, pc = self._run_paths(pulses, np.zeros(h), weighted=False)
+        host = self._host_paths(paths_buf, pc)[:, :, kind * self.n_pad:kind * self.n_pad + n]
         tau = np.empty((h, pc, n))
         tau[np.arange(h)[:, None, None], np.arange(pc)[None, :, None], self.order[:, None, :]] = \
-            (start + frac.astype(np.float64)) / self.scenario.waveform.fs
+            (host["start"] + host["frac"].astype(np.float64)) / self.scenario.waveform.fs
         return tau
 
+    def _path_bytes(self, pc: int) -> int:
+        return self.path_dtype.itemsize * self.n_rx * pc * self.stride
+
     def extents(self, pulses: slice):
-        """(floor(min u), floor(max u) + 1) per (receiver, scatterer), reduced on the device. With
-        an occlusion factor the paths are computed unweighted and not kept for pass B: the
-        weights (hull ray casting for meshes) are then computed once, by pass B, whose pulse
-        blocks need not match these."""
+        """(floor(min u), floor(max u) + 1) per (receiver, scatterer) over every path kind, reduced
+        on the device. With an occlusion factor the paths are computed unweighted and not kept
+        for pass B: the weights (hull ray casting for meshes) are then computed once, by pass B,
+        whose pulse blocks need not match these."""
         cl, q = self.cl, self.rt.queue
         h, n = self.n_rx, self.scat.count
-        paths, pc = self._run_paths(pulses, np.zeros(h), weighted=False)
+        paths_buf, pc = self._run_paths(pulses, np.zeros(h), weighted=False)
         reusable = self.occlusion is None  # unweighted paths are pass B's paths only without weights
-        if reusable and self.cached_bytes + 4 * np.dtype(self.real).itemsize * h * pc * self.n_pad <= self.cache_bytes:
-            self.cache[(pulses.start, pulses.stop)] = (paths, pc)
-            self.cached_bytes += 4 * np.dtype(self.real).itemsize * h * pc * self.n_pad
-        ext = cl.Buffer(self.rt.context, cl.mem_flags.WRITE_ONLY, 8 * h * self.n_pad)
-        self.k_extents(q, (self.n_pad, h), None, paths, np.int32(self.n_pad), np.int32(pc), ext)
-        host = np.empty((h, self.n_pad, 2), np.int32)
+        if reusable and self.cached_bytes + self._path_bytes(pc) <= self.cache_bytes:
+            self.cache[(pulses.start, pulses.stop)] = (paths_buf, pc)
+            self.cached_bytes += self._path_bytes(pc)
+        ext = cl.Buffer(self.rt.context, cl.mem_flags.WRITE_ONLY, 8 * h * self.stride)
+        self.k_extents(q, (self.stride, h), None, paths_buf, np.int32(self.stride), np.int32(pc), ext)
+        host = np.empty((h, len(self.physics.kinds), self.n_pad, 2), np.int32)
         cl.enqueue_copy(q, host, ext)
+        host = np.stack([host[..., 0].min(axis=1), host[..., 1].max(axis=1)], axis=-1)
         lo, hi = np.empty((h, n)), np.empty((h, n))
         rows = np.arange(h)[:, None]
         lo[rows, self.order] = host[:, :n, 0]
@@ -276,26 +450,35 @@ class _OpenCLSynth(_Synth):
     def records(self, pulses: slice, t0: np.ndarray, n_samples: int) -> np.ndarray:
         """The block's records; reuses the paths of extents() when the window starts on a whole sample."""
         cl, q = self.cl, self.rt.queue
-        h, n = self.n_rx, self.n_pad
+        h, n = self.n_rx, self.stride
         first = t0 * self.scenario.waveform.fs
         whole = np.all(np.abs(first - np.round(first)) < 1e-6) and np.all(np.abs(first) < 2**31)
         cached = self.cache.pop((pulses.start, pulses.stop), None) if whole else None
         if cached is not None:
-            paths, pc = cached
+            paths_buf, pc = cached
             shift = np.round(first).astype(np.int32)
         else:
-            paths, pc = self._run_paths(pulses, t0)
+            paths_buf, pc = self._run_paths(pulses, t0)
             shift = np.zeros(h, np.int32)
         n_chunks = -(-n // CHUNK_SCATTERERS)
         mf = cl.mem_flags
         bounds = cl.Buffer(self.rt.context, mf.READ_WRITE, 8 * h * pc * n_chunks)
-        self.k_bounds(q, (n_chunks, pc, h), None, paths, np.int32(n), np.int32(pc), bounds)
+        self.k_bounds(q, (n_chunks, pc, h), None, paths_buf, self.real(self.half_len), np.int32(n), np.int32(pc),
+                      bounds)
         rows = 16 * ROWS
         n_pad = -(-n_samples // rows) * rows
         out = cl.Buffer(self.rt.context, mf.WRITE_ONLY, np.dtype(self.cplx).itemsize * h * pc * n_pad)
         shift_buf = cl.Buffer(self.rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=shift)
-        self.k_acc(q, (n_pad // rows, pc, h), None, paths, bounds, self.real(self.alpha), self.real(self.half_len),
-                   np.int32(n), np.int32(pc), np.int32(n_pad), np.int32(n_samples), shift_buf, out)
+        if self.physics.response is not None:
+            resp = self.physics.response
+            self.k_acc(q, (n_pad // rows, pc, h), None, paths_buf, bounds, self.table_buf, self.real(self.alpha),
+                       np.int32(self.table_row), self.impulse_buf, np.int32(self.impulse_len), np.int32(resp.lag0),
+                       np.int32(resp.edges[0]), np.int32(resp.edges[1]), self.real(resp.half_len), np.int32(n),
+                       np.int32(pc), np.int32(n_pad), np.int32(n_samples), shift_buf, out)
+        else:
+            self.k_acc(q, (n_pad // rows, pc, h), None, paths_buf, bounds, self.real(self.alpha),
+                       self.real(self.half_len), np.int32(n), np.int32(pc), np.int32(n_pad), np.int32(n_samples),
+                       shift_buf, out)
         host = np.empty((h, pc, n_pad), self.cplx)
         cl.enqueue_copy(q, host, out)
         return host[:, :, :n_samples]
