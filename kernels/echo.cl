@@ -91,7 +91,7 @@ inline void meet_derivatives(vec8 r, double8 t, vec8 a, vec8 w, double c, double
 
 /* soa[((h * SCAT_FIELDS + field) * n_pad + j]: the scatterers in receiver h's delay order j
  * (padded to a multiple of 8 with zero-reflectivity copies; fields SCAT_P0 (3), SCAT_VEL (3),
- * SCAT_REFL (re, im)); order[h n_pad + j]: their original index (for the path weights);
+ * SCAT_REFL (re, im), SCAT_ON_FLOOR (1: on the seabed)); order[h n_pad + j]: their original index (for the path weights);
  * pulse[p]: the (image) transmitter at emission, its velocity, the emission time and its element
  * axis; nodes[(h P + p) N_NODES + k]: receiver h's (image) position and element axis at fast
  * time k dtau; rx[h]: t0_h fs (window start in samples) and the element length; legs: the path
@@ -150,6 +150,8 @@ __kernel void echo_paths(__global const double *soa, __global const echo_pulse_t
         gain *= vload8(0, wl);
     }
 #endif
+    if (legs.touches_floor)  /* a bounce off the seabed next to a scatterer on it: its direct path */
+        gain = select(gain, (double8)0.0, vload8(0, f + SCAT_ON_FLOOR * n_pad) != 0.0);
     double8 fac_re = gain, fac_im = (double8)0.0, lnf1 = (double8)0.0, lnf2 = (double8)0.0;
 #ifdef BOUNCES
     for (int b = 0; b < legs.n_out; ++b) {

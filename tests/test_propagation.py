@@ -173,9 +173,10 @@ def test_compressed_peak_moves_by_the_range_doppler_coupling(backend):
 
 
 def shallow_scene(order_target=(45.0, 3.0, -32.0), speed=2.0):
-    """A ``speed`` m/s platform 20 m below a flat surface over a sand bottom 50 m down, a
-    2-element array (transmitter at the first), one stationary point in the water column."""
-    floor = Seafloor((-10.0, 200.0, -100.0, 100.0), -50.0, sediment="sand")
+    """A ``speed`` m/s platform 20 m below a flat surface over a sand bottom 50 m down (its mean
+    plane reflects; its speckle is a 30 cm patch 150 m off), a 2-element array (transmitter at
+    the first), one stationary point in the water column."""
+    floor = Seafloor((150.0, 150.3, -0.15, 0.15), -50.0, sediment="sand")  # its facets echo long after the point
     sc = Scenario(Medium(1500.0), Waveform(f0=100e3, bandwidth=20e3, duration=2e-3, fs=25e3),
                   Platform(speed=speed, start=(0.0, 0.0, -20.0)), Array(rx_offsets=[[0.0, 0.0, 0.0], [0.0, 0.5, 0.0]]),
                   PulseSchedule(prf=5.0, n_pulses=4), seafloor=floor, surface=SeaSurface(0.0))
@@ -258,3 +259,39 @@ def test_multipath_kernel_matches_reference(opencl_device):
     assert len(ref.physics.kinds) == 13
     np.testing.assert_array_equal(ref.t0, got.t0)
     assert rel_l2(got.data, ref.data) < 3e-5  # measured 2.3e-6
+
+
+def test_seafloor_facets_take_no_bounce_off_the_seabed_they_lie_on(backend):
+    """A facet lies on the seabed: a "bottom bounce" next to it is its direct path again (same
+    delay), so those kinds are dark for facets. Before the earliest surface-bounce echo, the
+    first-order echo of a seafloor patch is its direct echo alone (a doubled direct echo would
+    show here), and the facets are part of the scene (scene_scatterers)."""
+    sc = shallow_scene().replace(targets=())
+    plain = simulate(sc, backend=backend, progress=False, multipath=0, absorption=False, spreading=False)
+    first = simulate(sc, backend=backend, progress=False, multipath=1, absorption=False, spreading=False)
+    assert first.provenance["paths"] == ["D-D", "D-S", "D-B", "S-D", "B-D"]
+    assert plain.provenance["n_scatterers"] == first.provenance["n_scatterers"] > 100
+    patch = np.array([150.15, 0.0, -50.0])
+    tx = sc.tx_position(sc.eta)
+    surface_delay = np.min(np.linalg.norm(patch - tx * [1, 1, -1], axis=-1)
+                           + np.linalg.norm(patch - tx, axis=-1)) / 1500.0  # S-D, the earliest bounce
+    np.testing.assert_array_equal(first.t0, plain.t0)  # the surface paths only lengthen the window
+    for h in range(sc.n_receivers):
+        t = plain.fast_time(h)
+        early = t < surface_delay - 0.6 * sc.waveform.duration
+        assert np.count_nonzero(np.abs(plain.data[h][:, early]) > 0) > 100
+        got = first.data[h][:, :plain.n_samples]
+        np.testing.assert_allclose(got[:, early], plain.data[h][:, early], rtol=0, atol=1e-6)
+
+
+def test_points_laid_on_the_seabed_take_no_bounce_next_to_it():
+    """A point on the seabed's mean plane (as the DPCA scene lays its points) is "on the floor"
+    like the facets; one 5 m above it is not."""
+    from clsas.synthesis.echo.synth import on_floor
+    from clsas.synthesis.propagation import boundaries, path_kinds
+
+    sc = shallow_scene().replace(targets=(PointTargets([[40.0, 0.0, -50.0], [40.0, 0.0, -45.0]]),))
+    kinds = path_kinds(boundaries(sc), 1)
+    assert on_floor(sc.targets[0].scatterers(), None, kinds).tolist() == [True, False]
+    assert [k.name for k in kinds if any(leg.planes and leg.planes[-1].law == 2 for leg in (k.out, k.back))] == \
+        ["D-B", "B-D"]

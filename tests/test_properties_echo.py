@@ -28,13 +28,13 @@ from test_properties import PROPERTY, scenes
 @st.composite
 def environments(draw):
     """A random scene (tests/test_properties.py) under a surface 1-10 m above the platform,
-    over a sandy or muddy bottom 30-60 m below it, in random water."""
+    over a sandy or muddy bottom 30-60 m below it (a 20 cm patch of its speckle), in random water."""
     scene = draw(scenes())
     medium = Medium(scene.medium.sound_speed, temperature=draw(st.floats(-2.0, 30.0)),
                     salinity=draw(st.floats(30.0, 40.0)), depth=draw(st.floats(0.0, 500.0)),
                     ph=draw(st.floats(7.5, 8.4)))
     surface = SeaSurface(draw(st.floats(1.0, 10.0)), rms_height=draw(st.floats(0.0, 0.05)))
-    floor = Seafloor((-100.0, 100.0, -100.0, 100.0), -draw(st.floats(30.0, 60.0)),
+    floor = Seafloor((40.0, 40.2, -0.1, 0.1), -draw(st.floats(30.0, 60.0)),
                      sediment=draw(st.sampled_from(["sand", "mud", "gravel"])))
     return scene.replace(medium=medium, surface=surface, seafloor=floor)
 

@@ -38,6 +38,8 @@ from ..kernelmath import unit_phasor
 from ..model import Image
 from .strip import follows_template, strip_image, strip_job
 
+BYTES_PER_SAMPLE = 64  # per padded range sample: the 2-D arrays (complex64) and the phase screens (float64)
+
 
 @follows_template
 def chirp_scaling(data, **options) -> Image:
@@ -53,6 +55,7 @@ def chirp_scaling(data, **options) -> Image:
     chirp_rate = rec.waveform.bandwidth / rec.waveform.duration
     k0 = 2 * np.pi * f0 / c
     n_r = scipy.fft.next_fast_len(rec.n_samples + int(np.ceil(rec.waveform.duration * fs)))
+    job.check_budget(n_r, BYTES_PER_SAMPLE)
     f = np.fft.fftfreq(n_r, 1 / fs)
     tau = rec.t0 + np.arange(n_r) / fs
     r0 = c * tau / 2

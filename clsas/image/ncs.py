@@ -83,6 +83,7 @@ from .strip import follows_template, range_blocks, strip_image, strip_job
 CELL_FRACTION = 1 / 16  # the residual migration b Delta^2 allowed at a block's edge, range cells
 CUBIC_TOLERANCE = np.pi / 16  # rad: the range-variant cubic phase allowed at a block's edge at f = B / 2
 GUARD = 16  # samples added to each side of a block beyond the chirp's length and the bulk shift
+BYTES_PER_SAMPLE = 64  # per padded range sample: the spread record, a block's segment and its phase screens
 FM_MARGIN = 0.5  # 1 / K - alpha tau must stay above this fraction of 1 / K (K_m finite, no sign change)
 
 
@@ -134,6 +135,8 @@ def nonlinear_chirp_scaling(data, **options) -> Image:
     lengths = [scipy.fft.next_fast_len(hi - lo + 2 * margin) for lo, hi, _ in blocks]
     n_p = scipy.fft.next_fast_len(max(pad + n + pad, *(pad + lo - margin + length
                                                        for (lo, _, _), length in zip(blocks, lengths))))
+
+    job.check_budget(n_p + max(lengths), BYTES_PER_SAMPLE)
 
     # step 2 on the whole record, its cubic filter at the middle range r_mid
     r_mid = r[n // 2]

@@ -85,6 +85,13 @@ class StripJob:
         """The largest |k_u| the along-track sampling holds (rad/m): the edge of the sampled band."""
         return float(np.abs(along_track_wavenumbers(self.record, self.n_ku)).max())
 
+    def check_budget(self, columns: int, bytes_per_sample: float) -> None:
+        """The memory budget for an algorithm's arrays of the kept rows by ``columns`` range
+        samples (a padded range axis), ``bytes_per_sample`` bytes a sample in all."""
+        budget.check_bytes(f"{self.algorithm} of {self.rows.size} Doppler rows x {columns} range samples",
+                           bytes_per_sample * float(self.rows.size) * columns,
+                           "image a shorter stretch of the track or of the swath at a time")
+
     def doppler(self, data: np.ndarray) -> np.ndarray:
         """The kept rows of the along-track FFT of ``data`` (n_u, n): complex (n_rows, n)."""
         return scipy.fft.fft(data, n=self.n_ku, axis=0, workers=self.workers)[self.rows]

@@ -24,7 +24,7 @@ from ...progress import Progress, stage
 from ...model import EchoData
 from ...scene.scenario import Scenario
 from ...scene.targets import Scatterers, scatterers_of
-from ..occlusion import DEFAULT_REUSE_TOLERANCE, PathWeights, has_meshes
+from ..occlusion import DEFAULT_REUSE_TOLERANCE, PathWeights, has_meshes, needs_path_weights, scene_scatterers
 from ...validate import scalar
 from ..checks import SNR_DB_RANGE, check_arguments, warn_pulse_overlap
 from ..window import check_cube_size, node_span, receiver_nodes
@@ -131,9 +131,9 @@ def add_noise(data, snr_db: float, seed, n_valid=None, block: int = 64, power=No
 
 def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_occlusion: bool,
                        reuse_tolerance: float):
-    """The user's occlusion factor times the mesh targets' path weights (hull visibility and
-    angular law, :class:`clsas.synthesis.occlusion.PathWeights`) when the scene has meshes."""
-    if not has_meshes(scenario):
+    """The user's occlusion factor times the path weights of mesh targets (hull visibility and
+    angular law) and of the seafloor's facets (:class:`clsas.synthesis.occlusion.PathWeights`)."""
+    if not needs_path_weights(scenario):
         return occlusion
     mesh = PathWeights(scenario, stop_and_go=stop_and_go, hull_occlusion=hull_occlusion,
                        reuse_tolerance=reuse_tolerance)
@@ -147,7 +147,7 @@ def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_oc
 def resolve_physics(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers) -> Physics:
     """What the paths carry for ``scenario`` under ``opts`` (the "auto" options resolved: spreading
     and absorption on, and first-order multipath, in a scene with a seafloor; multipath also with
-    a sea surface)."""
+    a sea surface). ``scat``: every scatterer, the seafloor's facets last."""
     floor = getattr(scenario, "seafloor", None) is not None
     planes = boundaries(scenario)
     order = (1 if planes else 0) if opts.multipath == AUTO else opts.multipath
@@ -156,16 +156,18 @@ def resolve_physics(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers
     absorption = BandAbsorption.of(scenario.medium, scenario.waveform) if absorbing else None
     response = None if opts.compressed is False else \
         CompressedResponse.of(scenario.waveform, opts.compressed, opts.compressed_level_db)
+    floor_first = scatterers_of(scenario.targets).count if floor else None
     return Physics(kinds=path_kinds(planes, order), intra_pulse=opts.intra_pulse, absorption=absorption,
                    spreading=spreading, stop_and_go=opts.stop_and_go, moving=bool(np.any(scat.vel != 0)),
-                   response=response)
+                   response=response, floor_first=floor_first)
 
 
 def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion):
     """The backend's synthesizer and the pulse blocks that keep its working memory under ``opts.chunk_bytes``."""
-    scat = scatterers_of(scenario.targets)
+    scat = scene_scatterers(scenario)
     if scat.count == 0:
-        raise ValueError("Scenario.targets is empty: add PointTargets or a mesh target to simulate echoes")
+        raise ValueError("Scenario.targets is empty and there is no seafloor: add PointTargets, a mesh target or a "
+                         "Seafloor to simulate echoes")
     n_rx, n_pulses = scenario.n_receivers, scenario.eta.size
     if occlusion is not None and not callable(occlusion):
         occlusion = np.asarray(occlusion, dtype=np.float64)
@@ -406,7 +408,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
                                        "discarded_db": out.physics.response.discarded_db}} if out.physics.response else {}),
                     "seed": seed if seed is None or isinstance(seed, int) else str(seed),
                     "n_scatterers": out.n_scatterers, "occlusion": occlusion is not None,
-                    "hull_occlusion": bool(opts.hull_occlusion and has_meshes(scenario)),
+                    "hull_occlusion": bool(opts.hull_occlusion and needs_path_weights(scenario)),
                     **({"reuse_tolerance": opts.reuse_tolerance} if opts.hull_occlusion and has_meshes(scenario) else {}),
                     "window": out.origin, "n_valid": out.n_valid.tolist(),
                     "rx_node_error_m": out.node_error_m},

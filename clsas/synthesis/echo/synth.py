@@ -55,9 +55,11 @@ PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("wavelength", "
 LEGS = record_dtype([("out_normal", "f8", 3 * MAX_BOUNCES), ("back_normal", "f8", 3 * MAX_BOUNCES),
                      ("out_rms", "f8", MAX_BOUNCES), ("back_rms", "f8", MAX_BOUNCES),
                      ("out_law", "i4", MAX_BOUNCES), ("back_law", "i4", MAX_BOUNCES), ("n_out", "i4"),
-                     ("n_back", "i4")])  # unfolded normals, rms heights m, laws (propagation.SURFACE/BOTTOM)
+                     ("n_back", "i4"), ("touches_floor", "i4")])
+# unfolded normals, rms heights m, laws (propagation.SURFACE/BOTTOM), 1: dark for scatterers on the seabed
 # a scatterer's fields, stored field by field (structure of arrays) for the paths kernel
-SCATTERER = record_dtype([("p0", "f8", 3), ("vel", "f8", 3), ("refl", "f8", 2)])  # m, m/s, re/im
+SCATTERER = record_dtype([("p0", "f8", 3), ("vel", "f8", 3), ("refl", "f8", 2), ("on_floor", "f8")])
+# m, m/s, re/im, 1 on the seabed (synth.on_floor)
 
 
 def path_record(real, extended: bool) -> np.dtype:
@@ -96,8 +98,9 @@ class Physics:
     """What the paths carry, resolved for one scenario: the path ``kinds`` (direct first),
     ``intra_pulse`` ("none", "moving", "all"), ``absorption`` (None: none), ``spreading``,
     ``stop_and_go``; ``response``: synthesis into the range-compressed domain with these
-    tabulated responses (None: raw echoes); ``extended``: the paths need their own chirp and
-    envelope."""
+    tabulated responses (None: raw echoes); ``floor_first``: the index of the first seafloor
+    facet among the scatterers (None: none; :func:`on_floor`); ``extended``: the paths need
+    their own chirp and envelope."""
 
     kinds: tuple = (DIRECT,)
     intra_pulse: str = "none"
@@ -106,6 +109,7 @@ class Physics:
     stop_and_go: bool = False
     moving: bool = False
     response: CompressedResponse | None = None
+    floor_first: int | None = None
 
     @property
     def doppler(self) -> bool:
@@ -115,6 +119,25 @@ class Physics:
     @property
     def extended(self) -> bool:
         return self.doppler or self.absorption is not None or len(self.kinds) > 1
+
+    @staticmethod
+    def touches_floor(kind) -> bool:
+        """A leg of ``kind`` meets the seabed last before (or first after) the scatterer."""
+        return any(bool(leg.planes) and leg.planes[-1].law == BOTTOM for leg in (kind.out, kind.back))
+
+
+def on_floor(scat: Scatterers, floor_first: int | None, kinds) -> np.ndarray:
+    """bool (N,): the scatterers that lie on the seabed (its facets, from ``floor_first``, and any
+    scatterer within 1 mm of its mean plane or below it at t = 0): a path that "bounces" off the
+    seabed right next to them is their direct path again, so those kinds are dark for them."""
+    out = np.zeros(scat.count, dtype=bool)
+    if floor_first is not None:
+        out[floor_first:] = True
+    for kind in kinds:
+        for plane in kind.out.planes + kind.back.planes:
+            if plane.law == BOTTOM:
+                out |= (scat.p0 - plane.origin) @ plane.normal <= 1e-3
+    return out
 
 
 def in_pulse_laws(p: Paths, waveform) -> dict:
@@ -216,8 +239,11 @@ class _NumpySynth(_Synth):
 
     def _paths(self, pulses: slice, kind) -> Paths:
         ph = self.physics
-        return paths(self.scenario, self.eta[pulses], self.scat, range(self.n_rx), kind, ph.stop_and_go,
-                     ph.spreading, ph.intra_pulse if ph.doppler else "none", ph.absorption)
+        p = paths(self.scenario, self.eta[pulses], self.scat, range(self.n_rx), kind, ph.stop_and_go,
+                  ph.spreading, ph.intra_pulse if ph.doppler else "none", ph.absorption)
+        if ph.touches_floor(kind):
+            p.amp[:, :, on_floor(self.scat, ph.floor_first, ph.kinds)] = 0.0
+        return p
 
     def delays(self, pulses: slice, kind: int = 0) -> np.ndarray:
         """Delays (H, P, N), s, of the paths of ``physics.kinds[kind]`` (0: direct)."""
@@ -256,6 +282,7 @@ class _NumpySynth(_Synth):
 
 def _legs_record(kind) -> np.ndarray:
     legs = np.zeros((), LEGS)
+    legs["touches_floor"] = Physics.touches_floor(kind)
     for side, leg in (("out", kind.out), ("back", kind.back)):
         normals = leg.normals
         legs[f"n_{side}"] = len(leg.planes)
@@ -294,6 +321,7 @@ class _OpenCLSynth(_Synth):
         fields = np.zeros(n, SCATTERER)
         fields["p0"], fields["vel"] = scat.p0, scat.vel
         fields["refl"] = np.column_stack([scat.refl.real, scat.refl.imag])
+        fields["on_floor"] = on_floor(scat, ph.floor_first, ph.kinds)
         flat = np.concatenate([fields[name].reshape(n, -1) for name in SCATTERER.names], axis=1)
         soa = np.ascontiguousarray(np.transpose(flat[padded], (0, 2, 1)))  # (H, fields, n_pad)
         refl = SCATTERER.fields["refl"][1] // 8  # the first reflectivity field (doubles)
