@@ -214,7 +214,10 @@ def peak_index(data, near=None, radius=None) -> tuple:
 
 def _numbers(name: str, data) -> np.ndarray:
     """An Image's data or an array of numbers (not copied)."""
-    values = np.asarray(getattr(data, "data", data))
+    try:
+        values = np.asarray(getattr(data, "data", data))
+    except (ValueError, TypeError) as err:  # ragged nested lists
+        raise TypeError(f"{name}: must be an Image or an array of numbers, got {type(data).__name__} ({err})") from None
     if values.dtype.kind not in "iufc":
         raise TypeError(f"{name}: must be an Image or an array of numbers, got {type(data).__name__} "
                         f"of dtype {values.dtype}")
@@ -255,6 +258,9 @@ def analyse_point(image, near=None, radius: float | None = None, upsample: int =
     dims = image.dims
     axes = [image.axes[d] for d in dims]
     if near is None:
+        if radius is not None:
+            raise ValueError(f"analyse_point radius: applies with near (the box around a point), got radius={radius!r} "
+                             "without near")
         idx = peak_index(image.data)
     else:
         if radius is None:
@@ -291,10 +297,7 @@ def relative_power(name: str, data) -> np.ndarray:
     """|x|^2 / max |x|^2 of an image or array of any finite values (float64, the shape of the
     data): the entropy and the contrast do not depend on the scale, and |x|^2 of values near
     float64's largest would overflow. ValueError for an empty, non-finite or all-zero image."""
-    values = np.asarray(getattr(data, "data", data))
-    if values.dtype.kind not in "iufc":
-        raise TypeError(f"{name}: must be an Image or an array of numbers, got {type(data).__name__} "
-                        f"of dtype {values.dtype}")
+    values = _numbers(name, data)
     if values.size == 0:
         raise ValueError(f"{name}: is empty")
     budget.check_bytes(f"{name} of {values.size} pixels", 24.0 * values.size, "a smaller image")

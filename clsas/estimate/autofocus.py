@@ -189,10 +189,14 @@ def _phase_gradient_step(g: np.ndarray, bins: np.ndarray, width: int, window_db:
 def apply_phase_correction(data: np.ndarray, phi: np.ndarray, axis: int, workers: int | None = None) -> np.ndarray:
     """``data`` with exp(-j phi) applied to its azimuth spectrum along ``axis`` (phi in
     increasing-frequency order, length ``data.shape[axis]``); complex64."""
-    data = np.asarray(data)
+    given = data
+    try:
+        data = np.asarray(data)
+    except (ValueError, TypeError):  # ragged nested lists
+        data = np.empty(0, dtype=object)
     if data.dtype.kind not in "iufc" or data.ndim == 0:
-        raise TypeError(f"apply_phase_correction data: must be an array of numbers, got {type(data).__name__} "
-                        f"of dtype {data.dtype}")
+        raise TypeError(f"apply_phase_correction data: must be an array of numbers (at least 1-D), got "
+                        f"{type(given).__name__} of dtype {data.dtype}")
     axis = validate.integer("apply_phase_correction axis", axis, -data.ndim, data.ndim - 1,
                             why=f"an axis of the {data.ndim}-D data")
     phi = validate.array("apply_phase_correction phi", phi, (data.shape[axis],), bound=1e12)

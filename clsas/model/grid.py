@@ -69,8 +69,7 @@ class Grid:
     def plane(cls, x, y, z: float) -> "Grid":
         """Horizontal plane z = ``z`` (m, negative below the surface) on the x (across-track) and
         y (along-track) coordinates given; dims ``("y", "x")``."""
-        x = validate.array("Grid.plane x", x if np.ndim(x) else [x], (-1,), bound=validate.MAX_COORDINATE)
-        y = validate.array("Grid.plane y", y if np.ndim(y) else [y], (-1,), bound=validate.MAX_COORDINATE)
+        x, y = _axis("Grid.plane x", x), _axis("Grid.plane y", y)
         if x.size == 0 or y.size == 0:
             raise ValueError(f"Grid.plane x and y: must be non-empty, got shapes {x.shape} and {y.shape}")
         z = validate.scalar("Grid.plane z", z, low=-validate.MAX_COORDINATE, high=validate.MAX_COORDINATE, unit="m")
@@ -88,8 +87,7 @@ class Grid:
         for name, vec in (("u_direction", du), ("v_direction", dv)):
             if not np.isclose(np.linalg.norm(vec), 1.0):
                 raise ValueError(f"Grid.slant {name}: must be a unit 3-vector, got {vec}")
-        u = validate.array("Grid.slant u", u if np.ndim(u) else [u], (-1,), bound=validate.MAX_COORDINATE)
-        w = validate.array("Grid.slant v", v if np.ndim(v) else [v], (-1,), bound=validate.MAX_COORDINATE)
+        u, w = _axis("Grid.slant u", u), _axis("Grid.slant v", v)
         budget.check_bytes(f"Grid.slant of {w.size} x {u.size} pixels", GRID_BYTES_PER_PIXEL * u.size * w.size,
                            "fewer pixels (image in tiles)")
         pos = origin + w[:, None, None] * dv + u[None, :, None] * du
@@ -103,8 +101,19 @@ class Grid:
                              bound=validate.MAX_COORDINATE)
         if pos.ndim == 1:
             pos = pos[None]
+        if pos.shape[-1] != 3:
+            raise ValueError(f"Grid.points positions: must have shape (..., 3) (x, y, z in m), got {pos.shape}")
         dims = tuple(dims) if dims is not None else tuple(f"i{k}" for k in range(pos.ndim - 1))
         return cls(pos, dims, {})
+
+
+def _axis(name: str, value) -> np.ndarray:
+    """A 1-D coordinate axis (m) from an array or one number."""
+    try:
+        one = np.ndim(value) == 0
+    except (ValueError, TypeError):  # ragged nested lists: validate.array names them
+        one = False
+    return validate.array(name, [value] if one else value, (-1,), bound=validate.MAX_COORDINATE)
 
 
 def _check_position_bytes(name: str, positions) -> None:

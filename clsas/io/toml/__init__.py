@@ -52,10 +52,11 @@ def _read_text(path: Path) -> str:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except (FileNotFoundError, IsADirectoryError, NotADirectoryError):
         raise FileNotFoundError(f"no such scenario file: {path}") from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode):  # a folder opens too (read-only): refused before fdopen reads it
+        os.close(fd)
+        raise FileNotFoundError(f"no such scenario file: {path} is not a regular file")
     with os.fdopen(fd, "rb") as f:
-        info = os.fstat(f.fileno())
-        if not stat.S_ISREG(info.st_mode):
-            raise FileNotFoundError(f"no such scenario file: {path} is not a regular file")
         budget.check_bytes(f"load_scenario {path} ({info.st_size} bytes of TOML)", TEXT_BYTES_FACTOR * info.st_size,
                            "a smaller scenario file (meshes in PLY files beside it)")
         raw = f.read()
