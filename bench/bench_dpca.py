@@ -12,11 +12,7 @@ to 2 x 128 so the whole linear correlation is held), interleaved A B C A B C, fo
 (t_lags 8) and pass 2 (t_lags 2), over 6 couples x 200 pairs x 16 blocks of 128 samples. PGA runs on a 2048 x 2048 image (quick: 1024^2) of speckle and bright points blurred
 by a quadratic phase error; rate = iterations per second. All on the host (NumPy / scipy.fft).
 
-Measured --quick on the 2-core machine with two other developers' jobs running (load ~5):
-DPCA 49.5 ping pairs/s (20.2 ms a pair); correlations at 17 t-lags direct 1.2x the FFT's time,
-at 5 t-lags 0.53x; the delayed FFT form 2.2-2.3x the plain FFT; PGA on 1024^2 104 ms an
-iteration. Full size, one repeat: the 1000-ping track in 14.6 s (14.6 ms a pair, peak RSS of the
-run 1.6 GB), PGA on 2048^2 0.48 s an iteration.
+The figures are in the JSON output (--json); rerun with --quick for a short run.
 """
 
 from __future__ import annotations

@@ -143,10 +143,13 @@ def render_benches(rows: list) -> list:
              "ratios within one run only (docs/design.md).", ""]
     table = []
     for r in rows:
-        extra = {k: v for k, v in r.items() if k not in ("bench", "backend", "device", "size", "rate", "unit", "seconds")}
-        case = ", ".join(f"{k} {v}" for k, v in {**r.get("size", {}), **extra}.items())
-        table.append((r["bench"], r["backend"], r["rate"], r["unit"], r["seconds"], case, r.get("device", "")))
-    return lines + _table(("bench", "backend", "rate", "unit", "seconds", "case", "device"), table) + [""]
+        extra = {k: v for k, v in r.items()
+                 if k not in ("bench", "backend", "device", "size", "rate", "unit", "seconds", "machine")}
+        case = ", ".join(f"{k} {_cell(v)}" for k, v in {**r.get("size", {}), **extra}.items())
+        load = (r.get("machine") or {}).get("load_average")
+        table.append((r["bench"], r["backend"], r["rate"], r["unit"], r["seconds"], case, r.get("device", ""),
+                      load[0] if load else "-"))
+    return lines + _table(("bench", "backend", "rate", "unit", "seconds", "case", "device", "load"), table) + [""]
 
 
 def render(data: Path) -> str:

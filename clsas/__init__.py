@@ -35,6 +35,7 @@ _EXPORTS = {
     "correct_inclined_array": (".image.inclined", "correct_inclined_array"),
     "distributed": (".distributed", None),
     "estimate_motion": (".estimate.moving", "estimate"),
+    "estimate_motions": (".estimate.moving", "estimate_motions"),
     "ffbp": (".image.ffbp", "ffbp"),
     "focus_moving": (".estimate.moving", "focus"),
     "line_record": (".image.record", "line_record"),

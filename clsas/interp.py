@@ -241,6 +241,19 @@ def resample(src, idx, interp: str = "sinc8", window: str = "kaiser", oversampli
     if idx.shape[-1] < 1:
         raise ValueError(f"resample idx: must be (m,) or (n_rows={src.shape[0]}, m) positions, got shape {idx.shape}")
     check_sizes("resample src", src.shape, idx.shape[-1], interp, "the positions of idx")
+    return resample_prechecked(src, idx, interp, window, oversampling, backend)
+
+
+def resample_prechecked(src: np.ndarray, idx: np.ndarray, interp: str = "sinc8", window: str = "kaiser",
+                        oversampling: float = 1.25, backend: str | None = None) -> np.ndarray:
+    """:func:`resample` without its checks, for a caller that makes ``src`` and ``idx`` itself and
+    calls it many times (one call per receiver and sub-block in :func:`clsas.ptrs_image`): the
+    caller has checked once what :func:`resample` checks on every call, ``interp``, ``window``
+    and ``oversampling`` (:func:`check_options`), rows of at least the interpolator's taps and
+    the memory budget of its largest call (:func:`check_sizes`), and made ``idx`` finite
+    float64 positions within +-2**30 (:func:`resample` scans every position again on each call).
+    ``src`` complex (n_rows, n); ``idx`` (n_rows, m) or (m,). Returns what :func:`resample`
+    returns."""
     if _backend.resolve(backend) == "numpy":
         return resample_rows(src, idx, interp, window, oversampling)
     return resample_opencl(src, idx, interp, window, oversampling)

@@ -25,8 +25,9 @@
  * the phasors a polynomial on the reduced cycles (CLSAS_EXPJ_FRACTION, common.h). Over 16
  * columns the slope s moves by ~4e-4 of itself, so the 16 lanes nearly always read one table
  * interval (one load for all; else a load per lane), and the range nodes (~17 columns apart)
- * at most two. Global size (ceil(n_cols / 16), n_rows); the last work-item of a row does the
- * remaining columns one by one. */
+ * at most two. Global size (n_rows, ceil(n_cols / 16) padded to whole work-groups: the host's
+ * clsas.opencl.work_groups_2d); the last work-item of a row does the remaining columns one by one,
+ * those past the row's end none. */
 #include "common.h"
 #include "loads.h"
 
@@ -77,7 +78,7 @@ __kernel void ptrs_decouple(__global float *data, __global const float *inv_f, _
                             __global const float *col, __global const float2 *row, __global const float4 *table,
                             const float b, const int n_s, const int n_cols)
 {
-    const int j0 = 16 * get_global_id(0), i = get_global_id(1);
+    const int i = get_global_id(0), j0 = 16 * get_global_id(1);
     const float2 rw = row[i];
     __global float *d = data + 2 * ((size_t)i * n_cols + j0);
     if (j0 + 16 > n_cols) {
@@ -113,7 +114,7 @@ __kernel void ptrs_compress_azimuth(__global float *data, __global const float2 
                                     __global const int *column_node, __global const float *column_weight,
                                     const int n_nodes, const int n_cols)
 {
-    const int j0 = 16 * get_global_id(0), i = get_global_id(1);
+    const int i = get_global_id(0), j0 = 16 * get_global_id(1);
     __global const float2 *row = nodes + (size_t)i * n_nodes;
     __global float *d = data + 2 * ((size_t)i * n_cols + j0);
     if (j0 + 16 > n_cols) {

@@ -162,13 +162,19 @@ def test_heading_uncertainty_is_a_random_walk():
 
 
 @pytest.mark.slow
-def test_dpca_track_images_points_where_the_true_track_does():
+@pytest.mark.parametrize("tx_factor, moves", [(1.0, True), (2.0, False)])
+def test_dpca_track_images_points_where_the_true_track_does(tx_factor, moves):
     """Sway (2 cm / 12 s) and yaw (1 mrad / 10 s) on the 24-hydrophone sonar over a speckle
     seafloor one footprint long with three bright points at 30, 37 and 44 m: back-projected
     along the DPCA track (the seafloor's extent given, the first heading from a compass), each
     point within 0.1 resolution cell (the true-track image's IRW; c / 2B across) of where the
-    true-track image has it."""
-    scene = sonar(1.0, 40)
+    true-track image has it. The transmitter twice the hydrophones' length without motion is
+    the issue's "flat-topped response that wanders 0.12 cell": the heading drift of the
+    beam-model bias (+6.2 urad a pair, 243 urad over 40 pings) rotating the image, a geometry
+    question, not the metrics' (measured: -0.09, -0.14, -0.13 IRW without the extent,
+    -0.006, -0.014, +0.001 with it; a clean point's fitted position is exact for both
+    transmitters)."""
+    scene = sonar(tx_factor, 40)
     half = footprint(scene) / 2
     rng = np.random.default_rng(11)
     n = int(20 * (ACROSS[1] - ACROSS[0]) * 2 * half)
@@ -176,8 +182,8 @@ def test_dpca_track_images_points_where_the_true_track_does():
     floor = PointTargets(pos, reflectivity=(rng.normal(size=n) + 1j * rng.normal(size=n)) / np.sqrt(2))
     points = np.array([[30.0, 0.0, 0.0], [37.0, 0.5, 0.0], [44.0, -0.5, 0.0]])
     t0 = scene.eta[0]
-    sway = lambda t: 0.02 * np.sin(2 * np.pi * (t - t0) / 12.0)  # noqa: E731
-    yaw = lambda t: 0.001 * np.sin(2 * np.pi * (t - t0) / 10.0 + 0.5)  # noqa: E731
+    sway = lambda t: 0.02 * np.sin(2 * np.pi * (t - t0) / 12.0) * moves  # noqa: E731
+    yaw = lambda t: 0.001 * np.sin(2 * np.pi * (t - t0) / 10.0 + 0.5) * moves  # noqa: E731
     moving = scene.replace(targets=(floor, PointTargets(points, reflectivity=30.0)),
                            platform=Platform(speed=1.0, sway=sway, yaw=yaw))
     echo = clsas.range_compress(clsas.simulate(moving, progress=False), upsample=2)
@@ -191,7 +197,6 @@ def test_dpca_track_images_points_where_the_true_track_does():
         truth = metrics.analyse_point(clsas.backproject(echo, grid, progress=False), near=(y, x), radius=0.1)
         dpca_image = metrics.analyse_point(clsas.backproject(along, grid, progress=False), near=(y, x), radius=0.1)
         cell = truth["y"].irw
-        # measured: see the issue's report
         assert abs(dpca_image["y"].location - truth["y"].location) < 0.1 * cell, (x, dpca_image["y"].location,
                                                                                   truth["y"].location, cell)
         assert abs(dpca_image["x"].location - truth["x"].location) < 0.1 * rres

@@ -341,18 +341,19 @@ def test_unaliased_pulses_and_target_frame():
 
 
 def test_focused_points_sit_at_their_predicted_r_y(opencl_device):
-    """Two points moving together (case 1's v), the second 1 m further in x and 2 m ahead in y:
-    on A's and C's r-y images the second point lies within one resolution cell of its
-    predicted (r, y) (range from A at eta = 0, along-track position)."""
+    """Three points moving together (case 1's v), the reference in the middle and the others 1 m
+    further (nearer) in x and 2 m ahead (behind) in y: on A's and C's r-y images every point lies
+    within one resolution cell of its predicted (r, y) (range from A at eta = 0, along-track
+    position). The given position is the middle of the group: the estimate's centroids are those
+    of the middle of the target's image (motion module docstring), so a reference at one end of
+    an asymmetric group places the image up to the offset along the track (within sigma)."""
     import clsas
-    from clsas import metrics
 
     v = np.array(presets.KIANG_CASES[1])
-    second = CENTRE + [1.0, 2.0, 0.0]
-    _, echo = _point_echo(v, 512, targets=(PointTargets(np.stack([CENTRE, second]), reflectivity=[1.0, 0.8],
-                                                        velocity=v),))
+    points = np.stack([CENTRE, CENTRE + [1.0, 2.0, 0.0], CENTRE - [1.0, 2.0, 0.0]])
+    _, echo = _point_echo(v, 512, targets=(PointTargets(points, reflectivity=[1.0, 0.8, 0.6], velocity=v),))
     est = clsas.estimate_motion(echo, position=CENTRE)
-    images = clsas.focus_moving(echo, est, tau_span=0.03)
+    images = clsas.focus_moving(echo, est, half_size=(2.0, 4.0))
     tx = est.layout.tx_position
     for name in ("A", "C"):
         image = images[name]
@@ -361,12 +362,11 @@ def test_focused_points_sit_at_their_predicted_r_y(opencl_device):
         k = abs(est.receivers[name].fm_rate)
         cell_y = abs(image.provenance["along_track_speed"]) / (k * 512 / 80.0)
         mag = np.abs(image.data)
-        near = (np.abs(y[:, None] - second[1]) < 1.0) & (np.abs(r[None, :] - np.linalg.norm(second - tx)) < 0.5)
-        i, j = np.unravel_index(np.argmax(np.where(near, mag, 0)), mag.shape)
-        assert abs(r[j] - np.linalg.norm(second - tx)) < cell_r, name
-        assert abs(y[i] - second[1]) < cell_y, name
-        i0, j0 = metrics.peak_index(mag)
-        assert abs(r[j0] - np.linalg.norm(CENTRE - tx)) < cell_r and abs(y[i0]) < cell_y
+        for point in points:
+            near = (np.abs(y[:, None] - point[1]) < 1.0) & (np.abs(r[None, :] - np.linalg.norm(point - tx)) < 0.5)
+            i, j = np.unravel_index(np.argmax(np.where(near, mag, 0)), mag.shape)
+            assert abs(r[j] - np.linalg.norm(point - tx)) < cell_r, (name, point)
+            assert abs(y[i] - point[1]) < cell_y, (name, point)
 
 
 @pytest.mark.slow
@@ -397,6 +397,23 @@ def test_reproduce_kiang2022_on_points_prints_the_table(opencl_device, capsys):
     out = capsys.readouterr().out
     assert "case 1" in out and "paper  (0.002, -3.914, 0.0)  error 2.151 %" in out
     assert "with the position estimated too" in out
+    # Table II's tau_c beside the closed forms' (issue 26 item 6), with the reasons
+    assert "A: tau 2.677/2.6834 (-6.4 ms)" in out and "why tau_c" in out and "why eta_c" in out
+
+
+def test_reproduce_kiang2022_two_targets(opencl_device, capsys):
+    """Section VII-B end to end in the CLI (issue 26 item 4): both velocities and positions."""
+    import argparse
+
+    from clsas.reproduce import kiang2022
+
+    parser = argparse.ArgumentParser()
+    kiang2022.add_arguments(parser)
+    args = parser.parse_args(["--targets", "two", "--pulses", "512", "--position", "estimated", "--backend", "opencl"])
+    assert kiang2022.run(args) == 0
+    out = capsys.readouterr().out
+    assert "target 1: v true (0.0, -4.0, 0.0)" in out and "target 2: v true (0.0, -5.0, 3.0)" in out
+    assert out.count("position estimated") == 2 and "(paper 7.203)" in out
 
 
 def test_reproduce_writes_a_db_image_with_metric_axes(tmp_path):

@@ -51,6 +51,8 @@ def wu_echo():
     st.tuples(st.just("deconvolve"), FLAGS),
     st.tuples(st.just("rcmc"), FLAGS),
     st.tuples(st.just("window"), st.tuples(st.sampled_from(["box", "", "HAMMING", 3, None]), st.just(ValueError))),
+    st.tuples(st.sampled_from(["interp", "tap_window"]),
+              st.tuples(st.sampled_from(["cubic", "", "SINC8", "hann", 8, None]), st.just(ValueError))),
 ))
 def test_ptrs_image_arguments(opencl_device, case):
     name, (value, error) = case

@@ -207,7 +207,9 @@ def test_hardening_regressions(opencl_device):
     for name in ("deconvolve", "rcmc"):
         with pytest.raises(TypeError, match=f"ptrs_image {name}: must be True or False"):
             ptrs_image(echo, **{name: "no"})
-    for name, value, error in (("depth", "a", TypeError), ("workers", 0, ValueError), ("window", "box", ValueError)):
+    for name, value, error in (("depth", "a", TypeError), ("workers", 0, ValueError), ("window", "box", ValueError),
+                               ("block_width", "a", TypeError), ("interp", "cubic", ValueError),
+                               ("tap_window", "hann", ValueError), ("workers", 1.5, TypeError)):
         with pytest.raises(error, match=f"ptrs_image {name}"):
             ptrs_image(echo, **{name: value})
     import tracemalloc
@@ -223,3 +225,49 @@ def test_hardening_regressions(opencl_device):
     for backend in ("numpy", "opencl"):
         with pytest.raises(ValueError, match="ptrs_image echo.data: samples up to .*e\\+38 would overflow complex64"):
             ptrs_image(loud, backend=backend)
+
+
+def test_strip_template_signature(opencl_device):
+    """ptrs_image takes the strip-map template's keyword-only options with its defaults
+    (clsas.image.strip.strip_job) where it shares them; ``interp`` and ``tap_window`` are the
+    residual migration correction's, recorded in the provenance."""
+    import inspect
+
+    from clsas.image.strip import strip_job
+
+    ours, template = inspect.signature(ptrs_image).parameters, inspect.signature(strip_job).parameters
+    shared = ("elements", "deconvolve", "window", "interp", "tap_window", "depth", "workers", "backend")
+    for name in shared:
+        assert ours[name].kind is inspect.Parameter.KEYWORD_ONLY and ours[name].default == template[name].default, name
+    assert [p.name for p in ours.values() if p.kind is not inspect.Parameter.KEYWORD_ONLY] == ["echo",
+                                                                                              "window_options"]
+    _, echo = small_scene()
+    with pytest.raises(TypeError, match="positional"):
+        ptrs_image(echo, None, 8.0)
+    sinc = ptrs_image(echo, block_width=8.0, backend="opencl")
+    linear = ptrs_image(echo, block_width=8.0, interp="linear", backend="opencl")
+    knab = ptrs_image(echo, block_width=8.0, tap_window="knab", backend="opencl")
+    assert (sinc.provenance["interp"], linear.provenance["interp"], knab.provenance["tap_window"]) == \
+        ("sinc8", "linear", "knab")
+    peak = np.abs(sinc.data).max()
+    # the options reach the correction: the images differ, by what the interpolators differ in
+    # (largest difference over the peak, measured: linear 0.10, its attenuation of the range
+    # band's edge; Knab's window 0.013, sinc16 0.009)
+    for other, low, high in ((linear, 0.02, 0.3), (knab, 1e-3, 0.05)):
+        diff = np.abs(other.data - sinc.data).max() / peak
+        assert low < diff < high, diff
+
+
+def test_rcmc_resampling_checked_once_is_resample(opencl_device):
+    """ptrs_image's correction calls clsas.interp.resample_prechecked (its checks done once an
+    image): on the positions it builds, that is resample's result on both backends."""
+    from clsas.interp import resample, resample_prechecked
+
+    rng = np.random.default_rng(3)
+    src = (rng.standard_normal((37, 300)) + 1j * rng.standard_normal((37, 300))).astype(np.complex64)
+    positions = 40.0 + np.arange(200)[None, :] * 1.003 + rng.uniform(-3, 3, (37, 1))
+    for backend in ("numpy", "opencl"):
+        for interp in ("linear", "sinc8"):
+            a = resample(src, positions, interp, backend=backend)
+            b = resample_prechecked(src, positions, interp, backend=backend)
+            assert a.dtype == b.dtype and np.array_equal(a, b), (backend, interp)

@@ -257,3 +257,20 @@ def test_heremans_seafloor_preset():
     assert scene.n_receivers == 15
     with pytest.raises(ValueError, match="altitude"):
         presets.heremans2009_seafloor(altitude=-1.0)
+
+
+def test_the_seafloor_examples_load_as_their_presets():
+    from pathlib import Path
+
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    dpca = clsas.load_scenario(examples / "heremans2009_seafloor.toml")
+    preset = presets.heremans2009_seafloor()
+    np.testing.assert_array_equal(dpca.seafloor.extent, preset.seafloor.extent)
+    assert (dpca.seafloor.z, dpca.seafloor.seed, dpca.seafloor.sediment) == (-15.0, 5, preset.seafloor.sediment)
+    np.testing.assert_array_equal(dpca.targets[0].positions, preset.targets[0].positions)
+    mines = clsas.load_scenario(examples / "mine_scene.toml")
+    preset = presets.mine_scene(max_facet=0.1)
+    assert mines.seafloor.ripple_height == 0.04 and mines.seafloor.ripple_wavelength == 0.5
+    for read, made in zip(mines.targets, preset.targets):
+        np.testing.assert_array_equal(read.mesh.vertices, made.mesh.vertices)
+        assert (read.gain, read.speckle_seed, read.heading) == (made.gain, made.speckle_seed, made.heading)

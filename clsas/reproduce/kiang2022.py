@@ -37,19 +37,59 @@ PAPER = {
     8: ((593.264, 554.189, 594.629), (2.918, -0.011, 0.017), 2.817),
 }
 PAPER_CASE1_RATES = {"A": 4.879, "B": 4.863}  # sections III-C and IV, Hz/s
+# Table II's "centre coordinates of the target" per receiver A, B, C: (tau_c,eq s, eta_c,eq s);
+# None where the table prints "-" (case 7 at A and B: no Doppler history to place it by).
+PAPER_CENTRES = {
+    1: ((2.677, 0.0), (2.687, 0.0), (3.000, 0.0)),
+    2: ((2.677, 0.0), (2.688, 0.0), (3.000, 0.0)),
+    3: ((2.677, 0.1), (2.686, 0.25), (3.000, 0.0)),
+    4: ((2.678, -0.3), (2.687, 0.0), (3.001, -0.3)),
+    5: ((2.680, -0.2), (2.690, -0.3), (3.003, -0.4)),
+    6: ((2.682, -11.5), (2.691, -11.3), (3.005, -1.0)),
+    7: ((2.677, None), (2.687, None), (3.000, 0.0)),
+    8: ((2.681, -1.1), (2.691, -1.1), (3.004, -1.9)),
+}
+# Why they differ (printed beside the comparison).
+CENTRE_REASONS = (
+    "tau_c: the paper's is 5.6-6.4 ms earlier than the two-way delay of Table I's geometry at every receiver and "
+    "in every case (a constant, independent of the velocity: 4-5 m of range); clsas's tau_c is the exact "
+    "non-stop-and-go delay of the target's centre at eta = 0 (test_moving.py::"
+    "test_closed_forms_match_the_phase_history_of_exact_delays). The paper does not say where its delay is "
+    "counted from (e.g. the start of the recording window, or the hull's near side).",
+    "eta_c: clsas's is the slow time the closed forms expand about (eta = 0: an omnidirectional beam has no "
+    "beam-centre crossing). The paper's is where its image places the target; it does not define it. For "
+    "case 6 (-11.5, -11.3, -1.0 s) it is neither -f_dc / K (the zero-Doppler time: -68, -54, -103 s) nor that "
+    "wrapped into one period PRF / |K| of the aliased image, so the printed value cannot be reproduced from "
+    "the stated geometry.",
+)
+# Section VII-B, two independent targets: the paper's receiver-A values (first target as case 1,
+# second as case 3, at the same depth and 50 m apart): (K true, K est Hz/s, f_dc est Hz).
+PAPER_TWO_TARGETS = ((4.860, 4.713, 6.321), (7.250, 7.203, -80.985))
+TWO_TARGET_OFFSET = (0.0, 50.0, 0.0)  # m, the second target from the first (direction not given)
+# Section VII-C, Fig. 22: the velocity error lies in 1.8-2.2 % for SNR >= -17 dB; at -20 dB the
+# SoWVD has no peak and the method halts.
+PAPER_SNR = {"floor_db": -17.0, "error_pct": (1.8, 2.2), "halts_db": -20.0}
+SNR_SWEEP_DB = (-5.0, -10.0, -15.0, -17.0, -20.0)
 PAPER_SSIM = {"RDA": 0.9398, "CSA": 0.9111, "omega-k": 0.9082}  # section VII-A, case 1, against Fig. 18(a)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--targets", choices=("submarine", "points"), default="submarine",
-                        help="the scaled Albacore hull (default) or one point at its centre (seconds a case)")
+    parser.add_argument("--targets", choices=("submarine", "points", "two"), default="submarine",
+                        help="the scaled Albacore hull (default), one point at its centre (seconds a case), or "
+                             "'two': section VII-B's two targets (points at the centres, case 1 and case 3 "
+                             "velocities, 50 m apart; --cases is ignored)")
     parser.add_argument("--cases", type=int, nargs="+", default=list(range(1, 9)), help="Table II cases (1-8)")
     parser.add_argument("--pulses", type=int, default=None,
                         help="pulses at 80 Hz (default: Table I's 6400, 80 s, for the submarine; 2048 for points)")
     parser.add_argument("--position", choices=("given", "estimated", "both"), default="given",
                         help="give the target's position (the paper), estimate it with v, or both (two estimates "
                              "from one echo)")
-    parser.add_argument("--snr", type=float, default=None, help="add white noise at this SNR, dB")
+    parser.add_argument("--snr", type=float, default=None,
+                        help="add white noise at this SNR, dB (clsas's definition: the echo's mean power over "
+                             "the samples it occupies over the noise variance; the paper does not define its own)")
+    parser.add_argument("--snr-sweep", action="store_true",
+                        help=f"section VII-C: the first of --cases at SNR {', '.join(f'{x:g}' for x in SNR_SWEEP_DB)} "
+                             "dB beside the paper's Fig. 22")
     parser.add_argument("--out", default="kiang2022-output", help="folder for the PNG images")
     parser.add_argument("--no-images", action="store_true", help="print the table only")
     parser.add_argument("--backend", default=None, help="echo synthesis backend (numpy, opencl; default: auto)")
@@ -77,8 +117,9 @@ def window(image, centre_r: float, centre_y: float, half: float):
     yi = np.flatnonzero(np.abs(y - centre_y) <= half)
     if ri.size < 2 or yi.size < 2:
         return image
-    return image.replace(data=image.data[yi[0]:yi[-1] + 1, ri[0]:ri[-1] + 1],
-                         axes={"y": y[yi[0]:yi[-1] + 1], "r": r[ri[0]:ri[-1] + 1]})
+    rows, cols = slice(yi[0], yi[-1] + 1), slice(ri[0], ri[-1] + 1)
+    return image.replace(data=image.data[rows, cols], axes={"y": y[rows], "r": r[cols]},
+                         positions=None if image.positions is None else image.positions[rows, cols])
 
 
 def run_case(case: int, args) -> dict:
@@ -196,6 +237,7 @@ def print_table(rows: list) -> None:
         for name, cmp in row.get("sota", {}).items():
             print(f"  {name:8} stop-and-go at A: shifted {cmp['shift_s']:+.3f} s ({cmp['shift_m']:+.2f} m) in azimuth, "
                   f"SSIM {cmp['ssim']:.4f} with the shift removed   (paper, case 1: ~1 s; SSIM {PAPER_SSIM[name]})")
+    print_centres(rows)
     print("\nsummary: case  error % (clsas)  error % (position estimated)  error % (paper)")
     for row in rows:
         print(f"  {row['case']:4d}  {_fmt(row.get('err_pct'), '.3f', 14)}  {_fmt(row.get('joint_err_pct'), '.3f', 26)}"
@@ -211,6 +253,10 @@ def run(args) -> int:
         raise SystemExit(f"--cases must be among {sorted(presets.KIANG_CASES)}, got {bad}")
     if args.pulses is not None and args.pulses < 64:
         raise SystemExit(f"--pulses must be at least 64, got {args.pulses}")
+    if args.targets == "two":
+        return run_two(args)
+    if args.snr_sweep:
+        return run_snr_sweep(args)
     rows = []
     for case in args.cases:
         log.info("Kiang 2022 case %d (%s)", case, args.targets)
@@ -219,3 +265,94 @@ def run(args) -> int:
     if not args.no_images:
         print(f"\nimages in {Path(args.out).resolve()}")
     return 0 if all(r.get("err_pct", np.inf) < BOUND and r.get("joint_err_pct", 0.0) < BOUND for r in rows) else 1
+
+
+def print_centres(rows: list) -> None:
+    """Table II's tau_c,eq and eta_c,eq beside clsas's closed forms, and why they differ."""
+    print("\nTable II centre coordinates (tau_c s, eta_c s): paper, clsas (closed forms), difference")
+    for row in rows:
+        cells = []
+        for i, name in enumerate(("A", "B", "C")):
+            tau_p, eta_p = PAPER_CENTRES[row["case"]][i]
+            truth = row["truth"][name]
+            eta = "-" if eta_p is None else f"{eta_p:+.2f}/{truth.eta_c:+.2f}"
+            cells.append(f"{name}: tau {tau_p:.3f}/{truth.tau_c:.4f} ({1e3 * (tau_p - truth.tau_c):+.1f} ms), eta {eta}")
+        print(f"  case {row['case']}  " + "   ".join(cells))
+    for reason in CENTRE_REASONS:
+        print(f"  why {reason}")
+
+
+def two_target_scene(n_pulses: int):
+    """Section VII-B: point targets at the two submarines' centres, the first moving as in case 1,
+    the second as in case 3, :data:`TWO_TARGET_OFFSET` apart at the same depth."""
+    from ..scene import presets
+    from ..scene.targets import PointTargets
+
+    second = np.add(CENTRE, TWO_TARGET_OFFSET)
+    return presets.kiang2022(n_pulses=n_pulses).replace(
+        targets=(PointTargets(CENTRE, velocity=presets.KIANG_CASES[1]),
+                 PointTargets(second, velocity=presets.KIANG_CASES[3]))), (np.array(CENTRE), second)
+
+
+def run_two(args) -> int:
+    """Section VII-B end to end: both targets found at A, B and C, associated, both velocities and
+    positions estimated (:func:`clsas.estimate_motions`); exit 0 when both are within 3 %."""
+    import clsas
+
+    from ..estimate.moving import closed_forms
+    from ..scene import presets
+
+    n_pulses = args.pulses or 2048
+    sc, centres = two_target_scene(n_pulses)
+    truths = (np.array(presets.KIANG_CASES[1]), np.array(presets.KIANG_CASES[3]))
+    t = time.perf_counter()
+    echo = clsas.simulate(sc, backend=args.backend, snr_db=args.snr, seed=1, progress=False)
+    t_sim = time.perf_counter() - t
+    t = time.perf_counter()
+    found = clsas.estimate_motions(echo, 2, positions=None if args.position == "estimated" else list(centres))
+    t_est = time.perf_counter() - t
+    print(f"Kiang & Kiang 2022 section VII-B: two targets (case 1 and case 3 velocities, {n_pulses} pulses, the "
+          f"second {TWO_TARGET_OFFSET} m from the first; simulate {t_sim:.1f} s, estimate {t_est:.1f} s)")
+    if args.position == "estimated":  # found in order of strength: each matched to the nearer true centre
+        found = sorted(found, key=lambda e: np.linalg.norm(e.position - centres[0]))
+    ok = True
+    for k, (est, v_true, centre, paper) in enumerate(zip(found, truths, centres, PAPER_TWO_TARGETS)):
+        truth = closed_forms(sc, centre, v_true)["A"]
+        err = 100 * np.linalg.norm(est.velocity - v_true) / np.linalg.norm(v_true)
+        ok &= bool(err < BOUND)
+        rx = est.receivers["A"]
+        print(f"\ntarget {k + 1}: v true {tuple(float(x) for x in v_true)} m/s, est {np.round(est.velocity, 3)} "
+              f"(sigma {np.round(est.sigma, 3)}), error {err:.3f} %, confidence {est.confidence:.2f}")
+        print(f"  position {'estimated' if est.position_estimated else 'given'}: {np.round(est.position, 2)} m "
+              f"(true {tuple(float(x) for x in centre)})")
+        print(f"  receiver A: K true {truth.fm_rate:.3f} (paper {paper[0]:.3f}), K est {rx.fm_rate:.3f} "
+              f"(paper {paper[1]:.3f}) Hz/s; f_dc true {truth.doppler_centroid:.3f}, est "
+              f"{est.centroids['A']:.3f} (paper {paper[2]:.3f}) Hz")
+        for problem in est.problems:
+            print(f"  problem: {problem}")
+    return 0 if ok else 1
+
+
+def run_snr_sweep(args) -> int:
+    """Section VII-C: the first of ``--cases`` at each SNR of :data:`SNR_SWEEP_DB` (clsas's SNR
+    definition, :mod:`clsas.synthesis.echo.pipeline`) beside the paper's Fig. 22."""
+    from ..errors import EstimationError  # noqa: F401  (run_case reports it in the row)
+
+    case = args.cases[0]
+    print(f"Kiang & Kiang 2022 section VII-C, case {case} ({args.targets}): velocity error against SNR. The paper "
+          f"(Fig. 22): {PAPER_SNR['error_pct'][0]}-{PAPER_SNR['error_pct'][1]} % for SNR >= "
+          f"{PAPER_SNR['floor_db']:g} dB, no SoWVD peak (halted) at {PAPER_SNR['halts_db']:g} dB. The paper adds "
+          "noise 'at a given level' without defining the SNR; clsas's SNR is the echo's mean power over the "
+          "samples it occupies over the noise variance (a whole-record definition is lower by 10 log10 of the "
+          "share of samples the echo occupies).")
+    print(f"  {'SNR dB':>7} {'clsas error %':>14} {'confidence':>11}  paper")
+    for snr in SNR_SWEEP_DB:
+        sub = argparse.Namespace(**{**vars(args), "snr": snr, "no_images": True, "position": "given"})
+        row = run_case(case, sub)
+        paper = ("halted" if snr <= PAPER_SNR["halts_db"] else
+                 f"{PAPER_SNR['error_pct'][0]}-{PAPER_SNR['error_pct'][1]} %" if snr >= PAPER_SNR["floor_db"] else "-")
+        if "est" in row:
+            print(f"  {snr:7.1f} {row['err_pct']:14.3f} {row['est'].confidence:11.2f}  {paper}")
+        else:
+            print(f"  {snr:7.1f} {'halted':>14} {'-':>11}  {paper}   ({row['error']})")
+    return 0

@@ -77,11 +77,20 @@ def sphere(radius: float = 1.0, subdivisions: int = 3) -> trimesh.Trimesh:
                                       radius=v.positive("sphere radius", radius, high=v.MAX_COORDINATE, unit="m"))
 
 
-def cylinder(radius: float = 1.0, length: float = 4.0, sections: int = 32) -> trimesh.Trimesh:
-    """Closed cylinder along x_b."""
-    c = trimesh.creation.cylinder(radius=v.positive("cylinder radius", radius, high=v.MAX_COORDINATE, unit="m"),
-                                  height=v.positive("cylinder length", length, high=v.MAX_COORDINATE, unit="m"),
-                                  sections=v.integer("cylinder sections", sections, low=3, high=2**20))
+def cylinder(radius: float = 1.0, length: float = 4.0, sections: int = 32, segments: int = 1) -> trimesh.Trimesh:
+    """Closed cylinder along x_b, centred on the origin: ``sections`` around the axis and
+    ``segments`` along it (short facets subdivide evenly: :class:`MeshTarget`'s ``max_facet``)."""
+    radius = v.positive("cylinder radius", radius, high=v.MAX_COORDINATE, unit="m")
+    length = v.positive("cylinder length", length, high=v.MAX_COORDINATE, unit="m")
+    sections = v.integer("cylinder sections", sections, low=3, high=2**20)
+    segments = v.integer("cylinder segments", segments, low=1, high=2**20)
+    if segments == 1:
+        c = trimesh.creation.cylinder(radius=radius, height=length, sections=sections)
+    else:  # the side as a profile of segments + 1 rings, revolved about z, with the end caps
+        z = np.linspace(-length / 2, length / 2, segments + 1)
+        profile = np.concatenate([[[0.0, -length / 2]], np.column_stack([np.full(z.size, radius), z]),
+                                  [[0.0, length / 2]]])
+        c = trimesh.creation.revolve(profile, sections=sections)
     c.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0]))
     return c
 
@@ -92,3 +101,14 @@ def box(extents=(1.0, 1.0, 1.0)) -> trimesh.Trimesh:
     if np.any(ext <= 0):
         raise ValueError(f"box extents: must be positive, got {ext}")
     return trimesh.creation.box(extents=ext)
+
+
+def truncated_cone(bottom_radius: float = 0.5, top_radius: float = 0.25, height: float = 0.5,
+                   sections: int = 48) -> trimesh.Trimesh:
+    """Closed truncated cone along z_b, base on z_b = 0 (a Manta-like mine), m."""
+    r0 = v.positive("truncated_cone bottom_radius", bottom_radius, high=v.MAX_COORDINATE, unit="m")
+    r1 = v.scalar("truncated_cone top_radius", top_radius, low=0.0, high=v.MAX_COORDINATE, unit="m")
+    h = v.positive("truncated_cone height", height, high=v.MAX_COORDINATE, unit="m")
+    n = v.integer("truncated_cone sections", sections, low=3, high=2**20)
+    profile = np.array([[0.0, 0.0], [r0, 0.0], [r1, h], [0.0, h]])  # (radius, z) from the base's centre
+    return trimesh.creation.revolve(profile, sections=n)

@@ -258,6 +258,47 @@ def heremans2009_seafloor(n_pulses: int = 32, altitude: float = 15.0, sediment: 
     return scene.replace(targets=(points,), seafloor=floor)
 
 
+def mine_scene(n_pulses: int = 320, altitude: float = 8.0, sediment: str = "sand", seed: int = 0,
+               object_sigma_db: float = -5.0, max_facet: float = 0.03) -> Scenario:
+    """The classic mine-like scene: a cylinder and a truncated cone on rippled sand.
+
+    Sonar (assumed, a typical high-frequency SAS): one transceiver with a 10 cm element at
+    z = 0, 100 kHz, 20 kHz band (c / 2B = 3.75 cm), 2 ms chirp sampled at 25 kHz, 1 m/s and
+    20 pulses/s (a D / 2 = 5 cm step), ``n_pulses`` centred on y = 0 (320: a 16 m track).
+    Seafloor ``altitude`` m below: ``sediment`` (APL-UW law) with ripples 4 cm high, 0.5 m
+    long, their crests 20 deg off the track, over x in [20, 34] m, y in [-6, 6] m, speckle
+    seeded by ``seed``. Objects lying on it: a cylinder 2 m long and 0.53 m in diameter at
+    (25, -2.5) m, its axis 20 deg off the track; a truncated cone 1 m across its base, 0.5 m at
+    its top, 0.45 m high at (29, 2) m. Their facets (at most ``max_facet`` m on a side) are
+    Lambertian with random phases (rough surfaces), scaled so that they backscatter
+    ``object_sigma_db`` per unit area (-5 dB: about 20 dB above the sand at these grazing
+    angles). Image it with ``clsas.backproject`` on the plane z = -altitude, or ``clsas.omega_k``
+    of ``clsas.line_record`` (slant range).
+    """
+    from .. import validate as v
+    from .hulls import cylinder, truncated_cone
+    from .targets import MeshTarget
+
+    n_pulses = v.integer("mine_scene n_pulses", n_pulses, low=2, high=10**6)
+    altitude = v.positive("mine_scene altitude", altitude, high=1e3, unit="m")
+    sigma = 10 ** (v.scalar("mine_scene object_sigma_db", object_sigma_db, low=-100.0, high=40.0, unit="dB") / 10)
+    floor_z = -altitude
+    objects = []
+    for mesh, position, heading, seed_k in (
+            (cylinder(0.265, 2.0, 48, segments=40), (25.0, -2.5, floor_z + 0.265), np.pi / 2 + np.deg2rad(20.0), 1),
+            (truncated_cone(0.5, 0.25, 0.45, 48), (29.0, 2.0, floor_z), 0.0, 2)):
+        shaped = MeshTarget(mesh, max_facet=max_facet)
+        area = shaped.mesh.area_faces
+        gain = float(np.sqrt(sigma * area.sum() / np.sum(area * area)))  # sum gain^2 A^2 = sigma x the area
+        objects.append(MeshTarget(shaped.mesh, position=position, heading=heading, speckle_seed=seed + seed_k,
+                                  gain=gain))
+    floor = Seafloor((20.0, 34.0, -6.0, 6.0), floor_z, sediment=sediment, ripple_wavelength=0.5, ripple_height=0.04,
+                     ripple_direction=np.deg2rad(20.0), seed=seed)
+    return Scenario(Medium(1500.0), Waveform(f0=100e3, bandwidth=20e3, duration=2e-3, fs=25e3), Platform(speed=1.0),
+                    Array(rx_offsets=[[0.0, 0.0, 0.0]], tx_length=0.1, rx_length=0.1),
+                    PulseSchedule(prf=20.0, n_pulses=n_pulses), targets=tuple(objects), seafloor=floor)
+
+
 # Kiang & Kiang 2022 section II-B: the Albacore model (LOA 62.13 m) scaled down six times, LOA ~10 m.
 KIANG_HULL_SCALE = 1.0 / 6.0
 

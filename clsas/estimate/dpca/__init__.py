@@ -41,8 +41,7 @@ sway gamma = -c dt / 2 (eq. 69, with clsas's sign of x) and yaw xi = sin theta (
 Two passes. Pass 1 scans t-lags -t_lags..t_lags on the records as they are. A fractional-
 sample misalignment of f and g makes the correlation's phase at the integer t-lag depend on
 the speckle, differently at every couple: yaw noise that grows with the sway between the pings
-(20 cm of sway at 40 s read 87 urad RMS of yaw a pair on noise-free speckle, 15 urad with the
-envelopes aligned). Pass 2 advances ping p + 1's envelope (not its carrier phase) by the
+(tests/test_dpca.py). Pass 2 advances ping p + 1's envelope (not its carrier phase) by the
 pair's pass-1 delay and scans +-FINE_T_LAGS again, at the x-lags nearest for some block, with
 every couple each allows (8 at x-lag 0 where pass 1 compares 6 at every lag: a longer baseline
 for the yaw; the delay is referred back to the common couples' centre): yaw and sway come from
@@ -61,21 +60,21 @@ observable at all (fly Trajectory.platform(surge=False) then).
 
 Phase-centre errors (eqs. 48-49, geometry.pca_delay): their carrier phase is removed sample
 by sample at each sample's range, their envelope delay at each block's centre range, with the
-beam's mean cos^2 of the look angle. The envelope part matters: up to 0.3 samples (4x
-oversampled) between the couples of a pair at Heremans' geometry, left in it made the couples'
-phases depend on the speckle (coherence 0.99936 instead of 0.99968) and read 15 urad RMS of yaw
-a ping pair on a still seafloor, 2.6 urad with it out. What is left is inherent to the
-phase-centre approximation: D (sin^2 theta - <sin^2 theta>) / r of yaw per scatterer; a
-seafloor that fills the beam averages it out, a bright point off broadside reads it (tens of
-urad a pair at 8 m along track at 100 m), and a seafloor patch narrower than the beam's
-sidelobes biases it (the test scenes' +-18 m at 100 m: <sin^2> 13 % below the beam's, +1.4
-urad a pair).
+beam's mean cos^2 of the look angle. The envelope part matters: left in, it makes the couples' phases depend on the speckle
+(yaw noise a ping pair several times larger, tests/test_dpca.py). What is left is inherent to the
+phase-centre approximation: D (sin^2 theta - <sin^2 theta>) / r of yaw per scatterer. The mean
+<sin^2 theta> is taken per range block over the part of the two-way beam the seafloor fills
+(geometry.look_moments): the whole beam out to +-90 deg by default (a real seafloor), or the
+arcs of each block's ring inside a given rectangle (``extent``, geometry.SeafloorExtent): a
+patch narrower than the beam, or cut off in its sidelobes, read with the whole beam's mean is a
+yaw bias a pair that integrates into a heading drift, a rotated image
+(tests/test_dpca_bias.py). A bright point off broadside reads its own look angle's term.
 
 Range blocks and uncertainty: the fast-time axis is cut into blocks; each block gives its own
 estimate of the three quantities. Blocks whose beam peak is below ``min_coherence`` or whose
 energy is below pairs.WEAK_BLOCK of the pair's median block (beyond the seafloor's swath) are
 left out; the reported value is the mean of the remaining blocks within pairs.OUTLIER scaled
-median absolute deviations of their median, sway and yaw weighted by rho^2 / (1 - rho^2) (rho
+median absolute deviations of their median (energy-weighted: off-beam blocks count for little), sway and yaw weighted by rho^2 / (1 - rho^2) (rho
 the block's pass-2 beam peak: the phase variance of a correlation at coherence rho), and its
 uncertainty that mean's standard error.
 
@@ -84,26 +83,18 @@ errors as an integrated random walk; what defocuses is the part of the resulting
 error that is not linear over a synthetic aperture, i.e. the yaw errors' low frequencies and
 bias. Smoothing the yaw sequence with its uncertainties (a second-difference penalised fit,
 weights 1 / yaw_std^2) removes high frequencies that the double integration already
-suppresses: on the seed-004 scene it lowered the yaw RMS (6.0 -> 4.3 urad) but not the PSLR
-(+0.52 -> +0.40 .. +0.79 dB off the motion-free image, worse for stronger smoothing), so the
-per-pair estimates are integrated as they are. Measured on that scene (24 pings, seeds 5-14
-of its seafloor): yaw error 3.5-6.0 urad RMS a pair (14-18 before the envelope correction),
-sway 2.0-2.5 um, back-projection along the DPCA track within -0.09 .. +0.88 dB azimuth PSLR
-of the motion-free image (0.1-2.1 dB before; +0.2 .. +0.6 dB of it comes with the yaw itself:
-along the true track), peaks within 0.02 cell.
+suppresses: it lowered the yaw's RMS error but not the PSLR on the seed-004 scene, so the
+per-pair estimates are integrated as they are. The heading's standard error grows as a random
+walk of the per-pair ones (Trajectory.heading_std; Trajectory.trusted: how many pings stay
+within a tolerance).
 
 The hot loop, the correlations over ping pairs, x-lags, couples, t-lags and samples, runs over
 every pair, couple and block at once, by FFTs of the blocks zero-padded to twice their length
 with the envelope delays applied as a phase ramp over their spectra (correlate.correlations,
 ``delay=``). The beams are one complex matrix product, formed only at the t-lag of the
 couples' incoherent peak and its two neighbours (forming them at every t-lag took half the
-time); pass 2 runs only at the x-lags some block found nearest. Measured with
-bench/bench_dpca.py --quick on the 2-core machine while others ran (load ~5): 20.2 ms a ping
-pair of 15 hydrophones x 2048 samples (100 pings); interleaved against the estimator before the
-envelope correction, 1.22x its median time (20.5 vs 16.8 ms). The delayed correlations take
-2.2-2.3x the plain zero-padded FFT's time (twice the padding, the ramp), which is 1.2x faster
-than the lag-by-lag sums at 17 t-lags and 0.53x at 5. No OpenCL kernel: a free correlation
-would at most halve DPCA's time, and the fractional delay that made the yaw 3x more precise
+time); pass 2 runs only at the x-lags some block found nearest (bench/bench_dpca.py times the
+estimator and the correlations' forms side by side). No OpenCL kernel: a free correlation would at most halve DPCA's time, and the fractional delay that made the yaw 3x more precise
 needs the spectra, which scipy.fft computes at near memory speed.
 """
 

@@ -31,9 +31,7 @@ def peak_ratio(y_minus, y0, y_plus):
 
 
 # Up to this many t-lags the correlations are summed lag by lag, beyond it computed by FFT
-# (bench/bench_dpca.py, interleaved medians on 6 couples x 50-200 pairs x 16 blocks of 128: at
-# 5 t-lags direct was 1.65-1.9x faster, at 17 the FFT 1.4-1.7x faster; direct costs ~4 ms a lag
-# there, the FFT a fixed ~37 ms).
+# (the crossing measured by bench/bench_dpca.py, its dpca-correlations cases).
 DIRECT_T_LAGS = 9
 
 

@@ -226,13 +226,14 @@ def look_moments(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
         for total, table in zip(totals, tables):
             total += _at(table, k_hi) - _at(table, k_lo)
     empty = np.broadcast_to(rho[None, :] <= 0, x0.shape)
-    weight, second, main = (np.where(empty, 0.0, t).reshape(x0.shape[0], r_blocks.size, SUB_RANGES).sum(axis=-1)
-                            for t in totals)
+    # each sub-range's ring weighs its area, r dr dphi
+    sub_weights = [np.where(empty, 0.0, t * r[None, :]).reshape(x0.shape[0], r_blocks.size, SUB_RANGES) for t in totals]
+    weight, second, main = (t.sum(axis=-1) for t in sub_weights)
     empty = weight <= 0
     with np.errstate(divide="ignore", invalid="ignore"):
         sin2 = np.where(empty, np.nan, second / weight)
         fraction = np.where(empty, 0.0, main / weight)
-    return sin2, fraction, np.where(empty, 0.0, weight / (np.pi * SUB_RANGES))
+    return sin2, fraction, np.where(empty, 0.0, weight / (np.pi * SUB_RANGES * r_blocks[None, :]))
 
 
 def _at(table: np.ndarray, k: np.ndarray) -> np.ndarray:
@@ -255,8 +256,8 @@ def xlag_offset(q: np.ndarray, array: Array, f0: float, c: float, step: float) -
     elements, rounded at its peak and 1/4 at e = L / 2 (the x-lag step for hydrophones one
     element length apart). The beam peaks at lags -1, 0, 1 sample rho((k - eps) step); q(eps)
     is tabulated and inverted. For omnidirectional elements the V of linear decorrelation,
-    eps = q / (1 + |q|), is used. (The V applied to the B-spline read 0.85 of a 37 mm surge on
-    noise-free speckle; a parabola reads half of it.)"""
+    eps = q / (1 + |q|), is used. (The V or a parabola applied to the B-spline read a fraction of
+    the surge only.)"""
     beam = _beam(array, f0, c)
     if beam is None:
         return np.clip(q / (1 + np.abs(q)), -0.5, 0.5)

@@ -157,9 +157,9 @@ def _scan(setup: _Setup, prev: np.ndarray, nxt: np.ndarray, offset: np.ndarray, 
         i = st.couples(lag, every)                       # hydrophones at ping p + 1
         j = i + st.s + lag                               # hydrophones at ping p
         # Phase-centre errors out (geometry.pca_delay): the carrier phase sample by sample, the
-        # envelope at each block's centre range, together with the pair's known delay. Left in
-        # the envelope (up to 0.3 samples between couples at Heremans' geometry), they made the
-        # couples' correlation phases depend on the speckle: 15 urad of yaw noise a ping pair.
+        # envelope at each block's centre range, together with the pair's known delay, each
+        # with the block's mean cos^2 of the look angle (1 - sin2). Left in the envelope, they
+        # made the couples' correlation phases depend on the speckle.
         dt_pca = pca_delay(st.array, i, j, st.r_samples, st.speed, st.c, 0.0)     # (couple, block, sample)
         g = nxt[i] * unit_phasor(2 * np.pi * st.f0 * dt_pca[:, None] * st.cos2[None, :, :, None])
         envelope = pca_delay(st.array, i, j, st.r_blocks, st.speed, st.c, 0.0)[:, None, :] * st.cos2[None] \
@@ -258,9 +258,9 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     # The main lobe's level: the third strongest coherent block (one or two bright echoes do not
     # set it). Blocks far below it can hold only off-beam returns (beyond the seafloor's swath,
     # its far along-track ends seen at wide look angles) or range sidelobes, however many of
-    # them there are: referred to the median block instead, a +-60 m seafloor whose records
-    # reach far beyond its swath let them in (they were the majority) and read -560 .. -655
-    # urad a pair.
+    # them there are: referred to the median block instead, a seafloor much longer than the
+    # beam whose records reach far beyond its swath let them in (they were the majority) and
+    # read hundreds of urad a pair (tests/test_dpca_bias.py).
     ranked = np.sort(np.where(good, energy, 0.0), axis=1)[:, ::-1]
     level = ranked[np.arange(ranked.shape[0]), np.clip(np.sum(good, axis=1) - 1, 0, 2)]
     good &= energy >= WEAK_BLOCK * level[:, None]
@@ -275,7 +275,7 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     # Surge: a block dominated by a lone bright echo stays coherent at every x-lag (a single
     # scatterer decorrelates only over its whole beam), so its beam peaks hardly change with the
     # displacement and read a surge near zero; such blocks are left out of the surge where
-    # seafloor blocks remain (on Heremans' nine points they scaled the surge by 0.66).
+    # seafloor blocks remain (on Heremans' nine points they shrank the surge).
     seafloor = good & (energy <= BRIGHT_BLOCK * typical)
     seafloor[seafloor.sum(axis=1) == 0] = good[seafloor.sum(axis=1) == 0]
 
@@ -308,8 +308,7 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     yaw = yaws[nearest, pp, bb]
     # Blocks weighted by their coherence rho (pass 2's beam peak): the phase of a correlation
     # over N samples at coherence rho has variance (1 - rho^2) / (2 N rho^2), the same N in every
-    # block. Measured on the seed-004 scene over seeds 5-10: yaw error RMS 3.5-6.0 urad a pair,
-    # 4.2-6.3 unweighted.
+    # block (it lowered the yaw error on the seed-004 scene, tests/test_dpca.py).
     rho = np.clip(fine[nearest, pp, bb], 0.0, 1 - 1e-9)
     weight = rho**2 / (1 - rho**2)
     (su, su_e), (sw, sw_e), (yw, yw_e) = robust_mean(surge, seafloor), robust_mean(sway, good, weight), \

@@ -10,7 +10,7 @@ path to a scatterer in direction n (unit vector from the sonar) by 2 x n_x, n_x 
 sqrt(1 - n_y^2 - n_z^2): n_y the along-track direction cosine, n_z the vertical one. Eq. (74)'s
 delay dt = -2 x / c restores the path at broadside (n_y = n_z = 0) only and leaves
 2 x (1 - n_x) ~ x (n_y^2 + n_z^2) elsewhere: 0.25 mm at the -3 dB edge of Heremans' beam
-(n_y = 0.07) for 5 cm of sway, 0.1 rad of phase, 0.6 dB of azimuth PSLR on the seed-004 scene.
+(n_y = 0.07) for 5 cm of sway, 0.1 rad of phase (its cost in azimuth PSLR: tests/test_dpca.py).
 
 On a monostatic line record the along-track direction cosine is the along-track wavenumber:
 a scatterer seen at n_y contributes at k_u = 2 k n_y, k = 2 pi (f0 + f) / c at baseband

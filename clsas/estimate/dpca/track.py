@@ -190,8 +190,8 @@ def compensate(echo: EchoData, trajectory: Trajectory, scenario: Scenario, worke
     chirp_scaling accept the result. Surge (along-track) is not corrected by this delay model.
     The delay is exact at broadside only: a cross-track error x moves the two-way path to a
     scatterer at look angle theta by 2 x cos(theta), so 2 x (1 - cos theta) is left, 0.9 mm at
-    the edge of Heremans' beam for 5 cm of sway; with the true track it costs 0.9 dB of azimuth
-    PSLR there (-25.85 vs -26.74 dB, tests/test_dpca.py). For omega_k / range_doppler /
+    the edge of Heremans' beam for 5 cm of sway (its cost in azimuth PSLR with the true track:
+    tests/test_dpca.py). For omega_k / range_doppler /
     chirp_scaling, :func:`clsas.estimate.dpca.compensate_record` removes that residual over the
     beam on the interleaved record; back-projecting along the track (:func:`with_track` with
     :meth:`Trajectory.platform`) has no such residual."""

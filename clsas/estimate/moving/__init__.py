@@ -23,9 +23,11 @@ from .closedforms import Predicted, closed_forms, delay_history, higher_order_de
 from .doppler import Doppler
 from .extent import Extent
 from .layout import Layout, layout_of
-from .motion import MotionEstimate, estimate, focus, motion_from_receivers
+from .focus import focus, ry_grid
+from .motion import MotionEstimate, estimate, motion_from_receivers
+from .targets import estimate_motions
 from .velocity import MotionSolution, solve_motion, solve_velocity
 
 __all__ = ["Doppler", "Extent", "Layout", "MotionEstimate", "MotionSolution", "Predicted", "ReceiverEstimate",
-           "closed_forms", "delay_history", "estimate", "estimate_receiver", "focus", "focus_receiver",
-           "higher_order_delay", "layout_of", "motion_from_receivers", "solve_motion", "solve_velocity"]
+           "closed_forms", "delay_history", "estimate", "estimate_motions", "estimate_receiver", "focus", "focus_receiver",
+           "higher_order_delay", "layout_of", "motion_from_receivers", "ry_grid", "solve_motion", "solve_velocity"]

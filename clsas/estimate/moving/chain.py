@@ -9,9 +9,10 @@ target (eqs. 1-2, 21, the R'' of C; f_dc = f_dc,eq, K = K_a,eq):
 1. range compression (eq. 8; :func:`clsas.range_compress`, upsampled twice so that the envelope
    stages see a well-sampled |s|),
 2. RFRT (eqs. 10-11) gated to where the echo stands out of the noise, modified SoWVD
-   (eqs. 12-14) and its strongest peak -> K; :class:`clsas.errors.EstimationError` is raised
-   (section VII-C) when the echo stands out of the noise in too few pulses or no SoWVD peak
-   stands out of the map's background,
+   (eqs. 12-14) at several lag offsets and the K at which they agree (:func:`.sowvd.rate_search`:
+   on a target of several scatterers the strongest peak of one map can be a cross-term);
+   :class:`clsas.errors.EstimationError` is raised (section VII-C) when the echo stands out of
+   the noise in too few pulses or no SoWVD peak stands out of the maps' background,
 3. RCMC (eq. 17, :mod:`.filters`), Radon transform of |s_rcmc| -> slope -> f_dc (:mod:`.radon`),
 4. range-walk compensation and azimuth compression (eqs. 18-20; :func:`.filters.compress`) of
    the target's neighbourhood (:data:`EXTENT_WINDOW` around the Radon intercept, the trace's delay
@@ -61,15 +62,16 @@ from . import filters, radon, trace
 from .doppler import Doppler
 from .extent import Extent, extent
 from .sharpen import fm_rate_correction, polynomial_phase, residual_phase
-from .sowvd import SoWVD, modified_sowvd, rfrt
+from .sowvd import RateSearch, rate_search, rfrt
 
 log = logging.getLogger("clsas")
 
 #: Default lag offset p0 (s): Kiang & Kiang 2022 Fig. 5(b) reads f_eta = 1.934 Hz for
 #: K = 4.834 Hz/s, i.e. 4 p0 = 0.4 s.
 P0 = 0.1
-#: Default SoWVD peak-to-background threshold: 20 log10 of the peak over the map's median, dB.
-#: Measured: noise-only maps 15-20 dB; a point target at -15 dB SNR 33-37 dB (reduced scenes).
+#: Default SoWVD peak-to-background threshold: the score of :func:`.sowvd.rate_search` (20 log10
+#: of each map's peak over its median, averaged over the maps), dB; noise-only maps score below
+#: it (tests/test_moving_chain.py).
 THRESHOLD_DB = 26.0
 #: Fraction of the pulses in which the echo must stand out of the noise (:mod:`.trace`); at
 #: -25 dB SNR it does in ~10 % of Table I's pulses, at -15 dB in all of them.
@@ -98,9 +100,13 @@ class ReceiverEstimate(Doppler):
     eta_ref (the Radon intercept) and eta_c nan. tau_trace : the Radon intercept, s (the strongest
     track's delay at eta_ref: on a point target tau_c to a fifth of a sample; on a hull its
     strongest glint's). peak_to_background : the SoWVD peak over the map's
-    median (linear). p0 : the lag offset used, s. aperture : the record's slow-time span T_a, s.
-    extent : the target's :class:`~.extent.Extent` in the focused image (None when it cannot be
-    focused).
+    median (linear; :attr:`.sowvd.RateSearch.peak_to_background`). p0 : the first lag offset
+    used, s. aperture : the record's slow-time span T_a, s. extent : the target's
+    :class:`~.extent.Extent` in the focused image (None when it cannot be focused).
+    fm_rate_candidates : ((K Hz/s, score dB), ...) the rate search's candidates, the one used
+    first; slope_limited : the Radon slope sits at the edge of its search (no straight trace
+    after RCMC: K is wrong or there is no target). search : the :class:`.sowvd.RateSearch`
+    without its map (to refine another candidate), or None.
     """
 
     receiver: str
@@ -111,6 +117,9 @@ class ReceiverEstimate(Doppler):
     aperture: float
     tau_trace: float = float("nan")
     extent: Extent | None = None
+    fm_rate_candidates: tuple = ()
+    slope_limited: bool = False
+    search: RateSearch | None = dataclasses.field(default=None, repr=False, compare=False)
 
     @property
     def focusable(self) -> bool:
@@ -148,9 +157,10 @@ class Records:
         return self.eta - self.eta_ref
 
 
-def records(echo: EchoData, receiver: str) -> Records:
-    """Step 1: ``receiver``'s record of a raw ``echo``, range-compressed (eq. 8) and upsampled
-    :data:`UPSAMPLE` times, after checking the echo (raw, >= 64 uniformly spaced pulses)."""
+def compressed_receiver(echo: EchoData, receiver: str) -> EchoData:
+    """``receiver``'s record of a raw ``echo`` as a one-receiver EchoData, range-compressed (eq. 8)
+    and upsampled :data:`UPSAMPLE` times, after checking the echo (raw, >= 64 uniformly spaced
+    pulses)."""
     if not isinstance(echo, EchoData):
         raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
     if echo.compressed:
@@ -165,20 +175,31 @@ def records(echo: EchoData, receiver: str) -> Records:
         raise ValueError("echo.eta must be uniformly spaced (one PRF) for the moving-target chain")
     one = echo.replace(data=echo.data[r:r + 1], t0=echo.t0[r:r + 1], rx_pos=echo.rx_pos[r:r + 1],
                        rx_tau=echo.rx_tau[r:r + 1], receivers=(receiver,))
-    comp = range_compress(one, upsample=UPSAMPLE)
-    return Records(x=comp.data[0], eta=eta, t0=float(echo.t0[r]), fs=comp.fs, f0=echo.waveform.f0,
-                    bandwidth=echo.waveform.bandwidth, name=receiver)
+    return range_compress(one, upsample=UPSAMPLE)
 
 
-def sowvd(rec: Records, p0: float) -> SoWVD:
-    """Step 2: the gated RFRT (eqs. 10-11) and modified SoWVD (eqs. 12-14) of ``rec``, whose peak
-    gives K_a,eq; EstimationError when the echo stands out of the noise in too few pulses."""
+def records_of(comp: EchoData) -> Records:
+    """The :class:`Records` of a one-receiver range-compressed EchoData (:func:`compressed_receiver`)."""
+    return Records(x=comp.data[0], eta=comp.eta, t0=float(comp.t0[0]), fs=comp.fs, f0=comp.waveform.f0,
+                   bandwidth=comp.waveform.bandwidth, name=comp.receivers[0])
+
+
+def records(echo: EchoData, receiver: str) -> Records:
+    """Step 1: ``receiver``'s record of a raw ``echo``, range-compressed (eq. 8) and upsampled
+    :data:`UPSAMPLE` times (:func:`compressed_receiver`)."""
+    return records_of(compressed_receiver(echo, receiver))
+
+
+def sowvd(rec: Records, p0: float) -> RateSearch:
+    """Step 2: the gated RFRT (eqs. 10-11) of ``rec`` and the modified SoWVD maps (eqs. 12-14) at
+    lag offsets from ``p0`` whose agreement gives K_a,eq (:func:`.sowvd.rate_search`);
+    EstimationError when the echo stands out of the noise in too few pulses."""
     gate = trace.support(rec.x, UPSAMPLE)
     coverage = float(np.mean(gate.any(axis=1)))
     if coverage < MIN_COVERAGE:
         raise EstimationError(f"receiver {rec.name}: the echo stands out of the noise in {100 * coverage:.0f} % of "
                               f"the pulses < {100 * MIN_COVERAGE:.0f} %")
-    return modified_sowvd(rfrt(rec.x, gate), rec.prf, p0)
+    return rate_search(rfrt(rec.x, trace.band(rec.x, gate, UPSAMPLE)), rec.prf, p0)
 
 
 def rcmc(rec: Records, fm_rate: float) -> np.ndarray:
@@ -186,15 +207,22 @@ def rcmc(rec: Records, fm_rate: float) -> np.ndarray:
     return filters.advance(rec.x, rec.fs, fm_rate * rec.d**2 / (2 * rec.f0))
 
 
-def doppler_centroid_radon(rec: Records, rcmc: np.ndarray) -> tuple[float, float]:
-    """Step 4: (f_dc, tau at eta_ref) of the straight trace in |s_rcmc| (:mod:`.radon`): the slope s in
-    samples a pulse is f_dc fs / (f0 PRF), f_dc at eta_ref (the RCMC's reference, the middle of the
-    record). The noise floor of each range cell is taken off first."""
+#: A Radon slope beyond this fraction of its search span (a trace crossing the whole record) is
+#: at the search's edge: no straight trace was found.
+SLOPE_LIMIT = 0.95
+
+
+def doppler_centroid_radon(rec: Records, rcmc: np.ndarray) -> tuple[float, float, bool]:
+    """Step 4: (f_dc, tau at eta_ref, at the search's edge) of the straight trace in |s_rcmc|
+    (:mod:`.radon`): the slope s in samples a pulse is f_dc fs / (f0 PRF), f_dc at eta_ref (the
+    RCMC's reference, the middle of the record). The noise floor of each range cell is taken off
+    first. The flag is True when the slope is beyond :data:`SLOPE_LIMIT` of the slopes searched."""
     image = np.abs(rcmc).astype(np.float32)
     image -= trace.floor(image)  # the noise's range profile would be a trace of slope 0
     np.maximum(image, 0, out=image)
     slope, k_mid = radon.line_slope(image)
-    return slope * rec.f0 * rec.prf / rec.fs, rec.t0 + k_mid / rec.fs  # k_mid: the middle pulse's
+    limited = abs(slope) > SLOPE_LIMIT * image.shape[1] / max(image.shape[0] - 1, 1)
+    return slope * rec.f0 * rec.prf / rec.fs, rec.t0 + k_mid / rec.fs, bool(limited)  # k_mid: the middle pulse's
 
 
 def align_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: slice,
@@ -284,27 +312,48 @@ def sharpened_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: 
     return image, eta_axis, total
 
 
-def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHOLD_DB) -> ReceiverEstimate:
-    """Steps 2-5 on a receiver's :func:`records`: :func:`estimate_receiver` without the range compression."""
+def _check_chain_options(p0, threshold_db) -> None:
     if isinstance(p0, bool) or not isinstance(p0, (int, float, np.number)) or not np.isfinite(p0):
         raise TypeError(f"p0 must be a finite number of seconds, got {p0!r}")
     if isinstance(threshold_db, bool) or not isinstance(threshold_db, (int, float, np.number)) \
             or not np.isfinite(threshold_db):
         raise ValueError(f"threshold_db must be a finite number of dB, got {threshold_db!r}")
-    wv = sowvd(rec, p0)
-    ratio_db = 20 * np.log10(wv.peak_to_background) if np.isfinite(wv.peak_to_background) else np.inf
-    if ratio_db < threshold_db:
+
+
+def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHOLD_DB) -> ReceiverEstimate:
+    """Steps 2-5 on a receiver's :func:`records`: :func:`estimate_receiver` without the range compression."""
+    _check_chain_options(p0, threshold_db)
+    search = sowvd(rec, p0)
+    ratio_db = search.score_db
+    if not ratio_db >= threshold_db:
         raise EstimationError(f"receiver {rec.name}: no SoWVD peak stands out of the background: "
                               f"peak-to-background {ratio_db:.1f} dB < threshold {threshold_db:.1f} dB")
-    k = wv.fm_rate
-    f_dc, tau_c = doppler_centroid_radon(rec, rcmc(rec, k))
+    return with_rate(rec, dataclasses.replace(search, primary=None))
+
+
+def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None) -> ReceiverEstimate:
+    """Steps 3-5 on ``rec`` with the azimuth FM rate ``fm_rate`` (Hz/s): the rate search's own
+    (default), or another of its candidates (:func:`.motion.estimate` re-picks a receiver whose
+    rate disagrees with the others'), refined (:meth:`.sowvd.RateSearch.refine`). The candidates
+    are kept, the one used first."""
+    k = search.fm_rate if fm_rate is None else search.refine(fm_rate)
+    candidates = tuple(tuple(map(float, c)) for c in search.candidates)
+    peak_to_background, p0, margin_db = search.peak_to_background, search.p0[0], search.margin_db
+    f_dc, tau_c, limited = doppler_centroid_radon(rec, rcmc(rec, k))
     aperture = float(np.ptp(rec.eta) + 1.0 / rec.prf)
+    if candidates:
+        used = int(np.argmin([abs(c[0] - k) for c in candidates]))
+        candidates = (candidates[used],) + tuple(candidates[:used]) + tuple(candidates[used + 1:])
     est = ReceiverEstimate(fm_rate=k, doppler_centroid=f_dc, receiver=rec.name, tau_c=tau_c, eta_c=np.nan,
-                           peak_to_background=wv.peak_to_background, p0=wv.p0, aperture=aperture, tau_trace=tau_c)
+                           peak_to_background=peak_to_background, p0=p0, aperture=aperture,
+                           tau_trace=tau_c, fm_rate_candidates=tuple(candidates), slope_limited=limited,
+                           search=search)
     if est.focusable:
         est = locate(rec, est, sharpen=True)
-    log.info("receiver %s: K = %.5g Hz/s, f_dc = %.5g Hz, tau_c = %.6f s, eta_c = %.4g s, SoWVD peak-to-background "
-             "%.1f dB", rec.name, k, f_dc, est.tau_c, est.eta_c, ratio_db)
+    log.info("receiver %s: K = %.5g Hz/s, f_dc = %.5g Hz, tau_c = %.6f s, eta_c = %.4g s, SoWVD score %.1f dB "
+             "(next candidate %.1f dB lower)%s", rec.name, k, f_dc, est.tau_c, est.eta_c,
+             20 * np.log10(peak_to_background), margin_db,
+             "; the Radon slope is at its search's edge" if limited else "")
     return est
 
 
@@ -317,10 +366,11 @@ def estimate_receiver(echo: EchoData, receiver: str, *, p0: float = P0,
     ----------
     echo : raw EchoData (not range-compressed) holding ``receiver``.
     receiver : the receiver's name (e.g. "A", "B", "C").
-    p0 : lag offset of the modified SoWVD, s (eq. 12), rounded to whole pulses; K must satisfy
-        |K| < PRF / (8 p0) (see :mod:`.sowvd`).
-    threshold_db : SoWVD peak-to-background ratio (peak over median) below which
-        :class:`clsas.errors.EstimationError` is raised.
+    p0 : the first lag offset of the modified SoWVD, s (eq. 12), rounded to whole pulses (the
+        others are :data:`.sowvd.P0_RATIOS` times it); K must satisfy |K| < PRF / (8 p0)
+        (see :mod:`.sowvd`).
+    threshold_db : SoWVD score (the maps' peak over their median, averaged over the maps, dB)
+        below which :class:`clsas.errors.EstimationError` is raised.
     """
     return estimate_records(records(echo, receiver), p0, threshold_db)
 
@@ -353,7 +403,12 @@ def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None 
                               f"(|K_a,eq| T_a^2 = {abs(est.fm_rate) * est.aperture**2:.3g} < {MIN_TIME_BANDWIDTH})")
     k0 = (est.tau_c - rec.t0) * rec.fs
     half = EXTENT_WINDOW * rec.fs
-    bins = slice(int(max(0, np.floor(k0 - half))), int(min(rec.x.shape[1], np.ceil(k0 + half) + 1)))
+    n = rec.x.shape[1]
+    if not (np.isfinite(k0) and -half < k0 < n + half):
+        raise EstimationError(f"receiver {rec.name}: the target's trace lies outside the record (tau_c = "
+                              f"{est.tau_c:.6g} s; K_a,eq = {est.fm_rate:.4g} Hz/s may be wrong)")
+    lo = int(np.clip(np.floor(k0 - half), 0, n - 2))
+    bins = slice(lo, int(np.clip(np.ceil(k0 + half) + 1, lo + 2, n)))
     ref = est if reference is None else reference
     if sharpen:
         image, eta_axis, _ = sharpened_bins(rec, ref.fm_rate, ref.doppler_centroid, bins, higher_order)
@@ -367,11 +422,12 @@ def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None 
     return dataclasses.replace(est, tau_c=ext.tau_mid, eta_c=eta_c, extent=ext)
 
 
-def _remove(rec: Records, est: ReceiverEstimate, tau_halfwidth: float, eta_cells: float) -> Records:
+def remove_target(rec: Records, est: ReceiverEstimate, tau_halfwidth: float, eta_cells: float) -> Records:
     """``rec`` without the target of ``est`` (section VII-B): RCMC + RWC + azimuth compression,
-    the focused target's window (|tau - tau_c| <= tau_halfwidth, |eta - eta_c| <= eta_cells
-    azimuth resolution cells 1 / (|K| T_a)), then the inverse chain on the window (all three
-    steps are unitary phase filters: :mod:`.filters`), subtracted from the record."""
+    the focused target's window (its extent, :mod:`.extent`, or its tau_c and eta_c without one,
+    widened by ``tau_halfwidth`` s in range and ``eta_cells`` azimuth resolution cells
+    1 / (|K| T_a) in slow time), then the inverse chain on the window (all three steps are
+    unitary phase filters: :mod:`.filters`), subtracted from the record."""
     if not est.focusable:
         raise EstimationError(f"receiver {rec.name}: the target at K_a,eq = {est.fm_rate:.3g} Hz/s does not focus, "
                               "so it cannot be removed to look for the next one")
@@ -379,7 +435,11 @@ def _remove(rec: Records, est: ReceiverEstimate, tau_halfwidth: float, eta_cells
     image, eta_axis = compress(rec, filters.advance(rec.x, rec.fs, shift, cycles), est.fm_rate)
     tau = rec.t0 + np.arange(rec.x.shape[1]) / rec.fs
     cell = 1.0 / (abs(est.fm_rate) * est.aperture)
-    window = (np.abs(eta_axis - est.eta_c) <= eta_cells * cell)[:, None] & (np.abs(tau - est.tau_c) <= tau_halfwidth)
+    ext = est.extent
+    eta_lo, eta_hi = (ext.eta if ext is not None else (est.eta_c, est.eta_c))
+    tau_lo, tau_hi = (ext.tau if ext is not None else (est.tau_c, est.tau_c))
+    window = ((eta_axis >= eta_lo - eta_cells * cell) & (eta_axis <= eta_hi + eta_cells * cell))[:, None] \
+        & (tau >= tau_lo - tau_halfwidth) & (tau <= tau_hi + tau_halfwidth)
     target = filters.decompress(np.where(window, image, 0), rec.d, est.fm_rate)
     return dataclasses.replace(rec, x=rec.x - filters.advance(target, rec.fs, -shift, -cycles))
 
@@ -389,9 +449,9 @@ def estimate_receivers(echo: EchoData, receiver: str, n_targets: int = 2, *, p0:
                        eta_cells: float = 20.0) -> list[ReceiverEstimate]:
     """Estimates of ``n_targets`` moving targets in ``receiver``'s echo, strongest SoWVD peak
     first (Kiang & Kiang 2022 section VII-B): each target found is focused, windowed
-    (``tau_halfwidth`` s around tau_c, default 6 range resolution cells 1 / B; ``eta_cells``
-    azimuth resolution cells around eta_c), taken back through the inverse chain and removed from
-    the record before the next search. Raises EstimationError when a search finds no peak
+    (``tau_halfwidth`` s around its extent, default 6 range resolution cells 1 / B; ``eta_cells``
+    azimuth resolution cells around its extent: :func:`remove_target`), taken back through the
+    inverse chain and removed from the record before the next search. Raises EstimationError when a search finds no peak
     (:func:`estimate_receiver` for the other parameters).
     """
     if isinstance(n_targets, bool) or not isinstance(n_targets, (int, np.integer)) or n_targets < 1:
@@ -403,7 +463,7 @@ def estimate_receivers(echo: EchoData, receiver: str, n_targets: int = 2, *, p0:
     for i in range(n_targets):
         found.append(estimate_records(rec, p0, threshold_db))
         if i + 1 < n_targets:
-            rec = _remove(rec, found[-1], tau_halfwidth, eta_cells)
+            rec = remove_target(rec, found[-1], tau_halfwidth, eta_cells)
     return found
 
 

@@ -191,3 +191,17 @@ def closed_forms(scenario, position, velocity, receivers=None, model: str = "exa
         out[name] = Predicted(fm_rate=float(k), doppler_centroid=float(fdc), tau_c=float(tau),
                               eta_c=float(layout.eta_ref))
     return out
+
+
+def aperture_fm_rate(layout: Layout, receiver: str, position, velocity, eta) -> float:
+    """The FM rate the SoWVD measures: 2 f0 c2 (Hz/s) of the least-squares parabola
+    tau ~ c0 + c1 d + c2 d^2 (d = eta - eta_ref) through :func:`delay_history` over the slow
+    times ``eta`` (s, (n_pulses,)): the rate averaged over the aperture, not the Taylor K_a,eq
+    at eta_ref (they part over long apertures, where the quartic term grows; the test
+    ``test_rate_search_reads_the_aperture_average`` measures both against the chain)."""
+    eta = np.asarray(eta, dtype=np.float64).ravel()
+    d = eta - layout.eta_ref
+    tau = delay_history(layout, receiver, position, velocity, eta)
+    scale = max(float(np.max(np.abs(d))), 1e-12)
+    c2 = np.polynomial.polynomial.polyfit(d / scale, tau - tau[tau.size // 2], 2)[2] / scale**2
+    return float(2.0 * layout.f0 * c2)

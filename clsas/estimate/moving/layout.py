@@ -7,6 +7,16 @@ velocity and every receiver's position and velocity, fitted as straight lines (l
 to the positions a Scenario or an EchoData gives over the exposure. The closed forms and the
 velocity solver take all their geometry from it, so another sonobuoy position, more sonobuoys or
 another tow work unchanged: receivers are looked up by name.
+
+Range-Doppler coupling. The echo of a scatterer whose delay changes during the pulse (the
+target and the receivers keep moving while it is emitted and received: intra-pulse Doppler) is
+the chirp shifted in frequency by -f_dc: an LFM shifted in frequency by f_d is the chirp shifted
+in time by -f_d / K_r, so its matched-filter peak lies f_dc / K_r after the delay at the pulse's
+centre (K_r = chirp_sign B / T; up to 150 us, three range cells, in Table II cases 6 and 8: the
+test ``test_intra_pulse_doppler_shifts_the_compressed_peak_by_f_dc_over_k_r`` measures it). The
+chain measures delays in the compressed record, so :attr:`Layout.range_doppler` (= 1 / K_r, or 0
+for an echo synthesized without intra-pulse Doppler, ``provenance["intra_pulse"] == "none"``)
+says how to take them back to the delay at the pulse's centre, tau = tau_peak - f_dc range_doppler.
 """
 
 from __future__ import annotations
@@ -40,7 +50,8 @@ class Layout:
     tx_position, tx_velocity : (3,) m, m/s: the transmitter at ``eta_ref`` and its velocity.
     receivers : dict name -> ((3,) position at ``eta_ref``, (3,) velocity), m and m/s.
     sound_speed : m/s; f0 : carrier, Hz; bandwidth : Hz; prf : Hz; aperture : the exposure
-    T_a = n_pulses / prf, s; eta_ref : s.
+    T_a = n_pulses / prf, s; eta_ref : s. range_doppler : s/Hz, the compressed peak's delay per
+    Hz of Doppler centroid (1 / K_r, or 0 without intra-pulse Doppler; module docstring).
     """
 
     tx_position: np.ndarray
@@ -52,6 +63,7 @@ class Layout:
     prf: float
     aperture: float
     eta_ref: float = 0.0
+    range_doppler: float = 0.0
 
     @property
     def names(self) -> tuple:
@@ -66,6 +78,17 @@ class Layout:
         if name not in self.receivers:
             raise ValueError(f"receiver {name!r} is not in the layout; it has {self.names}")
         return self.receivers[name]
+
+
+def range_doppler(echo) -> float:
+    """1 / K_r (s/Hz) when ``echo``'s records carry the range-Doppler coupling of intra-pulse
+    Doppler, 0 when clsas synthesized it without (its provenance says ``intra_pulse`` "none" or
+    predates the option): module docstring. Recorded data carry the coupling."""
+    prov = echo.provenance or {}
+    if prov.get("algorithm") == "clsas.simulate" and prov.get("intra_pulse", "none") == "none":
+        return 0.0
+    wf = echo.waveform
+    return float(wf.chirp_sign * wf.duration / wf.bandwidth)
 
 
 def layout_of(source, eta_ref: float | None = None) -> Layout:
@@ -99,5 +122,5 @@ def layout_of(source, eta_ref: float | None = None) -> Layout:
             receivers[name] = _line_fit(times, source.rx_pos[h], ref)
         prf = 1.0 / float(np.median(np.diff(eta))) if eta.size > 1 else np.inf
         return Layout(tx[0], tx[1], receivers, source.medium.sound_speed, source.waveform.f0,
-                      source.waveform.bandwidth, prf, eta.size / prf, ref)
+                      source.waveform.bandwidth, prf, eta.size / prf, ref, range_doppler(source))
     raise TypeError(f"expected a Scenario, an EchoData or a Layout, got {type(source).__name__}")

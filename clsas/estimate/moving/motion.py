@@ -1,11 +1,15 @@
 """The public moving-target API (issue 14): :func:`estimate` a moving target's velocity (and
-position) from a raw multistatic echo, :func:`focus` it on the r-y plane of every receiver that
-can focus it (Kiang & Kiang 2022, sections III-VI).
+position) from a raw multistatic echo (Kiang & Kiang 2022, sections III-V); its images are made
+by :func:`.focus.focus`.
 
 ``estimate`` runs the per-receiver chain (:func:`.chain.estimate_receiver`: K_a,eq from the
 modified SoWVD, f_dc,eq from the Radon slope, tau_c, eta_c) on every receiver, then solves for
 the velocity (:func:`.velocity.solve_velocity`, section V) at the given position, or for the
-position and velocity together (:func:`.velocity.solve_motion`).
+position and velocity together (:func:`.velocity.solve_motion`), and checks that one velocity
+explains every receiver's FM rate (:mod:`.consistency`): a receiver that disagrees is re-run
+with the rate its neighbours predict when its SoWVD holds a peak there, and what disagreement
+is left lowers the confidence and widens sigma, with the problem named by receiver
+(:attr:`MotionEstimate.problems`).
 
 Which point. The closed forms are evaluated at one point, the given (or estimated) position: the
 target's centre. The chain's tau_c and eta_c are the middle of the target's extent in its
@@ -17,51 +21,71 @@ shifts the compressed chirp), so f~_dc - K~ eta_c is the centre's centroid (to ~
 against the Radon slope's fraction of a range cell over the aperture); it is used when the
 receiver focuses (|K| T_a^2 large enough) and within half a PRF of the Radon estimate.
 
+Which point, when the position is given. The middle of the image of a rigid target is the
+image of the given position only when the target reaches equally far both ways from it: the
+centroids and delays are those of a point dp away, the same point at every receiver to first
+order, and a velocity solved at the given position with them is off (the three receivers see the
+target from nearby directions, so the vertical component is poorly determined: a reference point
+2.5 m from the middle of a two-point group moved it by 0.06 m/s in Table II case 1). So on an
+extended target (its image more than :data:`EXTENDED_CELLS` range cells beyond a point's) the
+point measured is fitted with the velocity (:func:`.velocity.solve_motion`) from the delays and
+centroids, the given position a prior with sigma = :data:`MIDDLE_FRACTION` x the target's size
+(anywhere within it, uniformly; the size from the chain's extents): the delays place the middle
+in range, the prior keeps it near the given point where the delays cannot (depth).
+:attr:`MotionEstimate.position` is then that point, ``given_position`` the one given. A refined
+centroid carries :data:`REFINED_SIGMA` (the focus reads the aperture, the closed forms are Taylor
+coefficients at eta_ref).
+
 Refocus. The chain compresses with the quadratic phase only; over long apertures the delay's
 higher-order terms (cubic and beyond, ~10 carrier cycles at the ends of 25 s in Table II case 6)
-smear the image to one side, which moves the middle of its extent (points, 2048 pulses: centroid
-errors up to 1.3 Hz, velocity 1 %). So the solution is used :data:`REFOCUS_PASSES` times to
-predict those terms (:func:`.closedforms.higher_order_delay`, at the solved position and
-velocity: they change little with a velocity error of a few %), every focusable receiver is
-refocused with them and its extent measured again (:func:`.chain.locate`; K~ and f~ stay the
-chain's), and the velocity solved again. Measured (2048 pulses, Table II): point targets
-0.001-0.05 % (0.002-0.08 % with the quadratic focus and the peak), the hull 0.003-1.3 %
-(1.0-8.4 % with its strongest glint). The refocus compresses with the model's own Taylor K and
-f_dc at the solution, not the chain's K~ and f~: over 80 s the SoWVD's K~ is the aperture's
-average rate, 4-6 % above the Taylor K (the quartic term's share), and the higher-order terms on
-top of K~ count the quartic twice.
-
-Focus. :func:`focus` compresses with the same model history, then removes what the estimate's
-errors leave by image sharpness (:mod:`.sharpen`): over 80 s a velocity error of 0.1 % leaves
-~27 rad of quadratic phase. Measured on points, Table II at 6400 pulses: see :func:`focus`.
+smear the image to one side, which moves the middle of its extent. So the solution is used
+:data:`REFOCUS_PASSES` times to predict those terms (:func:`.closedforms.higher_order_delay`, at
+the solved position and velocity: they change little with a velocity error of a few %), every
+focusable receiver is refocused with them and its extent measured again (:func:`.chain.locate`;
+K~ and f~ stay the chain's), and the velocity solved again. The refocus compresses with the
+model's own Taylor K and f_dc at the solution, not the chain's K~ and f~: over long apertures
+the SoWVD's K~ is the aperture's average rate, above the Taylor K (the quartic term's share), and
+the higher-order terms on top of K~ would count the quartic twice.
 
 A receiver "cannot focus" when |K_a,eq| T_a^2 < 4 at the solved velocity (the target keeps its
 range to it: Table II case 7 at A and B); it still gives its centroid to the velocity solve and
-is left out of :func:`focus`.
+is left out of :func:`.focus.focus`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ... import validate
-from ...model import EchoData, Image
-from .chain import MIN_TIME_BANDWIDTH, UPSAMPLE, estimate_records, focus_receiver, locate, records
-from .closedforms import Predicted, delay_terms, higher_order_delay
+from ...errors import EstimationError
+from ...model import EchoData
+from . import consistency
+from .chain import MIN_TIME_BANDWIDTH, UPSAMPLE, estimate_records, locate, records, with_rate
+from .closedforms import delay_terms, higher_order_delay
 from .doppler import Doppler
+from .extent import SMOOTH_CELLS
 from .layout import Layout, layout_of
-from .mapping import to_ry
-from .velocity import centroid_sigma, solve_motion, solve_velocity
+from .mapping import along_track_speed
+from .velocity import centroid_sigma, confidence, solve_motion, solve_velocity
 
 log = logging.getLogger("clsas")
 
 #: 1-sigma of a centroid refined by the azimuth focus, Hz (plus 1e-4 of it): the closed forms are
-#: Taylor coefficients at eta_ref, the focus sees the aperture (measured on point targets, Table II
-#: cases 1-8, 2048 pulses: 0.00-0.07 Hz from the closed forms).
+#: Taylor coefficients at eta_ref, the focus sees the aperture (tests/test_moving.py holds point
+#: targets' refined centroids to the closed forms).
 REFINED_SIGMA = 0.05
+#: The 1-sigma of the given position about the middle of the target's extent, as a fraction of
+#: the extent: a uniform spread over it (module docstring).
+MIDDLE_FRACTION = 1.0 / (2.0 * np.sqrt(3.0))
+#: A target whose image reaches more than this many range resolution cells c / (2 B) beyond a
+#: point's is extended: its middle is fitted (module docstring).
+EXTENDED_CELLS = 4.0
+#: A point's own extent in range at the extent's level, range cells 1 / B (:mod:`.extent`).
+POINT_CELLS = 2.0
 #: :func:`estimate` keeps the receivers' range-compressed records between its passes up to this
 #: many bytes in all (above, each is made again when needed, one at a time).
 KEEP_RECORDS_BYTES = 256 << 20
@@ -74,12 +98,19 @@ REFOCUS_PASSES = 2
 class MotionEstimate:
     """A moving target's motion from a multistatic echo.
 
-    velocity : (3,) m/s. position : (3,) m at slow time 0 (given, or estimated when
-    ``position_estimated``). receivers : {name: ReceiverEstimate} (K_a,eq, f_dc,eq, tau_c,
+    velocity : (3,) m/s. position : (3,) m at slow time 0: the point the estimate is about
+    (estimated when ``position_estimated``; when a position was given, ``given_position``, it is
+    that point, or on an extended target the middle of its image fitted near it: module
+    docstring). receivers : {name: ReceiverEstimate} (K_a,eq, f_dc,eq, tau_c,
     eta_c, ...). residual : RMS misfit of the centroid equations at the solution, Hz.
     confidence : probability in [0, 1] that the velocity error is within the paper's 3 % bound
-    (:mod:`.velocity`). sigma, position_sigma : (3,) 1-sigma errors, m/s and m. centroids :
-    {name: Hz} the centroids solved with (refined by the focus where possible). cannot_focus :
+    (:mod:`.velocity`), lowered when the receivers disagree (:mod:`.consistency`). sigma,
+    position_sigma : (3,) 1-sigma errors, m/s and m (widened by the disagreement). centroids :
+    {name: Hz} the centroids solved with (refined by the focus where possible);
+    centroid_sigmas : {name: Hz} their 1-sigma. consistency : the receivers' FM rates against
+    the solution (:class:`.consistency.Consistency`); problems : what is wrong, one sentence
+    per receiver naming it and why (empty when nothing is). repicked : names of the receivers
+    re-run with another candidate of their rate search. cannot_focus :
     names of the receivers with |K_a,eq| T_a^2 < 4 at the solved velocity. range_residual : RMS
     of c (tau_c,measured - tau_c,model) / 2 over the receivers at the solution, m: a few
     centimetres when the focused scatterer is at ``position``; metres when a given position is
@@ -99,6 +130,15 @@ class MotionEstimate:
     cannot_focus: tuple
     range_residual: float
     layout: Layout = field(repr=False)
+    centroid_sigmas: dict = field(default_factory=dict)
+    consistency: consistency.Consistency | None = field(default=None, repr=False)
+    repicked: tuple = ()
+    given_position: np.ndarray | None = None
+
+    @property
+    def problems(self) -> tuple:
+        """One sentence per receiver that disagrees with the solution, naming it and why."""
+        return tuple(self.consistency.problems.values()) if self.consistency is not None else ()
 
     @property
     def speed(self) -> float:
@@ -117,9 +157,14 @@ class MotionEstimate:
 def _check_position(position):
     if position is None:
         return None
-    arr = np.asarray(position, dtype=np.float64) if np.ndim(position) else None
-    if arr is None or arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"position must be None or a finite 3-vector (x, y, z) in m, got {position!r}")
+    try:
+        arr = np.asarray(position, dtype=np.float64) if np.ndim(position) else None
+    except (TypeError, ValueError):
+        arr = None
+    if arr is None or arr.shape != (3,) or not np.all(np.isfinite(arr)) \
+            or np.max(np.abs(arr)) > validate.MAX_COORDINATE:
+        raise ValueError(f"position must be None or a finite 3-vector (x, y, z) in m within "
+                         f"+-{validate.MAX_COORDINATE:g} m, got {position!r}")
     return arr
 
 
@@ -139,8 +184,9 @@ def check_echo(echo, receivers=None) -> list:
 
 
 def refined_centroid(rx, layout: Layout) -> tuple[float, float]:
-    """(centroid, 1-sigma) of one receiver estimate: f~ - K~ eta_c when the focus gives it (module
-    docstring), else the Radon slope's f~ with :func:`.velocity.centroid_sigma`."""
+    """(centroid, 1-sigma) of one receiver estimate: f~ - K~ eta_c when the focus gives it, with
+    the uncertainty of which point the middle of the target's extent is (module docstring),
+    else the Radon slope's f~ with :func:`.velocity.centroid_sigma`."""
     f, k = float(rx.doppler_centroid), float(rx.fm_rate)
     eta_c = float(getattr(rx, "eta_c", np.nan))
     aperture = float(getattr(rx, "aperture", layout.aperture))
@@ -150,36 +196,156 @@ def refined_centroid(rx, layout: Layout) -> tuple[float, float]:
     return f, centroid_sigma(f)
 
 
-def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine: bool = True,
-                          aperture: float | None = None) -> MotionEstimate:
-    """Solve a :class:`MotionEstimate` from per-receiver estimates (anything with fm_rate,
-    doppler_centroid, tau_c and eta_c: the chain's ReceiverEstimate, or the closed forms).
+def target_extent(layout: Layout, receivers: dict, position, velocity) -> tuple[float, float]:
+    """(size, range size), m, of the target in the chain's focused images beyond a point's own:
+    the largest along-track extent |V_h| x eta span and range extent c tau span / 2 over the
+    receivers that focused it (those with an extent); size is the larger of the two."""
+    along = across = 0.0
+    for name, rx in receivers.items():
+        ext = getattr(rx, "extent", None)
+        if ext is None:
+            continue
+        point = (SMOOTH_CELLS + 1.0) / (abs(float(rx.fm_rate)) * float(getattr(rx, "aperture", layout.aperture)))
+        speed = abs(along_track_speed(layout, name, position, velocity))
+        along = max(along, speed * max(0.0, float(ext.eta[1] - ext.eta[0]) - point))
+        across = max(across, 0.5 * layout.sound_speed * max(0.0, float(ext.tau[1] - ext.tau[0]) - POINT_CELLS
+                                                            / layout.bandwidth))
+    return max(along, across), across
 
-    ``aperture`` (s) decides which receivers cannot focus (default: the layout's T_a).
+
+def pulse_delays(layout: Layout, receivers: dict, centroids: dict) -> dict:
+    """{name: tau_c - f_dc range_doppler}: the receivers' delays (measured at the compressed
+    peak) at the pulse's centre, where the closed forms put them (:mod:`.layout`)."""
+    return {n: float(rx.tau_c) - layout.range_doppler * centroids[n] for n, rx in receivers.items()}
+
+
+def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine: bool = True,
+                          aperture: float | None = None, quiet: bool = False) -> MotionEstimate:
+    """Solve a :class:`MotionEstimate` from per-receiver estimates (anything with fm_rate,
+    doppler_centroid, tau_c and eta_c: the chain's ReceiverEstimate, or the closed forms), and
+    check that the solution explains every receiver's FM rate (:mod:`.consistency`).
+
+    ``aperture`` (s) decides which receivers cannot focus (default: the layout's T_a). ``quiet``
+    logs the solution and its problems at DEBUG (trial solutions) instead of INFO and WARNING.
     """
     position = _check_position(position)
-    if len(receivers) < 3:
-        raise ValueError(f"receivers must hold at least 3 receiver estimates, got {sorted(receivers)}")
+    if not isinstance(receivers, dict) or len(receivers) < 3:
+        raise ValueError(f"receivers must map at least 3 receiver names to estimates, got {receivers!r}")
     centroids, sigmas = {}, {}
     for name, rx in receivers.items():
         centroids[name], sigmas[name] = refined_centroid(rx, layout) if refine else \
             (float(rx.doppler_centroid), centroid_sigma(rx.doppler_centroid))
     rates = {n: float(rx.fm_rate) for n, rx in receivers.items()}
+    delays = pulse_delays(layout, receivers, centroids)
     if position is None:
-        sol = solve_motion(layout, {n: float(rx.tau_c) for n, rx in receivers.items()}, centroids, rates, sigmas)
+        sol = solve_motion(layout, delays, centroids, rates, sigmas)
+        check = consistency.check(layout, receivers, sol.position, sol.velocity, sol.fit_chi2, sol.fit_dof)
     else:
         sol = solve_velocity(layout, position, centroids, sigmas, rates)
+        size, across = target_extent(layout, receivers, position, sol.velocity)
+        if size > EXTENDED_CELLS * layout.sound_speed / (2 * layout.bandwidth):
+            # an extended target: its middle, whose centroids these are, within its size of the given point
+            sol = solve_motion(layout, delays, centroids, rates, sigmas,
+                               delay_sigma=(0.1 + 2 * MIDDLE_FRACTION * across * layout.bandwidth / layout.sound_speed)
+                               / layout.bandwidth, prior=position, prior_sigma=MIDDLE_FRACTION * size,
+                               start_velocity=sol.velocity)
+        check = consistency.check(layout, receivers, sol.position, sol.velocity)
+    cov = sol.covariance * check.birge**2
+    conf = confidence(sol.velocity, cov, sol.ambiguity) * check.factor
     aperture = layout.aperture if aperture is None else float(aperture)
-    tau_misfit = [float(rx.tau_c) - delay_terms(layout, n, sol.position, sol.velocity)[0] for n, rx in receivers.items()]
+    tau_misfit = [delays[n] - delay_terms(layout, n, sol.position, sol.velocity)[0] for n in receivers]
     range_residual = float(0.5 * layout.sound_speed * np.sqrt(np.mean(np.square(tau_misfit))))
     blind = tuple(n for n in receivers
                   if abs(delay_terms(layout, n, sol.position, sol.velocity)[2]) * aperture**2 < MIN_TIME_BANDWIDTH)
-    log.info("moving target: v = %s m/s (sigma %s), residual %.3g Hz, confidence %.2f%s", np.round(sol.velocity, 3),
-             np.round(sol.sigma, 3), sol.residual, sol.confidence, f"; {', '.join(blind)} cannot focus" if blind else "")
-    return MotionEstimate(velocity=sol.velocity, position=sol.position, receivers=dict(receivers),
-                          residual=sol.residual, confidence=sol.confidence, sigma=sol.sigma,
-                          position_sigma=sol.position_sigma, position_estimated=sol.position_estimated,
-                          centroids=centroids, cannot_focus=blind, range_residual=range_residual, layout=layout)
+    est = MotionEstimate(velocity=sol.velocity, position=sol.position, receivers=dict(receivers),
+                         residual=sol.residual, confidence=conf, sigma=np.sqrt(np.abs(np.diag(cov))),
+                         position_sigma=sol.position_sigma * check.birge, position_estimated=sol.position_estimated,
+                         centroids=centroids, cannot_focus=blind, range_residual=range_residual, layout=layout,
+                         centroid_sigmas=sigmas, consistency=check, given_position=position)
+    if not quiet:
+        announce(est)
+    return est
+
+
+def announce(est: MotionEstimate, level: int = logging.INFO) -> None:
+    """Log ``est`` (at ``level``) and each of its problems (a WARNING)."""
+    log.log(level, "moving target: v = %s m/s (sigma %s), FM-rate chi2 %.3g (%d dof), confidence %.2f%s%s",
+            np.round(est.velocity, 3), np.round(est.sigma, 3), est.consistency.chi2, est.consistency.dof,
+            est.confidence, f"; {est.note}" if est.note else "",
+            f"; receivers re-run with another FM rate: {', '.join(est.repicked)}" if est.repicked else "")
+    for problem in est.problems:
+        log.warning("moving target: %s", problem)
+
+
+def _refocus(layout: Layout, est: MotionEstimate, estimates: dict, record_of, position,
+             passes: int = REFOCUS_PASSES) -> MotionEstimate:
+    """``passes`` times: every focusable receiver located again in its record focused with the
+    model at ``est`` (Taylor K and f_dc with the higher-order delay; module docstring), then the
+    motion solved again. ``estimates`` is updated in place."""
+    for _ in range(passes):
+        for name, rx in estimates.items():
+            if rx.focusable:
+                rec = record_of(name)
+                _, f_dc, k = delay_terms(layout, name, est.position, est.velocity)
+                estimates[name] = locate(rec, rx, higher_order_delay(layout, name, est.position, est.velocity, rec.eta),
+                                         Doppler(fm_rate=float(k), doppler_centroid=float(f_dc)))
+        est = dataclasses.replace(motion_from_receivers(layout, estimates, position, quiet=True), repicked=est.repicked)
+    return est
+
+
+def _repick(layout: Layout, est: MotionEstimate, estimates: dict, record_of, position) -> MotionEstimate:
+    """Re-run the receivers whose FM rate disagrees with the solution (:mod:`.consistency`) with
+    another candidate of their rate search, refocus, and keep the change when it lowers the
+    misfit. First every outlier at once with the candidate nearest the rate the solution predicts
+    for it (the centroids, refined by the refocus, fix the solution better than the rates); then
+    each alone with the candidate nearest what the other receivers predict without it. A
+    candidate is taken only within :data:`.consistency.OUTLIER_SIGMAS` of its prediction.
+    ``estimates`` is updated in place."""
+
+    def candidate(name, k_pred):
+        rx = estimates[name]
+        if rx.search is None or not rx.fm_rate_candidates:
+            return None
+        pick = min((c[0] for c in rx.fm_rate_candidates), key=lambda k: abs(k - k_pred))
+        tolerance = consistency.OUTLIER_SIGMAS * consistency.rate_sigma(k_pred, layout, rx.p0)
+        return pick if abs(pick - k_pred) <= tolerance < abs(pick - rx.fm_rate) else None
+
+    def attempt(est, picks):
+        trial = dict(estimates)
+        try:
+            for name, pick in picks.items():
+                trial[name] = with_rate(record_of(name), estimates[name].search, pick)
+            again = _refocus(layout, motion_from_receivers(layout, trial, position, quiet=True), trial, record_of,
+                             position, 1)
+        except EstimationError as err:  # that candidate has no trace to focus
+            log.info("moving target: re-run with K = %s Hz/s failed: %s", list(picks.values()), err)
+            return est
+        log.info("moving target: receivers %s re-run with K = %s Hz/s: FM-rate chi2 %.3g -> %.3g", sorted(picks),
+                 [round(p, 4) for p in picks.values()], est.consistency.chi2, again.consistency.chi2)
+        if again.consistency.chi2 < est.consistency.chi2:
+            estimates.update(trial)
+            return dataclasses.replace(again, repicked=est.repicked + tuple(sorted(picks)))
+        return est
+
+    if not est.consistency.outliers:
+        return est
+    picks = {n: candidate(n, est.consistency.model_rates[n]) for n in est.consistency.outliers}
+    picks = {n: k for n, k in picks.items() if k is not None}
+    if picks:
+        est = attempt(est, picks)
+    tried = set()
+    while True:
+        todo = [n for n in est.consistency.outliers if n not in tried]
+        if not todo:
+            return est
+        name = todo[0]
+        tried.add(name)
+        delays = pulse_delays(layout, estimates, est.centroids) if position is None else None
+        k_pred, _, _ = consistency.predict_without(layout, estimates, est.centroids, est.centroid_sigmas, name,
+                                                   est.position, est.velocity, delays)
+        pick = candidate(name, k_pred)
+        if pick is not None:
+            est = attempt(est, {name: pick})
 
 
 def estimate(echo: EchoData, position=None, receivers=None, **chain_options) -> MotionEstimate:
@@ -194,7 +360,10 @@ def estimate(echo: EchoData, position=None, receivers=None, **chain_options) -> 
     receivers : names (or indices) to use; default all of the echo's.
     chain_options : passed to :func:`.chain.estimate_receiver` (p0, threshold_db).
 
-    Raises :class:`clsas.errors.EstimationError` naming the receiver when its SoWVD shows no peak.
+    Raises :class:`clsas.errors.EstimationError` naming the receiver when its SoWVD shows no
+    peak. When the receivers disagree (a receiver's FM rate far from what the solution
+    predicts), the estimate says so: ``problems`` names the receiver and why, ``confidence``
+    falls and ``sigma`` widens (:mod:`.consistency`).
     """
     names = check_echo(echo, receivers)
     position = _check_position(position)
@@ -208,59 +377,13 @@ def estimate(echo: EchoData, position=None, receivers=None, **chain_options) -> 
         if keep:
             kept[name] = rec
     del rec
+
+    def record_of(name):
+        return kept[name] if keep else records(echo, name)
+
     layout = layout_of(echo)
-    est = motion_from_receivers(layout, estimates, position)
-    for _ in range(REFOCUS_PASSES):
-        for name, rx in estimates.items():
-            if rx.focusable:
-                rec = kept[name] if keep else records(echo, name)
-                _, f_dc, k = delay_terms(layout, name, est.position, est.velocity)
-                estimates[name] = locate(rec, rx, higher_order_delay(layout, name, est.position, est.velocity, rec.eta),
-                                         Doppler(fm_rate=float(k), doppler_centroid=float(f_dc)))
-        est = motion_from_receivers(layout, estimates, position)
+    est = _refocus(layout, motion_from_receivers(layout, estimates, position, quiet=True), estimates, record_of,
+                   position)
+    est = _repick(layout, est, estimates, record_of, position)
+    announce(est)
     return est
-
-
-def focus(echo: EchoData, est: MotionEstimate, tau_span: float | None = None, sharpen: bool = True) -> dict:
-    """The target focused at every receiver that can focus it, on the r-y plane (section VI):
-    {name: Image with dims ("y", "r")}. Receivers in ``est.cannot_focus`` are left out (case 7:
-    imaged from C only). ``tau_span`` (s) limits the range extent around tau_c.
-
-    Each receiver is compressed with the model's whole delay history at ``est``'s position and
-    velocity: its Taylor K_a,eq and f_dc,eq at eta_ref (:func:`.closedforms.delay_terms`) and
-    the terms beyond them (:func:`.closedforms.higher_order_delay`), not the chain's K~ with
-    those terms: over 80 s the SoWVD's K~ is the aperture's average, 4-6 % above the Taylor K
-    (the quartic term's share), and the higher-order terms on top of it count the quartic twice
-    (Table II case 6, points, 6400 pulses: azimuth IRW 390-600 ms at A, B, C against 15-22 ms
-    with K~ alone and a 1.4-2.1 ms resolution cell). With ``sharpen`` (default) the phase the
-    estimate's errors leave is then found by image sharpness and removed (:mod:`.sharpen`; over
-    80 s a velocity error of 0.1 % widens the response five times): the point's azimuth
-    response reaches the resolution cell 0.886 |V_h| / (|K| T_a). Measured on points at 6400
-    pulses, IRW / cell and PSLR at A, B, C: case 6 1.00, -13.3 dB (the model history alone
-    1.3-3.7 cells, -0.3 to -17.6 dB, at a velocity error of 0.097 %), case 8 1.00, -13.2 to
-    -13.3 dB, case 1 1.00, -13.0 to -13.4 dB (model history alone 1.1-1.3 cells, -4.4 to
-    -11.5 dB, at 0.010 %), cases 2, 3, 4, 5 and 7 (C) 1.00, -13.2 to -13.3 dB (cases 3 and 4,
-    at 0.06 % and 0.05 %: the model history alone 5.6-9.9 cells at -0.1 to -0.5 dB, wider than
-    K~ alone at 4 of the 6 receivers; the sharpness search is what makes every case better than
-    the quadratic focus). On the scaled Albacore (2048 pulses, cases 5, 6, 8) the search changes
-    the images' entropy by -0.33 to +0.02 (worse only in case 5 at A) and their SSIM against
-    the scan image by -0.021 to +0.019 (0.74-0.91). The image is placed by ``est``: its centre (where the centroid
-    ``est.centroids[name]`` focuses with the model) at the model's y of the reference point.
-    """
-    if not isinstance(est, MotionEstimate):
-        raise TypeError(f"est must be a MotionEstimate (from estimate()), got {type(est).__name__}")
-    sharpen = validate.flag("focus_moving sharpen", sharpen)
-    check_echo(echo, list(est.receivers))
-    images = {}
-    for name, rx in est.receivers.items():
-        if name in est.cannot_focus:
-            continue
-        _, f_dc, k = delay_terms(est.layout, name, est.position, est.velocity)
-        model = Predicted(fm_rate=float(k), doppler_centroid=float(f_dc), tau_c=float(rx.tau_c))
-        image: Image = focus_receiver(echo, name, model, tau_span=tau_span, sharpen=sharpen,
-                                      higher_order=higher_order_delay(est.layout, name, est.position, est.velocity,
-                                                                      echo.eta))
-        # where the centre focuses (its centroid's offset from the model's, over K)
-        eta_c = est.layout.eta_ref - (est.centroids[name] - model.doppler_centroid) / model.fm_rate
-        images[name] = to_ry(image, est.layout, name, est.position, est.velocity, rx.tau_c, eta_c)
-    return images

@@ -55,6 +55,7 @@ import numpy as np
 from scipy.ndimage import minimum_filter
 from scipy.optimize import least_squares
 
+from ... import budget, validate
 from .closedforms import delay_terms
 from .layout import Layout
 
@@ -82,6 +83,10 @@ class MotionSolution:
     residual : RMS centroid misfit at the solution, Hz. sigma : (3,) 1-sigma velocity error, m/s.
     confidence : in [0, 1], see the module docstring. alternatives : other roots, (k, 3) m/s.
     position_sigma : (3,) 1-sigma position error, m (NaN when the position was given).
+    covariance : (3, 3) the velocity's covariance, (m/s)^2. ambiguity : the number of roots that
+    fit as well as the best (the confidence is divided by it). fit_chi2, fit_dof : the joint
+    fit's sum of squared normalised residuals and its degrees of freedom (position estimated;
+    NaN and 0 otherwise).
     """
 
     velocity: np.ndarray
@@ -92,17 +97,30 @@ class MotionSolution:
     position_estimated: bool = False
     position_sigma: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     alternatives: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    covariance: np.ndarray = field(default_factory=lambda: np.full((3, 3), np.nan))
+    ambiguity: int = 1
+    fit_chi2: float = float("nan")
+    fit_dof: int = 0
 
 
-def _check_measurements(layout: Layout, values: dict, what: str) -> list:
-    if not isinstance(values, dict) or len(values) < 3:
-        raise ValueError(f"{what} must map at least 3 receiver names to values (3 unknowns), "
-                         f"got {values!r}")
+def _check_measurements(layout: Layout, values: dict, what: str, at_least: int = 3, positive: bool = False) -> list:
+    """The receiver names of ``values`` (name -> finite number; > 0 when ``positive``), each in
+    the layout, at least ``at_least`` of them."""
+    if not isinstance(values, dict) or len(values) < at_least:
+        raise ValueError(f"{what} must map at least {at_least} receiver names to values"
+                         f"{' (3 unknowns)' if at_least == 3 else ''}, got {values!r}")
     for name, value in values.items():
         layout.receiver(name)
-        if not np.isfinite(value):
-            raise ValueError(f"{what}[{name!r}] must be finite, got {value}")
+        if positive:
+            validate.positive(f"{what}[{name!r}]", value)
+        else:
+            validate.scalar(f"{what}[{name!r}]", value)
     return list(values)
+
+
+#: Bytes a point of the velocity bracketing grid takes (its velocity, the model's centroids per
+#: receiver and the misfit, with NumPy's temporaries).
+GRID_BYTES_PER_POINT = 400
 
 
 def _within_bound(velocity: np.ndarray, cov: np.ndarray) -> float:
@@ -136,12 +154,18 @@ def solve_velocity(layout: Layout, position, centroids: dict, sigmas: dict | Non
     fm_rates : dict name -> K~_a,eq (Hz/s), optional: ranks multiple roots.
     v_max, step : the bracketing grid, m/s.
     """
-    position = np.asarray(position, dtype=np.float64)
-    if position.shape != (3,) or not np.all(np.isfinite(position)):
-        raise ValueError(f"position must be a finite 3-vector (x, y, z) in m, got shape {position.shape}")
-    if not (v_max > 0 and 0 < step <= v_max):
-        raise ValueError(f"need v_max > 0 and 0 < step <= v_max (m/s), got v_max={v_max}, step={step}")
+    position = _position(position)
+    v_max = validate.positive("solve_velocity v_max", v_max, high=validate.MAX_SPEED, unit="m/s")
+    step = validate.positive("solve_velocity step", step, high=v_max, unit="m/s", why="at most v_max")
     names = _check_measurements(layout, centroids, "centroids")
+    if sigmas is not None:
+        _check_measurements(layout, sigmas, "sigmas", at_least=0, positive=True)
+    if fm_rates is not None:
+        _check_measurements(layout, fm_rates, "fm_rates", at_least=0)
+    n_axis = int(np.floor(2 * v_max / step + 0.5)) + 1
+    budget.check_bytes(f"solve_velocity's bracketing grid (v_max={v_max:g} m/s, step={step:g} m/s: {n_axis}^3 points)",
+                       GRID_BYTES_PER_POINT * (1 + len(names)) * float(n_axis) ** 3,
+                       "a larger step or a smaller v_max")
     f_meas = np.array([centroids[n] for n in names], dtype=np.float64)
     sig = np.array([(sigmas or {}).get(n, centroid_sigma(f)) for n, f in zip(names, f_meas)])
 
@@ -179,8 +203,18 @@ def solve_velocity(layout: Layout, position, centroids: dict, sigmas: dict | Non
     return MotionSolution(
         velocity=best.x.copy(), position=position.copy(),
         residual=float(np.sqrt(np.mean((best.fun * sig) ** 2))),
-        sigma=np.sqrt(np.abs(np.diag(cov))), confidence=_within_bound(best.x, cov) / tied,
-        alternatives=np.array([roots[i].x for i in order[1:]]).reshape(-1, 3))
+        sigma=np.sqrt(np.abs(np.diag(cov))), confidence=confidence(best.x, cov, tied),
+        alternatives=np.array([roots[i].x for i in order[1:]]).reshape(-1, 3), covariance=cov, ambiguity=tied)
+
+
+def confidence(velocity: np.ndarray, cov: np.ndarray, ambiguity: int = 1) -> float:
+    """P(|dv| within the paper's 3 % bound) for dv ~ N(0, ``cov``), divided by ``ambiguity``
+    (the roots that fit as well; module docstring)."""
+    return _within_bound(np.asarray(velocity), np.asarray(cov)) / max(int(ambiguity), 1)
+
+
+def _position(position) -> np.ndarray:
+    return np.array(validate.vector3("position", position), dtype=np.float64)
 
 
 def _trilaterate(layout: Layout, names: list, tau: np.ndarray, sig_tau: np.ndarray, model: str) -> np.ndarray:
@@ -206,17 +240,32 @@ def _trilaterate(layout: Layout, names: list, tau: np.ndarray, sig_tau: np.ndarr
 
 def solve_motion(layout: Layout, delays: dict, centroids: dict, fm_rates: dict | None = None,
                  sigmas: dict | None = None, delay_sigma: float | None = None, v_max: float = 16.0,
-                 step: float = 2.0, model: str = "exact") -> MotionSolution:
+                 step: float = 2.0, model: str = "exact", prior=None, prior_sigma: float | None = None,
+                 start_velocity=None) -> MotionSolution:
     """Position and velocity jointly from the receivers' delays tau_c (s), centroids (Hz) and,
     optionally, FM rates (Hz/s), each a dict name -> value over >= 3 receivers.
 
     ``delay_sigma`` (s) defaults to a tenth of a range resolution cell, 0.1 / B (the range line
     is located to a fraction of a cell). The position is the target's at slow time 0, with the
     delays taken at ``layout.eta_ref``.
+
+    ``prior`` (3,) m with ``prior_sigma`` (m, each axis): a known position the point measured is
+    near (:func:`.motion.estimate` with a given position on an extended target: the centroids and
+    delays are those of the middle of its image, within the target's size of the given point).
+    The fit then starts there (at ``start_velocity``, or the velocity solved at the prior), adds
+    (p - prior) / prior_sigma to its residuals and leaves the FM rates out (they only rank the
+    roots of the bracketing solve); ``position_estimated`` is False.
     """
-    names = _check_measurements(layout, delays, "delays")
+    names = _check_measurements(layout, delays, "delays", positive=True)
+    _check_measurements(layout, centroids, "centroids")
     if set(centroids) != set(names):
         raise ValueError(f"delays and centroids must name the same receivers, got {sorted(delays)} and {sorted(centroids)}")
+    if fm_rates is not None:
+        _check_measurements(layout, fm_rates, "fm_rates", at_least=0)
+    if sigmas is not None:
+        _check_measurements(layout, sigmas, "sigmas", at_least=0, positive=True)
+    if delay_sigma is not None:
+        delay_sigma = validate.positive("solve_motion delay_sigma", delay_sigma, high=1.0, unit="s")
     tau = np.array([delays[n] for n in names], dtype=np.float64)
     sig_tau = float(delay_sigma) if delay_sigma is not None else 0.1 / layout.bandwidth
     f_meas = np.array([centroids[n] for n in names], dtype=np.float64)
@@ -225,9 +274,22 @@ def solve_motion(layout: Layout, delays: dict, centroids: dict, fm_rates: dict |
     k_meas = np.array([fm_rates[n] for n in k_names], dtype=np.float64)
     sig_k = np.array([fm_rate_sigma(k) for k in k_meas])
 
-    p0 = _trilaterate(layout, names, tau, np.full(tau.size, sig_tau), model)
-    first = solve_velocity(layout, p0, dict(zip(names, f_meas)), dict(zip(names, sig_f)),
-                           dict(zip(k_names, k_meas)) or None, v_max, step, model)
+    if prior is not None:
+        prior = _position(prior)
+        prior_sigma = validate.positive("solve_motion prior_sigma", prior_sigma, high=1e4, unit="m")
+        p0 = prior
+        if start_velocity is not None:
+            first = MotionSolution(velocity=validate.vector3("solve_motion start_velocity", start_velocity,
+                                                             bound=validate.MAX_SPEED),
+                                   position=p0, residual=np.nan, sigma=np.full(3, np.nan), confidence=np.nan)
+        else:
+            first = solve_velocity(layout, p0, dict(zip(names, f_meas)), dict(zip(names, sig_f)),
+                                   dict(zip(k_names, k_meas)) or None, v_max, step, model)
+        k_names, k_meas, sig_k = [], k_meas[:0], sig_k[:0]
+    else:
+        p0 = _trilaterate(layout, names, tau, np.full(tau.size, sig_tau), model)
+        first = solve_velocity(layout, p0, dict(zip(names, f_meas)), dict(zip(names, sig_f)),
+                               dict(zip(k_names, k_meas)) or None, v_max, step, model)
 
     def residual(x):
         p, v = x[:3], x[3:]
@@ -236,6 +298,8 @@ def solve_motion(layout: Layout, delays: dict, centroids: dict, fm_rates: dict |
                (np.array([terms[n][1] for n in names]) - f_meas) / sig_f]
         if k_names:
             out.append((np.array([terms[n][2] for n in k_names]) - k_meas) / sig_k)
+        if prior is not None:
+            out.append((p - prior) / prior_sigma)
         return np.concatenate(out)
 
     fit = least_squares(residual, np.concatenate([p0, first.velocity]), x_scale=np.array([10.0] * 3 + [1.0] * 3),
@@ -245,6 +309,7 @@ def solve_motion(layout: Layout, delays: dict, centroids: dict, fm_rates: dict |
     return MotionSolution(
         velocity=fit.x[3:].copy(), position=fit.x[:3].copy(),
         residual=float(np.sqrt(np.mean((fit.fun[n:2 * n] * sig_f) ** 2))),
-        sigma=np.sqrt(np.abs(np.diag(cov)[3:])), confidence=_within_bound(fit.x[3:], cov[3:, 3:]),
-        position_estimated=True, position_sigma=np.sqrt(np.abs(np.diag(cov)[:3])),
-        alternatives=first.alternatives)
+        sigma=np.sqrt(np.abs(np.diag(cov)[3:])), confidence=confidence(fit.x[3:], cov[3:, 3:]),
+        position_estimated=prior is None, position_sigma=np.sqrt(np.abs(np.diag(cov)[:3])),
+        alternatives=first.alternatives, covariance=cov[3:, 3:], fit_chi2=float(np.sum(fit.fun ** 2)),
+        fit_dof=int(fit.fun.size - fit.x.size))

@@ -30,7 +30,7 @@ For each receiver i (offset d_i ahead of the transmitter), on its range-compress
    the azimuth spectrum (lower PSLR, wider main lobe) and eq. (13) alone cannot meet the pi / 4
    rule beyond 2.2 m sub-blocks. The correction reads every column r of the block, in the
    range-Doppler domain, at r + (c / 2) [m(f_t; r) - m(f_t; r_ref_n)] (m exact at r_ref_n and
-   linear in r between the nodes below; windowed-sinc interpolation, :func:`clsas.interp.resample`).
+   linear in r between the nodes below; ``interp``, :func:`clsas.interp.resample`).
    What remains is the part of phi_de(r) - phi_de(r_ref_n) beyond first order in f_tau, the
    secondary-range-compression residual ~ 2 pi (r - r_ref_n) (2 / c) f_tau^2 sin^2(theta) /
    (2 f0 cos^3(theta)): 0.17 rad at 4 m, and the pi / 4 rule allows 33 m sub-blocks.
@@ -63,11 +63,11 @@ import scipy.fft
 
 from ... import budget
 from ... import validate as v
-from ...interp import resample
+from ...interp import INTERPOLATORS, TAP_WINDOWS, check_options, check_sizes, resample_prechecked
 from ...model import EchoData, Image
 from ..multireceiver import interleave, line_array
 from ..rangecomp import check_window, check_workers
-from ..record import LineRecord, azimuth_weights, check_elements, image_of
+from ..record import LineRecord, azimuth_weights, check_elements, image_of, oversampling
 from .phase import compress_azimuth, decouple
 from .stationary import StationaryPoints, hermite, migration
 
@@ -111,15 +111,19 @@ def plan_blocks(r: np.ndarray, valid: np.ndarray, block_width, reference_ranges,
     return blocks
 
 
-def _check_arguments(block_width, rcmc, window, window_options, deconvolve, points, depth, workers):
-    """The scalar arguments of :func:`ptrs_image`, checked before anything is computed; returns
-    (block_width, window options, workers)."""
+def _check_arguments(block_width, rcmc, window, window_options, deconvolve, interp, tap_window, points, depth,
+                     workers):
+    """The scalar arguments of :func:`ptrs_image`, checked before anything is computed (the
+    template's checks, :func:`clsas.image.strip.strip_job`); returns (block_width, window
+    options, workers)."""
     if block_width is not None:
         block_width = v.positive("ptrs_image block_width", block_width, high=v.MAX_COORDINATE, unit="m",
                                  why="a sub-block width, or None for the pi/4 rule")
     v.flag("ptrs_image rcmc", rcmc)
     v.flag("ptrs_image deconvolve", deconvolve)
     options = check_window(window, window_options, "ptrs_image")
+    v.choice("ptrs_image interp", interp, INTERPOLATORS)
+    v.choice("ptrs_image tap_window", tap_window, TAP_WINDOWS)
     if points is not None and not isinstance(points, StationaryPoints):
         raise TypeError(f"ptrs_image points: must be a StationaryPoints (or None), got {type(points).__name__}")
     if depth is not None:
@@ -149,11 +153,16 @@ def working_bytes(n_rx: int, n_fp: int, n_r: int, n_rows: int, n_ft: int, n_cols
             + 40.0 * n_rows * segment)
 
 
-def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None, reference_ranges=None,
-               elements=None, window: str = "none", deconvolve: bool = True, points: StationaryPoints | None = None,
-               depth: float | None = None, workers: int | None = None, rcmc: bool = True,
-               backend: str | None = None, **window_options) -> Image:
+def ptrs_image(echo: EchoData, *, receivers=None, block_width: float | None = None, reference_ranges=None,
+               elements=None, deconvolve: bool = True, window: str = "none", interp: str = "sinc8",
+               tap_window: str = "kaiser", depth: float | None = None, workers: int | None = None, rcmc: bool = True,
+               points: StationaryPoints | None = None, backend: str | None = None, **window_options) -> Image:
     """Focus a multireceiver line-array record by numerical PTRS imaging (see the module docstring).
+
+    The options are keyword-only, with the names and defaults of the strip-map imagers'
+    template (:func:`clsas.image.strip.strip_job`) where they share one (``elements``,
+    ``deconvolve``, ``window``, ``interp``, ``tap_window``, ``depth``, ``workers``, ``backend``);
+    ``receivers`` picks several receivers where the template's ``receiver`` picks one.
 
     Parameters
     ----------
@@ -168,7 +177,12 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     elements : (L_tx, L_rx) along-track element lengths, m: the processed Doppler band
         |f_t| <= v / max(L) and (``deconvolve``) the element-pattern deconvolution, as
         :func:`clsas.image.omegak.omega_k`. None keeps the whole M x PRF band.
-    window : Doppler-band weighting ("none", "hamming", "taylor", "kaiser").
+    deconvolve : divide by the element pattern (with ``elements``); False keeps its taper.
+    window : Doppler-band weighting ("none", "hamming", "taylor", "kaiser"; their options
+        ``taylor_nbar``, ``taylor_sll_db``, ``kaiser_beta`` as keywords). Default "none", as every
+        strip-map imager (:mod:`clsas.image.strip`).
+    interp, tap_window : the interpolator of the residual range cell migration correction
+        (``rcmc``): "linear", "sinc8", "sinc16"; "kaiser" or "knab" (:mod:`clsas.interp`).
     points : a :class:`StationaryPoints` to fill and reuse: empty on the first call, it keeps
         the stationary points solved, and a later call on the same geometry reuses them (its
         :attr:`~StationaryPoints.solved` count does not grow when it serves every range).
@@ -185,7 +199,7 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     Image, dims ("y", "x"), along-track rows every v PRI / M.
     """
     block_width, window_options, workers = _check_arguments(block_width, rcmc, window, window_options, deconvolve,
-                                                            points, depth, workers)
+                                                            interp, tap_window, points, depth, workers)
     arr = line_array(echo, receivers)
     interleave(arr.track, arr.offsets, echo.n_pulses)  # the aliases cancel only on a uniform phase-centre grid
     c, f0, fs, speed = echo.medium.sound_speed, echo.waveform.f0, echo.fs, arr.track.speed
@@ -232,6 +246,10 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     n_r = scipy.fft.next_fast_len(n_cols + margin)  # the record's circular range axis, zero beyond n_cols
     segment = max(scipy.fft.next_fast_len(hi - lo + 2 * margin) for lo, hi, _ in blocks)
     _check_budget(n_rx, n_p, n_fp, n_cols, rows.size, n_ft, len(blocks) + nodes.size, points.n_s, n_r, segment)
+    knab = oversampling(fs, echo.waveform)  # the Knab window's parameter
+    if rcmc:  # resample's checks, once for every receiver and sub-block (the positions are finite by construction)
+        check_options(interp, tap_window, knab)
+        check_sizes("ptrs_image rcmc", (rows.size, segment), segment, interp, "a sub-block's columns")
     for h in arr.receivers:
         v.bounded_gain("ptrs_image echo.data", echo.data[h], float(n_r) * n_fp * n_rx,
                        advice="scale the echo down (the FFTs and the coherent sum over receivers and pulses amplify it)")
@@ -259,9 +277,9 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
                      points.s_first, points.ds, 2 * r_ref / c, backend=backend)
             seg = scipy.fft.ifft(seg, axis=1, workers=workers)
             if rcmc:
-                out[:, lo:hi] = resample(seg, _rcmc_positions(tables_g[j], tables_t[j], b, refs.size, points,
-                                                              s0, r_ref, nodes, column_node[lo:hi],
-                                                              column_weight[lo:hi], margin, c, fs), backend=backend)
+                positions = _rcmc_positions(tables_g[j], tables_t[j], b, refs.size, points, s0, r_ref, nodes,
+                                            column_node[lo:hi], column_weight[lo:hi], margin, c, fs)
+                out[:, lo:hi] = resample_prechecked(seg, positions, interp, tap_window, knab, backend)
             else:
                 out[:, lo:hi] = seg[:, margin:margin + hi - lo]
         del rd
@@ -278,7 +296,8 @@ def ptrs_image(echo: EchoData, receivers=None, block_width: float | None = None,
     image = image_of(grid, full, r, "ptrs", {"receivers": [echo.receivers[h] for h in arr.receivers],
                                             "blocks": [(float(r[lo]), float(r[hi - 1]), ref) for lo, hi, ref in blocks],
                                             "r_c": r_c, "elements": elements, "window": window,
-                                            "deconvolve": deconvolve, "rcmc": rcmc, "backend": backend,
+                                            "deconvolve": deconvolve, "rcmc": rcmc, "interp": interp,
+                                            "tap_window": tap_window, "backend": backend,
                                             "stationary_points_solved": points.solved}, depth)
     return image
 

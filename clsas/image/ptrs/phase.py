@@ -27,8 +27,6 @@ together).
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 
 from ... import backend as _backend
@@ -159,22 +157,18 @@ def compress_azimuth(data: np.ndarray, ft, f0: float, node_g: np.ndarray, node_t
     return run(data, *args)
 
 
-@lru_cache(maxsize=8)
-def _kernel(context, kernel_name: str):
-    """The kernel object for a context (made once: a fresh pyopencl.Kernel costs ~10 ms)."""
-    return opencl.kernel("ptrs", kernel_name)
-
-
 def _run(kernel_name: str, data: np.ndarray, arrays: list, scalars: list) -> None:
     """Run ``kernel_name`` of kernels/ptrs.cl over every element of ``data`` (in place: the host
-    array is the buffer, mapped back after the kernel), read-only ``arrays`` before ``scalars``."""
+    array is the buffer, mapped back after the kernel), read-only ``arrays`` before ``scalars``:
+    a work-item per row and 16 columns, in fixed work-groups (:func:`clsas.opencl.work_groups_2d`:
+    PoCL then compiles each kernel once a process, whatever the data's shape)."""
     import pyopencl as cl
 
     rt = opencl.runtime()
     mf = cl.mem_flags
-    knl = _kernel(rt.context, kernel_name)
+    knl = opencl.kernel("ptrs", kernel_name)
     buf = cl.Buffer(rt.context, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=data)
     inputs = [cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a)) for a in arrays]
-    knl(rt.queue, (-(-data.shape[1] // LANES), data.shape[0]), None, buf, *inputs, *scalars)
+    knl(rt.queue, *opencl.work_groups_2d(data.shape[0], -(-data.shape[1] // LANES)), buf, *inputs, *scalars)
     mapped, _ = cl.enqueue_map_buffer(rt.queue, buf, cl.map_flags.READ, 0, data.shape, data.dtype)
     mapped.base.release()

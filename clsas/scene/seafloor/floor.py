@@ -242,13 +242,12 @@ class Seafloor:
         return trimesh.Trimesh(vertices, faces, process=False)
 
     def max_slope(self, samples: int = 513) -> float:
-        """An upper bound of |grad z| over ``extent``: the largest sampled on a grid of ``samples``
-        per side, plus the ripples' full slope amplitude when there are ripples (a ray leaving the
-        floor at an elevation tan e above this cannot meet the floor again)."""
+        """An upper bound of |grad z| over ``extent``: the plane's and the height map's largest
+        gradient sampled on a grid of ``samples`` per side, plus the ripples' slope amplitude
+        pi h / L (a ray leaving the floor at an elevation tan e above this cannot meet it again)."""
         x = np.linspace(self.extent[0], self.extent[1], samples)
         y = np.linspace(self.extent[2], self.extent[3], samples)
-        gx, gy = self.gradient(x[None, :], y[:, None])
-        bound = float(np.hypot(gx, gy).max())
-        if self.ripple_height > 0:
-            bound += 0.5 * self.ripple_height * 2 * np.pi / self.ripple_wavelength
-        return bound
+        flat = Seafloor(self.extent, self.z, self.sediment, self.law, self.slope, self.heights, self.spacing,
+                        self.origin) if self.ripple_height > 0 else self
+        gx, gy = flat.gradient(x[None, :], y[:, None])
+        return float(np.hypot(gx, gy).max()) + np.pi * self.ripple_height / max(self.ripple_wavelength, 1e-300)

@@ -48,6 +48,7 @@ class RayCaster:
 
         self.method = method
         self.triangles = np.asarray(mesh.triangles, dtype=np.float64)
+        self.bounds = np.array([self.triangles.reshape(-1, 3).min(axis=0), self.triangles.reshape(-1, 3).max(axis=0)])
         self.rays_cast = 0  # rays cast so far (for the benchmarks)
         self.queries = 0  # paths answered so far, by a cast or by reuse (:func:`visibility`)
         self._lock = threading.Lock()
@@ -64,11 +65,17 @@ class RayCaster:
             self.queries += n
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, tfar: np.ndarray) -> np.ndarray:
-        """bool (K,): the segment origin + t direction, 0 < t < tfar, hits the mesh."""
+        """bool (K,): the segment origin + t direction, 0 < t < tfar, hits the mesh. Segments end
+        where they leave the mesh's bounding box for good (nothing lies beyond: a long ray
+        over a large mesh is not traversed past it)."""
         if origins.shape[0] == 0:
             return np.zeros(0, dtype=bool)
         with self._lock:
             self.rays_cast += origins.shape[0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            exits = np.where(directions > 0, (self.bounds[1] - origins) / directions,
+                             np.where(directions < 0, (self.bounds[0] - origins) / directions, np.inf))
+        tfar = np.minimum(tfar, np.maximum(exits.min(axis=1), 0.0) * (1 + 1e-6) + 1e-6)
         if self.method == "reference":
             return occluded_reference(self.triangles, origins, directions, tfar)
         res = self.scene.run(np.ascontiguousarray(origins, dtype=np.float32),
@@ -159,19 +166,26 @@ def visibility(caster: "RayCaster | None", start: np.ndarray, d: np.ndarray, pat
 
 
 class WorldView(RayCaster):
-    """A stationary mesh target's body-frame rays cast against a shared world-frame scene (its
-    hull and everything else there: the seafloor, other targets): ``occluded`` moves the rays by
-    ``rotation`` (body to world) and ``position``, and keeps its own counts."""
+    """A stationary mesh target's body-frame rays cast against shared world-frame scenes (its
+    hull and everything else there: the seafloor, other targets; a ray is blocked when any
+    scene blocks it): ``occluded`` moves the rays by ``rotation`` (body to world) and
+    ``position``, and keeps its own counts."""
 
-    def __init__(self, world: RayCaster, rotation: np.ndarray, position: np.ndarray):
+    def __init__(self, worlds, rotation: np.ndarray, position: np.ndarray):
         import threading
 
-        self.method, self.triangles = world.method, world.triangles
-        if world.method == "embree":
-            self.scene = world.scene
+        self.worlds = list(worlds)
+        self.method = self.worlds[0].method
         self.rotation, self.position = np.asarray(rotation, dtype=np.float64), np.asarray(position, dtype=np.float64)
         self.rays_cast = self.queries = 0
         self._lock = threading.Lock()
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, tfar: np.ndarray) -> np.ndarray:
-        return super().occluded(origins @ self.rotation.T + self.position, directions @ self.rotation.T, tfar)
+        with self._lock:
+            self.rays_cast += origins.shape[0]
+        o, d = origins @ self.rotation.T + self.position, directions @ self.rotation.T
+        blocked = self.worlds[0].occluded(o, d, tfar)
+        for world in self.worlds[1:]:
+            open_ = ~blocked
+            blocked[open_] = world.occluded(o[open_], d[open_], tfar[open_])
+        return blocked

@@ -51,14 +51,14 @@ def _segment_near(q: np.ndarray, d: np.ndarray, centre: np.ndarray, radius: floa
 class SeafloorPaths:
     """Path weights of a scenario's seafloor facets (module docstring).
 
-    ``world`` is the RayCaster of the seafloor mesh and the stationary mesh targets (world
-    frame), or None for no shadows; ``moving`` the (target, body-frame caster) pairs of moving
+    ``world`` is the pair of RayCasters (the seafloor's mesh, the stationary mesh targets or
+    None; world frame), or None for no shadows; ``moving`` the (target, body-frame caster) pairs of moving
     mesh targets; ``backend`` computes the unshadowed weights and the flags of the paths a
     shadow may darken (kernels/seafloor.cl, or its NumPy twin); the flagged paths' rays are cast
     on the host either way.
     """
 
-    def __init__(self, scenario, world: RayCaster | None, moving=(), relief_spacing: float | None = None,
+    def __init__(self, scenario, world: tuple | None, moving=(), relief_spacing: float | None = None,
                  backend: str | None = None):
         from ... import backend as _backend
 
@@ -135,10 +135,7 @@ class SeafloorPaths:
         flags[...] = False
 
         def may_block(q, d, sph):
-            hit = d[2] < slope * np.hypot(d[0], d[1])
-            for centre in sph:
-                hit |= _segment_near(q, d, centre[:3], centre[3])
-            return hit
+            return (d[2] < slope * np.hypot(d[0], d[1])) | self._near_targets(q, d, sph)
 
         for p, st in enumerate(stations):
             tx = st[0]
@@ -169,50 +166,64 @@ class SeafloorPaths:
 
         from ... import opencl
 
+        if self.count == 0:  # nothing drawn (no OpenCL buffer may be empty)
+            return
         rt = opencl.runtime()
         mf = cl.mem_flags
-        if self._device is None:
-            four = np.zeros((self.count, 4), np.float32)
-            four[:, :3] = self.facets.positions - self.origin
-            normal = np.zeros((self.count, 4), np.float32)
-            normal[:, :3] = self.facets.normals
-            self._device = tuple(cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
-                                 for a in (four, normal, self.law.astype(np.float32)))
+        n16 = -(-self.count // 16) * 16
+        if self._device is None:  # the facets, structure of arrays, padded with unlit (zero-normal) facets
+            soa = np.zeros((6, n16), np.float32)
+            soa[:3, :self.count] = (self.facets.positions - self.origin).T
+            soa[3:, :self.count] = self.facets.normals.T
+            self._device = tuple(cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
+                                 for a in (*soa, self.law.astype(np.float32)))
         n_p, n_rx = stations.shape[0], self.scenario.n_receivers
+        spans = np.array([self.facets.reach_span(tx, self.across) for tx in stations[:, 0]])
+        first = int(spans[:, 0].min()) // 16 * 16  # the facets any of these pulses can reach
+        span = -(-(int(spans[:, 1].max()) - first) // 16) * 16
+        out[...] = 0.0
+        flags[...] = False
+        if span <= 0:
+            return
         st = np.zeros(stations.shape[:2] + (4,), np.float32)
         st[..., :3] = stations - self.origin
         st[:, 2::2, :3] = stations[:, 2::2]  # velocities are not moved
         sph = np.zeros((n_p, max(1, spheres.shape[1]), 4), np.float32)
         sph[:, :spheres.shape[1], :3] = spheres[..., :3] - self.origin
         sph[:, :spheres.shape[1], 3] = spheres[..., 3]
-        weights = np.empty((n_rx, n_p, self.count), np.float32)
-        flag = np.empty((n_p, self.count), np.uint8)
+        weights = np.empty((n_rx, n_p, span), np.float32)
+        flag = np.empty((n_p, span), np.uint8)
         w_buf = cl.Buffer(rt.context, mf.WRITE_ONLY, weights.nbytes)
         f_buf = cl.Buffer(rt.context, mf.WRITE_ONLY, flag.nbytes)
         knl = opencl.kernel("seafloor", "seafloor_weights")
-        reach = np.float32(min(self.facets.reach, 1e30))
         slope = np.float32(-np.inf if self.slope is None else self.slope)
-        knl(rt.queue, (self.count, n_p), None, self._device[0], self._device[1],
+        knl(rt.queue, (span // 16, n_p), None, *self._device[:6],
             cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=st),
-            cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=sph), self._device[2],
-            np.int32(LAW_TABLE), reach, np.float32(self.lift), np.float32(self.scenario.medium.sound_speed), slope,
-            np.int32(self.count), np.int32(n_rx), np.int32(spheres.shape[1]), w_buf, f_buf)
+            cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=sph), self._device[6],
+            np.int32(LAW_TABLE), np.float32(min(self.facets.reach, 1e30)), np.float32(self.lift),
+            np.float32(self.scenario.medium.sound_speed), slope, np.int32(first), np.int32(span), np.int32(n_rx),
+            np.int32(spheres.shape[1]), w_buf, f_buf)
         cl.enqueue_copy(rt.queue, weights, w_buf)
         cl.enqueue_copy(rt.queue, flag, f_buf)
-        out[...] = weights
-        flags[...] = flag.view(bool)
+        stop = min(first + span, self.count)
+        out[..., first:stop] = weights[..., :stop - first]
+        flags[:, first:stop] = flag[:, :stop - first].view(bool)
 
     # -- shadows --------------------------------------------------------------------------------
 
-    def _clear(self, start: np.ndarray, d: np.ndarray, eta: float) -> np.ndarray:
+    def _clear(self, start: np.ndarray, d: np.ndarray, eta: float, spheres: np.ndarray) -> np.ndarray:
         """bool (n,): the legs from ``start`` along ``d`` ((3, n), to the station) are free of the
-        relief and the mesh targets."""
+        relief and the mesh targets (the targets' scene is cast only for legs passing near them)."""
         o, v = start.T, d.T
         dist = np.sqrt(np.einsum("ij,ij->i", v, v))
         u = v / dist[:, None]
         blocked = np.zeros(o.shape[0], dtype=bool)
         if self.world is not None:
-            blocked |= self.world.occluded(o, u, dist)
+            relief, objects = self.world
+            blocked |= relief.occluded(o, u, dist)
+            if objects is not None:
+                near = ~blocked & self._near_targets(start, d, spheres)
+                blocked[near] = objects.occluded(o[near], u[near], dist[near])
         c = self.scenario.medium.sound_speed
         tx = self.scenario.tx_position(np.array([eta]))[0]
         for target, caster in self.moving:
@@ -221,12 +232,18 @@ class SeafloorPaths:
         self.rays_cast += o.shape[0]
         return ~blocked
 
-    def _shade(self, eta: float, station: np.ndarray, idx: np.ndarray, out: np.ndarray) -> None:
+    def _near_targets(self, q: np.ndarray, d: np.ndarray, spheres: np.ndarray) -> np.ndarray:
+        near = np.zeros(d.shape[1], dtype=bool)
+        for centre in spheres:
+            near |= _segment_near(q, d, centre[:3], centre[3])
+        return near
+
+    def _shade(self, eta: float, station: np.ndarray, spheres: np.ndarray, idx: np.ndarray, out: np.ndarray) -> None:
         """Zero the weights ``out`` (H, N) of the flagged facets ``idx`` whose legs are blocked."""
         c = self.scenario.medium.sound_speed
         q = self.start_t[:, idx]
         d_tx = station[0][:, None] - q
-        lit = self._clear(q, d_tx, eta)
+        lit = self._clear(q, d_tx, eta, spheres)
         out[:, idx[~lit]] = 0.0
         idx, q, r1 = idx[lit], q[:, lit], np.sqrt(np.einsum("in,in->n", d_tx[:, lit], d_tx[:, lit]))
         for h in range(self.scenario.n_receivers):
@@ -234,7 +251,7 @@ class SeafloorPaths:
             w = station[2 + 2 * h][:, None]
             d = station[1 + 2 * h][:, None] + w * (r1[heard] / c) - q[:, heard]
             d += w * geometry.meet_time(d, w, c, axis=0)
-            out[h, idx[heard][~self._clear(q[:, heard], d, eta)]] = 0.0
+            out[h, idx[heard][~self._clear(q[:, heard], d, eta, spheres)]] = 0.0
 
     def fill(self, eta: np.ndarray, out: np.ndarray) -> None:
         """The weights (H, P, N) of the facets' paths for the pulses ``eta`` (P,), into ``out``."""
@@ -251,4 +268,4 @@ class SeafloorPaths:
         for p in range(eta.size):
             idx = np.flatnonzero(flags[p])
             if idx.size:
-                self._shade(float(eta[p]), stations[p], idx, out[:, p])
+                self._shade(float(eta[p]), stations[p], spheres[p], idx, out[:, p])

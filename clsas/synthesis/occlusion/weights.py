@@ -71,7 +71,7 @@ class PathWeights:
             caster = None
             if mesh and hull_occlusion:
                 if world is not None and not np.any(target.velocity):
-                    caster = WorldView(world[0], target.rotation, target.position)
+                    caster = WorldView([c for c in world[:2] if c is not None], target.rotation, target.position)
                 else:
                     caster = RayCaster(target.mesh, method)
                     moving.append((target, caster))
@@ -79,8 +79,8 @@ class PathWeights:
             start += n
         self.seafloor = None
         if floor is not None:
-            self.seafloor = SeafloorPaths(scenario, None if world is None else world[0], moving if hull_occlusion else (),
-                                          None if world is None else world[1], backend)
+            self.seafloor = SeafloorPaths(scenario, None if world is None else world[:2], moving if hull_occlusion else (),
+                                          None if world is None else world[2], backend)
             self.seafloor_first = start
             start += self.seafloor.count
         self.n_scatterers = start
@@ -230,16 +230,18 @@ def relief_spacing(scenario) -> float:
     return spacing
 
 
-def _world(scenario, method: str) -> tuple[RayCaster, float]:
-    """The world-frame scene of a scenario with a seafloor: the seafloor's mesh and every
-    stationary mesh target; and the mesh's grid spacing."""
+def _world(scenario, method: str) -> tuple:
+    """The world-frame scenes of a scenario with a seafloor: (the seafloor's mesh, the stationary
+    mesh targets or None, the seafloor mesh's grid spacing). Two scenes, so that a ray that only
+    the relief can block is traced over the relief alone, and ends where it climbs above it."""
     import trimesh
 
     spacing = relief_spacing(scenario)
-    parts = [scenario.seafloor.mesh(spacing)]
+    hulls = []
     for target in scenario.targets:
         if isinstance(target, MeshTarget) and not np.any(target.velocity):
             hull = target.mesh.copy()
             hull.apply_transform(np.block([[target.rotation, target.position[:, None]], [np.zeros((1, 3)), np.ones((1, 1))]]))
-            parts.append(hull)
-    return RayCaster(trimesh.util.concatenate(parts), method), spacing
+            hulls.append(hull)
+    objects = RayCaster(trimesh.util.concatenate(hulls), method) if hulls else None
+    return RayCaster(scenario.seafloor.mesh(spacing), method), objects, spacing

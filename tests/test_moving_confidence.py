@@ -1,0 +1,213 @@
+"""Estimates that know when they are wrong (issue 26, deliverable 1): the SoWVD's cross-terms on
+targets of several scatterers, the receivers' FM rates against one velocity, and sigma and
+confidence that say how far to trust the velocity (Kiang & Kiang 2022, sections III-V).
+
+The targets here are groups of point scatterers moving together (a rigid target) in the Table I
+geometry: three equal points on the hull's axis (the issue's case), and seeded random groups of
+3-20 points (amplitudes 0.3-1) over a 10 m x 2 m footprint at random headings, the footprint's
+centre given as the position.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import clsas
+from clsas.estimate.moving import chain, closed_forms, layout_of, motion_from_receivers
+from clsas.estimate.moving.sowvd import modified_sowvd, rfrt
+from clsas.estimate.moving import trace
+from clsas.scene import presets
+from clsas.scene.targets import PointTargets
+
+CENTRE = np.array([1989.0, 0.0, -350.0])
+BOUND = 0.03  # the paper's velocity error bound
+
+
+def random_target(seed: int):
+    """(positions (n, 3), amplitudes (n,), velocity (3,)): 3-20 points (amplitudes 0.3-1) over a
+    10 m x 2 m footprint centred on CENTRE, its long side along a random heading, moving along
+    it at 3-6 m/s with a vertical speed within +-1 m/s."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(3, 21))
+    heading = rng.uniform(-np.pi, np.pi)
+    speed = rng.uniform(3.0, 6.0)
+    velocity = np.array([speed * np.cos(heading), speed * np.sin(heading), rng.uniform(-1.0, 1.0)])
+    along, across = rng.uniform(-5.0, 5.0, n), rng.uniform(-1.0, 1.0, n)
+    axis = np.array([np.cos(heading), np.sin(heading), 0.0])
+    side = np.array([-np.sin(heading), np.cos(heading), 0.0])
+    return CENTRE + along[:, None] * axis + across[:, None] * side, rng.uniform(0.3, 1.0, n), velocity
+
+
+def _echo(positions, amplitudes, velocity, n_pulses):
+    sc = presets.kiang2022(n_pulses=n_pulses).replace(
+        targets=(PointTargets(positions, reflectivity=amplitudes, velocity=velocity),))
+    return sc, clsas.simulate(sc, backend="opencl", progress=False)
+
+
+def _error(est, velocity) -> float:
+    return float(np.linalg.norm(est.velocity - velocity) / np.linalg.norm(velocity))
+
+
+@pytest.fixture(scope="module")
+def axis_points(opencl_device):
+    """Three equal points on the hull's axis (centre and +-5 m along the track), Table II case 1,
+    2048 pulses: the issue's case (396 % error at confidence 1.00 with one SoWVD map)."""
+    v = np.array(presets.KIANG_CASES[1])
+    return (v,) + _echo(np.stack([CENTRE, CENTRE + [0, 5, 0], CENTRE - [0, 5, 0]]), np.ones(3), v, 2048)
+
+
+def test_one_sowvd_map_locks_on_a_cross_term_the_rate_search_does_not(axis_points):
+    """The mechanism (sowvd module docstring): on the three points the strongest peak of the map
+    at p0 = 0.1 s is a cross-term at every receiver (measured K -29.9, -29.6, -22.4 Hz/s); the
+    maps at several lag offsets agree on the true rate (measured within 0.3 %, 1.3-1.8 dB ahead
+    of the next candidate a map)."""
+    v, sc, echo = axis_points
+    truth = closed_forms(sc, CENTRE, v)
+    for name in "ABC":
+        rec = chain.records(echo, name)
+        line = rfrt(rec.x, trace.support(rec.x, chain.UPSAMPLE))
+        single = modified_sowvd(line, rec.prf, chain.P0)
+        assert abs(single.fm_rate - truth[name].fm_rate) > 5.0, name  # a cross-term, far off
+        search = chain.sowvd(rec, chain.P0)
+        assert search.fm_rate == pytest.approx(truth[name].fm_rate, rel=0.01), name
+        assert search.margin_db > 0.5, name
+
+
+def test_three_points_on_the_axis(axis_points):
+    """The issue's case end to end: the velocity within 0.1 % (measured 0.04 %) and the estimate
+    says it is good (confidence measured 0.84; no receiver flagged)."""
+    v, _, echo = axis_points
+    est = clsas.estimate_motion(echo, position=CENTRE)
+    assert _error(est, v) < 0.001, est.velocity
+    assert est.confidence > 0.5 and est.problems == ()
+    assert np.all(np.abs(est.velocity - v) < 3 * est.sigma)
+
+
+def test_a_receiver_on_a_cross_term_is_named_and_the_confidence_falls(axis_points):
+    """Receiver C forced onto another candidate of its rate search (a cross-term): the solution
+    disagrees with C's FM rate, the problem names C and why, the confidence falls below 0.5 and
+    sigma widens; the re-pick (estimate's last step) finds C's true rate again."""
+    from clsas.estimate.moving.motion import _repick
+
+    v, _, echo = axis_points
+    est = clsas.estimate_motion(echo, position=CENTRE)
+    rec = chain.records(echo, "C")
+    rx = est.receivers["C"]
+    wrong = max((c[0] for c in rx.fm_rate_candidates), key=lambda k: abs(k - rx.fm_rate))
+    estimates = dict(est.receivers)
+    estimates["C"] = chain.with_rate(rec, rx.search, wrong)
+    bad = motion_from_receivers(est.layout, estimates, CENTRE)
+    assert "C" in bad.consistency.outliers
+    assert any(p.startswith("receiver C: its FM rate") and "cross-term" in p for p in bad.problems)
+    assert bad.confidence < 0.5
+    assert np.all(bad.sigma > est.sigma)
+    kept = {"C": rec}
+    fixed = _repick(est.layout, bad, estimates, lambda name: kept.setdefault(name, chain.records(echo, name)), CENTRE)
+    assert "C" in fixed.repicked and fixed.problems == ()
+    assert estimates["C"].fm_rate == pytest.approx(rx.fm_rate, rel=0.01)
+    assert fixed.confidence > 0.5
+
+
+def test_inconsistent_closed_forms_lower_the_confidence():
+    """No echo: the true per-receiver values of case 3, then C's FM rate and centroid replaced by
+    a cross-term's: the velocity solved from the centroids is > 3 % off, and the estimate says so
+    (confidence < 0.5, C named); the true values give confidence ~1 and no problem."""
+    sc = presets.kiang2022(n_pulses=512)
+    v = np.array(presets.KIANG_CASES[3])
+    truth = closed_forms(sc, CENTRE, v)
+    good = motion_from_receivers(layout_of(sc), truth, position=CENTRE)
+    assert good.confidence > 0.99 and good.problems == ()
+    wrong = dict(truth)
+    wrong["C"] = dataclasses.replace(truth["C"], fm_rate=truth["C"].fm_rate + 8.0,
+                                     doppler_centroid=truth["C"].doppler_centroid + 7.0)
+    bad = motion_from_receivers(layout_of(sc), wrong, position=CENTRE)
+    assert _error(bad, v) > BOUND
+    assert bad.confidence < 0.5
+    assert bad.consistency.outliers[0] == "C" and "receiver C" in bad.problems[0]
+
+
+@pytest.mark.parametrize("seed", [2, 22, 23])
+def test_random_targets_are_right_or_flagged(opencl_device, seed):
+    """Seeded random groups (512 pulses, 6.4 s): the velocity within the paper's 3 % or the
+    estimate flagged (confidence < 0.5). Seed 22 needed two receivers re-picked (their SoWVD
+    score ties a cross-term within 0.1 dB); seed 23 (3 points) has a receiver that cannot refine
+    its centroid, so its sigma is wide."""
+    positions, amplitudes, velocity = random_target(seed)
+    _, echo = _echo(positions, amplitudes, velocity, 512)
+    est = clsas.estimate_motion(echo, position=CENTRE)
+    assert _error(est, velocity) < BOUND or est.confidence < 0.5, (est.velocity, velocity, est.confidence)
+    assert np.all(np.abs(est.velocity - velocity) <= 3 * est.sigma), (est.velocity - velocity, est.sigma)
+
+
+@pytest.mark.slow
+def test_sigma_is_calibrated_over_random_targets(opencl_device):
+    """Over 24 seeded random groups (512 pulses): every velocity within 3 % or flagged, the true
+    error within 3 sigma (each component) in >= 90 % of them, and the confidence above 0.5 in
+    most (an estimator that flags everything would pass the first two)."""
+    within, confident, n = 0, 0, 24
+    for seed in range(n):
+        positions, amplitudes, velocity = random_target(seed)
+        _, echo = _echo(positions, amplitudes, velocity, 512)
+        est = clsas.estimate_motion(echo, position=CENTRE)
+        assert _error(est, velocity) < BOUND or est.confidence < 0.5, (seed, est.velocity, velocity)
+        within += bool(np.all(np.abs(est.velocity - velocity) <= 3 * est.sigma))
+        confident += est.confidence >= 0.5
+    assert within >= 0.9 * n
+    assert confident >= 0.75 * n
+
+
+# --------------------------------------------------------------------------- intra-pulse Doppler
+
+
+@pytest.fixture(scope="module", params=[6, 8])
+def intra_pulse_echoes(request, opencl_device):
+    """Table II cases 6 and 8 (the largest Doppler centroids, 410-597 Hz), one point, 512 pulses,
+    with and without intra-pulse Doppler (clsas.simulate's intra_pulse)."""
+    v = np.array(presets.KIANG_CASES[request.param])
+    sc = presets.kiang2022(n_pulses=512).replace(targets=(PointTargets(CENTRE, velocity=v),))
+    return v, sc, {mode: clsas.simulate(sc, backend="opencl", progress=False, intra_pulse=mode)
+                   for mode in ("none", "moving")}
+
+
+def test_intra_pulse_doppler_shifts_the_compressed_peak_by_f_dc_over_k_r(intra_pulse_echoes):
+    """The range-Doppler coupling of the LFM (layout module docstring): with intra-pulse Doppler the
+    compressed peak lies f_dc / K_r after the closed form's delay (measured within 1.2 us of it,
+    up to 150 us: three range cells), without it on the closed form (within 1 us)."""
+    from clsas.estimate.moving import delay_history
+
+    v, sc, echoes = intra_pulse_echoes
+    truth = closed_forms(sc, CENTRE, v)
+    for mode, echo in echoes.items():
+        comp = clsas.range_compress(echo, upsample=16)
+        lay = layout_of(echo)
+        assert lay.range_doppler == (0.0 if mode == "none" else echo.waveform.duration / echo.waveform.bandwidth)
+        for h, name in enumerate(echo.receivers):
+            mag = np.abs(comp.data[h])
+            k = np.argmax(mag, axis=1)
+            rows = np.arange(mag.shape[0])
+            a, b, c = mag[rows, k - 1], mag[rows, k], mag[rows, k + 1]
+            peak = comp.t0[h] + (k + 0.5 * (a - c) / (a - 2 * b + c)) / comp.fs
+            shift = np.median(peak - delay_history(lay, name, CENTRE, v, echo.eta))
+            expected = 0.0 if mode == "none" else truth[name].doppler_centroid * echo.waveform.duration / \
+                echo.waveform.bandwidth
+            assert shift == pytest.approx(expected, abs=3e-6), (mode, name)
+
+
+def test_the_estimate_and_the_focus_take_the_coupling_into_account(intra_pulse_echoes):
+    """With intra-pulse Doppler the velocity stays within 0.1 % (measured 0.004 % and 0.034 %),
+    the position estimated with it within 2 cm (measured 5 mm; 0.1-0.3 m when the coupling is
+    ignored) and the back-projected point within 0.5 dB of its peak without intra-pulse Doppler
+    (measured -0.1 to -0.2 dB)."""
+    v, _, echoes = intra_pulse_echoes
+    peaks = {}
+    for mode, echo in echoes.items():
+        joint = clsas.estimate_motion(echo)
+        assert _error(joint, v) < 0.001, (mode, joint.velocity)
+        assert np.linalg.norm(joint.position - CENTRE) < 0.02, (mode, joint.position)
+        est = clsas.estimate_motion(echo, position=CENTRE)
+        peaks[mode] = {n: np.abs(im.data).max() for n, im in clsas.focus_moving(echo, est, half_size=1.0).items()}
+    for name, peak in peaks["moving"].items():
+        assert 20 * np.log10(peak / peaks["none"][name]) > -0.5, name
