@@ -143,7 +143,8 @@ def _label(prefix: str, name: str) -> str:
 
 
 def parameter_properties(call, prefix: str, domains: dict, outcomes: tuple = (), check=None, backends: tuple = (),
-                         may_refuse: bool = False, budget: int | None = 1 << 20, examples: int = 25, setup=None):
+                         may_refuse: bool = False, budget: int | None = 1 << 20, examples: int = 25, setup=None,
+                         labels: dict | None = None):
     """Three hypothesis tests of ``call(**{parameter: value})`` over ``domains`` (see the module
     docstring): ``(bad, valid, budget)``; ``budget=None`` leaves out the third (returns None).
 
@@ -152,8 +153,11 @@ def parameter_properties(call, prefix: str, domains: dict, outcomes: tuple = (),
     what a result must be (finite, a shape). ``budget``: the memory budget (bytes) of the third
     test; NumPy's allocations are traced (OpenCL buffers and C libraries' own memory are not).
     ``setup()`` builds what the call uses (cached fixtures) before the allocations are traced.
+    ``labels``: what the messages name instead of ``"<prefix> <parameter>"``, by parameter (a
+    function that checks through another one's helper names that one).
     """
     names = sorted(domains)
+    labels = {name: _label(prefix, name) for name in names} | (labels or {})
     runs = settings(max_examples=examples, deadline=None, derandomize=True)
 
     def each_backend(kw):
@@ -167,7 +171,7 @@ def parameter_properties(call, prefix: str, domains: dict, outcomes: tuple = (),
         name = data.draw(st.sampled_from(names), label="parameter")
         case = data.draw(domains[name].bad, label="bad value")
         value, error = case[:2]
-        label = case[2] if len(case) > 2 else _label(prefix, name)
+        label = case[2] if len(case) > 2 else labels[name]
         if not backends:
             raises(error, label, lambda: call(**{name: value}))
             return
@@ -181,7 +185,7 @@ def parameter_properties(call, prefix: str, domains: dict, outcomes: tuple = (),
     def allowed(err: BaseException, kw: dict) -> bool:
         if isinstance(err, outcomes):
             return True
-        return may_refuse and isinstance(err, ValueError) and any(_label(prefix, n) in str(err) for n in names)
+        return may_refuse and isinstance(err, ValueError) and any(labels[n] in str(err) for n in names)
 
     @runs
     @given(st.data())
