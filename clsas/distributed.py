@@ -65,18 +65,30 @@ def pulse_block(scenario: Scenario, first: int, stop: int) -> Scenario:
     return scenario.replace(schedule=schedule)
 
 
-def _block_extent(scenario: Scenario, backend, stop_and_go: bool) -> tuple[np.ndarray, np.ndarray]:
+def _block_extent(scenario: Scenario, backend, stop_and_go: bool, multipath) -> tuple[np.ndarray, np.ndarray]:
     """Per receiver, the echo-centre extents in whole samples (floor of the earliest, floor of the
-    latest + 1), rounded as :func:`clsas.simulate` rounds them (``sample_extents``)."""
+    latest + 1) over every path kind :func:`clsas.simulate` synthesizes at ``multipath`` (the
+    direct path and the bounces off the scenario's sea surface and seabed), rounded as it rounds
+    them (``sample_extents``)."""
     from .synthesis import delays
+    from .synthesis.propagation import boundaries, path_kinds
 
-    u = delays(scenario, backend=backend, stop_and_go=stop_and_go) * scenario.waveform.fs  # (H, P, N) samples
-    return np.floor(u.min(axis=(1, 2))), np.floor(u.max(axis=(1, 2))) + 1
+    planes = boundaries(scenario)
+    order = (1 if planes else 0) if multipath == "auto" else multipath  # as simulate resolves "auto"
+    lo, hi = None, None
+    for kind in path_kinds(planes, order):
+        u = delays(scenario, backend=backend, stop_and_go=stop_and_go, path=kind.name) * scenario.waveform.fs
+        a, b = np.floor(u.min(axis=(1, 2))), np.floor(u.max(axis=(1, 2))) + 1  # (H, P, N) samples -> (H,)
+        lo, hi = (a, b) if lo is None else (np.minimum(lo, a), np.maximum(hi, b))
+    return lo, hi
 
 
-def _extents(scenario: Scenario, client, pulses_per_task: int, backend, stop_and_go: bool):
+def _extents(scenario: Scenario, client, pulses_per_task: int, backend, stop_and_go: bool, multipath="auto"):
     """Earliest and latest echo centre per receiver over the whole run, s (whole samples)."""
-    futures = [client.submit(_block_extent, pulse_block(scenario, a, b), backend, stop_and_go, pure=False)
+    from .synthesis import SynthesisOptions
+
+    multipath = SynthesisOptions(multipath=multipath).multipath  # checked here, before any task
+    futures = [client.submit(_block_extent, pulse_block(scenario, a, b), backend, stop_and_go, multipath, pure=False)
                for a, b in _blocks(scenario.eta.size, pulses_per_task)]
     extents = client.gather(futures)
     fs = scenario.waveform.fs
@@ -91,12 +103,14 @@ def _window_of(scenario: Scenario, lo: np.ndarray, hi: np.ndarray) -> Recording:
 
 
 def recording_window(scenario: Scenario, client, pulses_per_task: int = 64, backend=None,
-                     stop_and_go: bool = False) -> Recording:
+                     stop_and_go: bool = False, multipath="auto") -> Recording:
     """The recording window of the whole run as :func:`clsas.simulate` derives it: per receiver,
-    from the earliest echo centre minus half the pulse to the latest plus half the pulse, in
-    whole samples (the delays computed on the workers, a pulse block a task)."""
+    from the earliest echo centre minus half the pulse to the latest plus half the pulse over
+    every path (``multipath`` as :func:`clsas.simulate` takes it: the bounces off the sea
+    surface and the seabed too), in whole samples (the delays computed on the workers, a pulse
+    block a task)."""
     _check_client(client)
-    return _window_of(scenario, *_extents(scenario, client, pulses_per_task, backend, stop_and_go))
+    return _window_of(scenario, *_extents(scenario, client, pulses_per_task, backend, stop_and_go, multipath))
 
 
 def _geometry(scenario: Scenario, hi: np.ndarray):
@@ -149,7 +163,7 @@ def simulate(scenario: Scenario, client, pulses_per_task: int = 64, snr_db: floa
     with _temporary(store) as tmp:
         with stage("distributed echo synthesis", f"{scenario.n_receivers} receivers x {scenario.eta.size} pulses in "
                    f"{len(blocks)} tasks" + (f", written by the workers to {store}" if store else "")):
-            lo, hi = _extents(scenario, client, pulses_per_task, backend, stop_and_go)
+            lo, hi = _extents(scenario, client, pulses_per_task, backend, stop_and_go, kwargs.get("multipath", "auto"))
             if scenario.recording is None:
                 scenario = scenario.replace(recording=_window_of(scenario, lo, hi))
             rx_tau, rx_pos, node_error = _geometry(scenario, hi)
