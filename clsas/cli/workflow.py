@@ -22,7 +22,9 @@ from ._common import UsageError, add_overwrite_argument, check_outputs, parse_gr
 
 log = logging.getLogger("clsas")
 
-ALGORITHMS = ("bp", "ffbp", "omegak", "rda", "csa")
+ALGORITHMS = ("bp", "ffbp", "omegak", "rda", "csa", "ncs")
+STRIP_IMAGERS = ("omegak", "rda", "csa", "ncs")  # straight-track, frequency-domain
+WINDOWS = ("none", "hamming", "taylor", "kaiser")
 DEFAULT_MAX_PIXELS = 512 * 512
 
 
@@ -96,15 +98,19 @@ def add_image_arguments(parser) -> None:
     parser.add_argument("echo", metavar="ECHO", help="an echo file written by `clsas simulate` or clsas.save")
     parser.add_argument("--algorithm", "-a", choices=ALGORITHMS, default="bp",
                         help="bp: back-projection (any geometry); ffbp: fast factorised back-projection; "
-                             "omegak, rda, csa: straight-track "
-                             "frequency-domain imagers (several receivers are first merged by PCA)")
+                             "omegak (wavenumber), rda (range-Doppler), csa (chirp scaling), ncs (nonlinear chirp "
+                             "scaling): straight-track frequency-domain imagers (several receivers are first merged "
+                             "by PCA)")
     parser.add_argument("--grid", default=None,
                         help="bp and ffbp: X0:X1:DX,Y0:Y1:DY,Z in metres (across track, along track, plane height); "
                              "default: the recorded ranges and the track's span at the track's depth, "
                              f"at most {DEFAULT_MAX_PIXELS} pixels")
-    parser.add_argument("--window", default=None, help="range window: none, hamming, taylor, kaiser")
+    parser.add_argument("--window", default=None, choices=WINDOWS,
+                        help="weighting (default none): bp and ffbp: the range compression's (raw echoes only); "
+                             "omegak: the processed band in both wavenumbers (the range compression unweighted); "
+                             "rda, csa, ncs: the processed Doppler band, and the range compression's for raw echoes")
     parser.add_argument("--elements", default=None, metavar="LTX,LRX",
-                        help="omegak/rda/csa: along-track element lengths, m (band limit and pattern deconvolution); "
+                        help="omegak/rda/csa/ncs: along-track element lengths, m (band limit and pattern deconvolution); "
                              "default: those of the scenario stored in the echo file, if any")
     parser.add_argument("-o", "--out", default=None, help="image file (.nc or .zarr)")
     parser.add_argument("--png", default=None, help="also write a picture of the image with its cuts")
@@ -155,6 +161,7 @@ def run_image(args) -> int:
     from ..image.csa import chirp_scaling
     from ..image.ffbp import ffbp
     from ..image.multireceiver import pca_record
+    from ..image.ncs import nonlinear_chirp_scaling
     from ..image.omegak import omega_k
     from ..image.rda import range_doppler
 
@@ -167,11 +174,13 @@ def run_image(args) -> int:
     if not isinstance(echo, EchoData):
         raise UsageError(f"{args.echo} holds an image, not echoes; `clsas plot` shows it")
     t = time.perf_counter()
-    if not echo.compressed:
-        echo = range_compress(echo, window=args.window or "none")
-    elif args.window:
-        raise UsageError(f"{args.echo} is already range-compressed; --window applies to raw echoes")
-    if args.algorithm in ("bp", "ffbp"):
+    strip = args.algorithm in STRIP_IMAGERS
+    if not echo.compressed:  # omega-k weights range in its own band: the compression then stays unweighted
+        echo = range_compress(echo, window="none" if args.algorithm == "omegak" else args.window or "none")
+    elif args.window and not strip:
+        raise UsageError(f"{args.echo} is already range-compressed; --window applies to raw echoes with "
+                         f"--algorithm {args.algorithm}")
+    if not strip:
         grid = grid if grid is not None else default_grid(echo)
         what = f"{args.algorithm} onto {grid.shape[0]} x {grid.shape[1]} pixels"
         imager = backproject if args.algorithm == "bp" else ffbp
@@ -180,9 +189,13 @@ def run_image(args) -> int:
         if args.grid:
             raise UsageError("--grid applies to --algorithm bp and ffbp only (the frequency-domain imagers have their own grid)")
         record = pca_record(echo, backend=args.backend) if echo.n_rx > 1 else echo
-        imager = {"omegak": omega_k, "rda": range_doppler, "csa": chirp_scaling}[args.algorithm]
-        image = imager(record, elements=_elements(args.elements, echo), backend=args.backend)
+        imager = {"omegak": omega_k, "rda": range_doppler, "csa": chirp_scaling, "ncs": nonlinear_chirp_scaling}[
+            args.algorithm]
+        image = imager(record, elements=_elements(args.elements, echo), window=args.window or "none",
+                       backend=args.backend)
         what = f"{args.algorithm} ({echo.n_rx} receivers merged by PCA)" if echo.n_rx > 1 else args.algorithm
+    if args.window:
+        what += f", {args.window} window"
     took = time.perf_counter() - t
     print(f"{what}: image {' x '.join(map(str, image.shape))} ({', '.join(image.dims)}) in {took:.1f} s")
     if args.out:
