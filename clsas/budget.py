@@ -85,7 +85,7 @@ class use_memory_budget:
     environment variable or the default."""
 
     def __init__(self, nbytes):
-        self.nbytes = None if nbytes is None else parse_bytes(nbytes, "memory budget")
+        self.nbytes = None if nbytes is None else parse_bytes(nbytes, "use_memory_budget nbytes")
         self._previous = _choice.get()
         self._token = _choice.set(self.nbytes)
 

@@ -103,7 +103,8 @@ def _crossing(mag: np.ndarray, start: int, step: int, level: float) -> float:
     while 0 <= j + step < mag.size and mag[j + step] >= level:
         j += step
     if not 0 <= j + step < mag.size:
-        raise ValueError("the cut ends before the main lobe falls to -3 dB: give a longer cut")
+        raise ValueError("point_response x: the cut ends before the peak's main lobe falls to -3 dB: give a longer cut "
+                         "(or, with near, a peak inside it)")
     a, b = mag[j], mag[j + step]
     return j + step * (a - level) / (a - b)
 
@@ -145,7 +146,7 @@ def point_response(x, axis=None, upsample: int = 16, extent: float = 10.0, near:
         raise ValueError(f"point_response axis: must be uniformly spaced and not constant, got {coords[:4]}...")
     extent = validate.scalar("point_response extent", extent, low=1.0, low_open=True, high=1e6, unit="IRW")
     if near is not None:
-        near = validate.scalar("point_response near", near, low=-n, high=2 * n, unit="samples")
+        near = validate.scalar("point_response near", near, low=0.0, high=n - 1.0, unit="samples (an index of the cut)")
     radius = validate.positive("point_response radius", radius, high=1e9, unit="samples")
     y = upsample_cut(x, upsample)  # x's peak is 1 (_cut): |y|^2 stays finite
     mag = np.abs(y)
@@ -155,7 +156,7 @@ def point_response(x, axis=None, upsample: int = 16, extent: float = 10.0, near:
         lo_s = max(0, int(np.floor((near - radius) * upsample)))
         hi_s = min(mag.size, int(np.ceil((near + radius) * upsample)) + 1)
         if lo_s >= hi_s:
-            raise ValueError(f"near={near} with radius={radius} lies outside the cut of {n} samples")
+            raise ValueError(f"point_response near: {near} with radius={radius} lies outside the cut of {n} samples")
         i = lo_s + int(np.argmax(mag[lo_s:hi_s]))
     if 0 < i < mag.size - 1:
         a, b, c = mag[i - 1], mag[i], mag[i + 1]
@@ -173,7 +174,8 @@ def point_response(x, axis=None, upsample: int = 16, extent: float = 10.0, near:
     region = np.abs(k - i) <= extent * irw_up
     side = region & ((k < lo) | (k > hi))
     if not side.any():
-        raise ValueError("no side-lobe samples within the side-lobe region: give a longer cut")
+        raise ValueError("point_response x: no side-lobe samples within the side-lobe region (extent IRWs): give a "
+                         "longer cut")
     main_energy = np.sum(mag[lo:hi + 1] ** 2)
     index = (i + delta) / upsample
     return PointResponse(
@@ -218,6 +220,8 @@ def _numbers(name: str, data) -> np.ndarray:
         values = np.asarray(getattr(data, "data", data))
     except (ValueError, TypeError) as err:  # ragged nested lists
         raise TypeError(f"{name}: must be an Image or an array of numbers, got {type(data).__name__} ({err})") from None
+    if values.ndim == 0:
+        raise TypeError(f"{name}: must be an Image or an array of numbers, got one {type(data).__name__}")
     if values.dtype.kind not in "iufc":
         raise TypeError(f"{name}: must be an Image or an array of numbers, got {type(data).__name__} "
                         f"of dtype {values.dtype}")
