@@ -29,6 +29,7 @@ import math
 import random
 import signal
 import sys
+import tempfile
 import time
 import warnings
 from dataclasses import dataclass
@@ -184,7 +185,7 @@ def fixtures() -> dict:
         kiang = clsas.simulate(presets.kiang2022_case(1, n_pulses=128), progress=False)
     compressed = clsas.range_compress(echo)
     strip_c = clsas.range_compress(strip)
-    folder = Path(__import__("tempfile").mkdtemp(prefix="clsas-fuzz-"))
+    folder = Path(tempfile.mkdtemp(prefix="clsas-fuzz-"))
     rng = np.random.default_rng(0)
     img = (0.01 * (rng.standard_normal((64, 16)) + 1j * rng.standard_normal((64, 16)))).astype(np.complex64)
     img[32, ::4] += 10
