@@ -176,9 +176,10 @@ def read_rows(src: np.ndarray, i: np.ndarray, frac: np.ndarray, interp: str = "s
 def launch_rows(program: str, kernel_name: str, src: np.ndarray, n_out: int, interp: str, window: str,
                 oversampling: float, out: np.ndarray | None, make_args) -> np.ndarray:
     """Run a row kernel (``resample_map`` of kernels/interp.cl, ``stolt_map`` of kernels/stolt.cl:
-    global size (ceil(n_out / OUTPUTS_PER_ITEM), n_rows), arguments src, taps, the kernel's own,
-    n_src, n_out, dst) on the rows of ``src``: (n_rows, n_out) complex64, into ``out`` if given.
-    ``make_args(context)`` gives the kernel's own arguments."""
+    work-items (ceil(n_out / OUTPUTS_PER_ITEM), n_rows) in fixed work-groups
+    (:func:`clsas.opencl.work_groups_2d`: the kernel is compiled once whatever the shape), arguments
+    src, taps, the kernel's own, n_src, n_out, n_rows, dst) on the rows of ``src``: (n_rows, n_out)
+    complex64, into ``out`` if given. ``make_args(context)`` gives the kernel's own arguments."""
     import pyopencl as cl
 
     rt = opencl.runtime()
@@ -194,8 +195,8 @@ def launch_rows(program: str, kernel_name: str, src: np.ndarray, n_out: int, int
     if out is None:
         out = np.empty((src.shape[0], n_out), dtype=np.complex64)
     dst = cl.Buffer(rt.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out)
-    knl(rt.queue, (-(-n_out // OUTPUTS_PER_ITEM), src.shape[0]), None, src_buf, tap_buf, *make_args(rt.context),
-        np.int32(src.shape[1]), np.int32(n_out), dst)
+    knl(rt.queue, *opencl.work_groups_2d(-(-n_out // OUTPUTS_PER_ITEM), src.shape[0]), src_buf, tap_buf,
+        *make_args(rt.context), np.int32(src.shape[1]), np.int32(n_out), np.int32(src.shape[0]), dst)
     mapped, _ = cl.enqueue_map_buffer(rt.queue, dst, cl.map_flags.READ, 0, out.shape, out.dtype)
     mapped.base.release()
     return out

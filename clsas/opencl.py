@@ -55,6 +55,7 @@ _runtimes: dict[str, Runtime] = {}
 _runtime_by_spec: dict[str | None, Runtime] = {}  # the resolved device spec -> its Runtime, so a call costs a lookup
 _programs: dict[tuple, object] = {}
 _kernels: dict[tuple, object] = {}  # (id(program), kernel name, thread) -> Kernel
+_kernel_calls: dict[tuple, object] = {}  # kernel()'s arguments, runtime and thread -> Kernel (no hashing a call)
 _sources: dict[str, tuple[str, str]] = {}  # kernels/NAME.cl -> (text, digest), read once per process
 
 
@@ -256,12 +257,18 @@ def kernel(name: str, kernel_name: str, defines: dict | None = None, device: str
     (program, name, thread): a fresh Kernel looks its argument invoker up in pyopencl's on-disk
     cache (milliseconds a call), which calls launching many small kernels (ffbp's leaves and
     merges) paid every time. Launch it as ``kern(queue, ...)`` (arguments set and enqueued at once)."""
+    call = (name, kernel_name, id(runtime(device)), double, preamble, tuple(sorted((defines or {}).items())),
+            threading.get_ident())
+    kern = _kernel_calls.get(call)
+    if kern is not None:  # a launch in a loop: no source hashing, no option strings
+        return kern
     cl = _import_pyopencl()
     prg = program(name, defines=defines, device=device, double=double, preamble=preamble)
     key = (id(prg), kernel_name, threading.get_ident())
     kern = _kernels.get(key)
     if kern is None:
         kern = _kernels[key] = cl.Kernel(prg, kernel_name)
+    _kernel_calls[call] = kern
     return kern
 
 

@@ -62,22 +62,38 @@ typedef float16 realv16_t;
 #define LOAD_R4 LOAD_F4
 #endif
 
+/* SCATTER (bp_tile and bp_block in direct back-projection, clsas/image/backprojection/launcher.py): slot m's sum goes to
+ * image[index[m]], its pixel in the grid's order (-1: padding, dropped), not to image[m]. */
+#ifdef SCATTER
+#define SCATTER_PARAM , __global const int *index
+#else
+#define SCATTER_PARAM
+#endif
+
 #ifdef BP_TILE
 #define FOR_ROWS _Pragma("unroll") for (int r = 0; r < ROWS; ++r)
-#define CHAINS (ROWS * PULSES)
-#define FOR_CHAINS _Pragma("unroll") for (int j = 0, r = 0; j < CHAINS; ++j, r = j % ROWS)
-#define RJ R[j / ROWS]
 
-/* SAME_LEGS (stop-and-go with the receiver at the transmitter: a monostatic sonar): t2 = t1, so
- * s = 2 s1 and leg 2 is not computed.
+/* The return leg (TileKernel.legs):
+ * SAME_LEGS (stop-and-go, the receiver at the transmitter: a monostatic sonar): t2 = t1, s = 2 s1;
+ * MONO (exact delays, the receiver at the transmitter at emission and moving uniformly at v_r,
+ *   pixels at rest): s = alpha s1 - w . delta with alpha = 2 c^2 / (c^2 - |v_r|^2) and
+ *   w = 2 v_r / (c^2 - |v_r|^2) (derivation: clsas/image/backprojection/tile_kernel.py);
+ * otherwise two legs: s2 = N2 / (b2 + sqrt(b2^2 + a2 N2)) as in the header.
+ * Leg 1 of a reference with poly set (pixels at rest, every pixel of the tile within RHO_MAX of
+ * the reference's range): s1 = (N1 k1) g(N1 k2), k1 = 1 / (2 b1), k2 = a1 / b1^2, g(x) =
+ * 2 / (1 + sqrt(1 + x)) by its polynomial on [-0.3, 0.33] (tile_kernel.py): no square root, no
+ * division (LEG_POLY(x), the polynomial's Horner form, comes with the preamble from
+ * tile_kernel.LEG_POLY); otherwise the stable root.
  * pix[ROWS g + r] (bp_pixels_t, TileKernel.PIXELS): work-item g's row r of sixteen pixels (image
  *   slots m = 16 (ROWS g + r) + lane): delta (the pixel at t = 0 minus its tile's reference point,
  *   m: dx, dy, dz), dd = |delta|^2 and (MOVING) dv = delta . v;
  * tile_of[g]: the tile of work-item g;
- * ref[t * ref_stride + p - ref_first] (tile_ref_t): the reference of (tile t, pulse p): leg1 = B,
- *   b1 = c^2 t1_ref - B.v, leg2 = C, b2 = c^2 t2_ref - C.v_r, v_rx = v_r, a2, k_ref the integer
- *   sample index of T_ref in the records, k_frac its fraction, cycles = f0 T_ref reduced,
- *   range1 = c t1_ref;
+ * ref[t * ref_stride + p - ref_first] (tile_ref_t, TileKernel.reference_dtype): the reference of
+ *   (tile t, pulse p): leg1 = B, b1 = c^2 t1_ref - B.v, k1, k2 and poly (above), k_ref + k_frac =
+ *   the sample index of T_ref in the records (k_ref an integer less BIAS, k_frac its fraction plus
+ *   BIAS: k_frac + s fs is positive, so that truncation is the floor), cycles = f0 T_ref reduced,
+ *   range1 = c t1_ref; two legs: leg2 = C, b2 = c^2 t2_ref - C.v_r, v_rx = v_r, a2 = c^2 - |v_r|^2;
+ *   MONO: alpha, w;
  * params (tile_params_t): a1, fs (of the data), f0, velocity v, half_sin = sin(aperture / 2), c;
  * data[p n + i]: the receiver's range-compressed record of pulse p; taps: the 8-tap table (interp.h);
  * image[m] += the sum over pulses p_first .. p_first + p_count - 1.
@@ -102,101 +118,107 @@ typedef float16 realv16_t;
 #define TILE_BEGIN p_first
 #define TILE_END (p_first + p_count)
 #endif
+
+/* x - round(x) in [-1/2, 1/2] for |x| < 2^22 (rounding by the float format: PoCL's rint is slow) */
+#define ROUND_MAGIC 12582912.0f /* 1.5 * 2^23 */
+#define NEAR_FRACTION(x) ((x) - (((x) + ROUND_MAGIC) - ROUND_MAGIC))
+
+/* A pixel row's fields: loaded where used (the pulse loop then holds no more than they need) */
+#define FIELD(f) LOAD_F16(px[r].f)
+
 __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_of, __global const tile_ref_t *ref,
                       const int ref_stride, const int ref_first, __global const sample_t *data, __global const float *taps,
                       const tile_params_t params, const int p_first, const int p_count, const int n,
-                      const int n_items, __global double2 *image ROW_SHIFT_PARAM PULSE_SPAN_PARAM)
+                      const int n_items, __global double2 *image SCATTER_PARAM ROW_SHIFT_PARAM PULSE_SPAN_PARAM)
 {
     const int g = get_global_id(0);
     if (g >= n_items)  /* the launch is padded to whole work-groups */
         return;
-    __global const tile_ref_t *tref = ref + (size_t)tile_of[g] * ref_stride;
-    const int row_first = TILE_ROW_SHIFT;
-    const float a1 = params.a1, fs = params.fs, f0 = params.f0;
+    __global const tile_ref_t *tref = ref + (size_t)tile_of[g] * ref_stride - ref_first;
+    __global const bp_pixels_t *px = pix + ROWS * g;
+    __global const float *records = (__global const float *)(data + (size_t)TILE_ROW_SHIFT * n);
+    const float a1 = params.a1, f0 = params.f0;
+#ifdef SAME_LEGS
+    const float fs = 2.0f * params.fs, f0s = 2.0f * f0;  /* s = 2 s1 */
+#else
+    const float fs = params.fs, f0s = f0;
+#endif
     const float3 vel = vload3(0, params.velocity);
-    float16 dx[ROWS], dy[ROWS], dz[ROWS], dd[ROWS], acc_re[ROWS], acc_im[ROWS];
-#ifdef MOVING
-    float16 dv[ROWS];
-#endif
+    float16 acc_re[ROWS], acc_im[ROWS];
     FOR_ROWS {
-        __global const bp_pixels_t *px = pix + ROWS * g + r;
-        dx[r] = vload16(0, px->dx);
-        dy[r] = vload16(0, px->dy);
-        dz[r] = vload16(0, px->dz);
-        dd[r] = vload16(0, px->dd);
-#ifdef MOVING
-        dv[r] = vload16(0, px->dv);
-#endif
         acc_re[r] = (float16)0.0f;
         acc_im[r] = (float16)0.0f;
     }
     const int p_end = TILE_END;
-    for (int p = TILE_BEGIN; p < p_end; p += PULSES) {
-        /* PULSES pulses x ROWS rows = CHAINS independent dependency chains, each step done for all
-         * of them before the next (the out-of-order core overlaps them); a pulse past the block's
-         * end repeats the last one with weight 0 */
-        tile_ref_t R[PULSES];
-        __global const float *rec[PULSES];
-        float live[PULSES];
-        _Pragma("unroll") for (int j = 0; j < PULSES; ++j) {
-            const int pj = min(p + j, p_end - 1);
-            R[j] = tref[pj - ref_first];
-            rec[j] = (__global const float *)(data + (size_t)(pj + row_first) * n);
-            live[j] = p + j < p_end ? 1.0f : 0.0f;
-        }
-        float16 s1[CHAINS], s[CHAINS], frac[CHAINS], cs[CHAINS], sn[CHAINS];
-        int16 ki[CHAINS];
-        FOR_CHAINS {  /* leg 1: s1 = t1 - t1_ref */
-            const float3 b = vload3(0, RJ.leg1);
-            const float16 n1 = 2.0f * (b.x * dx[r] + b.y * dy[r] + b.z * dz[r]) + dd[r];
+    for (int p = TILE_BEGIN; p < p_end; ++p) {
+        /* each step for all ROWS rows before the next: ROWS independent dependency chains side by
+         * side in program order, which the out-of-order core overlaps */
+        const tile_ref_t R = tref[p];
+        __global const float *rec = records + (size_t)2 * p * n;
+        const float3 b = vload3(0, R.leg1);
+        float16 s1[ROWS], s[ROWS], frac[ROWS], cs[ROWS], sn[ROWS];
+        int16 keep[ROWS];
+        volatile int16 first[ROWS];  /* the lanes' first samples, read back one by one as scalars */
+#ifndef MOVING
+        if (R.poly) {
+            FOR_ROWS {  /* leg 1 without a square root or a division */
+                const float16 n1 = 2.0f * (b.x * FIELD(dx) + b.y * FIELD(dy) + b.z * FIELD(dz)) + FIELD(dd);
+                const float16 x = n1 * R.k2;
+                s1[r] = (n1 * R.k1) * LEG_POLY(x);
+            }
+        } else
+#endif
+        {
+            FOR_ROWS {  /* leg 1: the stable root */
+                const float16 n1 = 2.0f * (b.x * FIELD(dx) + b.y * FIELD(dy) + b.z * FIELD(dz)) + FIELD(dd);
 #ifdef MOVING
-            const float16 b1 = RJ.b1 - dv[r];
+                const float16 b1 = R.b1 - FIELD(dv);
 #else
-            const float16 b1 = (float16)RJ.b1;
+                const float16 b1 = (float16)R.b1;
 #endif
-            s1[j] = n1 / (b1 + sqrt(b1 * b1 + a1 * n1));
+                s1[r] = n1 / (b1 + sqrt(b1 * b1 + a1 * n1));
+            }
         }
-#ifdef SAME_LEGS
-        FOR_CHAINS  /* monostatic stop-and-go: the echo returns along the outgoing leg, s2 = s1 */
-            s[j] = 2.0f * s1[j];
+        FOR_ROWS {
+#if defined(SAME_LEGS)
+            s[r] = s1[r];  /* fs and f0s carry the factor 2 */
+#elif defined(MONO)
+            s[r] = R.alpha * s1[r] - (R.w[0] * FIELD(dx) + R.w[1] * FIELD(dy) + R.w[2] * FIELD(dz));
 #else
-        FOR_CHAINS {  /* leg 2: s2 = t2 - t2_ref, e = (v_r - v) s1 - delta; s = s1 + s2 */
-            const float3 v_r = vload3(0, RJ.v_rx), cc = vload3(0, RJ.leg2), u = v_r - vel;  /* u = v_r - v */
-            const float16 ex = u.x * s1[j] - dx[r], ey = u.y * s1[j] - dy[r], ez = u.z * s1[j] - dz[r];
+            /* leg 2: s2 = t2 - t2_ref, e = (v_r - v) s1 - delta; s = s1 + s2 */
+            const float3 v_r = vload3(0, R.v_rx), cc = vload3(0, R.leg2), u = v_r - vel;
+            const float16 ex = u.x * s1[r] - FIELD(dx), ey = u.y * s1[r] - FIELD(dy), ez = u.z * s1[r] - FIELD(dz);
             const float16 n2 = 2.0f * (cc.x * ex + cc.y * ey + cc.z * ez) + (ex * ex + ey * ey + ez * ez);
-            const float16 b2 = RJ.b2 - (v_r.x * ex + v_r.y * ey + v_r.z * ez);
-            s[j] = s1[j] + n2 / (b2 + sqrt(b2 * b2 + RJ.a2 * n2));
-        }
+            const float16 b2 = R.b2 - (v_r.x * ex + v_r.y * ey + v_r.z * ez);
+            s[r] = s1[r] + n2 / (b2 + sqrt(b2 * b2 + R.a2 * n2));
 #endif
-        FOR_CHAINS {  /* sample index K_ref + (frac_ref + s fs), split by truncation (floor is slow) */
-            const float16 kf = RJ.k_frac + s[j] * fs;
-            int16 k = convert_int16(kf);
-            k += kf < convert_float16(k);  /* floor (a true compare is -1) */
-            frac[j] = kf - convert_float16(k);
-            ki[j] = k + RJ.k_ref;
         }
-        FOR_CHAINS {  /* carrier exp(+j 2 pi f0 tau): cycles f0 T_ref (reduced) + f0 s, reduced again */
-            float16 cyc = RJ.cycles + f0 * s[j];
-            cyc -= convert_float16(convert_int16(cyc));
-            expj_fraction16(cyc, &cs[j], &sn[j]);
-            cs[j] *= live[j / ROWS];
-            sn[j] *= live[j / ROWS];
-        }
+        FOR_ROWS {  /* sample index K_ref + (k_frac + s fs), positive: truncation is the floor */
+            const float16 kf = R.k_frac + s[r] * fs;
+            const int16 k = convert_int16(kf);
+            frac[r] = kf - convert_float16(k);
+            const int16 ki = k + R.k_ref;
+#ifdef INTERP_LINEAR
+            keep[r] = as_uint16(ki) < (uint16)(n - 1);  /* samples ki and ki + 1 exist */
+            first[r] = select((int16)0, ki, keep[r]);
+#else
+            keep[r] = as_uint16(ki - 3) <= (uint16)(n - 8);  /* samples ki - 3 .. ki + 4 exist */
+            first[r] = select((int16)0, ki - 3, keep[r]);
+#endif
 #ifdef APERTURE
-        FOR_CHAINS {  /* sin theta = (q - tx).y / (c t1), q - tx = B + delta + v s1 */
-            const float16 keep = select((float16)0.0f, (float16)1.0f, fabs(vload3(0, RJ.leg1).y + dy[r] + vel.y * s1[j])
-                                        <= params.half_sin * (RJ.range1 + params.c * s1[j]));
-            cs[j] *= keep;
-            sn[j] *= keep;
-        }
+            /* sin theta = (q - tx).y / (c t1), q - tx = B + delta + v s1 */
+            keep[r] &= fabs(b.y + FIELD(dy) + vel.y * s1[r]) <= params.half_sin * (R.range1 + params.c * s1[r]);
 #endif
-        FOR_CHAINS {
-            __global const float *recj = rec[j / ROWS];
+        }
+        FOR_ROWS {  /* carrier exp(+j 2 pi f0 tau): cycles f0 T_ref (reduced) + f0 s, reduced to [-1/2, 1/2] */
+            const float16 cyc = R.cycles + s[r] * f0s;
+            expj_near16(NEAR_FRACTION(cyc), &cs[r], &sn[r]);
+        }
+        FOR_ROWS {
+            const volatile int *i = (const volatile int *)&first[r];
 #ifdef INTERP_LINEAR
             /* samples i and i + 1 of each lane in one 4-wide load, transposed in registers */
-            const int16 ic = clamp(ki[j], (int16)0, (int16)(n - 2));
-            const float16 keep = select((float16)0.0f, (float16)1.0f, ki[j] >= (int16)0 && ki[j] < (int16)(n - 1));
-#define W(L) LOAD_F4(recj + 2 * ic.s##L)
+#define W(L) LOAD_F4(rec + 2 * i[0x##L])
             const float16 w0 = (float16)(W(0), W(1), W(2), W(3)), w1 = (float16)(W(4), W(5), W(6), W(7));
             const float16 w2 = (float16)(W(8), W(9), W(a), W(b)), w3 = (float16)(W(c), W(d), W(e), W(f));
 #undef W
@@ -204,20 +226,18 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             const float16 a_im = (float16)(w0.s159d, w1.s159d, w2.s159d, w3.s159d);
             const float16 b_re = (float16)(w0.s26ae, w1.s26ae, w2.s26ae, w3.s26ae);
             const float16 b_im = (float16)(w0.s37bf, w1.s37bf, w2.s37bf, w3.s37bf);
-            const float16 dr = keep * mix(a_re, b_re, frac[j]), di = keep * mix(a_im, b_im, frac[j]);
+            const float16 dr = mix(a_re, b_re, frac[r]), di = mix(a_im, b_im, frac[r]);
 #else
             /* samples i - 3 .. i + 4 of each lane, the taps of the nearest fractional-offset row */
-            const int16 ic = clamp(ki[j] - 3, (int16)0, (int16)(n - 8));
-            const float16 keep = select((float16)0.0f, (float16)1.0f, ki[j] >= (int16)3 && ki[j] < (int16)(n - 4));
-            const int16 row = NEAREST_TAP_ROW(convert_int16, frac[j]);
-#define W(L) LOAD_F16(recj + 2 * ic.s##L)
+            const int16 row = NEAREST_TAP_ROW(convert_int16, frac[r]);
+#define W(L) LOAD_F16(rec + 2 * i[0x##L])
             const float16 lo = sinc8_lanes(taps, row.lo, W(0), W(1), W(2), W(3), W(4), W(5), W(6), W(7));
             const float16 hi = sinc8_lanes(taps, row.hi, W(8), W(9), W(a), W(b), W(c), W(d), W(e), W(f));
 #undef W
-            const float16 dr = keep * (float16)(lo.even, hi.even), di = keep * (float16)(lo.odd, hi.odd);
+            const float16 dr = (float16)(lo.even, hi.even), di = (float16)(lo.odd, hi.odd);
 #endif
-            acc_re[r] += dr * cs[j] - di * sn[j];
-            acc_im[r] += dr * sn[j] + di * cs[j];
+            acc_re[r] = select(acc_re[r], acc_re[r] + dr * cs[r] - di * sn[r], keep[r]);
+            acc_im[r] = select(acc_im[r], acc_im[r] + dr * sn[r] + di * cs[r], keep[r]);
         }
     }
     for (int r = 0; r < ROWS; ++r) {
@@ -225,8 +245,110 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
         vstore16(acc_re[r], 0, re);
         vstore16(acc_im[r], 0, im);
         const int m = 16 * (ROWS * g + r);
-        for (int l = 0; l < 16; ++l) image[m + l] += (double2)(re[l], im[l]);
+        for (int l = 0; l < 16; ++l) {
+#ifdef SCATTER
+            if (index[m + l] >= 0)
+                image[index[m + l]] += (double2)(re[l], im[l]);
+#else
+            image[m + l] += (double2)(re[l], im[l]);
+#endif
+        }
     }
+}
+
+#elif defined(BP_FIELDS)
+/* bp_tile's pixel fields (bp_pixels_t) of a grid's tiles (clsas/image/backprojection/tiles.py):
+ * work-item g fills fields[g], row g of sixteen slots, whose pixels are index[16 g + lane] among
+ * positions (x, y, z, m; -1: padding, which gets its tile's reference point), of work-item
+ * g / ROWS's tile tile_of[g / ROWS] with reference point centres[tile]: delta = pixel - centre
+ * (rounded to float after the subtraction in double), dd = |delta|^2 and (MOVING) dv = delta . v. */
+__kernel void bp_fields(__global const double *positions, __global const int *index, __global const int *tile_of,
+                        __global const double *centres, const double vx, const double vy, const double vz,
+                        const int n_rows, __global bp_pixels_t *fields)
+{
+    const int g = get_global_id(0);
+    if (g >= n_rows)  /* the launch is padded to whole work-groups */
+        return;
+    const double3 centre = vload3(tile_of[g / ROWS], centres);
+    __global bp_pixels_t *o = fields + g;
+    for (int l = 0; l < 16; ++l) {
+        const int m = index[16 * g + l];
+        const double3 d = (m >= 0 ? vload3(m, positions) : centre) - centre;
+        o->dx[l] = (float)d.x;
+        o->dy[l] = (float)d.y;
+        o->dz[l] = (float)d.z;
+        o->dd[l] = (float)dot(d, d);
+#ifdef MOVING
+        o->dv[l] = (float)(d.x * vx + d.y * vy + d.z * vz);
+#endif
+    }
+}
+
+#elif defined(BP_REFS)
+/* bp_tile's references (tile_ref_t, TileKernel.reference_dtype) computed on the device, in double,
+ * for pixels moving uniformly at v (or at rest) and a receiver of two position nodes (uniform
+ * motion) or with stop-and-go: the closed forms of clsas/geometry.py's legs (meet_time), then the
+ * record's fields as TileKernel.references (its NumPy twin) makes them. Work-item i: tile
+ * t = i / n_pulses, pulse p = i % n_pulses of the job; ref[i] its reference.
+ * pulse[p] (bp_ref_pulse_t): tx, eta, rx0 = the receiver at emission, v_rx = its velocity;
+ * centres[t]: the tile's reference point at t = 0; params (bp_ref_params_t): c, f0, fs, t0 (the
+ * receiver's window start), velocity v, half_extent, rho_max, offset and bias (samples). */
+inline double meet_time(const double3 d, const double3 w, const double c)
+{
+    const double a = c * c - dot(w, w), b = dot(d, w);
+    return (b + sqrt(b * b + a * dot(d, d))) / a;
+}
+
+__kernel void bp_refs(__global const double *centres, __global const bp_ref_pulse_t *pulse, const bp_ref_params_t params,
+                      const int n_pulses, const int n_refs, __global tile_ref_t *ref)
+{
+    const int i = get_global_id(0);
+    if (i >= n_refs)  /* the launch is padded to whole work-groups */
+        return;
+    const bp_ref_pulse_t pl = pulse[i % n_pulses];
+    const double c = params.c;
+    const double3 v = vload3(0, params.velocity), tx = vload3(0, pl.tx), rx0 = vload3(0, pl.rx0);
+    const double3 v_r = vload3(0, pl.v_rx), q_emit = vload3(i / n_pulses, centres) + v * pl.eta;
+#ifdef STOP_AND_GO
+    const double3 q = q_emit, r = rx0;
+    const double t1 = length(q - tx) / c, t2 = length(r - q) / c;
+    const double3 v_k = (double3)(0.0);  /* the legs see no motion */
+#else
+    const double t1 = meet_time(q_emit - tx, v, c);
+    const double3 q = q_emit + v * t1, r_scatter = rx0 + v_r * t1;
+    const double t2 = meet_time(r_scatter - q, v_r, c);
+    const double3 r = r_scatter + v_r * t2, v_k = v;
+#endif
+    const double big_t = t1 + t2, k = (big_t - params.t0) * params.fs, cycles = params.f0 * big_t;
+    const double k_int = clamp(floor(k), -1073741824.0, 1073741824.0);
+    const double3 b = q - tx;
+    const double b1 = c * c * t1 - dot(b, v_k), a1 = c * c - dot(v_k, v_k);
+    tile_ref_t o;
+    vstore3(convert_float3(b), 0, o.leg1);
+    o.b1 = (float)b1;
+    o.k1 = (float)(0.5 / b1);
+    o.k2 = (float)(a1 / (b1 * b1));
+#ifdef MOVING
+    o.poly = 0;
+#else
+    o.poly = params.half_extent <= params.rho_max * c * t1;
+#endif
+    o.k_ref = (int)k_int - params.offset - params.bias;
+    o.k_frac = (float)(fmin(k - k_int, 0.99999994) + params.bias);
+    o.cycles = (float)(cycles - rint(cycles));
+    o.range1 = (float)(c * t1);
+#if defined(MONO)
+    const double a2 = c * c - dot(v_r, v_r);
+    vstore3(convert_float3(2.0 * v_r / a2), 0, o.w);
+    o.alpha = (float)(2.0 * c * c / a2);
+#elif !defined(SAME_LEGS)
+    const double3 cc = r - q;
+    vstore3(convert_float3(cc), 0, o.leg2);
+    o.b2 = (float)(c * c * t2 - dot(cc, v_r));
+    vstore3(convert_float3(v_r), 0, o.v_rx);
+    o.a2 = (float)(c * c - dot(v_r, v_r));
+#endif
+    ref[i] = o;
 }
 
 #else /* bp_block: exact double geometry */
@@ -246,7 +368,7 @@ __kernel void bp_block(__global const bp_points_t *pix, __global const bp_pulse_
                        __global const node_t *nodes, __global const sample_t *data,
                        __global const float *taps, const bp_block_params_t params,
                        const int p_first, const int p_count, const int n, const int n_items,
-                       __global double2 *image)
+                       __global double2 *image SCATTER_PARAM)
 {
     const int g = get_global_id(0);
     if (g >= n_items)  /* the launch is padded to whole work-groups */
@@ -326,6 +448,13 @@ __kernel void bp_block(__global const bp_points_t *pix, __global const bp_pulse_
     real_t re[8], im[8];
     vstore8(acc_re, 0, re);
     vstore8(acc_im, 0, im);
-    for (int l = 0; l < 8; ++l) image[m0 + l] += (double2)(re[l], im[l]);
+    for (int l = 0; l < 8; ++l) {
+#ifdef SCATTER
+        if (index[m0 + l] >= 0)
+            image[index[m0 + l]] += (double2)(re[l], im[l]);
+#else
+        image[m0 + l] += (double2)(re[l], im[l]);
+#endif
+    }
 }
 #endif /* BP_TILE */

@@ -13,9 +13,9 @@
  * row). Same interpolators, edges and work-item layout as stolt_map. */
 __kernel void resample_map(__global const float2 *src, __global const float *taps,
                            __global const double *idx, const int idx_row_stride, const int n_src,
-                           const int n_out, __global float2 *dst)
+                           const int n_out, const int n_rows, __global float2 *dst)
 {
-    ROW_ITEM(src, dst, n_src, n_out);
+    ROW_ITEM(src, dst, n_src, n_out, n_rows);
     __global const double *pos = idx + (size_t)r * idx_row_stride + j0;
     int16 i[BLOCKS];
     float16 w[BLOCKS];

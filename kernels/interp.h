@@ -65,11 +65,14 @@ inline int16 snapped(const int16 fl, const float16 frac, float16 *w)
 }
 
 #ifdef BLOCKS
-/* A row kernel's work-item (global size (ceil(n_out / (16 BLOCKS)), n_rows); src, dst complex
- * rows of n_src and n_out samples): its first output j0 of row r, that row's source samples
- * (float re, im) and its outputs from j0 on. */
-#define ROW_ITEM(src, dst, n_src, n_out)                                                             \
+/* A row kernel's work-item (global size (ceil(n_out / (16 BLOCKS)), n_rows padded to whole
+ * work-groups: opencl.work_groups_2d, so that the kernel is compiled once whatever the rows;
+ * src, dst complex rows of n_src and n_out samples): its first output j0 of row r, that row's
+ * source samples (float re, im) and its outputs from j0 on; a work-item past the last row returns. */
+#define ROW_ITEM(src, dst, n_src, n_out, n_rows)                                                     \
     const int j0 = 16 * BLOCKS * get_global_id(0), r = get_global_id(1);                             \
+    if (r >= (n_rows))                                                                               \
+        return;                                                                                      \
     __global const float *row = (__global const float *)((src) + (size_t)r * (n_src));               \
     __global float *o = (__global float *)((dst) + (size_t)r * (n_out) + j0)
 

@@ -17,17 +17,17 @@
  * exist) is kernels/interp.h's; BLOCKS comes from clsas/interp.py.
  *
  * One work-item: BLOCKS x 16 consecutive outputs of a row (float16 lanes, one block of 16 at a
- * time), global size (ceil(n_out / (16 BLOCKS)), n_rows); all of its positions are computed before
- * any interpolation, so that the long position chain overlaps the loads (4 blocks: 23 ms for a
- * 4096^2 sinc8 map where one block a work-item took 30 ms).
+ * time), global size (ceil(n_out / (16 BLOCKS)), n_rows padded to whole work-groups: interp.h's
+ * ROW_ITEM); all of its positions are computed before any interpolation, so that the long
+ * position chain overlaps the loads (bench/bench_stolt.py times it).
  * params: K0 = kx_first + 2 k0, dkx, A = c / (4 pi df), Bc = -(f0 + f_first) / df. */
 #include "interp.h"
 
 __kernel void stolt_map(__global const float2 *src, __global const float *taps,
                         __global const double *ku2, const double4 params, const int n_src,
-                        const int n_out, __global float2 *dst)
+                        const int n_out, const int n_rows, __global float2 *dst)
 {
-    ROW_ITEM(src, dst, n_src, n_out);
+    ROW_ITEM(src, dst, n_src, n_out, n_rows);
     /* the first output exactly in double; output l of the work-item relative to it in float,
      * d = l dkx: sqrt((K + d)^2 + k_u^2) - sqrt(K^2 + k_u^2) = d (2K + d) / (s_l + s_0), no
      * cancellation, so x = idx - floor(idx_0) is a small float (< 16 BLOCKS + 1) with error

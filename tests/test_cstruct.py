@@ -12,7 +12,7 @@ from clsas.image.ffbp import program
 from clsas.synthesis.echo import synth
 
 RECORDS = {"node_t": geometry.NODE, "echo_pulse_t": synth.PULSE, "echo_rx_t": synth.RECEIVER,
-           "echo_params_t": synth.PARAMS, "tile_ref_t": tile_kernel.TILE_REF,
+           "echo_params_t": synth.PARAMS, **{f"tile_ref_t ({legs})": ref for legs, ref in tile_kernel.TILE_REFS.items()},
            "tile_params_t": tile_kernel.TILE_PARAMS, "bp_pixels_t": tile_kernel.PIXELS,
            "bp_moving_pixels_t": tile_kernel.MOVING_PIXELS, "bp_pulse_t": exact_kernel.PULSE,
            "bp_block_params_t": exact_kernel.BLOCK_PARAMS, "bp_points_t": exact_kernel.POINTS,
@@ -24,6 +24,7 @@ def test_device_layout_matches_the_dtype(opencl_device, name):
     import pyopencl as cl
 
     dtype = RECORDS[name]
+    name = name.split(" ")[0]  # one C name, several layouts (bp_tile's references for each way of computing the legs)
     measures = [f"sizeof({name})"] + [f"offsetof({name}, {field})" for field in dtype.names]
     source = cstruct.declare(name, dtype) + "#ifndef offsetof\n#define offsetof(t, f) __builtin_offsetof(t, f)\n#endif\n" \
         + "__kernel void layout(__global int *out) {\n" + "".join(

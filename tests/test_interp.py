@@ -36,6 +36,19 @@ def test_resample_kernel_matches_reference(opencl_device, rng, interp, shared):
     assert rel_l2(out, ref) < 1e-4
 
 
+@pytest.mark.parametrize("n_rows", [1, 13])
+def test_row_kernel_rows_in_whole_work_groups(opencl_device, rng, n_rows):
+    """The row kernels launch in fixed work-groups (the rows padded to whole groups, compiled once
+    whatever the shape): a row count that is not a multiple of the group gives exactly the rows
+    that a larger call gives, and nothing is written past the last row."""
+    src = band_limited(rng, 16, 256)
+    idx = rng.uniform(-2.0, 258.0, (16, 70))
+    whole = resample(src, idx, "sinc8", backend="opencl")
+    part = resample(src[:n_rows], idx[:n_rows], "sinc8", backend="opencl")
+    assert part.shape == (n_rows, 70)
+    assert np.array_equal(part, whole[:n_rows])
+
+
 def test_resample_bad_input(rng):
     src = band_limited(rng, 4, 64)
     with pytest.raises(ValueError, match="idx"):

@@ -37,11 +37,11 @@ below 64 x 6e-8 = 4e-6 even if every rounding adds up), then added into a double
 runs the exact double kernel with the data path in double as well.
 
 Where the work happens: :mod:`.records` (the range-compressed records, prepared once or per
-call), :mod:`.tile_kernel` (bp_tile and the grid's tile plan), :mod:`.reference` (the NumPy
+call), :mod:`.tile_kernel` (bp_tile), :mod:`.tiles` (the grid's tile plan), :mod:`.reference` (the NumPy
 reference), :mod:`.launcher` (the OpenCL launches of bp_tile and
 :mod:`.exact_kernel`'s bp_block, and their memory). Fixed cost per call, and how to pay it once:
 the records' upsampling and upload (:func:`.records.prepare`), the grid's tile plan
-(:class:`.tile_kernel.GridPlan`); the per-(tile, pulse) references depend on both and are computed in
+(:class:`.tiles.GridPlan`); the per-(tile, pulse) references depend on both and are computed in
 every call.
 """
 
@@ -58,7 +58,7 @@ from ...progress import NOMINAL_RATES, stage
 from .launcher import backproject_opencl
 from .records import records_for
 from .reference import backproject_reference
-from .tile_kernel import GridPlan
+from .tiles import GridPlan
 
 __all__ = ["backproject"]
 
@@ -89,7 +89,7 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
     echo : EchoData, range-compressed (:func:`clsas.range_compress`), or PreparedRecords
         (:func:`.records.prepare`): records prepared once for many calls; the image is bit-identical to
         the one the echo gives with the records' ``interp``, ``upsample`` and ``receivers``.
-    grid : Grid (plane, slant plane or any 3-D points), or a :class:`.tile_kernel.GridPlan` of one to image
+    grid : Grid (plane, slant plane or any 3-D points), or a :class:`.tiles.GridPlan` of one to image
         the same grid again without redoing its tile plan.
     backend : {"numpy", "opencl", "auto"} or None.
     receivers : indices or names of the receivers to sum coherently (default: all; with prepared

@@ -60,11 +60,14 @@ class ExactKernel:
         params["half_sin"] = 1.0 if aperture is None else np.sin(aperture / 2)
         self.params = params[()]
 
-    def launch(self, queue, *, records, n_samples: int, taps, p_first: int, p_count: int, image):
+    def launch(self, queue, *, records, n_samples: int, taps, p_first: int, p_count: int, image, index=None):
         """Enqueue bp_block (one work-item a LANES pixels): add pulses p_first .. p_first + p_count
         - 1 (counted from the buffers' first pulse) of the ``records`` (rows of ``n_samples``) into
-        the double ``image`` (M,). Returns the event."""
-        kern = opencl.kernel("backprojection", "bp_block", double=self.double, preamble=PREAMBLE, defines=self.defines)
+        the double ``image``: at pixel ``index[m]`` of pixel m (device int32, -1: dropped) when
+        given, else at m. Returns the event."""
+        defines = {**self.defines, **({"SCATTER": 1} if index is not None else {})}
+        kern = opencl.kernel("backprojection", "bp_block", double=self.double, preamble=PREAMBLE, defines=defines)
         n_items = self.points.size // POINTS.itemsize
         return kern(queue, *opencl.work_groups(n_items), self.points, self.pulse, self.nodes, records, taps,
-                    self.params, np.int32(p_first), np.int32(p_count), np.int32(n_samples), np.int32(n_items), image)
+                    self.params, np.int32(p_first), np.int32(p_count), np.int32(n_samples), np.int32(n_items), image,
+                    *((index,) if index is not None else ()))

@@ -2,13 +2,14 @@
 in launches of bp_tile (:class:`.tile_kernel.TileKernel`) or, for ``precision="double"`` and
 receivers whose motion is not linear over a tile, bp_block (:class:`.exact_kernel.ExactKernel`).
 
-Memory: the pixels are processed in chunks of at most ``PIXEL_CHUNK`` (2^22) pixels on the
-device (a 4096^2 image is four chunks of ~150 MB of device buffers each), the records a block
-of at most ``records.UPLOAD_BYTES`` at a time (at most two blocks in flight: the host waits
-for the kernels of the block before last), the per-(tile, pulse) references REF_PULSES pulses
-at a time; the host keeps the tile order of the pixels (12 bytes a pixel) beside the grid.
-Records prepared with :func:`.records.prepare` are held whole instead, and a
-:class:`.tile_kernel.GridPlan` keeps the grid's tile plan and pixel fields.
+Memory: the kernels add into the double image in the grid's order (each slot's pixel index: no
+reordering afterwards), which on a CPU device is the host array itself (CL_MEM_USE_HOST_PTR);
+the pixels are processed in chunks of at most ``PIXEL_CHUNK`` (2^22) slots on the device, whose
+fields bp_fields computes there (64 bytes a slot, 80 with a target velocity); the records a block
+of at most ``records.UPLOAD_BYTES`` at a time (at most two blocks in flight: the host waits for
+the kernels of the block before last), the per-(tile, pulse) references REF_PULSES pulses at a
+time. Records prepared with :func:`.records.prepare` are held whole instead, and a
+:class:`.tiles.GridPlan` keeps the grid's tiling.
 """
 
 from __future__ import annotations
@@ -19,36 +20,39 @@ from ... import opencl
 from ...progress import Progress
 from .exact_kernel import ExactKernel
 from .records import PreparedRecords
-from .tile_kernel import GridPlan, TileKernel
+from .tile_kernel import TileKernel
+from .tiles import GridPlan
 
-PIXEL_CHUNK = 2**22  # pixels on the device at once
+PIXEL_CHUNK = 2**22  # slots on the device at once
 REF_PULSES = 64  # pulses whose tile references are computed at once
 
 
 class _Chunk:
-    """The device side of slots ``first`` .. ``stop - 1`` of the plan's tiling: bp_tile's pixel
-    fields and work-items' tile indices (:meth:`TileKernel.fields`), the tiles present
-    (``tiles``) and the double image (n,)."""
+    """The device side of slots ``first`` .. ``stop - 1`` of the plan's tiling: their pixel
+    indices (``index``, -1 for padding), the work-items' tiles relative to the chunk's first tile
+    and those tiles (``tiles``, a range of the tiling's), and bp_tile's pixel fields (computed on
+    the device by bp_fields)."""
 
-    def __init__(self, ctx, plan: GridPlan, tile: TileKernel, f0, c, first: int, stop: int):
+    def __init__(self, ctx, queue, tiling, tile: TileKernel, positions, first: int, stop: int):
         import pyopencl as cl
 
         mf = cl.mem_flags
-        tiling = plan.tiling(f0, c)
+        width = tile.LANES * tile.ROWS
         self.first, self.n = first, stop - first
-        self.order, self.real = tiling.order[first:stop], tiling.real[first:stop]
-        fields, tile_of, self.tiles = tile.fields(plan, f0, c, first, stop)
-        self.pixels = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=fields)
-        self.tile_of = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=tile_of)
-        self.image = cl.Buffer(ctx, mf.READ_WRITE | mf.COPY_HOST_PTR, hostbuf=np.zeros(self.n, np.complex128))
+        slots = tiling.order[first:stop]
+        owner = tiling.tile[first // width:stop // width]
+        self.tiles = np.arange(owner[0], owner[-1] + 1)
+        self.pixels_here = int(np.count_nonzero(slots >= 0))
+        self.slots = slots
 
-    def finish(self, queue, image: np.ndarray) -> None:
-        """Wait for the chunk and put its pixels (not the padding) into the flat image."""
-        import pyopencl as cl
+        def made(a):
+            return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
 
-        out = np.empty(self.n, np.complex128)
-        cl.enqueue_copy(queue, out, self.image)
-        image[self.order[self.real]] = out[self.real]
+        self.index = made(slots.astype(np.int32))
+        self.tile_of = made(owner - owner[0])
+        self.centres = made(tiling.centres[self.tiles])
+        self.pixels = tile.fields(queue, positions=positions, index=self.index, tile_of=self.tile_of,
+                                  centres=self.centres, n_slots=self.n)
 
 
 def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,
@@ -63,11 +67,12 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     mf = cl.mem_flags
     echo, fs = records.echo, records.fs
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
-    pixels = plan.grid.positions.reshape(-1, 3)
+    pixels = np.ascontiguousarray(plan.grid.positions.reshape(-1, 3), np.float64)
     image = np.zeros(pixels.shape[0], dtype=np.complex128)
+    image_buf = cl.Buffer(ctx, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=image)
+    positions = cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=pixels)
     tile = TileKernel(records.interp, aperture, velocity, stop_and_go)
-    kernels = {h: TileKernel(records.interp, aperture, velocity, stop_and_go, same_legs=tile.same_legs_for(echo, h))
-               for h in records.receivers}  # each receiver's variant of bp_tile (one leg for a monostatic one)
+    kernels = {h: tile.for_receiver(echo, h) for h in records.receivers}  # each receiver's legs (TileKernel.legs_for)
     taps = tile.taps(ctx)
     params = tile.params(c, f0, fs)
     tiles = plan.tiling(f0, c)
@@ -97,40 +102,50 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
         kernel_seconds += retire(1)
         records_buf, n_samples, base = records.buffer(ctx, i, pulses, double)
         if chunk_state is None or chunk_state.first != first:
-            if chunk_state is not None:
-                chunk_state.finish(queue, image)
-            chunk_state = _Chunk(ctx, plan, tile, f0, c, first, min(first + chunk, tiles.order.size))
+            chunk_state = _Chunk(ctx, queue, tiles, tile, positions, first, min(first + chunk, tiles.order.size))
         skip = int(pulses[0] - base)  # the job's first pulse in the buffer (which may hold earlier pulses)
         in_flight.append(events := [])
-        work.append(int(np.count_nonzero(chunk_state.real)) * pulses.size)
+        work.append(chunk_state.pixels_here * pulses.size)
         exact = None
         for s in range(0, pulses.size, REF_PULSES):
             # a sub-block's references are computed while the previous sub-block's kernels run
             blocks = [(p0, min(tile.PULSE_BLOCK, s + REF_PULSES - p0, pulses.size - p0))
                       for p0 in range(s, min(s + REF_PULSES, pulses.size), tile.PULSE_BLOCK)]
             if not double:
-                ref, linear = tile.references(echo, h, pulses[s:s + REF_PULSES], tiles.centres[chunk_state.tiles], fs,
-                                              tiles.half_extent, offset)
-                if linear:
-                    ref_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=ref)
-                    spans = None if not tile.pulse_span else cl.Buffer(
-                        ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=tile.spans(ref, tiles.half_extent, c, skip + s))
+                part, kernel = pulses[s:s + REF_PULSES], kernels[h]
+                ref_buf = kernel.references_on_device(queue, echo, h, part, chunk_state.centres, chunk_state.tiles.size,
+                                                      fs, tiles.half_extent, offset)
+                if ref_buf is None:  # a receiver followed between several nodes: on the host
+                    ref, linear = kernel.references(echo, h, part, tiles.centres[chunk_state.tiles], fs,
+                                                    tiles.half_extent, offset)
+                    ref_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=ref) if linear else None
+                if ref_buf is not None:
+                    spans = None
+                    if tile.pulse_span:
+                        ref, _ = cl.enqueue_map_buffer(queue, ref_buf, cl.map_flags.READ, 0,
+                                                       (chunk_state.tiles.size, part.size), kernel.reference_dtype)
+                        spans = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                                          hostbuf=tile.spans(ref, tiles.half_extent, c, skip + s))
+                        ref.base.release()
                     for p0, count in blocks:
-                        events.append(kernels[h].launch(
+                        events.append(kernel.launch(
                             queue, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
-                            ref_stride=ref.shape[1], ref_first=skip + s, records=records_buf, n_samples=n_samples,
-                            taps=taps, params=params, p_first=skip + p0, p_count=count, image=chunk_state.image,
-                            spans=spans))
+                            ref_stride=part.size, ref_first=skip + s, records=records_buf, n_samples=n_samples,
+                            taps=taps, params=params, p_first=skip + p0, p_count=count, image=image_buf,
+                            index=chunk_state.index, spans=spans))
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)
-                # pulse and node buffers indexed like the records buffer (from its first pulse)
-                exact = ExactKernel(ctx, pixels[chunk_state.order], echo, h, np.arange(base, pulses[-1] + 1), fs, offset,
+                # pulse and node buffers indexed like the records buffer (from its first pulse); a
+                # padding slot images pixel 0 and is dropped
+                slot_pixels = pixels[np.maximum(chunk_state.slots, 0)]
+                exact = ExactKernel(ctx, slot_pixels, echo, h, np.arange(base, pulses[-1] + 1), fs, offset,
                                     velocity, records.interp, aperture, stop_and_go, double)
             for p0, count in blocks:
                 events.append(exact.launch(queue, records=records_buf, n_samples=n_samples, taps=taps,
-                                           p_first=skip + p0, p_count=count, image=chunk_state.image))
+                                           p_first=skip + p0, p_count=count, image=image_buf, index=chunk_state.index))
     kernel_seconds += retire(0)
-    chunk_state.finish(queue, image)
+    mapped, _ = cl.enqueue_map_buffer(queue, image_buf, cl.map_flags.READ, 0, image.shape, image.dtype)
+    mapped.base.release()  # the image is the host array (read after the map: a GPU copies it back there)
     bar.close()
     return image, fallbacks, kernel_seconds

@@ -9,7 +9,7 @@ from ...geometry import legs
 from ...interp import read_rows
 from ...progress import Progress
 from .records import PreparedRecords
-from .tile_kernel import GridPlan
+from .tiles import GridPlan
 
 
 def backproject_reference(records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,

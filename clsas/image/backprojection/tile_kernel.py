@@ -4,11 +4,10 @@ A :class:`TileKernel` holds everything kernels/backprojection.cl's bp_tile reads
 records and the grid: its options (the ``-D`` defines), its records (declared here once as
 structured dtypes; :mod:`clsas.cstruct` puts them in front of the source as C structs), the
 per-(tile, pulse) references and the parameters it is given, the layout of its pixel fields,
-and its launch. Direct back-projection (:mod:`.launcher`) and the first stage of factorised
-back-projection (:mod:`clsas.image.ffbp.leaves`) both use it. Here too: the tiles of a grid
-(:func:`plan_tiles`: the pixels reordered into spatial tiles, each small enough that the float32
-geometry relative to its reference point stays within the phase budget) and :class:`GridPlan`,
-which keeps a grid's tile plan and pixel fields for calls that image the same grid again.
+and its launch, and bp_fields, the kernel that writes those fields for a grid's tiles
+(:mod:`.tiles`: the pixels grouped so that the float32 geometry relative to each tile's
+reference point stays within the phase budget). Direct back-projection (:mod:`.launcher`) and the
+first stage of factorised back-projection (:mod:`clsas.image.ffbp.leaves`) both use it.
 
 Derivation (``precision="single"``: float32 geometry relative to a reference per (tile, pulse)).
 Let the tile's reference point meet pulse p at t1_ref, at q_ref (exact, float64,
@@ -35,13 +34,33 @@ in float: every term carries a relative error of a few eps32 of a quantity of si
 (N1, N2, s1, s2 ~ |delta| / c; B, C, b1, b2 enter as ratios), and f0 (s1 + s2) ~ 2 f0 |delta| / c
 cycles is rounded once more; counting about ERROR_FACTOR = 8 roundings of |delta| / c of delay,
 the phase error is below 2 pi f0 8 eps32 |delta| / c, kept below PHASE_BUDGET by the tile size
-(:func:`plan_tiles`; tests/test_backprojection.py measures it). The receiver's velocity
+(:func:`.tiles.plan_tiles`; tests/test_backprojection.py measures it). The receiver's velocity
 v_r is the secant of its track over T_ref +- SPAN_FACTOR |delta|_max / c (which contains every
 pixel's delay); where the track departs from that line by more than NODE_TOLERANCE wavelengths
 (motion errors: kinks at its nodes), :meth:`TileKernel.references` says so and the caller runs
 that receiver's pulses on the exact double kernel instead (:mod:`.exact_kernel`). The records'
 offset (their first sample, an integer) is taken off the reference's integer sample index
-K_ref, so the fraction, hence the image, does not depend on the span prepared.
+K_ref, so the fraction, hence the image, does not depend on the span prepared; k_frac also
+carries BIAS samples (taken off K_ref) so that k_frac + s fs is positive and the kernel splits it
+by truncation.
+
+Leg 1 without a square root or a division (pixels at rest, |delta| <= RHO_MAX |B| for every pixel
+of the tile). With b1 = c^2 t1_ref and a1 = c^2, s1 = N1 / (b1 + sqrt(b1^2 + a1 N1)) =
+(N1 / (2 b1)) g(x) with x = a1 N1 / b1^2 and g(x) = 2 / (1 + sqrt(1 + x)); since
+-2 |B| |delta| <= N1 - |delta|^2 <= 2 |B| |delta| and a1 / b1^2 = 1 / |B|^2, x lies in
+[rho^2 - 2 rho, rho^2 + 2 rho] with rho = |delta| / |B| <= RHO_MAX = 0.15, inside [-0.3, 0.33],
+where the degree-7 polynomial LEG_POLY (the Chebyshev interpolant of g, converted to powers)
+departs from g by at most 2.1e-8 relative (tests/test_backprojection.py checks it), far below
+the float32 roundings of the stable root. The host sets ``poly`` per (tile, pulse) where the bound
+holds (kernels/backprojection.cl keeps the stable root elsewhere).
+
+The return leg of a monostatic sonar with exact delays (``legs="mono"``): the receiver is at the
+transmitter T at emission and moves uniformly at v_r (two position nodes), the pixel D = q - T
+away (at rest). With c t1 = |D| and c t2 = |v_r (t1 + t2) - D|, squaring and subtracting
+c^2 t1^2 = |D|^2 gives c^2 (t2^2 - t1^2) = |v_r|^2 (t1 + t2)^2 - 2 (t1 + t2) v_r.D; dividing by
+t1 + t2 > 0, t2 - t1 = 2 (|v_r|^2 t1 - v_r.D) / (c^2 - |v_r|^2) exactly. Relative to the
+reference (D = B + delta, t1 = t1_ref + s1), s = s1 + s2 = alpha s1 - w.delta with
+alpha = 2 c^2 / (c^2 - |v_r|^2) and w = 2 v_r / (c^2 - |v_r|^2): one leg and a dot product.
 """
 
 from __future__ import annotations
@@ -54,153 +73,58 @@ from ... import opencl
 from ...cstruct import declare_all, record_dtype
 from ...geometry import legs, two_node_velocity, uniform_nodes
 from ...interp import TAP_ROWS, kernel_taps
-from ...model import Grid
+from .tiles import LANES, ROWS, GridPlan, aperture_spans, tile_half_extent
 
-LANES, ROWS = 16, 4  # bp_tile: a work-item holds ROWS float16 vectors of pixels (tiles padded to LANES x ROWS)
-PHASE_BUDGET = 2e-3  # rad: the float32 geometry's share of the 0.01 rad phase budget
-ERROR_FACTOR = 8.0  # float32 roundings per |delta| / c of delay (the module docstring)
-
-
-def tile_half_extent(f0: float, c: float) -> float:
-    """The largest distance (m) from a tile's reference point that keeps the float32 geometry's
-    phase error below PHASE_BUDGET: 2 pi f0 ERROR_FACTOR eps32 |delta| / c <= PHASE_BUDGET
-    (3.3 m at 150 kHz and 1500 m/s; eps32 = 1.2e-7)."""
-    return PHASE_BUDGET * c / (2 * np.pi * f0 * ERROR_FACTOR * float(np.finfo(np.float32).eps))
-
-
-@dataclasses.dataclass(frozen=True)
-class Tiling:
-    """Pixels reordered into spatial tiles for bp_tile.
-
-    ``order`` (M_pad,): pixel index of each slot (a tile's slots padded to whole work-items of
-    LANES x ROWS by repeating its last pixel), ``real`` (M_pad,) bool: the slot is not padding,
-    ``tile`` (M_pad,) int: the slot's tile, ``centres`` (T, 3) m: the tiles' reference points,
-    ``half_extent`` m: the largest half-diagonal of a tile's bounding box (at least every
-    |pixel - its reference point|, the reference being the box's centre), ``phase_bound`` rad: the
-    float32 geometry's phase error bound 2 pi f0 ERROR_FACTOR eps32 half_extent / c.
-    """
-
-    order: np.ndarray
-    real: np.ndarray
-    tile: np.ndarray
-    centres: np.ndarray
-    half_extent: float
-    phase_bound: float
-
-
-def plan_tiles(pixels: np.ndarray, f0: float, c: float, half_extent: float | None = None) -> Tiling:
-    """Bucket the (M, 3) pixels into cubic cells whose half-diagonal is ``half_extent`` (default
-    :func:`tile_half_extent`), each cell a tile with its reference point at the centre of its
-    pixels' bounding box; within a tile the pixels keep their order (a raster stays a raster), so
-    a work-item's 16 lanes are neighbours. The work goes one coordinate at a time (a 4096^2
-    grid's float64 temporaries are then 134 MB, not 400 MB: first-touch page faults dominate at
-    that size). Raises ValueError when the bound is not met (it is by construction; the check
-    guards the arithmetic)."""
-    pixels = np.asarray(pixels, dtype=np.float64)
-    budget = tile_half_extent(f0, c) if half_extent is None else float(half_extent)
-    if not budget > 0:
-        raise ValueError(f"half_extent must be positive, got {half_extent}")
-    side = 2 * budget / np.sqrt(3.0)
-    cells = [np.floor((pixels[:, k] - pixels[:, k].min()) / side).astype(np.int64) for k in range(3)]
-    key = np.ravel_multi_index(cells, tuple(int(cell.max()) + 1 for cell in cells))
-    del cells
-    by_key = np.argsort(key, kind="stable")
-    sorted_key = key[by_key]
-    first = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
-    count = np.diff(np.r_[first, key.size])
-    width = LANES * ROWS
-    padded = -(-count // width) * width
-    tile = np.repeat(np.arange(count.size), padded)
-    local = np.arange(tile.size) - np.repeat(np.cumsum(padded) - padded, padded)
-    real = local < count[tile]
-    order = by_key[first[tile] + np.minimum(local, count[tile] - 1)]
-    low, high = np.empty((count.size, 3)), np.empty((count.size, 3))
-    for k in range(3):
-        column = pixels[by_key, k]
-        low[:, k], high[:, k] = np.minimum.reduceat(column, first), np.maximum.reduceat(column, first)
-    centres = 0.5 * (low + high)
-    extent = float(0.5 * np.sqrt(np.max(np.sum((high - low) ** 2, axis=1))))
-    if extent > budget * (1 + 1e-9):
-        raise ValueError(f"tiles reach {extent:.3g} m from their reference points, beyond the {budget:.3g} m "
-                         "that keeps the float32 phase error in budget")
-    bound = 2 * np.pi * f0 * ERROR_FACTOR * float(np.finfo(np.float32).eps) * extent / c
-    return Tiling(order, real, tile, centres, extent, float(bound))
-
-
-
-
-class GridPlan:
-    """A grid and what imaging it needs besides the echo: its tile plan (:func:`plan_tiles`) and
-    bp_tile's float32 pixel fields of its chunks (offsets from the tiles' reference points:
-    :meth:`clsas.image.backprojection.tile_kernel.TileKernel.fields`), made on first use for a
-    carrier and sound speed (and, for the fields, a target velocity) and kept. Pass it to
-    :func:`backproject` in place of the grid to image the same grid again without redoing them
-    (e.g. re-imaging an echo at several target velocities or after autofocus). It holds ~16 +
-    20 bytes a pixel once used (tile order and fields; a 4096^2 grid: ~600 MB).
-    """
-
-    def __init__(self, grid: Grid):
-        if not isinstance(grid, Grid):
-            raise TypeError(f"grid must be a clsas.model.Grid, got {type(grid).__name__}")
-        self.grid = grid
-        self._tilings, self._kept = {}, {}
-
-    def tiling(self, f0: float, c: float) -> Tiling:
-        key = (float(f0), float(c))
-        if key not in self._tilings:
-            self._tilings[key] = plan_tiles(self.grid.positions.reshape(-1, 3), f0, c)
-        return self._tilings[key]
-
-    def kept(self, key, make):
-        """``make()``, made once for ``key`` and kept (the pixel fields of a chunk of the tiling)."""
-        if key not in self._kept:
-            self._kept[key] = make()
-        return self._kept[key]
-
-
-def aperture_spans(leg1_y: np.ndarray, range1: np.ndarray, half_sin: float, half_extent: float, speed: float,
-                   c: float, first: int) -> np.ndarray:
-    """bp_tile's PULSE_SPAN: for each of T tiles the pulses [start, stop) that can see it within
-    the aperture, int32 (T, 2), from its references' along-track leg B_y and range |B| = c t1_ref
-    (m, (T, P)) for the P pulses ``first`` .. ``first + P - 1``; a tile that sees none gets (0, 0).
-
-    The kernel keeps pixel q = q_ref + delta + v s1 of a pulse when
-    |B_y + delta_y + v_y s1| <= h (|B| + c s1), h = sin(aperture / 2). With |delta| <= E (the
-    tiles' half extent) and c t1 = |B + delta + v s1|: c |s1| <= E + |v| |s1|, so
-    |v| |s1| <= E |v| / (c - |v|) and both |delta_y + v_y s1| and c s1 are at most
-    M = E c / (c - |v|). A pulse with |B_y| - M > h (|B| + M) therefore keeps no pixel of the
-    tile; the span runs from the first to the last pulse that may keep one (the mask still decides
-    every pixel in it). M gets 1 cm more for the float32 comparison (eps32 x 10 km = 1.2 mm).
-    """
-    margin = half_extent * c / (c - speed) + 0.01
-    seen = np.abs(leg1_y) - margin <= half_sin * (range1 + margin)
-    start = np.argmax(seen, axis=1)
-    stop = seen.shape[1] - np.argmax(seen[:, ::-1], axis=1)
-    return np.where(seen.any(axis=1)[:, None], np.stack([start, stop], axis=1) + first, 0).astype(np.int32)
-
-
-PULSES = 1  # pulses a work-item step (with ROWS vectors of LANES pixels; bench/bench_backprojection.py --variants)
 PULSE_BLOCK = 64  # pulses a launch: the float sums' block (relative error below 64 x 6e-8)
 NODE_TOLERANCE = 1 / 2000  # of a wavelength: a receiver's allowed departure from linear motion over a tile
 SPAN_FACTOR = 2.5  # a tile's delay span is +-SPAN_FACTOR * half_extent / c around its reference
+RHO_MAX = 0.15  # a tile's half extent over its reference's range below which leg 1 is a polynomial (LEG_POLY)
+# g(x) = 2 / (1 + sqrt(1 + x)) on [-0.3, 0.33]: the degree-7 Chebyshev interpolant in powers of x
+# (relative error 2.1e-8; the module docstring), coefficients of x^0 .. x^7
+LEG_POLY = (9.9999998396e-01, -2.5000014978e-01, 1.2500532606e-01, -7.8112992048e-02, 5.4411638394e-02,
+            -4.1183750927e-02, 3.6752282125e-02, -2.7302034149e-02)
+LEG_POLY_DOMAIN = (-0.3, 0.33)
 
-# bp_tile's records: the reference of a (tile, pulse), the launch's parameters, and a row of
-# LANES pixels (the offsets from the tile's reference point, |delta|^2, and delta . v for moving pixels)
-TILE_REF = record_dtype([("leg1", "f4", 3), ("b1", "f4"), ("leg2", "f4", 3), ("b2", "f4"), ("v_rx", "f4", 3),
-                         ("a2", "f4"), ("k_ref", "i4"), ("k_frac", "f4"), ("cycles", "f4"), ("range1", "f4")])
+
+def _horner(name: str, coefficients) -> str:
+    """A C macro ``name(x)`` evaluating the polynomial (float coefficients of x^0, x^1, ...) by Horner's rule."""
+    body = f"{coefficients[-1]:.10e}f"
+    for a in coefficients[-2::-1]:
+        body = f"({a:.10e}f + (x) * {body})"
+    return f"#define {name}(x) {body}\n"
+
+# bp_tile's records: the reference of a (tile, pulse) for each way of computing the legs
+# (:meth:`TileKernel.legs_for`), the launch's parameters, and a row of LANES pixels (the offsets
+# from the tile's reference point, |delta|^2, and delta . v for moving pixels)
+_REF = [("leg1", "f4", 3), ("b1", "f4"), ("k1", "f4"), ("k2", "f4"), ("poly", "i4"), ("k_ref", "i4"), ("k_frac", "f4"),
+        ("cycles", "f4"), ("range1", "f4")]
+TILE_REFS = {"same": record_dtype(_REF),
+             "mono": record_dtype(_REF + [("w", "f4", 3), ("alpha", "f4")]),
+             "two": record_dtype(_REF + [("leg2", "f4", 3), ("b2", "f4"), ("v_rx", "f4", 3), ("a2", "f4")])}
 TILE_PARAMS = record_dtype([("a1", "f4"), ("fs", "f4"), ("f0", "f4"), ("velocity", "f4", 3), ("half_sin", "f4"),
                             ("c", "f4")])
+# bp_refs' records (the references computed on the device): a pulse (transmitter, emission time,
+# the receiver at emission and its velocity) and the launch's parameters
+REF_PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("rx0", "f8", 3), ("v_rx", "f8", 3)])
+REF_PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("t0", "f8"), ("velocity", "f8", 3),
+                           ("half_extent", "f8"), ("rho_max", "f8"), ("offset", "i4"), ("bias", "i4")])
 _OFFSETS = [("dx", "f4", LANES), ("dy", "f4", LANES), ("dz", "f4", LANES), ("dd", "f4", LANES)]
 PIXELS = record_dtype(_OFFSETS)
 MOVING_PIXELS = record_dtype(_OFFSETS + [("dv", "f4", LANES)])
+LEG_DEFINES = {"same": "SAME_LEGS", "mono": "MONO", "two": None}
 
 
 class TileKernel:
     """bp_tile for one configuration: the interpolator ``interp`` ("linear" or "sinc8"), the full
     integration angle ``aperture`` (rad, or None), the pixels' ``velocity`` (m/s), ``stop_and_go``,
     ``row_shift`` (ffbp's first stage: each tile reads its own leaf's rows of the records), and
-    ``same_legs`` (with stop-and-go, a receiver at the transmitter: :meth:`same_legs_for`; the
-    kernel then computes one leg, t2 = t1).
+    ``legs``, how the kernel computes the return leg (:meth:`legs_for` chooses it for a receiver):
+
+    - ``"two"``: both legs, for any receiver (the module docstring);
+    - ``"same"``: stop-and-go with the receiver at the transmitter (a monostatic sonar): t2 = t1;
+    - ``"mono"``: exact delays, pixels at rest, the receiver at the transmitter at emission and
+      moving uniformly (two position nodes): the return leg in closed form from the outgoing one
+      (the module docstring).
 
     A work-item is ROWS rows of LANES pixels of one tile (:attr:`items_per_slot`: a tile's
     slots come in whole work-items); slot m = LANES (ROWS g + r) + lane of work-item g.
@@ -209,33 +133,60 @@ class TileKernel:
     LANES, ROWS, PULSE_BLOCK = LANES, ROWS, PULSE_BLOCK
 
     def __init__(self, interp: str, aperture: float | None = None, velocity=(0.0, 0.0, 0.0),
-                 stop_and_go: bool = False, row_shift: bool = False, same_legs: bool = False):
+                 stop_and_go: bool = False, row_shift: bool = False, legs: str = "two"):
+        if legs not in TILE_REFS:
+            raise ValueError(f"legs must be one of {sorted(TILE_REFS)}, got {legs!r}")
         self.interp, self.aperture, self.stop_and_go = interp, aperture, bool(stop_and_go)
         self.velocity = np.asarray(velocity, dtype=np.float64)
         self.v_k = np.zeros(3) if stop_and_go else self.velocity  # the pixels' motion the legs see
         self.half_sin = 1.0 if aperture is None else float(np.sin(aperture / 2))
         self.moving = bool(np.any(self.v_k))
+        if (legs == "same") != (legs == "same" and self.stop_and_go) or (legs == "mono" and (self.stop_and_go
+                                                                                              or self.moving)):
+            raise ValueError(f"legs={legs!r} needs {'stop-and-go' if legs == 'same' else 'exact delays and pixels at rest'}")
+        self.legs = legs
+        self.reference_dtype = TILE_REFS[legs]
         self.pixels = MOVING_PIXELS if self.moving else PIXELS
         self.pulse_span = aperture is not None and not row_shift  # a tile sums only the pulses that can see it
         self.defines = {"INTERP_LINEAR" if interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS,
-                        "BP_TILE": 1, "ROWS": ROWS, "PULSES": PULSES, **({"APERTURE": 1} if aperture is not None else {}),
+                        "BP_TILE": 1, "ROWS": ROWS, **({"APERTURE": 1} if aperture is not None else {}),
                         **({"MOVING": 1} if self.moving else {}), **({"ROW_SHIFT": 1} if row_shift else {}),
-                        **({"SAME_LEGS": 1} if same_legs and self.stop_and_go else {}),
+                        **({LEG_DEFINES[legs]: 1} if LEG_DEFINES[legs] else {}),
                         **({"PULSE_SPAN": 1} if self.pulse_span else {})}
-        self.preamble = declare_all({"tile_ref_t": TILE_REF, "tile_params_t": TILE_PARAMS, "bp_pixels_t": self.pixels})
+        self.preamble = declare_all({"tile_ref_t": self.reference_dtype, "tile_params_t": TILE_PARAMS,
+                                     "bp_pixels_t": self.pixels}) + _horner("LEG_POLY", LEG_POLY)
+        self.field_defines = {"BP_FIELDS": 1, "ROWS": ROWS, "TAP_ROWS": TAP_ROWS, **({"MOVING": 1} if self.moving else {})}
+        self.ref_defines = {"BP_REFS": 1, "TAP_ROWS": TAP_ROWS, **({"MOVING": 1} if self.moving else {}),
+                            **({"STOP_AND_GO": 1} if self.stop_and_go else {}),
+                            **({LEG_DEFINES[legs]: 1} if LEG_DEFINES[legs] else {})}
+        self.ref_preamble = self.preamble + declare_all({"bp_ref_pulse_t": REF_PULSE, "bp_ref_params_t": REF_PARAMS})
 
-    def same_legs_for(self, echo, h: int) -> bool:
-        """True when, with stop-and-go, receiver h of ``echo`` sits at the transmitter at every
-        emission (a monostatic sonar), to 1e-6 of a wavelength: its return leg is its outgoing one."""
-        if not self.stop_and_go or echo.rx_tau[h][0] != 0:
-            return False
-        apart = np.max(np.linalg.norm(echo.rx_pos[h][:, 0] - echo.tx_pos, axis=-1))
-        return bool(apart <= 1e-6 * echo.waveform.wavelength(echo.medium))
+    def legs_for(self, echo, h: int) -> str:
+        """How bp_tile computes receiver h's return leg (see the class docstring): ``"same"`` when,
+        with stop-and-go, the receiver sits at the transmitter at every emission (a monostatic
+        sonar, to 1e-6 of a wavelength); ``"mono"`` when, with exact delays and pixels at rest, it
+        does so and moves uniformly (two position nodes); else ``"two"``."""
+        at_transmitter = echo.rx_tau[h][0] == 0 and bool(
+            np.max(np.linalg.norm(echo.rx_pos[h][:, 0] - echo.tx_pos, axis=-1))
+            <= 1e-6 * echo.waveform.wavelength(echo.medium))
+        if at_transmitter and self.stop_and_go:
+            return "same"
+        if at_transmitter and not self.moving and echo.rx_tau[h].size == 2:
+            return "mono"
+        return "two"
+
+    def for_receiver(self, echo, h: int) -> "TileKernel":
+        """This configuration with receiver h's legs (:meth:`legs_for`)."""
+        legs = self.legs_for(echo, h)
+        if legs == self.legs:
+            return self
+        return TileKernel(self.interp, self.aperture, self.velocity, self.stop_and_go,
+                          "ROW_SHIFT" in self.defines, legs)
 
     @staticmethod
     def half_extent(f0: float, c: float) -> float:
         """The largest distance (m) of a pixel from its tile's reference point within the phase
-        budget (:func:`tile_half_extent`)."""
+        budget (:func:`.tiles.tile_half_extent`)."""
         return tile_half_extent(f0, c)
 
     def params(self, c: float, f0: float, fs: float) -> np.void:
@@ -254,7 +205,7 @@ class TileKernel:
 
     def references(self, echo, h: int, pulses: np.ndarray, centres: np.ndarray, fs: float, half_extent: float,
                    offset: int = 0) -> tuple[np.ndarray, bool]:
-        """The references (T, P) :data:`TILE_REF` of the T tile ``centres`` ((T, 3), or (P, T, 3):
+        """The references (T, P) (:attr:`reference_dtype`: :data:`TILE_REFS` of its legs) of the T tile ``centres`` ((T, 3), or (P, T, 3):
         each pulse's own) for receiver h of ``echo`` and the P ``pulses`` (the module docstring),
         and whether the receiver moves linearly within NODE_TOLERANCE of a wavelength over the
         tiles' delay spans (always for stop-and-go and for receivers with two nodes, whose motion
@@ -286,19 +237,65 @@ class TileKernel:
         k_ref = (big_t - echo.t0[h]) * fs
         k_int = np.clip(np.floor(k_ref), -2**30, 2**30)
         cycles = f0 * big_t
-        ref = np.empty(big_t.shape, dtype=TILE_REF)
+        bias = self.bias(half_extent, c, fs)
+        ref = np.empty(big_t.shape, dtype=self.reference_dtype)
         ref["leg1"] = b_vec
-        ref["b1"] = c * c * t1 - b_vec @ self.v_k
-        ref["leg2"] = c_vec
-        ref["b2"] = c * c * t2 - np.einsum("...i,...i->...", c_vec, v_r)
-        ref["v_rx"] = v_r
-        ref["a2"] = c * c - np.einsum("...i,...i->...", v_r, v_r)
-        ref["k_ref"] = k_int - offset
-        ref["k_frac"] = np.clip(k_ref - k_int, 0.0, np.nextafter(np.float32(1), np.float32(0)))
+        b1 = c * c * t1 - b_vec @ self.v_k
+        ref["b1"] = b1
+        ref["k1"], ref["k2"] = 0.5 / b1, (c * c - self.v_k @ self.v_k) / (b1 * b1)
+        ref["poly"] = (not self.moving) & (half_extent <= RHO_MAX * c * t1)
+        ref["k_ref"] = k_int - offset - bias
+        ref["k_frac"] = np.clip(k_ref - k_int, 0.0, np.nextafter(np.float32(1), np.float32(0))) + bias
         ref["cycles"] = cycles - np.round(cycles)
         ref["range1"] = c * t1
+        if self.legs == "mono":  # s = alpha s1 - w . delta (the module docstring)
+            a2 = c * c - np.einsum("...i,...i->...", v_r, v_r)
+            ref["w"] = 2 * v_r / a2[..., None]
+            ref["alpha"] = 2 * c * c / a2
+        elif self.legs == "two":
+            ref["leg2"] = c_vec
+            ref["b2"] = c * c * t2 - np.einsum("...i,...i->...", c_vec, v_r)
+            ref["v_rx"] = v_r
+            ref["a2"] = c * c - np.einsum("...i,...i->...", v_r, v_r)
         linear = departure <= NODE_TOLERANCE * echo.waveform.wavelength(echo.medium)
         return np.ascontiguousarray(ref.T), linear
+
+    @staticmethod
+    def bias(half_extent: float, c: float, fs: float) -> int:
+        """BIAS (samples) added to k_frac and taken off k_ref: at least the largest |s fs| of a
+        pixel within ``half_extent`` of its reference (s within +-SPAN_FACTOR half_extent / c), so
+        that k_frac + s fs is positive and the kernel's truncation is the floor."""
+        return int(np.ceil(SPAN_FACTOR * half_extent * fs / c)) + 1
+
+    def references_on_device(self, queue, echo, h: int, pulses: np.ndarray, centres, n_tiles: int, fs: float,
+                             half_extent: float, offset: int = 0):
+        """Enqueue bp_refs: the references of :meth:`references` (its NumPy twin) for the
+        ``n_tiles`` tile ``centres`` (a device buffer of (T, 3) doubles) computed on the device, a
+        buffer of (T, P) :attr:`reference_dtype` records; None where the host must compute them
+        (a receiver with more than two position nodes and exact delays: :meth:`references`
+        follows its track and checks its linearity)."""
+        import pyopencl as cl
+
+        if not self.stop_and_go and echo.rx_tau[h].size > 2:
+            return None
+        rt = opencl.runtime()
+        pulse = np.zeros(pulses.size, REF_PULSE)
+        pulse["tx"], pulse["eta"] = echo.tx_pos[pulses], echo.eta[pulses]
+        pulse["rx0"] = echo.rx_position(h, np.zeros(pulses.size), pulses=pulses)
+        if not self.stop_and_go and echo.rx_tau[h].size == 2:
+            pulse["v_rx"] = two_node_velocity(echo, h, pulses)
+        c = echo.medium.sound_speed
+        params = np.zeros((), REF_PARAMS)
+        params["c"], params["f0"], params["fs"], params["t0"] = c, echo.waveform.f0, fs, echo.t0[h]
+        params["velocity"], params["half_extent"], params["rho_max"] = self.velocity, half_extent, RHO_MAX
+        params["offset"], params["bias"] = offset, self.bias(half_extent, c, fs)
+        n_refs = n_tiles * pulses.size
+        out = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, self.reference_dtype.itemsize * max(n_refs, 1))
+        pulse_buf = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=pulse)
+        opencl.kernel("backprojection", "bp_refs", preamble=self.ref_preamble, defines=self.ref_defines)(
+            queue, *opencl.work_groups(n_refs), centres, pulse_buf, params[()], np.int32(pulses.size),
+            np.int32(n_refs), out)
+        return out
 
     def spans(self, ref: np.ndarray, half_extent: float, c: float, first: int) -> np.ndarray:
         """PULSE_SPAN's pulses [start, stop) each tile of the references ``ref`` (T, P) (pulses
@@ -306,45 +303,37 @@ class TileKernel:
         return aperture_spans(ref["leg1"][..., 1], ref["range1"], self.half_sin, half_extent,
                               float(np.linalg.norm(self.v_k)), c, first)
 
-    def fields(self, plan: GridPlan, f0: float, c: float, first: int, stop: int):
-        """Slots ``first`` .. ``stop - 1`` of ``plan``'s tiling: the pixel fields (n / LANES,)
-        :attr:`pixels` records, the work-items' local tile indices (int32) and the tiles present
-        (indices into the tiling); made once and kept by the plan."""
-        key = ("bp_tile fields", float(f0), float(c), first, stop, tuple(self.v_k))
-        return plan.kept(key, lambda: self._fields(plan, f0, c, first, stop))
+    def fields(self, queue, *, positions, index, tile_of, centres, n_slots: int):
+        """Enqueue bp_fields: bp_tile's pixel fields (a device buffer of n_slots / LANES
+        :attr:`pixels` records) of the slots whose pixels are ``index`` (device int32, -1 for
+        padding, which gets the tile's reference point) among ``positions`` (device double (M, 3),
+        m), the work-items' tiles ``tile_of`` (device int32) and the tiles' reference points
+        ``centres`` (device double (T, 3), m)."""
+        import pyopencl as cl
 
-    def _fields(self, plan: GridPlan, f0: float, c: float, first: int, stop: int):
-        tiling, pixels = plan.tiling(f0, c), plan.grid.positions.reshape(-1, 3)
-        n = stop - first
-        tiles, local = np.unique(tiling.tile[first:stop], return_inverse=True)
-        fields = np.zeros(n // LANES, self.pixels)
-        squared, along_v = np.zeros(n), np.zeros(n)
-        for k, name in enumerate(("dx", "dy", "dz")):  # one coordinate at a time (temporaries of n, not 3 n, doubles)
-            delta = pixels[tiling.order[first:stop], k] - tiling.centres[tiling.tile[first:stop], k]
-            fields[name] = delta.reshape(-1, LANES)
-            squared += delta * delta
-            along_v += delta * self.v_k[k]
-        fields["dd"] = squared.reshape(-1, LANES)
-        if self.moving:
-            fields["dv"] = along_v.reshape(-1, LANES)
-        for a in (fields, local):
-            a.flags.writeable = False
-        return fields, local[::LANES * ROWS].astype(np.int32), tiles
+        rt = opencl.runtime()
+        fields = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, self.pixels.itemsize * (n_slots // LANES))
+        rows = n_slots // LANES
+        opencl.kernel("backprojection", "bp_fields", preamble=self.preamble, defines=self.field_defines)(
+            queue, *opencl.work_groups(rows), positions, index, tile_of, centres, *(np.float64(v) for v in self.v_k),
+            np.int32(rows), fields)
+        return fields
 
     def launch(self, queue, *, pixels, tile_of, refs, ref_stride: int, ref_first: int, records, n_samples: int, taps,
-               params, p_first: int, p_count: int, image, row_shift=None, spans=None):
+               params, p_first: int, p_count: int, image, index=None, row_shift=None, spans=None):
         """Enqueue bp_tile over the work-items of ``tile_of`` (a device buffer of one int32 a
         work-item; ``pixels`` ROWS records a work-item): add pulses p_first .. p_first + p_count
-        - 1 of the ``records`` (rows of ``n_samples`` samples) into the double ``image`` of its
-        slots; ``refs`` holds tile t's reference of pulse p at t * ref_stride + p - ref_first.
+        - 1 of the ``records`` (rows of ``n_samples`` samples) into the double ``image``: at each
+        slot's pixel ``index`` (device int32 a slot, -1 for padding) when given, else at the slot;
+        ``refs`` holds tile t's reference of pulse p at t * ref_stride + p - ref_first.
         ``row_shift`` (with row_shift=True) and ``spans`` (with an aperture) as in the kernel's
         comment. Returns the event."""
         extra = (row_shift,) if "ROW_SHIFT" in self.defines else ()
         extra += (spans,) if self.pulse_span else ()
         n_items = tile_of.size // 4
-        return self._kernel()(queue, *opencl.work_groups(n_items), pixels, tile_of, refs, np.int32(ref_stride),
-                              np.int32(ref_first), records, taps, params, np.int32(p_first), np.int32(p_count),
-                              np.int32(n_samples), np.int32(n_items), image, *extra)
+        defines = {**self.defines, **({"SCATTER": 1} if index is not None else {})}
+        kern = opencl.kernel("backprojection", "bp_tile", preamble=self.preamble, defines=defines)
+        return kern(queue, *opencl.work_groups(n_items), pixels, tile_of, refs, np.int32(ref_stride),
+                    np.int32(ref_first), records, taps, params, np.int32(p_first), np.int32(p_count),
+                    np.int32(n_samples), np.int32(n_items), image, *((index,) if index is not None else ()), *extra)
 
-    def _kernel(self):
-        return opencl.kernel("backprojection", "bp_tile", preamble=self.preamble, defines=self.defines)
