@@ -10,7 +10,11 @@ system has no exchange the old folder is first moved aside (a warning says so).
 While :func:`temporary` is open, SIGTERM and SIGHUP (when their handlers are the default, in
 the main thread) are turned into an exception so that the temporary is deleted; the signal is
 then delivered again and ends the process as it would have. Ctrl-C (KeyboardInterrupt) and any
-other exception delete it too. Files are created by their writers with the mode the umask
+other exception delete it too. A signal's exception can be lost: Python ignores (prints and
+drops) an exception raised in some callbacks, such as a weak reference's, and the handler may
+run inside one while a writer cleans up. The handlers therefore also note the signal, and
+:func:`replace` and the end of :func:`temporary` raise it again, so that an interrupted save
+never goes on to the rename. Files are created by their writers with the mode the umask
 gives (not 0600 as ``tempfile.mkstemp`` would).
 """
 
@@ -58,6 +62,18 @@ def temporary_name(path: Path) -> Path:
     return path.with_name(f".{stem}.{secrets.token_hex(6)}{TEMPORARY_TAG}{path.suffix}")
 
 
+#: signals that arrived while a temporary was open (their exception may have been dropped)
+_pending: list = []
+
+
+def check_signals() -> None:
+    """Raise again a SIGTERM / SIGHUP (_Terminated) or Ctrl-C (KeyboardInterrupt) that arrived
+    while a temporary was open, in case its exception was dropped (module docstring)."""
+    if _pending:
+        signum = _pending[0]
+        raise KeyboardInterrupt if signum == signal.SIGINT else _Terminated(signum)
+
+
 class _Terminated(BaseException):
     """SIGTERM/SIGHUP arrived while a temporary existed (raised by the handler of
     :func:`temporary`, delivered again once the temporary is gone)."""
@@ -69,23 +85,27 @@ class _Terminated(BaseException):
 
 @contextlib.contextmanager
 def _signals_as_exceptions():
-    """In the main thread, SIGTERM and SIGHUP with the default handler raise _Terminated."""
+    """In the main thread, SIGTERM and SIGHUP with the default handler raise _Terminated, and
+    SIGINT with Python's raises KeyboardInterrupt; each is noted in ``_pending`` too."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     previous = {}
 
     def handler(signum, frame):
-        raise _Terminated(signum)
+        _pending.append(signum)
+        raise KeyboardInterrupt if signum == signal.SIGINT else _Terminated(signum)
 
-    for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)):
-        if sig is not None and signal.getsignal(sig) == signal.SIG_DFL:
+    for sig, default in ((signal.SIGTERM, signal.SIG_DFL), (getattr(signal, "SIGHUP", None), signal.SIG_DFL),
+                         (signal.SIGINT, signal.default_int_handler)):
+        if sig is not None and signal.getsignal(sig) == default:
             previous[sig] = signal.signal(sig, handler)
     try:
         yield
     finally:
         for sig, old in previous.items():
             signal.signal(sig, old)
+        _pending.clear()
 
 
 @contextlib.contextmanager
@@ -97,6 +117,7 @@ def temporary(path: Path):
     with _signals_as_exceptions():
         try:
             yield tmp
+            check_signals()  # one whose exception was dropped
         except _Terminated as stop:
             terminated = stop.signum
         finally:
@@ -110,7 +131,9 @@ def temporary(path: Path):
 def replace(tmp: Path, path: Path) -> None:
     """Move the written ``tmp`` onto ``path`` with one rename: ``os.replace`` for a file; for a
     folder over a folder, one exchange of the two (the old one, now under ``tmp``'s name, is
-    deleted). The folder holding them is synced."""
+    deleted). The folder holding them is synced. A signal noted while the temporary was
+    written stops it first (:func:`check_signals`)."""
+    check_signals()
     if tmp.is_dir() and path.is_dir() and not path.is_symlink():
         if not _exchange(tmp, path):
             _replace_in_two_steps(tmp, path)

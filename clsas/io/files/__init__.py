@@ -37,7 +37,7 @@ import logging
 import os
 from pathlib import Path
 
-from ... import budget, validate
+from ... import atomic, budget, validate
 from ...errors import ClsasError, DataFileError
 from ...model import EchoData, Image
 from ..dataset import to_json, to_xarray
@@ -86,6 +86,7 @@ def save(obj: EchoData | Image, path: str | os.PathLike, compression: int = 1, o
     with _target.temporary(path) as tmp:
         try:
             _write.write(ds, tmp, level)
+            atomic.check_signals()  # a signal whose exception a writer's cleanup dropped
             _check(ds, tmp, path)
         except (ClsasError, MemoryError):
             raise
