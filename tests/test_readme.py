@@ -40,6 +40,14 @@ TOO_LONG = {
     "image = clsas.backproject(clsas.range_compress(echo, window=\"hamming\", upsample=2)": "images the mine scene",
 }
 
+#: statements known to fail as the README writes them, with the error they raise (reported to the
+#: section's owner): the test holds them to that error, so a fixed README fails here until the entry
+#: goes, and what they would have made is left out as above
+KNOWN_BROKEN = {
+    "scene = scene.replace(medium=water, surface=SeaSurface(0.0": "the sea surface (z = 0 m) must lie above the "
+                                                                   "platform's start (z = 0 m)",
+}
+
 NUMBER = re.compile(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
 
 
@@ -81,7 +89,12 @@ def _run(source: str, namespace: dict, skipped: list) -> list:
     for node in ast.parse(source).body:
         text = "\n".join(lines[node.lineno - 1:node.end_lineno])
         reason = next((why for start, why in TOO_LONG.items() if text.lstrip().startswith(start)), None)
+        broken = next((error for start, error in KNOWN_BROKEN.items() if text.lstrip().startswith(start)), None)
         names = {n.id for n in ast.walk(node) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Load)}
+        if broken is not None:
+            with pytest.raises(Exception, match=re.escape(broken)):  # still broken: see KNOWN_BROKEN
+                exec(compile(ast.Module(body=[node], type_ignores=[]), "README", "exec"), namespace)
+            reason = "known broken: " + broken
         if reason or names & missing:
             skipped.append((text.splitlines()[0][:60], reason or "uses what a left-out line makes"))
             missing |= {n.id for n in ast.walk(node) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)}
