@@ -43,10 +43,7 @@ TOO_LONG = {
 #: statements known to fail as the README writes them, with the error they raise (reported to the
 #: section's owner): the test holds them to that error, so a fixed README fails here until the entry
 #: goes, and what they would have made is left out as above
-KNOWN_BROKEN = {
-    "scene = scene.replace(medium=water, surface=SeaSurface(0.0": "the sea surface (z = 0 m) must lie above the "
-                                                                   "platform's start (z = 0 m)",
-}
+KNOWN_BROKEN: dict = {}
 
 NUMBER = re.compile(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
 

@@ -39,7 +39,7 @@ class SynthesisOptions:
     stop_and_go, hull_occlusion, progress : bool.
     spreading, absorption : bool, or "auto": on when the scenario has a seafloor.
     multipath : 0, 1 or 2 (the most bounces a path may have), or "auto": 1 when the scenario has
-    a sea surface or a seafloor. intra_pulse : "moving", "all" or "none".
+    a sea surface or a seafloor. intra_pulse : "moving" (default), "all" or "none".
     compressed : False (raw echoes), True or a window name of :func:`clsas.range_compress`
     (synthesis into the range-compressed domain; True: no window); compressed_level_db : dB in
     [-120, -10], the level re the peak below which the compressed response's taps are dropped.
@@ -54,7 +54,7 @@ class SynthesisOptions:
     spreading: bool | str = "auto"
     absorption: bool | str = "auto"
     multipath: int | str = "auto"
-    intra_pulse: str = "none"
+    intra_pulse: str = "moving"
     compressed: bool | str = False
     compressed_level_db: float = DEFAULT_LEVEL_DB
     hull_occlusion: bool = True

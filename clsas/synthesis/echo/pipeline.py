@@ -310,7 +310,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
              occlusion=None, max_bytes: int | None = None, chunk_bytes: int = DEFAULT_CHUNK_BYTES,
              hull_occlusion: bool = True, reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE,
              absorption: bool | str = AUTO, multipath: int | str = AUTO,
-             intra_pulse: str = "none", compressed: bool | str = False,
+             intra_pulse: str = "moving", compressed: bool | str = False,
              compressed_level_db: float = DEFAULT_LEVEL_DB) -> EchoData:
     """Synthesize the raw echoes of ``scenario`` (see the module docstring for the model).
 
@@ -344,10 +344,10 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
     intra_pulse : {"moving", "all", "none"}
         Intra-pulse Doppler: the scatterer and the receivers keep moving while the pulse is
         emitted and received, so each fast-time sample has its own delay (the echo is
-        time-scaled and Doppler-shifted, :mod:`clsas.synthesis.paths`). "moving" for scatterers
-        with a velocity, "all" for every path (stationary scatterers seen from the moving
-        platform too), "none" (default for now: the moving-target chain is being made robust to
-        it) for one delay per path. Ignored with ``stop_and_go``.
+        time-scaled and Doppler-shifted, :mod:`clsas.synthesis.paths`). "moving" (default) for
+        scatterers with a velocity, "all" for every path (stationary scatterers seen from the
+        moving platform too), "none" for one delay per path (the pulse placed at its centre's
+        delay: the stop-in-pulse model). Ignored with ``stop_and_go``.
     compressed : bool or str
         Synthesize straight into the range-compressed domain: the echo
         ``range_compress(simulate(...), window=W)`` would give (W = "none" for True, or the
