@@ -63,9 +63,8 @@ def check_options(echo, receivers, interp, upsample, target_velocity):
     if not isinstance(echo, EchoData):
         raise TypeError(f"echo must be an EchoData (or records from clsas.image.backprojection.prepare), "
                         f"got {type(echo).__name__}")
-    if not echo.compressed:
-        raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first "
-                         "(back-projection refuses raw echoes rather than compressing them silently)")
+    validate.compression("backproject echo", echo, advice="call clsas.range_compress(echo) first (back-projection "
+                         "refuses raw echoes rather than compressing them silently)")
     validate.choice("backproject interp", interp, INTERPOLATORS)
     validate.integer("backproject upsample", upsample, low=1, high=64)
     need = 8 if interp == "sinc8" else 2
