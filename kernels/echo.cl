@@ -21,6 +21,7 @@
  *                loss over the band (absorption and surface roughness as an envelope,
  *                clsas/synthesis/propagation.py);
  *   echo_bounds  first and last sample reached by each CHUNK consecutive (delay-sorted) paths;
+ *   echo_extents, echo_spread  each path's extent over a pulse block, each record's delay spread;
  *   echo_accumulate  one work-item per ROWS x 16 output samples of one (receiver, pulse)
  *                record: loops over the chunks that can reach it and adds each path's echo.
  *                Explicit 16-wide vectors (PoCL does not vectorise across work-items of a
@@ -44,6 +45,7 @@
 #include "geometry.h"
 
 #define PATH_START(v) ((v).start)
+#define UNHEARD (1 << 30)  /* the start sample of a path that carries no echo (a facet out of the beam) */
 
 /* The legs' bounces: the factor (re, im) and the log-amplitude terms per Hz (lnf1) and per Hz^2
  * (lnf2) of the band envelope, for grazing angles sin_g (8 lanes) off bounce b of a leg. */
@@ -89,9 +91,14 @@ inline void meet_derivatives(vec8 r, double8 t, vec8 a, vec8 w, double c, double
 }
 #endif
 
-/* soa[((h * SCAT_FIELDS + field) * n_pad + j]: the scatterers in receiver h's delay order j
- * (padded to a multiple of 8 with zero-reflectivity copies; fields SCAT_P0 (3), SCAT_VEL (3),
- * SCAT_REFL (re, im), SCAT_ON_FLOOR (1: on the seabed)); order[h n_pad + j]: their original index (for the path weights);
+/* The scatterers at positions 0 .. split - 1 (the targets: tsoa[(h * SCAT_FIELDS + field) * split + j],
+ * receiver h's delay order, padded to a multiple of 8 with zero-reflectivity copies; torder[h split + j]
+ * their original index) and from split on (the seafloor's facets, shared by the receivers:
+ * fsoa[field * n_floor + j - split], forder likewise; fields SCAT_P0 (3), SCAT_VEL (3), SCAT_REFL
+ * (re, im), SCAT_ON_FLOOR (1: on the seabed)). Work-item g computes the 8 positions from
+ * 8 g (8 g + jump from split on: the facets a pulse block's beam can reach, a contiguous range);
+ * a facet outside active[p] (positions [x, y): pulse p's reach) gets no echo: start UNHEARD,
+ * amplitude 0;
  * pulse[p]: the (image) transmitter at emission, its velocity, the emission time and its element
  * axis; nodes[(h P + p) N_NODES + k]: receiver h's (image) position and element axis at fast
  * time k dtau; rx[h]: t0_h fs (window start in samples) and the element length; legs: the path
@@ -99,17 +106,22 @@ inline void meet_derivatives(vec8 r, double8 t, vec8 a, vec8 w, double c, double
  * bottom[BOTTOM_TABLE]: the seabed's reflection coefficient at sin(grazing) = i / (size - 1).
  * One work-item: paths j = 8 g .. 8 g + 7 of (pulse p, receiver h); output at (h P + p) stride +
  * offset + j (the kind's slot in records of every kind's paths). */
-__kernel void echo_paths(__global const double *soa, __global const echo_pulse_t *pulse,
+__kernel void echo_paths(__global const double *tsoa, __global const double *fsoa, __global const echo_pulse_t *pulse,
                          __global const node_t *nodes, __global const echo_rx_t *rx,
-                         __global const int *order, __global const float *weights, __global const double2 *bottom,
-                         const echo_params_t params, const echo_legs_t legs, const int n_scat, const int n_pad,
-                         const int n_pulses, const int w_rx, const int stride, const int offset,
-                         __global echo_path_t *paths)
+                         __global const int *torder, __global const int *forder, __global const float *weights,
+                         __global const double2 *bottom, const echo_params_t params, const echo_legs_t legs,
+                         const int n_scat, const int split, const int n_floor, const int jump,
+                         __global const int2 *active, const int n_pulses, const int w_rx, const int stride,
+                         const int offset, __global echo_path_t *paths)
 {
     const int g = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
     const int j0 = 8 * g;
+    const int pos0 = j0 < split ? j0 : j0 + jump;  /* the first of the work-item's 8 positions */
+    const int facets = pos0 >= split;
+    const int n_pad = facets ? n_floor : split;  /* the field stride */
+    __global const double *f = facets ? fsoa + (pos0 - split) : tsoa + (size_t)h * SCAT_FIELDS * split + pos0;
+    __global const int *order = facets ? forder + (pos0 - split) : torder + (size_t)h * split + pos0;
     const double c = params.c, dtau = params.dtau;
-    __global const double *f = soa + (size_t)h * SCAT_FIELDS * n_pad + j0;
     const vec8 p0 = v8(vload8(0, f + (SCAT_P0 + 0) * n_pad), vload8(0, f + (SCAT_P0 + 1) * n_pad),
                        vload8(0, f + (SCAT_P0 + 2) * n_pad));
     const vec8 vel = v8(vload8(0, f + (SCAT_VEL + 0) * n_pad), vload8(0, f + (SCAT_VEL + 1) * n_pad),
@@ -146,7 +158,7 @@ __kernel void echo_paths(__global const double *soa, __global const echo_pulse_t
     {
         double wl[8];
         for (int l = 0; l < 8; ++l)
-            wl[l] = (double)weights[((size_t)h * w_rx + p) * n_scat + order[h * n_pad + j0 + l]];
+            wl[l] = (double)weights[((size_t)h * w_rx + p) * n_scat + order[l]];
         gain *= vload8(0, wl);
     }
 #endif
@@ -251,7 +263,13 @@ __kernel void echo_paths(__global const double *soa, __global const echo_pulse_t
     vstore8(hi, 0, x_hi);
 #endif
     __global echo_path_t *o = paths + ((size_t)h * n_pulses + p) * stride + offset + j0;
+    const int2 act = active[p];
     for (int l = 0; l < 8; ++l) {
+        const int heard = !facets || (pos0 + l >= act.x && pos0 + l < act.y);
+        if (!heard) {
+            x_fl[l] = UNHEARD;
+            x_re[l] = x_im[l] = 0.0;
+        }
         echo_path_t v;
         v.start = (int)x_fl[l];
         v.frac = (real_t)x_fr[l];
@@ -270,20 +288,41 @@ __kernel void echo_paths(__global const double *soa, __global const echo_pulse_t
     }
 }
 
-/* extent[h n_pad + j] = (min, max) over the block's pulses of the start sample of path j
- * (the host turns them into the recording window without copying every path back). */
+/* extent[h n_pad + j] = (min, max) over the block's pulses of the start sample of path j, its
+ * unheard pulses left out (the host turns them into the recording window without copying every
+ * path back). */
 __kernel void echo_extents(__global const echo_path_t *paths, const int n_pad, const int n_pulses,
                            __global int2 *extent)
 {
     const int j = get_global_id(0), h = get_global_id(1);
     __global const echo_path_t *col = paths + (size_t)h * n_pulses * n_pad + j;
-    int lo = PATH_START(col[0]), hi = lo;
-    for (int p = 1; p < n_pulses; ++p) {
+    int lo = UNHEARD, hi = -UNHEARD;  /* (UNHEARD, -UNHEARD): no pulse of the block hears it */
+    for (int p = 0; p < n_pulses; ++p) {
         const int v = PATH_START(col[(size_t)p * n_pad]);
+        if (v == UNHEARD) continue;
         lo = min(lo, v);
         hi = max(hi, v);
     }
     extent[(size_t)h * n_pad + j] = (int2)(lo, hi);
+}
+
+/* spread[h P + p] = (min, max) of the heard paths' echo centres start + frac (samples) among the
+ * first n of each record (one path kind): the delay spread a pulse's echoes have at a receiver. */
+__kernel void echo_spread(__global const echo_path_t *paths, const int n, const int stride,
+                          __global double2 *spread)
+{
+    const int p = get_global_id(0), h = get_global_id(1);
+    const size_t rec = (size_t)h * get_global_size(0) + p;
+    __global const echo_path_t *row = paths + rec * stride;
+    double lo = INFINITY, hi = -INFINITY;
+    for (int j = 0; j < n; ++j) {
+        const echo_path_t v = row[j];
+        if (v.start == UNHEARD) continue;
+        const double u = (double)v.start + (double)v.frac;
+        lo = fmin(lo, u);
+        hi = fmax(hi, u);
+    }
+    spread[rec] = (double2)(lo, hi);
 }
 
 #ifdef COMPRESSED
@@ -331,9 +370,11 @@ __kernel void echo_bounds(__global const echo_path_t *paths, const real_t half_l
     if (c >= n_chunks) return;
     const size_t rec = (size_t)h * n_pulses + p;
     const int j0 = c * CHUNK, j1 = min(n_scat, j0 + CHUNK);
-    int2 bd = path_reach(paths[rec * n_scat + j0], half_len);
-    for (int j = j0 + 1; j < j1; ++j) {
-        const int2 r = path_reach(paths[rec * n_scat + j], half_len);
+    int2 bd = (int2)(UNHEARD, -UNHEARD);  /* reaches nothing unless a path is heard */
+    for (int j = j0; j < j1; ++j) {
+        const echo_path_t v = paths[rec * n_scat + j];
+        if (v.start == UNHEARD) continue;
+        const int2 r = path_reach(v, half_len);
         bd = (int2)(min(bd.x, r.x), max(bd.y, r.y));
     }
     bounds[rec * n_chunks + c] = bd;

@@ -26,8 +26,9 @@
  * normal . X = offset; ffbp_item_t, the first stage's work-items (leaf, row, sample, tile); and
  * bp_pixels_t, bp_tile's pixel fields (clsas/image/backprojection/tile_kernel.py).
  * ffbp_merge: frames[k] the children's frames, images holding the children at offsets (complex
- * samples), parent the parent's frame (PARENT_GRID), plane, cycles_per_m = 2 f0 / c; the result
- * goes to out from out_offset on.
+ * samples), parent the parent's frame and spans its rows' computed samples [x, y) (PARENT_GRID:
+ * samples outside them are written zero, and a work-item wholly outside writes only zeros),
+ * plane, cycles_per_m = 2 f0 / c; the result goes to out from out_offset on.
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 
@@ -138,12 +139,13 @@ __kernel void ffbp_fields(__global const ffbp_item_t *items, __global const ffbp
 
 /* The first stage's demodulated leaf image from bp_tile's slots (clsas/image/ffbp/leaves.py):
  * work-item g of a leaf's items[first + g] (leaf, row, first range sample, tile) holds slots
- * 16 (first + g) .. + 15 of image; each slot inside the leaf's grid (frame) goes to
+ * 16 (first + g) .. + 15 of image; each slot inside its row's span spans[row] (the samples
+ * lo <= i < hi computed, within the leaf's grid, frame; the launcher zeroes the rest) goes to
  * out[out_offset + row * n_r + column] times exp(-j 2 pi cycles_per_m r) (the demodulation by its
  * range r), complex64. */
 __kernel void ffbp_leaf(__global const double2 *image, __global const ffbp_item_t *items, const int first,
-                        const int count, const ffbp_frame_t frame, const double cycles_per_m, const long out_offset,
-                        __global float2 *out)
+                        const int count, const ffbp_frame_t frame, __global const int2 *spans,
+                        const double cycles_per_m, const long out_offset, __global float2 *out)
 {
     if (get_global_id(0) >= count)  /* the launch is padded to whole work-groups */
         return;
@@ -152,6 +154,7 @@ __kernel void ffbp_leaf(__global const double2 *image, __global const ffbp_item_
     const int n_r = frame.n_r;
     if (t.row >= frame.n_v)
         return;
+    const int2 span = spans[t.row];
     const double16 cycles = cycles_per_m * (frame.r0 + (t.sample + LANE_INDEX) * frame.dr);
     float16 cs, sn;
     expj_fraction16(convert_float16(cycles - convert_double16(convert_int16(cycles))), &cs, &sn);
@@ -159,7 +162,7 @@ __kernel void ffbp_leaf(__global const double2 *image, __global const ffbp_item_
     vstore16(cs, 0, c_out);
     vstore16(sn, 0, s_out);
     __global float2 *o = out + out_offset + (size_t)t.row * n_r + t.sample;
-    for (int l = 0; l < min(16, n_r - t.sample); ++l) {
+    for (int l = max(0, span.x - t.sample); l < min(16, span.y - t.sample); ++l) {
         const double2 v = image[16 * (size_t)g + l];
         const float2 a = (float2)((float)v.x, (float)v.y);
         o[l] = (float2)(a.x * c_out[l] + a.y * s_out[l], a.y * c_out[l] - a.x * s_out[l]);
@@ -168,9 +171,9 @@ __kernel void ffbp_leaf(__global const double2 *image, __global const ffbp_item_
 
 __kernel void ffbp_merge(__global const float2 *images, __global const long *offsets,
                          __global const ffbp_frame_t *frames, __global const float *taps,
-                         __global const double *points, const ffbp_frame_t parent, const ffbp_plane_t plane,
-                         const double cycles_per_m, const int n_children, const int n_out, const long out_offset,
-                         __global float2 *out)
+                         __global const double *points, const ffbp_frame_t parent, __global const int2 *spans,
+                         const ffbp_plane_t plane, const double cycles_per_m, const int n_children, const int n_out,
+                         const long out_offset, __global float2 *out)
 {
     out += out_offset;
     double16 x, y, z, r_p;
@@ -183,6 +186,12 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
     if (n_valid <= 0 || j >= parent.n_v)  /* the launch is padded to whole work-groups */
         return;
     first = (size_t)j * parent.n_r + i0;
+    const int2 span = spans[j];  /* the row's computed samples [span.x, span.y): zero elsewhere */
+    if (i0 >= span.y || i0 + 16 <= span.x) {
+        for (int l = 0; l < n_valid; ++l)
+            out[first + l] = (float2)(0.0f, 0.0f);
+        return;
+    }
     r_p = polar_points16(parent, plane, j, i0 + LANE_INDEX, &x, &y, &z);
 #else
     const int i0 = 16 * get_global_id(0);
@@ -264,7 +273,8 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
     vstore16(acc_im, 0, im_out);
     for (int l = 0; l < n_valid; ++l) {
 #ifdef PARENT_GRID
-        out[first + l] = (float2)(re_out[l], im_out[l]);
+        const int in = i0 + l >= span.x && i0 + l < span.y;
+        out[first + l] = in ? (float2)(re_out[l], im_out[l]) : (float2)(0.0f, 0.0f);
 #else
         out[first + l] += (float2)(re_out[l], im_out[l]);
 #endif

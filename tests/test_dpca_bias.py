@@ -15,6 +15,7 @@ model leaves (the seafloor taken to fill the beam out to +-90 deg, as before thi
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import numpy as np
@@ -159,6 +160,27 @@ def test_heading_uncertainty_is_a_random_walk():
     assert track.trusted(heading=1.0, cross=track.cross_std[10]) == 11
     with pytest.raises(ValueError, match="Trajectory.trusted heading"):
         track.trusted(heading=0.0)
+    assert np.all(track.heading_bias == 0)              # no bias bound given
+    biased = dpca.integrate(dataclasses.replace(pairs, yaw_bias=np.full(n, 1e-6)), scene.eta, scene.platform.speed,
+                            scene.array)
+    assert np.allclose(biased.heading_bias, 1e-6 * p)   # a bias grows linearly
+    assert biased.trusted(heading=15e-6) == 8           # 3 sqrt(p) + p <= 15 urad up to p = 7
+
+
+def test_yaw_bias_bound_covers_a_seafloor_cut_off_in_the_sidelobes():
+    """Without the extent, PingPairs.yaw_bias bounds the bias of a seafloor that fills at least
+    the main lobe and is cut off in the sidelobes (the 4x footprint patch reads within it,
+    within three standard errors); 0 with the extent."""
+    scene, floor, echo = motionless(1.0, 4.0)
+    pairs = dpca.estimate(echo, scene.array, scene.platform.speed)
+    mean, error = _mean_and_error(pairs.yaw)
+    bound = float(pairs.yaw_bias[0])
+    # measured: bound 7.0 urad a pair (<sin^2> 0.00676 over the beam, 0.00590 over the main
+    # lobe); the 4x patch reads +1.8 +- 0.6 (the 1x one, which ends at the main lobe's nulls,
+    # +8.4 +- 0.5: at the bound, the platform moving along it)
+    assert 5e-6 < bound < 9e-6 and np.all(pairs.yaw_bias == bound)
+    assert abs(mean) < bound + 3 * error
+    assert np.all(dpca.estimate(echo, scene.array, scene.platform.speed, extent=floor).yaw_bias == 0)
 
 
 @pytest.mark.slow

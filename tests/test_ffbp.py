@@ -23,6 +23,7 @@ from clsas.image.backprojection import backproject, prepare
 from clsas.image.ffbp import ffbp, memory_plan
 from clsas.image.ffbp.leaves import FirstStage
 from clsas.image.ffbp.merge import merge_opencl, merge_reference
+from clsas.image.ffbp import polar
 from clsas.image.ffbp.polar import Scene, interpolation_error, oversampling
 from clsas.image.ffbp.tree import plan
 from clsas.scene import presets
@@ -152,7 +153,8 @@ def test_batched_leaves_match_backproject(opencl_device):
         got = batched.image(k, grids[k], grids)
         one = backproject(records, Grid.points(grids[k].points()), pulses=(p0, p1), aperture=0.5, backend="opencl",
                           progress=False).data * np.exp(-4j * np.pi * echo.waveform.f0 * grids[k].ranges / echo.medium.sound_speed)
-        assert rel_l2(got, one) < 1e-3
+        assert rel_l2(got, one * grids[k].inside()) < 1e-3
+        assert np.all(got[~grids[k].inside()] == 0)
 
 
 def test_leaves_no_tile_can_hold_go_through_backproject(opencl_device, monkeypatch):
@@ -173,7 +175,22 @@ def test_leaves_no_tile_can_hold_go_through_backproject(opencl_device, monkeypat
         got = stage.image(k, grids[k], grids)
         one = backproject(records, Grid.points(grids[k].points()), pulses=(p0, p1), backend="opencl",
                           progress=False).data * np.exp(-4j * np.pi * echo.waveform.f0 * grids[k].ranges / echo.medium.sound_speed)
-        assert rel_l2(got, one) < 1e-6
+        assert rel_l2(got, one * grids[k].inside()) < 1e-6
+
+
+def test_ragged_grids_skip_the_wedge_and_change_nothing(opencl_device, monkeypatch):
+    """Polar grids computed only within their rows' spans (polar.RAGGED: the (r, v) box's corners
+    outside the scene's wedge skipped) give the image of whole rectangles: relative L2 measured
+    7e-9 on the speckle scene with and without motion errors, with 11 % fewer polar samples."""
+    for track in ("straight", "motion"):
+        echo = echo_of(track, "speckle")
+        ragged = ffbp(echo, GRID, backend="opencl", progress=False)
+        with monkeypatch.context() as m:
+            m.setattr(polar, "RAGGED", False)
+            whole = ffbp(echo, GRID, backend="opencl", progress=False)
+        assert ragged.provenance["levels"] == whole.provenance["levels"]
+        assert rel_l2(ragged.data, whole.data) < 1e-7
+        assert sum(ragged.provenance["polar_samples"]) < 0.93 * sum(whole.provenance["polar_samples"])
 
 
 def test_numpy_and_opencl_agree(opencl_device):

@@ -1,7 +1,12 @@
 """One receiver's moving-target chain (Kiang & Kiang 2022 sections III-IV, VII-B, VII-C):
 K_a,eq and f_dc,eq from the echo of a point target moving at a Table II case's velocity.
 
-The truth is a phase-history fit of the simulated echo's exact delays (clsas.synthesis.delays):
+The truth is a phase-history fit of the simulated echo's exact delays (clsas.synthesis.delays),
+the delay of each pulse at its centre: the echoes are simulated with that model (one delay per
+path, ``intra_pulse="none"``: :data:`MODEL`). With intra-pulse Doppler the compressed trace lies
+f_dc T / B later and its slope reads f_dc + f0 (T / B) K, which the per-receiver chain reports as
+measured and :func:`clsas.estimate_motion` takes back (tests/test_moving_confidence.py).
+The fit:
 tau(eta) ~ tau0 + (f_dc / f0) eta + (K / (2 f0)) eta^2 fitted over a few pulses around eta = 0.
 The paper's bound is 3 % (K) and 3 % or 1 Hz (f_dc); the tolerances below are ~10x the errors
 measured on these reduced scenes (K within 0.1 %, f_dc within 0.06 Hz).
@@ -29,6 +34,7 @@ from clsas.synthesis import delays, simulate
 TARGET = (1989.0, 0.0, -350.0)
 K_RTOL = 0.01      # measured <= 0.08 %
 FDC_ATOL = 0.5     # Hz; measured <= 0.06 Hz
+MODEL = {"intra_pulse": "none"}  # the truth's model: one delay per pulse, at its centre (module docstring)
 
 
 def scene(velocity, n_pulses: int, prf: float, targets=None):
@@ -55,7 +61,7 @@ def truth(scenario, target: int = 0) -> dict:
 def case1(request):
     n, prf = request.param
     sc = scene((0.0, -4.0, 0.0), n, prf)
-    return sc, simulate(sc, backend="numpy", progress=False), truth(sc)
+    return sc, simulate(sc, backend="numpy", progress=False, **MODEL), truth(sc)
 
 
 @pytest.mark.parametrize("receiver", ["A", "B", "C"])
@@ -99,7 +105,7 @@ def test_other_cases_aliased(velocity, n_pulses, receiver):
     """Case 3 (heave; f_dc -65 Hz at C) and case 8 (sway: f_dc 595 Hz at A, the trace walking 4
     samples a pulse, the Doppler centroid 30 PRFs up)."""
     sc = scene(velocity, n_pulses, 20.0)
-    echo = simulate(sc, backend="numpy", progress=False)
+    echo = simulate(sc, backend="numpy", progress=False, **MODEL)
     est = estimate_receiver(echo, receiver)
     k, f_dc, _ = truth(sc)[receiver]
     assert est.fm_rate == pytest.approx(k, rel=K_RTOL)
@@ -109,7 +115,7 @@ def test_other_cases_aliased(velocity, n_pulses, receiver):
 def test_case7_moving_with_the_platform():
     """Case 7: K = 0 at A (the target keeps its range): estimated as ~0, not focusable; C focuses."""
     sc = scene((0.0, 3.0, 0.0), 512, 20.0)
-    echo = simulate(sc, backend="numpy", progress=False)
+    echo = simulate(sc, backend="numpy", progress=False, **MODEL)
     est_a = estimate_receiver(echo, "A")
     assert abs(est_a.fm_rate) < 1e-3 and abs(est_a.doppler_centroid) < 0.05
     assert not est_a.focusable
@@ -134,7 +140,7 @@ def test_noise_minus_15_db_still_estimates(unaliased, receiver):
     Measured on this scene: SoWVD peak-to-background 33-37 dB (noise-only maps: 15-20 dB),
     K within 0.6 %, f_dc within 0.05 Hz."""
     sc, true = unaliased
-    echo = simulate(sc, backend="numpy", progress=False, snr_db=-15.0, seed=3)
+    echo = simulate(sc, backend="numpy", progress=False, snr_db=-15.0, seed=3, **MODEL)
     est = estimate_receiver(echo, receiver)
     k, f_dc, _ = true[receiver]
     assert est.fm_rate == pytest.approx(k, rel=0.03)
@@ -145,7 +151,7 @@ def test_noise_minus_15_db_still_estimates(unaliased, receiver):
 def test_noise_minus_25_db_raises(unaliased):
     """At -25 dB the echo stands out of the noise in ~10 % of the pulses (-15 dB: all of them)."""
     sc, _ = unaliased
-    echo = simulate(sc, backend="numpy", progress=False, snr_db=-25.0, seed=3)
+    echo = simulate(sc, backend="numpy", progress=False, snr_db=-25.0, seed=3, **MODEL)
     with pytest.raises(EstimationError, match=r"receiver A: the echo stands out of the noise in \d+ % .* < 25 %"):
         estimate_receiver(echo, "A")
 
@@ -170,7 +176,7 @@ def test_two_targets_strongest_first():
     targets = (PointTargets([TARGET, (TARGET[0], 50.0, TARGET[2])], reflectivity=[1.0, 0.7],
                             velocity=[(0.0, -4.0, 0.0), (0.0, -5.0, 3.0)]),)
     sc = scene(None, 512, 20.0, targets=targets)
-    echo = simulate(sc, backend="numpy", progress=False)
+    echo = simulate(sc, backend="numpy", progress=False, **MODEL)
     first, second = estimate_receivers(echo, "A", n_targets=2)
     for est, target in ((first, 0), (second, 1)):
         k, f_dc, tau0 = truth(sc, target)["A"]
@@ -181,13 +187,13 @@ def test_two_targets_strongest_first():
 
 def test_bad_input():
     sc = scene((0.0, -4.0, 0.0), 128, 20.0)
-    echo = simulate(sc, backend="numpy", progress=False)
+    echo = simulate(sc, backend="numpy", progress=False, **MODEL)
     with pytest.raises(ValueError, match="receiver: unknown receiver 'D'"):
         estimate_receiver(echo, "D")
     with pytest.raises(TypeError, match="receiver must be a receiver name"):
         estimate_receiver(echo, 0)
     from clsas import range_compress
-    with pytest.raises(ValueError, match="echo must be raw"):
+    with pytest.raises(ValueError, match="echo: must be a raw echo"):
         estimate_receiver(range_compress(echo), "A")
     with pytest.raises(TypeError, match="echo must be an EchoData"):
         estimate_receiver(echo.data, "A")
@@ -263,7 +269,7 @@ def test_table1_full_aperture_at_the_papers_prf():
     range to one side by the delay's cubic term (the trace -1.2 / +7.8 samples at the ends):
     tau_c 3.26 samples off, eta_c K 1.3 Hz."""
     sc = scene((0.0, -4.0, 0.0), 6400, 80.0)
-    echo = simulate(sc, backend="opencl", progress=False)
+    echo = simulate(sc, backend="opencl", progress=False, **MODEL)
     true = truth(sc)
     for receiver in "ABC":
         est = estimate_receiver(echo, receiver)

@@ -10,7 +10,7 @@ from clsas.errors import ScenarioFileError
 from clsas.io.toml import scenario_from_toml
 from clsas.scene import presets
 from clsas.scene.seafloor import SEDIMENTS, Seafloor, Sediment, generate
-from clsas.scene.seafloor.facets import cell_uniforms, facet_spacing, resolution_cell
+from clsas.scene.seafloor.facets import BAND_FACETS, cell_uniforms, facet_spacing, resolution_cell
 from clsas.scene.surface import SeaSurface
 
 DEG = np.pi / 180
@@ -165,7 +165,16 @@ def test_facets_density_reach_and_determinism():
     across, along = resolution_cell(scene)
     assert facets.spacing == pytest.approx(np.sqrt(across * along / 4))
     y = facets.positions[:, 1]
-    assert np.all(np.diff(y) >= 0)  # sorted by y
+    # sorted by along-track band, then x: a pulse's reach is one index range of whole bands
+    assert np.all(np.diff(facets.bands) >= 0)
+    same = np.diff(facets.bands) == 0
+    assert np.all(np.diff(facets.positions[:, 0])[same] >= 0)
+    np.testing.assert_array_equal(facets.bands, np.floor(y / (BAND_FACETS * facets.spacing)))
+    for t in scene.tx_position(scene.eta[[0, 7, 15]]):
+        first, stop = facets.reach_span(t, 81.0)  # no facet is farther across than 81 m
+        inside = np.zeros(facets.count, dtype=bool)
+        inside[first:stop] = True
+        assert np.all(inside[facets.in_reach(t)]) and stop - first < facets.count
     ext = floor.extent
     assert np.all((facets.positions[:, 0] >= ext[0]) & (facets.positions[:, 0] <= ext[1]))
     # the drawn region holds every facet some pulse reaches (drawn everywhere, then kept where

@@ -49,15 +49,15 @@ def warn_pulse_overlap(scenario: Scenario, synth) -> None:
     """Warn (:class:`~clsas.scene.scenario.SamplingWarning`) when one pulse's echoes, their spread
     in delay over the scene plus the pulse length, outlast the pulse interval 1 / PRF at some
     receiver: a real sonar would record them overlapped with the next pulse's echoes. The spread
-    is taken at the first, middle and last pulses (``synth.delays``, either backend). The record
+    is taken at the first, middle and last pulses over the scatterers heard then (``synth.spread``:
+    the seafloor's facets in the beam's reach; either backend). The record
     window of the whole aperture may span many pulse intervals (range migration): that is no fault
     and is not checked."""
     n = scenario.schedule.n_pulses
     interval = 1.0 / scenario.schedule.prf
     worst, where = 0.0, (0, 0)
     for p in sorted({0, n // 2, n - 1}):
-        tau = synth.delays(slice(p, p + 1))[:, 0, :]  # (H, N) s
-        spread = tau.max(axis=1) - tau.min(axis=1)
+        spread = synth.spread(p)  # (H,) s
         h = int(np.argmax(spread))
         if spread[h] > worst:
             worst, where = float(spread[h]), (h, p)

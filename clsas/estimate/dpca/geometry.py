@@ -97,6 +97,18 @@ def beam_sin2(array: Array, f0: float, c: float) -> float:
     return float(np.sum(sin_t**2 * power) / np.sum(power))
 
 
+def main_lobe_sin2(array: Array, f0: float, c: float) -> float:
+    """<sin^2 theta> over the two-way pattern's main lobe only (|sin theta| < :func:`main_lobe`):
+    a seafloor that fills the main lobe and no more; 0 for omnidirectional elements."""
+    f0, c = _check_beam_args("main_lobe_sin2", array, f0, c)
+    beam = _beam(array, f0, c)
+    if beam is None:
+        return 0.0
+    sin_t, power = beam
+    power = np.where(np.abs(sin_t) < main_lobe(array, f0, c), power, 0.0)
+    return float(np.sum(sin_t**2 * power) / np.sum(power))
+
+
 def main_lobe(array: Array, f0: float, c: float) -> float:
     """The two-way main lobe's half-width as a direction cosine: lambda / L at the longer
     element's first null (1 for omnidirectional elements: no main lobe narrower than the

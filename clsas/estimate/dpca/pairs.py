@@ -14,7 +14,7 @@ from ...model import EchoData
 from ...scene.scenario import Array
 from ...kernelmath import unit_phasor
 from .correlate import aligned, correlations, parabola, peak_ratio
-from .geometry import SeafloorExtent, look_moments, pairing, pca_delay, xlag_offset
+from .geometry import SeafloorExtent, beam_sin2, look_moments, main_lobe_sin2, pairing, pca_delay, xlag_offset
 
 log = logging.getLogger("clsas")
 
@@ -30,6 +30,11 @@ class PingPairs:
     blocks : how many range blocks entered each estimate
     lags : the x-lags tested were -lags..lags (the couples used follow from it)
     two_way : s, the median two-way travel time of the range blocks used
+    yaw_bias : rad (n_pulses - 1,), how far the yaw may be biased a pair, the same way every pair,
+        by what the phase-centre correction assumes of the look angles: without the seafloor's
+        extent, D (<sin^2>_beam - <sin^2>_main lobe) / r, the difference between a seafloor that
+        fills the whole beam and one that fills only its main lobe (a narrower one biases it
+        more: give ``extent``); 0 with the extent; None when not known (built by hand)
     """
 
     surge: np.ndarray
@@ -42,6 +47,7 @@ class PingPairs:
     blocks: np.ndarray
     lags: int
     two_way: float
+    yaw_bias: np.ndarray | None = None
 
 
 # Range blocks holding less than this fraction of a ping pair's main-lobe level (its third
@@ -316,5 +322,8 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     coh = np.nanmedian(np.where(good, coherence, np.nan), axis=1)
     log.info("dpca: %d ping pairs, %d couples, %d range blocks; median coherence %.2f", echo.n_pulses - 1,
              n_couples, n_blocks, float(np.median(coh)))
+    two_way = float(np.median(2 * r_blocks[good.any(axis=0)] / c))
+    bias = 0.0 if extent is not None else s * step * (beam_sin2(array, f0, c) - main_lobe_sin2(array, f0, c)) \
+        / (c * two_way / 2)
     return PingPairs(surge=su, sway=sw, yaw=yw, surge_std=su_e, sway_std=sw_e, yaw_std=yw_e, coherence=coh,
-                     blocks=counts, lags=lags, two_way=float(np.median(2 * r_blocks[good.any(axis=0)] / c)))
+                     blocks=counts, lags=lags, two_way=two_way, yaw_bias=np.full(su.shape, abs(bias)))

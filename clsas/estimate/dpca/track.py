@@ -26,7 +26,10 @@ class Trajectory:
     nominal straight track and to its place at the first ping (along: beyond v eta, i.e.
     surge; cross: towards +x, i.e. sway), at :attr:`times`; heading : rad (yaw, from heading0
     at the first ping), at :attr:`heading_times`; along_std, cross_std, heading_std :
-    propagated standard errors (eq. 73); pairs : the PingPairs.
+    propagated standard errors (eq. 73: random walks of the per-pair errors); pairs : the
+    PingPairs; heading_bias : rad, how far the heading may have drifted by the per-pair yaw
+    bias bound (PingPairs.yaw_bias, the same sign every pair: it grows linearly), None when
+    not known.
     """
 
     eta: np.ndarray
@@ -37,6 +40,7 @@ class Trajectory:
     cross_std: np.ndarray
     heading_std: np.ndarray
     pairs: PingPairs
+    heading_bias: np.ndarray | None = None
 
     @property
     def times(self) -> np.ndarray:
@@ -58,12 +62,14 @@ class Trajectory:
 
     def trusted(self, heading: float, cross: float | None = None) -> int:
         """How many pings from the first the track can be trusted: the pings before the
-        heading's standard error (a random walk of the per-pair yaw errors, eq. 73) first
-        exceeds ``heading`` rad, and, if given, the cross-track position's exceeds ``cross`` m.
+        heading's standard error (a random walk of the per-pair yaw errors, eq. 73) plus its bias
+        bound (:attr:`heading_bias`) first exceeds ``heading`` rad, and, if given, the
+        cross-track position's standard error exceeds ``cross`` m.
         Both grow along the track: heading_std as sqrt(p) for equal per-pair errors, cross_std
         as p^1.5 (the heading errors integrated once more)."""
         limit = validate.positive("Trajectory.trusted heading", heading, unit="rad")
-        over = self.heading_std > limit
+        bias = 0.0 if self.heading_bias is None else self.heading_bias
+        over = self.heading_std + bias > limit
         if cross is not None:
             over |= self.cross_std > validate.positive("Trajectory.trusted cross", cross, unit="m")
         return int(np.argmax(over)) if over.any() else self.eta.size
@@ -134,11 +140,14 @@ def integrate(pairs: PingPairs, eta: np.ndarray, speed: float, array: Array, hea
     cross_std = np.sqrt(before @ pairs.sway_std**2 + arm**2 @ pairs.yaw_std**2)
     heading_std = np.sqrt(before @ pairs.yaw_std**2)
     along_std = np.sqrt(before @ pairs.surge_std**2)
-    log.info("dpca.integrate: over %d pings the heading's uncertainty grows to %.3g urad (a random walk of "
-             "%.3g urad RMS a pair), the cross-track position's to %.3g mm", n, heading_std[-1] * 1e6,
-             float(np.sqrt(np.mean(pairs.yaw_std**2))) * 1e6, cross_std[-1] * 1e3)
+    per_pair = np.zeros(n - 1) if pairs.yaw_bias is None else np.abs(pairs.yaw_bias)
+    heading_bias = np.concatenate([[0.0], np.cumsum(per_pair)])
+    log.info("dpca.integrate: over %d pings the heading's standard error grows to %.3g urad (a random walk of "
+             "%.3g urad RMS a pair), its bias bound to %.3g urad; the cross-track position's standard error to "
+             "%.3g mm", n, heading_std[-1] * 1e6, float(np.sqrt(np.mean(pairs.yaw_std**2))) * 1e6,
+             heading_bias[-1] * 1e6, cross_std[-1] * 1e3)
     return Trajectory(eta=eta, along=along, cross=cross, heading=heading, along_std=along_std, cross_std=cross_std,
-                      heading_std=heading_std, pairs=pairs)
+                      heading_std=heading_std, pairs=pairs, heading_bias=heading_bias)
 
 
 def with_track(echo: EchoData, scenario: Scenario) -> EchoData:

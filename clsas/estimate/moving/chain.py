@@ -29,15 +29,16 @@ expands about eta_ref, the middle of the record (:attr:`Records.eta_ref`), which
 the deramp run in d, the Radon intercept is the trace's delay at the middle pulse, so K~, f~ and
 tau_c are the coefficients the velocity solver compares with the closed forms, on any schedule
 (``PulseSchedule(start=...)``). Expanded about eta = 0 instead, an exposure over 0..25.6 s
-(eta_ref = 12.8 s) gave f~ = f_dc(0) = f_dc(eta_ref) - K eta_ref (case 1 at A: 6.7 Hz against
-68.7 Hz) and a velocity 84 % off; the centred schedules, eta_ref = 0, are unchanged.
+gives f~ = f_dc(0) = f_dc(eta_ref) - K eta_ref, K eta_ref away from the closed forms' centroid, and a
+velocity tens of % off (tests/test_moving_focus.py::test_schedule_off_eta_0_estimates_and_places_the_point);
+the centred schedules, eta_ref = 0, are unchanged.
 
 Faint copies of a target +-c T / 2 = +-3.75 m in range (T the 5 ms pulse) are Table I's
 critical sampling, not the chain: with F_r = B = 20 kHz the rectangular chirp's spectral leakage
 beyond +-B / 2 wraps to the opposite band edge, where the matched filter's group delay differs by
-B / K_r = T. Measured on one point's range-compressed record (no window): -25 dB at 3.5-4 m
-(-35 dB with a Taylor window); at F_r = 1.25 B it is gone below the sidelobes (-37 dB), at 2 B
--46 dB. The chain keeps the unweighted matched filter (its range resolution feeds tau_c).
+B / K_r = T. They sit well below the peak of the unweighted compression, lower with a Taylor
+window, and sink below the sidelobes once F_r exceeds B by a quarter. The chain keeps the
+unweighted matched filter (its range resolution feeds tau_c).
 
 Several targets (section VII-B): :func:`estimate_receivers` takes the strongest SoWVD peak,
 focuses it, windows its image, undoes the chain on the window (inverse azimuth compression,
@@ -163,8 +164,7 @@ def compressed_receiver(echo: EchoData, receiver: str) -> EchoData:
     pulses)."""
     if not isinstance(echo, EchoData):
         raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
-    if echo.compressed:
-        raise ValueError("echo must be raw (EchoData.compressed is False): the chain range-compresses it itself")
+    validate.compression("echo", echo, compressed=False, advice="the chain range-compresses it itself (eq. 8)")
     if not isinstance(receiver, str):
         raise TypeError(f"receiver must be a receiver name (one of {echo.receivers}), got {receiver!r}")
     (r,) = echo.select_receivers(receiver, parameter="receiver")
@@ -392,12 +392,9 @@ def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None 
     delay there). :func:`estimate_records` sharpens: its focus is quadratic only, and over long
     apertures the delay's cubic and quartic terms, which the SoWVD's aperture-averaged K~ does
     not hold, leave the focused target smeared in range to one side, which moves the middle of
-    its extent. Measured, Table I case 1 at 6400 pulses / 80 Hz, receiver B: the trace after RCMC
-    and RWC walks -1.2 and +7.8 range samples (1 / fs) at the aperture's ends, the image a
-    -10 dB plateau over 6 samples beyond the peak; tau_c 3.26 samples off and eta_c -0.27 s
-    (the truth -0.009 s) quadratic, 0.002 samples and -0.006 s sharpened (the residual found:
-    p2, p3, p4 = 42, 32, -18 cycles). The refocus passes of :func:`.motion.estimate` give
-    the model's higher-order terms instead."""
+    its extent (over Table I's 80 s at receiver B: tau_c several samples and eta_c tenths of a
+    second off with the quadratic focus, not with the sharpened one). The refocus passes of
+    :func:`.motion.estimate` give the model's higher-order terms instead."""
     if not est.focusable:
         raise EstimationError(f"receiver {rec.name}: cannot locate a target that does not focus "
                               f"(|K_a,eq| T_a^2 = {abs(est.fm_rate) * est.aperture**2:.3g} < {MIN_TIME_BANDWIDTH})")

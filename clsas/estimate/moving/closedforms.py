@@ -3,7 +3,7 @@ eqs. 1-6, 15-16, 21-26, 28, 32-35): the "true" values the estimators are held to
 
 Model. A pulse leaves the transmitter T(eta) = T_0 + V_T eta, meets the target Q(t) = q + v t
 at eta + t1 and reaches receiver h, R_h(t) = R_0 + V_h t, at eta + t1 + t2 (non-stop-and-go,
-DESIGN.md; times relative to the reference slow time eta_ref). The two-way delay
+docs/design.md; times relative to the reference slow time eta_ref). The two-way delay
 tau(eta) = t1 + t2 expands as
 
     tau(eta) = tau_c + (f_dc,eq / f0) eta + (K_a,eq / (2 f0)) eta^2 + ...,

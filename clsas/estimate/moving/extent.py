@@ -3,10 +3,10 @@ extent (not in Kiang & Kiang 2022; derived here for the hull of section II-B).
 
 Why. The chain's Radon slope and focus follow the strongest track in a receiver's record, and on a
 hull that is a different scatterer at each receiver (the glint of the near side where the surface
-faces that receiver's bistatic bisector: measured on the scaled Albacore, Table II at 2048
-pulses, 1-5 m apart along the hull between A, B and C). Each receiver's centroid is then the
-centroid of another point, and eqs. (33)-(35) solved at one common position are inconsistent:
-velocity errors 2-8 % with the hull's centre given (cases 4-6 above the paper's 3 %).
+faces that receiver's bistatic bisector: on the scaled Albacore metres apart along the hull
+between A, B and C). Each receiver's centroid is then the centroid of another point, and eqs.
+(33)-(35) solved at one common position are inconsistent: velocity errors of several % with the
+hull's centre given, above the paper's 3 % in some Table II cases.
 
 Derivation. A scatterer displaced by dp from the reference point q has, at receiver h, the
 centroid f_h(q + dp) = f_h(q) + g_h.dp (g_h = d f_dc,eq / d p; only the part of dp across the
@@ -38,10 +38,10 @@ band in range (the unweighted range sidelobes, -13 to -21 dB, would reach the le
 move a point's middle by a fraction of a sample). Each end is interpolated (in dB) between
 samples to where it crosses the level. -20 dB lies
 between a hull's body (0 to -15 dB: glints over diffuse facets) and the floor around it (blur
-skirts and other echoes, -30 to -45 dB; measured on the eight Table II cases), and below the
-near sidelobes of the unweighted compression (-13, -18 dB), which are symmetric about the peak.
-Measured, Table II at 2048 pulses with the centre given: velocity errors 0.1-1.2 % against
-1.0-8.4 % with the strongest point (see :mod:`.motion`).
+skirts and other echoes, -30 dB and below on the eight Table II cases), and below the near
+sidelobes of the unweighted compression (-13, -18 dB), which are symmetric about the peak.
+(The velocity errors on the hull: tests/test_moving.py::test_submarine_velocity_within_the_papers_bound
+and ``clsas reproduce kiang2022``.)
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The public moving-target API (issue 14): :func:`estimate` a moving target's velocity (and
+"""The public moving-target API: :func:`estimate` a moving target's velocity (and
 position) from a raw multistatic echo (Kiang & Kiang 2022, sections III-V); its images are made
 by :func:`.focus.focus`.
 
@@ -25,8 +25,7 @@ Which point, when the position is given. The middle of the image of a rigid targ
 image of the given position only when the target reaches equally far both ways from it: the
 centroids and delays are those of a point dp away, the same point at every receiver to first
 order, and a velocity solved at the given position with them is off (the three receivers see the
-target from nearby directions, so the vertical component is poorly determined: a reference point
-2.5 m from the middle of a two-point group moved it by 0.06 m/s in Table II case 1). So on an
+target from nearby directions, so the vertical component is poorly determined). So on an
 extended target (its image more than :data:`EXTENDED_CELLS` range cells beyond a point's) the
 point measured is fitted with the velocity (:func:`.velocity.solve_motion`) from the delays and
 centroids, the given position a prior with sigma = :data:`MIDDLE_FRACTION` x the target's size
@@ -37,7 +36,7 @@ centroid carries :data:`REFINED_SIGMA` (the focus reads the aperture, the closed
 coefficients at eta_ref).
 
 Refocus. The chain compresses with the quadratic phase only; over long apertures the delay's
-higher-order terms (cubic and beyond, ~10 carrier cycles at the ends of 25 s in Table II case 6)
+higher-order terms (cubic and beyond: carrier cycles at the ends of Table II case 6's 25 s)
 smear the image to one side, which moves the middle of its extent. So the solution is used
 :data:`REFOCUS_PASSES` times to predict those terms (:func:`.closedforms.higher_order_delay`, at
 the solved position and velocity: they change little with a velocity error of a few %), every
@@ -172,9 +171,8 @@ def check_echo(echo, receivers=None) -> list:
     """The receiver names to use, after checking ``echo`` is a raw EchoData with >= 3 of them."""
     if not isinstance(echo, EchoData):
         raise TypeError(f"echo must be an EchoData, got {type(echo).__name__}")
-    if echo.compressed:
-        raise ValueError("echo must be raw (EchoData.compressed is False); got a range-compressed echo: the "
-                         "moving-target chain range-compresses it itself (Kiang & Kiang 2022 eq. 8)")
+    validate.compression("echo", echo, compressed=False,
+                         advice="the moving-target chain range-compresses it itself (Kiang & Kiang 2022 eq. 8)")
     names = list(echo.receivers) if receivers is None else [echo.receivers[i] for i in
                                                            echo.select_receivers(receivers, "receivers")]
     if len(names) < 3:

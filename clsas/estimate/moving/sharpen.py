@@ -43,10 +43,8 @@ ended 0.7 cycles off on a synthetic record), so a Nelder-Mead search of all thre
 (log sum |I|^4, simplex 0.25 cycles, to STEP / 4) finishes from the grids' point. The sharpness
 is summed over the :data:`BINS` strongest range bins of the window (a point's main lobe and
 sidelobes; a hull's brightest rows): ~300 evaluations of one FFT each. Fewer rows let a hull's
-strongest glint decide: measured on the scaled Albacore, Table II case 5 at 2048 pulses, 8 rows
-raised A's peak by half and the entropy of the images by 0.1-0.3 at A and C (the rest of the
-hull blurred), 64 or 128 rows kept the entropies within 0.02 of the model history's at A and C
-and lowered B's by 0.1 (peaks +20 %, 6 %, -4 %).
+strongest glint decide (on the scaled Albacore a few rows sharpen that glint and blur the rest
+of the hull; 64 or 128 rows keep the whole hull's entropy at the model history's).
 
 Spans (derived from the error budget above): p2 over +-``rate_span`` |K| (T_a / 2)^2 / 2 cycles
 (the default 3 % of K: a velocity error of ~1.5 %, the hull's worst), p3 and p4 over

@@ -50,10 +50,10 @@ so every term peaks at f_eta = 4 p0 K - 2 (f_a - f_b - f_c + f_d), f_p = -(f_a +
 The auto-terms (a = b = c = d) and the cross-terms with f_a - f_b = f_c - f_d sit at the true
 f_eta = 4 p0 K; the others are shifted by twice a combination of centroid differences, which
 does not depend on p0. Their strength is comparable: the auto-terms carry the constant phase
-8 pi f_i p0, which differs between scatterers, so they can cancel. Measured on three equal points
-5 m apart along the track (Table II case 1, 2048 pulses): the strongest peak of the map at
-p0 = 0.1 s was a cross-term at every receiver (K = -29.9, -29.6, -22.4 Hz/s against 4.87, 4.82,
-3.08), the auto-terms not among the 12 strongest peaks.
+8 pi f_i p0, which differs between scatterers, so they can cancel: on three equal points 5 m
+apart along the track the strongest peak of the map at p0 = 0.1 s is a cross-term at every
+receiver, far from the true K (tests/test_moving_confidence.py::
+test_one_sowvd_map_locks_on_a_cross_term_the_rate_search_does_not).
 
 Hence :func:`rate_search`: maps at several lag offsets p0_j (:data:`P0_RATIOS`), each read on a
 common K axis (f_eta = 4 p0_j K, modulo the PRF). A term at the true K lines up in every map; a

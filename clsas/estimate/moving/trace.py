@@ -15,8 +15,7 @@ would be its own floor, so a cell's floor is capped at 4x the median floor of al
 threshold is :data:`SIGMAS` standard deviations of the average over the floor; the gate is
 widened by one range resolution cell each side.
 
-The band. Near the method's noise floor the echo stands out in only some of the pulses (about
-half at -17 dB in Table II case 1 at 2048 pulses), and a pulse left out of the RFRT sum is a gap
+The band. Near the method's noise floor the echo stands out in only some of the pulses, and a pulse left out of the RFRT sum is a gap
 in every lag product of the SoWVD that reaches it. The target's trace is smooth: its delay is
 tau_0 + (f_dc / f0) eta + (K / 2 f0) eta^2 to within a fraction of a cell over the aperture. So
 the cells that stand out are fitted by a parabola in the pulse index (each pulse by the
@@ -46,8 +45,8 @@ FLOOR_MIN = 0.05
 #: Cells whose floor is below this fraction of the largest are not recording (a receiver's records
 #: are zero-padded to the echo's length beyond its own window) and do not count in the median:
 #: counted, they made it the padding's and every recorded cell stood out of its floor capped at
-#: 4x that (sonobuoy C, 141 of 374 samples recorded, gated 317 of 748 cells a pulse at -15 dB and
-#: its SoWVD score fell to the whole record's).
+#: 4x that (sonobuoy C, whose window is shorter than A's and B's, gated almost every recorded
+#: cell in noise and its SoWVD score fell to the whole record's).
 RECORDING = 1e-3
 
 

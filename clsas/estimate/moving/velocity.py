@@ -24,7 +24,7 @@ Centroid uncertainties default to ``0.5 Hz + 0.5 %`` of |f~| (the spread of the 
 estimates about its truth in Table II and section VII-C) unless a receiver estimate carries
 ``doppler_centroid_sigma``.
 
-Position (issue 14, deliverable 5). The paper takes the target's initial position as known;
+Position. The paper takes the target's initial position as known;
 :func:`solve_motion` estimates it jointly with v from the delays tau_c (the range line after
 RCMC and RWC, eq. 17) of all receivers, their centroids (the range walks) and FM rates:
 first the position from the delays alone (trilateration of the bistatic ellipsoids, starting
@@ -32,19 +32,17 @@ on the imaged side, +x, at several depression angles, keeping the root under the
 then v bracketed and refined as above at that position, then all nine (or more) equations
 together by least squares.
 
-How well it works (measured): on one point target (Table II cases 1-8, 2048 pulses) the position
-comes within 0.1 m (reported sigma 0.02, 0.09, 0.15 m in x, y, z: the depth is the weakest, A and
-B being at one depth) and the velocity error is the same as with the position given (0.001-0.08 %);
-with a fourth receiver and another layout, 3 cm and 0.012 %. On the submarine the delays are
-those of the middle of the hull's image at each receiver (:mod:`.extent`), which is its centre
-only when the receiver sees the hull along its length. Measured on Table II (2048 pulses, facets
-<= 0.15 m): velocity errors 0.15-1.3 % in cases 1-6 (0.06-1.1 % with the centre given), the
-position within 1.5 m in cases 1, 2, 4, 5, 6 and 14 m off in depth in case 3; it fails where a
-receiver cannot see the length: case 7 (A and B cannot focus: no along-track history, y off by
-7.7 m, v 4.2 %) and case 8 (A and B see the hull end-on, only its nose, 4 m nearer than C's
-middle: the depth, fixed by the small difference of C's and A's depression angles, moves 118 m;
-v 7.9 %). The solve does not detect this by itself (its residuals absorb it); give the position
-for extended targets when it is known.
+How well it works: on point targets the position comes out with the velocity as good as with the
+position given, the depth the weakest component (A and B are at one depth;
+tests/test_moving.py::test_point_target_position_and_velocity_estimated and
+test_point_target_on_another_layout_position_estimated). On the submarine the delays are those
+of the middle of the hull's image at each receiver (:mod:`.extent`), which is its centre only
+when the receiver sees the hull along its length; it fails where a receiver cannot: Table II
+case 7 (A and B cannot focus: no along-track history) and case 8 (A and B see the hull end-on,
+only its nose, and the depth, fixed by the small difference of C's and A's depression angles,
+moves far). The solve does not detect this by itself (its residuals absorb it); give the
+position for extended targets when it is known (``clsas reproduce kiang2022 --position both``
+prints both estimates).
 """
 
 from __future__ import annotations

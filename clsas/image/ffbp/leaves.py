@@ -17,7 +17,9 @@ work-items) whose reference point is the block's middle sample, halved until eve
 within :meth:`~clsas.image.backprojection.TileKernel.half_extent` of its reference (the same
 phase budget as back-projection's own tiles), which the launcher checks on the offsets the
 ffbp_fields kernel computes for bp_tile anyway. Slots past the grid's edge repeat its last
-sample and are dropped.
+sample and are dropped; a tile's groups of LANES range samples that miss the spans of their
+rows (:attr:`PolarGrid.spans`: the ragged wedge, the corners of the (r, v) box outside the
+scene) are not back-projected at all, and the leaf's image is zero there.
 
 Leaves the batch cannot take go through :func:`clsas.backproject` one by one on the same
 prepared records (the same image up to float32 rounding): a leaf shorter than ``first`` (the
@@ -65,7 +67,22 @@ def polar_tiles(grids: list, bv: int, br: int):
     l, a, b, j, q = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij", sparse=True)
     n_v = np.array([g.n_v for g in grids])[:, None, None, None, None]
     n_r = np.array([g.n_r for g in grids])[:, None, None, None, None]
-    keep = real[:, :, :, None, None] & (j < -(-(n_v - a * bv) // ROWS) * ROWS) & (b * br + q * LANES < n_r)
+    # a group of LANES samples is kept where it meets the span of its block of ROWS rows (the union
+    # of the rows' spans: a work-item's ROWS items then stay in one tile)
+    blocks = -(-tv * bv // ROWS)
+    lo = np.full((len(grids), blocks * ROWS), np.iinfo(np.int32).max, np.int64)
+    hi = np.zeros((len(grids), blocks * ROWS), np.int64)
+    for k, g in enumerate(grids):
+        spans = g.row_spans.astype(np.int64)
+        empty = spans[:, 1] <= spans[:, 0]
+        lo[k, :g.n_v] = np.where(empty, lo[k, 0], spans[:, 0])
+        hi[k, :g.n_v] = np.where(empty, 0, spans[:, 1])
+    lo = lo.reshape(len(grids), blocks, ROWS).min(axis=2)
+    hi = hi.reshape(len(grids), blocks, ROWS).max(axis=2)
+    block = (a * bv + j) // ROWS
+    start = b * br + q * LANES
+    keep = (real[:, :, :, None, None] & (j < -(-(n_v - a * bv) // ROWS) * ROWS) & (start < n_r)
+            & (start + LANES > lo[l, block]) & (start < hi[l, block]))
     items = np.zeros(int(np.count_nonzero(np.broadcast_to(keep, shape))), program.ITEM)
     for name, x in zip(program.ITEM.names, (l, a * bv + j, b * br + q * LANES, tile[:, :, :, None, None])):
         items[name] = np.broadcast_to(x, shape)[np.broadcast_to(keep, shape)]
@@ -131,12 +148,17 @@ class FirstStage:
                             dst_offset=8 * offset)
             return
         image, items, first, count = made
-        program.kernel("ffbp_leaf")(rt.queue, *opencl.work_groups(count), image, items, np.int32(first),
-                                    np.int32(count), program.frames([grid])[0], np.float64(self.demodulate),
-                                    np.int64(offset), out)
+        if grid.spans is not None:  # the samples outside the rows' spans are zero
+            cl.enqueue_fill_buffer(rt.queue, out, np.zeros(1, np.complex64), 8 * offset, 8 * grid.size)
+        if count:
+            spans = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=grid.row_spans)
+            program.kernel("ffbp_leaf")(rt.queue, *opencl.work_groups(count), image, items, np.int32(first),
+                                        np.int32(count), program.frames([grid])[0], spans,
+                                        np.float64(self.demodulate), np.int64(offset), out)
 
     def _demodulated(self, image: np.ndarray, grid: PolarGrid) -> np.ndarray:
-        return image * expj_cycles(-self.demodulate * grid.ranges)[None, :]
+        """The leaf's image demodulated by its ranges, zero outside its rows' spans."""
+        return image * expj_cycles(-self.demodulate * grid.ranges)[None, :] * grid.inside()
 
     def _batch(self, node: int, grids: list) -> None:
         batch, points, last = [], 0, node

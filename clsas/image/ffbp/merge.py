@@ -12,8 +12,9 @@ the child read by the separable ``taps`` x ``taps`` windowed sinc of
 :func:`clsas.interp.tap_table` (Knab's window for the oversampling ``rho``; positions in
 samples i = (r - r0) / dr and j = (v - v0) / dv; the taps of a fractional offset come from the
 nearest of clsas.interp.TAP_ROWS table rows), zero unless all taps x taps samples exist; r_p is the
-parent's centre range for a parent grid (the parent is demodulated in turn) and 0 for pixels
-(the final stage restores the full phase, giving back-projection's image). Phases in cycles,
+parent's centre range for a parent grid (the parent is demodulated in turn; its samples outside
+its rows' spans, PolarGrid.spans, are zero) and 0 for pixels (the final stage restores the full
+phase, giving back-projection's image). Phases in cycles,
 2 f0 (r_c - r_p) / c, reduced to their fraction before the exponential.
 
 The kernel computes X, r_c, v_c, the positions and the phase in double, the interpolation and
@@ -86,6 +87,8 @@ def merge_reference(children, targets, f0: float, c: float, taps: int, rho: floa
         for grid, image in children:
             r, v = grid.coordinates(x)
             out[part] += _interpolate(image, grid, r, v, table) * expj_cycles(2 * f0 * (r - r_p) / c)
+    if parent is not None:  # zero outside the parent's rows' spans
+        out *= parent.inside().reshape(-1)
     return out.reshape(shape)
 
 
@@ -121,7 +124,8 @@ def merge_device(grids: list, images, offsets, targets, f0: float, c: float, tap
     """Enqueue ffbp_merge (kernels/ffbp.cl) on device buffers, without waiting: the children's
     polar grids ``grids`` and their complex64 images in the buffer ``images`` at element
     ``offsets``; ``targets`` the parent PolarGrid (its demodulated image is written to ``out``
-    from element ``out_offset`` on) or :class:`DevicePoints` (their values are *added* into
+    from element ``out_offset`` on, zero outside its rows' spans; a work-item wholly outside
+    them only writes its zeros) or :class:`DevicePoints` (their values are *added* into
     ``out`` (count,) complex64)."""
     import pyopencl as cl
 
@@ -132,19 +136,19 @@ def merge_device(grids: list, images, offsets, targets, f0: float, c: float, tap
     if isinstance(targets, PolarGrid):
         kern = program.kernel("ffbp_merge", taps, PARENT_GRID=1)
         n_out, size = targets.size, opencl.work_groups_2d(-(-targets.n_r // LANES), targets.n_v)
-        parent, points = program.frames([targets])[0], images  # the points argument is unused
+        parent, points, spans = program.frames([targets])[0], images, targets.row_spans  # points unused
     else:
         kern = program.kernel("ffbp_merge", taps)
         n_out, size = targets.count, opencl.work_groups(-(-targets.count // LANES))
-        parent, points = np.zeros((), program.FRAME)[()], targets.buffer
+        parent, points, spans = np.zeros((), program.FRAME)[()], targets.buffer, np.zeros((1, 2), np.int32)
     plane = program.plane(grids[0].plane)
 
     def made(a):
         return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
 
     kern(rt.queue, *size, images, made(np.asarray(offsets, np.int64)), made(program.frames(grids)),
-         made(_table(taps, float(rho))), points, parent, plane, np.float64(2 * f0 / c), np.int32(len(grids)),
-         np.int32(n_out), np.int64(out_offset), out)
+         made(_table(taps, float(rho))), points, parent, made(spans), plane, np.float64(2 * f0 / c),
+         np.int32(len(grids)), np.int32(n_out), np.int64(out_offset), out)
 
 
 @lru_cache(maxsize=8)

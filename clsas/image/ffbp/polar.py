@@ -20,6 +20,18 @@ Pixels of the plane are therefore represented exactly; a pixel off the plane is 
 own (r, v), i.e. rotated about the axis into the plane, which is exact for phase centres on
 the axis (a straight track; the delay depends on r and v alone) and approximate otherwise.
 
+Ragged rows (the wedge). A rectangular (r, v) box around a scene wider along track than its
+nearest range holds samples no pixel needs: at a sine v the scene's ranges span only
+[r_near(v), r_far(v)] (a rectangle's along-track ends are the lines r v = const), so about a
+quarter of a wide scene's box lies outside its wedge. Each row j keeps only its *span* of range
+samples [lo_j, hi_j) (:meth:`Extent.spans`): the ranges of the scene's points whose sines lie
+within the box's own padding in sine of the row's, widened by the box's padding in range, so
+every sample within the box's padding distance of the scene, in both coordinates, is kept as the
+box keeps it; the others are not computed and read as zero. The interpolator at any point that
+needs exact values (a pixel, or a parent sample within the padding of the scene) reads only
+samples within taps / 2 of it, inside the spans, so the image is the box's: the merge kernel and
+the leaves skip the rest (tests/test_ffbp.py compares the two on a speckle scene).
+
 Sampling rule (the error model). After demodulation by exp(-j 4 pi f0 r / c) a sub-aperture's
 image is band-limited in r and in v; its band follows from the delay of a phase centre at
 axial offset a in [-L, L] (L the sub-aperture's half-length, plus its largest offset off the
@@ -57,6 +69,8 @@ from ...interp import tap_table
 RHO_STEPS = np.round(np.arange(1.2, 6.01, 0.05), 2)  # oversamplings tried by the sampling rule
 SKELETON = 8192  # at most about this many pixels stand for the grid when extents are computed
 CHUNK_NODES = 32  # sub-apertures whose extents are computed at once (32 x ~8k skeleton points x 3 doubles)
+ENVELOPE_BINS = 512  # sine bins of a sub-aperture's range envelope of the scene (the ragged rows)
+RAGGED = True  # polar grids computed only within their rows' spans (False: whole rectangles, for comparison)
 
 
 @lru_cache(maxsize=64)
@@ -118,7 +132,9 @@ class Plane:
 @dataclasses.dataclass(frozen=True)
 class PolarGrid:
     """A sub-aperture's local polar grid: frame (centre, axis, e1, e2), reference plane, and the
-    samples r0 + i dr (i < n_r), v0 + j dv (j < n_v). Images on it are (n_v, n_r), range fastest."""
+    samples r0 + i dr (i < n_r), v0 + j dv (j < n_v). Images on it are (n_v, n_r), range fastest.
+    ``spans`` (n_v, 2) int32: row j's samples lo <= i < hi are computed and the others are zero
+    (the ragged wedge of the module docstring; None: every sample of every row)."""
 
     centre: np.ndarray
     axis: np.ndarray
@@ -131,10 +147,30 @@ class PolarGrid:
     v0: float
     dv: float
     n_v: int
+    spans: np.ndarray | None = dataclasses.field(default=None, compare=False)
 
     @property
     def size(self) -> int:
+        """Samples stored (n_v x n_r: an image's layout)."""
         return self.n_r * self.n_v
+
+    @property
+    def row_spans(self) -> np.ndarray:
+        """(n_v, 2) int32: each row's computed samples [lo, hi)."""
+        if self.spans is None:
+            return np.tile(np.array([0, self.n_r], np.int32), (self.n_v, 1))
+        return self.spans
+
+    @property
+    def computed(self) -> int:
+        """Samples computed (inside the rows' spans): the work of making or merging this image."""
+        return self.size if self.spans is None else int(np.sum(self.spans[:, 1] - self.spans[:, 0]))
+
+    def inside(self) -> np.ndarray:
+        """(n_v, n_r) bool: the samples inside their rows' spans (an image is zero elsewhere)."""
+        spans = self.row_spans
+        i = np.arange(self.n_r)[None, :]
+        return (i >= spans[:, :1]) & (i < spans[:, 1:])
 
     @property
     def ranges(self) -> np.ndarray:
@@ -244,17 +280,63 @@ class Extent:
     w_r: float
     w_v: float
     reach: float = 1.0
+    margin: float = 0.0
+    envelope: np.ndarray | None = dataclasses.field(default=None, compare=False)
+    bins: tuple = (0.0, 1.0)
 
     def sample(self, rho: float, taps: int) -> PolarGrid:
         """The polar grid at oversampling ``rho``, padded by ``taps // 2 + 2`` samples on every side
-        for the interpolator."""
+        for the interpolator, with its rows' spans (:meth:`spans`) when :data:`RAGGED`."""
         dr = 1 / (2 * self.w_r * rho)
         dv = 1 / (2 * max(self.w_v, 1e-12) * rho)
         pad = taps // 2 + 2  # the interpolator reads taps / 2 samples either side; 2 more for frame shifts
         n_r = int(np.ceil((self.r_hi - self.r_lo) / dr)) + 1 + 2 * pad
         n_v = int(np.ceil((self.v_hi - self.v_lo) / dv)) + 1 + 2 * pad
-        return PolarGrid(self.centre, self.axis, self.e1, self.e2, self.plane, self.r_lo - pad * dr, dr, n_r,
-                         self.v_lo - pad * dv, dv, n_v)
+        r0, v0 = self.r_lo - pad * dr, self.v_lo - pad * dv
+        spans = self.spans(r0, dr, n_r, v0, dv, n_v, pad) if RAGGED and self.envelope is not None else None
+        return PolarGrid(self.centre, self.axis, self.e1, self.e2, self.plane, r0, dr, n_r, v0, dv, n_v, spans)
+
+    def spans(self, r0: float, dr: float, n_r: int, v0: float, dv: float, n_v: int, pad: int) -> np.ndarray:
+        """Each row's span [lo, hi) (n_v, 2) int32 of the grid r0 + i dr, v0 + j dv: the ranges of
+        the scene's skeleton points whose sines lie within margin / r_lo + pad dv of the row's (the
+        rectangle's own padding in sine), widened by margin + pad dr (its padding in range), so
+        that every sample the rectangle holds within that distance of the scene is kept; the rest
+        of the rectangle (the corners of the (r, v) box outside the scene's wedge) is not computed.
+        The envelope's bins make the sines' window up to one bin wider (more kept, never less)."""
+        start, width = self.bins
+        n_bins = self.envelope.shape[0]
+        reach_v = self.margin / max(self.r_lo, 1e-12) + pad * dv
+        v = v0 + dv * np.arange(n_v)
+        b0 = np.clip(np.floor((v - reach_v - start) / width), 0, n_bins).astype(np.int64)
+        b1 = np.clip(np.floor((v + reach_v - start) / width) + 1, 0, n_bins).astype(np.int64)
+        near, far = _window_extrema(self.envelope, b0, b1)
+        seen = near <= far
+        widen = self.margin + pad * dr
+        with np.errstate(invalid="ignore"):
+            lo = np.floor((np.where(seen, near, r0) - widen - r0) / dr)
+            hi = np.ceil((np.where(seen, far, r0) + widen - r0) / dr) + 1
+        lo, hi = np.clip(lo, 0, n_r), np.clip(hi, 0, n_r)
+        return np.where(seen[:, None], np.stack([lo, hi], axis=1), 0).astype(np.int32)
+
+
+def _window_extrema(envelope: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The least of envelope[b, 0] and the largest of envelope[b, 1] over b0 <= b < b1 (inf and
+    -inf for an empty window), by a sparse table: extrema over windows of 2^k bins from every bin,
+    two overlapping ones covering each window."""
+    lows, highs = [envelope[:, 0]], [envelope[:, 1]]
+    while 2 ** len(lows) <= envelope.shape[0]:
+        half = 2 ** (len(lows) - 1)
+        lows.append(np.minimum(lows[-1][:-half], lows[-1][half:]))
+        highs.append(np.maximum(highs[-1][:-half], highs[-1][half:]))
+    length = b1 - b0
+    k = np.floor(np.log2(np.maximum(length, 1))).astype(np.int64)
+    near, far = np.full(b0.shape, np.inf), np.full(b0.shape, -np.inf)
+    for level in np.unique(k[length > 0]):
+        rows = (length > 0) & (k == level)
+        first, last = b0[rows], b1[rows] - 2 ** level
+        near[rows] = np.minimum(lows[level][first], lows[level][last])
+        far[rows] = np.maximum(highs[level][first], highs[level][last])
+    return near, far
 
 
 def extents(centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray, scene: Scene, windows: np.ndarray,
@@ -306,6 +388,20 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
     dist = np.sqrt(np.maximum(rr ** 2 - 2 * rr * a * vv + a * a, 1e-30))
     w_v = 2 * f_max * np.max(np.abs(rr * a / dist), axis=(1, 2)) / c
     w_r = bandwidth / c + 2 * f_max * np.max(1 - (rr - a * vv) / dist, axis=(1, 2)) / c
+    # the range envelope of the skeleton in ENVELOPE_BINS sine bins over each grid's sines (with
+    # their margin): the nearest and the farthest range of the points in each bin
+    v_margin = scene.margin / np.where(alive, r_lo, 1.0)
+    start = np.where(alive, v_lo - v_margin, 0.0)
+    width = np.where(alive, np.maximum(v_hi + v_margin - start, 1e-12), 1.0) / ENVELOPE_BINS
+    with np.errstate(invalid="ignore"):
+        b = np.floor((v - start[:, None]) / width[:, None])
+    ok = (b >= 0) & (b < ENVELOPE_BINS)
+    flat = (np.arange(len(centres))[:, None] * ENVELOPE_BINS + np.where(ok, b, 0).astype(np.int64))[ok]
+    near = np.full(len(centres) * ENVELOPE_BINS, np.inf)
+    far = np.full(len(centres) * ENVELOPE_BINS, -np.inf)
+    np.minimum.at(near, flat, r[ok])
+    np.maximum.at(far, flat, r[ok])
+    envelope = np.stack([near, far], axis=1).reshape(len(centres), ENVELOPE_BINS, 2)
     found = []
     for k in range(len(centres)):
         if not alive[k]:
@@ -313,5 +409,6 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
             continue
         e1, e2 = frame_axes(axes[k], centres[k], scene.plane)
         found.append(Extent(centres[k], axes[k], e1, e2, scene.plane, float(r_lo[k]), float(r_hi[k]), float(v_lo[k]),
-                            float(v_hi[k]), float(w_r[k]), float(w_v[k]), float(reach[k])))
+                            float(v_hi[k]), float(w_r[k]), float(w_v[k]), float(reach[k]), scene.margin,
+                            envelope[k], (float(start[k]), float(width[k]))))
     return found

@@ -55,8 +55,8 @@ class Tree:
     first: int
 
     def samples(self) -> list[int]:
-        """Polar samples of each level up to the top."""
-        return [int(sum(g.size for g in level if g is not None)) for level in self.grids[:self.top + 1]]
+        """Polar samples computed (inside their rows' spans) of each level up to the top."""
+        return [int(sum(g.computed for g in level if g is not None)) for level in self.grids[:self.top + 1]]
 
 
 def _levels(n_pulses: int, first: int, factor: int):
@@ -176,7 +176,7 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         while new_top + 1 < len(pulses):
             level = new_top + 1
             level_grids = [node_grid(p0, p1, rho) for p0, p1 in pulses[level]]
-            cost = factor * sum(g.size for g in level_grids if g is not None)
+            cost = factor * sum(g.computed for g in level_grids if g is not None)
             saving = n_pixels * (reach(pulses[new_top]) - reach(pulses[level]))
             if cost > saving:
                 break

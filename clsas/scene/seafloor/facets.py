@@ -17,6 +17,11 @@ with sin(psi) = ``beam_nulls`` lambda / L_tx (the transmitter's sinc beam out to
 whole extent for an omnidirectional transmitter). Cost: one facet per s^2 of the reached area,
 about 100 bytes each (position, normal, area, reflectivity, zero velocity) plus the echo
 synthesis's per-path work; checked against the memory budget before drawing.
+
+Order: the facets are sorted by along-track band (y in bands of BAND_FACETS facet spacings),
+then across track (x) within a band: the facets a pulse's beam reaches are then one contiguous
+index range (whole bands, :meth:`Facets.reach_span`), and consecutive facets lie close in range,
+so a run of them spans few samples of the echo (the echo synthesis skips whole runs).
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ from ..targets import Scatterers
 from .floor import Seafloor
 
 BYTES_PER_FACET = 160  # the arrays kept (~100 bytes) and the temporaries while drawing
+BAND_FACETS = 16  # an along-track band's width, in facet spacings (module docstring)
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
 
@@ -87,10 +93,11 @@ def reach_slope(seafloor: Seafloor, scenario) -> float:
 
 @dataclass(frozen=True, eq=False)
 class Facets:
-    """A seafloor's facets, sorted by y.
+    """A seafloor's facets, sorted by along-track band, then by x (module docstring).
 
     positions (N, 3) m; normals (N, 3) float32 unit upward; refl (N,) complex128 =
-    sqrt(area) exp(i phi); spacing (m); reach (tan psi, :func:`reach_slope`).
+    sqrt(area) exp(i phi); spacing (m); reach (tan psi, :func:`reach_slope`); bands (N,) int64,
+    each facet's band floor(y / (BAND_FACETS spacing)), non-decreasing.
     """
 
     positions: np.ndarray
@@ -98,6 +105,7 @@ class Facets:
     refl: np.ndarray
     spacing: float
     reach: float
+    bands: np.ndarray
 
     @property
     def count(self) -> int:
@@ -115,14 +123,30 @@ class Facets:
         d = p - tx
         return np.abs(d[:, 1]) <= self.reach * np.hypot(d[:, 0], d[:, 2])
 
+    def across(self, track: np.ndarray) -> float:
+        """m: a bound of every facet's distance across track (in x and z) from any transmitter
+        position of ``track`` (P, 3), plus 1 m (the ``across`` of :meth:`reach_span`)."""
+        if self.count == 0:
+            return 0.0
+        p = self.positions
+        dx = max(abs(a - b) for a in (p[:, 0].min(), p[:, 0].max()) for b in (track[:, 0].min(), track[:, 0].max()))
+        dz = max(abs(a - b) for a in (p[:, 2].min(), p[:, 2].max()) for b in (track[:, 2].min(), track[:, 2].max()))
+        return float(np.hypot(dx, dz)) + 1.0
+
+    def reach_spans(self, tx: np.ndarray, across: float) -> np.ndarray:
+        """int64 (P, 2): :meth:`reach_span` of each transmitter position of ``tx`` (P, 3)."""
+        return np.array([self.reach_span(t, across) for t in tx], dtype=np.int64).reshape(-1, 2)
+
     def reach_span(self, tx: np.ndarray, across: float) -> tuple[int, int]:
         """Index range [first, stop) of the facets that can be in reach of a transmitter at
-        ``tx`` (3,), given that no facet is farther than ``across`` (m) from it across track."""
+        ``tx`` (3,), given that no facet is farther than ``across`` (m) from it across track:
+        the whole bands that meet |y - tx_y| <= tan(psi) across."""
         if not np.isfinite(self.reach):
             return 0, self.count
         half = self.reach * across
-        y = self.positions[:, 1]
-        return int(np.searchsorted(y, tx[1] - half, "left")), int(np.searchsorted(y, tx[1] + half, "right"))
+        width = BAND_FACETS * self.spacing
+        lo, hi = np.floor((tx[1] - half) / width), np.floor((tx[1] + half) / width)
+        return int(np.searchsorted(self.bands, lo, "left")), int(np.searchsorted(self.bands, hi, "right"))
 
 
 def _column_limits(seafloor: Seafloor, x0: np.ndarray, x1: np.ndarray, track: np.ndarray,
@@ -167,8 +191,10 @@ def generate(seafloor: Seafloor, scenario) -> Facets:
     y = (j + u[1]) * s
     col_lo, col_hi = np.repeat(lo, counts), np.repeat(hi, counts)
     keep = (x >= ext[0]) & (x <= ext[1]) & (y >= col_lo) & (y <= col_hi)
-    order = np.argsort(y[keep], kind="stable")
-    x, y, phase = x[keep][order], y[keep][order], u[2][keep][order]
+    x, y = x[keep], y[keep]
+    bands = np.floor(y / (BAND_FACETS * s)).astype(np.int64)
+    order = np.lexsort((x, bands))
+    x, y, phase, bands = x[order], y[order], u[2][keep][order], bands[order]
     del u, i, j, keep, order, col_lo, col_hi
     gx, gy = seafloor.gradient(x, y)
     area = s * s * np.sqrt(1.0 + gx * gx + gy * gy)
@@ -177,6 +203,6 @@ def generate(seafloor: Seafloor, scenario) -> Facets:
     positions = np.stack([x, y, seafloor.height(x, y)], axis=-1)
     refl = np.sqrt(area) * np.exp(2j * np.pi * phase)
     normals = normals.astype(np.float32)
-    for arr in (positions, normals, refl):
+    for arr in (positions, normals, refl, bands):
         arr.flags.writeable = False
-    return Facets(positions, normals, refl, s, reach)
+    return Facets(positions, normals, refl, s, reach, bands)

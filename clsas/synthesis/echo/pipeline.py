@@ -31,7 +31,7 @@ from ..window import check_cube_size, node_span, receiver_nodes
 from .options import AUTO, DEFAULT_CHUNK_BYTES, SynthesisOptions, auto_flag
 from ..propagation import BandAbsorption, boundaries, path_kinds
 from .compressed import DEFAULT_LEVEL_DB, CompressedResponse
-from .synth import Physics, _NumpySynth, _OpenCLSynth, path_record
+from .synth import Physics, _NumpySynth, _OpenCLSynth, on_floor, path_record
 
 
 def _pulse_blocks(n_pulses: int, per_pulse_bytes: int, chunk_bytes: int) -> list[slice]:
@@ -41,18 +41,20 @@ def _pulse_blocks(n_pulses: int, per_pulse_bytes: int, chunk_bytes: int) -> list
 
 def _delay_bound(scenario: Scenario, scat: Scatterers, physics: Physics) -> float:
     """An upper bound guess of every delay (s) for the node span, from the first/middle/last
-    pulses, over every path kind (image transmitters and receivers)."""
+    pulses, over every path kind (image transmitters and receivers): the scatterers' bounding
+    box's farthest corner on each leg."""
     eta = scenario.eta[[0, scenario.eta.size // 2, -1]]
     c = scenario.medium.sound_speed
     worst = 0.0
-    for kind in physics.kinds:
-        tx = kind.out.image.points(scenario.tx_position(eta))
-        for p in range(eta.size):
-            q = scat.p0 + scat.vel * eta[p]
-            out = np.linalg.norm(q - tx[p], axis=1)
-            back = max(np.max(np.linalg.norm(q - kind.back.image.points(scenario.receiver_position(h, eta[p])), axis=1))
-                       for h in range(scenario.n_receivers))
-            worst = max(worst, np.max(out) + back)
+    for p in range(eta.size):
+        q = scat.p0 + scat.vel * eta[p]
+        corners = np.array(np.meshgrid(*np.stack([q.min(axis=0), q.max(axis=0)], axis=1), indexing="ij")).reshape(3, -1).T
+        for kind in physics.kinds:  # the farthest point of the scatterers' box is one of its corners
+            tx = kind.out.image.points(scenario.tx_position(eta[p:p + 1]))[0]
+            out = np.max(np.linalg.norm(corners - tx, axis=1))
+            back = max(np.max(np.linalg.norm(corners - kind.back.image.points(scenario.receiver_position(h, eta[p])),
+                                             axis=1)) for h in range(scenario.n_receivers))
+            worst = max(worst, out + back)
     return 1.2 * worst / c + scenario.waveform.duration
 
 
@@ -71,7 +73,8 @@ def _check_targets_in_windows(scenario: Scenario, lo, hi, t0, n_valid) -> None:
     wf = scenario.waveform
     end = t0 + (n_valid - 1) / wf.fs
     heard = ((hi + 0.5 * wf.duration) >= t0[:, None]) & ((lo - 0.5 * wf.duration) <= end[:, None])
-    deaf = np.flatnonzero(~heard.any(axis=0))
+    # a facet no pulse's beam reaches carries no echo (lo = inf): not an error
+    deaf = np.flatnonzero(~heard.any(axis=0) & np.isfinite(lo).any(axis=0))
     if deaf.size:
         raise ValueError(
             f"{deaf.size} scatterer(s) (indices {deaf[:5].tolist()}{'...' if deaf.size > 5 else ''}) echo "
@@ -144,25 +147,30 @@ def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_oc
     return lambda pulses: mesh(pulses) * occlusion[:, pulses]
 
 
-def resolve_physics(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers) -> Physics:
+def resolve_physics(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers, prune: bool = True) -> Physics:
     """What the paths carry for ``scenario`` under ``opts`` (the "auto" options resolved: spreading
     and absorption on, and first-order multipath, in a scene with a seafloor; multipath also with
-    a sea surface). ``scat``: every scatterer, the seafloor's facets last."""
+    a sea surface). ``scat``: every scatterer, the seafloor's facets last. ``prune``: leave out
+    the path kinds that are dark for every scatterer (a bounce off the seabed next to a scatterer
+    that lies on it, :func:`.synth.on_floor`: a scene of seafloor facets alone)."""
     floor = getattr(scenario, "seafloor", None) is not None
     planes = boundaries(scenario)
     order = (1 if planes else 0) if opts.multipath == AUTO else opts.multipath
+    kinds = path_kinds(planes, order)
+    floor_first = scatterers_of(scenario.targets).count if floor else None
+    if prune and floor and np.all(on_floor(scat, floor_first, kinds)):
+        kinds = tuple(kind for kind in kinds if not Physics.touches_floor(kind))
     spreading = floor if opts.spreading == AUTO else opts.spreading
     absorbing = floor if opts.absorption == AUTO else opts.absorption
     absorption = BandAbsorption.of(scenario.medium, scenario.waveform) if absorbing else None
     response = None if opts.compressed is False else \
         CompressedResponse.of(scenario.waveform, opts.compressed, opts.compressed_level_db)
-    floor_first = scatterers_of(scenario.targets).count if floor else None
-    return Physics(kinds=path_kinds(planes, order), intra_pulse=opts.intra_pulse, absorption=absorption,
+    return Physics(kinds=kinds, intra_pulse=opts.intra_pulse, absorption=absorption,
                    spreading=spreading, stop_and_go=opts.stop_and_go, moving=bool(np.any(scat.vel != 0)),
                    response=response, floor_first=floor_first)
 
 
-def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion):
+def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion, prune: bool = True):
     """The backend's synthesizer and the pulse blocks that keep its working memory under ``opts.chunk_bytes``."""
     scat = scene_scatterers(scenario)
     if scat.count == 0:
@@ -176,7 +184,7 @@ def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion):
                              f"{(n_rx, n_pulses, scat.count)} (or (1, n_pulses, n_scatterers): shared by the "
                              f"receivers), got {occlusion.shape}")
     occlusion = _with_mesh_weights(scenario, occlusion, opts.stop_and_go, opts.hull_occlusion, opts.reuse_tolerance)
-    physics = resolve_physics(scenario, opts, scat)
+    physics = resolve_physics(scenario, opts, scat, prune)
     args = (scenario, scat, occlusion, physics)
     kinds = len(physics.kinds)
     if opts.backend == "numpy":
@@ -209,7 +217,7 @@ def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = F
         raise ValueError(f"delays path: must be one of this scenario's path kinds {names}, got {path!r}")
     order = sum(ch in "SB" for ch in path)
     synth, blocks = _make_synth(scenario, SynthesisOptions(backend=backend, stop_and_go=stop_and_go, multipath=order,
-                                                           spreading=False, absorption=False), None)
+                                                           spreading=False, absorption=False), None, prune=False)
     kind = [k.name for k in synth.physics.kinds].index(path)
     return np.concatenate([synth.delays(sl, kind) for sl in blocks], axis=1)
 

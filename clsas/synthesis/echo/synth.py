@@ -36,6 +36,7 @@ import numpy as np
 from ... import geometry, opencl
 from ...cstruct import declare_all, record_dtype
 from ...scene.scenario import Scenario
+from ...scene.seafloor import generate
 from ...scene.targets import Scatterers
 from ..paths import Paths, bottom_coefficient, paths
 from ..propagation import BOTTOM, DIRECT, BandAbsorption
@@ -45,6 +46,7 @@ CHUNK_SCATTERERS = 16  # paths per bounds chunk in the OpenCL accumulation
 ROWS = 8  # 16-sample rows per work-item of the OpenCL accumulation
 BOTTOM_TABLE = 1025  # entries of the seabed's reflection table, sin(grazing) in [0, 1]
 MAX_BOUNCES = 2  # per leg
+UNHEARD = 1 << 30  # kernels/echo.cl: the start sample of a path that carries no echo
 # the records echo_paths reads (kernels/echo.cl): a pulse, a receiver, the launch's parameters and
 # the path kind's bounces
 PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("tx_axis", "f8", 3), ("tx_vel", "f8", 3)])  # m, s, 1, m/s
@@ -217,6 +219,32 @@ class _Synth:
         wf = scenario.waveform
         self.alpha = 0.5 * wf.chirp_rate / wf.fs**2
         self.half_len = 0.5 * wf.duration * wf.fs
+        self.floor_first = scat.count if physics.floor_first is None else physics.floor_first
+        self.facets = None if physics.floor_first is None else generate(scenario.seafloor, scenario)
+        self.across = 0.0 if self.facets is None else self.facets.across(scenario.tx_position(scenario.eta))
+
+    def reach(self, pulses: slice, cull: bool = True):
+        """int64 (P, 2): per pulse of the block, the seafloor facets [first, stop) (indices among
+        the facets) that its beam can reach (:meth:`clsas.scene.seafloor.Facets.reach_span`; every
+        facet unless ``cull``); None without a seafloor. The facets outside carry no echo at that
+        pulse (their path weights are 0): both backends leave them out of the recording window."""
+        if self.facets is None:
+            return None
+        eta = self.eta[pulses]
+        if not cull:
+            return np.tile(np.array([0, self.facets.count], np.int64), (eta.size, 1))
+        return self.facets.reach_spans(self.scenario.tx_position(eta), self.across)
+
+    def heard(self, pulses: slice) -> np.ndarray:
+        """bool (P, N): the scatterers that can carry an echo at each pulse of the block (every
+        target; the facets within :meth:`reach`)."""
+        n_p = len(range(*pulses.indices(self.eta.size)))
+        out = np.ones((n_p, self.scat.count), dtype=bool)
+        spans = self.reach(pulses)
+        if spans is not None:
+            k = np.arange(self.scat.count - self.floor_first)
+            out[:, self.floor_first:] = (k >= spans[:, :1]) & (k < spans[:, 1:])
+        return out
 
     def weights(self, pulses: slice):
         """The path weights of a pulse block: (H, P, N), or (1, P, N) shared by the receivers."""
@@ -254,10 +282,16 @@ class _NumpySynth(_Synth):
 
     def extents(self, pulses: slice):
         lo, hi = None, None
+        heard = self.heard(pulses)
         for kind in self.physics.kinds:
-            a, b = sample_extents(self._paths(pulses, kind).tau * self.scenario.waveform.fs)
+            a, b = sample_extents(self._paths(pulses, kind).tau * self.scenario.waveform.fs, heard)
             lo, hi = (a, b) if lo is None else (np.minimum(lo, a), np.maximum(hi, b))
         return lo, hi
+
+    def spread(self, pulse: int) -> np.ndarray:
+        """(H,) s: the spread of the direct paths' delays at ``pulse`` over the scatterers heard then."""
+        tau = self._paths(slice(pulse, pulse + 1), self.physics.kinds[0]).tau[:, 0, self.heard(slice(pulse, pulse + 1))[0]]
+        return tau.max(axis=1) - tau.min(axis=1)
 
     def records(self, pulses: slice, t0: np.ndarray, n_samples: int) -> np.ndarray:
         wf = self.scenario.waveform
@@ -314,22 +348,34 @@ class _OpenCLSynth(_Synth):
         c = sc.medium.sound_speed
         self.rx_tau, self.rx_pos, self.rx_axis, self.rx_node_error = nodes
         n = scat.count
-        self.n_pad = -(-n // 8) * 8  # the paths kernel takes eight scatterers a work-item
-        self.stride = self.n_pad * len(ph.kinds)  # paths a record: every kind's padded scatterers
-        self.order = self._delay_order()
-        padded = np.concatenate([self.order, np.repeat(self.order[:, -1:], self.n_pad - n, axis=1)], axis=1)
+        # positions 0 .. split - 1: the targets in each receiver's delay order; from split on: the
+        # seafloor's facets in their own order (shared by the receivers), each part padded to eight
+        n_t, n_f = self.floor_first, n - self.floor_first
+        self.split, self.n_floor = -(-n_t // 8) * 8, -(-n_f // 8) * 8
         fields = np.zeros(n, SCATTERER)
         fields["p0"], fields["vel"] = scat.p0, scat.vel
         fields["refl"] = np.column_stack([scat.refl.real, scat.refl.imag])
         fields["on_floor"] = on_floor(scat, ph.floor_first, ph.kinds)
         flat = np.concatenate([fields[name].reshape(n, -1) for name in SCATTERER.names], axis=1)
-        soa = np.ascontiguousarray(np.transpose(flat[padded], (0, 2, 1)))  # (H, fields, n_pad)
         refl = SCATTERER.fields["refl"][1] // 8  # the first reflectivity field (doubles)
-        soa[:, refl:refl + 2, n:] = 0.0  # padding scatterers reflect nothing
+        order = self._delay_order()
+        self.target_index = np.full((self.n_rx, self.split), -1, np.int64)  # scatterer per position, -1: padding
+        self.target_index[:, :n_t] = order
+        padded = np.where(self.target_index < 0, order[:, -1:] if n_t else 0, self.target_index)
+        tsoa = np.ascontiguousarray(np.transpose(flat[padded], (0, 2, 1))) if n_t else np.zeros(1)  # (H, fields, split)
+        if n_t:
+            tsoa[:, refl:refl + 2, n_t:] = 0.0  # padding scatterers reflect nothing
+        facet_index = np.minimum(n_t + np.arange(self.n_floor), n - 1)
+        fsoa = np.ascontiguousarray(flat[facet_index].T) if n_f else np.zeros(1)  # (fields, n_floor)
+        if n_f:
+            fsoa[refl:refl + 2, n_f:] = 0.0
         mf = cl.mem_flags
         ctx = self.rt.context
-        self.soa_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=soa)
-        self.order_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=padded.astype(np.int32))
+        self.tsoa_buf, self.fsoa_buf, self.torder_buf, self.forder_buf = (
+            cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
+            for a in (tsoa, fsoa, padded.astype(np.int32) if n_t else np.zeros(1, np.int32),
+                      facet_index.astype(np.int32) if n_f else np.zeros(1, np.int32)))
+        del tsoa, fsoa, flat, fields
         self.tx = sc.tx_position(self.eta)
         self.tx_vel = (sc.tx_position(self.eta + 1e-3) - sc.tx_position(self.eta - 1e-3)) / 2e-3
         self.tx_axis = sc.platform.rotation(self.eta)[..., :, 1]
@@ -365,6 +411,7 @@ class _OpenCLSynth(_Synth):
             cl.Kernel(opencl.program("echo", defines=plain, double=double, preamble=preamble), "echo_paths")
         self.k_bounds = cl.Kernel(prg, "echo_bounds")
         self.k_extents = cl.Kernel(prg, "echo_extents")
+        self.k_spread = cl.Kernel(prg, "echo_spread")
         self.k_acc = cl.Kernel(prg, "echo_accumulate_compressed" if ph.response is not None else "echo_accumulate")
         wf = sc.waveform
         self.params = np.zeros((), PARAMS)
@@ -387,34 +434,62 @@ class _OpenCLSynth(_Synth):
                               hostbuf=table)
 
     def _delay_order(self) -> np.ndarray:
-        """Per receiver, the scatterers sorted by their stop-and-go delay at the middle pulse (H, N).
+        """Per receiver, the targets' scatterers (those before the seafloor's facets) sorted by
+        their stop-and-go delay at the middle pulse (H, n_targets).
 
         Sorting keeps each chunk of CHUNK_SCATTERERS compact in delay, so the accumulation skips
-        whole chunks that cannot reach a block of samples; any order gives the same result.
+        whole chunks that cannot reach a block of samples; any order gives the same result (the
+        facets keep their own order, by along-track band and range: compact too).
         """
         mid = self.eta[self.eta.size // 2]
-        q = self.scat.p0 + self.scat.vel * mid
+        q = self.scat.p0[:self.floor_first] + self.scat.vel[:self.floor_first] * mid
         out = np.linalg.norm(q - self.scenario.tx_position(mid), axis=1)
         return np.stack([np.argsort(out + np.linalg.norm(q - self.scenario.receiver_position(h, mid), axis=1),
-                                    kind="stable") for h in range(self.n_rx)])
+                                    kind="stable") for h in range(self.n_rx)]).reshape(self.n_rx, -1)
 
-    def _run_paths(self, pulses: slice, t0: np.ndarray, weighted: bool = True):
-        """The paths kernel on a pulse block, every path kind: delays and amplitudes (times the
-        occlusion weights unless not ``weighted``: the delays and extents do not need them)."""
+    def _block(self, pulses: slice, cull: bool):
+        """(jump, n_act, active) of a pulse block: the paths kernel computes positions 0 .. split - 1
+        and split + jump .. n_act + jump - 1 (the facets some pulse of the block can reach, in
+        whole eights); active (P, 2) int32: each pulse's reach in positions."""
+        spans = self.reach(pulses, cull)
+        n_p = len(range(*pulses.indices(self.eta.size)))
+        if spans is None or self.n_floor == 0:
+            return 0, self.split, np.zeros((n_p, 2), np.int32)
+        first = min(int(spans[:, 0].min()) // 8 * 8, self.n_floor - 8)
+        stop = max(min(self.n_floor, -(-int(spans[:, 1].max()) // 8) * 8), first + 8)
+        return first, self.split + stop - first, (spans + self.split).astype(np.int32)
+
+    def _index(self, jump: int, n_act: int) -> np.ndarray:
+        """(H, n_act) int64: the scatterer of each computed path slot (-1: padding)."""
+        out = np.full((self.n_rx, n_act), -1, np.int64)
+        out[:, :self.split] = self.target_index
+        k = np.arange(self.split, n_act) + jump - self.split  # facet index
+        out[:, self.split:] = np.where(k < self.scat.count - self.floor_first, self.floor_first + k, -1)
+        return out
+
+    def _run_paths(self, pulses: slice, t0: np.ndarray, weighted: bool = True, kinds=None, cull: bool = True):
+        """The paths kernel on a pulse block for the path ``kinds`` (indices; default every kind):
+        delays and amplitudes (times the occlusion weights unless not ``weighted``: the delays and
+        extents do not need them), of the targets and of the facets the block's beam reaches
+        (every facet unless ``cull``). Returns (paths buffer, pulses, (jump, n_act, stride))."""
         cl, q, ctx = self.cl, self.rt.queue, self.rt.context
         mf = cl.mem_flags
         idx = np.arange(self.eta.size)[pulses]
-        pc, h, n = idx.size, self.n_rx, self.n_pad
+        pc, h = idx.size, self.n_rx
+        kinds = range(len(self.physics.kinds)) if kinds is None else kinds
+        jump, n_act, active = self._block(pulses, cull)
+        stride = n_act * len(kinds)
         rx = np.zeros(h, RECEIVER)
         rx["t0_fs"], rx["length"] = t0 * self.scenario.waveform.fs, self.scenario.receiver_lengths
         w = self.weights(pulses) if weighted else None
         w_rx = 0 if w is None or w.shape[0] == 1 else pc
         w = np.ones(1, np.float32) if w is None else np.ascontiguousarray(w, dtype=np.float32)
-        w_buf, rx_buf = (cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
-                         for a in (w, rx))
-        paths_buf = cl.Buffer(ctx, mf.READ_WRITE, self.path_dtype.itemsize * h * pc * self.stride)
+        w_buf, rx_buf, active_buf = (cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
+                                     for a in (w, rx, active))
+        paths_buf = cl.Buffer(ctx, mf.READ_WRITE, self.path_dtype.itemsize * h * pc * stride)
         kernel = self.k_paths if weighted else self.k_paths_plain
-        for k, kind in enumerate(self.physics.kinds):
+        for slot, k in enumerate(kinds):
+            kind = self.physics.kinds[k]
             out_image, back_image = kind.out.image, kind.back.image
             pulse = np.zeros(pc, PULSE)
             pulse["tx"], pulse["eta"] = out_image.points(self.tx[idx]), self.eta[idx]
@@ -423,70 +498,88 @@ class _OpenCLSynth(_Synth):
             nodes["pos"], nodes["axis"] = back_image.points(self.rx_pos[:, idx]), back_image.vectors(self.rx_axis[:, idx])
             pulse_buf, node_buf = (cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
                                    for a in (pulse, nodes))
-            kernel(q, (n // 8, pc, h), None, self.soa_buf, pulse_buf, node_buf, rx_buf, self.order_buf, w_buf,
-                   self.bottom_buf, self.params[()], self.legs[k][()], np.int32(self.scat.count), np.int32(n),
-                   np.int32(pc), np.int32(w_rx), np.int32(self.stride), np.int32(k * n), paths_buf)
-        return paths_buf, pc
+            kernel(q, (n_act // 8, pc, h), None, self.tsoa_buf, self.fsoa_buf, pulse_buf, node_buf, rx_buf,
+                   self.torder_buf, self.forder_buf, w_buf, self.bottom_buf, self.params[()], self.legs[k][()],
+                   np.int32(self.scat.count), np.int32(self.split), np.int32(self.n_floor), np.int32(jump),
+                   active_buf, np.int32(pc), np.int32(w_rx), np.int32(stride), np.int32(slot * n_act), paths_buf)
+        return paths_buf, pc, (jump, n_act, stride)
 
     def release(self) -> None:
         """Drop the cached path buffers (after pass B)."""
         self.cache.clear()
         self.cached_bytes = 0
 
-    def _host_paths(self, paths_buf, pc: int) -> np.ndarray:
-        host = np.empty((self.n_rx, pc, self.stride), self.path_dtype)
-        self.cl.enqueue_copy(self.rt.queue, host, paths_buf)
-        return host
-
     def delays(self, pulses: slice, kind: int = 0) -> np.ndarray:
         """Delays (H, P, N) of the block's paths of ``physics.kinds[kind]`` (0: direct) from the
-        kernel, in scatterer order."""
+        kernel, in scatterer order (every facet, in the beam's reach or not)."""
         h, n = self.n_rx, self.scat.count
-        paths_buf, pc = self._run_paths(pulses, np.zeros(h), weighted=False)
-        host = self._host_paths(paths_buf, pc)[:, :, kind * self.n_pad:kind * self.n_pad + n]
+        paths_buf, pc, (jump, n_act, stride) = self._run_paths(pulses, np.zeros(h), weighted=False, kinds=[kind],
+                                                               cull=False)
+        host = np.empty((h, pc, stride), self.path_dtype)
+        self.cl.enqueue_copy(self.rt.queue, host, paths_buf)
+        u = (host["start"] + host["frac"].astype(np.float64)) / self.scenario.waveform.fs
+        index = self._index(jump, n_act)
         tau = np.empty((h, pc, n))
-        tau[np.arange(h)[:, None, None], np.arange(pc)[None, :, None], self.order[:, None, :]] = \
-            (host["start"] + host["frac"].astype(np.float64)) / self.scenario.waveform.fs
+        for r in range(h):
+            valid = index[r] >= 0
+            tau[r][:, index[r, valid]] = u[r][:, valid]
         return tau
 
-    def _path_bytes(self, pc: int) -> int:
-        return self.path_dtype.itemsize * self.n_rx * pc * self.stride
+    def spread(self, pulse: int) -> np.ndarray:
+        """(H,) s: the spread of the direct paths' delays at ``pulse`` over the scatterers heard
+        then (kernels/echo.cl ``echo_spread``)."""
+        paths_buf, _, (_, n_act, stride) = self._run_paths(slice(pulse, pulse + 1), np.zeros(self.n_rx),
+                                                           weighted=False, kinds=[0])
+        out = self.cl.Buffer(self.rt.context, self.cl.mem_flags.WRITE_ONLY, 16 * self.n_rx)
+        self.k_spread(self.rt.queue, (1, self.n_rx), None, paths_buf, np.int32(n_act), np.int32(stride), out)
+        host = np.empty((self.n_rx, 2))
+        self.cl.enqueue_copy(self.rt.queue, host, out)
+        return (host[:, 1] - host[:, 0]) / self.scenario.waveform.fs
+
+    def _path_bytes(self, pc: int, stride: int) -> int:
+        return self.path_dtype.itemsize * self.n_rx * pc * stride
 
     def extents(self, pulses: slice):
-        """(floor(min u), floor(max u) + 1) per (receiver, scatterer) over every path kind, reduced
-        on the device. With an occlusion factor the paths are computed unweighted and not kept
-        for pass B: the weights (hull ray casting for meshes) are then computed once, by pass B,
-        whose pulse blocks need not match these."""
+        """(floor(min u), floor(max u) + 1) per (receiver, scatterer) over every path kind and the
+        block's pulses that hear it (inf, -inf: none), reduced on the device. With an occlusion
+        factor the paths are computed unweighted and not kept for pass B: the weights (hull ray
+        casting for meshes) are then computed once, by pass B, whose pulse blocks need not match
+        these."""
         cl, q = self.cl, self.rt.queue
         h, n = self.n_rx, self.scat.count
-        paths_buf, pc = self._run_paths(pulses, np.zeros(h), weighted=False)
+        paths_buf, pc, block = self._run_paths(pulses, np.zeros(h), weighted=False)
+        jump, n_act, stride = block
         reusable = self.occlusion is None  # unweighted paths are pass B's paths only without weights
-        if reusable and self.cached_bytes + self._path_bytes(pc) <= self.cache_bytes:
-            self.cache[(pulses.start, pulses.stop)] = (paths_buf, pc)
-            self.cached_bytes += self._path_bytes(pc)
-        ext = cl.Buffer(self.rt.context, cl.mem_flags.WRITE_ONLY, 8 * h * self.stride)
-        self.k_extents(q, (self.stride, h), None, paths_buf, np.int32(self.stride), np.int32(pc), ext)
-        host = np.empty((h, len(self.physics.kinds), self.n_pad, 2), np.int32)
+        if reusable and self.cached_bytes + self._path_bytes(pc, stride) <= self.cache_bytes:
+            self.cache[(pulses.start, pulses.stop)] = (paths_buf, pc, block)
+            self.cached_bytes += self._path_bytes(pc, stride)
+        ext = cl.Buffer(self.rt.context, cl.mem_flags.WRITE_ONLY, 8 * h * stride)
+        self.k_extents(q, (stride, h), None, paths_buf, np.int32(stride), np.int32(pc), ext)
+        host = np.empty((h, len(self.physics.kinds), n_act, 2), np.int32)
         cl.enqueue_copy(q, host, ext)
-        host = np.stack([host[..., 0].min(axis=1), host[..., 1].max(axis=1)], axis=-1)
-        lo, hi = np.empty((h, n)), np.empty((h, n))
-        rows = np.arange(h)[:, None]
-        lo[rows, self.order] = host[:, :n, 0]
-        hi[rows, self.order] = host[:, :n, 1] + 1.0
+        first, last = host[..., 0].min(axis=1), host[..., 1].max(axis=1)
+        first = np.where(first == UNHEARD, np.inf, first)
+        last = np.where(last == -UNHEARD, -np.inf, last + 1.0)
+        lo, hi = np.full((h, n), np.inf), np.full((h, n), -np.inf)
+        index = self._index(jump, n_act)
+        for r in range(h):
+            valid = index[r] >= 0
+            lo[r, index[r, valid]] = first[r, valid]
+            hi[r, index[r, valid]] = last[r, valid]
         return lo, hi
 
     def records(self, pulses: slice, t0: np.ndarray, n_samples: int) -> np.ndarray:
         """The block's records; reuses the paths of extents() when the window starts on a whole sample."""
         cl, q = self.cl, self.rt.queue
-        h, n = self.n_rx, self.stride
+        h = self.n_rx
         first = t0 * self.scenario.waveform.fs
         whole = np.all(np.abs(first - np.round(first)) < 1e-6) and np.all(np.abs(first) < 2**31)
         cached = self.cache.pop((pulses.start, pulses.stop), None) if whole else None
         if cached is not None:
-            paths_buf, pc = cached
+            paths_buf, pc, (_, _, n) = cached
             shift = np.round(first).astype(np.int32)
         else:
-            paths_buf, pc = self._run_paths(pulses, t0)
+            paths_buf, pc, (_, _, n) = self._run_paths(pulses, t0)
             shift = np.zeros(h, np.int32)
         n_chunks = -(-n // CHUNK_SCATTERERS)
         mf = cl.mem_flags
@@ -512,9 +605,11 @@ class _OpenCLSynth(_Synth):
         return host[:, :, :n_samples]
 
 
-def sample_extents(u: np.ndarray):
+def sample_extents(u: np.ndarray, heard: np.ndarray | None = None):
     """Echo-centre extents per (receiver, scatterer) over the pulses of ``u`` (H, P, N), in samples
-    from t = 0, rounded outwards to whole samples: (floor(min u), floor(max u) + 1). Both
-    backends report extents this way (the OpenCL kernel returns floor(u) directly), so that
-    they derive the same recording window."""
-    return np.floor(u.min(axis=1)), np.floor(u.max(axis=1)) + 1
+    from t = 0, rounded outwards to whole samples: (floor(min u), floor(max u) + 1), over the
+    pulses where ``heard`` (P, N) (inf, -inf where none). Both backends report extents this way
+    (the OpenCL kernel returns floor(u) directly), so that they derive the same recording window."""
+    if heard is None:
+        return np.floor(u.min(axis=1)), np.floor(u.max(axis=1)) + 1
+    return np.floor(np.where(heard, u, np.inf).min(axis=1)), np.floor(np.where(heard, u, -np.inf).max(axis=1)) + 1

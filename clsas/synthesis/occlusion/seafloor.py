@@ -80,15 +80,8 @@ class SeafloorPaths:
         sigma = floor.sediment.backscatter_cross_section(theta, scenario.waveform.f0, floor.law,
                                                          scenario.medium.sound_speed)
         self.law = np.sqrt(sigma)
-        track = scenario.tx_position(scenario.eta)
-        p = self.facets.positions
-        if self.count:  # no facet is farther across than this from any transmitter position
-            dx = max(abs(a - b) for a in (p[:, 0].min(), p[:, 0].max()) for b in (track[:, 0].min(), track[:, 0].max()))
-            dz = max(abs(a - b) for a in (p[:, 2].min(), p[:, 2].max()) for b in (track[:, 2].min(), track[:, 2].max()))
-            self.across = float(np.hypot(dx, dz)) + 1.0
-            self.origin = p.mean(axis=0)
-        else:
-            self.across, self.origin = 0.0, np.zeros(3)
+        self.across = self.facets.across(scenario.tx_position(scenario.eta))  # no facet is farther across
+        self.origin = self.facets.positions.mean(axis=0) if self.count else np.zeros(3)
         self.rays_cast = 0
         self._device = None
 
@@ -178,7 +171,7 @@ class SeafloorPaths:
             self._device = tuple(cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
                                  for a in (*soa, self.law.astype(np.float32)))
         n_p, n_rx = stations.shape[0], self.scenario.n_receivers
-        spans = np.array([self.facets.reach_span(tx, self.across) for tx in stations[:, 0]])
+        spans = self.facets.reach_spans(stations[:, 0], self.across)
         first = int(spans[:, 0].min()) // 16 * 16  # the facets any of these pulses can reach
         span = -(-(int(spans[:, 1].max()) - first) // 16) * 16
         out[...] = 0.0
