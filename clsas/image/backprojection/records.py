@@ -274,12 +274,15 @@ class PreparedRecords:
                 host.flags.writeable = False
                 self._device[key] = (cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=host), host)
             return self._device[key][0], self._host[i].shape[1], 0
-        # the device reads the records in place (no copy on a CPU device): a view of the echo (no
-        # upsampling, no cut), which outlives the call, or an array made for this call, which the
-        # buffer holds (pyopencl keeps a USE_HOST_PTR buffer's host array); the call finishes its
-        # queue before it returns
-        records = np.ascontiguousarray(self.samples(i, pulses), dtype=dtype)
-        return cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=records), records.shape[1], int(pulses[0])
+        records = self.samples(i, pulses)
+        if records.dtype == dtype and records.flags.c_contiguous and records.base is not None:
+            # a view of the echo itself (no upsampling, no cut): the device reads it in place; the
+            # call finishes its queue before it returns, and the echo outlives the call
+            return cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=records), records.shape[1], int(pulses[0])
+        # an array made for this call is copied: the launcher drops a block's buffer while its
+        # kernels may still be queued, and a USE_HOST_PTR buffer's array would go with it
+        records = np.ascontiguousarray(records, dtype=dtype)
+        return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=records), records.shape[1], int(pulses[0])
 
     def subset(self, chosen) -> "PreparedRecords":
         """The same records for the receivers ``chosen`` (echo indices, all prepared), in that
