@@ -25,7 +25,10 @@ each, min and median, with the relative L2 difference of the two images:
 - ``full``: the narrow sonar over every pulse and angle (the pixels then sample the image far
   more coarsely than its resolution along track, which limits how far merging pays).
 
-``--scan`` adds one timed run each of the wide case for 512, 1024, 2048 and 4096 pulses on
+``--factors`` times ``clsas.ffbp`` with factor=2 as well (a third run in the interleaving; the
+default merges 4 children at a time). ``--big`` adds the issue's large case, the wide sonar at 2048^2 pixels x 4096 pulses (2 timed
+runs each after a warm-up; direct back-projection takes about a minute a run on 2 cores, so the
+case costs about 5 minutes). ``--scan`` adds one timed run each of the wide case for 512, 1024, 2048 and 4096 pulses on
 square grids of half as many pixels a side (the aperture and the image grow together), and of
 the aperture case for the same pulses on a fixed 512^2 grid.
 
@@ -35,7 +38,9 @@ JSON output (``--json``; ``bench/run_all.py`` collects them), not here.
 
 from __future__ import annotations
 
+import pathlib
 import statistics
+import subprocess
 import sys
 import time
 
@@ -51,6 +56,22 @@ from clsas.image.ffbp import ffbp
 F0, B, FS, UP, DEPTH = 150e3, 20e3, 25e3, 8, -5.0
 # the two sonars: element length D (m; pulses every D / 4) and the image's ranges (m)
 SONARS = {"narrow": {"element": 0.1, "ranges": (40.0, 60.0)}, "wide": {"element": 0.02, "ranges": (20.0, 40.0)}}
+
+
+def _commit() -> str:
+    """The commit measured (both imagers come from it), with '+dirty' for uncommitted changes."""
+    here = pathlib.Path(__file__).resolve().parent
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=here, capture_output=True, text=True,
+                              check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
+                               capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return head + ("+dirty" if dirty else "")
+
+
+COMMIT = _commit()
 
 
 def scene(n_pulses: int, n_pixels: int, sonar: str = "narrow"):
@@ -84,9 +105,9 @@ def interleaved(runs: dict, repeats: int) -> dict:
 
 
 def main() -> None:
-    scan = "--scan" in sys.argv
-    if scan:
-        sys.argv.remove("--scan")
+    flags = {flag: flag in sys.argv for flag in ("--scan", "--big", "--factors")}
+    sys.argv = [a for a in sys.argv if a not in flags]
+    scan, big = flags["--scan"], flags["--big"]
     args = arguments(__doc__.splitlines()[0])
     n_pix, n_pulses = (512, 1024) if args.quick else (1024, 2048)
     repeats = args.repeats or 3
@@ -94,6 +115,8 @@ def main() -> None:
     cases = {"wide": ("wide", {}), "aperture": ("narrow", {"aperture": 2 * 0.01 / SONARS["narrow"]["element"]}),
              "full": ("narrow", {})}
     sizes = [(n_pix, n_pulses, case, repeats) for case in cases]
+    if big:
+        sizes.append((2048, 4096, "wide", 2))
     if scan:
         sizes += [(n // 2, n, "wide", 1) for n in (512, 1024, 2048, 4096)]
         sizes += [(512, n, "aperture", 1) for n in (512, 1024, 2048, 4096)]
@@ -106,19 +129,23 @@ def main() -> None:
         kw = dict(backend="opencl", upsample=1, progress=False)
         runs = {"direct": lambda: backproject(echo, grid, interp="linear", **kw, **options),
                 "ffbp": lambda: ffbp(echo, grid, interp="linear", **kw, **options)}
+        if flags["--factors"]:
+            runs["ffbp_factor2"] = lambda: ffbp(echo, grid, interp="linear", factor=2, **kw, **options)
         times, images = interleaved(runs, reps)
         ref = images["direct"].data
-        err = float(np.linalg.norm(images["ffbp"].data - ref) / np.linalg.norm(ref))
         work = grid.size * pulses
         medians = {name: statistics.median(t) for name, t in times.items()}
         for name, t in times.items():
-            extra = {"method": name, "case": case, "min_seconds": min(t), "rate_best": work / min(t), "runs": len(t)}
-            if name == "ffbp":
-                extra.update(ratio_median=medians["direct"] / medians["ffbp"],
-                             ratio_best=min(times["direct"]) / min(t), rel_l2=err,
-                             levels=images["ffbp"].provenance["levels"], first=images["ffbp"].provenance["first"],
-                             oversampling=images["ffbp"].provenance["oversampling"],
-                             polar_samples=images["ffbp"].provenance["polar_samples"])
+            extra = {"method": name, "case": case, "min_seconds": min(t), "median_seconds": medians[name],
+                     "rate_best": work / min(t), "runs": len(t), "commit": COMMIT}
+            if name != "direct":
+                made = images[name]
+                extra.update(ratio_median=medians["direct"] / medians[name],
+                             ratio_best=min(times["direct"]) / min(t),
+                             rel_l2=float(np.linalg.norm(made.data - ref) / np.linalg.norm(ref)),
+                             factor=made.provenance["factor"], levels=made.provenance["levels"],
+                             first=made.provenance["first"], oversampling=made.provenance["oversampling"],
+                             polar_samples=made.provenance["polar_samples"])
             report(args, "ffbp", "opencl", {"pixels": grid.size, "pulses": pulses, "receivers": 1},
                    work / medians[name], "BP/s", medians[name], **extra)
 

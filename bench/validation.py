@@ -102,6 +102,13 @@ def _table(columns, rows) -> list:
         ["| " + " | ".join(_cell(v) for v in row) + " |" for row in rows]
 
 
+def _paper(row: dict) -> str:
+    """The paper's number of a row as printed: the value, or its bound ("<=2")."""
+    if row["paper"] is None:
+        return "-"
+    return report.BOUNDS.get(row.get("kind", "value"), "") + _cell(row["paper"])
+
+
 def _machine(doc: dict) -> str:
     m = doc.get("machine", {})
     start, end = m.get("load_average_at_start"), m.get("load_average")
@@ -122,7 +129,7 @@ def render_paper(doc: dict) -> list:
         if row["table"] not in tables:
             tables.append(row["table"])
     for name in tables:
-        rows = [(r["item"], f"{r['quantity']} ({r['unit']})", r["paper"], r["clsas"], r["difference"], r["tolerance"],
+        rows = [(r["item"], f"{r['quantity']} ({r['unit']})", _paper(r), r["clsas"], r["difference"], r["tolerance"],
                  r["verdict"] if r["verdict"] != "differs" else f"differs: {r['reason']}")
                 for r in doc["rows"] if r["table"] == name]
         lines += ["", f"### {name}", ""] + _table(("item", "quantity", "paper", "clsas", "diff", "tol", "verdict"), rows)
@@ -168,7 +175,9 @@ def render(data: Path) -> str:
              "evidence: an experiment printed below it, or a test.", "", "## Summary", ""]
     summary = [(d["paper"], d["title"], len(d["rows"]), d["counts"]["match"], d["counts"]["differs"],
                 d["counts"]["clsas only"], f"{d['seconds']:.0f} s", _machine(d)) for d in docs]
-    summary += [(name, "not in the common format yet (no --json)", "-", "-", "-", "-", "-", "-") for name in missing]
+    summary += [(name, "no JSON in docs/validation/ yet (run `python bench/validation.py --papers " + name + "`)"
+                 if takes_json(name) else "not in the common format yet (no --json)", "-", "-", "-", "-", "-", "-")
+                for name in missing]
     lines += _table(("paper", "what", "rows", "match", "differ", "clsas only", "time", "machine"), summary) + [""]
     for doc in docs:
         lines += render_paper(doc)

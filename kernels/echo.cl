@@ -32,6 +32,10 @@
  *                quadratic exponent: two complex vector products a row instead of a sin/cos
  *                (rounding grows by ~1e-7 a row).
  *
+ * Every kernel is launched in fixed work-groups of the launcher's size along its first dimension
+ * (clsas.opencl.work_groups: PoCL compiles it once whatever the shape) and returns for the
+ * work-items past the end.
+ *
  * Defines: N_NODES (>= 2), SEGMENT_PASSES (node segment re-choices), CHUNK, ROWS (16-sample
  * blocks per work-item), STOP_AND_GO, SPREADING, PATH_WEIGHTS, EXTENDED (paths with their own
  * chirp and envelope), INTRA_PULSE (1: moving scatterers, 2: every path), ABSORPTION, BOUNCES,
@@ -112,9 +116,10 @@ __kernel void echo_paths(__global const double *tsoa, __global const double *fso
                          __global const double2 *bottom, const echo_params_t params, const echo_legs_t legs,
                          const int n_scat, const int split, const int n_floor, const int jump,
                          __global const int2 *active, const int n_pulses, const int w_rx, const int stride,
-                         const int offset, __global echo_path_t *paths)
+                         const int offset, const int n_items, __global echo_path_t *paths)
 {
     const int g = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
+    if (g >= n_items) return;  /* the launch is padded to whole work-groups */
     const int j0 = 8 * g;
     const int pos0 = j0 < split ? j0 : j0 + jump;  /* the first of the work-item's 8 positions */
     const int facets = pos0 >= split;
@@ -295,6 +300,7 @@ __kernel void echo_extents(__global const echo_path_t *paths, const int n_pad, c
                            __global int2 *extent)
 {
     const int j = get_global_id(0), h = get_global_id(1);
+    if (j >= n_pad) return;
     __global const echo_path_t *col = paths + (size_t)h * n_pulses * n_pad + j;
     int lo = UNHEARD, hi = -UNHEARD;  /* (UNHEARD, -UNHEARD): no pulse of the block hears it */
     for (int p = 0; p < n_pulses; ++p) {
@@ -308,11 +314,12 @@ __kernel void echo_extents(__global const echo_path_t *paths, const int n_pad, c
 
 /* spread[h P + p] = (min, max) of the heard paths' echo centres start + frac (samples) among the
  * first n of each record (one path kind): the delay spread a pulse's echoes have at a receiver. */
-__kernel void echo_spread(__global const echo_path_t *paths, const int n, const int stride,
+__kernel void echo_spread(__global const echo_path_t *paths, const int n, const int stride, const int n_pulses,
                           __global double2 *spread)
 {
     const int p = get_global_id(0), h = get_global_id(1);
-    const size_t rec = (size_t)h * get_global_size(0) + p;
+    if (p >= n_pulses) return;
+    const size_t rec = (size_t)h * n_pulses + p;
     __global const echo_path_t *row = paths + rec * stride;
     double lo = INFINITY, hi = -INFINITY;
     for (int j = 0; j < n; ++j) {

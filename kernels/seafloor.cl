@@ -13,6 +13,7 @@
  * float32 relative to an origin near the facets (1e-5 m at 100 m: they place a ray and a
  * grazing angle). stations[p]: the transmitter at emission, then for each receiver its position
  * at emission and its velocity (float4 .xyz).
+ * The launch is padded to whole work-groups along the facets (clsas.opencl.work_groups).
  * spheres[p]: the mesh targets' bounding spheres (centre .xyz, radius .w) at that pulse.
  * out (H, P, span16), flag (P, span16).
  */
@@ -54,6 +55,7 @@ __kernel void seafloor_weights(__global const float *px, __global const float *p
                                __global uchar *flag)
 {
     const int item = get_global_id(0);
+    if (item >= span16 / LANES) return;  /* the launch is padded to whole work-groups */
     const int g = first16 / LANES + item;
     const int p = get_global_id(1);
     const size_t n_pulses = get_global_size(1);

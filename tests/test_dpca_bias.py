@@ -73,14 +73,23 @@ def _mean_and_error(yaw: np.ndarray) -> tuple[float, float]:
     pytest.param(2.0, 4.0, marks=pytest.mark.slow),
 ])
 def test_motionless_yaw_with_the_seafloor_extent(tx_factor, extent):
-    """The seafloor's extent given: each block's phase-centre correction takes <sin^2 theta>
-    over the part of the beam the patch fills (dpca.geometry.look_moments)."""
+    """The estimator's default (extent="auto": the seafloor read from the scenario the echo
+    carries, the rectangle of its random points) and the extent given: each block's phase-centre
+    correction takes <sin^2 theta> over the part of the beam the patch fills
+    (dpca.geometry.look_moments); the beam model (extent=None) is biased."""
     scene, floor, echo = motionless(tx_factor, extent)
     speed = scene.platform.speed
+    default = dpca.estimate(echo, scene.array, speed)
     given = dpca.estimate(echo, scene.array, speed, extent=floor)
-    beam = dpca.estimate(echo, scene.array, speed)
-    mean, error = _mean_and_error(given.yaw)
+    beam = dpca.estimate(echo, scene.array, speed, extent=None)
+    assert np.all(default.yaw_bias == 0) and np.all(given.yaw_bias == 0)
     beam_mean, _ = _mean_and_error(beam.yaw)
+    for pairs in (given, default):
+        _assert_unbiased(pairs, extent, tx_factor, beam_mean)
+
+
+def _assert_unbiased(pairs, extent, tx_factor, beam_mean):
+    mean, error = _mean_and_error(pairs.yaw)
     # measured (30 pings, seed 3; urad, with the extent / the beam model): tx 1x: extent 0.5x
     # -0.61 +- 0.52 / +18.3, 1x +1.81 +- 0.47 / +8.4, 4x -0.23 +- 0.56 / +1.8; tx 2x (40 pings):
     # 0.5x +0.76 +- 0.88, 1x -0.52 +- 0.87 / +4.8, 4x +0.18 +- 0.93 / +1.3. At 1x (the patch
@@ -90,7 +99,7 @@ def test_motionless_yaw_with_the_seafloor_extent(tx_factor, extent):
     assert error < 1.5e-6
     if tx_factor == 1 and extent < 4:
         assert abs(beam_mean) > 4 * abs(mean)       # the beam model's bias, which the extent removes
-    assert np.all(given.blocks >= 5)
+    assert np.all(pairs.blocks >= 5)
 
 
 def test_wide_seafloor_off_beam_blocks_are_left_out():
@@ -100,11 +109,14 @@ def test_wide_seafloor_off_beam_blocks_are_left_out():
     Before this issue they passed the weak-block rule (referred to the median block) and the
     pairs read -300 urad."""
     scene, floor, echo = motionless(1.0, 4.0)
-    pairs = dpca.estimate(echo, scene.array, scene.platform.speed)
+    pairs = dpca.estimate(echo, scene.array, scene.platform.speed, extent=None)
     mean, error = _mean_and_error(pairs.yaw)
     # measured: +1.84 +- 0.60 urad a pair (the beam model's sidelobe term), 11-12 blocks
     assert abs(mean) < 5e-6 and np.all(np.abs(pairs.yaw) < 30e-6)
     assert np.all(pairs.blocks <= 13)
+    # with the extent (the default reads it from echo.scenario) the main-lobe rule leaves them out
+    default = dpca.estimate(echo, scene.array, scene.platform.speed)
+    assert np.all(np.abs(default.yaw) < 30e-6) and np.all(default.blocks <= 13)
 
 
 def test_look_moments():
@@ -172,7 +184,7 @@ def test_yaw_bias_bound_covers_a_seafloor_cut_off_in_the_sidelobes():
     the main lobe and is cut off in the sidelobes (the 4x footprint patch reads within it,
     within three standard errors); 0 with the extent."""
     scene, floor, echo = motionless(1.0, 4.0)
-    pairs = dpca.estimate(echo, scene.array, scene.platform.speed)
+    pairs = dpca.estimate(echo, scene.array, scene.platform.speed, extent=None)
     mean, error = _mean_and_error(pairs.yaw)
     bound = float(pairs.yaw_bias[0])
     # measured: bound 7.0 urad a pair (<sin^2> 0.00676 over the beam, 0.00590 over the main
@@ -181,6 +193,41 @@ def test_yaw_bias_bound_covers_a_seafloor_cut_off_in_the_sidelobes():
     assert 5e-6 < bound < 9e-6 and np.all(pairs.yaw_bias == bound)
     assert abs(mean) < bound + 3 * error
     assert np.all(dpca.estimate(echo, scene.array, scene.platform.speed, extent=floor).yaw_bias == 0)
+    assert np.all(dpca.estimate(echo.replace(scenario=None), scene.array, scene.platform.speed).yaw_bias == bound)
+
+
+def test_scenario_extent():
+    """extent="auto" reads the seafloor from the scenario: a clsas Seafloor's rectangle, height
+    and reach (its facets answer out to the transmitter's second null), the rectangle of a
+    random-point floor, nothing from a few points or without a scenario."""
+    scene = sonar(1.0, 4)
+    assert dpca.scenario_extent(None) is None and dpca.scenario_extent(scene) is None
+    few = scene.replace(targets=(PointTargets([[30.0, 0.0, 0.0], [40.0, 1.0, 0.0]]),))
+    assert dpca.scenario_extent(few) is None
+    _, floor, echo = motionless(1.0, 0.5)
+    auto = dpca.scenario_extent(echo.scenario)
+    assert np.allclose(auto.x, floor.x, atol=0.1) and np.allclose(auto.y, floor.y, atol=0.1)
+    assert auto.z == 0 and auto.reach == 1
+    sea = scene.replace(seafloor=clsas.Seafloor((27.0, 47.0, -5.0, 5.0), z=-3.0))
+    got = dpca.scenario_extent(sea)
+    wavelength = scene.waveform.wavelength(scene.medium)
+    assert got.x == (27.0, 47.0) and got.y == (-5.0, 5.0) and got.z == -3.0
+    assert np.isclose(got.reach, 2 * wavelength / scene.array.tx_length)
+    # the reach cuts each ring to |sin theta| <= reach: a narrow reach holds only broadside
+    array, f0, c = scene.array, scene.waveform.f0, scene.medium.sound_speed
+    r, centre = np.array([30.0, 40.0]), np.zeros((1, 3))
+    wide = dpca.SeafloorExtent(x=(0.0, np.inf))
+    narrow = dataclasses.replace(wide, reach=0.05)
+    sin2_wide, _, content_wide = dpca.look_moments(array, f0, c, r, centre, wide, span=0.5)
+    sin2, fraction, content = dpca.look_moments(array, f0, c, r, centre, narrow, span=0.5)
+    assert np.all(sin2 < 0.05**2 / 3 * 1.05) and np.all(sin2 < sin2_wide) and np.allclose(fraction, 1.0)
+    assert np.all(content < content_wide)
+    with pytest.raises(ValueError, match="SeafloorExtent reach"):
+        dpca.SeafloorExtent(reach=0.0)
+    with pytest.raises(ValueError, match="dpca.estimate extent"):
+        dpca.estimate(echo, scene.array, 1.0, extent="beam")
+    with pytest.raises(TypeError, match="dpca.estimate extent"):
+        dpca.estimate(echo, scene.array, 1.0, extent=(0.0, 1.0))
 
 
 @pytest.mark.slow

@@ -92,8 +92,8 @@ def compare_points(image: Image, reference: Image) -> dict:
                                    pytest.param("circle", marks=pytest.mark.slow)])
 def test_points_match_direct_backprojection(opencl_device, track):
     """The issue's bars (peaks within 0.05 of a cell, 0.5 dB, PSLR and ISLR within 1 dB, SSIM
-    >= 0.95); relative L2 measured 0.0045-0.0046 on the three tracks at the default tolerance
-    (bound 0.07) and 0.0023-0.0024 at tolerance 0.02 (bound 0.02)."""
+    >= 0.95); relative L2 measured 0.0049-0.0050 on the three tracks at the default tolerance and
+    factor (bound 0.07; 0.0045-0.0046 with factor 2) and 0.0023 at tolerance 0.02 (bound 0.02)."""
     ref = direct(track)
     img = ffbp(echo_of(track), GRID, backend="opencl")
     worst = compare_points(img, ref)
@@ -107,7 +107,8 @@ def test_points_match_direct_backprojection(opencl_device, track):
 
 
 def test_speckle_matches_direct_backprojection(opencl_device):
-    """3000 random complex scatterers (a seafloor-like speckle): relative L2 measured 0.0047."""
+    """3000 random complex scatterers (a seafloor-like speckle): relative L2 measured 0.0051 (0.0047
+    with factor 2)."""
     ref = direct("straight", "speckle")
     img = ffbp(echo_of("straight", "speckle"), GRID, backend="opencl")
     err = rel_l2(img.data, ref.data)

@@ -49,7 +49,8 @@ def test_estimate_refuses_nonsense_by_name(name, data):
     elif name == "min_coherence":
         value, error = data.draw(bad_reals(0.0, 1.0, high_open=True))
     elif name == "extent":
-        value, error = data.draw(st.sampled_from([("x", TypeError), ((0, 1), TypeError), (1.0, TypeError)]))
+        value, error = data.draw(st.sampled_from([("x", ValueError), ("beam", ValueError), ((0, 1), TypeError),
+                                                  (1.0, TypeError)]))
     else:
         value, error = data.draw(st.one_of(st.tuples(st.integers(max_value=0), st.just(ValueError)),
                                            st.tuples(st.sampled_from([2.0, "3", None, True]), st.just(TypeError))))

@@ -10,6 +10,7 @@ import warnings
 
 import numpy as np
 import pytest
+import scipy.fft
 from _line_scenes import compare_with_backprojection
 
 import clsas
@@ -271,3 +272,26 @@ def test_rcmc_resampling_checked_once_is_resample(opencl_device):
             a = resample(src, positions, interp, backend=backend)
             b = resample_prechecked(src, positions, interp, backend=backend)
             assert a.dtype == b.dtype and np.array_equal(a, b), (backend, interp)
+
+
+def test_records_on_the_common_range_axis():
+    """A record that starts a whole number of samples after the common axis is copied there (no
+    filter); otherwise delayed by a linear phase in range frequency. The copy is what the filter
+    gives for a whole-sample delay (to float32 rounding), and the filter's delay is the record's
+    (a half-sample delay read back by sinc interpolation)."""
+    from clsas.image.ptrs.imaging import _slow_time_spectrum
+
+    rng = np.random.default_rng(5)
+    fs, n_r, n_fp = 25e3, 96, 16
+    data = (rng.standard_normal((12, 40)) + 1j * rng.standard_normal((12, 40))).astype(np.complex64)
+    ftau = np.fft.fftfreq(n_r, 1 / fs)
+    copied = _slow_time_spectrum(data, 7 / fs, fs, ftau, n_r, n_fp, workers=1)
+    assert copied.dtype == np.complex64 and copied.shape == (n_fp, n_r)
+    assert np.array_equal(copied[:, 7:47], scipy.fft.fft(data, n=n_fp, axis=0))
+    assert not copied[:, :7].any() and not copied[:, 47:].any()
+    spec = np.fft.fft(data, n=n_r, axis=1) * np.exp(-2j * np.pi * ftau * 7 / fs)
+    filtered = np.fft.fft(np.fft.ifft(spec, axis=1), n=n_fp, axis=0)
+    assert np.abs(copied - filtered).max() < 1e-5 * np.abs(filtered).max()
+    half = _slow_time_spectrum(data, 7.5 / fs, fs, ftau, n_r, n_fp, workers=1)
+    spec = np.fft.fft(data, n=n_r, axis=1) * np.exp(-2j * np.pi * ftau * 7.5 / fs)
+    assert np.abs(half - np.fft.fft(np.fft.ifft(spec, axis=1), n=n_fp, axis=0)).max() < 1e-5 * np.abs(half).max()

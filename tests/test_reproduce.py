@@ -37,6 +37,25 @@ def test_verdicts_follow_the_tolerance():
     assert nan.verdict == report.DIFFERS  # a value clsas could not measure never matches
 
 
+def test_a_paper_bound_matches_on_its_side():
+    """A row whose paper prints a bound ("errors of at most 2 mm"): a match on its side (up to
+    the tolerance beyond), a difference past it; printed and rendered with the bound's sign."""
+    rep = report.Report("demo", "bounds")
+    below = rep.add("5.5", "sway", "max error", "mm", paper=2.0, clsas=0.6, tolerance=0.0, kind="at most")
+    above = rep.add("5.5", "sway", "max error", "mm", paper=2.0, clsas=2.3, tolerance=0.2, kind="at most", reason="r")
+    edge = rep.add("5.5", "sway", "max error", "mm", paper=2.0, clsas=2.1, tolerance=0.2, kind="at most")
+    least = rep.add("5.5", "snr", "margin", "dB", paper=10.0, clsas=9.0, tolerance=0.5, kind="at least", reason="r")
+    assert [r.verdict for r in (below, above, edge, least)] == [report.MATCH, report.DIFFERS, report.MATCH,
+                                                                report.DIFFERS]
+    assert below.paper_text == "<=2" and least.paper_text == ">=10"
+    assert "<=2" in rep.format()
+    with pytest.raises(ValueError, match="kind: must be one of"):
+        rep.add("5.5", "sway", "max error", "mm", paper=2.0, clsas=0.6, tolerance=0.0, kind="below")
+    validation = _validation_script()
+    rows = validation.render_paper({**rep.to_dict(), "seconds": 1.0})
+    assert any("| sway | max error (mm) | <=2 | 0.6 |" in line for line in rows), rows
+
+
 def test_check_refuses_a_difference_without_a_reason_or_evidence():
     rep = _report()
     rep.check()
@@ -168,5 +187,6 @@ def test_validation_page_is_rendered_from_the_json(tmp_path):
     assert "### Experiment window" in page and "Finding: hamming gives the paper's figure" in page
     assert "| ptrs | opencl | 1.5 | M/s |" in page
     for other in reproduce.paper_names()[1:]:
-        assert f"| {other} | not in the common format yet" in page or f"## {other}" in page
+        assert f"| {other} | not in the common format yet" in page or f"| {other} | no JSON in docs/validation/" in page \
+            or f"## {other}" in page
     assert sorted(p.name for p in tmp_path.iterdir()) == ["data", "validation.md"]

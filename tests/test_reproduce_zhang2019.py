@@ -63,3 +63,7 @@ def test_reproduce_zhang2019_runs(tmp_path, opencl_device):
     reasons = {r["key"] for r in doc["reasons"]}
     assert all(set(r["reason"].split(", ")) <= reasons for r in rows if r["verdict"] == "differs")
     assert doc["seconds"] < 300
+    # the implementation reason's evidence: BP / PTRS moves with back-projection's implementation
+    blocks = {e["name"]: e for e in doc["experiments"]}["sub-blocks"]
+    assert blocks["columns"][-2:] == ["BP / PTRS", "BP (NumPy reference) / PTRS"]
+    assert all(row[-1] > 10 * row[-2] for row in blocks["rows"])

@@ -57,6 +57,8 @@ from ..version import __version__
 
 FORMAT = "clsas-reproduction/1"
 MATCH, DIFFERS, ONLY = "match", "differs", "clsas only"
+KINDS = ("value", "at most", "at least")  # what a paper's number is (Row.kind)
+BOUNDS = {"at most": "<=", "at least": ">="}  # how a bound is printed before the paper's number
 
 
 @dataclass(frozen=True)
@@ -72,6 +74,9 @@ class Row:
     tolerance : the largest |clsas - paper| still called a match, in ``unit``.
     reason : the key of the :class:`Reason` a difference has, or several keys joined by ", "
         ("" when none is given).
+    kind : ``"value"`` (the paper prints a value: match within ``tolerance`` either side), or
+        ``"at most"`` / ``"at least"`` (the paper prints a bound, "errors of at most 2 mm": match
+        when clsas is within it, up to ``tolerance`` beyond).
     """
 
     table: str
@@ -82,6 +87,7 @@ class Row:
     clsas: float
     tolerance: float
     reason: str = ""
+    kind: str = "value"
 
     @property
     def reason_keys(self) -> list:
@@ -99,7 +105,17 @@ class Row:
         if self.paper is None:
             return ONLY
         d = self.difference
-        return MATCH if math.isfinite(d) and abs(d) <= self.tolerance else DIFFERS
+        if not math.isfinite(d):
+            return DIFFERS
+        within = {"value": abs(d), "at most": d, "at least": -d}[self.kind] <= self.tolerance
+        return MATCH if within else DIFFERS
+
+    @property
+    def paper_text(self) -> str:
+        """The paper's number as printed in a table: the value, or the bound ("<= 2")."""
+        if self.paper is None:
+            return "-"
+        return f"{BOUNDS.get(self.kind, '')}{self.paper:.4g}"
 
 
 @dataclass(frozen=True)
@@ -143,12 +159,15 @@ class Report:
     load_at_start: list = field(default_factory=lambda: _load_average(), repr=False)
 
     def add(self, table: str, item: str, quantity: str, unit: str, paper, clsas, tolerance: float,
-            reason: str = "") -> Row:
-        """Append a :class:`Row` (numbers as float; ``paper`` None for clsas's own rows)."""
+            reason: str = "", kind: str = "value") -> Row:
+        """Append a :class:`Row` (numbers as float; ``paper`` None for clsas's own rows; ``kind``
+        "at most" or "at least" when the paper prints a bound)."""
         if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance >= 0):
             raise ValueError(f"tolerance: must be a finite number >= 0, got {tolerance!r}")
+        if kind not in KINDS:
+            raise ValueError(f"kind: must be one of {KINDS}, got {kind!r}")
         row = Row(table, item, quantity, unit, None if paper is None else float(paper), float(clsas),
-                  float(tolerance), reason)
+                  float(tolerance), reason, kind)
         self.rows.append(row)
         return row
 
@@ -233,7 +252,7 @@ class Report:
                 table = row.table
                 lines += ["", f"{table}", f"  {'item':{item_w}}  {'quantity':{qty_w}}  {'paper':>9}  {'clsas':>9}  "
                                           f"{'diff':>8}  {'tol':>6}  verdict"]
-            paper = "-" if row.paper is None else f"{row.paper:9.4g}"
+            paper = row.paper_text
             diff = "" if row.difference is None else f"{row.difference:+8.3g}"
             verdict = row.verdict if row.verdict != DIFFERS else f"differs: {row.reason or '?'}"
             lines.append(f"  {row.item:{item_w}}  {row.quantity + ' (' + row.unit + ')':{qty_w}}  {paper:>9}  "

@@ -21,8 +21,9 @@ azimuth PSLR and ISLR (:mod:`clsas.metrics`, 10 IRWs):
 Table 5 (real data, Matlab: BP 35,234 s, 4 sub-blocks 608 s, 8 sub-blocks 1149 s) becomes the
 ratios of back-projection's time over PTRS's with 4 and 8 uniform sub-blocks (the stationary
 points solved beforehand: the paper's second scheme) on the far group's records; with
-``--paper-size`` on the whole 18-point swath at the paper's image size (36 M pixels,
-about 25 min on 2 cores).
+``--paper-size`` on the whole 18-point swath at the paper's image size (36 M pixels: PTRS and
+PCA on the whole image, back-projection on 1/``BP_ROWS`` of its rows, scaled; the whole run
+then takes about two and a half times the default's).
 
 Experiments (each behind a reason in the output): ``beam-pattern`` (the elements' patterns
 set the absolute PSLR and ISLR); ``eq13-offset`` (the published processor's loss against the
@@ -62,14 +63,18 @@ ELEMENTS = (0.04, 0.02)  # transmitter, receiver lengths (Table 1), m
 TOLERANCE = {"PSLR": 1.0, "ISLR": 1.5}  # dB
 BP_RATE = 4e8  # pixel x pulse x receiver products a second (clsas.progress's nominal OpenCL rate)
 PAPER_SIZE_PULSES = 208
+BP_ROWS = 16  # Table 5's back-projection is timed on 1/BP_ROWS of the image's rows and scaled
+NUMPY_ROWS = 2  # rows the NumPy reference of back-projection is timed on (experiment sub-blocks)
+NUMPY_BP_RATE = 3e6  # its pixel x pulse x receiver products a second (huang2022's timing experiment)
+FREQUENCY_DOMAIN_RATE = 2.5e5  # image pixels a second of Table 5's round of four PTRS images and PCA + R-D
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--pulses", type=int, default=208, help="pulses (208 cover every point's aperture)")
     parser.add_argument("--paper-size", action="store_true",
                         help="time Table 5 on the whole 18-point swath at the paper's image size (36 M pixels x "
-                             "6240 pulse-receiver pairs: about 25 min on 2 cores) instead of the far group's records "
-                             "(about 1 min)")
+                             f"6240 pulse-receiver pairs; back-projection on 1/{BP_ROWS} of the rows, scaled): the "
+                             "run takes about 5 min on 2 cores instead of 2 (the far group's records, 5.8 M pixels)")
     parser.add_argument("--backend", default="opencl", help="numpy, opencl or auto")
     report.add_arguments(parser)
 
@@ -245,15 +250,18 @@ def _rcmc(rep, result: list) -> None:
         "(the published method, the table's 'presented' rows) leaves.")
 
 
-def timing(echo, backend: str, blocks=(1, 4, 8), bp_rows: float = 0.125, repeats: int = 2) -> dict:
+def timing(echo, backend: str, blocks=(1, 4, 8), bp_rows: float = 1 / BP_ROWS, repeats: int = 2,
+           numpy_rows: int = 0) -> dict:
     """Seconds of PTRS (eq. 13 alone) with each of ``blocks`` uniform sub-blocks over the
     records' swath (the stationary points solved once beforehand: the paper's second scheme),
     of PCA + range-Doppler, and of back-projection of the PTRS image's pixels (timed on
     ``bp_rows`` of its rows, scaled); each the minimum of ``repeats`` rounds, the methods
-    interleaved in every round."""
+    interleaved in every round. With ``numpy_rows``, also back-projection by clsas's NumPy
+    reference ("bp_numpy"), once, on that many rows, scaled."""
     import clsas
     from clsas.image.ptrs import StationaryPoints
     from clsas.model import Grid
+    from clsas.progress import Progress
 
     swath = echo.medium.sound_speed * (echo.n_samples / echo.fs) / 2
     common = dict(elements=ELEMENTS, deconvolve=False, backend=backend, points=StationaryPoints(), rcmc=False)
@@ -272,29 +280,41 @@ def timing(echo, backend: str, blocks=(1, 4, 8), bp_rows: float = 0.125, repeats
     runs["bp"] = lambda: clsas.backproject(echo, grid, backend=backend, interp="sinc8", aperture=aperture_of(echo),
                                            progress=False)
     times = {name: np.inf for name in runs}
-    for _ in range(repeats):
-        for name, work in runs.items():
+    with Progress(repeats * len(runs) + bool(numpy_rows), "timed runs", "Table 5") as bar:
+        for _ in range(repeats):
+            for name, work in runs.items():
+                start = time.perf_counter()
+                work()
+                times[name] = min(times[name], time.perf_counter() - start)
+                bar.done(1)
+        times["bp"] *= axes["y"].size / n_rows
+        if numpy_rows:
             start = time.perf_counter()
-            work()
-            times[name] = min(times[name], time.perf_counter() - start)
-    times["bp"] *= axes["y"].size / n_rows
+            clsas.backproject(echo, Grid.plane(axes["x"], axes["y"][:numpy_rows], depth), backend="numpy",
+                              interp="sinc8", aperture=aperture_of(echo), progress=False)
+            times["bp_numpy"] = (time.perf_counter() - start) * axes["y"].size / numpy_rows
+            bar.done(1)
     times["pixels"] = axes["y"].size * axes["x"].size
     return times
 
 
 def _sub_blocks(rep, t: dict) -> None:
     blocks = sorted(int(k.split("_")[1]) for k in t if k.startswith("ptrs_"))
-    rows = [(n, t[f"ptrs_{n}"], t[f"ptrs_{n}"] / t[f"ptrs_{blocks[0]}"], t["bp"] / t[f"ptrs_{n}"]) for n in blocks]
+    rows = [(n, t[f"ptrs_{n}"], t[f"ptrs_{n}"] / t[f"ptrs_{blocks[0]}"], t["bp"] / t[f"ptrs_{n}"],
+             t["bp_numpy"] / t[f"ptrs_{n}"]) for n in blocks]
     paper = PAPER_TIMES["ptrs_8"] / PAPER_TIMES["ptrs_4"]
     ours = t["ptrs_8"] / t["ptrs_4"]
     rep.experiment(
         "sub-blocks", "How does PTRS's time grow with the number of sub-blocks, and what does that do to the "
         "BP / PTRS ratio? (The paper: 608 s with 4, 1149 s with 8: each sub-block filters the whole swath again.)",
-        ("sub-blocks", "PTRS s", "vs 1 block", "BP / PTRS"), rows,
+        ("sub-blocks", "PTRS s", "vs 1 block", "BP / PTRS", "BP (NumPy reference) / PTRS"), rows,
         f"clsas filters each sub-block's own columns with a margin (overlap-save): 8 sub-blocks cost {ours:.2f}x "
         f"4 where the paper's cost {paper:.2f}x, so its BP / PTRS ratio halves from 4 to 8 sub-blocks and clsas's "
         f"changes {rows[2][3] / rows[1][3]:.2f}x. The ratios to back-projection are the implementations' (Matlab "
-        "with a sinc interpolator against clsas's OpenCL kernel) as much as the methods'.")
+        "with a sinc interpolator against clsas's OpenCL kernel) as much as the methods': clsas's own NumPy "
+        f"reference of back-projection (float64, written for clarity) is {t['bp_numpy'] / t['bp']:.0f}x its OpenCL "
+        f"kernel and puts BP / PTRS (4 sub-blocks) at {rows[1][4]:.0f}x, against the kernel's {rows[1][3]:.1f}x and "
+        f"the paper's {PAPER_TIMES['bp'] / PAPER_TIMES['ptrs_4']:.0f}x.")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -315,12 +335,12 @@ def run(args: argparse.Namespace) -> int:
                      "Yang 2022; the paper's ref. [12] is not specific)",
                      "each group of six points simulated and imaged on its own (processing local in range)",
                      "ISLR: the 2-D ISLR (+-10 IRWs in range and azimuth; clsas.reproduce._points.islr_2d)",
-                     "Table 5: the far group's records (--paper-size: the whole swath), back-projection timed on 1/8 "
-                     "of the rows and scaled"],
+                     "Table 5: the far group's records (--paper-size: the whole swath), back-projection timed on "
+                     f"1/{BP_ROWS} of the rows and scaled"],
         settings={"pulses": args.pulses, "paper_size": args.paper_size, "backend": args.backend})
     result = []
     for g, group in enumerate(GROUPS):
-        with rep.stage(f"{group}: simulate, eq. 13, eq. 13 + rcmc, PCA, six BP patches", estimate_s=25):
+        with rep.stage(f"{group}: simulate, eq. 13, eq. 13 + rcmc, PCA, six BP patches", estimate_s=20):
             sc, echo = scene(args.pulses, g, backend=args.backend)
             result.append(measure(echo, sc.targets[0].positions, ZHANG_REFERENCES[g], args.backend))
     table(rep, result)
@@ -328,11 +348,15 @@ def run(args: argparse.Namespace) -> int:
     import scipy.fft
 
     pixels = scipy.fft.next_fast_len(timed.n_pulses) * timed.n_rx * timed.n_samples
-    estimate = 2 * (0.125 * pixels * timed.n_pulses * timed.n_rx / BP_RATE + (600 if args.paper_size else 30))
-    with rep.stage(f"Table 5 on {'the whole swath' if args.paper_size else 'the far group'} ({pixels:,} pixels; "
-                   "PTRS with 1, 4, 8 sub-blocks, PCA, BP on 1/8 of the rows; twice)",
-                   estimate_s=estimate):
-        t = timing(timed, args.backend, repeats=1 if args.paper_size else 2)
+    repeats = 1 if args.paper_size else 2
+    products = timed.n_pulses * timed.n_rx
+    estimate = repeats * (pixels * products / BP_ROWS / BP_RATE + pixels / FREQUENCY_DOMAIN_RATE) \
+        + NUMPY_ROWS * timed.n_samples * products / NUMPY_BP_RATE
+    label = (f"Table 5 on {'the whole swath' if args.paper_size else 'the far group'} ({pixels:,} pixels; PTRS "
+             f"with 1, 4, 8 sub-blocks, PCA, BP on 1/{BP_ROWS} of the rows; {'once' if repeats == 1 else 'twice'}; "
+             f"BP's NumPy reference on {NUMPY_ROWS} rows)")
+    with rep.stage(label, estimate_s=estimate):
+        t = timing(timed, args.backend, repeats=repeats, numpy_rows=NUMPY_ROWS)
     size = f"{t['pixels'] / 1e6:.1f} M pixels"
     rep.add("Table 5", size, "BP / PTRS (4 sub-blocks)", "x", PAPER_TIMES["bp"] / PAPER_TIMES["ptrs_4"],
             t["bp"] / t["ptrs_4"], 10.0, "implementation")
@@ -341,7 +365,7 @@ def run(args: argparse.Namespace) -> int:
     rep.add("Table 5", size, "PTRS 8 / 4 sub-blocks", "x", PAPER_TIMES["ptrs_8"] / PAPER_TIMES["ptrs_4"],
             t["ptrs_8"] / t["ptrs_4"], 0.3, "implementation")
     rep.add("Table 5", size, "PTRS (4) / PCA + R-D", "x", None, t["ptrs_4"] / t["pca"], 0.0)
-    with rep.stage("experiments (beam-pattern, eq13-offset, rcmc, sub-blocks)", estimate_s=40):
+    with rep.stage("experiments (beam-pattern, eq13-offset, rcmc, sub-blocks)", estimate_s=25):
         _beam_pattern(rep, args, result)
         _eq13_offset(rep, args)
         _rcmc(rep, result)

@@ -144,10 +144,9 @@ def zhang2019(n_pulses: int = 256, receivers: int = 30, pri: float = 0.3) -> Sce
     the coherent superposition of section 4.4 needs). The equivalent sampling rate
     M PRF = 200 Hz holds the transmitter's beam up to its first null (|f_t| <= 2 V / D_tx =
     100 Hz). An earlier choice, 15 receivers on a 0.04 m pitch with M PRF = 100 Hz, folds the
-    beam between 50 and 100 Hz into the processed band: measured on points 1-4 m from their
-    reference at 49-57 m, PTRS and PCA then lose 1.5-2.1 dB (PTRS) and ~1 dB (PCA) of ISLR
-    against back-projection (which integrates only |f_t| <= 50 Hz) independently of the
-    sub-block width, and 0.1-0.5 dB with 30 receivers.
+    beam between 50 and 100 Hz into the processed band: PTRS and PCA then lose ISLR against
+    back-projection (which integrates only |f_t| <= 50 Hz) whatever the sub-block width, and
+    far less with 30 receivers.
     """
     spacing = 0.6 / receivers
     return _line_array_sonar(Array.uniform_line(receivers, spacing, first=0.03, tx_length=0.04, rx_length=0.02),

@@ -64,11 +64,12 @@ beam's mean cos^2 of the look angle. The envelope part matters: left in, it make
 (yaw noise a ping pair several times larger, tests/test_dpca.py). What is left is inherent to the
 phase-centre approximation: D (sin^2 theta - <sin^2 theta>) / r of yaw per scatterer. The mean
 <sin^2 theta> is taken per range block over the part of the two-way beam the seafloor fills
-(geometry.look_moments): the whole beam out to +-90 deg by default (a real seafloor), or the
-arcs of each block's ring inside a given rectangle (``extent``, geometry.SeafloorExtent): a
-patch narrower than the beam, or cut off in its sidelobes, read with the whole beam's mean is a
-yaw bias a pair that integrates into a heading drift, a rotated image
-(tests/test_dpca_bias.py). A bright point off broadside reads its own look angle's term.
+(geometry.look_moments): the arcs of each block's ring inside the seafloor's rectangle
+(``extent``, geometry.SeafloorExtent; by default read from the scenario a simulated echo
+carries, geometry.scenario_extent), or the whole beam out to +-90 deg (a real seafloor: recorded
+data, ``extent=None``): a patch narrower than the beam, or cut off in its sidelobes, read with
+the whole beam's mean is a yaw bias a pair that integrates into a heading drift, a rotated image
+(tests/test_dpca_bias.py); without the extent PingPairs.yaw_bias bounds it. A bright point off broadside reads its own look angle's term.
 
 Range blocks and uncertainty: the fast-time axis is cut into blocks; each block gives its own
 estimate of the three quantities. Blocks whose beam peak is below ``min_coherence`` or whose
@@ -101,11 +102,11 @@ needs the spectra, which scipy.fft computes at near memory speed.
 from __future__ import annotations
 
 from .correlate import correlations
-from .geometry import SeafloorExtent, beam_sin2, look_moments, nominal_shift
+from .geometry import SeafloorExtent, beam_sin2, look_moments, nominal_shift, scenario_extent
 from .pairs import PingPairs, estimate
 from .record import beam_correction, compensate_record
 from .track import Trajectory, compensate, delay_records, integrate, with_track
 
 __all__ = ["PingPairs", "SeafloorExtent", "Trajectory", "beam_correction", "beam_sin2", "compensate",
            "compensate_record", "correlations", "delay_records", "estimate", "integrate", "look_moments",
-           "nominal_shift", "with_track"]
+           "nominal_shift", "scenario_extent", "with_track"]

@@ -9,6 +9,8 @@ import numpy as np
 
 from ... import validate
 from ...scene.scenario import Array
+from ...scene.seafloor.facets import reach_slope
+from ...scene.targets import PointTargets
 
 
 def nominal_shift(array: Array, speed: float, prf: float) -> tuple[int, np.ndarray]:
@@ -126,16 +128,21 @@ class SeafloorExtent:
     y : (y_min, y_max), m, its along-track edges (either may be inf)
     z : m, its height (the track's height comes from the echo's transmitter positions;
         0 with a track at z = 0 is the papers' 2-D geometry)
+    reach : the largest along-track direction cosine |sin theta|, seen from the transmitter,
+        at which it scatters (in (0, 1]; 1: everywhere): a clsas Seafloor's facets answer a
+        pulse out to its ``beam_nulls``-th null of the transmitter's beam only
 
-    A real seafloor fills the beam (the estimator's default, ``extent=None``); a simulated patch
-    (random point scatterers, a clsas Seafloor's ``extent``) may be narrower or wider than the
-    beam, and the phase-centre correction depends on which look angles it holds
-    (:func:`look_moments`).
+    A real seafloor fills the beam (``extent=None`` in the estimator); a simulated patch (random
+    point scatterers, a clsas Seafloor) may be narrower or wider than the beam, and the
+    phase-centre correction depends on which look angles it holds (:func:`look_moments`).
+    :func:`scenario_extent` reads it from the scenario a simulated echo carries (the
+    estimator's default).
     """
 
     x: tuple = (0.0, np.inf)
     y: tuple = (-np.inf, np.inf)
     z: float = 0.0
+    reach: float = 1.0
 
     def __post_init__(self):
         for name in ("x", "y"):
@@ -151,6 +158,8 @@ class SeafloorExtent:
         if self.x[1] <= 0:
             raise ValueError(f"SeafloorExtent x: the seafloor must reach the imaged side (x_max > 0), got {self.x}")
         object.__setattr__(self, "z", validate.scalar("SeafloorExtent z", self.z, unit="m"))
+        object.__setattr__(self, "reach", validate.scalar("SeafloorExtent reach", self.reach, low=0.0, high=1.0,
+                                                          low_open=True))
 
     @staticmethod
     def _infinite(name: str, k: int, value) -> float:
@@ -173,7 +182,8 @@ SUB_RANGES = 8  # ranges per block at which look_moments cuts the seafloor
 
 
 def look_moments(array: Array, f0: float, c: float, r: np.ndarray, centre: np.ndarray,
-                 extent: SeafloorExtent | None, span: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 extent: SeafloorExtent | None, span: float = 0.0,
+                 ahead: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """What each range block sees of the seafloor: (<sin^2 theta>, main-lobe fraction, content),
     each of shape (pair, block), weighted by the two-way power pattern P (:func:`_pattern`).
 
@@ -182,7 +192,10 @@ def look_moments(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
     edge holds broadside echoes from its near part only); centre : m (pair, 3), where the
     couples' phase centres are (scene frame) when the blocks' echoes return; extent : the seafloor's
     rectangle, None for a seafloor that fills the beam at the track's depth (then every block
-    reads :func:`beam_sin2`, fraction and content of the whole half-space).
+    reads :func:`beam_sin2`, fraction and content of the whole half-space); ahead : m, how far
+    along the track the phase centres are ahead of the transmitter (the extent's ``reach`` is
+    seen from the transmitter: a scatterer a along track and b across it in slant, counted from
+    the transmitter, scatters when |a| <= b tan(asin(reach))).
 
     A range block at slant range r of a flat seafloor h below the phase centres is the ring of
     ground range rho = sqrt(r^2 - h^2), its scatterers uniform in the ground azimuth phi
@@ -213,6 +226,10 @@ def look_moments(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
     a = np.divide(rho, r, out=np.zeros_like(rho), where=r > 0)
     sin_t = a[:, None] * np.sin(phi)                                          # (block, angle)
     power = np.ones_like(sin_t) if omni else _pattern(array, f0, c, sin_t)
+    if extent.reach < 1:
+        slope = extent.reach / np.sqrt(1 - extent.reach**2)
+        along = rho[:, None] * np.sin(phi) + ahead
+        power = np.where(np.abs(along) <= slope * np.hypot(rho[:, None] * np.cos(phi), h), power, 0.0)
     step = phi[1] - phi[0]
 
     def cumulative(values):
@@ -246,6 +263,40 @@ def look_moments(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
         sin2 = np.where(empty, np.nan, second / weight)
         fraction = np.where(empty, 0.0, main / weight)
     return sin2, fraction, np.where(empty, 0.0, weight / (np.pi * SUB_RANGES * r_blocks[None, :]))
+
+
+MIN_POINTS = 100  # static point scatterers a scenario needs for scenario_extent to take them as its seafloor
+
+
+def scenario_extent(scenario) -> SeafloorExtent | None:
+    """Where a simulated echo's seafloor scatters (``EchoData.scenario``), for
+    :func:`clsas.estimate.dpca.estimate`'s default ``extent="auto"``: the scenario's clsas
+    Seafloor (its extent's rectangle and mean height, flat; ``reach`` its facets' beam_nulls-th
+    null of the transmitter's beam, :func:`clsas.scene.seafloor.facets.reach_slope`), else the
+    rectangle around its stationary point scatterers when there are at least MIN_POINTS of them
+    (a random-point seafloor: taken to be uniform over that rectangle; a few bright points on it
+    change its edges little), else None (no scenario, recorded data: a real seafloor fills the
+    beam)."""
+    if scenario is None:
+        return None
+    floor = getattr(scenario, "seafloor", None)
+    if floor is not None:
+        slope = reach_slope(floor, scenario)
+        reach = 1.0 if not np.isfinite(slope) else float(slope / np.hypot(1.0, slope))
+        x0, x1, y0, y1 = (float(e) for e in floor.extent)
+        return SeafloorExtent(x=(x0, x1), y=(y0, y1), z=float(floor.z), reach=reach)
+    points = [t.positions[np.all(t.velocity == 0, axis=1)] for t in getattr(scenario, "targets", ())
+              if isinstance(t, PointTargets)]
+    points = np.concatenate(points) if points else np.zeros((0, 3))
+    if points.shape[0] < MIN_POINTS:
+        return None
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    # the edges of a uniform draw, unbiased: n points fall short of them by (hi - lo) / (n - 1)
+    lo, hi = lo - (hi - lo) / (points.shape[0] - 1), hi + (hi - lo) / (points.shape[0] - 1)
+    if not (lo[0] < hi[0] and lo[1] < hi[1] and hi[0] > 0):
+        return None
+    return SeafloorExtent(x=(float(lo[0]), float(hi[0])), y=(float(lo[1]), float(hi[1])),
+                          z=float(np.median(points[:, 2])))
 
 
 def _at(table: np.ndarray, k: np.ndarray) -> np.ndarray:
@@ -294,6 +345,14 @@ def pca_delay(array: Array, i: np.ndarray, j: np.ndarray, r: np.ndarray, speed: 
     mixes scatterers across the beam, so cos^2 is replaced by its mean over the beam,
     1 - ``sin2`` (:func:`beam_sin2`).
 
+    The next term of the two-way path, from sqrt(r^2 + eps) = r + eps / (2 r) - eps^2 / (8 r^3)
+    + eps^3 / (16 r^5) - 5 eps^4 / (128 r^7) with eps = -+ r sigma sin(theta) + sigma^2 / 4 per
+    leg (odd powers of sin(theta) cancel between the legs), is
+    -sigma^4 (1 - 6 sin^2 theta + 5 sin^4 theta) / (64 r^3); it is kept with 1 - 6 ``sin2``
+    (sin^4 dropped). Its difference between the couple members is cubic in sigma: left out, it
+    reads as a yaw of about 3 sigma^2 D / (16 r^3) a pair (positive on every scatterer, a bias,
+    not speckle: fractions of a urad at tens of metres for a 1.2 m array, tests/test_dpca_bias.py).
+
     Left in, the difference reads as a yaw (its part linear along the couples: 1.53 m x 2 u / r
     at Heremans' geometry, 7.7 mrad at 100 m) and as a sway (its constant part, through the
     v 2 r / c term: 0.65 mm a ping pair there). Taken at the block's centre range instead of
@@ -302,4 +361,6 @@ def pca_delay(array: Array, i: np.ndarray, j: np.ndarray, r: np.ndarray, speed: 
     ping pair as a yaw (D = v PRT, the couples' separation; 9 urad a pair at Heremans' 100 m),
     which integrates into a quadratic cross-track error along the track."""
     sigma = (array.rx_offsets[:, 1] - array.tx_offset[1]).reshape((-1,) + (1,) * r.ndim) + speed * 2 * r / c
-    return (sigma[i] ** 2 - sigma[j] ** 2) * (1 - sin2) / (4 * r * c)
+    second = (sigma[i] ** 2 - sigma[j] ** 2) * (1 - sin2) / (4 * r)
+    fourth = -(sigma[i] ** 4 - sigma[j] ** 4) * (1 - 6 * sin2) / (64 * r**3)
+    return (second + fourth) / c

@@ -14,7 +14,8 @@ from ...model import EchoData
 from ...scene.scenario import Array
 from ...kernelmath import unit_phasor
 from .correlate import aligned, correlations, parabola, peak_ratio
-from .geometry import SeafloorExtent, beam_sin2, look_moments, main_lobe_sin2, pairing, pca_delay, xlag_offset
+from .geometry import (SeafloorExtent, beam_sin2, look_moments, main_lobe_sin2, pairing, pca_delay, scenario_extent,
+                       xlag_offset)
 
 log = logging.getLogger("clsas")
 
@@ -85,9 +86,8 @@ def _weighted_median(x: np.ndarray, w: np.ndarray) -> np.ndarray:
 def _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles, extent) -> None:
     if not isinstance(echo, EchoData):
         raise TypeError(f"dpca.estimate echo: must be EchoData, got {type(echo).__name__}")
-    if not echo.compressed:
-        raise ValueError("dpca.estimate echo: must be range-compressed (clsas.range_compress) so the correlations "
-                         "are sharp")
+    validate.compression("dpca.estimate echo", echo, advice="call clsas.range_compress(echo) first, so that the "
+                         "correlations are sharp")
     if not isinstance(array, Array):
         raise TypeError(f"dpca.estimate array: must be a clsas Array (the hydrophone layout), got {type(array).__name__}")
     if array.n_receivers > echo.n_rx:
@@ -100,8 +100,11 @@ def _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles, ext
                      why="the correlation must stay inside a block")
     validate.integer("dpca.estimate n_angles", n_angles, low=3, high=2**31)
     validate.scalar("dpca.estimate min_coherence", min_coherence, low=0.0, high=1.0, high_open=True)
-    if extent is not None and not isinstance(extent, SeafloorExtent):
-        raise TypeError(f"dpca.estimate extent: must be a dpca.SeafloorExtent or None, got {type(extent).__name__}")
+    if isinstance(extent, str):
+        validate.choice("dpca.estimate extent", extent, ("auto",))
+    elif extent is not None and not isinstance(extent, SeafloorExtent):
+        raise TypeError(f"dpca.estimate extent: must be a dpca.SeafloorExtent, \"auto\" or None, got "
+                        f"{type(extent).__name__}")
     if echo.n_pulses < 2:
         raise ValueError(f"dpca.estimate echo: needs at least 2 pings, the echo has {echo.n_pulses}")
 
@@ -199,7 +202,8 @@ def _scan(setup: _Setup, prev: np.ndarray, nxt: np.ndarray, offset: np.ndarray, 
 
 
 def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lags: int = 8, block: int = 128,
-             n_angles: int = 65, min_coherence: float = 0.5, extent: SeafloorExtent | None = None) -> PingPairs:
+             n_angles: int = 65, min_coherence: float = 0.5,
+             extent: SeafloorExtent | str | None = "auto") -> PingPairs:
     """Surge, sway and yaw between every pair of consecutive pings (see the package docstring, clsas.estimate.dpca).
 
     Parameters
@@ -214,14 +218,22 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     n_angles : look angles over +-asin(c / (f0 L)) (L the overlapping phase centres' length),
         refined by a parabola.
     min_coherence : blocks whose best beam is weaker than this are left out.
-    extent : where the seafloor scatters (:class:`SeafloorExtent`), or None for a seafloor that
-        fills the beam (a real one). The phase-centre correction takes each range block's mean
-        sin^2 of the look angle over the part of the beam the seafloor fills
-        (geometry.look_moments): a patch narrower than the beam, or cut off inside its
-        sidelobes, otherwise biases the yaw by D (<sin^2>_patch - <sin^2>_beam) / r a pair.
-        Blocks holding less than half their seafloor's weight in the main lobe are left out.
+    extent : where the seafloor scatters (:class:`SeafloorExtent`); None for a seafloor that
+        fills the beam (a real one); "auto" (default): the seafloor of the scenario a simulated
+        echo carries (``echo.scenario``, :func:`geometry.scenario_extent`: its clsas Seafloor,
+        or the rectangle of its random point scatterers), None without one (recorded data).
+        The phase-centre correction takes each range block's mean sin^2 of the look angle over
+        the part of the beam the seafloor fills (geometry.look_moments): a patch narrower than
+        the beam, or cut off inside its sidelobes, read as one that fills it biases the yaw by
+        D (<sin^2>_patch - <sin^2>_beam) / r a pair (PingPairs.yaw_bias bounds it then). With
+        an extent, blocks holding less than half their seafloor's weight in the main lobe are
+        left out.
     """
     _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles, extent)
+    if isinstance(extent, str):
+        extent = scenario_extent(echo.scenario)
+        log.info("dpca.estimate: the seafloor %s", "fills the beam (no simulated seafloor in echo.scenario)"
+                 if extent is None else f"from echo.scenario: {extent}")
     eta = echo.eta
     prt = np.diff(eta)
     if not np.allclose(prt, prt[0], rtol=1e-9):
@@ -238,9 +250,11 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     r_samples = (c / 2 * (start + np.arange(n_blocks * block) / echo.fs)).reshape(n_blocks, block)
     # where the couples' phase centres are when a block's echo returns: hydrophone i at ping p + 1
     # (its partner i + s at ping p coincides), halfway through the two-way travel
+    ahead = pc[:n_couples].mean() - array.tx_offset[1] + speed * float(np.median(r_blocks)) / c
     centre = echo.tx_pos[1:].copy()
-    centre[:, 1] += pc[:n_couples].mean() - array.tx_offset[1] + speed * float(np.median(r_blocks)) / c
-    sin2, main_fraction, content = look_moments(array, f0, c, r_blocks, centre, extent, c / 2 * block / echo.fs)
+    centre[:, 1] += ahead
+    sin2, main_fraction, content = look_moments(array, f0, c, r_blocks, centre, extent, c / 2 * block / echo.fs,
+                                                ahead)
     data = records[..., :n_blocks * block].reshape(h, echo.n_pulses, n_blocks, block)
     step = pc[1] - pc[0]
     span = n_couples * step
@@ -275,8 +289,10 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     if np.any(counts == 0):
         worst = int(np.argmin(counts))
         raise ValueError(f"dpca: ping pair {worst}-{worst + 1} has no range block with a beam peak >= "
-                         f"min_coherence {min_coherence} (best {coherence[worst].max():.2f}): the pings do not "
-                         "correlate (too little overlap, or no seafloor return in the records)")
+                         f"min_coherence {min_coherence} (best {coherence[worst].max():.2f}) that holds the seafloor "
+                         f"in its main lobe ({int(np.sum(main_fraction[worst] >= MAIN_LOBE))} of {n_blocks} blocks "
+                         "do, by the extent): the pings do not correlate (too little overlap, or no seafloor return "
+                         "in the records), or the seafloor's extent does not reach the beam")
 
     # Surge: a block dominated by a lone bright echo stays coherent at every x-lag (a single
     # scatterer decorrelates only over its whole beam), so its beam peaks hardly change with the

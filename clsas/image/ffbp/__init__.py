@@ -53,8 +53,9 @@ from .store import DeviceStore, HostStore
 from .tree import Tree, plan
 
 DEFAULT_TOLERANCE = 0.1
+DEFAULT_FACTOR = 4  # children a merge (bench_ffbp --factors compares 2)
 
-__all__ = ["DEFAULT_TOLERANCE", "ffbp", "memory_plan"]
+__all__ = ["DEFAULT_FACTOR", "DEFAULT_TOLERANCE", "ffbp", "memory_plan"]
 
 SAMPLE_BYTES = 8  # a polar or image sample on OpenCL (complex64)
 LEAF_BATCH_BYTES = 40  # held a polar sample of a first-stage batch (leaves.py: device image 16, fields 16, work-items)
@@ -139,8 +140,8 @@ def _top_groups(grids: list, n_pixels: int) -> list:
     return groups + ([group] if group else [])
 
 
-def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFAULT_TOLERANCE, taps: int = 8,
-         first: int | None = None, interp: str = "linear", upsample: int = 8, receivers=None,
+def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance: float = DEFAULT_TOLERANCE,
+         taps: int = 8, first: int | None = None, interp: str = "linear", upsample: int = 8, receivers=None,
          aperture: float | None = None, stop_and_go: bool = False, backend: str | None = None,
          progress: bool = True) -> Image:
     """Fast factorised back-projection of range-compressed echoes onto ``grid`` (module docstring).
@@ -149,7 +150,8 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = 2, tolerance: float = DEFA
     ----------
     echo : EchoData, range-compressed.
     grid : Grid (plane, slant plane, or points; see the module docstring for points off a plane).
-    factor : children a merge (>= 2).
+    factor : children a merge (2..16; default 4: half the stages of pairs, so each interpolation
+        may err more and the polar grids need less oversampling for the same tolerance).
     tolerance : the largest relative (amplitude and phase, rad) error of a sub-aperture's
         contribution at the edge of the scene (:mod:`clsas.image.ffbp.polar`), in (0, 1).
     taps : 4 or 8, the merge interpolator's taps in range and in angle.

@@ -42,7 +42,7 @@ from .polar import PolarGrid
 
 BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~40 bytes each held)
 RECORD_BYTES = 256 * 2**20  # prepared records held at once
-TILE_ROWS, TILE_SAMPLES = 8, 128  # the largest tile tried (rows x range samples)
+TILE_ROWS, TILE_SAMPLES = 16, 128  # the largest tile tried (rows x range samples)
 REF_CHUNK = 2**18  # (pulse, tile) pairs whose references are computed at once (~100 bytes each held)
 
 
@@ -173,7 +173,9 @@ class FirstStage:
             last = k
         b0, b1 = self.leaves[node][0], self.leaves[last][1]
         e = self.echo
-        sub = e.replace(data=e.data[:, b0:b1], eta=e.eta[b0:b1], tx_pos=e.tx_pos[b0:b1], rx_pos=e.rx_pos[:, b0:b1])
+        whole = (b0, b1) == (0, e.n_pulses)  # a batch of every pulse needs no (validated) copy of the echo
+        sub = e if whole else e.replace(data=e.data[:, b0:b1], eta=e.eta[b0:b1], tx_pos=e.tx_pos[b0:b1],
+                                        rx_pos=e.rx_pos[:, b0:b1])
         # only the fast times the leaves' polar grids reach (prepare's reach of their boundary: the
         # first and last range at every angle row bound a sector's box up to an arc's sagitta
         # between rows, r dv^2 / 8, micrometres, inside the sample prepare adds for rounding)
@@ -275,8 +277,9 @@ class FirstStage:
         for i, h in enumerate(records.receivers):
             data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
             ref_buf = made(refs[i])
+            kern = tile.for_receiver(echo, h)  # the receiver's legs (TileKernel.legs_for)
             for s in range(0, self.first, tile.PULSE_BLOCK):
-                tile.for_receiver(echo, h).launch(queue, pixels=pix, tile_of=tile_of, refs=ref_buf, ref_stride=self.first, ref_first=0,
+                kern.launch(queue, pixels=pix, tile_of=tile_of, refs=ref_buf, ref_stride=self.first, ref_first=0,
                             records=data, n_samples=n_samples, taps=taps, params=params, p_first=s,
                             p_count=min(tile.PULSE_BLOCK, self.first - s), image=image, row_shift=row_shift)
         rt.queue.finish()  # the records' buffers may use host memory that the caller drops

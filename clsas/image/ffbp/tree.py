@@ -1,6 +1,9 @@
 """The merge tree of fast factorised back-projection: sub-apertures, their frames and polar grids.
 
-Level 0 holds the leaves, blocks of ``first`` consecutive pulses (the last one shorter);
+Level 0 holds the leaves, blocks of ``first`` consecutive pulses (the last one shorter; by
+default the fewest, doubling from one, whose polar grid at the track's middle spans LEAF_SAMPLES
+angles besides its padding and that make at most MAX_LEAVES leaves: bench_ffbp found fewer,
+longer leaves faster in every case where the angle rule alone gave more);
 a node of level l + 1 is ``factor`` consecutive nodes of level l. A node's frame:
 
 - centre C: the mean of its phase centres, the midpoints of the transmitter at emission and
@@ -39,6 +42,7 @@ from ...model import EchoData
 from .polar import Scene, extents, oversampling
 
 LEAF_SAMPLES = 16  # the default first stage: the fewest pulses whose leaf grid is at least this wide in angle
+MAX_LEAVES = 64  # ... and no more leaves than this (a leaf's launches and host work cost alike however short it is)
 
 
 @dataclasses.dataclass
@@ -158,9 +162,9 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         rho0 = oversampling(taps, tolerance, 1)
         while first < echo.n_pulses:
             g = next((node_grid(p, min(p + first, echo.n_pulses), rho0) for p in (echo.n_pulses // 2,)), None)
-            if g is not None and g.n_v - 2 * taps >= LEAF_SAMPLES:
+            if g is not None and g.n_v - 2 * taps >= LEAF_SAMPLES and -(-echo.n_pulses // first) <= MAX_LEAVES:
                 break
-            first *= factor
+            first *= 2  # doubling, whatever the factor (a factor of 4 would jump past the best)
         first = min(first, echo.n_pulses)
     pulses, children = _levels(echo.n_pulses, first, factor)
     find_extents([node for level in pulses for node in level])

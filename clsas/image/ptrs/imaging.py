@@ -4,7 +4,8 @@ Zhang, Tan & Ying 2019, sections 3-4 (Fig. 2).
 For each receiver i (offset d_i ahead of the transmitter), on its range-compressed record:
 
 1. 2-D FFT (section 4.1): every receiver's fast time referred to the earliest receiver's start
-   (a linear phase in range frequency), slow-time FFT over its pulses at the PRF. The spectrum
+   (a copy when the starts differ by whole samples, else a linear phase in range frequency),
+   slow-time FFT over its pulses at the PRF. The spectrum
    is aliased M times; row f_t of the full Doppler grid of M x PRF is its row f_t mod PRF (the
    receiver's samples zero-stuffed onto the fine slow-time grid PRI / M).
 2. Bulk decoupling (eq. 12) at the swath centre r_c, exp(-j phi_de_i(f_tau, f_t; r_c)) with
@@ -263,10 +264,7 @@ def ptrs_image(echo: EchoData, *, receivers=None, block_width: float | None = No
     for j, h in enumerate(arr.receivers):
         # the receiver's record on the common range axis, then its slow-time spectrum at the PRF
         # (n_fp rows; row f_t of the M x PRF grid is row f_t mod PRF of it: the aliases)
-        spec = scipy.fft.fft(echo.data[h], n=n_r, axis=1, workers=workers)
-        spec *= np.exp(-2j * np.pi * ftau * (echo.t0[h] - t0)).astype(np.complex64)
-        rd = scipy.fft.fft(scipy.fft.ifft(spec, axis=1, workers=workers), n=n_fp, axis=0, workers=workers)
-        del spec
+        rd = _slow_time_spectrum(echo.data[h], echo.t0[h] - t0, fs, ftau, n_r, n_fp, workers)
         for b, (lo, hi, r_ref) in enumerate(blocks):
             length = scipy.fft.next_fast_len(hi - lo + 2 * margin)
             first = lo - margin
@@ -300,6 +298,25 @@ def ptrs_image(echo: EchoData, *, receivers=None, block_width: float | None = No
                                             "tap_window": tap_window, "backend": backend,
                                             "stationary_points_solved": points.solved}, depth)
     return image
+
+
+def _slow_time_spectrum(data: np.ndarray, delay: float, fs: float, ftau: np.ndarray, n_r: int, n_fp: int,
+                        workers: int) -> np.ndarray:
+    """A receiver's record (n_pulses, n) on the common range axis of ``n_r`` columns, ``delay``
+    s (>= 0) after the axis' start, and its slow-time FFT of length ``n_fp``: complex64
+    (n_fp, n_r), zero beyond the record. When the delay is a whole number of samples (the records
+    of one array usually share their start) the record's spectrum is copied to its column;
+    otherwise the record is delayed by the linear phase exp(-j 2 pi f_tau delay) in range
+    frequency (``ftau``, Hz) first."""
+    whole = int(round(delay * fs))
+    if abs(delay * fs - whole) <= 1e-6:
+        out = np.zeros((n_fp, n_r), np.complex64)
+        out[:, whole:whole + data.shape[1]] = scipy.fft.fft(data, n=n_fp, axis=0, workers=workers)
+        return out
+    spec = scipy.fft.fft(data, n=n_r, axis=1, workers=workers)
+    spec *= np.exp(-2j * np.pi * ftau * delay).astype(np.complex64)
+    return scipy.fft.fft(scipy.fft.ifft(spec, axis=1, overwrite_x=True, workers=workers), n=n_fp, axis=0,
+                         workers=workers)
 
 
 def decoupling_phase(points: StationaryPoints, g: np.ndarray, t: np.ndarray, r: float, ft: np.ndarray,

@@ -6,7 +6,7 @@ amplitude a centred at sample u = s + phi (s integer, 0 <= phi < 1) whose raw ec
 a exp(E(d)), d = k - u, becomes, at output sample s + m,
 
     y(m) = a sum_k exp(E(k - u)) conj(p(k - s - m)) W / g         (the matched filter of
-                                                                  clsas.image.rangecomp)
+                                                                  clsas.pulse)
 
 For the plain echo E(d) = j 2 pi alpha d^2 (|d| <= T fs / 2) this is a function Y0(m; phi) of
 the tap m and the fraction phi alone: clsas tabulates it once per waveform, window and rate (at
@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft
 
-from ...image.rangecomp import check_window, matched_filter
+from ...pulse import check_window, matched_filter
 from ...model import Waveform
 
 PHASES = 64  # fractions tabulated between two samples

@@ -9,7 +9,7 @@ import numpy as np
 from ... import backend as _backend
 from ... import budget
 from ... import validate as v
-from ...image.rangecomp import WINDOWS
+from ...pulse import WINDOWS
 from ..occlusion import DEFAULT_REUSE_TOLERANCE
 from .compressed import DEFAULT_LEVEL_DB
 

@@ -64,6 +64,14 @@ SCATTERER = record_dtype([("p0", "f8", 3), ("vel", "f8", 3), ("refl", "f8", 2), 
 # m, m/s, re/im, 1 on the seabed (synth.on_floor)
 
 
+def groups(n_x: int, *rest: int) -> tuple[tuple, tuple]:
+    """(global, local) sizes of a launch of (n_x, *rest) work-items in fixed work-groups along the
+    first dimension (:func:`clsas.opencl.work_groups`: PoCL compiles each kernel once per process
+    whatever the shape; the kernels return for the work-items past n_x)."""
+    (size,), (group,) = opencl.work_groups(n_x)
+    return (size, *rest), (group,) + (1,) * len(rest)
+
+
 def path_record(real, extended: bool) -> np.dtype:
     """The path record echo_paths writes and the accumulation reads (``echo_path_t``): the echo
     centre (start sample and fraction), the amplitude with the carrier phase and, ``extended``,
@@ -498,10 +506,11 @@ class _OpenCLSynth(_Synth):
             nodes["pos"], nodes["axis"] = back_image.points(self.rx_pos[:, idx]), back_image.vectors(self.rx_axis[:, idx])
             pulse_buf, node_buf = (cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
                                    for a in (pulse, nodes))
-            kernel(q, (n_act // 8, pc, h), None, self.tsoa_buf, self.fsoa_buf, pulse_buf, node_buf, rx_buf,
+            kernel(q, *groups(n_act // 8, pc, h), self.tsoa_buf, self.fsoa_buf, pulse_buf, node_buf, rx_buf,
                    self.torder_buf, self.forder_buf, w_buf, self.bottom_buf, self.params[()], self.legs[k][()],
                    np.int32(self.scat.count), np.int32(self.split), np.int32(self.n_floor), np.int32(jump),
-                   active_buf, np.int32(pc), np.int32(w_rx), np.int32(stride), np.int32(slot * n_act), paths_buf)
+                   active_buf, np.int32(pc), np.int32(w_rx), np.int32(stride), np.int32(slot * n_act),
+                   np.int32(n_act // 8), paths_buf)
         return paths_buf, pc, (jump, n_act, stride)
 
     def release(self) -> None:
@@ -531,7 +540,8 @@ class _OpenCLSynth(_Synth):
         paths_buf, _, (_, n_act, stride) = self._run_paths(slice(pulse, pulse + 1), np.zeros(self.n_rx),
                                                            weighted=False, kinds=[0])
         out = self.cl.Buffer(self.rt.context, self.cl.mem_flags.WRITE_ONLY, 16 * self.n_rx)
-        self.k_spread(self.rt.queue, (1, self.n_rx), None, paths_buf, np.int32(n_act), np.int32(stride), out)
+        self.k_spread(self.rt.queue, *groups(1, self.n_rx), paths_buf, np.int32(n_act), np.int32(stride), np.int32(1),
+                      out)
         host = np.empty((self.n_rx, 2))
         self.cl.enqueue_copy(self.rt.queue, host, out)
         return (host[:, 1] - host[:, 0]) / self.scenario.waveform.fs
@@ -554,7 +564,7 @@ class _OpenCLSynth(_Synth):
             self.cache[(pulses.start, pulses.stop)] = (paths_buf, pc, block)
             self.cached_bytes += self._path_bytes(pc, stride)
         ext = cl.Buffer(self.rt.context, cl.mem_flags.WRITE_ONLY, 8 * h * stride)
-        self.k_extents(q, (stride, h), None, paths_buf, np.int32(stride), np.int32(pc), ext)
+        self.k_extents(q, *groups(stride, h), paths_buf, np.int32(stride), np.int32(pc), ext)
         host = np.empty((h, len(self.physics.kinds), n_act, 2), np.int32)
         cl.enqueue_copy(q, host, ext)
         first, last = host[..., 0].min(axis=1), host[..., 1].max(axis=1)
@@ -584,7 +594,7 @@ class _OpenCLSynth(_Synth):
         n_chunks = -(-n // CHUNK_SCATTERERS)
         mf = cl.mem_flags
         bounds = cl.Buffer(self.rt.context, mf.READ_WRITE, 8 * h * pc * n_chunks)
-        self.k_bounds(q, (n_chunks, pc, h), None, paths_buf, self.real(self.half_len), np.int32(n), np.int32(pc),
+        self.k_bounds(q, *groups(n_chunks, pc, h), paths_buf, self.real(self.half_len), np.int32(n), np.int32(pc),
                       bounds)
         rows = 16 * ROWS
         n_pad = -(-n_samples // rows) * rows
@@ -592,12 +602,12 @@ class _OpenCLSynth(_Synth):
         shift_buf = cl.Buffer(self.rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=shift)
         if self.physics.response is not None:
             resp = self.physics.response
-            self.k_acc(q, (n_pad // rows, pc, h), None, paths_buf, bounds, self.table_buf, self.real(self.alpha),
+            self.k_acc(q, *groups(n_pad // rows, pc, h), paths_buf, bounds, self.table_buf, self.real(self.alpha),
                        np.int32(self.table_row), self.impulse_buf, np.int32(self.impulse_len), np.int32(resp.lag0),
                        np.int32(resp.edges[0]), np.int32(resp.edges[1]), self.real(resp.half_len), np.int32(n),
                        np.int32(pc), np.int32(n_pad), np.int32(n_samples), shift_buf, out)
         else:
-            self.k_acc(q, (n_pad // rows, pc, h), None, paths_buf, bounds, self.real(self.alpha),
+            self.k_acc(q, *groups(n_pad // rows, pc, h), paths_buf, bounds, self.real(self.alpha),
                        self.real(self.half_len), np.int32(n), np.int32(pc), np.int32(n_pad), np.int32(n_samples),
                        shift_buf, out)
         host = np.empty((h, pc, n_pad), self.cplx)

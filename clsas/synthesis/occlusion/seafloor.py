@@ -190,7 +190,8 @@ class SeafloorPaths:
         f_buf = cl.Buffer(rt.context, mf.WRITE_ONLY, flag.nbytes)
         knl = opencl.kernel("seafloor", "seafloor_weights")
         slope = np.float32(-np.inf if self.slope is None else self.slope)
-        knl(rt.queue, (span // 16, n_p), None, *self._device[:6],
+        (size,), (group,) = opencl.work_groups(span // 16)  # fixed work-groups: one compilation
+        knl(rt.queue, (size, n_p), (group, 1), *self._device[:6],
             cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=st),
             cl.Buffer(rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=sph), self._device[6],
             np.int32(LAW_TABLE), np.float32(min(self.facets.reach, 1e30)), np.float32(self.lift),
