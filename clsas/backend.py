@@ -15,16 +15,24 @@ previous choice comes back on exit)::
     clsas.use_backend("numpy")
     with clsas.use_backend("opencl"):
         image = clsas.backproject(echo, grid)
+
+The choice is a context variable (:mod:`contextvars`): it belongs to the thread (or asyncio
+task) that made it, so a ``with`` block in one thread leaves every other thread's choice
+alone. A new thread starts without a choice (``CLSAS_BACKEND``, else "auto"); to hand the
+calling thread's choice to a worker, run it in ``contextvars.copy_context()``. The environment
+variable is the process-wide default.
 """
 
 from __future__ import annotations
 
+import contextvars
 import os
 import warnings
 
 BACKENDS = ("numpy", "opencl", "auto")
 
-_choice: str | None = None  # set by use_backend; None defers to CLSAS_BACKEND, then "auto"
+#: set by use_backend in the current context; None defers to CLSAS_BACKEND, then "auto"
+_choice: contextvars.ContextVar = contextvars.ContextVar("clsas_backend", default=None)
 _auto_warned = False
 
 
@@ -36,8 +44,9 @@ def _check_name(name: object, what: str) -> str:
 
 def default() -> str:
     """The backend name used when a function gets ``backend=None`` (may be ``"auto"``)."""
-    if _choice is not None:
-        return _choice
+    chosen = _choice.get()
+    if chosen is not None:
+        return chosen
     env = os.environ.get("CLSAS_BACKEND")
     if env:
         return _check_name(env, "the CLSAS_BACKEND environment variable")
@@ -45,7 +54,8 @@ def default() -> str:
 
 
 class use_backend:
-    """Set the default backend; as a context manager, restore the previous one on exit.
+    """Set the default backend of the current thread (context); as a context manager, restore
+    the previous one on exit.
 
     Parameters
     ----------
@@ -53,18 +63,19 @@ class use_backend:
     """
 
     def __init__(self, name: str):
-        global _choice
         checked = _check_name(name, "backend")
-        self._previous = _choice
-        _choice = checked
+        self._previous = _choice.get()
+        self._token = _choice.set(checked)
         self.name = checked
 
     def __enter__(self) -> "use_backend":
         return self
 
     def __exit__(self, *exc_info) -> None:
-        global _choice
-        _choice = self._previous
+        try:
+            _choice.reset(self._token)
+        except (RuntimeError, ValueError):  # the same object entered twice, or exited in another context
+            _choice.set(self._previous)
 
     def __repr__(self) -> str:
         return f"use_backend({self.name!r})"

@@ -6,8 +6,8 @@ how many bytes it will need and calls :func:`check_bytes`, which refuses a reque
 budget with a :class:`clsas.errors.MemoryBudgetError` (a ValueError) saying what was asked,
 how much it needs and how to raise the budget. The budget is:
 
-- the last :func:`use_memory_budget` choice (a plain call keeps it; as a context manager the
-  previous one comes back on exit), else
+- the last :func:`use_memory_budget` choice of the current thread (a plain call keeps it; as a
+  context manager the previous one comes back on exit), else
 - the ``CLSAS_MEMORY_BUDGET`` environment variable (bytes, or with a K/M/G/T suffix, binary:
   ``"16G"``), else
 - half of the machine's physical memory.
@@ -17,10 +17,15 @@ how much it needs and how to raise the budget. The budget is:
     clsas.memory_budget()                      # bytes allowed now
     with clsas.use_memory_budget("64G"):
         echo = clsas.simulate(big_scene)
+
+The choice is a context variable (:mod:`contextvars`), as :func:`clsas.use_backend`'s: a
+``with`` block in one thread does not change another thread's budget, and a new thread starts
+from the environment variable or the default.
 """
 
 from __future__ import annotations
 
+import contextvars
 import os
 import re
 
@@ -30,7 +35,8 @@ ENV = "CLSAS_MEMORY_BUDGET"
 DEFAULT_FRACTION = 0.5  # of physical memory
 _UNITS = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
 
-_choice: int | None = None
+#: set by use_memory_budget in the current context; None defers to the environment, then the default
+_choice: contextvars.ContextVar = contextvars.ContextVar("clsas_memory_budget", default=None)
 
 
 def physical_memory() -> int:
@@ -64,8 +70,9 @@ def parse_bytes(value, what: str) -> int:
 
 def memory_budget() -> int:
     """The bytes one call may allocate now (see the module docstring)."""
-    if _choice is not None:
-        return _choice
+    chosen = _choice.get()
+    if chosen is not None:
+        return chosen
     env = os.environ.get(ENV)
     if env:
         return parse_bytes(env, f"the {ENV} environment variable")
@@ -73,21 +80,23 @@ def memory_budget() -> int:
 
 
 class use_memory_budget:
-    """Set the memory budget (bytes, or a string like ``"16G"``); as a context manager, restore
-    the previous one on exit. ``None`` goes back to the environment variable or the default."""
+    """Set the memory budget of the current thread (context): bytes, or a string like ``"16G"``;
+    as a context manager, restore the previous one on exit. ``None`` goes back to the
+    environment variable or the default."""
 
     def __init__(self, nbytes):
-        global _choice
-        self._previous = _choice
-        _choice = None if nbytes is None else parse_bytes(nbytes, "memory budget")
-        self.nbytes = _choice
+        self.nbytes = None if nbytes is None else parse_bytes(nbytes, "use_memory_budget nbytes")
+        self._previous = _choice.get()
+        self._token = _choice.set(self.nbytes)
 
     def __enter__(self) -> "use_memory_budget":
         return self
 
     def __exit__(self, *exc_info) -> None:
-        global _choice
-        _choice = self._previous
+        try:
+            _choice.reset(self._token)
+        except (RuntimeError, ValueError):  # the same object entered twice, or exited in another context
+            _choice.set(self._previous)
 
     def __repr__(self) -> str:
         return f"use_memory_budget({self.nbytes!r})"

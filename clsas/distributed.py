@@ -34,6 +34,7 @@ Agreement with one process (measured in tests/test_distributed.py, 2 workers, 15
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from pathlib import Path
 
@@ -64,18 +65,30 @@ def pulse_block(scenario: Scenario, first: int, stop: int) -> Scenario:
     return scenario.replace(schedule=schedule)
 
 
-def _block_extent(scenario: Scenario, backend, stop_and_go: bool) -> tuple[np.ndarray, np.ndarray]:
+def _block_extent(scenario: Scenario, backend, stop_and_go: bool, multipath) -> tuple[np.ndarray, np.ndarray]:
     """Per receiver, the echo-centre extents in whole samples (floor of the earliest, floor of the
-    latest + 1), rounded as :func:`clsas.simulate` rounds them (``sample_extents``)."""
+    latest + 1) over every path kind :func:`clsas.simulate` synthesizes at ``multipath`` (the
+    direct path and the bounces off the scenario's sea surface and seabed), rounded as it rounds
+    them (``sample_extents``)."""
     from .synthesis import delays
+    from .synthesis.propagation import boundaries, path_kinds
 
-    u = delays(scenario, backend=backend, stop_and_go=stop_and_go) * scenario.waveform.fs  # (H, P, N) samples
-    return np.floor(u.min(axis=(1, 2))), np.floor(u.max(axis=(1, 2))) + 1
+    planes = boundaries(scenario)
+    order = (1 if planes else 0) if multipath == "auto" else multipath  # as simulate resolves "auto"
+    lo, hi = None, None
+    for kind in path_kinds(planes, order):
+        u = delays(scenario, backend=backend, stop_and_go=stop_and_go, path=kind.name) * scenario.waveform.fs
+        a, b = np.floor(u.min(axis=(1, 2))), np.floor(u.max(axis=(1, 2))) + 1  # (H, P, N) samples -> (H,)
+        lo, hi = (a, b) if lo is None else (np.minimum(lo, a), np.maximum(hi, b))
+    return lo, hi
 
 
-def _extents(scenario: Scenario, client, pulses_per_task: int, backend, stop_and_go: bool):
+def _extents(scenario: Scenario, client, pulses_per_task: int, backend, stop_and_go: bool, multipath="auto"):
     """Earliest and latest echo centre per receiver over the whole run, s (whole samples)."""
-    futures = [client.submit(_block_extent, pulse_block(scenario, a, b), backend, stop_and_go, pure=False)
+    from .synthesis import SynthesisOptions
+
+    multipath = SynthesisOptions(multipath=multipath).multipath  # checked here, before any task
+    futures = [client.submit(_block_extent, pulse_block(scenario, a, b), backend, stop_and_go, multipath, pure=False)
                for a, b in _blocks(scenario.eta.size, pulses_per_task)]
     extents = client.gather(futures)
     fs = scenario.waveform.fs
@@ -90,12 +103,14 @@ def _window_of(scenario: Scenario, lo: np.ndarray, hi: np.ndarray) -> Recording:
 
 
 def recording_window(scenario: Scenario, client, pulses_per_task: int = 64, backend=None,
-                     stop_and_go: bool = False) -> Recording:
+                     stop_and_go: bool = False, multipath="auto") -> Recording:
     """The recording window of the whole run as :func:`clsas.simulate` derives it: per receiver,
-    from the earliest echo centre minus half the pulse to the latest plus half the pulse, in
-    whole samples (the delays computed on the workers, a pulse block a task)."""
+    from the earliest echo centre minus half the pulse to the latest plus half the pulse over
+    every path (``multipath`` as :func:`clsas.simulate` takes it: the bounces off the sea
+    surface and the seabed too), in whole samples (the delays computed on the workers, a pulse
+    block a task)."""
     _check_client(client)
-    return _window_of(scenario, *_extents(scenario, client, pulses_per_task, backend, stop_and_go))
+    return _window_of(scenario, *_extents(scenario, client, pulses_per_task, backend, stop_and_go, multipath))
 
 
 def _geometry(scenario: Scenario, hi: np.ndarray):
@@ -120,9 +135,9 @@ def _simulate_block(scenario: Scenario, kwargs: dict, store: str | None, first: 
     power = signal_power(echo.data, n_valid)
     if store is None:
         return echo, power, echo.provenance
-    import zarr
+    from .io.files.write import zarr_array
 
-    zarr.open_group(store, mode="r+")["echo"][:, first:first + echo.n_pulses] = echo.data
+    zarr_array(Path(store), "echo")[:, first:first + echo.n_pulses] = echo.data
     return None, power, echo.provenance
 
 
@@ -141,43 +156,42 @@ def simulate(scenario: Scenario, client, pulses_per_task: int = 64, snr_db: floa
     _check_client(client)
     if not isinstance(scenario, Scenario):
         raise TypeError(f"scenario must be a Scenario, got {type(scenario).__name__}")
-    store = Path(out) if out is not None and Path(out).suffix == ".zarr" else None
-    if not gather and store is None:
-        raise ValueError("gather=False needs out=... ending in .zarr (the workers write the echo there)")
+    store = _store(out, gather, "echo")
     blocks = _blocks(scenario.eta.size, pulses_per_task)
     backend, stop_and_go = kwargs.get("backend"), kwargs.get("stop_and_go", False)
     given = scenario
-    with stage("distributed echo synthesis", f"{scenario.n_receivers} receivers x {scenario.eta.size} pulses in "
-               f"{len(blocks)} tasks" + (f", written by the workers to {store}" if store else "")):
-        lo, hi = _extents(scenario, client, pulses_per_task, backend, stop_and_go)
-        if scenario.recording is None:
-            scenario = scenario.replace(recording=_window_of(scenario, lo, hi))
-        rx_tau, rx_pos, node_error = _geometry(scenario, hi)
-        t0, n_valid = (np.asarray(a) for a in scenario.recording.for_receivers(scenario.n_receivers))
-        tmp = None
+    with _temporary(store) as tmp:
+        with stage("distributed echo synthesis", f"{scenario.n_receivers} receivers x {scenario.eta.size} pulses in "
+                   f"{len(blocks)} tasks" + (f", written by the workers to {store}" if store else "")):
+            lo, hi = _extents(scenario, client, pulses_per_task, backend, stop_and_go, kwargs.get("multipath", "auto"))
+            if scenario.recording is None:
+                scenario = scenario.replace(recording=_window_of(scenario, lo, hi))
+            rx_tau, rx_pos, node_error = _geometry(scenario, hi)
+            t0, n_valid = (np.asarray(a) for a in scenario.recording.for_receivers(scenario.n_receivers))
+            if store is not None:
+                head = EchoData(data=np.broadcast_to(np.complex64(0), (scenario.n_receivers, scenario.eta.size,
+                                                                       int(n_valid.max()))),
+                                eta=scenario.eta, t0=t0, fs=scenario.waveform.fs,
+                                tx_pos=scenario.tx_position(scenario.eta), rx_pos=rx_pos, rx_tau=rx_tau,
+                                waveform=scenario.waveform, medium=scenario.medium,
+                                receivers=scenario.receiver_names, scenario=given)
+                _zarr_template(head, tmp, "echo", (1, int(pulses_per_task)))
+            futures = [client.submit(_simulate_block, pulse_block(scenario, a, b), kwargs,
+                                     None if tmp is None else str(tmp), a, n_valid, pure=False) for a, b in blocks]
+            parts = client.gather(futures)
+        power = (np.concatenate([p[1][0] for p in parts], axis=1), np.concatenate([p[1][1] for p in parts], axis=1))
+        provenance = dict(parts[0][2], snr_db=snr_db,
+                          seed=seed if seed is None or isinstance(seed, int) else str(seed),
+                          distributed={"tasks": len(blocks), "pulses_per_task": int(pulses_per_task),
+                                       "written_by": "workers" if store else "client"},
+                          rx_node_error_m=node_error)
         if store is not None:
-            head = EchoData(data=np.broadcast_to(np.complex64(0), (scenario.n_receivers, scenario.eta.size,
-                                                                   int(n_valid.max()))),
-                            eta=scenario.eta, t0=t0, fs=scenario.waveform.fs,
-                            tx_pos=scenario.tx_position(scenario.eta), rx_pos=rx_pos, rx_tau=rx_tau,
-                            waveform=scenario.waveform, medium=scenario.medium, receivers=scenario.receiver_names,
-                            scenario=given)
-            tmp = _zarr_template(head, store, "echo", (1, int(pulses_per_task)))
-        futures = [client.submit(_simulate_block, pulse_block(scenario, a, b), kwargs,
-                                 None if tmp is None else str(tmp), a, n_valid, pure=False) for a, b in blocks]
-        parts = client.gather(futures)
-    power = (np.concatenate([p[1][0] for p in parts], axis=1), np.concatenate([p[1][1] for p in parts], axis=1))
-    provenance = dict(parts[0][2], snr_db=snr_db, seed=seed if seed is None or isinstance(seed, int) else str(seed),
-                      distributed={"tasks": len(blocks), "pulses_per_task": int(pulses_per_task),
-                                   "written_by": "workers" if store else "client"},
-                      rx_node_error_m=node_error)
-    if store is not None:
-        import zarr
+            from .io.files.write import zarr_array
 
-        group = zarr.open_group(str(tmp), mode="r+")
-        if snr_db is not None:
-            add_noise(group["echo"], float(snr_db), seed, n_valid, power=power)
-        _finish_store(tmp, store, provenance)
+            if snr_db is not None:
+                add_noise(zarr_array(tmp, "echo"), float(snr_db), seed, n_valid, power=power)
+            _finish_store(tmp, store, provenance)
+    if store is not None:
         if not gather:
             return store
         from .io import load
@@ -195,19 +209,45 @@ def simulate(scenario: Scenario, client, pulses_per_task: int = 64, snr_db: floa
     return echo
 
 
-def _zarr_template(head, store: Path, name: str, part_chunks: tuple) -> Path:
-    """Write ``head``'s dataset to a temporary store beside ``store``, with the big variable
-    ``name`` as metadata only (chunks: ``part_chunks`` on its leading axes, the rest whole,
-    cut to about :data:`clsas.io.CHUNK_BYTES`), for the workers to fill; returns its path."""
-    import tempfile
+def _store(out, gather: bool, what: str) -> Path | None:
+    """The zarr store ``out`` names, checked before any work (None for another or no ``out``)."""
+    if not isinstance(gather, bool):
+        raise TypeError(f"gather: must be True or False, got {gather!r}")
+    if out is None:
+        if not gather:
+            raise ValueError(f"gather=False needs out=... ending in .zarr (the workers write the {what} there)")
+        return None
+    from .io.files import check_target
 
+    path = check_target("out", out)
+    if path.suffix != ".zarr":
+        if not gather:
+            raise ValueError(f"gather=False needs out=... ending in .zarr (the workers write the {what} there)")
+        return None
+    return path
+
+
+@contextlib.contextmanager
+def _temporary(store: Path | None):
+    """The temporary store beside ``store`` the workers write (deleted on failure), or None."""
+    if store is None:
+        yield None
+        return
+    from .io.files.target import temporary
+
+    with temporary(store) as tmp:
+        yield tmp
+
+
+def _zarr_template(head, tmp: Path, name: str, part_chunks: tuple) -> None:
+    """Write ``head``'s dataset to the store ``tmp``, with the big variable ``name`` as metadata
+    only (chunks: ``part_chunks`` on its leading axes, the rest whole, cut to about
+    :data:`clsas.io.CHUNK_BYTES`), for the workers to fill."""
     import dask.array as da
 
     from .io.dataset import to_xarray
-    from .io.files import CHUNK_BYTES, _encoding
+    from .io.files.write import CHUNK_BYTES, encoding as file_encoding
 
-    if not store.parent.is_dir():
-        raise FileNotFoundError(f"the folder {store.parent} does not exist")
     ds = to_xarray(head)
     var = ds[name]
     chunks = list(part_chunks) + list(var.shape[len(part_chunks):])
@@ -215,31 +255,25 @@ def _zarr_template(head, store: Path, name: str, part_chunks: tuple) -> Path:
     chunks[-1] = int(max(1, min(chunks[-1], CHUNK_BYTES // max(per_row, 1))))
     chunks = tuple(int(min(c, s)) if s else 1 for c, s in zip(chunks, var.shape))
     ds[name] = var.copy(data=da.zeros(var.shape, chunks=chunks, dtype=var.dtype))
-    encoding = _encoding(ds, True, 1)
+    encoding = file_encoding(ds, True, 1)
     encoding[name]["chunks"] = chunks
-    tmp = Path(tempfile.mkdtemp(prefix=f".{store.name}.", suffix=".tmp.zarr", dir=store.parent))
-    ds.to_zarr(tmp, mode="w", compute=False, encoding=encoding, consolidated=True, zarr_format=2)
-    return tmp
+    ds.to_zarr(tmp, mode="w-", compute=False, encoding=encoding, consolidated=True, zarr_format=2)
 
 
 def _finish_store(tmp: Path, store: Path, provenance: dict) -> None:
-    """Record the provenance, consolidate the metadata and rename the store into place."""
+    """Record the provenance, consolidate the metadata, check every chunk was written and move
+    the store into place with one rename (:func:`clsas.io.files.target.replace`)."""
     import zarr
 
     from .io.dataset import to_json
-    from .io.files import _remove
+    from .io.files.read import check_chunks
+    from .io.files.target import replace
 
     group = zarr.open_group(str(tmp), mode="r+")
     group.attrs["provenance"] = to_json(provenance)
     zarr.consolidate_metadata(str(tmp))
-    if store.exists():
-        old = store.with_name(f".{store.name}.old")
-        _remove(old)
-        store.rename(old)
-        tmp.rename(store)
-        _remove(old)
-    else:
-        tmp.rename(store)
+    check_chunks(tmp)
+    replace(tmp, store)
     log.info("the workers wrote %s", store)
 
 
@@ -249,9 +283,9 @@ def _backproject_band(echo, grid: Grid, kwargs: dict, store: str | None, first: 
     image = backproject_one(echo, grid, progress=False, **kwargs)
     if store is None:
         return image.data, image.provenance
-    import zarr
+    from .io.files.write import zarr_array
 
-    zarr.open_group(store, mode="r+")["image"][first:first + image.data.shape[0]] = image.data
+    zarr_array(Path(store), "image")[first:first + image.data.shape[0]] = image.data
     return None, image.provenance
 
 
@@ -275,30 +309,29 @@ def backproject(echo: EchoData, grid: Grid, client, rows_per_task: int | None = 
     _check_client(client)
     if not isinstance(echo, EchoData) or not isinstance(grid, Grid):
         raise TypeError("backproject takes an EchoData and a Grid")
-    store = Path(out) if out is not None and Path(out).suffix == ".zarr" else None
-    if not gather and store is None:
-        raise ValueError("gather=False needs out=... ending in .zarr (the workers write the image there)")
+    store = _store(out, gather, "image")
     n_rows = grid.shape[0]
     per_row = max(1, grid.size // n_rows)
     rows = rows_per_task if rows_per_task is not None else max(1, 2**16 // per_row)
     bands = _blocks(n_rows, rows)
-    tmp = None
+    with _temporary(store) as tmp:
+        if store is not None:
+            head = Image(data=np.broadcast_to(np.complex64(0), grid.shape), dims=grid.dims, axes=grid.axes,
+                         positions=grid.positions)
+            _zarr_template(head, tmp, "image", (int(rows),))
+        with stage("distributed back-projection", f"{grid.size} pixels x {echo.n_rx} receivers x {echo.n_pulses} "
+                   f"pulses in {len(bands)} tasks" + (f", written by the workers to {store}" if store else "")):
+            shared = client.scatter(echo, broadcast=True)
+            futures = [client.submit(_backproject_band, shared, grid_band(grid, a, b), kwargs,
+                                     None if tmp is None else str(tmp), a, pure=False) for a, b in bands]
+            parts = client.gather(futures)
+        provenance = dict(parts[0][1], distributed={"tasks": len(bands), "rows_per_task": int(rows),
+                                                    "written_by": "workers" if store else "client"})
+        if "exact_fallback_blocks" in provenance:
+            provenance["exact_fallback_blocks"] = int(sum(p[1]["exact_fallback_blocks"] for p in parts))
+        if store is not None:
+            _finish_store(tmp, store, provenance)
     if store is not None:
-        head = Image(data=np.broadcast_to(np.complex64(0), grid.shape), dims=grid.dims, axes=grid.axes,
-                     positions=grid.positions)
-        tmp = _zarr_template(head, store, "image", (int(rows),))
-    with stage("distributed back-projection", f"{grid.size} pixels x {echo.n_rx} receivers x {echo.n_pulses} pulses "
-               f"in {len(bands)} tasks" + (f", written by the workers to {store}" if store else "")):
-        shared = client.scatter(echo, broadcast=True)
-        futures = [client.submit(_backproject_band, shared, grid_band(grid, a, b), kwargs,
-                                 None if tmp is None else str(tmp), a, pure=False) for a, b in bands]
-        parts = client.gather(futures)
-    provenance = dict(parts[0][1], distributed={"tasks": len(bands), "rows_per_task": int(rows),
-                                                "written_by": "workers" if store else "client"})
-    if "exact_fallback_blocks" in provenance:
-        provenance["exact_fallback_blocks"] = int(sum(p[1]["exact_fallback_blocks"] for p in parts))
-    if store is not None:
-        _finish_store(tmp, store, provenance)
         if not gather:
             return store
         from .io import load

@@ -23,6 +23,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import budget, validate
+
+MAX_UPSAMPLE = 1024  # FFT interpolation factor of a cut
+CUT_BYTES_PER_SAMPLE = 64  # complex128 upsampled cut, its magnitude and temporaries, per output sample
+
 
 @dataclass(frozen=True)
 class PointResponse:
@@ -62,11 +67,10 @@ def upsample_cut(x, factor: int = 16) -> np.ndarray:
     smoothed power spectrum), not blindly at the Nyquist bin, so responses whose spectrum is
     not centred on DC (a residual linear phase) interpolate correctly.
     """
-    x = np.asarray(x, dtype=np.complex128)
-    if x.ndim != 1 or x.size < 4:
-        raise ValueError(f"a cut must be 1-D with >= 4 samples, got shape {x.shape}")
-    if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or factor < 1:
-        raise ValueError(f"factor must be an integer >= 1, got {factor!r}")
+    x, peak = _cut("upsample_cut x", x)
+    factor = validate.integer("upsample_cut factor", factor, 1, MAX_UPSAMPLE)
+    budget.check_bytes(f"upsample_cut of {x.size} samples with factor={factor}", CUT_BYTES_PER_SAMPLE * x.size * factor,
+                       "a shorter cut or a smaller factor")
     n = x.size
     spec = np.fft.fft(x)
     width = max(1, n // 16)
@@ -77,7 +81,20 @@ def upsample_cut(x, factor: int = 16) -> np.ndarray:
     rolled = np.roll(spec, -shift)
     y = np.fft.ifft(_zero_pad_middle(rolled, factor)) * factor
     # undo the demodulation implied by the roll: x[k] = x_rolled[k] exp(j 2 pi shift k / n)
-    return y * np.exp(2j * np.pi * shift * (np.arange(n * factor) / factor) / n)
+    y *= peak * np.exp(2j * np.pi * shift * (np.arange(n * factor) / factor) / n)
+    validate.finite_result("upsample_cut: the interpolated cut", y, "scale x down")
+    return y
+
+
+def _cut(name: str, x) -> tuple[np.ndarray, float]:
+    """A finite 1-D complex128 cut of >= 4 samples scaled so that its peak is 1, and that peak
+    (metrics are ratios and locations: the scale cannot change them, and it keeps |x|^2 and the
+    FFTs finite for any finite input)."""
+    cut = validate.array(name, x, (-1,), dtype=np.complex128)
+    if cut.size < 4:
+        raise ValueError(f"{name}: must be a 1-D cut with >= 4 samples, got {cut.size}")
+    peak = float(np.abs(cut).max())
+    return (cut / peak if peak > 0 else cut), peak
 
 
 def _crossing(mag: np.ndarray, start: int, step: int, level: float) -> float:
@@ -86,7 +103,8 @@ def _crossing(mag: np.ndarray, start: int, step: int, level: float) -> float:
     while 0 <= j + step < mag.size and mag[j + step] >= level:
         j += step
     if not 0 <= j + step < mag.size:
-        raise ValueError("the cut ends before the main lobe falls to -3 dB: give a longer cut")
+        raise ValueError("point_response x: the cut ends before the peak's main lobe falls to -3 dB: give a longer cut "
+                         "(or, with near, a peak inside it)")
     a, b = mag[j], mag[j + step]
     return j + step * (a - level) / (a - b)
 
@@ -117,25 +135,20 @@ def point_response(x, axis=None, upsample: int = 16, extent: float = 10.0, near:
         Measure the strongest peak within ``radius`` samples of sample index ``near``
         (default: the strongest peak of the whole cut).
     """
-    x = np.asarray(x)
-    if x.ndim != 1 or x.size < 4:
-        raise ValueError(f"x must be a 1-D cut with >= 4 samples, got shape {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError("x must be finite everywhere; it has NaN or inf")
-    if not np.any(x):
-        raise ValueError("x is all zeros: there is no peak to measure")
-    if isinstance(upsample, bool) or not isinstance(upsample, (int, np.integer)) or upsample < 1:
-        raise ValueError(f"upsample must be an integer >= 1, got {upsample!r}")
+    x, scale = _cut("point_response x", x)
+    if not scale > 0:
+        raise ValueError("point_response x: is all zeros: there is no peak to measure")
+    upsample = validate.integer("point_response upsample", upsample, 1, MAX_UPSAMPLE)
     n = x.size
-    coords = np.arange(n, dtype=np.float64) if axis is None else np.asarray(axis, dtype=np.float64)
-    if coords.shape != (n,):
-        raise ValueError(f"axis must have the cut's length {n}, got shape {coords.shape}")
-    spacing = (coords[-1] - coords[0]) / (n - 1) if n > 1 else 1.0
-    if n > 2 and not np.allclose(np.diff(coords), spacing, rtol=1e-6, atol=0):
-        raise ValueError("axis must be uniformly spaced")
-    if not extent > 1:
-        raise ValueError(f"extent must be > 1 IRW, got {extent}")
-    y = upsample_cut(x, upsample)
+    coords = np.arange(n, dtype=np.float64) if axis is None else validate.array("point_response axis", axis, (n,))
+    spacing = (coords[-1] - coords[0]) / (n - 1)
+    if spacing == 0 or (n > 2 and not np.allclose(np.diff(coords), spacing, rtol=1e-6, atol=0)):
+        raise ValueError(f"point_response axis: must be uniformly spaced and not constant, got {coords[:4]}...")
+    extent = validate.scalar("point_response extent", extent, low=1.0, low_open=True, high=1e6, unit="IRW")
+    if near is not None:
+        near = validate.scalar("point_response near", near, low=0.0, high=n - 1.0, unit="samples (an index of the cut)")
+    radius = validate.positive("point_response radius", radius, high=1e9, unit="samples")
+    y = upsample_cut(x, upsample)  # x's peak is 1 (_cut): |y|^2 stays finite
     mag = np.abs(y)
     if near is None:
         i = int(np.argmax(mag))
@@ -143,7 +156,7 @@ def point_response(x, axis=None, upsample: int = 16, extent: float = 10.0, near:
         lo_s = max(0, int(np.floor((near - radius) * upsample)))
         hi_s = min(mag.size, int(np.ceil((near + radius) * upsample)) + 1)
         if lo_s >= hi_s:
-            raise ValueError(f"near={near} with radius={radius} lies outside the cut of {n} samples")
+            raise ValueError(f"point_response near: {near} with radius={radius} lies outside the cut of {n} samples")
         i = lo_s + int(np.argmax(mag[lo_s:hi_s]))
     if 0 < i < mag.size - 1:
         a, b, c = mag[i - 1], mag[i], mag[i + 1]
@@ -161,13 +174,14 @@ def point_response(x, axis=None, upsample: int = 16, extent: float = 10.0, near:
     region = np.abs(k - i) <= extent * irw_up
     side = region & ((k < lo) | (k > hi))
     if not side.any():
-        raise ValueError("no side-lobe samples within the side-lobe region: give a longer cut")
+        raise ValueError("point_response x: no side-lobe samples within the side-lobe region (extent IRWs): give a "
+                         "longer cut")
     main_energy = np.sum(mag[lo:hi + 1] ** 2)
     index = (i + delta) / upsample
     return PointResponse(
         location=float(coords[0] + index * spacing),
         index=float(index),
-        peak=complex(y[i]),
+        peak=complex(y[i] * scale),
         irw=float(irw_up / upsample * abs(spacing)),
         pslr_db=float(20 * np.log10(mag[side].max() / mag[i])),
         islr_db=float(10 * np.log10(np.sum(mag[side] ** 2) / main_energy)),
@@ -179,35 +193,54 @@ def peak_index(data, near=None, radius=None) -> tuple:
 
     ``radius`` is one number of samples or one per axis.
     """
-    data = np.asarray(data)
+    data = _numbers("peak_index data", data)
     if data.size == 0:
-        raise ValueError("peak_index of an empty array")
-    mag = np.abs(data)
+        raise ValueError("peak_index data: is empty")
     if near is None:
-        return np.unravel_index(int(np.argmax(mag)), data.shape)
-    if radius is None or len(near) != data.ndim:
-        raise ValueError(f"near must give one index per axis ({data.ndim}) together with radius")
-    near = tuple(int(c) for c in near)
+        return np.unravel_index(int(np.argmax(np.abs(data))), data.shape)
+    if radius is None:
+        raise ValueError("peak_index radius: give it together with near")
+    near = _indices("peak_index near", near, data.ndim)
     if any(not 0 <= c < s for c, s in zip(near, data.shape)):
-        raise ValueError(f"near={near} lies outside the array of shape {data.shape}")
-    radii = np.broadcast_to(np.asarray(radius, dtype=int), (data.ndim,))
-    if np.any(radii < 0):
-        raise ValueError(f"radius must be >= 0, got {radius}")
-    lo = [max(0, int(c) - int(r)) for c, r in zip(near, radii)]
-    hi = [min(s, int(c) + int(r) + 1) for c, r, s in zip(near, radii, data.shape)]
-    window = mag[tuple(slice(a, b) for a, b in zip(lo, hi))]
-    if window.size == 0:
-        raise ValueError(f"near={near} with radius={radius} lies outside the array of shape {data.shape}")
+        raise ValueError(f"peak_index near: {near} lies outside the array of shape {data.shape}")
+    radii = _indices("peak_index radius", np.broadcast_to(radius, (data.ndim,)) if np.ndim(radius) == 0 else radius,
+                     data.ndim)
+    if min(radii) < 0:
+        raise ValueError(f"peak_index radius: must be >= 0, got {radius}")
+    lo = [max(0, c - r) for c, r in zip(near, radii)]
+    hi = [min(s, c + r + 1) for c, r, s in zip(near, radii, data.shape)]
+    window = np.abs(data[tuple(slice(a, b) for a, b in zip(lo, hi))])
     local = np.unravel_index(int(np.argmax(window)), window.shape)
     return tuple(a + b for a, b in zip(lo, local))
 
 
+def _numbers(name: str, data) -> np.ndarray:
+    """An Image's data or an array of numbers (not copied)."""
+    try:
+        values = np.asarray(getattr(data, "data", data))
+    except (ValueError, TypeError) as err:  # ragged nested lists
+        raise TypeError(f"{name}: must be an Image or an array of numbers, got {type(data).__name__} ({err})") from None
+    if values.ndim == 0:
+        raise TypeError(f"{name}: must be an Image or an array of numbers, got one {type(data).__name__}")
+    if values.dtype.kind not in "iufc":
+        raise TypeError(f"{name}: must be an Image or an array of numbers, got {type(data).__name__} "
+                        f"of dtype {values.dtype}")
+    return values
+
+
+def _indices(name: str, values, ndim: int) -> tuple:
+    """One integer per axis (Python or NumPy integers)."""
+    if isinstance(values, (str, bytes)) or np.ndim(values) != 1 or len(values) != ndim:
+        raise ValueError(f"{name}: must give one integer per axis ({ndim}), got {values!r}")
+    return tuple(validate.integer(name, v, low=-2**62, high=2**62) for v in values)
+
+
 def cuts(data, index=None) -> list:
     """1-D cuts through ``index`` (default: the peak) of an N-D array, one per axis."""
-    data = np.asarray(data)
-    index = peak_index(data) if index is None else tuple(int(i) for i in index)
-    if len(index) != data.ndim or any(not 0 <= i < s for i, s in zip(index, data.shape)):
-        raise ValueError(f"index must give one in-range index per axis of shape {data.shape}, got {index}")
+    data = _numbers("cuts data", data)
+    index = peak_index(data) if index is None else _indices("cuts index", index, data.ndim)
+    if any(not 0 <= i < s for i, s in zip(index, data.shape)):
+        raise ValueError(f"cuts index: must give one in-range index per axis of shape {data.shape}, got {index}")
     out = []
     for ax in range(data.ndim):
         sl = list(index)
@@ -224,15 +257,23 @@ def analyse_point(image, near=None, radius: float | None = None, upsample: int =
     strongest peak within that box; by default the global peak. Returns ``{dim: PointResponse}``
     plus ``"location"``: the refined peak coordinates, one per dim.
     """
+    if not all(hasattr(image, name) for name in ("data", "dims", "axes")):
+        raise TypeError(f"analyse_point image: must be a clsas Image, got {type(image).__name__}")
     dims = image.dims
     axes = [image.axes[d] for d in dims]
     if near is None:
+        if radius is not None:
+            raise ValueError(f"analyse_point radius: applies with near (the box around a point), got radius={radius!r} "
+                             "without near")
         idx = peak_index(image.data)
     else:
-        if radius is None or len(near) != len(dims):
-            raise ValueError(f"near must give one coordinate per dim {dims} together with radius")
+        if radius is None:
+            raise ValueError("analyse_point radius: give it together with near")
+        near = validate.array("analyse_point near", near, (len(dims),))
+        radius = validate.positive("analyse_point radius", radius, high=validate.MAX_COORDINATE, unit="axis units")
         centre = [int(np.argmin(np.abs(ax - c))) for ax, c in zip(axes, near)]
-        radii = [max(1, int(np.ceil(radius / abs(ax[1] - ax[0])))) if ax.size > 1 else 0 for ax in axes]
+        radii = [max(1, int(np.ceil(min(radius / abs(ax[1] - ax[0]), ax.size)))) if ax.size > 1 and ax[1] != ax[0]
+                 else 0 for ax in axes]
         idx = peak_index(image.data, near=centre, radius=radii)
     result = {}
     for k, (dim, ax, cut) in enumerate(zip(dims, axes, cuts(image.data, idx))):
@@ -245,12 +286,33 @@ def analyse_point(image, near=None, radius: float | None = None, upsample: int =
 def entropy(data) -> float:
     """Image entropy -sum(p log p) with p = |x|^2 / sum |x|^2 (nats): lower when the energy is
     concentrated, i.e. when the image is better focused (the autofocus criterion)."""
-    power = np.abs(np.asarray(data.data if hasattr(data, "data") else data)) ** 2
-    total = power.sum()
-    if not total > 0:
-        raise ValueError("entropy of an all-zero image is undefined")
-    p = power[power > 0] / total
+    power = relative_power("entropy data", data)
+    p = power[power > 0] / power.sum()
     return float(-np.sum(p * np.log(p)))
+
+
+def contrast(data) -> float:
+    """Image contrast std(|x|^2) / mean(|x|^2) (no unit): higher when the image is better focused."""
+    power = relative_power("contrast data", data)
+    return float(power.std() / power.mean())
+
+
+def relative_power(name: str, data) -> np.ndarray:
+    """|x|^2 / max |x|^2 of an image or array of any finite values (float64, the shape of the
+    data): the entropy and the contrast do not depend on the scale, and |x|^2 of values near
+    float64's largest would overflow. ValueError for an empty, non-finite or all-zero image."""
+    values = _numbers(name, data)
+    if values.size == 0:
+        raise ValueError(f"{name}: is empty")
+    budget.check_bytes(f"{name} of {values.size} pixels", 24.0 * values.size, "a smaller image")
+    mag = np.abs(values).astype(np.float64, copy=False)
+    if not validate.all_finite(mag):
+        raise ValueError(f"{name}: must be finite everywhere; it has NaN or inf")
+    peak = mag.max()
+    if not peak > 0:
+        raise ValueError(f"{name}: is all zeros: its entropy and contrast are undefined")
+    mag /= peak
+    return np.square(mag, out=mag)
 
 
 def ssim(a, b, sigma: float = 1.5) -> float:
@@ -260,13 +322,14 @@ def ssim(a, b, sigma: float = 1.5) -> float:
     Kiang & Kiang 2022 compare their images with RDA, CSA and omega-k this way)."""
     from scipy.ndimage import gaussian_filter
 
-    x = np.abs(np.asarray(getattr(a, "data", a)))
-    y = np.abs(np.asarray(getattr(b, "data", b)))
-    if x.shape != y.shape or x.ndim != 2:
-        raise ValueError(f"ssim needs two 2-D images of one shape, got {x.shape} and {y.shape}")
-    if not (x.max() > 0 and y.max() > 0):
-        raise ValueError("ssim: an image is all zeros")
-    x, y = x / x.max(), y / y.max()
+    sigma = validate.positive("ssim sigma", sigma, high=1e4, unit="pixels")
+    shapes = np.shape(getattr(a, "data", a)), np.shape(getattr(b, "data", b))
+    if shapes[0] != shapes[1] or len(shapes[0]) != 2:
+        raise ValueError(f"ssim a, b: must be two 2-D images of one shape, got {shapes[0]} and {shapes[1]}")
+    budget.check_bytes(f"ssim of two {shapes[0][0]} x {shapes[0][1]} images", 96.0 * np.prod(shapes[0], dtype=float),
+                       "smaller images")
+    x = np.sqrt(relative_power("ssim a", a))  # |a| / max |a|
+    y = np.sqrt(relative_power("ssim b", b))
     c1, c2 = 0.01**2, 0.03**2
     mx, my = gaussian_filter(x, sigma), gaussian_filter(y, sigma)
     sxx = gaussian_filter(x * x, sigma) - mx * mx

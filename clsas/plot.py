@@ -11,9 +11,16 @@ track, m; eta slow time, tau fast time, s); two axes in the same unit are drawn 
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import numpy as np
 
+from . import atomic, validate
 from .model import AXIS_UNITS, Image
+
+#: the picture formats :func:`save_figure` writes (matplotlib picks the format by the suffix)
+PICTURE_SUFFIXES = (".png", ".pdf", ".svg")
 
 LABELS = {
     "x": "across track x", "y": "along track y", "z": "height z", "u": "slant plane u", "v": "slant plane v",
@@ -51,8 +58,7 @@ def plot_image(image: Image, floor_db: float = -50.0, ax=None, title: str | None
     The first dim runs vertically, the second horizontally, labelled with direction and unit;
     equal aspect when both are in the same unit (m by m).
     """
-    if image.data.ndim != 2:
-        raise ValueError(f"plot_image needs a 2-D image, got dims {image.dims}")
+    _check_image("plot_image", image, floor_db)
     if ax is None:
         _, ax = _pyplot().subplots(figsize=(6, 5))
     rows, cols = image.dims
@@ -70,9 +76,12 @@ def plot_image(image: Image, floor_db: float = -50.0, ax=None, title: str | None
 
 def plot_cut(axis, values, ax=None, label: str | None = None, floor_db: float = -60.0, xlabel: str | None = None):
     """Plot a 1-D cut ``values`` against ``axis`` in dB relative to its peak; returns the axes."""
+    values = validate.array("plot_cut values", values, (-1,), dtype=np.complex128)
+    axis = validate.array("plot_cut axis", axis, (values.size,))
+    validate.scalar("plot_cut floor_db", floor_db, low=-1000.0, high=0.0, high_open=True, unit="dB")
     if ax is None:
         _, ax = _pyplot().subplots(figsize=(6, 3))
-    mag = np.abs(np.asarray(values, dtype=np.complex128))
+    mag = np.abs(values)
     peak = mag.max() if mag.size else 0.0
     with np.errstate(divide="ignore", invalid="ignore"):
         db = np.maximum(20 * np.log10(mag / peak), floor_db) if peak > 0 else np.full(mag.shape, floor_db)
@@ -90,11 +99,10 @@ def image_figure(image: Image, floor_db: float = -50.0, title: str | None = None
     """A Figure of the image in dB with the cuts through its peak: along the second dim
     (range, for ``("y", "x")`` images) below, along the first (azimuth) to the right.
     Not registered with pyplot; write it with :func:`save_figure`."""
+    _check_image("image_figure", image, floor_db)
     _matplotlib()
     from matplotlib.figure import Figure
 
-    if image.data.ndim != 2:
-        raise ValueError(f"image_figure needs a 2-D image, got dims {image.dims}")
     rows, cols = image.dims
     fig = Figure(figsize=(9, 7), layout="constrained")
     grid = fig.add_gridspec(2, 2, width_ratios=(3, 1), height_ratios=(3, 1))
@@ -118,12 +126,51 @@ def image_figure(image: Image, floor_db: float = -50.0, title: str | None = None
     return fig
 
 
-def save_figure(figure_or_ax, path) -> None:
-    """Write a Figure (or the figure of axes ``ax``) to ``path`` (PNG, PDF, ... by extension);
-    a pyplot figure is closed afterwards."""
+def save_figure(figure_or_ax, path) -> Path:
+    """Write a Figure (or the figure of axes ``ax``) to ``path`` (PNG, PDF or SVG by its suffix)
+    under a temporary name, renamed when complete (:mod:`clsas.atomic`); a pyplot figure is
+    closed afterwards. Returns the Path."""
     fig = getattr(figure_or_ax, "figure", figure_or_ax)
-    fig.savefig(path, dpi=120, bbox_inches="tight")
+    if not hasattr(fig, "savefig"):
+        raise TypeError(f"save_figure figure_or_ax: must be a matplotlib Figure or Axes, got {type(fig).__name__}")
+    path = check_picture("save_figure path", path)
+    with atomic.temporary(path) as tmp:
+        fig.savefig(tmp, dpi=120, bbox_inches="tight")
+        atomic.replace(tmp, path)
     import sys
 
     if "matplotlib.pyplot" in sys.modules:  # a no-op for figures pyplot does not manage
         sys.modules["matplotlib.pyplot"].close(fig)
+    return path
+
+
+def check_picture(name: str, value, overwrite: bool = True) -> Path:
+    """The Path of a picture to write, checked before anything is drawn: a str or os.PathLike
+    (TypeError), a suffix of :data:`PICTURE_SUFFIXES` (ValueError), an existing folder
+    (FileNotFoundError), a name the folder holds (ValueError), and what is there a regular file
+    that may be replaced (IsADirectoryError, FileExistsError; ``overwrite``)."""
+    if not isinstance(value, (str, os.PathLike)) or isinstance(value, bytes):
+        raise TypeError(f"{name}: must be a file name (str or os.PathLike), got {value!r:.60} ({type(value).__name__})")
+    path = Path(value)
+    if path.suffix.lower() not in PICTURE_SUFFIXES:
+        raise ValueError(f"{name}: {str(path)!r} must end in {', '.join(PICTURE_SUFFIXES)}")
+    if not path.parent.is_dir():
+        what = "does not exist" if not path.parent.exists() else "is a file, not a folder"
+        raise FileNotFoundError(f"{name}: the folder {str(path.parent)!r} {what}")
+    if len(os.fsencode(path.name)) > atomic.name_max(path.parent):
+        raise ValueError(f"{name}: the file name is {len(os.fsencode(path.name))} bytes long; the folder "
+                         f"{str(path.parent)!r} allows names of at most {atomic.name_max(path.parent)}")
+    if path.exists() or path.is_symlink():
+        if not path.is_file():
+            raise IsADirectoryError(f"{name}: {str(path)!r} exists and is not a regular file; not replaced")
+        if not overwrite:
+            raise FileExistsError(f"{name}: {str(path)!r} exists; give --overwrite to replace it")
+    return path
+
+
+def _check_image(caller: str, image, floor_db) -> None:
+    if not isinstance(image, Image):
+        raise TypeError(f"{caller} image: must be a clsas Image, got {type(image).__name__}")
+    if image.data.ndim != 2:
+        raise ValueError(f"{caller} image: must be 2-D, got dims {image.dims}")
+    validate.scalar(f"{caller} floor_db", floor_db, low=-1000.0, high=0.0, high_open=True, unit="dB")

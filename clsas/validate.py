@@ -172,6 +172,47 @@ def seed(name: str, value):
     return integer(name, value, low=0, why="or None, a SeedSequence or a Generator")
 
 
+def names(name: str, value, count: int | None = None) -> tuple:
+    """A tuple of distinct, non-empty strings (``count`` of them when given): receiver names,
+    axis names."""
+    if isinstance(value, str) or not isinstance(value, (tuple, list, np.ndarray)):
+        raise TypeError(f"{name}: must be a tuple of strings, got {_show(value)} ({type(value).__name__})")
+    items = tuple(value)
+    wrong = [item for item in items if not isinstance(item, str)]
+    if wrong:
+        raise TypeError(f"{name}: must be a tuple of strings, got {_show(wrong[0])} ({type(wrong[0]).__name__}) "
+                        "among them")
+    if count is not None and len(items) != count:
+        raise ValueError(f"{name}: must hold {count} names, got {len(items)}: {_show(items)}")
+    if not all(items):
+        raise ValueError(f"{name}: must be non-empty strings, got {_show(items)}")
+    repeated = sorted({item for item in items if items.count(item) > 1})
+    if repeated:
+        raise ValueError(f"{name}: must be distinct, got {_show(repeated[0])} more than once in {_show(items)}")
+    return items
+
+
+def mapping(name: str, value, none_is_empty: bool = False) -> dict:
+    """A dict copy of a mapping (``None`` as ``{}`` when ``none_is_empty``)."""
+    if value is None and none_is_empty:
+        return {}
+    if not isinstance(value, dict):
+        raise TypeError(f"{name}: must be a dict, got {_show(value)} ({type(value).__name__})")
+    return dict(value)
+
+
+def element_count(name: str, value) -> int:
+    """How many numbers the array-like ``value`` holds, read from its shape (nothing is copied:
+    a broadcast view's count is the count it would have as a copy), for a budget check before
+    :func:`array` copies it. TypeError when it has no regular shape (ragged lists, scalars of
+    other kinds)."""
+    try:
+        shape = np.shape(value)
+    except (ValueError, TypeError) as err:
+        raise TypeError(f"{name}: must be an array of numbers, got {_show(value)} ({err})") from None
+    return int(np.prod(shape, dtype=np.float64))
+
+
 def instance(name: str, value, kinds, allowed: str):
     """``value`` when it is an instance of ``kinds`` (a type or a tuple of types); otherwise a
     TypeError naming the parameter, what is ``allowed`` (in words) and what was given."""

@@ -95,3 +95,75 @@ def test_contrast_and_type_errors():
     with pytest.raises(TypeError, match="Image"):
         pga(np.ones((64, 64)))
     assert contrast(np.ones(10)) == 0.0
+
+
+def _small_blurred_image(ny=256, nx=64, axis_step=0.01):
+    """A few bright points in weak noise, blurred by a quadratic azimuth phase error."""
+    rng = np.random.default_rng(3)
+    data = (0.01 * (rng.standard_normal((ny, nx)) + 1j * rng.standard_normal((ny, nx)))).astype(np.complex64)
+    data[::64, ::16] += 10.0
+    k = np.linspace(-1, 1, ny)
+    return clsas.Image(apply_phase_correction(data, -2 * k**2, 0), ("y", "x"),
+                       {"y": np.arange(ny) * axis_step, "x": np.arange(nx) * 0.01})
+
+
+def test_contrast_and_entropy_of_huge_finite_values_are_finite():
+    """|x|^2 of 1e200 overflows float64: both measures are of the power relative to the peak."""
+    values = np.full(4, 1e200) * np.arange(1, 5)
+    assert contrast(values) == pytest.approx(contrast(np.arange(1, 5.0)), rel=1e-12)
+    assert metrics.entropy(values) == pytest.approx(metrics.entropy(np.arange(1, 5.0)), rel=1e-12)
+    assert contrast(np.full(4, 1e200)) == 0.0
+    for bad, error in ((np.zeros(4), ValueError), (np.array([1.0, np.nan]), ValueError), (np.array([]), ValueError),
+                       (np.array(["a"]), TypeError)):
+        with pytest.raises(error, match="contrast data"):
+            contrast(bad)
+
+
+def test_pga_refuses_a_constant_or_uneven_azimuth_axis():
+    image = _small_blurred_image()
+    for y in (np.zeros(256), np.arange(256) ** 2 * 0.01):
+        with pytest.raises(ValueError, match="pga image: its azimuth axis 'y' must be evenly spaced"):
+            pga(image.replace(axes={"y": y, "x": image.axes["x"]}))
+    assert pga(image).iterations >= 1  # the same image on an even axis is focused
+
+
+@pytest.mark.parametrize("args, error, message", [
+    ((np.ones((4, 4)), np.zeros(4), 5), ValueError, "apply_phase_correction axis: must be an integer in \\[-2, 1\\]"),
+    ((np.ones((4, 4)), np.zeros(4), 1.0), TypeError, "apply_phase_correction axis"),
+    ((np.ones((4, 4)), np.zeros(3), 0), ValueError, "apply_phase_correction phi: must have shape \\(4,\\)"),
+    ((np.ones((4, 4)), np.full(4, np.nan), 0), ValueError, "apply_phase_correction phi: must be finite"),
+    ((np.ones((4, 4)), "a", 0), TypeError, "apply_phase_correction phi"),
+    (("abc", np.zeros(4), 0), TypeError, "apply_phase_correction data"),
+])
+def test_apply_phase_correction_names_bad_arguments(args, error, message):
+    with pytest.raises(error, match=message):
+        apply_phase_correction(*args)
+
+
+@pytest.mark.parametrize("changes, error", [
+    ({"tolerance": "a"}, TypeError), ({"max_iterations": 2.0}, TypeError), ({"select_db": None}, TypeError),
+    ({"workers": "all"}, TypeError), ({"axis": 0}, TypeError), ({"min_contrast": 1.0}, ValueError),
+    ({"window_db": -3.0}, ValueError), ({"workers": 10**6}, ValueError),
+])
+def test_pga_wrong_kinds_and_values_name_the_parameter(changes, error):
+    image = _small_blurred_image()
+    with pytest.raises(error, match=f"pga {next(iter(changes))}"):
+        pga(image, **changes)
+
+
+def test_pga_checks_the_budget_before_allocating_and_stays_within_it():
+    import tracemalloc
+
+    image = _small_blurred_image(512, 256)
+    with clsas.use_memory_budget(image.data.size * 8):  # the image alone: PGA needs more
+        with pytest.raises(clsas.errors.MemoryBudgetError, match="pga of a 512 x 256 image"):
+            pga(image)
+    tracemalloc.start()
+    try:
+        pga(image, max_iterations=3)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    from clsas.estimate.autofocus import PGA_BYTES_PER_PIXEL
+
+    assert peak < PGA_BYTES_PER_PIXEL * image.data.size  # measured ~40 bytes a pixel

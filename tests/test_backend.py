@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextvars
+import threading
 import warnings
 
 import numpy as np
@@ -13,10 +15,11 @@ from clsas import backend, opencl
 
 @pytest.fixture(autouse=True)
 def _restore_choice(monkeypatch):
-    monkeypatch.setattr(backend, "_choice", None)
+    token = backend._choice.set(None)
     monkeypatch.setattr(backend, "_auto_warned", False)
     monkeypatch.delenv("CLSAS_BACKEND", raising=False)
     yield
+    backend._choice.reset(token)
 
 
 def test_use_backend_as_call_persists():
@@ -30,6 +33,73 @@ def test_use_backend_as_context_manager_restores():
     with clsas.use_backend("auto"):
         assert backend.default() == "auto"
     assert backend.default() == "numpy"
+
+
+def _in_threads(first, second):
+    """Run ``first(step)`` and ``second(step)`` on two threads in lockstep: each waits at
+    ``step()`` for the other, so the second's checks fall inside the first's ``with`` block."""
+    barrier = threading.Barrier(2, timeout=30)
+    errors = []
+
+    def run(body):
+        try:
+            body(barrier.wait)
+        except BaseException as err:  # noqa: BLE001 - reported by the test
+            errors.append(err)
+            barrier.abort()
+
+    threads = [threading.Thread(target=run, args=(body,)) for body in (first, second)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    if errors:
+        raise errors[0]
+
+
+def test_a_with_block_in_one_thread_leaves_another_threads_backend_alone():
+    seen = {}
+
+    def first(step):
+        with clsas.use_backend("numpy"):
+            step()  # 1: the second thread looks now
+            seen["first inside"] = backend.default()
+            step()  # 2
+        seen["first after"] = backend.default()
+
+    def second(step):
+        with clsas.use_backend("opencl"):
+            step()  # 1
+            seen["second inside"] = backend.default()
+            step()  # 2
+        seen["second after"] = backend.default()
+
+    _in_threads(first, second)
+    assert seen == {"first inside": "numpy", "second inside": "opencl", "first after": "auto", "second after": "auto"}
+    assert backend.default() == "auto"  # this thread never chose
+
+
+def test_plain_call_belongs_to_its_thread_and_copies_with_the_context():
+    clsas.use_backend("numpy")
+    seen = {}
+    worker = threading.Thread(target=lambda: seen.update(fresh=backend.default()))
+    worker.start()
+    worker.join()
+    context = contextvars.copy_context()
+    worker = threading.Thread(target=lambda: seen.update(copied=context.run(backend.default)))
+    worker.start()
+    worker.join()
+    assert seen == {"fresh": "auto", "copied": "numpy"}
+
+
+def test_the_same_chooser_entered_twice_restores():
+    chooser = clsas.use_backend("numpy")
+    with chooser:
+        pass
+    assert backend.default() == "auto"
+    with chooser:
+        pass
+    assert backend.default() == "auto"
 
 
 def test_environment_variable(monkeypatch):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 import tracemalloc
 
 import numpy as np
@@ -55,7 +56,7 @@ def test_call_and_context_manager(monkeypatch):
 @pytest.mark.parametrize("bad, err", [(0, ValueError), (-1, ValueError), (float("nan"), ValueError), (True, TypeError),
                                       ("x", ValueError), ([1], TypeError)])
 def test_bad_budget_values(bad, err):
-    with pytest.raises(err, match="memory budget"):
+    with pytest.raises(err, match="use_memory_budget nbytes"):
         clsas.use_memory_budget(bad)
 
 
@@ -88,3 +89,30 @@ def test_a_raised_budget_lets_a_request_through():
         with pytest.raises(MemoryBudgetError):
             PulseSchedule(prf=10.0, n_pulses=100)
     assert PulseSchedule(prf=10.0, n_pulses=100).n_pulses == 100
+
+
+def test_a_with_block_in_one_thread_leaves_another_threads_budget_alone(monkeypatch):
+    monkeypatch.delenv(budget.ENV, raising=False)
+    default = clsas.memory_budget()
+    barrier = threading.Barrier(2, timeout=30)
+    seen, errors = {}, []
+
+    def run(name, nbytes):
+        try:
+            with clsas.use_memory_budget(nbytes):
+                barrier.wait()  # both threads are inside their blocks
+                seen[name] = clsas.memory_budget()
+                barrier.wait()
+            seen[name + " after"] = clsas.memory_budget()
+        except BaseException as err:  # noqa: BLE001 - reported below
+            errors.append(err)
+            barrier.abort()
+
+    threads = [threading.Thread(target=run, args=("a", "1M")), threading.Thread(target=run, args=("b", 4096))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors, errors
+    assert seen == {"a": 2**20, "b": 4096, "a after": default, "b after": default}
+    assert clsas.memory_budget() == default

@@ -82,7 +82,8 @@ def test_mistakes_print_one_line_not_a_traceback(tmp_path, capsys, monkeypatch):
         (["simulate", str(bad_toml), "-o", str(tmp_path / "e.nc")],
          "bad.toml: [waveform].bandwidth: must be in (0, 200000) Hz (0 < B < 2 f0), got -2 (line 12)"),
         (["image", str(existing), "-o", str(tmp_path / "i.nc")], "not a NetCDF4/HDF5 clsas file"),
-        (["image", str(existing), "--grid", "1:0:1,0:1:1,0", "-o", "x.nc"], "not a NetCDF4/HDF5"),
+        (["image", str(existing), "--grid", "1:0:1,0:1:1,0", "-o", str(tmp_path / "x.nc")],
+         "need finite START < STOP"),  # the arguments before the file is read
         (["plot", str(tmp_path / "missing.nc")], "no such clsas file"),
     ]
     for args, message in cases:
@@ -133,3 +134,133 @@ def test_demo_runs_and_writes_its_files(tmp_path, capsys, opencl_device):
     assert "demo OK" in out
     assert io.load(tmp_path / "demo_echo.nc").compressed
     assert (tmp_path / "demo_image.png").stat().st_size > 1000
+
+
+def _workdir_with_an_echo(tmp_path):
+    """A small echo file (4 pulses) in ``tmp_path``, made through the API (no subprocess)."""
+    echo = clsas.simulate(presets.point_scene("heremans2009", n_pulses=4), progress=False, backend="numpy")
+    io.save(echo, tmp_path / "s.nc")
+    return tmp_path / "s.nc"
+
+
+def test_window_reaches_the_strip_map_imagers_and_ncs_images(tmp_path, capsys, monkeypatch):
+    """--window weights the strip-map imagers' processed band (and, for rda/csa/ncs on raw
+    echoes, the range compression; omega-k weights range in its own band); --algorithm ncs is
+    nonlinear chirp scaling: each image is the API's, bit for bit (NumPy backend)."""
+    from clsas.image.multireceiver import pca_record
+
+    source = io.save(clsas.simulate(presets.point_scene("huang2022", n_pulses=8), progress=False), tmp_path / "s.nc")
+    monkeypatch.chdir(tmp_path)
+    raw = io.load(source)
+    array = raw.scenario.array
+    elements = (float(array.tx_length), float(array.rx_length.max()))
+    cases = [("ncs", "hamming", clsas.nonlinear_chirp_scaling, "hamming"), ("omegak", "taylor", clsas.omega_k, "none"),
+             ("rda", "kaiser", clsas.range_doppler, "kaiser"), ("ncs", None, clsas.nonlinear_chirp_scaling, "none")]
+    for algorithm, window, imager, range_window in cases:
+        out = f"{algorithm}-{window}.nc"
+        assert cli.main(["--no-progress", "image", "s.nc", "-a", algorithm, *(["--window", window] if window else []),
+                         "--backend", "numpy", "-o", out]) == 0
+        printed = capsys.readouterr().out
+        assert (f", {window} window" in printed) == (window is not None), printed
+        record = pca_record(clsas.range_compress(raw, window=range_window), backend="numpy")
+        expected = imager(record, elements=elements, window=window or "none", backend="numpy")
+        got = io.load(tmp_path / out)
+        np.testing.assert_array_equal(got.data, expected.data, err_msg=f"{algorithm} {window}")
+        assert got.provenance["window"] == (window or "none")
+    compressed = clsas.range_compress(raw)
+    io.save(compressed, tmp_path / "rc.nc")
+    assert cli.main(["--no-progress", "image", "rc.nc", "-a", "csa", "--window", "hamming", "--backend", "numpy",
+                     "-o", "csa.nc"]) == 0
+    expected = clsas.chirp_scaling(pca_record(compressed, backend="numpy"), elements=elements, window="hamming",
+                                   backend="numpy")
+    np.testing.assert_array_equal(io.load(tmp_path / "csa.nc").data, expected.data)
+    capsys.readouterr()
+    assert cli.main(["--no-progress", "image", "rc.nc", "-a", "bp", "--window", "hamming", "-o", "bp.nc"]) == 2
+    assert "already range-compressed; --window applies to raw echoes with --algorithm bp" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # argparse: one of the windows
+        cli.main(["image", "s.nc", "-a", "ncs", "--window", "blackman", "-o", "x.nc"])
+    assert "invalid choice: 'blackman'" in capsys.readouterr().err
+
+
+def test_outputs_are_checked_before_any_work_and_never_replace_the_input(tmp_path, capsys, monkeypatch):
+    """The issue's CLI reproducers, each one line and exit status 2, nothing written."""
+    source = _workdir_with_an_echo(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    before = source.read_bytes()
+    long_name = "a" * 300 + ".nc"
+    (tmp_path / "taken.nc").write_bytes(b"x")
+    os.mkfifo(tmp_path / "pipe.nc")
+    cases = [
+        (["image", "s.nc", "-a", "omegak", "-o", "s.nc"], "-o s.nc: that is the input file; clsas never writes over"),
+        (["image", "s.nc", "-a", "omegak", "-o", "./sub/../s.nc"], "that is the input file"),
+        (["image", "s.nc", "-a", "omegak", "-o", "s.nc", "--overwrite"], "that is the input file"),
+        (["image", "s.nc", "-o", "x.txt"], "-o: 'x.txt' must end in .nc, .nc4, .h5 (NetCDF4) or .zarr"),
+        (["image", "s.nc", "-o", long_name], "-o: the file name is 303 bytes long"),
+        (["image", "s.nc", "-o", "i.nc", "--png", "s.nc/x.png"], "--png: the folder 's.nc' is a file, not a folder"),
+        (["image", "s.nc", "-o", "/nonexistent/i.nc"], "-o: the folder '/nonexistent' does not exist"),
+        (["image", "s.nc", "-o", "taken.nc"], "-o: 'taken.nc' exists; give --overwrite"),
+        (["image", "s.nc", "--png", "x.bmp"], "--png: 'x.bmp' must end in .png, .pdf, .svg"),
+        (["image", "s.nc", "-o", "i.nc", "--png", "i.nc"], "--png i.nc: -o writes that file already"),
+        (["image", "pipe.nc", "-o", "j.nc"], "pipe.nc: not a regular file or a zarr store"),
+        (["simulate", "heremans2009", "--pulses", "2", "-o", "taken.nc"], "-o: 'taken.nc' exists; give --overwrite"),
+        (["simulate", "heremans2009", "--pulses", "2", "-o", "x.txt"], "must end in .nc"),
+        (["plot", "s.nc", "-o", "s.nc"], "that is the input file"),
+        (["plot", "s.nc", "-o", "/nonexistent/x.png"], "-o: the folder '/nonexistent' does not exist"),
+        (["plot", "s.nc", "--floor", "nan"], "--floor: must be a number of dB"),
+    ]
+    for args, message in cases:
+        assert cli.main(["--no-progress", *args]) == 2, args
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("clsas: error:") and message in err, (args, err)
+        assert ".clsas-tmp" not in err
+    assert source.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pipe.nc", "s.nc", "taken.nc"]
+
+
+def test_overwrite_replaces_and_plot_takes_o(tmp_path, capsys, monkeypatch):
+    _workdir_with_an_echo(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["plot", "s.nc", "-o", "p.png"]) == 0
+    assert cli.main(["plot", "s.nc", "-o", "p.png"]) == 2
+    assert "give --overwrite" in capsys.readouterr().err
+    first = (tmp_path / "p.png").stat().st_mtime_ns
+    assert cli.main(["plot", "s.nc", "-o", "p.png", "--floor", "-30", "--overwrite"]) == 0
+    assert (tmp_path / "p.png").stat().st_mtime_ns >= first
+    assert cli.main(["plot", "s.nc", "--png", "q.svg"]) == 0 and (tmp_path / "q.svg").stat().st_size > 1000
+    assert not [p for p in tmp_path.iterdir() if ".clsas-tmp" in p.name]
+
+
+def test_simulate_refuses_a_cube_over_the_budget_up_front(tmp_path):
+    """The issue's 10.5 GiB cube (huang2022, 2048 pulses) under a 10 GiB budget: refused after
+    the delays, before the cube is allocated, in one line; nothing is written."""
+    out = _clsas("simulate", "huang2022", "--pulses", "2048", "-o", "keep.nc", cwd=tmp_path,
+                 env={"CLSAS_MEMORY_BUDGET": "10G"})
+    assert out.returncode == 2
+    assert out.stderr.startswith("clsas: error: the echo cube would need 10.3 GiB".replace("10.3", "10.27"))
+    assert "lower --pulses or raise CLSAS_MEMORY_BUDGET" in out.stderr and out.stderr.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_ctrl_c_prints_one_line_and_exits_130(tmp_path):
+    """SIGINT while `clsas simulate` works: `clsas: interrupted`, status 130, no file left."""
+    import signal
+    import time
+
+    child = subprocess.Popen([sys.executable, "-m", "clsas", "-v", "--no-progress", "simulate", "huang2022",
+                              "--pulses", "4096", "-o", "big.nc", "--backend", "numpy"], cwd=tmp_path,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             env=dict(os.environ, CLSAS_MEMORY_BUDGET="64G"))
+    try:
+        seen = []
+        while not any("echo delays" in line for line in seen):  # the work has started
+            seen.append(child.stderr.readline())
+            assert seen[-1] or child.poll() is None, "".join(seen)
+        time.sleep(0.5)
+        child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=120)
+    finally:
+        if child.poll() is None:
+            child.kill()
+    assert child.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "clsas: interrupted" and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []

@@ -68,6 +68,32 @@ def test_workers_write_the_store_as_one_process_would(client, tmp_path):
     assert not list(tmp_path.glob(".*"))  # no temporary store left behind
 
 
+def _shallow_scene():
+    """A platform 20 m below a flat sea surface over a sand seabed 50 m down (its mean plane
+    reflects; its facets a 30 cm patch 150 m off), two receivers, one point in the water column:
+    the bounce paths (D-B, B-D at about 100 m) arrive long after the direct one (about 50 m)."""
+    floor = clsas.Seafloor((150.0, 150.3, -0.15, 0.15), -50.0, sediment="sand")
+    scene = clsas.Scenario(clsas.Medium(1500.0), clsas.Waveform(f0=100e3, bandwidth=20e3, duration=2e-3, fs=25e3),
+                           clsas.Platform(speed=2.0, start=(0.0, 0.0, -20.0)),
+                           clsas.Array(rx_offsets=[[0.0, 0.0, 0.0], [0.0, 0.5, 0.0]]),
+                           clsas.PulseSchedule(prf=5.0, n_pulses=6), seafloor=floor, surface=clsas.SeaSurface(0.0))
+    return scene.replace(targets=(clsas.PointTargets([[45.0, 3.0, -32.0]]),))
+
+
+@pytest.mark.parametrize("multipath", [1, 2])
+def test_the_window_holds_the_bounces_of_a_seafloor_scene(client, multipath):
+    """The workers' recording window spans every path simulate synthesizes (the seabed and
+    surface bounces at the scenario's multipath order), not the direct paths alone: the echo,
+    its window and its geometry are one process's, bit for bit (NumPy backend)."""
+    scene = _shallow_scene()
+    one = simulate(scene, backend="numpy", progress=False, multipath=multipath)
+    direct = distributed.recording_window(scene, client, pulses_per_task=4, backend="numpy", multipath=0)
+    assert int(np.max(one.provenance["n_valid"])) > int(np.max(direct.n_samples)) + 100  # the bounces come late
+    got = distributed.simulate(scene, client, pulses_per_task=4, backend="numpy", multipath=multipath)
+    _assert_same_echo(got, one)
+    assert got.provenance["paths"] == one.provenance["paths"]
+
+
 @pytest.mark.slow
 def test_two_workers_on_opencl(client, opencl_device):
     scene = _scene()

@@ -12,7 +12,7 @@ import xarray as xr
 
 import clsas
 from clsas import EchoData, Grid, Image, Medium, Platform, Waveform, io, load_scenario
-from clsas.errors import DataFileError
+from clsas.errors import DataFileError, MemoryBudgetError
 from clsas.io.toml import scenario_from_toml
 
 SUFFIXES = [".nc", ".zarr"]
@@ -66,7 +66,7 @@ def test_echo_round_trip_is_exact(tmp_path, rng, suffix, compressed):
 def test_uncompressed_files_round_trip(tmp_path, rng, suffix):
     echo = _echo(rng)
     _assert_same_echo(io.load(io.save(echo, tmp_path / f"raw{suffix}", compression=0)), echo)
-    with pytest.raises(ValueError, match="compression must be a gzip level 0-9, got 10"):
+    with pytest.raises(ValueError, match=r"save compression: must be an integer in \[0, 9\] \(a gzip level\), got 10"):
         io.save(echo, tmp_path / f"raw{suffix}", compression=10)
 
 
@@ -142,12 +142,13 @@ def test_failed_save_leaves_the_old_file_intact(tmp_path, rng, suffix, monkeypat
 
     def broken(ds, target, level):  # a write that dies part-way (disk full, killed process)
         original(ds, target, level)
-        raise OSError("No space left on device")
+        raise OSError(f"No space left on device: {target}")
 
-    original = io.files._write
-    monkeypatch.setattr(io.files, "_write", broken)
-    with pytest.raises(OSError, match="No space"):
+    original = io.files.write.write
+    monkeypatch.setattr(io.files.write, "write", broken)
+    with pytest.raises(OSError, match="No space") as caught:
         io.save(_echo(np.random.default_rng(7)), path)
+    assert str(path) in str(caught.value) and "clsas-tmp" not in str(caught.value)  # the target, not the temporary
     monkeypatch.undo()
     _assert_same_echo(io.load(path), echo)
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"r{suffix}"]  # no temporary left behind
@@ -173,13 +174,14 @@ def test_truncated_foreign_and_huge_files_raise_data_file_error(tmp_path, rng):
     with h5py.File(tmp_path / "huge.h5", "w") as f:  # 0.1 layout declaring 128 TiB, nothing written
         f.attrs["kind"] = "EchoData"
         f.create_dataset("data", shape=(2**17, 2**17, 2**10), dtype=np.complex64, chunks=(1, 1, 1024))
-    with pytest.raises(DataFileError, match="huge.h5: its arrays declare 1.31e\\+05 GiB"):
+    with pytest.raises(MemoryBudgetError, match="huge.h5: its arrays declare 1.31e\\+05 GiB"):
         io.load(tmp_path / "huge.h5")
-    with pytest.raises(DataFileError, match="over the budget"):
-        io.load(path, max_bytes=1000)
+    with clsas.use_memory_budget(1000), pytest.raises(MemoryBudgetError, match="e.nc: its arrays declare .* over the "
+                                                                               "memory budget of 1000 bytes"):
+        io.load(path)
     with pytest.raises(FileNotFoundError):
         io.load(tmp_path / "missing.nc")
-    with pytest.raises(TypeError, match="EchoData or an Image"):
+    with pytest.raises(TypeError, match="save obj: must be an EchoData or an Image"):
         io.save(np.zeros(3), tmp_path / "x.nc")
 
 

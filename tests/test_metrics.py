@@ -14,6 +14,8 @@ relative, 0.011 dB. Hence 2e-3 relative on IRW, 0.02 dB on PSLR and ISLR.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from scipy import integrate, optimize
@@ -246,17 +248,28 @@ def test_analyse_point_on_image():
         metrics.analyse_point(img, near=(weak[0],), radius=0.1)
 
 
-@pytest.mark.parametrize("bad, what", [
-    (np.array([], dtype=complex), "empty"),
-    (np.ones(3, dtype=complex), "too short"),
-    (np.ones((8, 8), dtype=complex), "2-D"),
-    (np.zeros(64, dtype=complex), "all zeros"),
+@pytest.mark.parametrize("bad, message", [
+    (np.array([], dtype=complex), "point_response x: must be a 1-D cut with >= 4 samples, got 0"),
+    (np.ones(3, dtype=complex), "point_response x: must be a 1-D cut with >= 4 samples, got 3"),
+    (np.ones((8, 8), dtype=complex), "point_response x: must have shape"),
+    (np.zeros(64, dtype=complex), "point_response x: is all zeros"),
+    (np.full(64, np.nan), "point_response x: must be finite"),
 ])
-def test_point_response_rejects_bad_cuts(bad, what):
-    # NOTE: the all-zero cut is refused, but with a misleading message ("the cut ends before
-    # the main lobe falls to -3 dB"); see the report.
-    with pytest.raises(ValueError):
+def test_point_response_rejects_bad_cuts(bad, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
         metrics.point_response(bad)
+
+
+def test_metrics_of_values_near_the_float_limit_are_those_of_the_scaled_values():
+    """The metrics are ratios and locations: a cut of 1e300 or an image of 1e200 (whose |x|^2
+    overflows float64) measures as the same cut scaled down (issue #27: inf/NaN before)."""
+    x = np.sinc((np.arange(64) - 32.3) / 2)
+    big, small = metrics.point_response(1e300 * x), metrics.point_response(x)
+    assert big.location == pytest.approx(small.location, abs=1e-9) and big.pslr_db == pytest.approx(small.pslr_db)
+    assert abs(big.peak) == pytest.approx(1e300 * abs(small.peak), rel=1e-9)
+    assert metrics.entropy(np.full((4, 4), 1e200)) == pytest.approx(np.log(16))
+    image = np.outer(x, x)
+    assert metrics.ssim(1e200 * image, image) == pytest.approx(1.0)
 
 
 def test_point_response_rejects_bad_parameters():
@@ -267,9 +280,13 @@ def test_point_response_rejects_bad_parameters():
         metrics.point_response(x, np.arange(64.0) ** 1.5)
     with pytest.raises(ValueError, match="extent"):
         metrics.point_response(x, extent=1.0)
-    for up in (0, 1.5, True):
-        with pytest.raises(ValueError):  # message says "factor", see the report
+    for up, error in ((0, ValueError), (10**6, ValueError), (1.5, TypeError), (True, TypeError)):
+        with pytest.raises(error, match="point_response upsample: must be an integer in"):
             metrics.point_response(x, upsample=up)
+    for name, value, error in (("extent", "a", TypeError), ("near", np.nan, ValueError), ("radius", 0.0, ValueError),
+                               ("axis", "abc", TypeError)):
+        with pytest.raises(error, match=f"point_response {name}"):
+            metrics.point_response(x, **{name: value})
     # a cut that holds only the main lobe has no side lobes to measure
     with pytest.raises(ValueError, match="longer cut"):
         metrics.point_response(np.sinc((np.arange(6) - 2.5) / 4))
@@ -282,8 +299,10 @@ def test_entropy_prefers_concentrated_energy():
     flat = np.ones((8, 8))
     assert entropy(point) == pytest.approx(0.0)
     assert entropy(flat) == pytest.approx(np.log(64))
-    with pytest.raises(ValueError, match="all-zero"):
+    with pytest.raises(ValueError, match="entropy data: is all zeros"):
         entropy(np.zeros(3))
+    with pytest.raises(TypeError, match="entropy data: must be an Image or an array of numbers"):
+        entropy(np.array(["a"]))
 
 
 def test_ssim_is_one_for_equal_images_and_drops_with_differences():

@@ -1,6 +1,7 @@
 """Property tests (hypothesis): invalid values drawn per parameter raise the documented error.
 
-The rule (clsas.validate): a value of the wrong kind (a string, None, a bool, a list where a
+The machinery (bad_reals, bad_integers, raises, ...) lives in tests/_properties.py. The rule
+(clsas.validate): a value of the wrong kind (a string, None, a bool, a list where a
 number belongs; a float where an integer belongs) raises TypeError; a value of the right kind
 outside what is allowed (NaN, inf, out of range, too large to be a float) raises ValueError; a
 request over the memory budget raises MemoryBudgetError (a ValueError). Every message names the
@@ -10,10 +11,8 @@ parameter. Entry points with two backends raise the same error on both.
 from __future__ import annotations
 
 import functools
-import math
 
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -22,36 +21,18 @@ from clsas import Grid, Medium, Platform, PulseSchedule, Recording, Waveform
 from clsas.scene.scenario import Array, Scenario
 from clsas.scene.targets import PointTargets
 
-CHECKS = settings(max_examples=25, deadline=None, derandomize=True)
+# the machinery, kept importable from here for the property files that import it from this one
+from _properties import (  # noqa: E402,F401
+    CHECKS,
+    WRONG_KIND,
+    bad_integers,
+    bad_reals,
+    not_none,
+    raises,
+    same_on_both_backends,
+)
 
-WRONG_KIND = st.one_of(st.text(max_size=5), st.none(), st.booleans(), st.lists(st.floats(), min_size=2, max_size=3),
-                       st.just(object()), st.just(1j))
-
-
-def bad_reals(low: float | None, high: float | None, low_open: bool = False, high_open: bool = False):
-    """(value, ValueError) outside [low, high] (open ends excluded), non-finite, or beyond float;
-    (value, TypeError) of the wrong kind."""
-    values = [st.sampled_from([math.nan, math.inf, -math.inf, 10**400, -(10**400)])]
-    if low is not None:
-        values.append(st.floats(max_value=low, exclude_max=not low_open, allow_nan=False, allow_infinity=False))
-    if high is not None:
-        values.append(st.floats(min_value=high, exclude_min=not high_open, allow_nan=False, allow_infinity=False))
-    return st.one_of(st.tuples(st.one_of(values), st.just(ValueError)), st.tuples(WRONG_KIND, st.just(TypeError)))
-
-
-def bad_integers(low: int, high: int | None = None):
-    """(value, ValueError) for integers out of [low, high]; (value, TypeError) for non-integers."""
-    out = [st.integers(max_value=low - 1)]
-    if high is not None:
-        out.append(st.integers(min_value=high + 1, max_value=10**30))
-    kinds = st.one_of(WRONG_KIND, st.floats(), st.sampled_from([2.0, 1.5, np.float64(3.0)]))
-    return st.one_of(st.tuples(st.one_of(out), st.just(ValueError)), st.tuples(kinds, st.just(TypeError)))
-
-
-def raises(error, name: str, call):
-    with pytest.raises(error, match=name.replace(".", r"\.")) as caught:
-        call()
-    return caught.value
+_same_on_both_backends = same_on_both_backends
 
 
 WAVE = dict(f0=50e3, bandwidth=10e3, duration=2e-3, fs=20e3)
@@ -116,11 +97,6 @@ def test_scene_arrays(case):
     raises(error, name, lambda: build(value))
 
 
-def not_none(strategy):
-    """For parameters where None is allowed (it means the default)."""
-    return strategy.filter(lambda case: case[0] is not None)
-
-
 @functools.cache
 def small():
     """A one-receiver scene (target 30 m away, 8 pulses) and its compressed echo."""
@@ -135,12 +111,6 @@ def small_raw():
 SMALL_SCENE = Scenario(medium=Medium(), waveform=Waveform(**WAVE), platform=Platform(speed=0.5),
                        array=Array(rx_offsets=[[0.0, 0.0, 0.0]]), schedule=PulseSchedule(prf=10.0, n_pulses=8),
                        targets=(PointTargets([[30.0, 0.0, 0.0]]),))
-
-
-def _same_on_both_backends(name, error, call):
-    """``call(backend)`` raises ``error`` naming ``name``, with the same message on both backends."""
-    messages = {str(raises(error, name, functools.partial(call, backend))) for backend in ("numpy", "opencl")}
-    assert len(messages) == 1, messages
 
 
 @CHECKS

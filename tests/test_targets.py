@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -20,8 +22,16 @@ def test_mesh_from_file_and_facets(tmp_path):
     assert scat.count == 12
     np.testing.assert_allclose(np.sum(scat.refl.real), 2 * (2 * 1 + 2 * 0.5 + 1 * 0.5))  # total area
     np.testing.assert_allclose(scat.p0.mean(axis=0), [10.0, 0.0, -5.0], atol=1e-12)
-    with pytest.raises(ValueError, match="cannot load"):
+    with pytest.raises(FileNotFoundError, match="missing.stl: no such file"):
         MeshTarget(str(tmp_path / "missing.stl"))
+    os.mkfifo(tmp_path / "pipe.stl")  # reading a FIFO would block: refused without opening it
+    with pytest.raises(FileNotFoundError, match="pipe.stl: not a regular file"):
+        MeshTarget(tmp_path / "pipe.stl")
+    (tmp_path / "junk.format").write_bytes(b"\x00" * 10)
+    with pytest.raises(ValueError, match="cannot load .*junk.format"):
+        MeshTarget(tmp_path / "junk.format")
+    with pytest.raises(TypeError, match="MeshTarget.mesh: must be a trimesh.Trimesh or the path"):
+        MeshTarget(None)
 
 
 def test_pose_rotation_conventions():

@@ -61,7 +61,7 @@ def test_non_finite_records_are_refused():
     echo = clsas.simulate(scene(10.0), backend="numpy", progress=False)
     data = echo.data.copy()
     data[0, 1, 2] = np.nan
-    with pytest.raises(ValueError, match="EchoData.data must be finite"):
+    with pytest.raises(ValueError, match="EchoData.data: must be finite"):
         echo.replace(data=data)
 
 

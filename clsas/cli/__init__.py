@@ -3,7 +3,8 @@
 Sub-commands: simulate, image, plot (the file workflow, :mod:`clsas.cli.workflow`), info,
 demo, bench, and ``reproduce PAPER`` (one sub-command per module of :mod:`clsas.reproduce`).
 A mistake in the arguments or the files prints one line ``clsas: error: ...`` and exits with
-status 2; ``CLSAS_DEBUG=1`` shows the traceback instead.
+status 2; Ctrl-C prints ``clsas: interrupted`` and exits with status 130 (an output being
+written is not left behind: :mod:`clsas.atomic`); ``CLSAS_DEBUG=1`` shows the traceback instead.
 """
 
 from __future__ import annotations
@@ -26,7 +27,8 @@ examples:
   clsas info
   clsas reproduce --help
 
-files are NetCDF4 (.nc) or zarr (.zarr); xarray.open_dataset reads them.
+files are NetCDF4 (.nc) or zarr (.zarr); xarray.open_dataset reads them. An existing output
+is replaced only with --overwrite, the input never; an interrupted command leaves no output.
 environment: CLSAS_BACKEND (auto, opencl, numpy), CLSAS_DEVICE (an OpenCL device),
 TQDM_DISABLE=1 (no progress bars), CLSAS_DEBUG=1 (tracebacks, compiler output).
 """
@@ -94,17 +96,34 @@ def _configure_logging(verbose: int) -> None:
 
 
 def main(argv=None) -> int:
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # Ctrl-C while the arguments are read (the commands' own is below)
+        if os.environ.get("CLSAS_DEBUG", "") not in ("", "0"):
+            raise
+        print("clsas: interrupted", file=sys.stderr)
+        return 130
+
+
+def _main(argv) -> int:
     parser = build_parser(argv)
     args = parser.parse_args(argv)
     _configure_logging(args.verbose)
     if not args.progress:
         os.environ["TQDM_DISABLE"] = "1"
+    debug = os.environ.get("CLSAS_DEBUG", "") not in ("", "0")
     try:
         return args.run(args)
-    except (UsageError, ValueError, TypeError, FileNotFoundError, FileExistsError, IsADirectoryError,
-            PermissionError, RuntimeError) as err:
-        if os.environ.get("CLSAS_DEBUG", "") not in ("", "0"):
+    except KeyboardInterrupt:
+        if debug:
+            raise
+        print("clsas: interrupted", file=sys.stderr)
+        return 130
+    except (UsageError, ValueError, TypeError, OSError, RuntimeError, MemoryError) as err:
+        if debug:
             raise
         message = " ".join(str(err).split()) or type(err).__name__
+        if isinstance(err, MemoryError):
+            message = f"out of memory ({message}); lower the sizes or CLSAS_MEMORY_BUDGET"
         print(f"clsas: error: {message}", file=sys.stderr)
         return 2

@@ -1,6 +1,9 @@
-"""What the sub-commands share: the usage error, argument parsers, the picture writer."""
+"""What the sub-commands share: the usage error, argument parsers, output checks, the picture writer."""
 
 from __future__ import annotations
+
+import os
+from pathlib import Path
 
 import numpy as np
 
@@ -37,6 +40,43 @@ def parse_grid(text: str):
     except ValueError:
         raise UsageError(f"--grid: the plane's height Z must be a number of metres, got {parts[2]!r}") from None
     return Grid.plane(x, y, z)
+
+
+def add_overwrite_argument(parser) -> None:
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace output files that exist (without it, an existing output is an error)")
+
+
+def same_file(a: Path, b: Path) -> bool:
+    """True when ``a`` and ``b`` name one file or folder (through links and relative paths)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return a.resolve() == b.resolve()
+
+
+def check_outputs(data: dict, pictures: dict | None = None, inputs: tuple = (), overwrite: bool = False) -> dict:
+    """Every output path checked before any work (option -> value; None skipped): data files
+    (.nc, .zarr) by :func:`clsas.io.files.check_target`, pictures (.png, .pdf, .svg) by
+    :func:`clsas.plot.check_picture`; none may be an input or another output (UsageError), an
+    existing one only with ``overwrite``. Returns option -> Path."""
+    from ..io.files import check_target
+    from ..plot import check_picture
+
+    checked = {}
+    for check, outputs in ((check_target, data), (check_picture, pictures or {})):
+        for option, value in outputs.items():
+            if value is None:
+                continue
+            path = Path(value)
+            for given in inputs:
+                if given is not None and same_file(path, Path(given)):
+                    raise UsageError(f"{option} {value}: that is the input file; clsas never writes over its input")
+            for other, earlier in checked.items():
+                if same_file(path, earlier):
+                    raise UsageError(f"{option} {value}: {other} writes that file already")
+            checked[option] = check(option, value, overwrite)
+    return checked
 
 
 def write_png(image, path, floor_db: float, title: str) -> None:

@@ -18,7 +18,8 @@ from ._common import UsageError
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--out", default="demo-output", help="folder for the demo's files (default: demo-output)")
+    parser.add_argument("-o", "--out", default="demo-output",
+                        help="folder for the demo's files, replaced on each run (default: demo-output)")
 
 
 def run(args) -> int:

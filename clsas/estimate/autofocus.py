@@ -47,9 +47,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft
 
-from .. import metrics
-from ..model import Image
+from .. import budget, metrics, validate
 from ..errors import EstimationError
+from ..metrics import contrast
+from ..model import Image
 
 log = logging.getLogger("clsas")
 
@@ -57,6 +58,11 @@ AZIMUTH_DIMS = ("y", "eta", "u")
 # The occupied azimuth band: frequencies where the selected, windowed range bins' summed power
 # is within this many dB of its peak (module docstring, step 4).
 OCCUPIED_DB = 20.0
+#: bytes a pixel of the image that PGA holds at once: the image, its corrected copy, the
+#: spectrum of the correction and the power maps (tests/test_autofocus.py measures the peak)
+PGA_BYTES_PER_PIXEL = 64
+CORRECTION_BYTES_PER_PIXEL = 24  # apply_phase_correction: the spectrum and the result
+MAX_WORKERS = 1024
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,42 +90,50 @@ class AutofocusResult:
     contrast_after: float
 
 
-def contrast(data) -> float:
-    """Image contrast std(|x|^2) / mean(|x|^2): higher when the image is better focused."""
-    power = np.abs(np.asarray(getattr(data, "data", data))) ** 2
-    mean = power.mean()
-    if not mean > 0:
-        raise ValueError("contrast of an all-zero image is undefined")
-    return float(power.std() / mean)
+__all__ = ["AutofocusResult", "apply_phase_correction", "contrast", "pga"]
 
 
 def _azimuth_axis(image: Image, axis: str | None) -> int:
     if axis is None:
         found = [d for d in image.dims if d in AZIMUTH_DIMS]
         if len(found) != 1:
-            raise ValueError(f"pga: cannot tell the azimuth axis of an image with dims {image.dims}; "
+            raise ValueError(f"pga axis: cannot tell the azimuth axis of an image with dims {image.dims}; "
                              f"give axis= one of them")
         axis = found[0]
+    if not isinstance(axis, str):
+        raise TypeError(f"pga axis: must be the name of one of the image's dims {image.dims}, got {axis!r}")
     if axis not in image.dims:
-        raise ValueError(f"pga: axis must be one of the image's dims {image.dims}, got {axis!r}")
+        raise ValueError(f"pga axis: must be one of the image's dims {image.dims}, got {axis!r}")
     return image.dims.index(axis)
 
 
-def _check(image, tolerance, max_iterations, select_db, window_db, min_window, min_contrast) -> None:
+def _azimuth_step(image: Image, ax: int) -> float:
+    """The azimuth axis's spacing (axis units); ValueError unless it is uniform and not zero:
+    PGA's azimuth spectrum (and ``frequencies``) needs evenly spaced samples."""
+    name = image.dims[ax]
+    coords = image.axes[name]
+    step = (coords[-1] - coords[0]) / (coords.size - 1)
+    if not (step != 0 and np.allclose(np.diff(coords), step, rtol=1e-6, atol=0)):
+        raise ValueError(f"pga image: its azimuth axis {name!r} must be evenly spaced and not constant "
+                         f"(PGA works on its spectrum), got {coords[:3]}...")
+    return float(step)
+
+
+def _check(image, tolerance, max_iterations, select_db, window_db, min_window, min_contrast, workers) -> None:
     if not isinstance(image, Image):
-        raise TypeError(f"pga: image must be a clsas Image, got {type(image).__name__}")
+        raise TypeError(f"pga image: must be a clsas Image, got {type(image).__name__}")
     if image.data.ndim != 2:
-        raise ValueError(f"pga: image must be 2-D (azimuth x range), got shape {image.shape}")
-    for name, value, lo in (("tolerance", tolerance, 0.0), ("select_db", select_db, 0.0),
-                            ("window_db", window_db, 0.0), ("min_contrast", min_contrast, 1.0)):
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
-                or not np.isfinite(value) or value <= lo:
-            raise ValueError(f"pga: {name} must be a finite number > {lo:g}, got {value!r}")
-    for name, value, lo in (("max_iterations", max_iterations, 1), ("min_window", min_window, 3)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
-            raise ValueError(f"pga: {name} must be an integer >= {lo}, got {value!r}")
-    if not np.all(np.isfinite(image.data)):
-        raise ValueError("pga: the image has NaN or inf pixels")
+        raise ValueError(f"pga image: must be 2-D (azimuth x range), got shape {image.shape}")
+    validate.positive("pga tolerance", tolerance, high=10.0, unit="rad")
+    validate.positive("pga select_db", select_db, high=400.0, unit="dB")
+    validate.positive("pga window_db", window_db, high=400.0, unit="dB")
+    validate.scalar("pga min_contrast", min_contrast, low=1.0, low_open=True, high=1e30)
+    validate.integer("pga max_iterations", max_iterations, 1, 10_000)
+    validate.integer("pga min_window", min_window, 3, 2**31)
+    if workers is not None:
+        validate.integer("pga workers", workers, -MAX_WORKERS, MAX_WORKERS)
+    if not validate.all_finite(image.data):
+        raise ValueError("pga image: has NaN or inf pixels")
 
 
 def _dominant_bins(g: np.ndarray, select_db: float, min_contrast: float) -> np.ndarray:
@@ -175,12 +189,29 @@ def _phase_gradient_step(g: np.ndarray, bins: np.ndarray, width: int, window_db:
 def apply_phase_correction(data: np.ndarray, phi: np.ndarray, axis: int, workers: int | None = None) -> np.ndarray:
     """``data`` with exp(-j phi) applied to its azimuth spectrum along ``axis`` (phi in
     increasing-frequency order, length ``data.shape[axis]``); complex64."""
+    given = data
+    try:
+        data = np.asarray(data)
+    except (ValueError, TypeError):  # ragged nested lists
+        data = np.empty(0, dtype=object)
+    if data.dtype.kind not in "iufc" or data.ndim == 0:
+        raise TypeError(f"apply_phase_correction data: must be an array of numbers (at least 1-D), got "
+                        f"{type(given).__name__} of dtype {data.dtype}")
+    axis = validate.integer("apply_phase_correction axis", axis, -data.ndim, data.ndim - 1,
+                            why=f"an axis of the {data.ndim}-D data")
+    phi = validate.array("apply_phase_correction phi", phi, (data.shape[axis],), bound=1e12)
+    if workers is not None:
+        validate.integer("apply_phase_correction workers", workers, -MAX_WORKERS, MAX_WORKERS)
+    budget.check_bytes(f"apply_phase_correction of {data.size} samples", CORRECTION_BYTES_PER_PIXEL * data.size,
+                       "a smaller image")
     shape = [1] * data.ndim
     shape[axis] = -1
-    ramp = np.exp(-1j * scipy.fft.ifftshift(phi)).reshape(shape)
-    spec = scipy.fft.fft(data, axis=axis, workers=workers)
-    return scipy.fft.ifft(spec * ramp, axis=axis, workers=workers).astype(np.complex64)
-
+    ramp = np.exp(-1j * scipy.fft.ifftshift(phi)).astype(np.complex64).reshape(shape)
+    spec = scipy.fft.fft(data.astype(np.complex64, copy=False), axis=axis, workers=workers)
+    spec *= ramp
+    out = scipy.fft.ifft(spec, axis=axis, workers=workers, overwrite_x=True)
+    validate.finite_result("apply_phase_correction: the corrected data", out, "scale the data down")
+    return out
 
 def pga(image: Image, axis: str | None = None, *, tolerance: float = 0.01, max_iterations: int = 20,
         select_db: float = 20.0, window_db: float = 10.0, min_window: int = 32, min_contrast: float = 20.0,
@@ -211,11 +242,14 @@ def pga(image: Image, axis: str | None = None, *, tolerance: float = 0.01, max_i
     ------
     EstimationError when the image has no dominant scatterer (see ``min_contrast``).
     """
-    _check(image, tolerance, max_iterations, select_db, window_db, min_window, min_contrast)
+    _check(image, tolerance, max_iterations, select_db, window_db, min_window, min_contrast, workers)
     ax = _azimuth_axis(image, axis)
     n = image.shape[ax]
     if n < 2 * min_window:
-        raise ValueError(f"pga: the azimuth axis has {n} pixels, needs >= 2 x min_window = {2 * min_window}")
+        raise ValueError(f"pga min_window: the azimuth axis has {n} pixels, needs >= 2 x min_window = {2 * min_window}")
+    step = _azimuth_step(image, ax)
+    budget.check_bytes(f"pga of a {image.shape[0]} x {image.shape[1]} image", PGA_BYTES_PER_PIXEL * image.data.size,
+                       "autofocus a smaller patch of the image")
     data = image.data
     total = np.zeros(n)
     history = []
@@ -237,8 +271,6 @@ def pga(image: Image, axis: str | None = None, *, tolerance: float = 0.01, max_i
         history.append(rms)
         if rms < tolerance:
             break
-    spacing = np.diff(image.axes[image.dims[ax]])
-    step = float(np.mean(spacing)) if spacing.size else 1.0
     result = AutofocusResult(
         image=image.replace(data=data, provenance={**image.provenance, "autofocus": {
             "algorithm": "pga", "iterations": len(history), "tolerance": tolerance, "select_db": select_db,

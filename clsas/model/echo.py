@@ -8,7 +8,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .. import validate
+from .. import budget, validate
 from ._describe import provenance_line, span
 from .medium import Medium, Waveform
 
@@ -28,6 +28,23 @@ class ScenarioRecord:
 def _geometry(name: str, value, shape: tuple) -> np.ndarray:
     """A finite float64 array of ``shape`` within the coordinate (m) and time (s) bounds."""
     return validate.array(f"EchoData.{name}", value, shape, bound=max(validate.MAX_COORDINATE, validate.MAX_TIME))
+
+
+def _samples(value) -> np.ndarray:
+    """The samples as a finite complex64 (n_rx, n_pulses, n_samples) array; a conversion (from
+    complex128, say) is checked against the memory budget first."""
+    data = np.asarray(value)
+    if data.dtype.kind != "c":
+        raise TypeError(f"EchoData.data: must be complex baseband samples, got dtype {data.dtype}")
+    if data.ndim != 3:
+        raise ValueError(f"EchoData.data: must be 3-D (rx, pulse, sample), got shape {data.shape}")
+    if data.dtype != np.complex64:
+        budget.check_bytes(f"EchoData.data as complex64 ({' x '.join(map(str, data.shape))} samples)",
+                           8.0 * data.size, "a smaller echo")
+        data = data.astype(np.complex64)
+    if not validate.all_finite(data):
+        raise ValueError("EchoData.data: must be finite: it has NaN or inf samples")
+    return data
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,14 +100,7 @@ class EchoData:
     dims: ClassVar[tuple] = ("rx", "pulse", "sample")
 
     def __post_init__(self):
-        data = np.asarray(self.data)
-        if data.ndim != 3:
-            raise ValueError(f"EchoData.data must be 3-D (rx, pulse, sample), got shape {data.shape}")
-        if not np.iscomplexobj(data):
-            raise TypeError(f"EchoData.data must be complex baseband samples, got dtype {data.dtype}")
-        data = data.astype(np.complex64, copy=False)
-        if not validate.all_finite(data):
-            raise ValueError("EchoData.data must be finite: it has NaN or inf samples")
+        data = _samples(self.data)
         n_rx, n_p, _ = data.shape
         object.__setattr__(self, "data", data)
         object.__setattr__(self, "eta", _geometry("eta", self.eta, (n_p,)))
@@ -98,21 +108,20 @@ class EchoData:
         fs = validate.scalar("EchoData.fs", self.fs, low=1.0, high=MAX_ECHO_FS, unit="Hz")
         object.__setattr__(self, "fs", fs)
         object.__setattr__(self, "tx_pos", _geometry("tx_pos", self.tx_pos, (n_p, 3)))
-        rx_tau = np.asarray(self.rx_tau, dtype=np.float64)
-        if rx_tau.ndim != 2 or rx_tau.shape[0] != n_rx or rx_tau.shape[1] < 1:
-            raise ValueError(f"EchoData.rx_tau must have shape ({n_rx}, n_nodes >= 1), got {rx_tau.shape}")
-        object.__setattr__(self, "rx_tau", _geometry("rx_tau", rx_tau, rx_tau.shape))
+        rx_tau = _geometry("rx_tau", self.rx_tau, (n_rx, -1))
+        if rx_tau.shape[1] < 1:
+            raise ValueError(f"EchoData.rx_tau: must have shape ({n_rx}, n_nodes >= 1), got {rx_tau.shape}")
         if rx_tau.shape[1] > 1 and np.any(np.diff(rx_tau, axis=1) <= 0):
-            raise ValueError("EchoData.rx_tau must increase strictly along the node axis")
+            raise ValueError("EchoData.rx_tau: must increase strictly along the node axis")
+        object.__setattr__(self, "rx_tau", rx_tau)
         object.__setattr__(self, "rx_pos", _geometry("rx_pos", self.rx_pos, (n_rx, n_p, rx_tau.shape[1], 3)))
-        if not isinstance(self.waveform, Waveform) or not isinstance(self.medium, Medium):
-            raise TypeError("EchoData.waveform must be a Waveform and EchoData.medium a Medium")
-        receivers = tuple(self.receivers)
-        if len(receivers) != n_rx:
-            raise ValueError(f"EchoData.receivers must name {n_rx} receivers, got {len(receivers)}")
-        object.__setattr__(self, "receivers", receivers)
-        object.__setattr__(self, "compressed", bool(self.compressed))
-        object.__setattr__(self, "provenance", dict(self.provenance))
+        if not isinstance(self.waveform, Waveform):
+            raise TypeError(f"EchoData.waveform: must be a Waveform, got {type(self.waveform).__name__}")
+        if not isinstance(self.medium, Medium):
+            raise TypeError(f"EchoData.medium: must be a Medium, got {type(self.medium).__name__}")
+        object.__setattr__(self, "receivers", validate.names("EchoData.receivers", self.receivers, n_rx))
+        object.__setattr__(self, "compressed", validate.flag("EchoData.compressed", self.compressed))
+        object.__setattr__(self, "provenance", validate.mapping("EchoData.provenance", self.provenance))
         if self.scenario is not None and not isinstance(self.scenario, ScenarioRecord):
             raise TypeError(f"EchoData.scenario must be a Scenario or None, got {type(self.scenario).__name__}")
 

@@ -10,6 +10,7 @@ from .. import budget
 from .. import validate
 
 GRID_BYTES_PER_PIXEL = 80  # a plane's positions (24) and their temporaries while it is built
+POSITION_BYTES_PER_PIXEL = 24  # one float64 (x, y, z): a checked copy of given positions
 
 
 @dataclass(frozen=True, eq=False)
@@ -32,21 +33,25 @@ class Grid:
     axes: dict
 
     def __post_init__(self):
+        if not (isinstance(self.positions, np.ndarray) and self.positions.dtype == np.float64):
+            _check_position_bytes("Grid.positions", self.positions)  # converted: a copy
         pos = validate.array("Grid.positions", self.positions, (-1,) * max(2, np.ndim(self.positions)),
                              bound=validate.MAX_COORDINATE, copy=False)
         if pos.ndim < 2 or pos.shape[-1] != 3:
             raise ValueError(f"Grid.positions: must have shape (..., 3), got {pos.shape}")
         if pos.size == 0:
             raise ValueError("Grid is empty: give at least one pixel")
-        dims = tuple(self.dims)
+        dims = validate.names("Grid.dims", self.dims)
         if len(dims) != pos.ndim - 1:
-            raise ValueError(f"Grid.dims must name the {pos.ndim - 1} pixel axes, got {dims}")
+            raise ValueError(f"Grid.dims: must name the {pos.ndim - 1} pixel axes, got {dims}")
+        given = validate.mapping("Grid.axes", self.axes, none_is_empty=True)
+        unknown = sorted(set(given) - set(dims), key=str)
+        if unknown:
+            raise ValueError(f"Grid.axes: has coordinates for {unknown!r}, which are not dims {dims}")
         axes = {}
         for name, n in zip(dims, pos.shape[:-1]):
-            ax = np.asarray(self.axes.get(name, np.arange(n)), dtype=np.float64)
-            if ax.shape != (n,):
-                raise ValueError(f"Grid.axes[{name!r}] must have {n} values, got shape {ax.shape}")
-            axes[name] = ax
+            axes[name] = validate.array(f"Grid.axes[{name!r}]", given.get(name, np.arange(n)), (n,),
+                                        bound=validate.MAX_COORDINATE)
         pos.flags.writeable = False
         object.__setattr__(self, "positions", pos)
         object.__setattr__(self, "dims", dims)
@@ -64,8 +69,7 @@ class Grid:
     def plane(cls, x, y, z: float) -> "Grid":
         """Horizontal plane z = ``z`` (m, negative below the surface) on the x (across-track) and
         y (along-track) coordinates given; dims ``("y", "x")``."""
-        x = validate.array("Grid.plane x", x if np.ndim(x) else [x], (-1,), bound=validate.MAX_COORDINATE)
-        y = validate.array("Grid.plane y", y if np.ndim(y) else [y], (-1,), bound=validate.MAX_COORDINATE)
+        x, y = _axis("Grid.plane x", x), _axis("Grid.plane y", y)
         if x.size == 0 or y.size == 0:
             raise ValueError(f"Grid.plane x and y: must be non-empty, got shapes {x.shape} and {y.shape}")
         z = validate.scalar("Grid.plane z", z, low=-validate.MAX_COORDINATE, high=validate.MAX_COORDINATE, unit="m")
@@ -83,8 +87,7 @@ class Grid:
         for name, vec in (("u_direction", du), ("v_direction", dv)):
             if not np.isclose(np.linalg.norm(vec), 1.0):
                 raise ValueError(f"Grid.slant {name}: must be a unit 3-vector, got {vec}")
-        u = validate.array("Grid.slant u", u if np.ndim(u) else [u], (-1,), bound=validate.MAX_COORDINATE)
-        w = validate.array("Grid.slant v", v if np.ndim(v) else [v], (-1,), bound=validate.MAX_COORDINATE)
+        u, w = _axis("Grid.slant u", u), _axis("Grid.slant v", v)
         budget.check_bytes(f"Grid.slant of {w.size} x {u.size} pixels", GRID_BYTES_PER_PIXEL * u.size * w.size,
                            "fewer pixels (image in tiles)")
         pos = origin + w[:, None, None] * dv + u[None, :, None] * du
@@ -93,9 +96,29 @@ class Grid:
     @classmethod
     def points(cls, positions, dims=None) -> "Grid":
         """Any ``(..., 3)`` array of pixel positions (m); dims default to ``("i0", "i1", ...)``."""
+        _check_position_bytes("Grid.points positions", positions)
         pos = validate.array("Grid.points positions", positions, (-1,) * max(1, np.ndim(positions)),
                              bound=validate.MAX_COORDINATE)
         if pos.ndim == 1:
             pos = pos[None]
+        if pos.shape[-1] != 3:
+            raise ValueError(f"Grid.points positions: must have shape (..., 3) (x, y, z in m), got {pos.shape}")
         dims = tuple(dims) if dims is not None else tuple(f"i{k}" for k in range(pos.ndim - 1))
         return cls(pos, dims, {})
+
+
+def _axis(name: str, value) -> np.ndarray:
+    """A 1-D coordinate axis (m) from an array or one number."""
+    try:
+        one = np.ndim(value) == 0
+    except (ValueError, TypeError):  # ragged nested lists: validate.array names them
+        one = False
+    return validate.array(name, [value] if one else value, (-1,), bound=validate.MAX_COORDINATE)
+
+
+def _check_position_bytes(name: str, positions) -> None:
+    """The budget of a checked float64 copy of ``positions`` (from their shape: a broadcast view
+    costs its full size once copied), before anything is copied."""
+    count = validate.element_count(name, positions)
+    budget.check_bytes(f"{name} of {count // 3} pixels", POSITION_BYTES_PER_PIXEL / 3 * count,
+                       "fewer pixels (image in tiles)")

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import budget, validate
 from ._describe import provenance_line, span
 
 #: (units, long_name) of image axes by dim name; other dims get ("1", "<name> coordinate").
@@ -51,32 +52,29 @@ class Image:
         data = np.asarray(self.data)
         if data.dtype.kind not in "iufc":
             raise TypeError(f"Image.data: must be an array of numbers, got dtype {data.dtype}")
-        if not np.iscomplexobj(data):
+        if data.dtype != np.complex64:
+            budget.check_bytes(f"Image.data as complex64 ({' x '.join(map(str, data.shape))} pixels)",
+                               8.0 * data.size, "a smaller image")
             data = data.astype(np.complex64)
-        data = data.astype(np.complex64, copy=False)
-        dims = tuple(self.dims)
-        if len(dims) != data.ndim or len(set(dims)) != len(dims):
-            raise ValueError(f"Image.dims must name each of the {data.ndim} axes once, got {dims}")
+        dims = validate.names("Image.dims", self.dims)
+        if len(dims) != data.ndim:
+            raise ValueError(f"Image.dims: must name each of the {data.ndim} axes once, got {dims}")
+        given = validate.mapping("Image.axes", self.axes)
+        extra = sorted(set(given) - set(dims), key=str)
+        if extra:
+            raise ValueError(f"Image.axes: has coordinates for unknown dims {extra}")
         axes = {}
         for name, n in zip(dims, data.shape):
-            if name not in self.axes:
-                raise ValueError(f"Image.axes lacks the coordinate of dim {name!r}")
-            ax = np.asarray(self.axes[name], dtype=np.float64)
-            if ax.shape != (n,) or not np.all(np.isfinite(ax)):
-                raise ValueError(f"Image.axes[{name!r}] must be {n} finite values, got shape {ax.shape}")
-            axes[name] = ax
-        extra = set(self.axes) - set(dims)
-        if extra:
-            raise ValueError(f"Image.axes has coordinates for unknown dims {sorted(extra)}")
+            if name not in given:
+                raise ValueError(f"Image.axes: lacks the coordinate of dim {name!r}")
+            axes[name] = validate.array(f"Image.axes[{name!r}]", given[name], (n,))
         if self.positions is not None:
-            pos = np.asarray(self.positions, dtype=np.float64)
-            if pos.shape != data.shape + (3,) or not np.all(np.isfinite(pos)):
-                raise ValueError(f"Image.positions must be finite with shape {data.shape + (3,)}, got {pos.shape}")
+            pos = validate.array("Image.positions", self.positions, data.shape + (3,), copy=False)
             object.__setattr__(self, "positions", pos)
         object.__setattr__(self, "data", data)
         object.__setattr__(self, "dims", dims)
         object.__setattr__(self, "axes", axes)
-        object.__setattr__(self, "provenance", dict(self.provenance))
+        object.__setattr__(self, "provenance", validate.mapping("Image.provenance", self.provenance))
 
     @property
     def shape(self) -> tuple:

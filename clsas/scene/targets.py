@@ -89,6 +89,28 @@ def scatterers_of(targets) -> Scatterers:
     return Scatterers.concatenate(parts)
 
 
+def _load_mesh(source):
+    """A triangle mesh from a file trimesh reads; TypeError for anything but a path, OSError
+    naming the path when it is not a regular file (a FIFO would block the read), ValueError when
+    trimesh cannot read it."""
+    import os
+
+    import trimesh
+
+    if not isinstance(source, (str, os.PathLike)):
+        raise TypeError(f"MeshTarget.mesh: must be a trimesh.Trimesh or the path of a mesh file, got "
+                        f"{type(source).__name__}")
+    path = os.fspath(source)
+    if not os.path.isfile(path):
+        kind = "no such file" if not os.path.exists(path) else "not a regular file"
+        raise FileNotFoundError(f"MeshTarget.mesh: {path}: {kind}")
+    try:
+        return trimesh.load(path, force="mesh")
+    except Exception as err:  # noqa: BLE001 - trimesh raises many types for unreadable files
+        raise ValueError(f"MeshTarget.mesh: cannot load {path} as a triangle mesh ({type(err).__name__}: "
+                         f"{err})") from err
+
+
 def pose_rotation(heading: float, pitch: float, roll: float) -> np.ndarray:
     """Body-to-world rotation of a target: R = R_z(heading) R_y(-pitch) R_x(roll).
 
@@ -158,13 +180,11 @@ class MeshTarget:
 
         mesh = self.mesh
         if not isinstance(mesh, trimesh.Trimesh):
-            try:
-                mesh = trimesh.load(mesh, force="mesh")
-            except Exception as err:  # trimesh raises many types for unreadable files
-                raise ValueError(f"MeshTarget.mesh: cannot load {self.mesh!r} as a triangle mesh ({err})") from err
+            mesh = _load_mesh(mesh)
         mesh = mesh.copy()
         if len(mesh.faces) == 0:
             raise ValueError("MeshTarget.mesh is empty: it has no faces")
+        v.array("MeshTarget.mesh vertices", mesh.vertices, (-1, 3), bound=v.MAX_COORDINATE, copy=False)
         areas = mesh.area_faces
         degenerate = ~(areas > 1e-12 * max(1.0, float(areas.max())))
         if degenerate.any():
@@ -185,8 +205,9 @@ class MeshTarget:
         if not mesh.is_watertight:
             warnings.warn("MeshTarget.mesh is not watertight: hull occlusion will let rays through its holes",
                           UserWarning, stacklevel=3)
-        if self.law not in REFLECTIVITY_LAWS:
-            raise ValueError(f"MeshTarget.law must be one of {REFLECTIVITY_LAWS}, got {self.law!r}")
+        v.choice("MeshTarget.law", self.law, REFLECTIVITY_LAWS)
+        if self.speckle_seed is not None:
+            v.integer("MeshTarget.speckle_seed", self.speckle_seed, low=0, high=2**63 - 1, why="or None")
         object.__setattr__(self, "mesh", mesh)
         object.__setattr__(self, "position", v.vector3("MeshTarget.position", self.position))
         for name in ("heading", "pitch", "roll"):

@@ -172,11 +172,14 @@ class _Reader:
                 vertices = v.array("vertices", values.pop("vertices"), (-1, 3), bound=v.MAX_COORDINATE)
             except (ValueError, TypeError) as err:
                 self.fail(where, "vertices", str(err).split(": ", 1)[-1], err)
-            faces = np.asarray(values.pop("faces"))
+            allowed = f"must be triangles: (n >= 1, 3) integers indexing the {len(vertices)} vertices from 0"
+            try:
+                faces = np.asarray(values.pop("faces"))
+            except ValueError:  # rows of different lengths
+                self.fail(where, "faces", f"{allowed}; its rows have different lengths")
             if faces.dtype.kind not in "iu" or faces.ndim != 2 or faces.shape[1] != 3 or faces.size == 0 \
                     or faces.min() < 0 or faces.max() >= len(vertices):
-                self.fail(where, "faces", f"must be triangles: (n >= 1, 3) integers indexing the {len(vertices)} "
-                          "vertices from 0")
+                self.fail(where, "faces", f"{allowed}, got shape {faces.shape} of {faces.dtype}")
             return trimesh.Trimesh(vertices, faces, process=False)
         name, process = values.pop("mesh"), values.pop("process", True)
         if not isinstance(name, str) or not name:
@@ -220,4 +223,7 @@ def parse(text: str, source: str = "<scenario>", base: Path | None = None) -> Sc
     """The Scenario of a TOML text; ``base`` is the folder relative mesh paths start from."""
     if not isinstance(text, str):
         raise TypeError(f"a TOML scenario must be text (str), got {type(text).__name__}")
-    return _Reader(text, source, base).scenario()
+    try:
+        return _Reader(text, source, base).scenario()
+    except RecursionError:  # tomllib and the checks recurse into nested arrays and tables
+        raise ScenarioFileError(f"{source}: not a scenario: its arrays or tables are nested too deeply") from None

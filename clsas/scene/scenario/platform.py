@@ -18,6 +18,11 @@ MotionInput = Union[None, Callable, np.ndarray, list, tuple]
 MOTION_COMPONENTS = ("surge", "sway", "heave", "yaw", "pitch")
 
 
+def _bound(component: str) -> float:
+    """Largest |value| of a motion component: pi rad for the angles, the coordinate bound (m) else."""
+    return np.pi if component in ("yaw", "pitch") else v.MAX_COORDINATE
+
+
 def _rotation(yaw: np.ndarray, pitch: np.ndarray) -> np.ndarray:
     """R = R_yaw @ R_pitch, shape (..., 3, 3), with the sign conventions of the module docstring."""
     cy, sy = np.cos(yaw), np.sin(yaw)
@@ -66,8 +71,7 @@ class Platform:
             object.__setattr__(self, "error_times", times)
             from scipy.interpolate import CubicSpline  # here: scipy.interpolate costs ~1 s to import
             for comp in sampled:
-                values = v.array(f"Platform.{comp}", getattr(self, comp), (times.size,),
-                                 bound=np.pi if comp in ("yaw", "pitch") else v.MAX_COORDINATE)
+                values = v.array(f"Platform.{comp}", getattr(self, comp), (times.size,), bound=_bound(comp))
                 object.__setattr__(self, comp, values)
                 splines[comp] = CubicSpline(times, values)
         elif self.error_times is not None:
@@ -93,12 +97,11 @@ class Platform:
                     "emission and reception time"
                 )
             return self._splines[component](t)
-        out = np.asarray(source(t), dtype=np.float64)
-        if out.ndim == 0:  # a constant error
-            out = np.full(t.shape, float(out))
-        if out.shape != t.shape or not np.all(np.isfinite(out)):
-            raise ValueError(f"Platform.{component}(t) must return finite values shaped like t {t.shape}, got {out.shape}")
-        return out
+        out = source(t)
+        if np.ndim(out) == 0:  # a constant error
+            out = np.full(t.shape, v.scalar(f"Platform.{component}(t)", out))
+        # the bounds of a sampled array (module docstring): a function gets no more room
+        return v.array(f"Platform.{component}(t)", out, t.shape, bound=_bound(component), copy=False)
 
     def position(self, t) -> np.ndarray:
         """Reference point at times ``t`` (s): shape ``t.shape + (3,)``, m."""
