@@ -6,10 +6,16 @@ PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.clsas-installed
+BUILT  := $(VENV)/.clsas-kernels-built
 
 .PHONY: setup opencl setup-pip-opencl demo test test-all bench clean
 
-setup: $(STAMP) opencl
+setup: $(STAMP) opencl $(BUILT)
+
+# Build the kernels of the usual calls ahead (`clsas info --check`: PoCL's disk cache keeps them),
+# once per install and again when a kernel source changes; a failure only says so (setup goes on).
+$(BUILT): $(STAMP) $(wildcard kernels/*.cl kernels/*.h) | opencl
+	$(PY) -m clsas info --check > /dev/null && touch $@ || echo "clsas: kernels not built ahead (clsas info --check failed)"
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)

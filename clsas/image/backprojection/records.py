@@ -17,7 +17,7 @@ are not upsampled (sinc8, or upsample=1) are the echo's own, read in place whole
 
 Upsampling in blocks. The records are FFT-upsampled block by block: block b holds the original
 samples [b UPSAMPLE_BLOCK, (b + 1) UPSAMPLE_BLOCK) and its FFT also reads UPSAMPLE_GUARD samples
-on each side (zeros outside the record): the block plus its guards (256 samples) is transformed,
+on each side (zeros outside the record): the block plus its guards (512 samples) is transformed,
 its spectrum zero-padded to ``upsample`` times its length (:func:`rangecomp._upsample_spectrum`),
 transformed back, and the block's own part kept. A prepared sample therefore depends on its block
 only, not on the span or on how many records are transformed at once, so records prepared for a
@@ -25,8 +25,10 @@ wider span (or the whole record) give the same image, bit for bit, as records pr
 grid itself. The guard truncates the band-limited interpolation kernel: the blocks depart from
 one FFT of the whole zero-padded record (:func:`rangecomp.upsample_records`) by far less than
 linear interpolation's own error on x8 upsampled data (up to (2 pi 0.4 / 8)^2 / 8 = 1.2e-2 at
-fs = 1.25 B; tests/test_backprojection.py holds the difference). Small FFTs (256 -> 2048 points)
-stay in cache: ~1.2x the whole-record FFT's operations but no 8x-long temporaries. An OpenCL FFT
+fs = 1.25 B; tests/test_backprojection.py holds the difference). Small FFTs (512 -> 4096 points)
+stay in cache: no 8x-long temporaries, and the guards cost a third more transform than the block
+itself (with 128-sample blocks they cost as much again, and the upsampling was most of a small
+grid's call: bench_backprojection's fixed-cost rows). An OpenCL FFT
 on PoCL was tried and was many times slower than scipy.fft with two workers, so the upsampling
 stays on the host.
 
@@ -51,7 +53,7 @@ from ..rangecomp import _upsample_spectrum
 INTERPOLATORS = ("linear", "sinc8")
 # samples an interpolator reads around floor(k) (before, after), in samples of the records it reads
 INTERP_REACH = {"linear": (0, 1), "sinc8": (3, 4)}
-UPSAMPLE_BLOCK = 128  # original samples a block of the upsampling keeps
+UPSAMPLE_BLOCK = 384  # original samples a block of the upsampling keeps (the FFT: 512 points)
 UPSAMPLE_GUARD = 64  # original samples each side a block's FFT reads beyond it
 FFT_BATCH_BYTES = 32 * 2**20  # upsampled spectra in memory at once
 UPLOAD_BYTES = 64 * 2**20  # records prepared and uploaded at once when a call prepares its own
@@ -63,9 +65,8 @@ def check_options(echo, receivers, interp, upsample, target_velocity):
     if not isinstance(echo, EchoData):
         raise TypeError(f"echo must be an EchoData (or records from clsas.image.backprojection.prepare), "
                         f"got {type(echo).__name__}")
-    if not echo.compressed:
-        raise ValueError("echo is not range-compressed: call clsas.range_compress(echo) first "
-                         "(back-projection refuses raw echoes rather than compressing them silently)")
+    validate.compression("backproject echo", echo, advice="call clsas.range_compress(echo) first (back-projection "
+                         "refuses raw echoes rather than compressing them silently)")
     validate.choice("backproject interp", interp, INTERPOLATORS)
     validate.integer("backproject upsample", upsample, low=1, high=64)
     need = 8 if interp == "sinc8" else 2
@@ -169,8 +170,11 @@ def upsample_blocks(records: np.ndarray, factor: int, first: int, stop: int, wor
         spec = scipy.fft.fft(windows, axis=-1, workers=workers)
         spec *= factor
         up = scipy.fft.ifft(_upsample_spectrum(spec, factor), axis=-1, workers=workers, overwrite_x=True)
-        kept = up[..., guard * factor:(guard + block) * factor].reshape(e - s, -1)
-        out[s:e] = kept[:, :(stop - first) * factor]
+        kept = up[..., guard * factor:(guard + block) * factor]  # (records, blocks, block factor)
+        whole = (stop - first) // block  # blocks kept whole, copied once into out's view of them
+        out[s:e, :whole * block * factor].reshape(e - s, whole, block * factor)[...] = kept[:, :whole]
+        if whole < n_blocks:  # the last block, cut at the record's end
+            out[s:e, whole * block * factor:] = kept[:, whole, :(stop - first - whole * block) * factor]
     return out
 
 
@@ -275,6 +279,8 @@ class PreparedRecords:
             # a view of the echo itself (no upsampling, no cut): the device reads it in place; the
             # call finishes its queue before it returns, and the echo outlives the call
             return cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=records), records.shape[1], int(pulses[0])
+        # an array made for this call is copied: the launcher drops a block's buffer while its
+        # kernels may still be queued, and a USE_HOST_PTR buffer's array would go with it
         records = np.ascontiguousarray(records, dtype=dtype)
         return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=records), records.shape[1], int(pulses[0])
 
