@@ -21,7 +21,7 @@ from _harness import arguments, measure, report
 
 import clsas
 from clsas.model import Grid
-from clsas.estimate.moving import chain, closed_forms, higher_order_delay, layout_of, mapping, solve_motion, solve_velocity
+from clsas.estimate.moving import chain, closed_forms, receiver_focus, higher_order_delay, layout_of, mapping, solve_motion, solve_velocity
 from clsas.estimate.moving.closedforms import delay_terms
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets
@@ -77,7 +77,7 @@ def main() -> None:
     motion = clsas.estimate_motion(echo, position=CENTRE)
     steps["estimate_motion (A, B, C)"] = measure(lambda: clsas.estimate_motion(echo, position=CENTRE),
                                                  repeats=repeats)
-    image = chain.focus_receiver(echo, "A", motion.receivers["A"])
+    image = receiver_focus.focus_receiver(echo, "A", motion.receivers["A"])
     steps["r-y mapping"] = measure(lambda: mapping.to_ry(image, motion.layout, "A", motion.position, motion.velocity,
                                                          est.tau_c, est.eta_c), repeats=repeats)
     steps["focus_moving (A, B, C)"] = measure(lambda: clsas.focus_moving(echo, motion), repeats=repeats)

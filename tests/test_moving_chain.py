@@ -24,7 +24,8 @@ import pytest
 
 from clsas import PointTargets
 from clsas.errors import EstimationError
-from clsas.estimate.moving.chain import P0, THRESHOLD_DB, estimate_receiver, estimate_receivers, focus_receiver
+from clsas.estimate.moving.chain import P0, THRESHOLD_DB, estimate_receiver, estimate_receivers
+from clsas.estimate.moving.receiver_focus import focus_receiver
 from clsas.estimate.moving import filters
 from clsas.estimate.moving.sowvd import modified_sowvd
 from clsas.scene import presets

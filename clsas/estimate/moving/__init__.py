@@ -18,7 +18,8 @@
   :mod:`.compare`: RDA, CSA and omega-k run stop-and-go with the estimated velocity (VII-A).
 """
 
-from .chain import ReceiverEstimate, estimate_receiver, focus_receiver
+from .chain import ReceiverEstimate, estimate_receiver
+from .receiver_focus import focus_receiver
 from .closedforms import Predicted, closed_forms, delay_history, higher_order_delay
 from .doppler import Doppler
 from .extent import Extent

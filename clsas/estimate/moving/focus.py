@@ -49,7 +49,8 @@ from ... import validate
 from ...image.backprojection import backproject
 from ...model import EchoData, Grid, Image
 from . import filters
-from .chain import compressed_receiver, focus_receiver, records_of, sharpened_bins
+from .chain import compressed_receiver, records_of, sharpened_bins
+from .receiver_focus import focus_receiver
 from .closedforms import Predicted, delay_history, delay_terms, higher_order_delay
 from .layout import Layout
 from .mapping import along_track_speed, to_ry
