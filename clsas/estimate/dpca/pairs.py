@@ -14,8 +14,8 @@ from ...model import EchoData
 from ...scene.scenario import Array
 from ...kernelmath import unit_phasor
 from .correlate import aligned, correlations, parabola, peak_ratio
-from .geometry import (SeafloorExtent, beam_sin2, look_moments, main_lobe_sin2, pairing, pca_delay, scenario_extent,
-                       xlag_offset)
+from .geometry import (SeafloorExtent, beam_sin2, inside_swath, look_moments, main_lobe_sin2, pairing, pca_delay,
+                       scenario_extent, xlag_offset)
 
 log = logging.getLogger("clsas")
 
@@ -253,8 +253,17 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     ahead = pc[:n_couples].mean() - array.tx_offset[1] + speed * float(np.median(r_blocks)) / c
     centre = echo.tx_pos[1:].copy()
     centre[:, 1] += ahead
-    sin2, main_fraction, content = look_moments(array, f0, c, r_blocks, centre, extent, c / 2 * block / echo.fs,
-                                                ahead)
+    block_span = c / 2 * block / echo.fs
+    sin2, main_fraction, content = look_moments(array, f0, c, r_blocks, centre, extent, block_span, ahead)
+    # blocks that hold the seafloor's near or far edge are left out (geometry.inside_swath), unless
+    # a pair has no other block holding the seafloor (a swath narrower than two blocks)
+    whole = inside_swath(array, f0, c, r_blocks, centre, extent, block_span, ahead, content)
+    cut = ~np.any(whole & (content > 0), axis=1)
+    if np.any(cut):
+        log.warning("dpca.estimate: %d ping pairs have no range block inside the seafloor's swath (its range edges "
+                    "cut every block that holds it): their blocks at the edges are used, the yaw may be biased",
+                    int(cut.sum()))
+        whole[cut] = True
     data = records[..., :n_blocks * block].reshape(h, echo.n_pulses, n_blocks, block)
     step = pc[1] - pc[0]
     span = n_couples * step
@@ -272,7 +281,7 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     coherence = peaks.max(axis=0)
     surge = ((best - lags) + lag_off) * step
     nearest = np.argmax(peaks, axis=0)
-    good = (coherence >= min_coherence) & (content > 0) & (main_fraction >= MAIN_LOBE)
+    good = (coherence >= min_coherence) & (content > 0) & (main_fraction >= MAIN_LOBE) & whole
     energy = np.einsum("hpbk,hpbk->pb", data, np.conj(data)).real   # (pulse, block)
     energy = energy[:-1] + energy[1:]
     # The main lobe's level: the third strongest coherent block (one or two bright echoes do not
@@ -328,13 +337,16 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
                                lags={int(k) - lags for k in np.unique(nearest[good])}, every=True)
     sway = -c * delays[nearest, pp, bb] / 2
     yaw = yaws[nearest, pp, bb]
-    # Blocks weighted by their coherence rho (pass 2's beam peak): the phase of a correlation
-    # over N samples at coherence rho has variance (1 - rho^2) / (2 N rho^2), the same N in every
-    # block (it lowered the yaw error on the seed-004 scene, tests/test_dpca.py).
+    # The sway's blocks weighted by their coherence rho (pass 2's beam peak): the phase of a
+    # correlation over N samples at coherence rho has variance (1 - rho^2) / (2 N rho^2), the same
+    # N in every block. Not the yaw's: a block's coherence and its yaw error are correlated (the
+    # blocks that hold more of the seafloor's wide look angles decorrelate more and read a more
+    # negative yaw), so weighting by it biased the yaw positive on a motionless platform
+    # (bench/bench_dpca.py --bias).
     rho = np.clip(fine[nearest, pp, bb], 0.0, 1 - 1e-9)
     weight = rho**2 / (1 - rho**2)
     (su, su_e), (sw, sw_e), (yw, yw_e) = robust_mean(surge, seafloor), robust_mean(sway, good, weight), \
-        robust_mean(yaw, good, weight)
+        robust_mean(yaw, good)
     coh = np.nanmedian(np.where(good, coherence, np.nan), axis=1)
     log.info("dpca: %d ping pairs, %d couples, %d range blocks; median coherence %.2f", echo.n_pulses - 1,
              n_couples, n_blocks, float(np.median(coh)))
