@@ -255,15 +255,8 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     centre[:, 1] += ahead
     block_span = c / 2 * block / echo.fs
     sin2, main_fraction, content = look_moments(array, f0, c, r_blocks, centre, extent, block_span, ahead)
-    # blocks that hold the seafloor's near or far edge are left out (geometry.inside_swath), unless
-    # a pair has no other block holding the seafloor (a swath narrower than two blocks)
+    # blocks that hold the seafloor's near or far edge are left out of the yaw (see below)
     whole = inside_swath(array, f0, c, r_blocks, centre, extent, block_span, ahead, content)
-    cut = ~np.any(whole & (content > 0), axis=1)
-    if np.any(cut):
-        log.warning("dpca.estimate: %d ping pairs have no range block inside the seafloor's swath (its range edges "
-                    "cut every block that holds it): their blocks at the edges are used, the yaw may be biased",
-                    int(cut.sum()))
-        whole[cut] = True
     data = records[..., :n_blocks * block].reshape(h, echo.n_pulses, n_blocks, block)
     step = pc[1] - pc[0]
     span = n_couples * step
@@ -281,7 +274,7 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     coherence = peaks.max(axis=0)
     surge = ((best - lags) + lag_off) * step
     nearest = np.argmax(peaks, axis=0)
-    good = (coherence >= min_coherence) & (content > 0) & (main_fraction >= MAIN_LOBE) & whole
+    good = (coherence >= min_coherence) & (content > 0) & (main_fraction >= MAIN_LOBE)
     energy = np.einsum("hpbk,hpbk->pb", data, np.conj(data)).real   # (pulse, block)
     energy = energy[:-1] + energy[1:]
     # The main lobe's level: the third strongest coherent block (one or two bright echoes do not
@@ -345,8 +338,18 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     # (bench/bench_dpca.py --bias).
     rho = np.clip(fine[nearest, pp, bb], 0.0, 1 - 1e-9)
     weight = rho**2 / (1 - rho**2)
+    # The yaw from the blocks inside the seafloor's swath (geometry.inside_swath), unless a pair has
+    # none left (a swath narrower than two blocks); the sway and surge keep the edge blocks (the
+    # bias measured there is the yaw's; fewer blocks made the sway noisier).
+    inside = good & whole
+    lacking = ~inside.any(axis=1)
+    if np.any(lacking):
+        log.warning("dpca.estimate: %d ping pairs have no usable range block inside the seafloor's swath (its "
+                    "range edges cut every block that holds it): their yaw comes from the edge blocks and may be "
+                    "biased", int(lacking.sum()))
+        inside[lacking] = good[lacking]
     (su, su_e), (sw, sw_e), (yw, yw_e) = robust_mean(surge, seafloor), robust_mean(sway, good, weight), \
-        robust_mean(yaw, good)
+        robust_mean(yaw, inside)
     coh = np.nanmedian(np.where(good, coherence, np.nan), axis=1)
     log.info("dpca: %d ping pairs, %d couples, %d range blocks; median coherence %.2f", echo.n_pulses - 1,
              n_couples, n_blocks, float(np.median(coh)))
