@@ -340,7 +340,7 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     weight = rho**2 / (1 - rho**2)
     # The yaw from the blocks inside the seafloor's swath (geometry.inside_swath), unless a pair has
     # none left (a swath narrower than two blocks); the sway and surge keep the edge blocks (the
-    # bias measured there is the yaw's; fewer blocks made the sway noisier).
+    # bias measured there is the yaw's).
     inside = good & whole
     lacking = ~inside.any(axis=1)
     if np.any(lacking):
