@@ -252,14 +252,15 @@ class OpenCLSynth(BlockSynth):
     def _path_bytes(self, pc: int, stride: int) -> int:
         return self.path_dtype.itemsize * self.n_rx * pc * stride
 
-    def extents(self, pulses: slice):
-        """(floor(min u), floor(max u) + 1) per (receiver, scatterer) over every path kind and the
-        block's pulses that hear it (inf, -inf: none), reduced on the device. With an occlusion
-        factor the paths are computed unweighted and not kept for pass B: the weights (hull ray
-        casting for meshes) are then computed once, by pass B, whose pulse blocks need not match
-        these."""
+    def extents(self, pulses: slice, lo: np.ndarray, hi: np.ndarray) -> None:
+        """Widen ``lo``, ``hi`` (H, N), in place, to (floor(min u), floor(max u) + 1) per (receiver,
+        scatterer) over every path kind and the block's pulses that hear it (inf, -inf: none),
+        reduced on the device; the facets the block's beam reaches are one contiguous range of
+        scatterers, widened as a slice. With an occlusion factor the paths are computed unweighted
+        and not kept for pass B: the weights (hull ray casting for meshes) are then computed once,
+        by pass B, whose pulse blocks need not match these."""
         cl, q = self.cl, self.rt.queue
-        h, n = self.n_rx, self.scat.count
+        h = self.n_rx
         paths_buf, pc, block = self._run_paths(pulses, np.zeros(h), weighted=False)
         jump, n_act, stride = block
         reusable = self.occlusion is None  # unweighted paths are pass B's paths only without weights
@@ -270,16 +271,26 @@ class OpenCLSynth(BlockSynth):
         self.k_extents(q, *groups(stride, h), paths_buf, np.int32(stride), np.int32(pc), ext)
         host = np.empty((h, len(self.physics.kinds), n_act, 2), np.int32)
         cl.enqueue_copy(q, host, ext)
-        first, last = host[..., 0].min(axis=1), host[..., 1].max(axis=1)
-        first = np.where(first == UNHEARD, np.inf, first)
-        last = np.where(last == -UNHEARD, -np.inf, last + 1.0)
-        lo, hi = np.full((h, n), np.inf), np.full((h, n), -np.inf)
-        index = self._index(jump, n_act)
-        for r in range(h):
-            valid = index[r] >= 0
-            lo[r, index[r, valid]] = first[r, valid]
-            hi[r, index[r, valid]] = last[r, valid]
-        return lo, hi
+
+        def widen(positions: slice, scatterers):
+            ext = host[:, :, positions]
+            first = ext[:, 0, :, 0] if ext.shape[1] == 1 else ext[..., 0].min(axis=1)
+            last = (ext[:, 0, :, 1] if ext.shape[1] == 1 else ext[..., 1].max(axis=1)) + 1
+            heard = first != UNHEARD  # some pulse of the block hears it
+            if isinstance(scatterers, slice):
+                np.minimum(lo[:, scatterers], first, out=lo[:, scatterers], where=heard)
+                np.maximum(hi[:, scatterers], last, out=hi[:, scatterers], where=heard)
+                return
+            for r in range(h):
+                lo[r, scatterers[r]] = np.where(heard[r], np.minimum(lo[r, scatterers[r]], first[r]), lo[r, scatterers[r]])
+                hi[r, scatterers[r]] = np.where(heard[r], np.maximum(hi[r, scatterers[r]], last[r]), hi[r, scatterers[r]])
+
+        n_t = self.floor_first
+        if n_t:
+            widen(slice(0, n_t), self.target_index[:, :n_t])
+        n_reach = min(n_act - self.split, self.scat.count - n_t - jump)  # the facets jump .. jump + n_reach
+        if n_reach > 0:
+            widen(slice(self.split, self.split + n_reach), slice(n_t + jump, n_t + jump + n_reach))
 
     def records(self, pulses: slice, t0: np.ndarray, n_samples: int) -> np.ndarray:
         """The block's records; reuses the paths of extents() when the window starts on a whole sample."""

@@ -271,8 +271,7 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
     with stage(f"echo delays ({name})", f"{n_rx} receivers x {n_pulses} pulses x {n_scat} scatterers"), \
             Progress(n_pulses, "pulses", "echo delays", progress, leave=False) as bar:
         for sl in blocks:
-            a, b = synth.extents(sl)
-            lo, hi = np.minimum(lo, a), np.maximum(hi, b)
+            synth.extents(sl, lo, hi)
             bar.done(sl.stop - sl.start)
     warn_pulse_overlap(scenario, synth)
     lo, hi = lo / wf.fs, hi / wf.fs  # s, whole samples

@@ -115,13 +115,14 @@ class NumpySynth(BlockSynth):
     def release(self) -> None:
         """Nothing is cached by the reference."""
 
-    def extents(self, pulses: slice):
-        lo, hi = None, None
+    def extents(self, pulses: slice, lo: np.ndarray, hi: np.ndarray) -> None:
+        """Widen ``lo``, ``hi`` (H, N), in place, to the block's extents (:func:`sample_extents`) over
+        every path kind."""
         heard = self.heard(pulses)
         for kind in self.physics.kinds:
             a, b = sample_extents(self._paths(pulses, kind).tau * self.scenario.waveform.fs, heard)
-            lo, hi = (a, b) if lo is None else (np.minimum(lo, a), np.maximum(hi, b))
-        return lo, hi
+            np.minimum(lo, a, out=lo)
+            np.maximum(hi, b, out=hi)
 
     def spread(self, pulse: int) -> np.ndarray:
         """(H,) s: the spread of the direct paths' delays at ``pulse`` over the scatterers heard then."""
