@@ -105,7 +105,7 @@ class OpenCLSynth(BlockSynth):
                 defines[flag] = 1
         if ph.doppler:
             defines["INTRA_PULSE"] = 2 if ph.intra_pulse == "all" else 1
-        if ph.response is not None:
+        if ph.writes_taps:
             defines.update(COMPRESSED=ph.response.taps, N_TABLES=3 if ph.extended else 1, PHASES=PHASES, PAD=PAD)
             table, impulse = ph.response.planar(self.real)
             table = np.ascontiguousarray(table[:defines["N_TABLES"]])
@@ -315,7 +315,7 @@ class OpenCLSynth(BlockSynth):
         out = cl.Buffer(self.rt.context, mf.WRITE_ONLY, np.dtype(self.cplx).itemsize * h * pc * n_pad)
         shift_buf = cl.Buffer(self.rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=shift)
         compressed = ()
-        if self.physics.response is not None:
+        if self.physics.writes_taps:
             resp = self.physics.response
             compressed = (self.table_buf, np.int32(self.table_row), self.impulse_buf, np.int32(self.impulse_len),
                           np.int32(resp.lag0), np.int32(resp.edges[0]), np.int32(resp.edges[1]))

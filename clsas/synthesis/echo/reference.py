@@ -143,7 +143,7 @@ class NumpySynth(BlockSynth):
             laws = {k: v.reshape(h * n_p, n) for k, v in in_pulse_laws(p, wf).items()} \
                 if self.physics.extended else None
             args = (start.reshape(h * n_p, n), frac.reshape(h * n_p, n), amp.reshape(h * n_p, n))
-            if self.physics.response is not None:
+            if self.physics.writes_taps:
                 out = out + self.physics.response.accumulate(*args, n_samples, laws)
             else:
                 out = out + accumulate_reference(*args, self.alpha, self.half_len, n_samples, laws)
