@@ -116,10 +116,13 @@ class OpenCLSynth(BlockSynth):
         preamble = records_preamble(self.real, ph.extended)
         prg = opencl.program("echo", defines=defines, double=double, preamble=preamble)
         self.k_paths = cl.Kernel(prg, "echo_paths")
-        # delays and extents need no weights: their paths come from a build without them
+        # paths without weights (pass A's, kept for pass B when there are no weights) and the echo
+        # centres alone (the delays and the extents when pass B computes its own paths)
         plain = {key: value for key, value in defines.items() if key != "PATH_WEIGHTS"}
         self.k_paths_plain = self.k_paths if plain == defines else \
             cl.Kernel(opencl.program("echo", defines=plain, double=double, preamble=preamble), "echo_paths")
+        self.k_paths_delays = cl.Kernel(opencl.program("echo", defines={**plain, "DELAYS_ONLY": 1}, double=double,
+                                                       preamble=preamble), "echo_paths")
         self.k_bounds = cl.Kernel(prg, "echo_bounds")
         self.k_extents = cl.Kernel(prg, "echo_extents")
         self.k_spread = cl.Kernel(prg, "echo_spread")
@@ -178,11 +181,13 @@ class OpenCLSynth(BlockSynth):
         out[:, self.split:] = np.where(k < self.scat.count - self.floor_first, self.floor_first + k, -1)
         return out
 
-    def _run_paths(self, pulses: slice, t0: np.ndarray, weighted: bool = True, kinds=None, cull: bool = True):
+    def _run_paths(self, pulses: slice, t0: np.ndarray, weighted: bool = True, kinds=None, cull: bool = True,
+                   delays_only: bool = False):
         """The paths kernel on a pulse block for the path ``kinds`` (indices; default every kind):
         delays and amplitudes (times the occlusion weights unless not ``weighted``: the delays and
-        extents do not need them), of the targets and of the facets the block's beam reaches
-        (every facet unless ``cull``). Returns (paths buffer, pulses, (jump, n_act, stride))."""
+        extents do not need them; the echo centres alone if ``delays_only``), of the targets and of
+        the facets the block's beam reaches (every facet unless ``cull``). Returns (paths buffer,
+        pulses, (jump, n_act, stride))."""
         cl, q, ctx = self.cl, self.rt.queue, self.rt.context
         mf = cl.mem_flags
         idx = np.arange(self.eta.size)[pulses]
@@ -198,7 +203,7 @@ class OpenCLSynth(BlockSynth):
         w_buf, rx_buf, active_buf = (cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
                                      for a in (w, rx, active))
         paths_buf = cl.Buffer(ctx, mf.READ_WRITE, self.path_dtype.itemsize * h * pc * stride)
-        kernel = self.k_paths if weighted else self.k_paths_plain
+        kernel = self.k_paths_delays if delays_only else self.k_paths if weighted else self.k_paths_plain
         for slot, k in enumerate(kinds):
             kind = self.physics.kinds[k]
             out_image, back_image = kind.out.image, kind.back.image
@@ -226,7 +231,7 @@ class OpenCLSynth(BlockSynth):
         kernel, in scatterer order (every facet, in the beam's reach or not)."""
         h, n = self.n_rx, self.scat.count
         paths_buf, pc, (jump, n_act, stride) = self._run_paths(pulses, np.zeros(h), weighted=False, kinds=[kind],
-                                                               cull=False)
+                                                               cull=False, delays_only=True)
         host = np.empty((h, pc, stride), self.path_dtype)
         self.cl.enqueue_copy(self.rt.queue, host, paths_buf)
         u = (host["start"] + host["frac"].astype(np.float64)) / self.scenario.waveform.fs
@@ -241,7 +246,7 @@ class OpenCLSynth(BlockSynth):
         """(H,) s: the spread of the direct paths' delays at ``pulse`` over the scatterers heard
         then (kernels/echo.cl ``echo_spread``)."""
         paths_buf, _, (_, n_act, stride) = self._run_paths(slice(pulse, pulse + 1), np.zeros(self.n_rx),
-                                                           weighted=False, kinds=[0])
+                                                           weighted=False, kinds=[0], delays_only=True)
         out = self.cl.Buffer(self.rt.context, self.cl.mem_flags.WRITE_ONLY, 16 * self.n_rx)
         self.k_spread(self.rt.queue, *groups(1, self.n_rx), paths_buf, np.int32(n_act), np.int32(stride), np.int32(1),
                       out)
@@ -261,9 +266,9 @@ class OpenCLSynth(BlockSynth):
         by pass B, whose pulse blocks need not match these."""
         cl, q = self.cl, self.rt.queue
         h = self.n_rx
-        paths_buf, pc, block = self._run_paths(pulses, np.zeros(h), weighted=False)
-        jump, n_act, stride = block
         reusable = self.occlusion is None  # unweighted paths are pass B's paths only without weights
+        paths_buf, pc, block = self._run_paths(pulses, np.zeros(h), weighted=False, delays_only=not reusable)
+        jump, n_act, stride = block
         if reusable and self.cached_bytes + self._path_bytes(pc, stride) <= self.cache_bytes:
             self.cache[(pulses.start, pulses.stop)] = (paths_buf, pc, block)
             self.cached_bytes += self._path_bytes(pc, stride)
