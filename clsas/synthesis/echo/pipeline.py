@@ -2,7 +2,7 @@
 
 Pass A computes every path's delay (the recording window follows from them), pass B the
 records, a block of pulses at a time so that memory stays bounded; the backends are in
-:mod:`.synth`.
+:mod:`.reference` and :mod:`.launch`.
 
 Noise (``snr_db``): Kiang & Kiang 2022 section VII-C adds white Gaussian noise "at a given
 level" to the received signal s_rb1(tau, eta) of its eq. (7) without defining the SNR further;
@@ -31,7 +31,10 @@ from ..window import check_cube_size, node_span, receiver_nodes
 from .options import AUTO, DEFAULT_CHUNK_BYTES, SynthesisOptions, auto_flag
 from ..propagation import BandAbsorption, boundaries, path_kinds
 from .compressed import DEFAULT_LEVEL_DB, CompressedResponse
-from .synth import Physics, _NumpySynth, _OpenCLSynth, on_floor, path_record
+from .launch import OpenCLSynth
+from .physics import Physics, on_floor
+from .records import path_record
+from .reference import NumpySynth
 
 
 def _pulse_blocks(n_pulses: int, per_pulse_bytes: int, chunk_bytes: int) -> list[slice]:
@@ -152,7 +155,7 @@ def resolve_physics(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers
     and absorption on, and first-order multipath, in a scene with a seafloor; multipath also with
     a sea surface). ``scat``: every scatterer, the seafloor's facets last. ``prune``: leave out
     the path kinds that are dark for every scatterer (a bounce off the seabed next to a scatterer
-    that lies on it, :func:`.synth.on_floor`: a scene of seafloor facets alone)."""
+    that lies on it, :func:`.physics.on_floor`: a scene of seafloor facets alone)."""
     floor = getattr(scenario, "seafloor", None) is not None
     planes = boundaries(scenario)
     order = (1 if planes else 0) if opts.multipath == AUTO else opts.multipath
@@ -165,9 +168,8 @@ def resolve_physics(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers
     absorption = BandAbsorption.of(scenario.medium, scenario.waveform) if absorbing else None
     response = None if opts.compressed is False else \
         CompressedResponse.of(scenario.waveform, opts.compressed, opts.compressed_level_db)
-    return Physics(kinds=kinds, intra_pulse=opts.intra_pulse, absorption=absorption,
-                   spreading=spreading, stop_and_go=opts.stop_and_go, moving=bool(np.any(scat.vel != 0)),
-                   response=response, floor_first=floor_first)
+    return Physics(opts, kinds=kinds, absorption=absorption, spreading=spreading,
+                   moving=bool(np.any(scat.vel != 0)), response=response, floor_first=floor_first)
 
 
 def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion, prune: bool = True):
@@ -189,11 +191,11 @@ def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion, prune: bo
     kinds = len(physics.kinds)
     if opts.backend == "numpy":
         span = int(0.5 * scenario.waveform.duration * scenario.waveform.fs) + 2
-        synth = _NumpySynth(*args)
+        synth = NumpySynth(*args)
         per_pulse = n_rx * scat.count * kinds * (16 * 8 + 48 * span)
     else:
         tau_hi = node_span(scenario, scenario.eta, _delay_bound(scenario, scat, physics))
-        synth = _OpenCLSynth(*args, double=opts.double,
+        synth = OpenCLSynth(*args, double=opts.double,
                              nodes=receiver_nodes(scenario, scenario.eta, tau_hi, strict=not opts.stop_and_go))
         per_pulse = n_rx * scat.count * kinds * path_record(synth.real, physics.extended).itemsize
     return synth, _pulse_blocks(n_pulses, per_pulse, opts.chunk_bytes)
@@ -230,7 +232,7 @@ class Synthesis(NamedTuple):
     nodes : (rx_tau (n_nodes,) s, rx_pos (n_rx, n_pulses, n_nodes, 3) m), the receivers'
     positions over each pulse; node_error_m : their largest departure from the exact track;
     n_scatterers : point scatterers synthesized (mesh facets included);
-    physics : what the paths carried (:class:`clsas.synthesis.echo.synth.Physics`).
+    physics : what the paths carried (:class:`clsas.synthesis.echo.physics.Physics`).
     """
 
     data: np.ndarray
@@ -277,7 +279,7 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
     # the nodes span the recording window (and not beyond sampled motion errors)
     tau_span = node_span(scenario, scenario.eta, hi.max() + 0.5 * wf.duration + 2 / wf.fs)
     if name == "opencl" and hi.max() > synth.rx_tau[-1]:
-        synth = _OpenCLSynth(*synth.args, double=double,
+        synth = OpenCLSynth(*synth.args, double=double,
                              nodes=receiver_nodes(scenario, scenario.eta, tau_span, strict=not opts.stop_and_go))
     t0, n_valid, origin = _window(scenario, lo, hi)
     _check_targets_in_windows(scenario, lo, hi, t0, n_valid)
