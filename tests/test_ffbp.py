@@ -172,6 +172,33 @@ def test_records_prepared_a_batch_at_a_time_give_the_same_image(opencl_device, m
     assert rel_l2(batched.data, once.data) < 1e-6
 
 
+def test_leaf_references_on_the_device_match_the_hosts(opencl_device, monkeypatch):
+    """The leaves' tile references computed on the device (bp_refs, a launch a leaf) where every
+    receiver moves uniformly (two position nodes: the straight track), or on the host: the same
+    image (measured relative L2 0 on this machine; the twins may round differently elsewhere); on
+    the track with motion errors (17 nodes) the host computes them."""
+    from clsas.image.ffbp import leaves
+
+    used = []
+    device = leaves.FirstStage._device_references
+
+    def spy(self, *args):
+        used.append(device(self, *args))
+        return used[-1]
+
+    monkeypatch.setattr(leaves.FirstStage, "_device_references", spy)
+    echo = echo_of("straight", "speckle")
+    on_device = ffbp(echo, GRID, backend="opencl", progress=False)
+    assert used and all(refs is not None for refs in used)
+    with monkeypatch.context() as m:
+        m.setattr(leaves.FirstStage, "_device_references", lambda self, *args: None)
+        on_host = ffbp(echo, GRID, backend="opencl", progress=False)
+    assert rel_l2(on_device.data, on_host.data) < 1e-6
+    used.clear()
+    ffbp(echo_of("motion"), GRID, backend="opencl", progress=False)
+    assert used and all(refs is None for refs in used)
+
+
 def test_a_grid_scene_is_kept_only_while_nothing_can_change_it():
     """ffbp keeps a Grid's Scene (skeleton, margin, plane) for later calls on it, since a Grid's own
     positions are read-only; positions that are a view of someone's array are read again."""
