@@ -21,8 +21,9 @@ ffbp_fields kernel computes for bp_tile anyway. The tiles' references (a leaf's 
 pulses) are computed on the device (TileKernel's bp_refs, a launch a leaf) where the receivers
 move uniformly, else on the host (which checks that the motion is linear over a tile). Slots
 past the grid's edge repeat its last sample and are dropped; a tile's groups of LANES range
-samples that miss the spans of their rows (:attr:`PolarGrid.spans`: the ragged wedge, the corners of the (r, v) box outside the
-scene) are not back-projected at all, and the leaf's image is zero there.
+samples that miss the spans of their rows (:attr:`PolarGrid.spans`: the ragged wedge, the
+corners of the (r, v) box outside the scene) are not back-projected at all, and the leaf's image
+is zero there.
 
 Leaves the batch cannot take go through :func:`clsas.backproject` one by one on the same
 prepared records (the same image up to float32 rounding): a leaf shorter than ``first`` (the
