@@ -2,9 +2,10 @@
 
 Each leaf (``first`` consecutive pulses, every selected receiver) is back-projected with
 back-projection's exact delays onto its polar grid's points and demodulated by its centre range,
-J = I exp(-j 4 pi f0 r / c). Records are prepared once (:func:`clsas.image.backprojection.prepare`)
-for a *batch* of consecutive leaves (at most BATCH_POINTS polar samples and RECORD_BYTES of
-prepared samples), and on OpenCL the whole batch is one bp_tile launch a receiver and block of
+J = I exp(-j 4 pi f0 r / c), a *batch* of consecutive leaves at a time (at most BATCH_POINTS polar
+samples and RECORD_BYTES of prepared samples). Records are prepared
+(:func:`clsas.image.backprojection.prepare`) once for every leaf when all pulses' prepared records
+fit RECORD_BYTES, else once a batch; on OpenCL the whole batch is one bp_tile launch a receiver and block of
 pulses (kernels/backprojection.cl built with ROW_SHIFT: a tile's pulse j reads record row
 j + row_shift[tile], the first pulse of its leaf), so a leaf costs its kernel work and no call of
 its own (a :func:`clsas.backproject` call a leaf costs many times the leaf's kernel time in host work).
@@ -116,6 +117,7 @@ class FirstStage:
         self.per_pulse = 8 * factor * echo.n_samples * len(chosen)
         self.demodulate = 2 * echo.waveform.f0 / echo.medium.sound_speed
         self.ready = {}
+        self.records = None  # every pulse's prepared records, when they fit RECORD_BYTES
 
     def image(self, node: int, grid: PolarGrid, grids: list) -> np.ndarray:
         """Leaf ``node``'s image on its polar grid ``grid``, demodulated: (n_v, n_r) (complex64 on
@@ -171,16 +173,15 @@ class FirstStage:
             batch.append(k)
             points += grids[k].size
             last = k
-        b0, b1 = self.leaves[node][0], self.leaves[last][1]
         e = self.echo
-        whole = (b0, b1) == (0, e.n_pulses)  # a batch of every pulse needs no (validated) copy of the echo
-        sub = e if whole else e.replace(data=e.data[:, b0:b1], eta=e.eta[b0:b1], tx_pos=e.tx_pos[b0:b1],
-                                        rx_pos=e.rx_pos[:, b0:b1])
-        # only the fast times the leaves' polar grids reach (prepare's reach of their boundary: the
-        # first and last range at every angle row bound a sector's box up to an arc's sagitta
-        # between rows, r dv^2 / 8, micrometres, inside the sample prepare adds for rounding)
-        edges = np.concatenate([grids[k].points(cols=[0, grids[k].n_r - 1]).reshape(-1, 3) for k in batch])
-        records = prepare(sub, **self.options, grid=Grid.points(edges))
+        if e.n_pulses * self.per_pulse <= RECORD_BYTES:  # every leaf's records prepared once, kept for all batches
+            if self.records is None:
+                self.records = self._prepare(e, [k for k, g in enumerate(grids) if g is not None], grids)
+            b0, records = 0, self.records
+        else:  # each batch its pulses' records (a copy of the echo's pulses, validated)
+            b0, b1 = self.leaves[node][0], self.leaves[last][1]
+            sub = e.replace(data=e.data[:, b0:b1], eta=e.eta[b0:b1], tx_pos=e.tx_pos[b0:b1], rx_pos=e.rx_pos[:, b0:b1])
+            records = self._prepare(sub, batch, grids)
         alone = [k for k in batch if self.leaves[k][1] - self.leaves[k][0] != self.first]
         if self.backend == "opencl":
             together = [k for k in batch if k not in alone]
@@ -192,6 +193,14 @@ class FirstStage:
             self.ready[k] = backproject(records, GridPlan(Grid.points(grids[k].points())), pulses=(p0 - b0, p1 - b0),
                                         backend=self.backend, aperture=self.aperture, stop_and_go=self.stop_and_go,
                                         progress=False).data.astype(np.complex128)
+
+    def _prepare(self, echo, leaves: list, grids: list):
+        """The records of ``echo`` (every pulse of ``leaves``) prepared for only the fast times the
+        leaves' polar grids reach (prepare's reach of their boundary: the first and last range at
+        every angle row bound a sector's box up to an arc's sagitta between rows, r dv^2 / 8,
+        micrometres, inside the sample prepare adds for rounding)."""
+        edges = np.concatenate([grids[k].points(cols=[0, grids[k].n_r - 1]).reshape(-1, 3) for k in leaves])
+        return prepare(echo, **self.options, grid=Grid.points(edges))
 
     def _references(self, tile: TileKernel, records, batch: list, centres: np.ndarray, first_tile: np.ndarray,
                     b0: int, half_extent: float) -> list | None:

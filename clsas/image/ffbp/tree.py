@@ -83,10 +83,9 @@ class _Frames:
         self.mids = 0.5 * (self.tx[None] + rx)
         self.baseline = np.linalg.norm(rx - self.tx[None], axis=-1).max(axis=0)  # (N,)
         step = max(1, echo.n_pulses // 64)  # the array's two ends every ~1/64 of the track
-        track = np.concatenate([self.mids[[0, -1], ::step].reshape(-1, 3), self.mids[[0, -1], -1]])
-        k = scene.skeleton
-        square = np.sum(track * track, axis=1)[:, None] + np.sum(k * k, axis=1)[None, :] - 2 * track @ k.T
-        self.r_near = float(np.sqrt(max(float(square.min()), 0.0))) - scene.margin
+        ends = sorted({0, len(chosen) - 1})  # the array's first and last receiver (one when they are the same)
+        track = np.concatenate([self.mids[ends, ::step].reshape(-1, 3), self.mids[ends, -1]])
+        self.r_near = float(scene.offsets(track)[0].min()) - scene.margin
 
     def frames(self, nodes: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(centres (n, 3), axes (n, 3), half-lengths (n,), largest baselines (n,)) of the nodes
@@ -161,8 +160,11 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         first = 1
         rho0 = oversampling(taps, tolerance, 1)
         while first < echo.n_pulses:
-            g = next((node_grid(p, min(p + first, echo.n_pulses), rho0) for p in (echo.n_pulses // 2,)), None)
-            if g is not None and g.n_v - 2 * taps >= LEAF_SAMPLES and -(-echo.n_pulses // first) <= MAX_LEAVES:
+            middle = (echo.n_pulses // 2, min(echo.n_pulses // 2 + first, echo.n_pulses))
+            find_extents([middle])
+            ext = extents_of[middle]  # only its rows are needed, not the sampled grid
+            if ext is not None and ext.rows(rho0, taps) - 2 * taps >= LEAF_SAMPLES and \
+                    -(-echo.n_pulses // first) <= MAX_LEAVES:
                 break
             first *= 2  # doubling, whatever the factor (a factor of 4 would jump past the best)
         first = min(first, echo.n_pulses)

@@ -135,7 +135,7 @@ class CompressedResponse:
 
     def coefficients(self, amp, laws: dict | None):
         """(centre shift delta (samples), (3,) + amp.shape complex coefficients c0, c1, c2) of paths
-        with amplitudes ``amp`` and, when given, their own laws (:func:`.synth.in_pulse_laws`)."""
+        with amplitudes ``amp`` and, when given, their own laws (:func:`.reference.in_pulse_laws`)."""
         amp = np.asarray(amp, np.complex128)
         if laws is None:
             zero = np.zeros(amp.shape)
@@ -149,9 +149,9 @@ class CompressedResponse:
 
     def accumulate(self, start, frac, amp, n_samples: int, laws: dict | None = None) -> np.ndarray:
         """The compressed records (R, n_samples) complex128 of R records of N paths (the NumPy
-        twin of kernels/echo.cl ``echo_accumulate_compressed``): ``start``, ``frac`` (R, N) the
+        twin of kernels/echo.cl ``add_compressed_echo``): ``start``, ``frac`` (R, N) the
         raw echo centres, ``amp`` (R, N) with the carrier phase, ``laws`` as for
-        :func:`.synth.accumulate_reference`."""
+        :func:`.reference.accumulate_reference`."""
         delta, coeff = self.coefficients(amp, laws)
         u = np.asarray(start) + np.asarray(frac) - delta
         s = np.floor(u)
