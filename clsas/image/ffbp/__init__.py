@@ -68,7 +68,7 @@ GRID_BYTES = 2 * SAMPLE_BYTES + 24 + 3 * 8  # a pixel: the image (device, host),
 def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsample, aperture, stop_and_go):
     """The receivers chosen, or a TypeError/ValueError naming the parameter; the grid's own memory
     (the image and the pixels' copy: GRID_BYTES a pixel) against the budget."""
-    chosen, _ = check_options(echo, receivers, interp, upsample, None)
+    chosen, _ = check_options(echo, receivers, interp, upsample, None, who="ffbp")
     if not isinstance(grid, Grid):
         raise TypeError(f"grid must be a clsas.model.Grid (Grid.plane, Grid.slant or Grid.points), got "
                         f"{type(grid).__name__}")
