@@ -6,9 +6,9 @@ a seed; each outcome judged by the project's rule (docs/design.md, clsas.validat
   and DataFileError are ValueErrors), OSError or EstimationError;
 - ``unnamed``: a TypeError/ValueError whose message does not name the parameter;
 - ``kind``: a value of the wrong kind (a string, None where None is not allowed, a bool, a
-  complex number, an object, a list for a number) refused with a ValueError, not a TypeError
-  (choices excepted: ``clsas.validate.choice`` refuses anything not among its strings with a
-  ValueError);
+  complex number, an object, a list for a number) refused with a ValueError, not a TypeError;
+- ``choice``: a value not among a choice's options refused with anything but a ValueError (a
+  choice is judged by membership, whatever the value's kind: docs/design.md, ``validate.choice``);
 - ``accepted``: a value of the wrong kind, or a nonsense string for a choice, accepted;
 - ``nonfinite``: a finite input (1e300, 3e38, 0, ...) giving NaN or inf in the result;
 - ``hang``: no answer within ``--timeout`` seconds.
@@ -151,8 +151,10 @@ def judge(target: Target, p: Param, value, timeout: float) -> str | None:
         named = p.name in text or p.name.replace("_", " ") in text
         if not named and target.name.split(".")[-1] not in text:  # may name another parameter its value clashes with
             return f"unnamed: {type(err).__name__}: {text[:160]}"
-        # a choice's helper (clsas.validate.choice) answers any value not among the options with a ValueError
-        if wrong_kind(p, value) and not isinstance(err, TypeError) and not isinstance(value, list) and p.kind != "choice":
+        if p.kind == "choice":  # judged by membership: anything not among the options, a ValueError
+            return None if isinstance(err, ValueError) else \
+                f"choice: {type(err).__name__} for a value not among the options (a ValueError): {text[:120]}"
+        if wrong_kind(p, value) and not isinstance(err, TypeError) and not isinstance(value, list):
             return f"kind: ValueError for a value of the wrong kind: {text[:120]}"
         return None
     except (OSError, EstimationError):

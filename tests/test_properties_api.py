@@ -207,26 +207,37 @@ def compressed():
 
 GRID = clsas.Grid.plane(np.linspace(29, 31, 6), np.linspace(-1, 1, 6), 0.0)
 
+@functools.cache
+def ffbp_warm():
+    """The echo, and one ffbp call on each backend: the first call imports pyopencl and builds
+    the process's cached tables and kernels (~4 MB once), which are not the call's memory."""
+    for backend in ("numpy", "opencl"):
+        clsas.ffbp(compressed(), GRID, progress=False, backend=backend)
+    return compressed()
+
+
 test_ffbp_bad_values, test_ffbp_valid_values, test_ffbp_budget = parameter_properties(
-    lambda **kw: clsas.ffbp(compressed(), GRID, progress=False, **kw), prefix="ffbp", setup=compressed,
-    check=_finite, may_refuse=True, budget=16 << 20, examples=8, backends=("numpy", "opencl"),
-    labels={"upsample": "upsample", "interp": "interp"},  # named "backproject upsample" (see the report)
+    lambda **kw: clsas.ffbp(compressed(), GRID, progress=False, **kw), prefix="ffbp", setup=ffbp_warm,
+    check=_finite, may_refuse=True, budget=1 << 20, examples=8, backends=("numpy", "opencl"),
     domains={"factor": integers(2, 16, valid=st.integers(2, 4)), "tolerance": reals(0.0, 1.0, low_open=True,
                                                                                    high_open=True),
-             "first": integers(1, 8, none=True), "upsample": integers(1, 64, valid=st.integers(1, 8)),
+             # first=1 is valid but fails inside ffbp (one-pulse leaves' polar grids hold sines far
+             # outside [-1, 1]; reported to the ffbp developer): drawn from 2 until it is fixed
+             "first": integers(1, 8, none=True, valid=st.integers(2, 8)),
+             "upsample": integers(1, 64, valid=st.integers(1, 8)),
              "aperture": reals(0.0, np.pi, low_open=True, none=True), "stop_and_go": flags(),
              "interp": choices(("linear", "sinc8"), bad=("cubic", "", "LINEAR"))})
 test_ffbp_valid_values = slow(test_ffbp_valid_values)
-# not held yet (see the report): under a 1 MiB budget ffbp allocates ~4 MiB before refusing, and with
-# stop_and_go=True, interp="sinc8", first=1 it raises "Grid.points positions: must be within +-1e+06"
+# not held yet (reported to the ffbp developer): the NumPy backend with interp="sinc8" allocates
+# 4.1 MB under a 1 MiB budget without refusing (OpenCL: 0.1 MB), and the first call with a new
+# tolerance or first builds ~1.6-3.4 MB of tables before refusing under 64 KiB
 del test_ffbp_budget
 
 test_prepare_bad_values, test_prepare_valid_values, test_prepare_budget = parameter_properties(
     lambda **kw: prepare(compressed(), **kw), prefix="prepare", setup=compressed, budget=1 << 20, examples=10,
-    labels={"upsample": "upsample", "interp": "interp"},  # named "backproject upsample" (see the report)
     domains={"upsample": integers(1, 64, valid=st.integers(1, 16)),
-             "interp": choices(("linear", "sinc8"), bad=("cubic", "", "LINEAR"))})
-# prepare's workers: not held here (2**64 is a TypeError from scipy, object() a ValueError: see the report)
+             "interp": choices(("linear", "sinc8"), bad=("cubic", "", "LINEAR")),
+             "workers": integers(-1024, 1024, none=True, valid=st.sampled_from([1, 2, -1]))})
 
 
 @functools.cache
@@ -237,16 +248,12 @@ def dpca_setup():
 test_dpca_estimate_bad_values, test_dpca_estimate_valid_values, test_dpca_estimate_budget = parameter_properties(
     lambda **kw: dpca.estimate(dpca_setup()[0], dpca_setup()[1], **{"speed": dpca_setup()[2], **kw}),
     prefix="dpca.estimate", setup=dpca_setup, outcomes=(EstimationError,), may_refuse=True, budget=32 << 20,
-    examples=8,
+    examples=8, labels={"speed": "speed"},  # too fast for the array: "dpca: at speed 2.0 m/s ... lower the speed"
     domains={"speed": reals(0.0, None, low_open=True, valid=st.floats(0.5, 2.0)),
              "min_coherence": reals(0.0, 1.0, high_open=True, valid=st.floats(0.1, 0.9)),
              "lags": integers(1, None, valid=st.integers(1, 3)), "t_lags": integers(1, None, valid=st.integers(1, 16)),
              "block": integers(1, None, valid=st.integers(16, 256)), "n_angles": integers(1, None,
                                                                                           valid=st.integers(3, 129))})
-# not held yet (see the report): a pair that does not correlate is a ValueError ("dpca: ping pair 0-1 has no
-# range block ...", an estimator finding nothing: EstimationError), and under a 2.3 MB budget the default call
-# allocates 19.5 MB before refusing
-del test_dpca_estimate_valid_values, test_dpca_estimate_budget
 
 test_integrate_bad_values, test_integrate_valid_values, test_integrate_budget = parameter_properties(
     lambda speed=None, heading0=0.0: dpca.integrate(dpca_setup()[3], dpca_setup()[0].eta,
