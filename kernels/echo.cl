@@ -38,7 +38,7 @@
  * work-items past the end.
  *
  * Defines: N_NODES (>= 2), SEGMENT_PASSES (node segment re-choices), CHUNK, ROWS (16-sample
- * blocks per work-item), STOP_AND_GO, SPREADING, PATH_WEIGHTS, EXTENDED (paths with their own
+ * blocks per work-item), DELAYS_ONLY (echo_paths writes the echo centres alone), STOP_AND_GO, SPREADING, PATH_WEIGHTS, EXTENDED (paths with their own
  * chirp and envelope), INTRA_PULSE (1: moving scatterers, 2: every path), ABSORPTION, BOUNCES,
  * BOTTOM_TABLE (entries of the seabed's reflection table); CLSAS_DOUBLE makes the accumulation
  * double. The records (echo_pulse_t, node_t, echo_rx_t, echo_params_t, echo_legs_t, echo_path_t)
@@ -155,6 +155,25 @@ __kernel void echo_paths(__global const double *tsoa, __global const double *fso
     const double8 tau = (r1 + r2) / c;
 #endif
     const echo_rx_t rxh = rx[h];
+#ifdef DELAYS_ONLY
+    {   /* the echo centres alone: all that echo_extents, echo_spread and the delays read */
+        const double8 u = tau * params.fs - rxh.t0_fs;
+        long8 fl = convert_long8(u);
+        fl += (u < convert_double8(fl));  /* floor by truncation and fix-up (a true compare is -1) */
+        double x_fr[8];
+        long x_fl[8];
+        vstore8(u - convert_double8(fl), 0, x_fr);
+        vstore8(fl, 0, x_fl);
+        __global echo_path_t *o = paths + ((size_t)h * n_pulses + p) * stride + offset + j0;
+        const int2 act = active[p];
+        for (int l = 0; l < 8; ++l) {
+            const int heard = !facets || (pos0 + l >= act.x && pos0 + l < act.y);
+            o[l].start = heard ? (int)x_fl[l] : UNHEARD;
+            o[l].frac = (real_t)x_fr[l];
+        }
+        return;
+    }
+#endif
     double8 gain = element_gain8(params.tx_length, out_dir, r1, v8_splat(vload3(0, pl.tx_axis)), params.wavelength)
                  * element_gain8(rxh.length, back_dir, r2, node_field(nd, t_rx, dtau, 1), params.wavelength);
 #ifdef SPREADING

@@ -17,10 +17,13 @@ rows x ``br`` range samples (``bv`` a multiple of ROWS, ``br`` of LANES: every t
 work-items) whose reference point is the block's middle sample, halved until every sample lies
 within :meth:`~clsas.image.backprojection.TileKernel.half_extent` of its reference (the same
 phase budget as back-projection's own tiles), which the launcher checks on the offsets the
-ffbp_fields kernel computes for bp_tile anyway. Slots past the grid's edge repeat its last
-sample and are dropped; a tile's groups of LANES range samples that miss the spans of their
-rows (:attr:`PolarGrid.spans`: the ragged wedge, the corners of the (r, v) box outside the
-scene) are not back-projected at all, and the leaf's image is zero there.
+ffbp_fields kernel computes for bp_tile anyway. The tiles' references (a leaf's tiles for its
+pulses) are computed on the device (TileKernel's bp_refs, a launch a leaf) where the receivers
+move uniformly, else on the host (which checks that the motion is linear over a tile). Slots
+past the grid's edge repeat its last sample and are dropped; a tile's groups of LANES range
+samples that miss the spans of their rows (:attr:`PolarGrid.spans`: the ragged wedge, the
+corners of the (r, v) box outside the scene) are not back-projected at all, and the leaf's image
+is zero there.
 
 Leaves the batch cannot take go through :func:`clsas.backproject` one by one on the same
 prepared records (the same image up to float32 rounding): a leaf shorter than ``first`` (the
@@ -202,6 +205,32 @@ class FirstStage:
         edges = np.concatenate([grids[k].points(cols=[0, grids[k].n_r - 1]).reshape(-1, 3) for k in leaves])
         return prepare(echo, **self.options, grid=Grid.points(edges))
 
+    def _device_references(self, tile: TileKernel, records, batch: list, centres: np.ndarray, first_tile: np.ndarray,
+                           b0: int, half_extent: float) -> list | None:
+        """The references of :meth:`_references` computed on the device (TileKernel's bp_refs, its
+        twin), a buffer a receiver of (T, first) records: leaf by leaf, its tiles for its pulses;
+        None when a receiver needs the host's (exact delays on a track of more than two nodes:
+        the host checks its linearity)."""
+        import pyopencl as cl
+
+        rt = opencl.runtime()
+        echo, out = records.echo, []
+        for i, h in enumerate(records.receivers):
+            kern = tile.for_receiver(echo, h)
+            size = kern.reference_dtype.itemsize * self.first
+            refs = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, size * int(first_tile[-1]))
+            for j, k in enumerate(batch):
+                t0, t1 = int(first_tile[j]), int(first_tile[j + 1])
+                mine = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                                 hostbuf=np.ascontiguousarray(centres[t0:t1]))
+                part = kern.references_on_device(rt.queue, echo, h, self.leaves[k][0] - b0 + np.arange(self.first), mine,
+                                                 t1 - t0, records.fs, half_extent, int(records.offset[i]))
+                if part is None:
+                    return None
+                cl.enqueue_copy(rt.queue, refs, part, dst_offset=size * t0, byte_count=size * (t1 - t0))
+            out.append(refs)
+        return out
+
     def _references(self, tile: TileKernel, records, batch: list, centres: np.ndarray, first_tile: np.ndarray,
                     b0: int, half_extent: float) -> list | None:
         """bp_tile's tile references of every receiver (a list a receiver of (T, first) arrays: the
@@ -275,7 +304,9 @@ class FirstStage:
             else:
                 bv //= 2
         first_tile = np.cumsum(np.r_[0, n_tiles])
-        refs = self._references(tile, records, batch, centres, first_tile, b0, extent)
+        refs = self._device_references(tile, records, batch, centres, first_tile, b0, extent)
+        if refs is None:
+            refs = self._references(tile, records, batch, centres, first_tile, b0, extent)
         if refs is None:
             return batch
         row_shift = made(np.repeat(np.array([self.leaves[k][0] - b0 for k in batch], np.int32), n_tiles))
@@ -285,7 +316,7 @@ class FirstStage:
         cl.enqueue_fill_buffer(queue, image, np.zeros(1, np.complex128), 0, 16 * LANES * items.size)
         for i, h in enumerate(records.receivers):
             data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
-            ref_buf = made(refs[i])
+            ref_buf = refs[i] if isinstance(refs[i], cl.Buffer) else made(refs[i])
             kern = tile.for_receiver(echo, h)  # the receiver's legs (TileKernel.legs_for)
             for s in range(0, self.first, tile.PULSE_BLOCK):
                 kern.launch(queue, pixels=pix, tile_of=tile_of, refs=ref_buf, ref_stride=self.first, ref_first=0,

@@ -335,65 +335,64 @@ class Extent:
 
     def sample(self, rho: float, taps: int) -> PolarGrid:
         """The polar grid at oversampling ``rho``, padded by ``taps // 2 + 2`` samples on every side
-        for the interpolator, with its rows' spans (:meth:`spans`) when :data:`RAGGED`."""
-        r0, dr, n_r, v0, dv, n_v, pad = self._sampling(rho, taps)
-        spans = self.spans(r0, dr, n_r, v0, dv, n_v, pad) if RAGGED and self.envelope is not None else None
-        return PolarGrid(self.centre, self.axis, self.e1, self.e2, self.plane, r0, dr, n_r, v0, dv, n_v, spans)
-
-    @functools.cached_property
-    def _extrema_table(self) -> tuple[list, list]:
-        """The envelope's sparse table (:func:`_window_extrema`), built once however often the
-        extent is sampled."""
-        return _sparse_table(self.envelope)
-
-    def spans(self, r0: float, dr: float, n_r: int, v0: float, dv: float, n_v: int, pad: int) -> np.ndarray:
-        """Each row's span [lo, hi) (n_v, 2) int32 of the grid r0 + i dr, v0 + j dv: the ranges of
-        the scene's skeleton points whose sines lie within margin / r_lo + pad dv of the row's (the
-        rectangle's own padding in sine), widened by margin + pad dr (its padding in range), so
-        that every sample the rectangle holds within that distance of the scene is kept; the rest
-        of the rectangle (the corners of the (r, v) box outside the scene's wedge) is not computed.
-        The envelope's bins make the sines' window up to one bin wider (more kept, never less)."""
-        start, width = self.bins
-        n_bins = self.envelope.shape[0]
-        reach_v = self.margin / max(self.r_lo, 1e-12) + pad * dv
-        v = v0 + dv * np.arange(n_v)
-        b0 = np.clip(np.floor((v - reach_v - start) / width), 0, n_bins).astype(np.int64)
-        b1 = np.clip(np.floor((v + reach_v - start) / width) + 1, 0, n_bins).astype(np.int64)
-        near, far = _window_extrema(self._extrema_table, b0, b1)
-        seen = near <= far
-        widen = self.margin + pad * dr
-        with np.errstate(invalid="ignore"):
-            lo = np.floor((np.where(seen, near, r0) - widen - r0) / dr)
-            hi = np.ceil((np.where(seen, far, r0) + widen - r0) / dr) + 1
-        lo, hi = np.clip(lo, 0, n_r), np.clip(hi, 0, n_r)
-        return np.where(seen[:, None], np.stack([lo, hi], axis=1), 0).astype(np.int32)
+        for the interpolator, with its rows' spans (:func:`sample_grids`) when :data:`RAGGED`."""
+        return sample_grids([self], rho, taps)[0]
 
 
-def _sparse_table(envelope: np.ndarray) -> tuple[list, list]:
-    """Extrema of an envelope (n_bins, 2) over windows of 2^k bins from every bin, k = 0, 1, ...:
-    (lows[k], highs[k]), the least of envelope[:, 0] and the largest of envelope[:, 1]."""
-    lows, highs = [envelope[:, 0]], [envelope[:, 1]]
-    while 2 ** len(lows) <= envelope.shape[0]:
+def sample_grids(found: list, rho: float, taps: int) -> list:
+    """The polar grids of extents ``found`` at oversampling ``rho`` (:meth:`Extent.sample`), their
+    rows' spans computed together (:data:`RAGGED`; extents without an envelope get none).
+
+    Row j's span [lo, hi) of a grid r0 + i dr, v0 + j dv: the ranges of the scene's skeleton points
+    whose sines lie within margin / r_lo + pad dv of the row's (the rectangle's own padding in
+    sine), widened by margin + pad dr (its padding in range), so that every sample the rectangle
+    holds within that distance of the scene is kept; the rest of the rectangle (the corners of the
+    (r, v) box outside the scene's wedge) is not computed. The envelope's bins make the sines'
+    window up to one bin wider (more kept, never less). The nearest and farthest range over a
+    window of bins come from a sparse table of each envelope (extrema over 2^k bins from every
+    bin; two overlapping windows of 2^k bins cover any window), all the grids' rows at once."""
+    shapes = [e._sampling(rho, taps) for e in found]
+    ragged = [k for k, e in enumerate(found) if RAGGED and e.envelope is not None]
+    spans = dict(zip(ragged, _spans([found[k] for k in ragged], [shapes[k] for k in ragged]))) if ragged else {}
+    return [PolarGrid(e.centre, e.axis, e.e1, e.e2, e.plane, r0, dr, n_r, v0, dv, n_v, spans.get(k))
+            for k, (e, (r0, dr, n_r, v0, dv, n_v, _)) in enumerate(zip(found, shapes))]
+
+
+def _spans(found: list, shapes: list) -> list:
+    """The rows' spans (n_v, 2) int32 of each extent sampled as ``shapes`` (sample_grids)."""
+    r0, dr, n_r, v0, dv, n_v, pad = (np.array(x) for x in zip(*shapes))
+    node = np.repeat(np.arange(len(found)), n_v)  # each row's grid
+    row = np.arange(node.size) - np.repeat(np.cumsum(n_v) - n_v, n_v)
+    start, width = (np.array(x) for x in zip(*(e.bins for e in found)))
+    margin = np.array([e.margin for e in found])
+    envelopes = np.stack([e.envelope for e in found])  # (n, n_bins, 2): every extent's bins alike
+    n_bins = envelopes.shape[1]
+    reach_v = margin / np.maximum([e.r_lo for e in found], 1e-12) + pad * dv
+    v = v0[node] + dv[node] * row
+    b0 = np.clip(np.floor((v - reach_v[node] - start[node]) / width[node]), 0, n_bins).astype(np.int64)
+    b1 = np.clip(np.floor((v + reach_v[node] - start[node]) / width[node]) + 1, 0, n_bins).astype(np.int64)
+    lows, highs = [envelopes[:, :, 0]], [envelopes[:, :, 1]]
+    while 2 ** len(lows) <= n_bins:
         half = 2 ** (len(lows) - 1)
-        lows.append(np.minimum(lows[-1][:-half], lows[-1][half:]))
-        highs.append(np.maximum(highs[-1][:-half], highs[-1][half:]))
-    return lows, highs
-
-
-def _window_extrema(table: tuple[list, list], b0: np.ndarray, b1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The least of envelope[b, 0] and the largest of envelope[b, 1] over b0 <= b < b1 (inf and
-    -inf for an empty window), from the envelope's sparse table (:func:`_sparse_table`): two
-    overlapping windows of 2^k bins cover each window."""
-    lows, highs = table
+        lows.append(np.minimum(lows[-1][:, :-half], lows[-1][:, half:]))
+        highs.append(np.maximum(highs[-1][:, :-half], highs[-1][:, half:]))
     length = b1 - b0
     k = np.floor(np.log2(np.maximum(length, 1))).astype(np.int64)
-    near, far = np.full(b0.shape, np.inf), np.full(b0.shape, -np.inf)
+    near, far = np.full(node.size, np.inf), np.full(node.size, -np.inf)
     for level in np.unique(k[length > 0]):
         rows = (length > 0) & (k == level)
-        first, last = b0[rows], b1[rows] - 2 ** level
-        near[rows] = np.minimum(lows[level][first], lows[level][last])
-        far[rows] = np.maximum(highs[level][first], highs[level][last])
-    return near, far
+        grid, first, last = node[rows], b0[rows], b1[rows] - 2 ** level
+        near[rows] = np.minimum(lows[level][grid, first], lows[level][grid, last])
+        far[rows] = np.maximum(highs[level][grid, first], highs[level][grid, last])
+    seen = near <= far
+    widen = (margin + pad * dr)[node]
+    origin, step, count = r0[node], dr[node], n_r[node]
+    with np.errstate(invalid="ignore"):
+        lo = np.floor((np.where(seen, near, origin) - widen - origin) / step)
+        hi = np.ceil((np.where(seen, far, origin) + widen - origin) / step) + 1
+    lo, hi = np.clip(lo, 0, count), np.clip(hi, 0, count)
+    spans = np.where(seen[:, None], np.stack([lo, hi], axis=1), 0).astype(np.int32)
+    return np.split(spans, np.cumsum(n_v)[:-1])
 
 
 def extents(centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray, scene: Scene, windows: np.ndarray,

@@ -29,6 +29,13 @@ raw echo weighted by d and d^2, so a path adds c0 Y0 + c1 Y1 + c2 Y2 with c0 = a
 c2 = a' (b'^2 / 2 + q). Left out: the third-order terms (b' h)^3 / 6 and |q| h^2 b' h, h = T fs / 2
 (below 1e-3 for the band losses and speeds of sonar scenes), and the shift of the support by
 delta against the chirp (the echo's edges; relative error about delta / (2 h)).
+
+Two routes, chosen by their work per path (:attr:`clsas.synthesis.echo.physics.Physics.compress_raw`):
+the taps above (N_TABLES (2 L + 2) table values a path, N_TABLES = 3 for paths with their own
+laws), or the raw echo (T fs samples a path) range-compressed afterwards record by record
+(:meth:`CompressedResponse.compress`: exactly ``range_compress``'s matched filter, so that route
+drops nothing) when the taps would cost more: a short pulse sampled near its bandwidth (Heremans's
+T fs = 125 against 2 L + 2 = 250 taps at -40 dB) or paths with their own laws.
 """
 
 from __future__ import annotations
@@ -175,6 +182,20 @@ class CompressedResponse:
             out[r] = np.bincount(k[keep], weights=resp.real[keep], minlength=n_samples) \
                 + 1j * np.bincount(k[keep], weights=resp.imag[keep], minlength=n_samples)
         return out
+
+    def compress(self, records: np.ndarray, waveform: Waveform) -> np.ndarray:
+        """Raw ``records`` (..., n) range-compressed as :func:`clsas.range_compress` does (the
+        matched filter with this response's window over an FFT of next_fast_len(n + pulse) points,
+        the first n outputs), in the records' dtype."""
+        n = records.shape[-1]
+        replica = 2 * int(np.floor(self.half_len + 1e-9)) + 1
+        n_fft = scipy.fft.next_fast_len(n + replica, real=False)
+        h = matched_filter(waveform, waveform.fs, n_fft, self.window)
+        if records.dtype == np.complex64:
+            h = h.astype(np.complex64)
+        spec = scipy.fft.fft(records, n=n_fft, axis=-1)
+        spec *= h
+        return scipy.fft.ifft(spec, axis=-1)[..., :n].astype(records.dtype, copy=False)
 
     def planar(self, real) -> tuple[np.ndarray, np.ndarray]:
         """The tables as the kernel reads them: (3, PHASES + 1, 2 parts, row) and the impulse

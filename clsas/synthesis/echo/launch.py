@@ -105,7 +105,7 @@ class OpenCLSynth(BlockSynth):
                 defines[flag] = 1
         if ph.doppler:
             defines["INTRA_PULSE"] = 2 if ph.intra_pulse == "all" else 1
-        if ph.response is not None:
+        if ph.writes_taps:
             defines.update(COMPRESSED=ph.response.taps, N_TABLES=3 if ph.extended else 1, PHASES=PHASES, PAD=PAD)
             table, impulse = ph.response.planar(self.real)
             table = np.ascontiguousarray(table[:defines["N_TABLES"]])
@@ -116,10 +116,13 @@ class OpenCLSynth(BlockSynth):
         preamble = records_preamble(self.real, ph.extended)
         prg = opencl.program("echo", defines=defines, double=double, preamble=preamble)
         self.k_paths = cl.Kernel(prg, "echo_paths")
-        # delays and extents need no weights: their paths come from a build without them
+        # paths without weights (pass A's, kept for pass B when there are no weights) and the echo
+        # centres alone (the delays and the extents when pass B computes its own paths)
         plain = {key: value for key, value in defines.items() if key != "PATH_WEIGHTS"}
         self.k_paths_plain = self.k_paths if plain == defines else \
             cl.Kernel(opencl.program("echo", defines=plain, double=double, preamble=preamble), "echo_paths")
+        self.k_paths_delays = cl.Kernel(opencl.program("echo", defines={**plain, "DELAYS_ONLY": 1}, double=double,
+                                                       preamble=preamble), "echo_paths")
         self.k_bounds = cl.Kernel(prg, "echo_bounds")
         self.k_extents = cl.Kernel(prg, "echo_extents")
         self.k_spread = cl.Kernel(prg, "echo_spread")
@@ -178,11 +181,13 @@ class OpenCLSynth(BlockSynth):
         out[:, self.split:] = np.where(k < self.scat.count - self.floor_first, self.floor_first + k, -1)
         return out
 
-    def _run_paths(self, pulses: slice, t0: np.ndarray, weighted: bool = True, kinds=None, cull: bool = True):
+    def _run_paths(self, pulses: slice, t0: np.ndarray, weighted: bool = True, kinds=None, cull: bool = True,
+                   delays_only: bool = False):
         """The paths kernel on a pulse block for the path ``kinds`` (indices; default every kind):
         delays and amplitudes (times the occlusion weights unless not ``weighted``: the delays and
-        extents do not need them), of the targets and of the facets the block's beam reaches
-        (every facet unless ``cull``). Returns (paths buffer, pulses, (jump, n_act, stride))."""
+        extents do not need them; the echo centres alone if ``delays_only``), of the targets and of
+        the facets the block's beam reaches (every facet unless ``cull``). Returns (paths buffer,
+        pulses, (jump, n_act, stride))."""
         cl, q, ctx = self.cl, self.rt.queue, self.rt.context
         mf = cl.mem_flags
         idx = np.arange(self.eta.size)[pulses]
@@ -198,7 +203,7 @@ class OpenCLSynth(BlockSynth):
         w_buf, rx_buf, active_buf = (cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
                                      for a in (w, rx, active))
         paths_buf = cl.Buffer(ctx, mf.READ_WRITE, self.path_dtype.itemsize * h * pc * stride)
-        kernel = self.k_paths if weighted else self.k_paths_plain
+        kernel = self.k_paths_delays if delays_only else self.k_paths if weighted else self.k_paths_plain
         for slot, k in enumerate(kinds):
             kind = self.physics.kinds[k]
             out_image, back_image = kind.out.image, kind.back.image
@@ -226,7 +231,7 @@ class OpenCLSynth(BlockSynth):
         kernel, in scatterer order (every facet, in the beam's reach or not)."""
         h, n = self.n_rx, self.scat.count
         paths_buf, pc, (jump, n_act, stride) = self._run_paths(pulses, np.zeros(h), weighted=False, kinds=[kind],
-                                                               cull=False)
+                                                               cull=False, delays_only=True)
         host = np.empty((h, pc, stride), self.path_dtype)
         self.cl.enqueue_copy(self.rt.queue, host, paths_buf)
         u = (host["start"] + host["frac"].astype(np.float64)) / self.scenario.waveform.fs
@@ -241,7 +246,7 @@ class OpenCLSynth(BlockSynth):
         """(H,) s: the spread of the direct paths' delays at ``pulse`` over the scatterers heard
         then (kernels/echo.cl ``echo_spread``)."""
         paths_buf, _, (_, n_act, stride) = self._run_paths(slice(pulse, pulse + 1), np.zeros(self.n_rx),
-                                                           weighted=False, kinds=[0])
+                                                           weighted=False, kinds=[0], delays_only=True)
         out = self.cl.Buffer(self.rt.context, self.cl.mem_flags.WRITE_ONLY, 16 * self.n_rx)
         self.k_spread(self.rt.queue, *groups(1, self.n_rx), paths_buf, np.int32(n_act), np.int32(stride), np.int32(1),
                       out)
@@ -252,17 +257,18 @@ class OpenCLSynth(BlockSynth):
     def _path_bytes(self, pc: int, stride: int) -> int:
         return self.path_dtype.itemsize * self.n_rx * pc * stride
 
-    def extents(self, pulses: slice):
-        """(floor(min u), floor(max u) + 1) per (receiver, scatterer) over every path kind and the
-        block's pulses that hear it (inf, -inf: none), reduced on the device. With an occlusion
-        factor the paths are computed unweighted and not kept for pass B: the weights (hull ray
-        casting for meshes) are then computed once, by pass B, whose pulse blocks need not match
-        these."""
+    def extents(self, pulses: slice, lo: np.ndarray, hi: np.ndarray) -> None:
+        """Widen ``lo``, ``hi`` (H, N), in place, to (floor(min u), floor(max u) + 1) per (receiver,
+        scatterer) over every path kind and the block's pulses that hear it (inf, -inf: none),
+        reduced on the device; the facets the block's beam reaches are one contiguous range of
+        scatterers, widened as a slice. With an occlusion factor the paths are computed unweighted
+        and not kept for pass B: the weights (hull ray casting for meshes) are then computed once,
+        by pass B, whose pulse blocks need not match these."""
         cl, q = self.cl, self.rt.queue
-        h, n = self.n_rx, self.scat.count
-        paths_buf, pc, block = self._run_paths(pulses, np.zeros(h), weighted=False)
-        jump, n_act, stride = block
+        h = self.n_rx
         reusable = self.occlusion is None  # unweighted paths are pass B's paths only without weights
+        paths_buf, pc, block = self._run_paths(pulses, np.zeros(h), weighted=False, delays_only=not reusable)
+        jump, n_act, stride = block
         if reusable and self.cached_bytes + self._path_bytes(pc, stride) <= self.cache_bytes:
             self.cache[(pulses.start, pulses.stop)] = (paths_buf, pc, block)
             self.cached_bytes += self._path_bytes(pc, stride)
@@ -270,16 +276,26 @@ class OpenCLSynth(BlockSynth):
         self.k_extents(q, *groups(stride, h), paths_buf, np.int32(stride), np.int32(pc), ext)
         host = np.empty((h, len(self.physics.kinds), n_act, 2), np.int32)
         cl.enqueue_copy(q, host, ext)
-        first, last = host[..., 0].min(axis=1), host[..., 1].max(axis=1)
-        first = np.where(first == UNHEARD, np.inf, first)
-        last = np.where(last == -UNHEARD, -np.inf, last + 1.0)
-        lo, hi = np.full((h, n), np.inf), np.full((h, n), -np.inf)
-        index = self._index(jump, n_act)
-        for r in range(h):
-            valid = index[r] >= 0
-            lo[r, index[r, valid]] = first[r, valid]
-            hi[r, index[r, valid]] = last[r, valid]
-        return lo, hi
+
+        def widen(positions: slice, scatterers):
+            ext = host[:, :, positions]
+            first = ext[:, 0, :, 0] if ext.shape[1] == 1 else ext[..., 0].min(axis=1)
+            last = (ext[:, 0, :, 1] if ext.shape[1] == 1 else ext[..., 1].max(axis=1)) + 1
+            heard = first != UNHEARD  # some pulse of the block hears it
+            if isinstance(scatterers, slice):
+                np.minimum(lo[:, scatterers], first, out=lo[:, scatterers], where=heard)
+                np.maximum(hi[:, scatterers], last, out=hi[:, scatterers], where=heard)
+                return
+            for r in range(h):
+                lo[r, scatterers[r]] = np.where(heard[r], np.minimum(lo[r, scatterers[r]], first[r]), lo[r, scatterers[r]])
+                hi[r, scatterers[r]] = np.where(heard[r], np.maximum(hi[r, scatterers[r]], last[r]), hi[r, scatterers[r]])
+
+        n_t = self.floor_first
+        if n_t:
+            widen(slice(0, n_t), self.target_index[:, :n_t])
+        n_reach = min(n_act - self.split, self.scat.count - n_t - jump)  # the facets jump .. jump + n_reach
+        if n_reach > 0:
+            widen(slice(self.split, self.split + n_reach), slice(n_t + jump, n_t + jump + n_reach))
 
     def records(self, pulses: slice, t0: np.ndarray, n_samples: int) -> np.ndarray:
         """The block's records; reuses the paths of extents() when the window starts on a whole sample."""
@@ -304,7 +320,7 @@ class OpenCLSynth(BlockSynth):
         out = cl.Buffer(self.rt.context, mf.WRITE_ONLY, np.dtype(self.cplx).itemsize * h * pc * n_pad)
         shift_buf = cl.Buffer(self.rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=shift)
         compressed = ()
-        if self.physics.response is not None:
+        if self.physics.writes_taps:
             resp = self.physics.response
             compressed = (self.table_buf, np.int32(self.table_row), self.impulse_buf, np.int32(self.impulse_len),
                           np.int32(resp.lag0), np.int32(resp.edges[0]), np.int32(resp.edges[1]))

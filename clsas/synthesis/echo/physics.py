@@ -48,6 +48,20 @@ class Physics:
     def extended(self) -> bool:
         return self.doppler or self.absorption is not None or len(self.kinds) > 1
 
+    @property
+    def compress_raw(self) -> bool:
+        """Synthesis into the compressed domain takes the raw route (the raw echo, then the matched
+        filter: :mod:`.compressed`): its T fs samples a path cost less than the response's taps,
+        (2 L + 2) per table and 3 tables for paths with their own laws."""
+        if self.response is None:
+            return False
+        return (3 if self.extended else 1) * (2 * self.response.taps + 2) > 2 * self.response.half_len
+
+    @property
+    def writes_taps(self) -> bool:
+        """Synthesis into the compressed domain writes each path's compressed response (its taps)."""
+        return self.response is not None and not self.compress_raw
+
     @staticmethod
     def touches_floor(kind) -> bool:
         """A leg of ``kind`` meets the seabed last before (or first after) the scatterer."""

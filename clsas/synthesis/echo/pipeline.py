@@ -318,8 +318,7 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
     with stage(f"echo delays ({name})", f"{n_rx} receivers x {n_pulses} pulses x {n_scat} scatterers"), \
             Progress(n_pulses, "pulses", "echo delays", progress, leave=False) as bar:
         for sl in blocks:
-            a, b = synth.extents(sl)
-            lo, hi = np.minimum(lo, a), np.maximum(hi, b)
+            synth.extents(sl, lo, hi)
             bar.done(sl.stop - sl.start)
     warn_pulse_overlap(scenario, synth)
     lo, hi = lo / wf.fs, hi / wf.fs  # s, whole samples
@@ -336,13 +335,17 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
     check_cube_size(n_rx, n_pulses, n_samples, opts.max_bytes, origin, n_nodes=nodes[0].size)
     data = np.zeros((n_rx, n_pulses, n_samples), dtype=opts.dtype)
     # pass B in blocks that also bound the records' memory (complex128 on the host, the
-    # kernel's output buffer and its copy)
-    per_pulse = n_rx * (synth.scat.count * 32 + 3 * 16 * n_samples)
+    # kernel's output buffer and its copy; the raw route's FFTs of about twice the samples)
+    per_pulse = n_rx * (synth.scat.count * 32 + (7 if synth.physics.compress_raw else 3) * 16 * n_samples)
     with stage(f"echo synthesis ({name})", f"{n_rx} receivers x {n_pulses} pulses x {n_samples} samples "
                f"({data.nbytes / 2**20:.1f} MiB) x {n_scat} scatterers"), \
             Progress(n_pulses, "pulses", f"echo synthesis ({name})", progress) as bar:
         for sl in _pulse_blocks(n_pulses, per_pulse, chunk_bytes):
             block = synth.records(sl, t0, n_samples)
+            if synth.physics.compress_raw:  # the raw route into the compressed domain (.compressed)
+                for h in range(n_rx):
+                    block[h, :, n_valid[h]:] = 0
+                block = synth.physics.response.compress(block, wf)
             if not np.all(np.isfinite(block)):
                 raise ValueError("the echo has non-finite samples: a scatterer coincides with the transmitter or a "
                                  "receiver (zero path length); move it away")
@@ -352,6 +355,15 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
     for h in range(n_rx):
         data[h, :, n_valid[h]:] = 0
     return Synthesis(data, t0, n_valid, origin, nodes[:2], float(nodes[2]), n_scat, synth.physics)
+
+
+def _compressed_provenance(opts: SynthesisOptions, physics: Physics) -> dict:
+    """How the echo reached the compressed domain: the response's taps (and the share of its energy
+    dropped), or the raw route (nothing dropped: ``discarded_db`` None)."""
+    resp = physics.response
+    return {"window": opts.compressed, "level_db": opts.compressed_level_db,
+            "route": "raw echo + matched filter" if physics.compress_raw else "taps", "taps": resp.taps,
+            "discarded_db": None if physics.compress_raw else resp.discarded_db}
 
 
 def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False, snr_db: float | None = None,
@@ -403,7 +415,9 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         window named), each path's compressed point response written around its exact delay
         over the taps where it exceeds ``compressed_level_db`` re its peak
         (:mod:`clsas.synthesis.echo.compressed`). For large scenes (a seafloor's facets): the
-        work per path is those taps instead of the whole pulse. Not with ``snr_db`` (the noise is
+        work per path is those taps instead of the whole pulse; where the taps would cost more
+        than the pulse's samples, the raw echo is synthesized and range-compressed record by
+        record instead (``provenance["compressed"]["route"]``). Not with ``snr_db`` (the noise is
         defined on raw samples).
     compressed_level_db : float
         dB in [-120, -10]: where the compressed response is cut (default -40).
@@ -460,9 +474,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
                     "absorption": out.physics.absorption is not None,
                     "paths": [kind.name for kind in out.physics.kinds],
                     "intra_pulse": out.physics.intra_pulse if out.physics.doppler else "none", "snr_db": snr_db,
-                    **({"compressed": {"window": opts.compressed, "level_db": opts.compressed_level_db,
-                                       "taps": out.physics.response.taps,
-                                       "discarded_db": out.physics.response.discarded_db}} if out.physics.response else {}),
+                    **({"compressed": _compressed_provenance(opts, out.physics)} if out.physics.response else {}),
                     "seed": seed if seed is None or isinstance(seed, int) else str(seed),
                     "n_scatterers": out.n_scatterers, "occlusion": occlusion is not None,
                     "hull_occlusion": bool(opts.hull_occlusion and needs_path_weights(scenario)),

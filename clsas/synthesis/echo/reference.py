@@ -115,13 +115,14 @@ class NumpySynth(BlockSynth):
     def release(self) -> None:
         """Nothing is cached by the reference."""
 
-    def extents(self, pulses: slice):
-        lo, hi = None, None
+    def extents(self, pulses: slice, lo: np.ndarray, hi: np.ndarray) -> None:
+        """Widen ``lo``, ``hi`` (H, N), in place, to the block's extents (:func:`sample_extents`) over
+        every path kind."""
         heard = self.heard(pulses)
         for kind in self.physics.kinds:
             a, b = sample_extents(self._paths(pulses, kind).tau * self.scenario.waveform.fs, heard)
-            lo, hi = (a, b) if lo is None else (np.minimum(lo, a), np.maximum(hi, b))
-        return lo, hi
+            np.minimum(lo, a, out=lo)
+            np.maximum(hi, b, out=hi)
 
     def spread(self, pulse: int) -> np.ndarray:
         """(H,) s: the spread of the direct paths' delays at ``pulse`` over the scatterers heard then."""
@@ -142,7 +143,7 @@ class NumpySynth(BlockSynth):
             laws = {k: v.reshape(h * n_p, n) for k, v in in_pulse_laws(p, wf).items()} \
                 if self.physics.extended else None
             args = (start.reshape(h * n_p, n), frac.reshape(h * n_p, n), amp.reshape(h * n_p, n))
-            if self.physics.response is not None:
+            if self.physics.writes_taps:
                 out = out + self.physics.response.accumulate(*args, n_samples, laws)
             else:
                 out = out + accumulate_reference(*args, self.alpha, self.half_len, n_samples, laws)
