@@ -29,11 +29,15 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 
-def arguments(description: str) -> argparse.Namespace:
+def arguments(description: str, parts=None) -> argparse.Namespace:
+    """The benches' options; ``parts`` (names of a bench's parts) adds ``--only NAME`` (``args.only``,
+    None when not given: every part)."""
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--quick", action="store_true", help="a size that finishes in under 30 s on 2 cores")
     parser.add_argument("--json", action="store_true", help="one JSON object per line on stdout")
     parser.add_argument("--repeats", type=int, default=None, help="timed runs (median is reported)")
+    if parts:
+        parser.add_argument("--only", choices=sorted(parts), default=None, help="run only this part of the bench")
     return parser.parse_args()
 
 

@@ -49,6 +49,20 @@ interleaved (A B C D, A B C D, ...), warm (one untimed round first):
 - ``kernel_seconds`` beside each: the kernels' own time in that call (profiling events), and
   ``over_kernel`` = whole call / kernel time (issue 19 asks <= 2 for prepared, <= 3 for plain
   at 128^2 on the scene).
+
+The grid sizes of one extent are timed interleaved too (every size and way once a round), and each
+row carries ``over_largest``: its median over the median of the same way on the largest grid of
+its extent (issue 31 item 3 asks <= 0.15 for a plain 128^2 call against a plain 512^2 call), and
+``over_largest_min`` from the fastest runs.
+
+The torchbp and fixed-cost rows also carry ``cpu_seconds`` (median) and ``cpu_min_seconds``: the CPU time of the
+whole process over the call (every thread: PoCL's workers, torch's OpenMP threads, the host), and
+the torchbp rows ``ratio_cpu_median`` (torchbp's CPU seconds over clsas's): on a shared machine a
+process's CPU time counts the work it did, where its wall time also counts the time other
+processes held the cores, so that ratio moves less with the load than the wall-time ratio (both are
+reported; the wall-time ratio on a quiet machine is the issue's figure).
+
+``--only torchbp|fixed-cost|rates`` runs one part.
 """
 
 from __future__ import annotations
@@ -86,12 +100,14 @@ def scene(n_pulses: int, n_samples: int, n_pixels: int, fs: float = FS):
 def timings(run, repeats: int) -> list[float]:
     """Wall times of ``repeats`` runs after one warm-up run (kernel builds, caches)."""
     run()
-    out = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        run()
-        out.append(time.perf_counter() - start)
-    return out
+    return [timed(run)[1] for _ in range(repeats)]
+
+
+def timed(run):
+    """``run()``'s result, its wall time and the process's CPU time over it (s)."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    out = run()
+    return out, time.perf_counter() - wall, time.process_time() - cpu
 
 
 TORCHBP_C0 = 299792458.0  # torchbp's speed of light (csrc/cpu/util.h kC0)
@@ -142,19 +158,23 @@ def versus_torchbp(args) -> None:
         image = ours()
         run_torchbp()
         times = {"clsas": [], "torchbp": []}
+        cpu = {"clsas": [], "torchbp": []}
         for _ in range(repeats):
             for name, run in (("clsas", ours), ("torchbp", run_torchbp)):
-                start = time.perf_counter()
-                run()
-                times[name].append(time.perf_counter() - start)
+                _, wall, used = timed(run)
+                times[name].append(wall)
+                cpu[name].append(used)
         med = {k: statistics.median(v) for k, v in times.items()}
+        cpu_med = {k: statistics.median(v) for k, v in cpu.items()}
         agree = float(np.linalg.norm(image.data - theirs) / np.linalg.norm(image.data)) if stop_and_go else None
         for name in ("clsas", "torchbp"):
             report(args, "backprojection-vs-torchbp", "opencl" if name == "clsas" else "torchbp-cpu", size,
                    work / med[name], "G backprojections/s", med[name], case=case, method=name,
                    min_seconds=min(times[name]), rate_best=work / min(times[name]), runs=repeats,
+                   cpu_seconds=cpu_med[name], cpu_min_seconds=min(cpu[name]),
                    **({"ratio_median": med["torchbp"] / med["clsas"],
-                       "ratio_best": min(times["torchbp"]) / min(times["clsas"]), "torchbp": note,
+                       "ratio_best": min(times["torchbp"]) / min(times["clsas"]),
+                       "ratio_cpu_median": cpu_med["torchbp"] / cpu_med["clsas"], "torchbp": note,
                        "rel_l2_vs_torchbp": agree} if name == "clsas" else {}))
 
 
@@ -166,45 +186,48 @@ def fixed_cost(args) -> None:
     extents = {"scene": ((35.0, 85.0), (-6.0, 6.0)), "patch": ((57.0, 63.0), (-3.0, 3.0))}
     sizes = (128, 256) if args.quick else (128, 256, 512)
     repeats = args.repeats or (3 if args.quick else 5)
-    for n in sizes:
-        for extent, (xs, ys) in extents.items():
-            grid = Grid.plane(np.linspace(*xs, n), np.linspace(*ys, n), 0.0)
+    for extent, (xs, ys) in extents.items():
+        grids = {n: Grid.plane(np.linspace(*xs, n), np.linspace(*ys, n), 0.0) for n in sizes}
+        runs = {}
+        for n, grid in grids.items():
             plan = GridPlan(grid)
-            ways = {"plain": lambda: backproject(echo, grid, progress=False),
-                    "prepared": lambda: backproject(records, plan, progress=False),
-                    "whole-records": lambda: backproject(prepare(echo), grid, progress=False)}
-            for run in ways.values():
-                run()  # warm-up: kernel builds, first touch
-            seconds = {way: [] for way in ways}
-            kernel = {way: [] for way in ways}
-            for _ in range(repeats):
-                for way, run in ways.items():
-                    start = time.perf_counter()
-                    image = run()
-                    seconds[way].append(time.perf_counter() - start)
-                    kernel[way].append(image.provenance["kernel_seconds"])
+            runs.update({(n, "plain"): lambda grid=grid: backproject(echo, grid, progress=False),
+                         (n, "prepared"): lambda plan=plan: backproject(records, plan, progress=False),
+                         (n, "whole-records"): lambda grid=grid: backproject(prepare(echo), grid, progress=False)})
+        for run in runs.values():
+            run()  # warm-up: kernel builds, first touch
+        seconds, cpu, kernel = ({key: [] for key in runs} for _ in range(3))
+        for _ in range(repeats):  # every size and way once a round
+            for key, run in runs.items():
+                image, wall, used = timed(run)
+                seconds[key].append(wall)
+                cpu[key].append(used)
+                kernel[key].append(image.provenance["kernel_seconds"])
+        largest = max(sizes)
+        for (n, way) in runs:
+            grid = grids[n]
             work = grid.size * echo.n_pulses * echo.n_rx / 1e9
-            for way in ways:
-                median, k_median = statistics.median(seconds[way]), statistics.median(kernel[way])
-                report(args, "backprojection-fixed-cost", "opencl",
-                       {"pixels": grid.size, "pulses": echo.n_pulses, "receivers": echo.n_rx,
-                        "samples": echo.n_samples}, work / median, "G backprojections/s", median, case=way,
-                       grid=f"{extent} {n}^2", min_seconds=min(seconds[way]), kernel_seconds=k_median,
-                       kernel_min_seconds=min(kernel[way]), over_kernel=median / k_median, runs=repeats,
-                       **({"prepared_records_mb": records.nbytes / 2**20} if way == "prepared" else {}))
+            median, k_median = statistics.median(seconds[n, way]), statistics.median(kernel[n, way])
+            report(args, "backprojection-fixed-cost", "opencl",
+                   {"pixels": grid.size, "pulses": echo.n_pulses, "receivers": echo.n_rx,
+                    "samples": echo.n_samples}, work / median, "G backprojections/s", median, case=way,
+                   grid=f"{extent} {n}^2", min_seconds=min(seconds[n, way]), kernel_seconds=k_median,
+                   kernel_min_seconds=min(kernel[n, way]), over_kernel=median / k_median,
+                   over_largest=median / statistics.median(seconds[largest, way]),
+                   over_largest_min=min(seconds[n, way]) / min(seconds[largest, way]),
+                   cpu_seconds=statistics.median(cpu[n, way]), cpu_min_seconds=min(cpu[n, way]), runs=repeats,
+                   **({"prepared_records_mb": records.nbytes / 2**20} if way == "prepared" else {}))
 
 
-def main() -> None:
-    args = arguments(__doc__.splitlines()[0])
-    versus_torchbp(args)
-    fixed_cost(args)
+def rates(args) -> None:
+    """The ``backprojection`` rows (module docstring): OpenCL and NumPy on the bench scene."""
     n_pix = 256 if args.quick else 512
     pulses = {"opencl": 256 if args.quick else 1024, "numpy": 8 if args.quick else 16}
     cases = [("sinc8", "sinc8", 4096, FS), ("linear", "linear", 4096, FS)]
     if not args.quick:
         cases.append(("linear-x8", "linear", 8 * 4096, 8 * FS))
     for case, interp, n_samples, fs in cases:
-        rates = {}
+        rate = {}
         for backend, n_pulses in pulses.items():
             echo, grid = scene(n_pulses, n_samples, n_pix, fs)
             times = timings(lambda: backproject(echo, grid, backend=backend, interp=interp, upsample=1,
@@ -212,12 +235,22 @@ def main() -> None:
                             args.repeats or (5 if backend == "opencl" else 1))
             work = grid.size * n_pulses / 1e9
             seconds = statistics.median(times)
-            rates[backend] = work / seconds
+            rate[backend] = work / seconds
             report(args, "backprojection", backend, {"pixels": grid.size, "pulses": n_pulses, "receivers": 1,
                                                      "samples": n_samples},
-                   rates[backend], "G backprojections/s", seconds, interp=interp, case=case,
+                   rate[backend], "G backprojections/s", seconds, interp=interp, case=case,
                    min_seconds=min(times), rate_best=work / min(times), runs=len(times),
-                   **({"speedup": rates["opencl"] / rates["numpy"]} if backend == "numpy" else {}))
+                   **({"speedup": rate["opencl"] / rate["numpy"]} if backend == "numpy" else {}))
+
+
+PARTS = {"torchbp": versus_torchbp, "fixed-cost": fixed_cost, "rates": rates}
+
+
+def main() -> None:
+    args = arguments(__doc__.splitlines()[0], parts=PARTS)
+    for name, part in PARTS.items():
+        if args.only in (None, name):
+            part(args)
 
 
 if __name__ == "__main__":

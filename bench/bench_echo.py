@@ -13,7 +13,8 @@ and the size of intra-pulse Doppler for stationary scatterers.
    resolution cell, spreading, absorption; the seabed bounces are dark for facets and pruned);
    the middle 8 pulses (2 with --quick) of the track, raw, compressed="hamming" and
    compressed=True, timed interleaved (A B C A B C, one warm-up each), min and median, with the
-   load average; rate = facets in the beam's reach x pulses x receivers per second (the facets
+   load average, and the route each compressed mode took (its taps, or the raw echo then the
+   matched filter, clsas/synthesis/echo/compressed.py); rate = facets in the beam's reach x pulses x receivers per second (the facets
    out of a pulse's reach carry no echo and are skipped). ``swath_estimate_s``: the whole swath
    at 256 pulses (its facets in reach x pulses x receivers) divided by that rate: an
    extrapolation from the measured middle pulses, not a run of the whole swath.
@@ -108,8 +109,8 @@ def seafloor(args) -> None:
                  "swath_estimate_s": whole_work / rate,
                  "case": f"Heremans swath, middle {n_pulses} pulses measured; swath_estimate_s extrapolated"}
         if name != "raw":
-            extra.update({k: float(v) for k, v in echoes[name].provenance["compressed"].items()
-                          if k in ("taps", "discarded_db")})
+            how = echoes[name].provenance["compressed"]
+            extra.update(route=how["route"], taps=how["taps"], discarded_db=how["discarded_db"])
         report(args, "echo_seafloor", "opencl", {"facets": echoes[name].provenance["n_scatterers"],
                                                  "pulses": n_pulses, "receivers": sc.n_receivers, "mode": name},
                rate / 1e6, "M facet-pulse-receivers/s (in reach)", median, **extra)

@@ -25,6 +25,10 @@ each, min and median, with the relative L2 difference of the two images:
 - ``full``: the narrow sonar over every pulse and angle (the pixels then sample the image far
   more coarsely than its resolution along track, which limits how far merging pays).
 
+``ffbp_new_grid`` times ``clsas.ffbp`` as a first call on its grid: ffbp keeps a Grid's scene
+(its skeleton and margin, a pass over every pixel) for later calls on the same Grid, which
+``ffbp`` (a later call, as when many echoes are imaged onto one grid) reuses.
+
 ``--factors`` times ``clsas.ffbp`` with factor=2 as well (a third run in the interleaving; the
 default merges 4 children at a time). ``--big`` adds the issue's large case, the wide sonar at 2048^2 pixels x 4096 pulses (2 timed
 runs each after a warm-up; direct back-projection takes about a minute a run on 2 cores, so the
@@ -52,6 +56,7 @@ from clsas import Array, Medium, Platform, PointTargets, PulseSchedule, Scenario
 from clsas.model import Grid
 from clsas.image.backprojection import backproject
 from clsas.image.ffbp import ffbp
+from clsas.image.ffbp import _SCENES  # each Grid's Scene, kept between calls (cleared for ffbp_new_grid)
 
 F0, B, FS, UP, DEPTH = 150e3, 20e3, 25e3, 8, -5.0
 # the two sonars: element length D (m; pulses every D / 4) and the image's ranges (m)
@@ -128,7 +133,8 @@ def main() -> None:
         echo, grid = echoes[(pulses, pix, sonar)]
         kw = dict(backend="opencl", upsample=1, progress=False)
         runs = {"direct": lambda: backproject(echo, grid, interp="linear", **kw, **options),
-                "ffbp": lambda: ffbp(echo, grid, interp="linear", **kw, **options)}
+                "ffbp": lambda: ffbp(echo, grid, interp="linear", **kw, **options),
+                "ffbp_new_grid": lambda: (_SCENES.clear(), ffbp(echo, grid, interp="linear", **kw, **options))[1]}
         if flags["--factors"]:
             runs["ffbp_factor2"] = lambda: ffbp(echo, grid, interp="linear", factor=2, **kw, **options)
         times, images = interleaved(runs, reps)

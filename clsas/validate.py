@@ -85,7 +85,9 @@ def integer(name: str, value, low: int = 1, high: int | None = None, why: str = 
 
 
 def choice(name: str, value, options) -> str:
-    """One of ``options`` (strings)."""
+    """One of ``options`` (strings). Membership is the whole test: anything else, a string or
+    not (None, a number), is a ValueError naming the options (docs/design.md: a choice is judged
+    by value, not by kind)."""
     if not isinstance(value, str) or value not in options:
         raise ValueError(f"{name}: must be one of {tuple(options)}, got {_show(value)}")
     return value

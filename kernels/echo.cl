@@ -1,7 +1,7 @@
 /* Echo synthesis: exact two-way delays, path amplitudes, and accumulation of the LFM echoes.
  *
- * NumPy twin: clsas/synthesis/echo/synth.py (accumulate_reference), clsas/synthesis/paths.py
- * (paths) and clsas/geometry.py; the launcher is clsas/synthesis/echo/synth.py (_OpenCLSynth).
+ * NumPy twin: clsas/synthesis/echo/reference.py (accumulate_reference), clsas/synthesis/paths.py
+ * (paths) and clsas/geometry.py; the launcher is clsas/synthesis/echo/launch.py (OpenCLSynth).
  *
  * Three kernels per chunk of pulses:
  *   echo_paths   one work-item per (8 sorted scatterers, pulse p, receiver h) and path kind
@@ -23,7 +23,8 @@
  *   echo_bounds  first and last sample reached by each CHUNK consecutive (delay-sorted) paths;
  *   echo_extents, echo_spread  each path's extent over a pulse block, each record's delay spread;
  *   echo_accumulate  one work-item per ROWS x 16 output samples of one (receiver, pulse)
- *                record: loops over the chunks that can reach it and adds each path's echo.
+ *                record: loops over the chunks that can reach it and adds each path's echo
+ *                (add_raw_echo) or, COMPRESSED, its compressed response (add_compressed_echo).
  *                Explicit 16-wide vectors (PoCL does not vectorise across work-items of a
  *                kernel with loops). The chirp of a path's first row is evaluated (polynomial
  *                sin/cos in float; exp for an envelope), the following rows by the exact
@@ -37,12 +38,12 @@
  * work-items past the end.
  *
  * Defines: N_NODES (>= 2), SEGMENT_PASSES (node segment re-choices), CHUNK, ROWS (16-sample
- * blocks per work-item), STOP_AND_GO, SPREADING, PATH_WEIGHTS, EXTENDED (paths with their own
+ * blocks per work-item), DELAYS_ONLY (echo_paths writes the echo centres alone), STOP_AND_GO, SPREADING, PATH_WEIGHTS, EXTENDED (paths with their own
  * chirp and envelope), INTRA_PULSE (1: moving scatterers, 2: every path), ABSORPTION, BOUNCES,
  * BOTTOM_TABLE (entries of the seabed's reflection table); CLSAS_DOUBLE makes the accumulation
  * double. The records (echo_pulse_t, node_t, echo_rx_t, echo_params_t, echo_legs_t, echo_path_t)
  * and the scatterer fields (SCAT_*) are declared by the launcher
- * (clsas/synthesis/echo/synth.py, RECORDS and SCATTERER).
+ * (clsas/synthesis/echo/records.py).
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #include "common.h"
@@ -154,6 +155,25 @@ __kernel void echo_paths(__global const double *tsoa, __global const double *fso
     const double8 tau = (r1 + r2) / c;
 #endif
     const echo_rx_t rxh = rx[h];
+#ifdef DELAYS_ONLY
+    {   /* the echo centres alone: all that echo_extents, echo_spread and the delays read */
+        const double8 u = tau * params.fs - rxh.t0_fs;
+        long8 fl = convert_long8(u);
+        fl += (u < convert_double8(fl));  /* floor by truncation and fix-up (a true compare is -1) */
+        double x_fr[8];
+        long x_fl[8];
+        vstore8(u - convert_double8(fl), 0, x_fr);
+        vstore8(fl, 0, x_fl);
+        __global echo_path_t *o = paths + ((size_t)h * n_pulses + p) * stride + offset + j0;
+        const int2 act = active[p];
+        for (int l = 0; l < 8; ++l) {
+            const int heard = !facets || (pos0 + l >= act.x && pos0 + l < act.y);
+            o[l].start = heard ? (int)x_fl[l] : UNHEARD;
+            o[l].frac = (real_t)x_fr[l];
+        }
+        return;
+    }
+#endif
     double8 gain = element_gain8(params.tx_length, out_dir, r1, v8_splat(vload3(0, pl.tx_axis)), params.wavelength)
                  * element_gain8(rxh.length, back_dir, r2, node_field(nd, t_rx, dtau, 1), params.wavelength);
 #ifdef SPREADING
@@ -405,14 +425,172 @@ inline void expj_cycles_v(realv_t cyc, realv_t *cs, realv_t *sn)
 }
 #endif
 
+/* Add the raw echo of path v to the work-item's ROWS x 16 samples from k0 (echo_accumulate): s its
+ * start sample and reach the first and last samples it reaches, in the output window; plain paths
+ * share the chirp alpha (cycles a sample^2), the support |d| <= half_len and the row step's own
+ * step (rho_c, rho_s) = exp(j 2 pi alpha 512). */
+inline void add_raw_echo(const echo_path_t v, const int2 reach, const int s, const int k0, const real_t alpha,
+                         const real_t half_len, const real_t rho_plain_c, const real_t rho_plain_s,
+                         realv_t *acc_re, realv_t *acc_im)
+{
+    const realv_t lane = (realv_t)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    const real_t first = (real_t)(k0 - s) - v.frac;  /* d of the work-item's first sample */
+    /* rows r_lo..r_hi hold the samples the path reaches (integer arithmetic: PoCL's
+     * floor/ceil are slow); rows with a pulse edge are masked below */
+    const int a = reach.x - k0, e = reach.y - k0;
+    const int r_lo = a <= 0 ? 0 : a / 16;
+    const int r_hi = min(ROWS - 1, e / 16);
+    if (r_lo > r_hi) return;
+    realv_t d = lane + (first + (real_t)(16 * r_lo));
+    realv_t c0, s0, wc, ws;
+#ifdef EXTENDED
+    /* E(d) = j 2 pi (chirp d^2 + lin d) + gamma d^2 + beta d; the row step
+     * E(d + 16) - E(d) = j 2 pi (chirp (32 d + 256) + 16 lin) + gamma (32 d + 256) + 16 beta,
+     * its own step E(d + 32) - 2 E(d + 16) + E(d) = 512 (j 2 pi chirp + gamma) */
+    const real_t lo = v.lo, hi = v.hi;
+    /* the envelope re its level (<= 0 on the support); exponents clamped to +-80 so that
+     * the rows outside the support (masked) cannot overflow */
+    expj_cycles_v((v.chirp * d + v.lin) * d, &c0, &s0);
+    const realv_t e0 = exp(clamp((v.gamma * d + v.beta) * d - v.level, (real_t)-80, (real_t)80));
+    c0 *= e0;
+    s0 *= e0;
+    const realv_t step = (real_t)32 * d + (real_t)256;
+    expj_cycles_v(v.chirp * step + (real_t)16 * v.lin, &wc, &ws);
+    const realv_t ew = exp(clamp(v.gamma * step + (real_t)16 * v.beta, (real_t)-80, (real_t)80));
+    wc *= ew;
+    ws *= ew;
+    real_t rho_c, rho_s;
+    {
+        real_t r512 = v.chirp * (real_t)512;
+        r512 -= (real_t)convert_int(r512);
+        const real_t m = exp(fmax(v.gamma * (real_t)512, (real_t)-80));
+        rho_c = m * cospi((real_t)2 * r512);
+        rho_s = m * sinpi((real_t)2 * r512);
+    }
+#else
+    const real_t lo = -half_len, hi = half_len;
+    const real_t rho_c = rho_plain_c, rho_s = rho_plain_s;
+    expj_cycles_v(alpha * d * d, &c0, &s0);
+    expj_cycles_v(alpha * ((real_t)32 * d + (real_t)256), &wc, &ws);
+#endif
+    realv_t zc = v.amp[0] * c0 - v.amp[1] * s0, zs = v.amp[0] * s0 + v.amp[1] * c0;  /* amplitude folded in */
+    for (int r = 0; r < ROWS; ++r) {
+        if (r < r_lo) continue;
+        if (r > r_hi) break;
+        const real_t row0 = first + (real_t)(16 * r);
+        if (row0 < lo || row0 + (real_t)15 > hi) {  /* a pulse edge in the row */
+            const realv_t dd = lane + row0;
+            const realv_t m = select((realv_t)0, (realv_t)1, (dd >= lo) & (dd <= hi));
+            acc_re[r] += m * zc;
+            acc_im[r] += m * zs;
+        } else {
+            acc_re[r] += zc;
+            acc_im[r] += zs;
+        }
+        const realv_t nc = zc * wc - zs * ws;  /* z <- z w, w <- w rho */
+        zs = zc * ws + zs * wc;
+        zc = nc;
+        const realv_t mc = wc * rho_c - ws * rho_s;
+        ws = wc * rho_s + ws * rho_c;
+        wc = mc;
+    }
+}
+
+#ifdef COMPRESSED
+/* Synthesis into the range-compressed domain (clsas/synthesis/echo/compressed.py, NumPy twin
+ * CompressedResponse.accumulate): path v adds c0 Y0 + c1 Y1 + c2 Y2 over the taps about its
+ * (shifted) centre u' = start + frac - delta, the tables Y linear between the PHASES + 1
+ * fractions. table[((t (PHASES + 1) + i) 2 + part) row + PAD + L + m]: table t, fraction i / PHASES,
+ * real / imaginary part, tap m (zeros in the PAD columns): the response of the pulse's core
+ * samples; the edge samples edge_lo and edge_hi (about the centre's sample), inside the pulse for
+ * some fractions only, add their value x impulse[part imp_len + PAD + lag0 + m - k] (the matched
+ * filter's impulse response). N_TABLES: 1 (plain paths: c0 = amp) or 3. reach: the taps
+ * -COMPRESSED .. COMPRESSED + 1 about the shifted centre's sample, in the output window. */
+inline void add_compressed_echo(const echo_path_t v, const int2 reach, const int k0, __global const real_t *table,
+                                const int row, __global const real_t *impulse, const int imp_len, const int lag0,
+                                const int edge_lo, const int edge_hi, const real_t alpha, const real_t half_len,
+                                realv_t *acc_re, realv_t *acc_im)
+{
+    const int s = reach.x + COMPRESSED;  /* the shifted centre's sample */
+    const real_t frac = v.frac - compressed_shift(v);
+    const real_t pos = (frac - floor(frac)) * (real_t)PHASES;
+    const int i = min(convert_int(pos), PHASES - 1);
+    const real_t w = pos - (real_t)i;
+    real_t cre[N_TABLES], cim[N_TABLES];
+    cre[0] = v.amp[0];
+    cim[0] = v.amp[1];
+#if N_TABLES == 3
+    {
+        /* c0 = a', c1 = a' b', c2 = a' (b'^2 / 2 + q): compressed.py, module docstring */
+        const real_t delta = compressed_shift(v);
+        const real_t cyc = -v.lin * v.lin / ((real_t)4 * v.chirp);
+        const real_t m = exp(v.gamma * delta * delta - v.beta * delta - v.level);
+        const real_t red = cyc - (real_t)convert_int(cyc);
+        const real_t pc = m * cospi((real_t)2 * red), ps = m * sinpi((real_t)2 * red);
+        const real_t ar = v.amp[0] * pc - v.amp[1] * ps, ai = v.amp[0] * ps + v.amp[1] * pc;
+        const real_t b1 = v.beta - (real_t)2 * v.gamma * delta;
+        const real_t qr = (real_t)0.5 * b1 * b1 + v.gamma, qi = (real_t)2 * REAL_PI * (v.chirp - alpha);
+        cre[0] = ar;
+        cim[0] = ai;
+        cre[1] = ar * b1;
+        cim[1] = ai * b1;
+        cre[2] = ar * qr - ai * qi;
+        cim[2] = ar * qi + ai * qr;
+    }
+#endif
+    /* the edge samples' values (compressed.py, CompressedResponse.edge_weights) */
+    real_t ere[2], eim[2];
+    for (int q = 0; q < 2; ++q) {
+        const real_t d = (real_t)(q == 0 ? edge_lo : edge_hi) - (frac - floor(frac));
+        real_t pr = cre[0], pi = cim[0];
+#if N_TABLES == 3
+        pr += d * (cre[1] + d * cre[2]);
+        pi += d * (cim[1] + d * cim[2]);
+#endif
+        real_t cyc = alpha * d * d;
+        cyc -= (real_t)convert_int(cyc);
+        const real_t in = fabs(d) <= half_len ? (real_t)1 : (real_t)0;
+        const real_t cs = in * cospi((real_t)2 * cyc), sn = in * sinpi((real_t)2 * cyc);
+        ere[q] = pr * cs - pi * sn;
+        eim[q] = pr * sn + pi * cs;
+    }
+    const int a = reach.x - k0, e = reach.y - k0;
+    const int r_lo = a <= 0 ? 0 : a / 16;
+    const int r_hi = min(ROWS - 1, e / 16);
+    for (int r = r_lo; r <= r_hi; ++r) {
+        const int m0 = k0 + 16 * r - s;  /* the row's first tap */
+        const int col = PAD + COMPRESSED + m0;
+        for (int q = 0; q < 2; ++q) {
+            if (ere[q] == (real_t)0 && eim[q] == (real_t)0) continue;
+            __global const real_t *ip = impulse + PAD + lag0 + m0 - (q == 0 ? edge_lo : edge_hi);
+            const realv_t yr = vload16(0, ip), yi = vload16(0, ip + imp_len);
+            acc_re[r] += ere[q] * yr - eim[q] * yi;
+            acc_im[r] += ere[q] * yi + eim[q] * yr;
+        }
+        for (int t = 0; t < N_TABLES; ++t) {
+            __global const real_t *t0 = table + ((size_t)(t * (PHASES + 1) + i) * 2) * row + col;
+            const realv_t y0r = vload16(0, t0), y0i = vload16(0, t0 + row);
+            const realv_t y1r = vload16(0, t0 + 2 * row), y1i = vload16(0, t0 + 3 * row);
+            const realv_t yr = y0r + w * (y1r - y0r), yi = y0i + w * (y1i - y0i);
+            acc_re[r] += cre[t] * yr - cim[t] * yi;
+            acc_im[r] += cre[t] * yi + cim[t] * yr;
+        }
+    }
+}
+#endif
+
 /* out[(h P + p) n_pad + k] for the ROWS x 16 samples k of the work-item; records of n_pad samples
  * (a multiple of 16 ROWS); samples at k >= n_valid are zero. A path's echo centre is
  * start - shift[h] + frac (shift: integer samples between the window the starts were computed
- * for and the output window); plain paths share the chirp alpha (cycles a sample^2) and the
- * support |d| <= half_len. */
+ * for and the output window). Each path that reaches the work-item's samples adds its raw echo
+ * (add_raw_echo) or, COMPRESSED, its compressed response (add_compressed_echo). */
 __kernel void echo_accumulate(__global const echo_path_t *paths, __global const int2 *bounds,
-                              const real_t alpha, const real_t half_len, const int n_scat,
-                              const int n_pulses, const int n_pad, const int n_valid,
+                              const real_t alpha, const real_t half_len,
+#ifdef COMPRESSED
+                              __global const real_t *table, const int row, __global const real_t *impulse,
+                              const int imp_len, const int lag0, const int edge_lo, const int edge_hi,
+#endif
+                              const int n_scat, const int n_pulses, const int n_pad, const int n_valid,
                               __global const int *shift, __global complex_t *out)
 {
     const int b = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
@@ -421,15 +599,16 @@ __kernel void echo_accumulate(__global const echo_path_t *paths, __global const 
     const size_t rec = (size_t)h * n_pulses + p;
     const int n_chunks = (n_scat + CHUNK - 1) / CHUNK;
     const int sh = shift[h];
-    const realv_t lane = (realv_t)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+#ifndef COMPRESSED
+    real_t rho_c = (real_t)0, rho_s = (real_t)0;  /* exp(j 2 pi alpha 512): plain paths' row step's own step */
 #ifndef EXTENDED
-    real_t rho_c, rho_s;  /* exp(j 2 pi alpha 512): the row step's own step, shared by every path */
     {
         real_t r512 = alpha * (real_t)512;
         r512 -= (real_t)convert_int(r512);
         rho_c = cospi((real_t)2 * r512);
         rho_s = sinpi((real_t)2 * r512);
     }
+#endif
 #endif
     realv_t acc_re[ROWS], acc_im[ROWS];
     for (int r = 0; r < ROWS; ++r) acc_re[r] = acc_im[r] = (realv_t)0;
@@ -442,180 +621,13 @@ __kernel void echo_accumulate(__global const echo_path_t *paths, __global const 
             const echo_path_t v = rp[j];
             const int2 reach = path_reach(v, half_len) - sh;
             if (reach.y < k0 || reach.x > k_last) continue;
-            const int s = v.start - sh;
-            const real_t first = (real_t)(k0 - s) - v.frac;  /* d of the work-item's first sample */
-            /* rows r_lo..r_hi hold the samples the path reaches (integer arithmetic: PoCL's
-             * floor/ceil are slow); rows with a pulse edge are masked below */
-            const int a = reach.x - k0, e = reach.y - k0;
-            const int r_lo = a <= 0 ? 0 : a / 16;
-            const int r_hi = min(ROWS - 1, e / 16);
-            if (r_lo > r_hi) continue;
-            realv_t d = lane + (first + (real_t)(16 * r_lo));
-            realv_t c0, s0, wc, ws;
-#ifdef EXTENDED
-            /* E(d) = j 2 pi (chirp d^2 + lin d) + gamma d^2 + beta d; the row step
-             * E(d + 16) - E(d) = j 2 pi (chirp (32 d + 256) + 16 lin) + gamma (32 d + 256) + 16 beta,
-             * its own step E(d + 32) - 2 E(d + 16) + E(d) = 512 (j 2 pi chirp + gamma) */
-            const real_t lo = v.lo, hi = v.hi;
             if (v.amp[0] == (real_t)0 && v.amp[1] == (real_t)0) continue;  /* dark (shadowed, padding) */
-            /* the envelope re its level (<= 0 on the support); exponents clamped to +-80 so that
-             * the rows outside the support (masked) cannot overflow */
-            expj_cycles_v((v.chirp * d + v.lin) * d, &c0, &s0);
-            const realv_t e0 = exp(clamp((v.gamma * d + v.beta) * d - v.level, (real_t)-80, (real_t)80));
-            c0 *= e0;
-            s0 *= e0;
-            const realv_t step = (real_t)32 * d + (real_t)256;
-            expj_cycles_v(v.chirp * step + (real_t)16 * v.lin, &wc, &ws);
-            const realv_t ew = exp(clamp(v.gamma * step + (real_t)16 * v.beta, (real_t)-80, (real_t)80));
-            wc *= ew;
-            ws *= ew;
-            real_t rho_c, rho_s;
-            {
-                real_t r512 = v.chirp * (real_t)512;
-                r512 -= (real_t)convert_int(r512);
-                const real_t m = exp(fmax(v.gamma * (real_t)512, (real_t)-80));
-                rho_c = m * cospi((real_t)2 * r512);
-                rho_s = m * sinpi((real_t)2 * r512);
-            }
-#else
-            const real_t lo = -half_len, hi = half_len;
-            expj_cycles_v(alpha * d * d, &c0, &s0);
-            expj_cycles_v(alpha * ((real_t)32 * d + (real_t)256), &wc, &ws);
-#endif
-            realv_t zc = v.amp[0] * c0 - v.amp[1] * s0, zs = v.amp[0] * s0 + v.amp[1] * c0;  /* amplitude folded in */
-            for (int r = 0; r < ROWS; ++r) {
-                if (r < r_lo) continue;
-                if (r > r_hi) break;
-                const real_t row0 = first + (real_t)(16 * r);
-                if (row0 < lo || row0 + (real_t)15 > hi) {  /* a pulse edge in the row */
-                    const realv_t dd = lane + row0;
-                    const realv_t m = select((realv_t)0, (realv_t)1, (dd >= lo) & (dd <= hi));
-                    acc_re[r] += m * zc;
-                    acc_im[r] += m * zs;
-                } else {
-                    acc_re[r] += zc;
-                    acc_im[r] += zs;
-                }
-                const realv_t nc = zc * wc - zs * ws;  /* z <- z w, w <- w rho */
-                zs = zc * ws + zs * wc;
-                zc = nc;
-                const realv_t mc = wc * rho_c - ws * rho_s;
-                ws = wc * rho_s + ws * rho_c;
-                wc = mc;
-            }
-        }
-    }
-    for (int r = 0; r < ROWS; ++r) {
-        real_t re[16], im[16];
-        vstore16(acc_re[r], 0, re);
-        vstore16(acc_im[r], 0, im);
-        const int kr = k0 + 16 * r;
-        __global complex_t *o = out + rec * n_pad + kr;
-        for (int l = 0; l < 16; ++l)
-            o[l] = (kr + l < n_valid) ? complex_new(re[l], im[l]) : complex_new((real_t)0, (real_t)0);
-    }
-}
-
 #ifdef COMPRESSED
-/* Synthesis into the range-compressed domain (clsas/synthesis/echo/compressed.py, NumPy twin
- * CompressedResponse.accumulate): each path adds c0 Y0 + c1 Y1 + c2 Y2 over the taps about its
- * (shifted) centre u' = start + frac - delta, the tables Y linear between the PHASES + 1
- * fractions. table[((t (PHASES + 1) + i) 2 + part) row + PAD + L + m]: table t, fraction i / PHASES,
- * real / imaginary part, tap m (zeros in the PAD columns): the response of the pulse's core
- * samples; the edge samples edge_lo and edge_hi (about the centre's sample), inside the pulse for
- * some fractions only, add their value x impulse[part imp_len + PAD + lag0 + m - k] (the matched
- * filter's impulse response). N_TABLES: 1 (plain paths: c0 = amp) or 3. The rest as
- * echo_accumulate. */
-__kernel void echo_accumulate_compressed(__global const echo_path_t *paths, __global const int2 *bounds,
-                                         __global const real_t *table, const real_t alpha, const int row,
-                                         __global const real_t *impulse, const int imp_len, const int lag0,
-                                         const int edge_lo, const int edge_hi, const real_t half_len,
-                                         const int n_scat, const int n_pulses, const int n_pad,
-                                         const int n_valid, __global const int *shift, __global complex_t *out)
-{
-    const int b = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
-    const int k0 = 16 * ROWS * b, k_last = k0 + 16 * ROWS - 1;
-    if (k0 >= n_pad) return;
-    const size_t rec = (size_t)h * n_pulses + p;
-    const int n_chunks = (n_scat + CHUNK - 1) / CHUNK;
-    const int sh = shift[h];
-    realv_t acc_re[ROWS], acc_im[ROWS];
-    for (int r = 0; r < ROWS; ++r) acc_re[r] = acc_im[r] = (realv_t)0;
-    __global const echo_path_t *rp = paths + rec * n_scat;
-    for (int c = 0; c < n_chunks; ++c) {
-        const int2 bd = bounds[rec * n_chunks + c] - sh;
-        if (bd.y < k0 || bd.x > k_last) continue;
-        const int j1 = min(n_scat, (c + 1) * CHUNK);
-        for (int j = c * CHUNK; j < j1; ++j) {
-            const echo_path_t v = rp[j];
-            const int2 reach = path_reach(v, (real_t)0) - sh;
-            if (reach.y < k0 || reach.x > k_last) continue;
-            if (v.amp[0] == (real_t)0 && v.amp[1] == (real_t)0) continue;  /* dark (shadowed, padding) */
-            const int s = reach.x + COMPRESSED;  /* the shifted centre's sample */
-            const real_t frac = v.frac - compressed_shift(v);
-            const real_t pos = (frac - floor(frac)) * (real_t)PHASES;
-            const int i = min(convert_int(pos), PHASES - 1);
-            const real_t w = pos - (real_t)i;
-            real_t cre[N_TABLES], cim[N_TABLES];
-            cre[0] = v.amp[0];
-            cim[0] = v.amp[1];
-#if N_TABLES == 3
-            {
-                /* c0 = a', c1 = a' b', c2 = a' (b'^2 / 2 + q): compressed.py, module docstring */
-                const real_t delta = compressed_shift(v);
-                const real_t cyc = -v.lin * v.lin / ((real_t)4 * v.chirp);
-                const real_t m = exp(v.gamma * delta * delta - v.beta * delta - v.level);
-                const real_t red = cyc - (real_t)convert_int(cyc);
-                const real_t pc = m * cospi((real_t)2 * red), ps = m * sinpi((real_t)2 * red);
-                const real_t ar = v.amp[0] * pc - v.amp[1] * ps, ai = v.amp[0] * ps + v.amp[1] * pc;
-                const real_t b1 = v.beta - (real_t)2 * v.gamma * delta;
-                const real_t qr = (real_t)0.5 * b1 * b1 + v.gamma, qi = (real_t)2 * REAL_PI * (v.chirp - alpha);
-                cre[0] = ar;
-                cim[0] = ai;
-                cre[1] = ar * b1;
-                cim[1] = ai * b1;
-                cre[2] = ar * qr - ai * qi;
-                cim[2] = ar * qi + ai * qr;
-            }
+            add_compressed_echo(v, reach, k0, table, row, impulse, imp_len, lag0, edge_lo, edge_hi, alpha, half_len,
+                                acc_re, acc_im);
+#else
+            add_raw_echo(v, reach, v.start - sh, k0, alpha, half_len, rho_c, rho_s, acc_re, acc_im);
 #endif
-            /* the edge samples' values (compressed.py, CompressedResponse.edge_weights) */
-            real_t ere[2], eim[2];
-            for (int q = 0; q < 2; ++q) {
-                const real_t d = (real_t)(q == 0 ? edge_lo : edge_hi) - (frac - floor(frac));
-                real_t pr = cre[0], pi = cim[0];
-#if N_TABLES == 3
-                pr += d * (cre[1] + d * cre[2]);
-                pi += d * (cim[1] + d * cim[2]);
-#endif
-                real_t cyc = alpha * d * d;
-                cyc -= (real_t)convert_int(cyc);
-                const real_t in = fabs(d) <= half_len ? (real_t)1 : (real_t)0;
-                const real_t cs = in * cospi((real_t)2 * cyc), sn = in * sinpi((real_t)2 * cyc);
-                ere[q] = pr * cs - pi * sn;
-                eim[q] = pr * sn + pi * cs;
-            }
-            const int a = reach.x - k0, e = reach.y - k0;
-            const int r_lo = a <= 0 ? 0 : a / 16;
-            const int r_hi = min(ROWS - 1, e / 16);
-            for (int r = r_lo; r <= r_hi; ++r) {
-                const int m0 = k0 + 16 * r - s;  /* the row's first tap */
-                const int col = PAD + COMPRESSED + m0;
-                for (int q = 0; q < 2; ++q) {
-                    if (ere[q] == (real_t)0 && eim[q] == (real_t)0) continue;
-                    __global const real_t *ip = impulse + PAD + lag0 + m0 - (q == 0 ? edge_lo : edge_hi);
-                    const realv_t yr = vload16(0, ip), yi = vload16(0, ip + imp_len);
-                    acc_re[r] += ere[q] * yr - eim[q] * yi;
-                    acc_im[r] += ere[q] * yi + eim[q] * yr;
-                }
-                for (int t = 0; t < N_TABLES; ++t) {
-                    __global const real_t *t0 = table + ((size_t)(t * (PHASES + 1) + i) * 2) * row + col;
-                    const realv_t y0r = vload16(0, t0), y0i = vload16(0, t0 + row);
-                    const realv_t y1r = vload16(0, t0 + 2 * row), y1i = vload16(0, t0 + 3 * row);
-                    const realv_t yr = y0r + w * (y1r - y0r), yi = y0i + w * (y1i - y0i);
-                    acc_re[r] += cre[t] * yr - cim[t] * yi;
-                    acc_im[r] += cre[t] * yi + cim[t] * yr;
-                }
-            }
         }
     }
     for (int r = 0; r < ROWS; ++r) {
@@ -628,4 +640,3 @@ __kernel void echo_accumulate_compressed(__global const echo_path_t *paths, __gl
             o[l] = (kr + l < n_valid) ? complex_new(re[l], im[l]) : complex_new((real_t)0, (real_t)0);
     }
 }
-#endif

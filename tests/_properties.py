@@ -126,9 +126,14 @@ def flags() -> Domain:
                                            st.just(TypeError)))
 
 
+CHOICE_OTHER_KINDS = (None, 0, 1.5, True, 1j)
+
+
 def choices(options, bad=("", "NONE", "unknown")) -> Domain:
-    """One of the strings ``options`` (others: ValueError)."""
-    return Domain(st.sampled_from(list(options)), st.tuples(st.sampled_from(list(bad)), st.just(ValueError)))
+    """One of the strings ``options``; anything else, a string or not (None, a number, a bool),
+    is a ValueError (docs/design.md: a choice is judged by membership, ``validate.choice``)."""
+    return Domain(st.sampled_from(list(options)), st.tuples(st.sampled_from(list(bad) + list(CHOICE_OTHER_KINDS)),
+                                                            st.just(ValueError)))
 
 
 def fixed(valid, bad) -> Domain:

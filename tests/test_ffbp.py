@@ -25,7 +25,7 @@ from clsas.image.ffbp.leaves import FirstStage
 from clsas.image.ffbp.merge import merge_opencl, merge_reference
 from clsas.image.ffbp import polar
 from clsas.image.ffbp.polar import Scene, interpolation_error, oversampling
-from clsas.image.ffbp.tree import plan
+from clsas.image.ffbp.tree import _Frames, plan
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets
 
@@ -158,6 +158,62 @@ def test_batched_leaves_match_backproject(opencl_device):
         assert np.all(got[~grids[k].inside()] == 0)
 
 
+def test_records_prepared_a_batch_at_a_time_give_the_same_image(opencl_device, monkeypatch):
+    """Every pulse's records prepared once (they fit leaves.RECORD_BYTES) or a batch of leaves at a
+    time on a copy of its pulses (they do not; a byte allowed here): the same leaves and image
+    (measured relative L2 0: the same records, read at the same rows)."""
+    from clsas.image.ffbp import leaves
+
+    echo = echo_of("motion")
+    once = ffbp(echo, GRID, backend="opencl", progress=False)
+    monkeypatch.setattr(leaves, "RECORD_BYTES", 1)
+    batched = ffbp(echo, GRID, backend="opencl", progress=False)
+    assert once.provenance["polar_samples"] == batched.provenance["polar_samples"]
+    assert rel_l2(batched.data, once.data) < 1e-6
+
+
+def test_leaf_references_on_the_device_match_the_hosts(opencl_device, monkeypatch):
+    """The leaves' tile references computed on the device (bp_refs, a launch a leaf) where every
+    receiver moves uniformly (two position nodes: the straight track), or on the host: the same
+    image (measured relative L2 0 on this machine; the twins may round differently elsewhere); on
+    the track with motion errors (17 nodes) the host computes them."""
+    from clsas.image.ffbp import leaves
+
+    used = []
+    device = leaves.FirstStage._device_references
+
+    def spy(self, *args):
+        used.append(device(self, *args))
+        return used[-1]
+
+    monkeypatch.setattr(leaves.FirstStage, "_device_references", spy)
+    echo = echo_of("straight", "speckle")
+    on_device = ffbp(echo, GRID, backend="opencl", progress=False)
+    assert used and all(refs is not None for refs in used)
+    with monkeypatch.context() as m:
+        m.setattr(leaves.FirstStage, "_device_references", lambda self, *args: None)
+        on_host = ffbp(echo, GRID, backend="opencl", progress=False)
+    assert rel_l2(on_device.data, on_host.data) < 1e-6
+    used.clear()
+    ffbp(echo_of("motion"), GRID, backend="opencl", progress=False)
+    assert used and all(refs is None for refs in used)
+
+
+def test_a_grid_scene_is_kept_only_while_nothing_can_change_it():
+    """ffbp keeps a Grid's Scene (skeleton, margin, plane) for later calls on it, since a Grid's own
+    positions are read-only; positions that are a view of someone's array are read again."""
+    import importlib
+
+    ffbp_package = importlib.import_module("clsas.image.ffbp")  # the package (clsas.image.ffbp is also the function)
+    assert ffbp_package._scene(GRID) is ffbp_package._scene(GRID)
+    base = GRID.positions.copy()
+    view = Grid(base[::2], GRID.dims, {})  # a read-only view of a writable array
+    first = ffbp_package._scene(view)
+    base[..., 2] += 1.0
+    assert ffbp_package._scene(view) is not first
+    assert np.allclose(ffbp_package._scene(view).plane.centroid[2], first.plane.centroid[2] + 1.0)
+
+
 def test_leaves_no_tile_can_hold_go_through_backproject(opencl_device, monkeypatch):
     """Leaves whose polar samples lie so far apart that even bp_tile's smallest tile (ROWS x
     LANES samples) leaves the float32 budget (a very short leaf's coarse angles; here the budget
@@ -177,6 +233,41 @@ def test_leaves_no_tile_can_hold_go_through_backproject(opencl_device, monkeypat
         one = backproject(records, Grid.points(grids[k].points()), pulses=(p0, p1), backend="opencl",
                           progress=False).data * np.exp(-4j * np.pi * echo.waveform.f0 * grids[k].ranges / echo.medium.sound_speed)
         assert rel_l2(got, one * grids[k].inside()) < 1e-6
+
+
+def test_rows_spans_are_the_envelope_over_each_rows_window():
+    """The rows' spans of every grid of a tree (sampled together, by sparse tables of the extents'
+    envelopes) against each row's window of envelope bins read directly (polar.sample_grids'
+    definition): equal, row by row."""
+    echo = echo_of("motion")
+    scene = Scene.of(GRID.positions)
+    tree = plan(echo, list(range(echo.n_rx)), scene, 2, 0.1, 8, None, 0.5)
+    frames = _Frames(echo, list(range(echo.n_rx)), scene)
+    nodes = [node for level in tree.pulses[:tree.top + 1] for node in level]
+    centres, axes, halves, bases = frames.frames(nodes)
+    c = echo.medium.sound_speed
+    window = np.array([c * float(echo.t0.min()) / 2, c * (float(echo.t0.max()) + echo.n_samples / echo.fs) / 2])
+    found = polar.extents(centres, axes, halves, scene, window + np.stack([-halves - bases / 2, halves + bases / 2], 1),
+                          echo.waveform.bandwidth, echo.waveform.f0, c, None)
+    found = [e for e in found if e is not None]
+    grids = polar.sample_grids(found, 1.6, 8)
+    checked = 0
+    for e, g in zip(found, grids):
+        pad, (start, width) = 8 // 2 + 2, e.bins
+        reach_v = e.margin / e.r_lo + pad * g.dv
+        for j, v in enumerate(g.sines):
+            b0 = int(np.clip(np.floor((v - reach_v - start) / width), 0, len(e.envelope)))
+            b1 = int(np.clip(np.floor((v + reach_v - start) / width) + 1, 0, len(e.envelope)))
+            near, far = e.envelope[b0:b1, 0].min(initial=np.inf), e.envelope[b0:b1, 1].max(initial=-np.inf)
+            if near > far:
+                assert tuple(g.spans[j]) == (0, 0)
+                continue
+            widen = e.margin + pad * g.dr
+            lo = np.clip(np.floor((near - widen - g.r0) / g.dr), 0, g.n_r)
+            hi = np.clip(np.ceil((far + widen - g.r0) / g.dr) + 1, 0, g.n_r)
+            assert tuple(g.spans[j]) == (lo, hi)
+            checked += 1
+    assert checked > 100
 
 
 def test_ragged_grids_skip_the_wedge_and_change_nothing(opencl_device, monkeypatch):

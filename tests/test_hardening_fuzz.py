@@ -39,3 +39,24 @@ def test_the_fuzz_judges_by_the_rule():
     assert fuzz_api.judge(target(lambda speed: speed), p, "a", 5).startswith("accepted")
     assert fuzz_api.judge(target(lambda speed: {"x": (speed * 1e10,)}), p, 1e300, 5).startswith("nonfinite")
     assert fuzz_api.owner("clsas.estimate.moving.velocity") == "moving" and fuzz_api.owner("clsas.metrics") == "harden"
+
+
+def test_the_fuzz_judges_choices_by_membership():
+    """A choice refuses anything not among its options with a ValueError, a string or not
+    (docs/design.md); a TypeError there is a defect, as is a nonsense string accepted."""
+    p = fuzz_api.Param("window", "choice")
+
+    def target(fn):
+        return fuzz_api.Target("shade", lambda **kw: fn(**kw), (p,), "clsas")
+
+    def by_value(window):
+        raise ValueError(f"shade window: must be one of ('none', 'hamming'), got {window!r}")
+
+    def by_kind(window):
+        raise TypeError(f"shade window: must be a string, got {window!r}")
+
+    assert fuzz_api.judge(target(by_value), p, None, 5) is None
+    assert fuzz_api.judge(target(by_value), p, 1j, 5) is None
+    assert fuzz_api.judge(target(by_kind), p, None, 5).startswith("choice: TypeError")
+    assert fuzz_api.judge(target(lambda window: window), p, "unknown", 5).startswith("accepted")
+

@@ -229,7 +229,7 @@ def test_estimate_rejects_bad_input_naming_the_parameter():
     with pytest.raises(ValueError, match="receivers: unknown receiver 'Z'"):
         clsas.estimate_motion(echo, receivers=["A", "B", "Z"])
     for bad in [(1.0, 2.0), np.zeros((3, 1)), (np.nan, 0.0, 0.0), 5.0]:
-        with pytest.raises(ValueError, match="position must be"):
+        with pytest.raises(ValueError, match="position: must"):
             clsas.estimate_motion(echo, position=bad)
     with pytest.raises(TypeError, match="est must be a MotionEstimate"):
         clsas.focus_moving(echo, {"A": None})

@@ -24,7 +24,8 @@ import pytest
 
 from clsas import PointTargets
 from clsas.errors import EstimationError
-from clsas.estimate.moving.chain import P0, THRESHOLD_DB, estimate_receiver, estimate_receivers
+from clsas.estimate.moving.chain import P0, THRESHOLD_DB, estimate_receiver
+from clsas.estimate.moving.targets import estimate_receivers
 from clsas.estimate.moving.receiver_focus import focus_receiver
 from clsas.estimate.moving import filters
 from clsas.estimate.moving.sowvd import modified_sowvd
@@ -159,7 +160,8 @@ def test_noise_minus_25_db_raises(unaliased):
 
 def test_sowvd_peak_to_background_test(case1):
     """A noise-only SoWVD map has no peak over the threshold; a clean echo's peak fails a
-    threshold set above it, with the message naming the receiver and both figures."""
+    threshold set above it (the focus then confirms the rate, unless ``focus_db=None`` or above
+    the image's peak), with the message naming the receiver and the figures."""
     rng = np.random.default_rng(7)
     noise = rng.standard_normal(1024) + 1j * rng.standard_normal(1024)
     wv = modified_sowvd(noise, 80.0, P0)
@@ -167,7 +169,12 @@ def test_sowvd_peak_to_background_test(case1):
     _, echo, _ = case1
     with pytest.raises(EstimationError, match=r"receiver C: no SoWVD peak stands out .*: peak-to-background "
                                               r"\d+\.\d dB < threshold 200.0 dB"):
-        estimate_receiver(echo, "C", threshold_db=200.0)
+        estimate_receiver(echo, "C", threshold_db=200.0, focus_db=None)
+    assert estimate_receiver(echo, "C", threshold_db=200.0).fm_rate == pytest.approx(case1[2]["C"][0], rel=K_RTOL)
+    with pytest.raises(EstimationError, match=r"receiver C: no SoWVD peak .* 200.0 dB, and focused with its best "
+                                              r"candidate K = .* holds no target: image peak \d+\.\d dB over its median "
+                                              r"< 300 dB"):
+        estimate_receiver(echo, "C", threshold_db=200.0, focus_db=300.0)
 
 
 def test_two_targets_strongest_first():

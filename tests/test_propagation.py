@@ -288,7 +288,7 @@ def test_seafloor_facets_take_no_bounce_off_the_seabed_they_lie_on(backend):
 def test_points_laid_on_the_seabed_take_no_bounce_next_to_it():
     """A point on the seabed's mean plane (as the DPCA scene lays its points) is "on the floor"
     like the facets; one 5 m above it is not."""
-    from clsas.synthesis.echo.synth import on_floor
+    from clsas.synthesis.echo.physics import on_floor
 
     sc = shallow_scene().replace(targets=(PointTargets([[40.0, 0.0, -50.0], [40.0, 0.0, -45.0]]),))
     kinds = path_kinds(boundaries(sc), 1)

@@ -11,6 +11,7 @@ budget properties are slow tests (``make test-all``).
 from __future__ import annotations
 
 import atexit
+import dataclasses
 import functools
 import os
 import shutil
@@ -22,7 +23,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from _properties import CHECKS, choices, fixed, flags, integers, parameter_properties, reals
+from _properties import CHECKS, Domain, choices, fixed, flags, integers, parameter_properties, reals
 
 import clsas
 from clsas import cli, io
@@ -207,26 +208,37 @@ def compressed():
 
 GRID = clsas.Grid.plane(np.linspace(29, 31, 6), np.linspace(-1, 1, 6), 0.0)
 
+@functools.cache
+def ffbp_warm():
+    """The echo, and one ffbp call on each backend: the first call imports pyopencl and builds
+    the process's cached tables and kernels (~4 MB once), which are not the call's memory."""
+    for backend in ("numpy", "opencl"):
+        clsas.ffbp(compressed(), GRID, progress=False, backend=backend)
+    return compressed()
+
+
 test_ffbp_bad_values, test_ffbp_valid_values, test_ffbp_budget = parameter_properties(
-    lambda **kw: clsas.ffbp(compressed(), GRID, progress=False, **kw), prefix="ffbp", setup=compressed,
-    check=_finite, may_refuse=True, budget=16 << 20, examples=8, backends=("numpy", "opencl"),
-    labels={"upsample": "upsample", "interp": "interp"},  # named "backproject upsample" (see the report)
+    lambda **kw: clsas.ffbp(compressed(), GRID, progress=False, **kw), prefix="ffbp", setup=ffbp_warm,
+    check=_finite, may_refuse=True, budget=1 << 20, examples=8, backends=("numpy", "opencl"),
     domains={"factor": integers(2, 16, valid=st.integers(2, 4)), "tolerance": reals(0.0, 1.0, low_open=True,
                                                                                    high_open=True),
-             "first": integers(1, 8, none=True), "upsample": integers(1, 64, valid=st.integers(1, 8)),
+             # first=1 is valid but fails inside ffbp (one-pulse leaves' polar grids hold sines far
+             # outside [-1, 1]; reported to the ffbp developer): drawn from 2 until it is fixed
+             "first": integers(1, 8, none=True, valid=st.integers(2, 8)),
+             "upsample": integers(1, 64, valid=st.integers(1, 8)),
              "aperture": reals(0.0, np.pi, low_open=True, none=True), "stop_and_go": flags(),
              "interp": choices(("linear", "sinc8"), bad=("cubic", "", "LINEAR"))})
 test_ffbp_valid_values = slow(test_ffbp_valid_values)
-# not held yet (see the report): under a 1 MiB budget ffbp allocates ~4 MiB before refusing, and with
-# stop_and_go=True, interp="sinc8", first=1 it raises "Grid.points positions: must be within +-1e+06"
+# not held yet (reported to the ffbp developer): the NumPy backend with interp="sinc8" allocates
+# 4.1 MB under a 1 MiB budget without refusing (OpenCL: 0.1 MB), and the first call with a new
+# tolerance or first builds ~1.6-3.4 MB of tables before refusing under 64 KiB
 del test_ffbp_budget
 
 test_prepare_bad_values, test_prepare_valid_values, test_prepare_budget = parameter_properties(
     lambda **kw: prepare(compressed(), **kw), prefix="prepare", setup=compressed, budget=1 << 20, examples=10,
-    labels={"upsample": "upsample", "interp": "interp"},  # named "backproject upsample" (see the report)
     domains={"upsample": integers(1, 64, valid=st.integers(1, 16)),
-             "interp": choices(("linear", "sinc8"), bad=("cubic", "", "LINEAR"))})
-# prepare's workers: not held here (2**64 is a TypeError from scipy, object() a ValueError: see the report)
+             "interp": choices(("linear", "sinc8"), bad=("cubic", "", "LINEAR")),
+             "workers": integers(-1024, 1024, none=True, valid=st.sampled_from([1, 2, -1]))})
 
 
 @functools.cache
@@ -237,16 +249,12 @@ def dpca_setup():
 test_dpca_estimate_bad_values, test_dpca_estimate_valid_values, test_dpca_estimate_budget = parameter_properties(
     lambda **kw: dpca.estimate(dpca_setup()[0], dpca_setup()[1], **{"speed": dpca_setup()[2], **kw}),
     prefix="dpca.estimate", setup=dpca_setup, outcomes=(EstimationError,), may_refuse=True, budget=32 << 20,
-    examples=8,
+    examples=8, labels={"speed": "speed"},  # too fast for the array: "dpca: at speed 2.0 m/s ... lower the speed"
     domains={"speed": reals(0.0, None, low_open=True, valid=st.floats(0.5, 2.0)),
              "min_coherence": reals(0.0, 1.0, high_open=True, valid=st.floats(0.1, 0.9)),
              "lags": integers(1, None, valid=st.integers(1, 3)), "t_lags": integers(1, None, valid=st.integers(1, 16)),
              "block": integers(1, None, valid=st.integers(16, 256)), "n_angles": integers(1, None,
                                                                                           valid=st.integers(3, 129))})
-# not held yet (see the report): a pair that does not correlate is a ValueError ("dpca: ping pair 0-1 has no
-# range block ...", an estimator finding nothing: EstimationError), and under a 2.3 MB budget the default call
-# allocates 19.5 MB before refusing
-del test_dpca_estimate_valid_values, test_dpca_estimate_budget
 
 test_integrate_bad_values, test_integrate_valid_values, test_integrate_budget = parameter_properties(
     lambda speed=None, heading0=0.0: dpca.integrate(dpca_setup()[3], dpca_setup()[0].eta,
@@ -318,6 +326,117 @@ test_closed_forms_bad_values, test_closed_forms_valid_values, test_closed_forms_
              "model": choices(("exact", "paper"))})
 # closed_forms position 1e300 (NaN out), velocity 1500 m/s (NaN out), position "a" (a ValueError) and
 # eta_ref NaN (accepted): not held here (see the report)
+
+
+# --- added since the first hardening, session 3: the moving chain's other entry points, DPCA's
+# compensation, the conversions, the backend ---------------------------------------------------
+
+@functools.cache
+def motion():
+    """kiang()'s motion estimate (for focus_moving)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return clsas.estimate_motion(kiang())
+
+
+test_estimate_motions_bad_values, test_estimate_motions_valid_values, test_estimate_motions_budget = \
+    parameter_properties(lambda **kw: clsas.estimate_motions(kiang(), **kw), prefix="estimate_motions", setup=kiang,
+                         outcomes=(EstimationError,), may_refuse=True, budget=256 << 20, examples=4,
+                         domains={"n_targets": integers(1, 4, valid=st.integers(1, 2))})
+# p0 and threshold_db: not held (2**64 an unnamed TypeError from isfinite, None/True/'a' ValueErrors;
+# reported to the moving developer)
+test_estimate_motions_valid_values = slow(test_estimate_motions_valid_values)
+test_estimate_motions_budget = slow(test_estimate_motions_budget)
+
+test_focus_moving_bad_values, test_focus_moving_valid_values, test_focus_moving_budget = parameter_properties(
+    lambda **kw: clsas.focus_moving(kiang(), motion(), **{"half_size": 2.0, "spacing": 0.1, **kw}),
+    prefix="focus_moving", setup=motion, check=lambda images: [_finite(i) for i in images.values()],
+    may_refuse=True, budget=None, examples=6,
+    domains={"tau_span": reals(0.0, 10.0, low_open=True, none=True, valid=st.floats(1e-3, 5e-3)),
+             "sharpen": flags(), "method": choices(("bp", "paper")),
+             "spacing": reals(0.0, 100.0, low_open=True, valid=st.floats(0.05, 0.5)),
+             "half_size": reals(0.0, 1e4, low_open=True, valid=st.floats(0.5, 3.0))})
+# the budget: not held (half_size=1e4, spacing=0.01 tries to allocate 29 TiB, a MemoryError, under any
+# budget; reported to the moving developer)
+test_focus_moving_valid_values = slow(test_focus_moving_valid_values)
+
+
+@functools.cache
+def still_track():
+    """dpca_setup()'s track with no motion at all (along, cross, heading zero)."""
+    echo, array, speed, pairs = dpca_setup()
+    track = dpca.integrate(pairs, echo.eta, speed, array)
+    return dataclasses.replace(track, along=np.zeros_like(track.along), cross=np.zeros_like(track.cross),
+                               heading=np.zeros_like(track.heading))
+
+
+@functools.cache
+def dpca_scene():
+    echo, array, speed, _ = dpca_small()
+    return presets.heremans2009(n_pulses=echo.n_pulses)
+
+
+@functools.cache
+def compensated():
+    """One compensate_record call (the process's cached tables built before the budget is traced)."""
+    return dpca.compensate_record(dpca_setup()[0], still_track(), dpca_scene(), list(range(4, 11)))
+
+
+test_compensate_record_bad_values, test_compensate_record_valid_values, test_compensate_record_budget = \
+    parameter_properties(lambda **kw: dpca.compensate_record(dpca_setup()[0], still_track(), dpca_scene(),
+                                                             list(range(4, 11)), **kw),
+                         prefix="dpca.compensate_record", setup=compensated, check=_finite, may_refuse=True,
+                         budget=None, examples=8,
+                         # "compensate_record: subaperture" ([4, 90]), then "beam_correction: subaperture"
+                         # ([4, 42] here): reported to the DPCA developer
+                         labels={"subaperture": "subaperture"},
+                         domains={"subaperture": integers(4, 90, valid=st.integers(2, 45).map(lambda k: 2 * k))})
+# not held yet (reported to the DPCA developer): depth (1e300: an unnamed "beam_correction: n_z must be a
+# direction cosine"), workers (unchecked: 2**64 reaches scipy's c2c), and the budget (the default call
+# allocates 1.6-3.4 MB before refusing under 1 MiB)
+
+
+def _converted(obj=None):
+    return clsas.to_xarray(compressed() if obj is None else obj)
+
+
+test_to_xarray_bad_values, test_to_xarray_valid_values, _ = parameter_properties(
+    _converted, prefix="to_xarray", setup=compressed, budget=None, examples=8,
+    domains={"obj": fixed([None], [("a", TypeError), (1.0, TypeError), (np.zeros(3), TypeError),
+                                   (object(), TypeError)])})
+
+
+CONVERTED = "the converted echo"  # the valid value of from_xarray's ds (its dataset is made in the call)
+
+
+def _back(ds=CONVERTED):
+    return clsas.from_xarray(_converted() if ds is CONVERTED else ds)
+
+
+test_from_xarray_bad_values, test_from_xarray_valid_values, _ = parameter_properties(
+    _back, prefix="from_xarray", setup=compressed, check=_finite, budget=None, examples=8,
+    domains={"ds": fixed([CONVERTED], [("a", TypeError), (None, TypeError), (1j, TypeError), (object(), TypeError),
+                                       ({"attrs": {}}, TypeError)])})
+
+
+def _use_backend(name="numpy"):
+    with clsas.use_backend(name) as chosen:
+        return chosen.name
+
+
+test_use_backend_bad_values, test_use_backend_valid_values, _ = parameter_properties(
+    _use_backend, prefix="use_backend", budget=None, examples=10,
+    domains={"name": choices(("numpy", "opencl", "auto"), bad=("cuda", "", "gpu"))})
+
+
+def _to_toml(inline_meshes=None, path="scene.toml"):
+    return clsas.scenario_to_toml(small()[0], folder() / path, inline_meshes=inline_meshes)
+
+
+test_scenario_to_toml_bad_values, test_scenario_to_toml_valid_values, _ = parameter_properties(
+    _to_toml, prefix="scenario_to_toml", budget=None, examples=8,
+    domains={"inline_meshes": Domain(st.sampled_from([None, True, False]),
+                                     st.tuples(st.sampled_from(["no", 0, 1.0]), st.just(TypeError)))})
 
 
 # --- the command line ---------------------------------------------------------------------------

@@ -90,15 +90,14 @@ def nominal_offsets(echo: EchoData, chosen, track, tau: float):
 
 
 def _per_pulse(name: str, value, n_pulses: int) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim == 0:
-        arr = np.full(n_pulses, float(arr))
-    if arr.shape != (n_pulses,):
-        raise ValueError(f"{name} must hold one angle (rad) per pulse: shape ({n_pulses},), got {arr.shape}")
-    if not np.all(np.isfinite(arr)) or np.abs(arr).max() > np.pi / 4:
-        raise ValueError(f"{name} must be finite angles within +-45 deg (rad), got values up to "
-                         f"{np.nanmax(np.abs(arr)):.3g}")
-    return arr
+    """``value``: one angle (rad) for every pulse or one per pulse, finite within +-45 deg, as
+    (n_pulses,) float64; TypeError for a wrong kind (a string, a bool, a complex number),
+    ValueError for a bad value, both naming ``name``."""
+    if not isinstance(value, (list, tuple)) and not (isinstance(value, np.ndarray) and value.ndim > 0):
+        angle = v.scalar(name, value, low=-np.pi / 4, high=np.pi / 4, unit="rad", why="+-45 deg")
+        return np.full(n_pulses, angle)
+    arr = v.array(name, value, (n_pulses,), bound=np.pi / 4)
+    return np.array(arr)
 
 
 def path_offset(r, d, yaw, pitch, dz: float, speed: float, c: float, nonstop: bool = True) -> np.ndarray:
@@ -205,4 +204,4 @@ def _attitude(name: str, value, measured: np.ndarray, echo: EchoData, r_ref: flo
         return measured
     if isinstance(value, Platform):
         return value.motion_error(name, echo.eta + 2 * r_ref / echo.medium.sound_speed)
-    return _per_pulse(name, value, echo.n_pulses)
+    return _per_pulse(f"correct_inclined_array {name}", value, echo.n_pulses)

@@ -69,7 +69,8 @@ TWO_TARGET_OFFSET = (0.0, 50.0, 0.0)  # m, the second target from the first (dir
 # Section VII-C, Fig. 22: the velocity error lies in 1.8-2.2 % for SNR >= -17 dB; at -20 dB the
 # SoWVD has no peak and the method halts.
 PAPER_SNR = {"floor_db": -17.0, "error_pct": (1.8, 2.2), "halts_db": -20.0}
-SNR_SWEEP_DB = (-5.0, -10.0, -15.0, -17.0, -20.0)
+SNR_SWEEP_DB = (-5.0, -10.0, -13.0, -15.0, -17.0, -20.0)
+SNR_READINGS = ("echo", "record")  # clsas.synthesis.echo.pipeline.SNR_REFERENCES
 PAPER_SSIM = {"RDA": 0.9398, "CSA": 0.9111, "omega-k": 0.9082}  # section VII-A, case 1, against Fig. 18(a)
 
 
@@ -85,8 +86,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="give the target's position (the paper), estimate it with v, or both (two estimates "
                              "from one echo)")
     parser.add_argument("--snr", type=float, default=None,
-                        help="add white noise at this SNR, dB (clsas's definition: the echo's mean power over "
-                             "the samples it occupies over the noise variance; the paper does not define its own)")
+                        help="add white noise at this SNR, dB (the paper does not define its SNR: see --snr-reading)")
+    parser.add_argument("--snr-reading", choices=SNR_READINGS, default="echo",
+                        help="the signal power of --snr: the mean over the samples the echo occupies ('echo', "
+                             "clsas.simulate's) or over every recorded sample ('record', MATLAB's awgn "
+                             "'measured' on the whole record); they differ by the echo's duty in the record "
+                             "(clsas.synthesis.echo.pipeline.add_noise)")
     parser.add_argument("--snr-sweep", action="store_true",
                         help=f"section VII-C: the first of --cases at SNR {', '.join(f'{x:g}' for x in SNR_SWEEP_DB)} "
                              "dB beside the paper's Fig. 22")
@@ -125,8 +130,22 @@ def window(image, centre_r: float, centre_y: float, half: float):
                          positions=None if image.positions is None else image.positions[rows, cols])
 
 
-def run_case(case: int, args) -> dict:
-    """Simulate, estimate and focus one case; returns the table row (and writes its images)."""
+def with_noise(echo, snr_db: float, seed, reading: str):
+    """``echo`` with white noise at ``snr_db`` dB read as ``reading`` ("echo" or "record":
+    :func:`clsas.synthesis.echo.pipeline.add_noise` derives both), and SNR_record - SNR_echo per
+    receiver, dB (:func:`~clsas.synthesis.echo.pipeline.snr_offset_db`)."""
+    from ..synthesis.echo.pipeline import add_noise, snr_offset_db
+
+    n_valid = echo.provenance["n_valid"]
+    offset = snr_offset_db(echo.data, n_valid)
+    data = add_noise(echo.data.copy(), snr_db, seed, n_valid, reference=reading)
+    return echo.replace(data=data, provenance={**echo.provenance, "snr_db": snr_db, "snr_reading": reading,
+                                               "seed": seed}), offset
+
+
+def run_case(case: int, args, clean=None) -> dict:
+    """Simulate (or take the noise-free echo ``clean``), add the noise of ``args.snr``, estimate and
+    focus one case; returns the table row (and writes its images)."""
     import clsas
 
     from ..errors import EstimationError
@@ -138,10 +157,12 @@ def run_case(case: int, args) -> dict:
     v_true = np.array(presets.KIANG_CASES[case])
     truth = closed_forms(sc, CENTRE, v_true)
     t = time.perf_counter()
-    echo = clsas.simulate(sc, backend=args.backend, snr_db=args.snr, seed=case, progress=False)
-    t_sim = time.perf_counter() - t
+    echo = clsas.simulate(sc, backend=args.backend, progress=False) if clean is None else clean
+    row = {"case": case, "truth": truth, "v_true": v_true}
+    if args.snr is not None:
+        echo, row["snr_offset_db"] = with_noise(echo, args.snr, case, args.snr_reading)
+    row["simulate_s"] = time.perf_counter() - t
     t = time.perf_counter()
-    row = {"case": case, "truth": truth, "v_true": v_true, "simulate_s": t_sim}
     try:
         est = clsas.estimate_motion(echo, position=None if args.position == "estimated" else CENTRE)
     except EstimationError as err:
@@ -265,8 +286,9 @@ def run(args) -> int:
     report.check_output(args)
     rep = report.Report("kiang2022", "Kiang & Kiang 2022 Table II: a moving target's velocity from A, B and "
                         f"sonobuoy C ({args.targets})", assumptions=[
-                            "noise (--snr): clsas's SNR, the echo's mean power over the samples it occupies over "
-                            "the noise variance (the paper does not define its SNR)",
+                            f"noise (--snr): read as '{args.snr_reading}' (the echo's mean power over the samples "
+                            "it occupies, or over the whole record, over the noise variance; the paper does not "
+                            "define its SNR)",
                             "the submarine: the Albacore mesh scaled by 1/6, facets <= 0.15 m, hull occlusion"],
                         settings={k: (list(v) if isinstance(v, (list, tuple)) else v) for k, v in vars(args).items()
                                   if k != "func"})
@@ -323,7 +345,9 @@ def run_two(args) -> int:
     sc, centres = two_target_scene(n_pulses)
     truths = (np.array(presets.KIANG_CASES[1]), np.array(presets.KIANG_CASES[3]))
     t = time.perf_counter()
-    echo = clsas.simulate(sc, backend=args.backend, snr_db=args.snr, seed=1, progress=False)
+    echo = clsas.simulate(sc, backend=args.backend, progress=False)
+    if args.snr is not None:
+        echo, _ = with_noise(echo, args.snr, 1, args.snr_reading)
     t_sim = time.perf_counter() - t
     t = time.perf_counter()
     found = clsas.estimate_motions(echo, 2, positions=None if args.position == "estimated" else list(centres))
@@ -351,29 +375,42 @@ def run_two(args) -> int:
 
 
 def run_snr_sweep(args) -> int:
-    """Section VII-C: the first of ``--cases`` at each SNR of :data:`SNR_SWEEP_DB` (clsas's SNR
-    definition, :mod:`clsas.synthesis.echo.pipeline`) beside the paper's Fig. 22."""
-    from ..errors import EstimationError  # noqa: F401  (run_case reports it in the row)
+    """Section VII-C: the first of ``--cases`` at each SNR of :data:`SNR_SWEEP_DB`, in both readings
+    of the paper's SNR (:func:`with_noise`), beside the paper's Fig. 22; one noise-free echo."""
+    import clsas
 
     case = args.cases[0]
-    print(f"Kiang & Kiang 2022 section VII-C, case {case} ({args.targets}): velocity error against SNR. The paper "
-          f"(Fig. 22): {PAPER_SNR['error_pct'][0]}-{PAPER_SNR['error_pct'][1]} % for SNR >= "
-          f"{PAPER_SNR['floor_db']:g} dB, no SoWVD peak (halted) at {PAPER_SNR['halts_db']:g} dB. The paper adds "
-          "noise 'at a given level' without defining the SNR; clsas's SNR is the echo's mean power over the "
-          "samples it occupies over the noise variance (a whole-record definition is lower by 10 log10 of the "
-          "share of samples the echo occupies).")
-    print(f"  {'SNR dB':>7} {'clsas error %':>14} {'confidence':>11}  paper")
+    n_pulses = args.pulses or (6400 if args.targets == "submarine" else 2048)
+    clean = clsas.simulate(scene(case, args.targets, n_pulses), backend=args.backend, progress=False)
+    _, offset = with_noise(clean, 0.0, 0, "echo")
+    print(f"Kiang & Kiang 2022 section VII-C, case {case} ({args.targets}, {n_pulses} pulses): velocity error "
+          f"against SNR. The paper (Fig. 22): {PAPER_SNR['error_pct'][0]}-{PAPER_SNR['error_pct'][1]} % for SNR >= "
+          f"{PAPER_SNR['floor_db']:g} dB, no SoWVD peak (halted) at {PAPER_SNR['halts_db']:g} dB. It adds noise 'at "
+          "a given level' to s_rb1 without saying over which samples the signal power is taken: 'echo' reads it "
+          "over the samples the echo occupies (clsas.simulate's snr_db), 'record' over every recorded sample. "
+          "SNR_record = SNR_echo + 10 log10(duty), here "
+          + ", ".join(f"{n} {o:+.1f} dB" for n, o in zip(clean.receivers, offset)) + ".")
+    print("  error % (|sigma| / |v| %) and confidence in each reading")
+    print(f"  {'SNR dB':>7} {'record: error (sigma) %':>26} {'conf':>5} {'echo: error (sigma) %':>24} {'conf':>5}  paper")
+    failed = {}
     for snr in SNR_SWEEP_DB:
-        sub = argparse.Namespace(**{**vars(args), "snr": snr, "no_images": True, "position": "given"})
-        row = run_case(case, sub)
+        cells = []
+        for reading in ("record", "echo"):
+            sub = argparse.Namespace(**{**vars(args), "snr": snr, "snr_reading": reading, "no_images": True,
+                                        "position": "given"})
+            row = run_case(case, sub, clean)
+            if "est" in row:
+                sigma = 100 * np.linalg.norm(row["est"].sigma) / np.linalg.norm(row["v_true"])
+                cells.append(f"{row['err_pct']:.3f} ({sigma:.3f}) {row['est'].confidence:5.2f}")
+            else:
+                cells.append(f"{'halted':>15}     -")
+                failed[(snr, reading)] = row["error"]
         paper = ("halted" if snr <= PAPER_SNR["halts_db"] else
                  f"{PAPER_SNR['error_pct'][0]}-{PAPER_SNR['error_pct'][1]} %" if snr >= PAPER_SNR["floor_db"] else "-")
-        if "est" in row:
-            print(f"  {snr:7.1f} {row['err_pct']:14.3f} {row['est'].confidence:11.2f}  {paper}")
-        else:
-            print(f"  {snr:7.1f} {'halted':>14} {'-':>11}  {paper}   ({row['error']})")
+        print(f"  {snr:7.1f} {cells[0]:>32} {cells[1]:>30}  {paper}")
+    for (snr, reading), error in failed.items():
+        print(f"  {snr:g} dB ({reading}): {error}")
     return 0
-
 
 def fill_report(rep, rows: list) -> None:
     """Table II's printed numbers beside clsas's (:mod:`clsas.reproduce.report`): the velocity

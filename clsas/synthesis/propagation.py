@@ -32,7 +32,7 @@ quadratic in f - f0 (least squares on 64 points across [f0 - B/2, f0 + B/2]):
 
 so the envelope is exp(-R a0) exp(beta d + gamma d^2) in the sample offset d from the echo
 centre, beta = -R a1 K / fs, gamma = -R a2 (K / fs)^2: the echo kernel folds it into its chirp
-recurrence (a complex quadratic exponent, :mod:`clsas.synthesis.echo.synth`), so it costs no
+recurrence (a complex quadratic exponent, :mod:`clsas.synthesis.echo.launch`), so it costs no
 extra transcendental a sample. The fit's largest error (Np/m) is :attr:`BandAbsorption.error`;
 times the longest path it bounds the envelope's error.
 

@@ -358,7 +358,8 @@ def xlag_offset(q: np.ndarray, array: Array, f0: float, c: float, step: float) -
     k = 2 * np.pi * f0 / c
     eps = np.linspace(-0.5, 0.5, 101)
     lags = (np.arange(-1, 2)[:, None] - eps[None, :]) * step                       # (3, eps)
-    rho = (np.cos(2 * k * lags[..., None] * sin_t) @ power) / np.sum(power)       # (3, eps)
+    # one lag at a time: the (3, eps, angle) table at once was ~20 MB of temporaries
+    rho = np.array([np.cos(2 * k * lag * sin_t) @ power for lag in lags.ravel()]).reshape(lags.shape) / np.sum(power)
     q_model = (rho[2] - rho[0]) / (2 * rho[1] - rho[2] - rho[0])
     return np.interp(q, q_model, eps)
 

@@ -10,12 +10,13 @@ import numpy as np
 import scipy.fft
 
 from ... import budget, validate
+from ...errors import EstimationError
 from ...model import EchoData
 from ...scene.scenario import Array
 from ...kernelmath import unit_phasor
 from .correlate import aligned, correlations, parabola, peak_ratio
-from .geometry import (SeafloorExtent, beam_sin2, inside_swath, look_moments, main_lobe_sin2, pairing, pca_delay,
-                       scenario_extent, xlag_offset)
+from .geometry import (ANGLES, SUB_RANGES, SeafloorExtent, beam_sin2, inside_swath, look_moments, main_lobe_sin2,
+                       pairing, pca_delay, scenario_extent, xlag_offset)
 
 log = logging.getLogger("clsas")
 
@@ -109,14 +110,18 @@ def _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles, ext
         raise ValueError(f"dpca.estimate echo: needs at least 2 pings, the echo has {echo.n_pulses}")
 
 
-def _check_budget(n_couples: int, pairs: int, blocks: int, block: int, t_lags: int, n_angles: int) -> None:
+def _check_budget(n_couples: int, pairs: int, blocks: int, block: int, t_lags: int, n_angles: int,
+                  records: int = 0, extent: bool = False) -> None:
     """Refuse before allocating what the scans need at their peak: the carrier-corrected records
     and the delayed correlations' spectra (complex64 and their float64 phases, per couple, pair,
-    block and padded sample), and the beams over the look angles (complex64, magnitudes)."""
+    block and padded sample), and the beams over the look angles (complex64, magnitudes); with
+    an ``extent``, look_moments' tables (about eight float64 arrays of SUB_RANGES x ANGLES per
+    block, two dozen of SUB_RANGES per pair and block); besides the records aligned on one fast-time grid (``records`` samples, complex64)."""
     padded = scipy.fft.next_fast_len(2 * block - 1)
     cells = n_couples * pairs * blocks
     nbytes = max(cells * (block * 24 + padded * 32 + (2 * t_lags + 1) * 8),
-                 n_angles * pairs * blocks * 3 * 24 + n_angles * n_couples * 16)
+                 n_angles * pairs * blocks * 3 * 24 + n_angles * n_couples * 16,
+                 8 * blocks * SUB_RANGES * (8 * ANGLES + 24 * pairs) if extent else 0) + 8 * records
     budget.check_bytes(f"dpca.estimate with {pairs} ping pairs, {blocks} blocks of {block} samples, "
                        f"{n_couples} couples, n_angles={n_angles}", nbytes,
                        "fewer pings or samples a call, or fewer n_angles")
@@ -237,13 +242,15 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     eta = echo.eta
     prt = np.diff(eta)
     if not np.allclose(prt, prt[0], rtol=1e-9):
-        raise ValueError("dpca needs a constant pulse interval")
+        raise ValueError("dpca.estimate echo: its pings must be at a constant pulse interval (echo.eta evenly spaced)")
     prf = 1.0 / prt[0]
     s, pc, n_couples = pairing(array, speed, prf, lags)
     h = array.n_receivers
     c = echo.medium.sound_speed
     f0 = echo.waveform.f0
-    _check_budget(h - s, echo.n_pulses - 1, echo.n_samples // block + 1, block, t_lags, n_angles)
+    _check_budget(h - s, echo.n_pulses - 1, echo.n_samples // block + 1, block, t_lags, n_angles,
+                  records=h * echo.n_pulses * echo.n_samples if np.ptp(echo.t0[:h]) > 0 else 0,
+                  extent=extent is not None)
     records, start = aligned(echo, h)
     n_blocks = records.shape[-1] // block
     r_blocks = c / 2 * (start + (np.arange(n_blocks) + 0.5) * block / echo.fs)   # block centre ranges, m
@@ -290,7 +297,7 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     counts = good.sum(axis=1)
     if np.any(counts == 0):
         worst = int(np.argmin(counts))
-        raise ValueError(f"dpca: ping pair {worst}-{worst + 1} has no range block with a beam peak >= "
+        raise EstimationError(f"dpca: ping pair {worst}-{worst + 1} has no range block with a beam peak >= "
                          f"min_coherence {min_coherence} (best {coherence[worst].max():.2f}) that holds the seafloor "
                          f"in its main lobe ({int(np.sum(main_fraction[worst] >= MAIN_LOBE))} of {n_blocks} blocks "
                          "do, by the extent): the pings do not correlate (too little overlap, or no seafloor return "

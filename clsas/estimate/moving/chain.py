@@ -12,7 +12,11 @@ target (eqs. 1-2, 21, the R'' of C; f_dc = f_dc,eq, K = K_a,eq):
    (eqs. 12-14) at several lag offsets and the K at which they agree (:func:`.sowvd.rate_search`:
    on a target of several scatterers the strongest peak of one map can be a cross-term);
    :class:`clsas.errors.EstimationError` is raised (section VII-C) when the echo stands out of
-   the noise in too few pulses or no SoWVD peak stands out of the maps' background,
+   the noise in too few pulses, or when no SoWVD peak stands out of the maps' background
+   (:data:`THRESHOLD_DB`) and the record focused with the best candidate holds no target
+   either (:data:`FOCUS_DB`: the SoWVD, a fourth-order product of the record, loses to the noise
+   well before the coherent focus does: at -17 dB SNR on 1024 pulses it scores 23-28 dB on the
+   right K, its noise candidates 16-20 dB),
 3. RCMC (eq. 17, :mod:`.filters`), Radon transform of |s_rcmc| -> slope -> f_dc (:mod:`.radon`),
 4. range-walk compensation and azimuth compression (eqs. 18-20; :func:`.filters.compress`) of
    the target's neighbourhood (:data:`EXTENT_WINDOW` around the Radon intercept, the trace's delay
@@ -40,7 +44,7 @@ B / K_r = T. They sit well below the peak of the unweighted compression, lower w
 window, and sink below the sidelobes once F_r exceeds B by a quarter. The chain keeps the
 unweighted matched filter (its range resolution feeds tau_c).
 
-Several targets (section VII-B): :func:`estimate_receivers` takes the strongest SoWVD peak,
+Several targets (section VII-B): :func:`.targets.estimate_receivers` takes the strongest SoWVD peak,
 focuses it, windows its image, undoes the chain on the window (inverse azimuth compression,
 RWC, RCMC: all unitary here) and subtracts the result from the range-compressed record
 before looking for the next peak.
@@ -74,6 +78,12 @@ P0 = 0.1
 #: of each map's peak over its median, averaged over the maps), dB; noise-only maps score below
 #: it (tests/test_moving_chain.py).
 THRESHOLD_DB = 26.0
+#: Below :data:`THRESHOLD_DB` the rate search's best candidate is still taken when the record
+#: focused with it holds a target: its image's peak this far over the image's median, dB (step 2
+#: of the module docstring). Focused noise peaks ~13 dB over its median on a 10^6-pixel image
+#: (the largest of n exponential powers over their median: ln n / ln 2); a point focused on
+#: 1024 pulses at -17 dB SNR per raw sample stands ~33 dB over it.
+FOCUS_DB = 20.0
 #: Fraction of the pulses in which the echo must stand out of the noise (:mod:`.trace`); at
 #: -25 dB SNR it does in ~10 % of Table I's pulses, at -15 dB in all of them.
 MIN_COVERAGE = 0.25
@@ -158,6 +168,19 @@ class Records:
         return self.eta - self.eta_ref
 
 
+def check_pulse_times(echo: EchoData) -> None:
+    """ValueError unless ``echo`` holds >= 64 pulses emitted at one PRF (eta increasing,
+    uniformly spaced)."""
+    if echo.n_pulses < 64:
+        raise ValueError(f"echo has {echo.n_pulses} pulses; the moving-target chain needs at least 64")
+    step = np.diff(echo.eta)
+    if not np.all(step > 0):
+        raise ValueError(f"echo.eta must increase from pulse to pulse (one PRF), got steps from {step.min():g} to "
+                         f"{step.max():g} s")
+    if np.ptp(step) > 1e-6 * np.mean(step):
+        raise ValueError("echo.eta must be uniformly spaced (one PRF) for the moving-target chain")
+
+
 def compressed_receiver(echo: EchoData, receiver: str) -> EchoData:
     """``receiver``'s record of a raw ``echo`` as a one-receiver EchoData, range-compressed (eq. 8)
     and upsampled :data:`UPSAMPLE` times, after checking the echo (raw, >= 64 uniformly spaced
@@ -168,11 +191,7 @@ def compressed_receiver(echo: EchoData, receiver: str) -> EchoData:
     if not isinstance(receiver, str):
         raise TypeError(f"receiver must be a receiver name (one of {echo.receivers}), got {receiver!r}")
     (r,) = echo.select_receivers(receiver, parameter="receiver")
-    if echo.n_pulses < 64:
-        raise ValueError(f"echo has {echo.n_pulses} pulses; the moving-target chain needs at least 64")
-    eta = echo.eta
-    if np.ptp(np.diff(eta)) > 1e-6 * np.mean(np.diff(eta)):
-        raise ValueError("echo.eta must be uniformly spaced (one PRF) for the moving-target chain")
+    check_pulse_times(echo)
     one = echo.replace(data=echo.data[r:r + 1], t0=echo.t0[r:r + 1], rx_pos=echo.rx_pos[r:r + 1],
                        rx_tau=echo.rx_tau[r:r + 1], receivers=(receiver,))
     return range_compress(one, upsample=UPSAMPLE)
@@ -312,23 +331,43 @@ def sharpened_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: 
     return image, eta_axis, total
 
 
-def _check_chain_options(p0, threshold_db) -> None:
+def _check_chain_options(p0, threshold_db, focus_db) -> None:
     if isinstance(p0, bool) or not isinstance(p0, (int, float, np.number)) or not np.isfinite(p0):
         raise TypeError(f"p0 must be a finite number of seconds, got {p0!r}")
     if isinstance(threshold_db, bool) or not isinstance(threshold_db, (int, float, np.number)) \
             or not np.isfinite(threshold_db):
         raise ValueError(f"threshold_db must be a finite number of dB, got {threshold_db!r}")
+    if focus_db is not None:
+        validate.scalar("focus_db", focus_db, unit="dB", why="or None")
 
 
-def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHOLD_DB) -> ReceiverEstimate:
+def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHOLD_DB,
+                     focus_db: float | None = FOCUS_DB) -> ReceiverEstimate:
     """Steps 2-5 on a receiver's :func:`records`: :func:`estimate_receiver` without the range compression."""
-    _check_chain_options(p0, threshold_db)
-    search = sowvd(rec, p0)
+    _check_chain_options(p0, threshold_db, focus_db)
+    search = dataclasses.replace(sowvd(rec, p0), primary=None)
     ratio_db = search.score_db
-    if not ratio_db >= threshold_db:
-        raise EstimationError(f"receiver {rec.name}: no SoWVD peak stands out of the background: "
-                              f"peak-to-background {ratio_db:.1f} dB < threshold {threshold_db:.1f} dB")
-    return with_rate(rec, dataclasses.replace(search, primary=None))
+    if ratio_db >= threshold_db:
+        return with_rate(rec, search)
+    if focus_db is None:
+        raise EstimationError(f"receiver {rec.name}: no SoWVD peak stands out of the background: peak-to-background "
+                              f"{ratio_db:.1f} dB < threshold {threshold_db:.1f} dB")
+    # below the threshold: the best candidate, when the record focused with it holds a target
+    weak = (f"receiver {rec.name}: no SoWVD peak stands out of the background: peak-to-background "
+            f"{ratio_db:.1f} dB < threshold {threshold_db:.1f} dB")
+    try:
+        est = with_rate(rec, search)
+    except EstimationError as err:
+        raise EstimationError(f"{weak}, and its best candidate K = {search.fm_rate:.4g} Hz/s fails: {err}") from None
+    if est.extent is None:
+        raise EstimationError(f"{weak}, and its best candidate K = {search.fm_rate:.4g} Hz/s does not focus "
+                              f"(|K| T_a^2 < {MIN_TIME_BANDWIDTH}) to confirm it")
+    if not est.extent.peak_db >= focus_db:
+        raise EstimationError(f"{weak}, and focused with its best candidate K = {search.fm_rate:.4g} Hz/s the record "
+                              f"holds no target: image peak {est.extent.peak_db:.1f} dB over its median < {focus_db:g} dB")
+    log.info("receiver %s: SoWVD score %.1f dB below the threshold %.1f dB; K = %.5g Hz/s confirmed by the focus "
+             "(image peak %.1f dB over its median)", rec.name, ratio_db, threshold_db, est.fm_rate, est.extent.peak_db)
+    return est
 
 
 def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None) -> ReceiverEstimate:
@@ -358,7 +397,7 @@ def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None) ->
 
 
 def estimate_receiver(echo: EchoData, receiver: str, *, p0: float = P0,
-                      threshold_db: float = THRESHOLD_DB) -> ReceiverEstimate:
+                      threshold_db: float = THRESHOLD_DB, focus_db: float | None = FOCUS_DB) -> ReceiverEstimate:
     """K_a,eq and f_dc,eq of the strongest moving target in ``receiver``'s echo (section III for a
     transceiver, IV for a receiver or sonobuoy), with no knowledge of its motion.
 
@@ -370,9 +409,13 @@ def estimate_receiver(echo: EchoData, receiver: str, *, p0: float = P0,
         others are :data:`.sowvd.P0_RATIOS` times it); K must satisfy |K| < PRF / (8 p0)
         (see :mod:`.sowvd`).
     threshold_db : SoWVD score (the maps' peak over their median, averaged over the maps, dB)
-        below which :class:`clsas.errors.EstimationError` is raised.
+        below which the rate search's best candidate needs the focus to confirm it.
+    focus_db : the focused image's peak over its median, dB, that confirms a candidate below
+        ``threshold_db`` (:data:`FOCUS_DB`); below both, or with ``focus_db=None`` below
+        ``threshold_db``, :class:`clsas.errors.EstimationError` is raised naming the receiver and
+        the figures.
     """
-    return estimate_records(records(echo, receiver), p0, threshold_db)
+    return estimate_records(records(echo, receiver), p0, threshold_db, focus_db)
 
 
 def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None = None,
@@ -417,49 +460,3 @@ def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None 
     eta_c = rec.eta_ref + (est.doppler_centroid - ref.doppler_centroid
                            + ref.fm_rate * (ext.eta_mid - rec.eta_ref)) / est.fm_rate
     return dataclasses.replace(est, tau_c=ext.tau_mid, eta_c=eta_c, extent=ext)
-
-
-def remove_target(rec: Records, est: ReceiverEstimate, tau_halfwidth: float, eta_cells: float) -> Records:
-    """``rec`` without the target of ``est`` (section VII-B): RCMC + RWC + azimuth compression,
-    the focused target's window (its extent, :mod:`.extent`, or its tau_c and eta_c without one,
-    widened by ``tau_halfwidth`` s in range and ``eta_cells`` azimuth resolution cells
-    1 / (|K| T_a) in slow time), then the inverse chain on the window (all three steps are
-    unitary phase filters: :mod:`.filters`), subtracted from the record."""
-    if not est.focusable:
-        raise EstimationError(f"receiver {rec.name}: the target at K_a,eq = {est.fm_rate:.3g} Hz/s does not focus, "
-                              "so it cannot be removed to look for the next one")
-    shift, cycles = filters.migration(rec.d, rec.f0, est.fm_rate, est.doppler_centroid)
-    image, eta_axis = compress(rec, filters.advance(rec.x, rec.fs, shift, cycles), est.fm_rate)
-    tau = rec.t0 + np.arange(rec.x.shape[1]) / rec.fs
-    cell = 1.0 / (abs(est.fm_rate) * est.aperture)
-    ext = est.extent
-    eta_lo, eta_hi = (ext.eta if ext is not None else (est.eta_c, est.eta_c))
-    tau_lo, tau_hi = (ext.tau if ext is not None else (est.tau_c, est.tau_c))
-    window = ((eta_axis >= eta_lo - eta_cells * cell) & (eta_axis <= eta_hi + eta_cells * cell))[:, None] \
-        & (tau >= tau_lo - tau_halfwidth) & (tau <= tau_hi + tau_halfwidth)
-    target = filters.decompress(np.where(window, image, 0), rec.d, est.fm_rate)
-    return dataclasses.replace(rec, x=rec.x - filters.advance(target, rec.fs, -shift, -cycles))
-
-
-def estimate_receivers(echo: EchoData, receiver: str, n_targets: int = 2, *, p0: float = P0,
-                       threshold_db: float = THRESHOLD_DB, tau_halfwidth: float | None = None,
-                       eta_cells: float = 20.0) -> list[ReceiverEstimate]:
-    """Estimates of ``n_targets`` moving targets in ``receiver``'s echo, strongest SoWVD peak
-    first (Kiang & Kiang 2022 section VII-B): each target found is focused, windowed
-    (``tau_halfwidth`` s around its extent, default 6 range resolution cells 1 / B; ``eta_cells``
-    azimuth resolution cells around its extent: :func:`remove_target`), taken back through the
-    inverse chain and removed from the record before the next search. Raises EstimationError when a search finds no peak
-    (:func:`estimate_receiver` for the other parameters).
-    """
-    if isinstance(n_targets, bool) or not isinstance(n_targets, (int, np.integer)) or n_targets < 1:
-        raise ValueError(f"n_targets must be an integer >= 1, got {n_targets!r}")
-    rec = records(echo, receiver)
-    if tau_halfwidth is None:
-        tau_halfwidth = 6.0 / echo.waveform.bandwidth
-    found = []
-    for i in range(n_targets):
-        found.append(estimate_records(rec, p0, threshold_db))
-        if i + 1 < n_targets:
-            rec = remove_target(rec, found[-1], tau_halfwidth, eta_cells)
-    return found
-

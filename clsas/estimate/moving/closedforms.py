@@ -57,6 +57,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ... import validate
 from ...geometry import meet_time
 from .doppler import Doppler
 from .layout import Layout, layout_of
@@ -170,20 +171,26 @@ def closed_forms(scenario, position, velocity, receivers=None, model: str = "exa
     ----------
     scenario : Scenario, EchoData or :class:`~clsas.estimate.moving.layout.Layout`
         The geometry (transmitter and receivers, found by name; any number of receivers).
-    position : (3,) m, the target at slow time 0 (e.g. (1989, 0, -350) in the paper).
-    velocity : (3,) m/s.
+    position : (3,) m, the target at slow time 0 (e.g. (1989, 0, -350) in the paper), within
+        +-:data:`clsas.validate.MAX_COORDINATE`.
+    velocity : (3,) m/s, within +-:data:`clsas.validate.MAX_SPEED` (the delay model needs speeds
+        far below the sound speed).
     receivers : names to evaluate (default: all of the scenario's).
     model : "exact" (default) or "paper" (the printed eqs.; see the module docstring).
-    eta_ref : reference slow time, s (default: the middle of the exposure, 0 for the paper).
+    eta_ref : reference slow time, s (default: the middle of the exposure, 0 for the paper; a
+        Layout's own unless given).
 
     Returns
     -------
     dict name -> :class:`Predicted` (fm_rate Hz/s, doppler_centroid Hz, tau_c s, eta_c s).
     """
+    validate.choice("closed_forms model", model, MODELS)
+    position = validate.vector3("closed_forms position", position)
+    velocity = validate.vector3("closed_forms velocity", velocity, bound=validate.MAX_SPEED)
+    if eta_ref is not None:
+        eta_ref = validate.scalar("closed_forms eta_ref", eta_ref, low=-validate.MAX_TIME, high=validate.MAX_TIME,
+                                  unit="s")
     layout = layout_of(scenario, eta_ref)
-    for name, value in (("position", position), ("velocity", velocity)):
-        if np.shape(value) != (3,):
-            raise ValueError(f"{name} must be a 3-vector (x, y, z), got shape {np.shape(value)}")
     names = layout.names if receivers is None else tuple(receivers)
     out = {}
     for name in names:

@@ -42,6 +42,19 @@ skirts and other echoes, -30 dB and below on the eight Table II cases), and belo
 sidelobes of the unweighted compression (-13, -18 dB), which are symmetric about the peak.
 (The velocity errors on the hull: tests/test_moving.py::test_submarine_velocity_within_the_papers_bound
 and ``clsas reproduce kiang2022``.)
+
+Noise. A point echo at -15 dB SNR per raw sample compresses to ~35 dB over the noise on 1024
+pulses (:func:`clsas.synthesis.echo.pipeline.add_noise`), and the smoothing, which spreads a
+point's peak over its 5 x 5 cells, leaves it ~20 dB over the smoothed noise: a level 20 dB below
+the peak alone then lies in the noise, and the extent filled the window (velocity errors of
+10-30 % at -15 dB). So each range column's noise floor (its median over the rows: the target
+fills a small part of the period) is taken off first, and its spread measured (1.4826 x the
+median absolute deviation, per column: columns near or beyond the ends of the recording window
+hold less noise or none); a cell is part of the target when it is above the level and
+:data:`NOISE_SIGMAS` spreads out of its column's noise, in a connected region that reaches
+:data:`DETECT_SIGMAS` somewhere (or holds the maximum). In range, a sample of the profile counts
+when the weighted image is also :data:`DETECT_SIGMAS` out of its noise in one of the region's
+rows. In a noise-free image the spread is ~0 and the extent is the level's alone.
 """
 
 from __future__ import annotations
@@ -49,22 +62,30 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import uniform_filter
+from scipy.ndimage import label, uniform_filter
 
 #: The extent's level below the profile's maximum, dB (module docstring).
 EXTENT_DB = 20.0
 #: Smoothing of the image, resolution cells.
 SMOOTH_CELLS = 5.0
+#: A cell of the target stands this many robust standard deviations of the smoothed noise out of
+#: its column's floor (module docstring, "Noise").
+NOISE_SIGMAS = 4.0
+#: A region above the level is part of the target only when it reaches this many (or holds the
+#: image's maximum): noise crosses :data:`NOISE_SIGMAS` in places, not this.
+DETECT_SIGMAS = 12.0
 
 
 @dataclass(frozen=True)
 class Extent:
     """A target's extent in its focused image: ``eta`` = (start, end) s and ``tau`` = (start,
     end) s, both at :data:`EXTENT_DB` below their profile's maximum; ``eta_mid`` and ``tau_mid``
-    their middles."""
+    their middles. ``peak_db``: the image's largest |value|^2 over its median, dB (a focused
+    target stands far out of its noise; a record focused with a wrong rate does not)."""
 
     eta: tuple
     tau: tuple
+    peak_db: float = float("nan")
 
     @property
     def eta_mid(self) -> float:
@@ -90,7 +111,8 @@ def _ends(profile: np.ndarray, axis: np.ndarray, first: int, last: int, level: f
 
 
 def extent(image: np.ndarray, eta: np.ndarray, tau: np.ndarray, eta_cell: float, tau_cell: float,
-           level_db: float = EXTENT_DB, smooth_cells: float = SMOOTH_CELLS) -> Extent:
+           level_db: float = EXTENT_DB, smooth_cells: float = SMOOTH_CELLS, noise_sigmas: float = NOISE_SIGMAS,
+           detect_sigmas: float = DETECT_SIGMAS) -> Extent:
     """The extent of the target in a focused image (module docstring).
 
     Parameters
@@ -99,7 +121,8 @@ def extent(image: np.ndarray, eta: np.ndarray, tau: np.ndarray, eta_cell: float,
         RWC) and its neighbourhood.
     eta, tau : (n_eta,), (n_tau,) s, ascending, uniformly spaced.
     eta_cell, tau_cell : the azimuth and range resolution cells, s (1 / (|K| T_a), 1 / B).
-    level_db, smooth_cells : see :data:`EXTENT_DB`, :data:`SMOOTH_CELLS`.
+    level_db, smooth_cells, noise_sigmas, detect_sigmas : see :data:`EXTENT_DB`,
+        :data:`SMOOTH_CELLS`, :data:`NOISE_SIGMAS`, :data:`DETECT_SIGMAS`.
     """
     if image.ndim != 2 or image.shape != (eta.size, tau.size) or min(image.shape) < 2:
         raise ValueError(f"image must be (n_eta, n_tau) = ({eta.size}, {tau.size}) with both >= 2, got {image.shape}")
@@ -111,22 +134,61 @@ def extent(image: np.ndarray, eta: np.ndarray, tau: np.ndarray, eta_cell: float,
     weighted = uniform_filter(np.abs(np.fft.ifft(np.fft.fft(image, axis=1) * weight, axis=1)).astype(np.float32) ** 2,
                               widths, mode="nearest")
     smooth = uniform_filter(np.abs(image).astype(np.float32) ** 2, widths, mode="nearest")
+    smooth, z = _above_floor(smooth)
+    weighted, weighted_z = _above_floor(weighted)
     peak = np.unravel_index(int(np.argmax(smooth)), smooth.shape)
     level = float(smooth[peak]) * 10.0 ** (-level_db / 10.0)
-    blob = smooth >= level  # every part of the target: a hull's glints, a rigid group's points
+    # a hull's glints, a rigid group's points: every region above the level and out of the noise
+    # that reaches the detection level (a target that does not stand out of the noise is its
+    # maximum alone)
+    blob = _detected(smooth >= level, z, peak, noise_sigmas, detect_sigmas)
     rows, cols = np.flatnonzero(blob.any(axis=1)), np.flatnonzero(blob.any(axis=0))
     masked = np.where(blob, smooth, 0.0)
     # outside the blob the profiles take the smoothed image over the blob's columns / rows, so
     # that each end is interpolated towards its (below-level) neighbour
     eta_profile = np.maximum(masked.max(axis=1), np.where(blob.any(axis=1), 0.0, smooth[:, cols].max(axis=1)))
     # in range: the weighted image over the region's rows, from the first to the last sample at
-    # the level below its maximum
+    # the level below its maximum and out of the noise
     tau_profile = weighted[rows].max(axis=0)
-    cut = float(tau_profile.max()) * 10.0 ** (-level_db / 10.0)
-    near = np.flatnonzero(tau_profile >= cut)
-    first, last = int(near[0]), int(near[-1])
-    return Extent(eta=_ends(eta_profile, eta, rows[0], rows[-1], level), tau=_ends(tau_profile, tau, first, last, cut))
+    k = int(np.argmax(tau_profile))
+    cut = float(tau_profile[k]) * 10.0 ** (-level_db / 10.0)
+    near = np.flatnonzero((tau_profile >= cut) & (weighted_z[rows].max(axis=0) >= detect_sigmas))
+    first, last = (int(near[0]), int(near[-1])) if near.size else (k, k)
+    power = np.abs(image).astype(np.float32) ** 2
+    peak_db = 10 * np.log10(max(float(power.max()), 1e-30) / max(float(np.median(power)), 1e-30))
+    return Extent(eta=_ends(eta_profile, eta, rows[0], rows[-1], level), tau=_ends(tau_profile, tau, first, last, cut),
+                  peak_db=float(peak_db))
 
+
+#: The noise's spread is kept above this fraction of the image's maximum (a noise-free image).
+SPREAD_FLOOR = 1e-6
+
+
+def _above_floor(power: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(``power`` less its noise floor, that in robust standard deviations of the noise), both
+    float32 like ``power``: each range column's floor is its median over the rows (the target
+    fills a small part of the period), its spread 1.4826 x the median absolute deviation about it
+    (per column: columns near or beyond the ends of the recording window hold less noise or
+    none), kept above :data:`SPREAD_FLOOR` of the maximum."""
+    floor = np.median(power, axis=0)
+    excess = (power - floor).astype(np.float32)
+    spread = 1.4826 * np.median(np.abs(excess), axis=0)
+    spread = np.maximum(spread, SPREAD_FLOOR * max(float(excess.max()), 1e-30))
+    return excess, excess / spread
+
+
+def _detected(above: np.ndarray, z: np.ndarray, peak: tuple, noise_sigmas: float, detect_sigmas: float) -> np.ndarray:
+    """Bool mask: the connected regions of ``above`` & (z >= ``noise_sigmas``) that reach z >=
+    ``detect_sigmas`` or hold ``peak``: a noise fluctuation that crosses the level is not part
+    of the target."""
+    candidates = above & (z >= noise_sigmas)
+    candidates[peak] = True
+    labels, n = label(candidates)
+    keep = np.zeros(n + 1, bool)
+    keep[np.unique(labels[candidates & (z >= detect_sigmas)])] = True
+    keep[labels[peak]] = True
+    keep[0] = False
+    return keep[labels]
 
 def _odd_widths(cells: float, *axes) -> tuple:
     """The odd number of samples nearest ``cells`` resolution cells along each (cell s, axis (n,) s)

@@ -21,6 +21,7 @@ says how to take them back to the delay at the pulse's centre, tau = tau_peak - 
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,6 +80,13 @@ class Layout:
             raise ValueError(f"receiver {name!r} is not in the layout; it has {self.names}")
         return self.receivers[name]
 
+    def at(self, eta_ref: float) -> "Layout":
+        """The same uniform motion referred to the slow time ``eta_ref`` (s): every position moved
+        along its velocity."""
+        dt = float(eta_ref) - self.eta_ref
+        return dataclasses.replace(self, tx_position=self.tx_position + self.tx_velocity * dt, eta_ref=float(eta_ref),
+                                   receivers={n: (p + v * dt, v) for n, (p, v) in self.receivers.items()})
+
 
 def range_doppler(echo) -> float:
     """1 / K_r (s/Hz) when ``echo``'s records carry the range-Doppler coupling of intra-pulse
@@ -93,7 +101,7 @@ def range_doppler(echo) -> float:
 
 def layout_of(source, eta_ref: float | None = None) -> Layout:
     """The :class:`Layout` of a :class:`~clsas.scene.scenario.Scenario` or an
-    :class:`~clsas.model.EchoData` (or a Layout, returned as is).
+    :class:`~clsas.model.EchoData` (or a Layout, returned as is or referred to ``eta_ref``).
 
     ``eta_ref`` defaults to the middle of the pulse schedule (0 for the paper's exposure,
     centred on eta = 0). Positions are fitted by straight lines over the whole exposure
@@ -103,7 +111,7 @@ def layout_of(source, eta_ref: float | None = None) -> Layout:
     from ...scene.scenario import Scenario
 
     if isinstance(source, Layout):
-        return source
+        return source if eta_ref is None or float(eta_ref) == source.eta_ref else source.at(eta_ref)
     if isinstance(source, Scenario):
         eta = source.eta
         ref = float(0.5 * (eta[0] + eta[-1])) if eta_ref is None else float(eta_ref)

@@ -63,7 +63,7 @@ from ... import validate
 from ...errors import EstimationError
 from ...model import EchoData
 from . import consistency
-from .chain import MIN_TIME_BANDWIDTH, UPSAMPLE, estimate_records, locate, records, with_rate
+from .chain import MIN_TIME_BANDWIDTH, UPSAMPLE, check_pulse_times, estimate_records, locate, records, with_rate
 from .closedforms import delay_terms, higher_order_delay
 from .doppler import Doppler
 from .extent import SMOOTH_CELLS
@@ -154,17 +154,9 @@ class MotionEstimate:
 
 
 def _check_position(position):
-    if position is None:
-        return None
-    try:
-        arr = np.asarray(position, dtype=np.float64) if np.ndim(position) else None
-    except (TypeError, ValueError):
-        arr = None
-    if arr is None or arr.shape != (3,) or not np.all(np.isfinite(arr)) \
-            or np.max(np.abs(arr)) > validate.MAX_COORDINATE:
-        raise ValueError(f"position must be None or a finite 3-vector (x, y, z) in m within "
-                         f"+-{validate.MAX_COORDINATE:g} m, got {position!r}")
-    return arr
+    """None, or ``position`` as a finite (3,) float64 vector, m, within +-MAX_COORDINATE
+    (TypeError for a wrong kind, ValueError for a bad value)."""
+    return None if position is None else np.array(validate.vector3("position", position))
 
 
 def check_echo(echo, receivers=None) -> list:
@@ -178,6 +170,7 @@ def check_echo(echo, receivers=None) -> list:
     if len(names) < 3:
         raise ValueError(f"echo must hold at least 3 receivers to solve the 3 velocity components (the paper's "
                          f"A, B and C), got {tuple(names)}")
+    check_pulse_times(echo)
     return names
 
 
@@ -356,15 +349,15 @@ def estimate(echo: EchoData, position=None, receivers=None, **chain_options) -> 
     position : (3,) m, the target at slow time 0 (the paper assumes it known), or None to
         estimate it from the receivers' delays, centroids and FM rates.
     receivers : names (or indices) to use; default all of the echo's.
-    chain_options : passed to :func:`.chain.estimate_receiver` (p0, threshold_db).
+    chain_options : passed to :func:`.chain.estimate_receiver` (p0, threshold_db, focus_db).
 
     Raises :class:`clsas.errors.EstimationError` naming the receiver when its SoWVD shows no
     peak. When the receivers disagree (a receiver's FM rate far from what the solution
     predicts), the estimate says so: ``problems`` names the receiver and why, ``confidence``
     falls and ``sigma`` widens (:mod:`.consistency`).
     """
-    names = check_echo(echo, receivers)
     position = _check_position(position)
+    names = check_echo(echo, receivers)
     # the range-compressed records are kept for the refocus passes when they are small, and made
     # again one at a time when not (Table I: ~0.7 GB each)
     keep = len(names) * echo.n_pulses * echo.n_samples * 8 * UPSAMPLE <= KEEP_RECORDS_BYTES

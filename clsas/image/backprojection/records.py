@@ -48,7 +48,7 @@ import scipy.fft
 
 from ... import budget, validate
 from ...model import EchoData, Grid
-from ..rangecomp import _upsample_spectrum
+from ..rangecomp import _upsample_spectrum, check_workers
 
 INTERPOLATORS = ("linear", "sinc8")
 # samples an interpolator reads around floor(k) (before, after), in samples of the records it reads
@@ -60,23 +60,24 @@ UPLOAD_BYTES = 64 * 2**20  # records prepared and uploaded at once when a call p
 MIN_SAMPLES = 8  # samples of the shortest prepared record (sinc8 loads eight at once)
 
 
-def check_options(echo, receivers, interp, upsample, target_velocity):
-    """(receiver indices, velocity (3,)) or a ValueError/TypeError naming the parameter."""
+def check_options(echo, receivers, interp, upsample, target_velocity, who: str = "backproject"):
+    """(receiver indices, velocity (3,)) or a ValueError/TypeError naming the parameter as
+    ``"<who> <parameter>"`` (who: the public function checked, e.g. "prepare", "ffbp")."""
     if not isinstance(echo, EchoData):
-        raise TypeError(f"echo must be an EchoData (or records from clsas.image.backprojection.prepare), "
+        raise TypeError(f"{who} echo: must be an EchoData (or records from clsas.image.backprojection.prepare), "
                         f"got {type(echo).__name__}")
-    validate.compression("backproject echo", echo, advice="call clsas.range_compress(echo) first (back-projection "
+    validate.compression(f"{who} echo", echo, advice="call clsas.range_compress(echo) first (back-projection "
                          "refuses raw echoes rather than compressing them silently)")
-    validate.choice("backproject interp", interp, INTERPOLATORS)
-    validate.integer("backproject upsample", upsample, low=1, high=64)
+    validate.choice(f"{who} interp", interp, INTERPOLATORS)
+    validate.integer(f"{who} upsample", upsample, low=1, high=64)
     need = 8 if interp == "sinc8" else 2
     if echo.n_samples < need or echo.n_pulses < 1:
-        raise ValueError(f"backproject echo: has {echo.n_pulses} pulses of {echo.n_samples} samples; interp={interp!r} "
+        raise ValueError(f"{who} echo: has {echo.n_pulses} pulses of {echo.n_samples} samples; interp={interp!r} "
                          f"needs at least one pulse of {need} samples")
     chosen = echo.select_receivers(receivers)
-    v = np.zeros(3) if target_velocity is None else validate.vector3("backproject target_velocity", target_velocity)
+    v = np.zeros(3) if target_velocity is None else validate.vector3(f"{who} target_velocity", target_velocity)
     if np.linalg.norm(v) > validate.MAX_SPEED:
-        raise ValueError(f"backproject target_velocity: must be at most {validate.MAX_SPEED:g} m/s, got "
+        raise ValueError(f"{who} target_velocity: must be at most {validate.MAX_SPEED:g} m/s, got "
                          f"{np.linalg.norm(v):g} m/s")
     return chosen, v
 
@@ -105,8 +106,11 @@ def reach(echo: EchoData, receivers, positions: np.ndarray, target_velocity=None
     v = np.zeros(3) if target_velocity is None else np.asarray(target_velocity, dtype=np.float64)
     t_end = float(np.max(echo.t0)) + echo.n_samples / echo.fs
     grow = np.linalg.norm(v) * t_end
-    lo = pts.min(axis=0) + echo.eta[:, None] * v - grow  # (P, 3)
-    hi = pts.max(axis=0) + echo.eta[:, None] * v + grow
+    # the pixels' box a coordinate at a time (a reduction over the first axis of (M, 3) is ~15x slower)
+    box_lo = np.array([pts[:, k].min() for k in range(3)])
+    box_hi = np.array([pts[:, k].max() for k in range(3)])
+    lo = box_lo + echo.eta[:, None] * v - grow  # (P, 3)
+    hi = box_hi + echo.eta[:, None] * v + grow
     near1, far1 = _box_distances(echo.tx_pos, echo.tx_pos, lo, hi)
     out = np.empty((len(receivers), 2))
     for row, h in enumerate(receivers):
@@ -356,10 +360,10 @@ def prepare(compressed: EchoData, upsample: int = 8, interp: str = "linear", rec
     (``nbytes``: 8 bytes a sample, ``upsample`` samples per original one for linear); device
     buffers, see the module docstring.
     """
-    chosen, velocity = check_options(compressed, receivers, interp, upsample, target_velocity)
+    chosen, velocity = check_options(compressed, receivers, interp, upsample, target_velocity, who="prepare")
     upsample = int(upsample)
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
-        raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
+    if workers is not None:
+        workers = check_workers(workers, "prepare workers")
     spans = fast_time_spans(compressed, chosen, grid, velocity)
     return PreparedRecords(compressed, chosen, interp, upsample, spans, materialise=True, workers=workers)
 

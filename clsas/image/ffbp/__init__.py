@@ -39,6 +39,8 @@ not demodulate their echoes; leave them out with ``receivers=`` and image them w
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from ... import backend as _backend
@@ -66,7 +68,7 @@ GRID_BYTES = 2 * SAMPLE_BYTES + 24 + 3 * 8  # a pixel: the image (device, host),
 def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsample, aperture, stop_and_go):
     """The receivers chosen, or a TypeError/ValueError naming the parameter; the grid's own memory
     (the image and the pixels' copy: GRID_BYTES a pixel) against the budget."""
-    chosen, _ = check_options(echo, receivers, interp, upsample, None)
+    chosen, _ = check_options(echo, receivers, interp, upsample, None, who="ffbp")
     if not isinstance(grid, Grid):
         raise TypeError(f"grid must be a clsas.model.Grid (Grid.plane, Grid.slant or Grid.points), got "
                         f"{type(grid).__name__}")
@@ -120,6 +122,21 @@ def memory_plan(tree: Tree, n_pixels: int, factor: int, echo_bytes: float = floa
     return parts
 
 
+_SCENES = weakref.WeakKeyDictionary()  # Grid -> its Scene, for calls that image many echoes onto one grid
+
+
+def _scene(grid: Grid) -> Scene:
+    """The grid's :class:`Scene` (its skeleton, margin and plane: a pass over every pixel), kept
+    for later calls on the same Grid while it lives; only when its positions are read-only and
+    their own memory (a Grid's own positions: nothing else can change them)."""
+    positions = grid.positions
+    if positions.flags.writeable or not positions.flags.owndata:
+        return Scene.of(positions)
+    if grid not in _SCENES:
+        _SCENES[grid] = Scene.of(positions)
+    return _SCENES[grid]
+
+
 def _slots(grids: list, nodes: list) -> tuple[list, list]:
     """The nodes among ``nodes`` that have a grid, and their offsets in a group holding their images
     one after another (one more: the group's size)."""
@@ -171,7 +188,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
     """
     chosen = _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsample, aperture, stop_and_go)
     name = _backend.resolve(backend)
-    scene = Scene.of(grid.positions)
+    scene = _scene(grid)
     tree = plan(echo, chosen, scene, int(factor), float(tolerance), taps, first, aperture)
     echo_bytes = 8.0 * (upsample if interp == "linear" else 1) * echo.n_samples * echo.n_pulses * len(chosen)
     budget.check_bytes(f"ffbp of {echo.n_pulses} pulses onto {grid.size} pixels ({tree.top + 1} levels)",

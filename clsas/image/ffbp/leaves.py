@@ -2,9 +2,10 @@
 
 Each leaf (``first`` consecutive pulses, every selected receiver) is back-projected with
 back-projection's exact delays onto its polar grid's points and demodulated by its centre range,
-J = I exp(-j 4 pi f0 r / c). Records are prepared once (:func:`clsas.image.backprojection.prepare`)
-for a *batch* of consecutive leaves (at most BATCH_POINTS polar samples and RECORD_BYTES of
-prepared samples), and on OpenCL the whole batch is one bp_tile launch a receiver and block of
+J = I exp(-j 4 pi f0 r / c), a *batch* of consecutive leaves at a time (at most BATCH_POINTS polar
+samples and RECORD_BYTES of prepared samples). Records are prepared
+(:func:`clsas.image.backprojection.prepare`) once for every leaf when all pulses' prepared records
+fit RECORD_BYTES, else once a batch; on OpenCL the whole batch is one bp_tile launch a receiver and block of
 pulses (kernels/backprojection.cl built with ROW_SHIFT: a tile's pulse j reads record row
 j + row_shift[tile], the first pulse of its leaf), so a leaf costs its kernel work and no call of
 its own (a :func:`clsas.backproject` call a leaf costs many times the leaf's kernel time in host work).
@@ -16,10 +17,13 @@ rows x ``br`` range samples (``bv`` a multiple of ROWS, ``br`` of LANES: every t
 work-items) whose reference point is the block's middle sample, halved until every sample lies
 within :meth:`~clsas.image.backprojection.TileKernel.half_extent` of its reference (the same
 phase budget as back-projection's own tiles), which the launcher checks on the offsets the
-ffbp_fields kernel computes for bp_tile anyway. Slots past the grid's edge repeat its last
-sample and are dropped; a tile's groups of LANES range samples that miss the spans of their
-rows (:attr:`PolarGrid.spans`: the ragged wedge, the corners of the (r, v) box outside the
-scene) are not back-projected at all, and the leaf's image is zero there.
+ffbp_fields kernel computes for bp_tile anyway. The tiles' references (a leaf's tiles for its
+pulses) are computed on the device (TileKernel's bp_refs, a launch a leaf) where the receivers
+move uniformly, else on the host (which checks that the motion is linear over a tile). Slots
+past the grid's edge repeat its last sample and are dropped; a tile's groups of LANES range
+samples that miss the spans of their rows (:attr:`PolarGrid.spans`: the ragged wedge, the
+corners of the (r, v) box outside the scene) are not back-projected at all, and the leaf's image
+is zero there.
 
 Leaves the batch cannot take go through :func:`clsas.backproject` one by one on the same
 prepared records (the same image up to float32 rounding): a leaf shorter than ``first`` (the
@@ -116,6 +120,7 @@ class FirstStage:
         self.per_pulse = 8 * factor * echo.n_samples * len(chosen)
         self.demodulate = 2 * echo.waveform.f0 / echo.medium.sound_speed
         self.ready = {}
+        self.records = None  # every pulse's prepared records, when they fit RECORD_BYTES
 
     def image(self, node: int, grid: PolarGrid, grids: list) -> np.ndarray:
         """Leaf ``node``'s image on its polar grid ``grid``, demodulated: (n_v, n_r) (complex64 on
@@ -171,16 +176,15 @@ class FirstStage:
             batch.append(k)
             points += grids[k].size
             last = k
-        b0, b1 = self.leaves[node][0], self.leaves[last][1]
         e = self.echo
-        whole = (b0, b1) == (0, e.n_pulses)  # a batch of every pulse needs no (validated) copy of the echo
-        sub = e if whole else e.replace(data=e.data[:, b0:b1], eta=e.eta[b0:b1], tx_pos=e.tx_pos[b0:b1],
-                                        rx_pos=e.rx_pos[:, b0:b1])
-        # only the fast times the leaves' polar grids reach (prepare's reach of their boundary: the
-        # first and last range at every angle row bound a sector's box up to an arc's sagitta
-        # between rows, r dv^2 / 8, micrometres, inside the sample prepare adds for rounding)
-        edges = np.concatenate([grids[k].points(cols=[0, grids[k].n_r - 1]).reshape(-1, 3) for k in batch])
-        records = prepare(sub, **self.options, grid=Grid.points(edges))
+        if e.n_pulses * self.per_pulse <= RECORD_BYTES:  # every leaf's records prepared once, kept for all batches
+            if self.records is None:
+                self.records = self._prepare(e, [k for k, g in enumerate(grids) if g is not None], grids)
+            b0, records = 0, self.records
+        else:  # each batch its pulses' records (a copy of the echo's pulses, validated)
+            b0, b1 = self.leaves[node][0], self.leaves[last][1]
+            sub = e.replace(data=e.data[:, b0:b1], eta=e.eta[b0:b1], tx_pos=e.tx_pos[b0:b1], rx_pos=e.rx_pos[:, b0:b1])
+            records = self._prepare(sub, batch, grids)
         alone = [k for k in batch if self.leaves[k][1] - self.leaves[k][0] != self.first]
         if self.backend == "opencl":
             together = [k for k in batch if k not in alone]
@@ -192,6 +196,40 @@ class FirstStage:
             self.ready[k] = backproject(records, GridPlan(Grid.points(grids[k].points())), pulses=(p0 - b0, p1 - b0),
                                         backend=self.backend, aperture=self.aperture, stop_and_go=self.stop_and_go,
                                         progress=False).data.astype(np.complex128)
+
+    def _prepare(self, echo, leaves: list, grids: list):
+        """The records of ``echo`` (every pulse of ``leaves``) prepared for only the fast times the
+        leaves' polar grids reach (prepare's reach of their boundary: the first and last range at
+        every angle row bound a sector's box up to an arc's sagitta between rows, r dv^2 / 8,
+        micrometres, inside the sample prepare adds for rounding)."""
+        edges = np.concatenate([grids[k].points(cols=[0, grids[k].n_r - 1]).reshape(-1, 3) for k in leaves])
+        return prepare(echo, **self.options, grid=Grid.points(edges))
+
+    def _device_references(self, tile: TileKernel, records, batch: list, centres: np.ndarray, first_tile: np.ndarray,
+                           b0: int, half_extent: float) -> list | None:
+        """The references of :meth:`_references` computed on the device (TileKernel's bp_refs, its
+        twin), a buffer a receiver of (T, first) records: leaf by leaf, its tiles for its pulses;
+        None when a receiver needs the host's (exact delays on a track of more than two nodes:
+        the host checks its linearity)."""
+        import pyopencl as cl
+
+        rt = opencl.runtime()
+        echo, out = records.echo, []
+        for i, h in enumerate(records.receivers):
+            kern = tile.for_receiver(echo, h)
+            size = kern.reference_dtype.itemsize * self.first
+            refs = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, size * int(first_tile[-1]))
+            for j, k in enumerate(batch):
+                t0, t1 = int(first_tile[j]), int(first_tile[j + 1])
+                mine = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                                 hostbuf=np.ascontiguousarray(centres[t0:t1]))
+                part = kern.references_on_device(rt.queue, echo, h, self.leaves[k][0] - b0 + np.arange(self.first), mine,
+                                                 t1 - t0, records.fs, half_extent, int(records.offset[i]))
+                if part is None:
+                    return None
+                cl.enqueue_copy(rt.queue, refs, part, dst_offset=size * t0, byte_count=size * (t1 - t0))
+            out.append(refs)
+        return out
 
     def _references(self, tile: TileKernel, records, batch: list, centres: np.ndarray, first_tile: np.ndarray,
                     b0: int, half_extent: float) -> list | None:
@@ -266,7 +304,9 @@ class FirstStage:
             else:
                 bv //= 2
         first_tile = np.cumsum(np.r_[0, n_tiles])
-        refs = self._references(tile, records, batch, centres, first_tile, b0, extent)
+        refs = self._device_references(tile, records, batch, centres, first_tile, b0, extent)
+        if refs is None:
+            refs = self._references(tile, records, batch, centres, first_tile, b0, extent)
         if refs is None:
             return batch
         row_shift = made(np.repeat(np.array([self.leaves[k][0] - b0 for k in batch], np.int32), n_tiles))
@@ -276,7 +316,7 @@ class FirstStage:
         cl.enqueue_fill_buffer(queue, image, np.zeros(1, np.complex128), 0, 16 * LANES * items.size)
         for i, h in enumerate(records.receivers):
             data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
-            ref_buf = made(refs[i])
+            ref_buf = refs[i] if isinstance(refs[i], cl.Buffer) else made(refs[i])
             kern = tile.for_receiver(echo, h)  # the receiver's legs (TileKernel.legs_for)
             for s in range(0, self.first, tile.PULSE_BLOCK):
                 kern.launch(queue, pixels=pix, tile_of=tile_of, refs=ref_buf, ref_stride=self.first, ref_first=0,

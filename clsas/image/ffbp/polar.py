@@ -60,7 +60,7 @@ exceed its tolerance).
 from __future__ import annotations
 
 import dataclasses
-from functools import lru_cache
+import functools
 
 import numpy as np
 
@@ -70,10 +70,11 @@ RHO_STEPS = np.round(np.arange(1.2, 6.01, 0.05), 2)  # oversamplings tried by th
 SKELETON = 8192  # at most about this many pixels stand for the grid when extents are computed
 CHUNK_NODES = 32  # sub-apertures whose extents are computed at once (32 x ~8k skeleton points x 3 doubles)
 ENVELOPE_BINS = 512  # sine bins of a sub-aperture's range envelope of the scene (the ragged rows)
+OFFSET_ROWS = 4  # origins whose distances to the skeleton are computed at once (Scene.offsets: in cache)
 RAGGED = True  # polar grids computed only within their rows' spans (False: whole rectangles, for comparison)
 
 
-@lru_cache(maxsize=64)
+@functools.lru_cache(maxsize=64)
 def interpolation_error(taps: int, rho: float) -> float:
     """The largest error |interpolated - exact| of a unit complex exponential at the band edge
     (1 / (2 rho) cycles a sample) over all fractional offsets, for the ``taps``-tap Knab-windowed
@@ -228,6 +229,41 @@ class Scene:
     plane: Plane
     pixels: int
 
+    @functools.cached_property
+    def _centred(self) -> np.ndarray:
+        """The skeleton about the plane's centroid, a coordinate a row (3, K) m."""
+        return np.ascontiguousarray((self.skeleton - self.plane.centroid).T)
+
+    def offsets(self, origins: np.ndarray, axes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """The distances (n, K) m from ``origins`` (n, 3) to the skeleton's points, and with ``axes``
+        (n, 3) the points' offsets along them, u . (X - origin) (n, K) m: float64 about the scene's
+        centroid, a coordinate at a time and OFFSET_ROWS origins at a time (in place, in cache: no
+        (n, K, 3) temporary, no matrix product's threads)."""
+        points = self._centred
+        origins = origins - self.plane.centroid
+        r = np.empty((origins.shape[0], points.shape[1]))
+        along = None if axes is None else np.empty_like(r)
+        term = np.empty((OFFSET_ROWS, points.shape[1]))
+        for s in range(0, origins.shape[0], OFFSET_ROWS):
+            rows = slice(s, min(s + OFFSET_ROWS, origins.shape[0]))
+            square, part = r[rows], term[:rows.stop - s]
+            for k in range(3):
+                np.subtract(points[k][None], origins[rows, k:k + 1], out=square if k == 0 else part)
+                if k == 0:
+                    square *= square
+                else:
+                    part *= part
+                    square += part
+            np.sqrt(square, out=square)
+            if axes is not None:
+                a = along[rows]
+                np.multiply(axes[rows, 0:1], points[0][None], out=a)
+                for k in (1, 2):
+                    np.multiply(axes[rows, k:k + 1], points[k][None], out=part)
+                    a += part
+                a -= np.sum(axes[rows] * origins[rows], axis=1)[:, None]
+        return r, along
+
     @classmethod
     def of(cls, positions: np.ndarray) -> "Scene":
         shape = positions.shape[:-1]
@@ -244,21 +280,20 @@ class Scene:
         return cls(skeleton, margin, Plane.fit(skeleton), flat.shape[0])
 
 
-def frame_axes(axis: np.ndarray, centre: np.ndarray, plane: Plane) -> tuple[np.ndarray, np.ndarray]:
-    """(e1, e2): e2 the plane normal's part perpendicular to ``axis`` (unit), e1 = e2 x axis turned
-    towards the scene's centroid. Raises ValueError when the plane is (nearly) perpendicular to
-    the axis (a cross-track vertical image plane: the polar grid would be degenerate)."""
+def frame_axes(axes: np.ndarray, centres: np.ndarray, plane: Plane) -> tuple[np.ndarray, np.ndarray]:
+    """(e1, e2) (n, 3) of frames with unit ``axes`` and ``centres`` (n, 3): e2 the plane normal's
+    part perpendicular to the axis (unit), e1 = e2 x axis turned towards the scene's centroid.
+    Raises ValueError when the plane is (nearly) perpendicular to an axis (a cross-track vertical
+    image plane: the polar grid would be degenerate)."""
     m = plane.normal
-    perp = m - (m @ axis) * axis
-    norm = np.linalg.norm(perp)
-    if norm < 0.1:
+    perp = m[None] - (axes @ m)[:, None] * axes
+    norm = np.linalg.norm(perp, axis=1)
+    if np.any(norm < 0.1):
         raise ValueError("grid: its plane is within 6 degrees of perpendicular to the track, so a sub-aperture's "
                          "polar grid cannot represent it; image it with clsas.backproject")
-    e2 = perp / norm
-    e1 = np.array([e2[1] * axis[2] - e2[2] * axis[1], e2[2] * axis[0] - e2[0] * axis[2],
-                   e2[0] * axis[1] - e2[1] * axis[0]])  # e2 x axis
-    if e1 @ (plane.centroid - centre) < 0:
-        e1 = -e1
+    e2 = perp / norm[:, None]
+    e1 = np.cross(e2, axes)
+    e1 *= np.where(np.sum(e1 * (plane.centroid - centres), axis=1) < 0, -1.0, 1.0)[:, None]
     return e1, e2
 
 
@@ -285,59 +320,79 @@ class Extent:
     envelope: np.ndarray | None = dataclasses.field(default=None, compare=False)
     bins: tuple = (0.0, 1.0)
 
-    def sample(self, rho: float, taps: int) -> PolarGrid:
-        """The polar grid at oversampling ``rho``, padded by ``taps // 2 + 2`` samples on every side
-        for the interpolator, with its rows' spans (:meth:`spans`) when :data:`RAGGED`."""
+    def _sampling(self, rho: float, taps: int) -> tuple:
+        """(r0, dr, n_r, v0, dv, n_v, pad) of the polar grid at oversampling ``rho`` (:meth:`sample`)."""
         dr = 1 / (2 * self.w_r * rho)
         dv = 1 / (2 * max(self.w_v, 1e-12) * rho)
         pad = taps // 2 + 2  # the interpolator reads taps / 2 samples either side; 2 more for frame shifts
         n_r = int(np.ceil((self.r_hi - self.r_lo) / dr)) + 1 + 2 * pad
         n_v = int(np.ceil((self.v_hi - self.v_lo) / dv)) + 1 + 2 * pad
-        r0, v0 = self.r_lo - pad * dr, self.v_lo - pad * dv
-        spans = self.spans(r0, dr, n_r, v0, dv, n_v, pad) if RAGGED and self.envelope is not None else None
-        return PolarGrid(self.centre, self.axis, self.e1, self.e2, self.plane, r0, dr, n_r, v0, dv, n_v, spans)
+        return self.r_lo - pad * dr, dr, n_r, self.v_lo - pad * dv, dv, n_v, pad
 
-    def spans(self, r0: float, dr: float, n_r: int, v0: float, dv: float, n_v: int, pad: int) -> np.ndarray:
-        """Each row's span [lo, hi) (n_v, 2) int32 of the grid r0 + i dr, v0 + j dv: the ranges of
-        the scene's skeleton points whose sines lie within margin / r_lo + pad dv of the row's (the
-        rectangle's own padding in sine), widened by margin + pad dr (its padding in range), so
-        that every sample the rectangle holds within that distance of the scene is kept; the rest
-        of the rectangle (the corners of the (r, v) box outside the scene's wedge) is not computed.
-        The envelope's bins make the sines' window up to one bin wider (more kept, never less)."""
-        start, width = self.bins
-        n_bins = self.envelope.shape[0]
-        reach_v = self.margin / max(self.r_lo, 1e-12) + pad * dv
-        v = v0 + dv * np.arange(n_v)
-        b0 = np.clip(np.floor((v - reach_v - start) / width), 0, n_bins).astype(np.int64)
-        b1 = np.clip(np.floor((v + reach_v - start) / width) + 1, 0, n_bins).astype(np.int64)
-        near, far = _window_extrema(self.envelope, b0, b1)
-        seen = near <= far
-        widen = self.margin + pad * dr
-        with np.errstate(invalid="ignore"):
-            lo = np.floor((np.where(seen, near, r0) - widen - r0) / dr)
-            hi = np.ceil((np.where(seen, far, r0) + widen - r0) / dr) + 1
-        lo, hi = np.clip(lo, 0, n_r), np.clip(hi, 0, n_r)
-        return np.where(seen[:, None], np.stack([lo, hi], axis=1), 0).astype(np.int32)
+    def rows(self, rho: float, taps: int) -> int:
+        """The angle rows n_v of :meth:`sample`'s grid (without sampling it)."""
+        return self._sampling(rho, taps)[5]
+
+    def sample(self, rho: float, taps: int) -> PolarGrid:
+        """The polar grid at oversampling ``rho``, padded by ``taps // 2 + 2`` samples on every side
+        for the interpolator, with its rows' spans (:func:`sample_grids`) when :data:`RAGGED`."""
+        return sample_grids([self], rho, taps)[0]
 
 
-def _window_extrema(envelope: np.ndarray, b0: np.ndarray, b1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The least of envelope[b, 0] and the largest of envelope[b, 1] over b0 <= b < b1 (inf and
-    -inf for an empty window), by a sparse table: extrema over windows of 2^k bins from every bin,
-    two overlapping ones covering each window."""
-    lows, highs = [envelope[:, 0]], [envelope[:, 1]]
-    while 2 ** len(lows) <= envelope.shape[0]:
+def sample_grids(found: list, rho: float, taps: int) -> list:
+    """The polar grids of extents ``found`` at oversampling ``rho`` (:meth:`Extent.sample`), their
+    rows' spans computed together (:data:`RAGGED`; extents without an envelope get none).
+
+    Row j's span [lo, hi) of a grid r0 + i dr, v0 + j dv: the ranges of the scene's skeleton points
+    whose sines lie within margin / r_lo + pad dv of the row's (the rectangle's own padding in
+    sine), widened by margin + pad dr (its padding in range), so that every sample the rectangle
+    holds within that distance of the scene is kept; the rest of the rectangle (the corners of the
+    (r, v) box outside the scene's wedge) is not computed. The envelope's bins make the sines'
+    window up to one bin wider (more kept, never less). The nearest and farthest range over a
+    window of bins come from a sparse table of each envelope (extrema over 2^k bins from every
+    bin; two overlapping windows of 2^k bins cover any window), all the grids' rows at once."""
+    shapes = [e._sampling(rho, taps) for e in found]
+    ragged = [k for k, e in enumerate(found) if RAGGED and e.envelope is not None]
+    spans = dict(zip(ragged, _spans([found[k] for k in ragged], [shapes[k] for k in ragged]))) if ragged else {}
+    return [PolarGrid(e.centre, e.axis, e.e1, e.e2, e.plane, r0, dr, n_r, v0, dv, n_v, spans.get(k))
+            for k, (e, (r0, dr, n_r, v0, dv, n_v, _)) in enumerate(zip(found, shapes))]
+
+
+def _spans(found: list, shapes: list) -> list:
+    """The rows' spans (n_v, 2) int32 of each extent sampled as ``shapes`` (sample_grids)."""
+    r0, dr, n_r, v0, dv, n_v, pad = (np.array(x) for x in zip(*shapes))
+    node = np.repeat(np.arange(len(found)), n_v)  # each row's grid
+    row = np.arange(node.size) - np.repeat(np.cumsum(n_v) - n_v, n_v)
+    start, width = (np.array(x) for x in zip(*(e.bins for e in found)))
+    margin = np.array([e.margin for e in found])
+    envelopes = np.stack([e.envelope for e in found])  # (n, n_bins, 2): every extent's bins alike
+    n_bins = envelopes.shape[1]
+    reach_v = margin / np.maximum([e.r_lo for e in found], 1e-12) + pad * dv
+    v = v0[node] + dv[node] * row
+    b0 = np.clip(np.floor((v - reach_v[node] - start[node]) / width[node]), 0, n_bins).astype(np.int64)
+    b1 = np.clip(np.floor((v + reach_v[node] - start[node]) / width[node]) + 1, 0, n_bins).astype(np.int64)
+    lows, highs = [envelopes[:, :, 0]], [envelopes[:, :, 1]]
+    while 2 ** len(lows) <= n_bins:
         half = 2 ** (len(lows) - 1)
-        lows.append(np.minimum(lows[-1][:-half], lows[-1][half:]))
-        highs.append(np.maximum(highs[-1][:-half], highs[-1][half:]))
+        lows.append(np.minimum(lows[-1][:, :-half], lows[-1][:, half:]))
+        highs.append(np.maximum(highs[-1][:, :-half], highs[-1][:, half:]))
     length = b1 - b0
     k = np.floor(np.log2(np.maximum(length, 1))).astype(np.int64)
-    near, far = np.full(b0.shape, np.inf), np.full(b0.shape, -np.inf)
+    near, far = np.full(node.size, np.inf), np.full(node.size, -np.inf)
     for level in np.unique(k[length > 0]):
         rows = (length > 0) & (k == level)
-        first, last = b0[rows], b1[rows] - 2 ** level
-        near[rows] = np.minimum(lows[level][first], lows[level][last])
-        far[rows] = np.maximum(highs[level][first], highs[level][last])
-    return near, far
+        grid, first, last = node[rows], b0[rows], b1[rows] - 2 ** level
+        near[rows] = np.minimum(lows[level][grid, first], lows[level][grid, last])
+        far[rows] = np.maximum(highs[level][grid, first], highs[level][grid, last])
+    seen = near <= far
+    widen = (margin + pad * dr)[node]
+    origin, step, count = r0[node], dr[node], n_r[node]
+    with np.errstate(invalid="ignore"):
+        lo = np.floor((np.where(seen, near, origin) - widen - origin) / step)
+        hi = np.ceil((np.where(seen, far, origin) + widen - origin) / step) + 1
+    lo, hi = np.clip(lo, 0, count), np.clip(hi, 0, count)
+    spans = np.where(seen[:, None], np.stack([lo, hi], axis=1), 0).astype(np.int32)
+    return np.split(spans, np.cumsum(n_v)[:-1])
 
 
 def extents(centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray, scene: Scene, windows: np.ndarray,
@@ -358,12 +413,8 @@ def extents(centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray, sce
 
 
 def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine_limits) -> list:
-    # float32 about the scene's centroid (errors ~1e-7 of the scene's size, far inside the margins
-    # and the grids' padding) halves the memory traffic of the (n, K) ranges and sines
-    origin = scene.plane.centroid
-    d = (scene.skeleton - origin).astype(np.float32)[None] - (centres - origin).astype(np.float32)[:, None]
-    r = np.sqrt(np.einsum("nki,nki->nk", d, d)).astype(np.float64)
-    v = np.einsum("nki,ni->nk", d, axes.astype(np.float32)) / r
+    r, along = scene.offsets(centres, axes)
+    v = along / np.where(r > 0, r, np.inf)
     r_lo = np.maximum(r.min(axis=1) - scene.margin, windows[:, 0])
     v_margin = scene.margin / np.where(r_lo > 0, r_lo, 1.0)
     v_lo = np.maximum(v.min(axis=1) - v_margin, -1.0)
@@ -404,12 +455,10 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
     np.maximum.at(far, flat, r[ok])
     envelope = np.stack([near, far], axis=1).reshape(len(centres), ENVELOPE_BINS, 2)
     found = []
-    for k in range(len(centres)):
-        if not alive[k]:
-            found.append(None)
-            continue
-        e1, e2 = frame_axes(axes[k], centres[k], scene.plane)
+    e1s, e2s = frame_axes(axes[alive], centres[alive], scene.plane)
+    for k, e1, e2 in zip(np.flatnonzero(alive), e1s, e2s):
+        found += [None] * (k - len(found))
         found.append(Extent(centres[k], axes[k], e1, e2, scene.plane, float(r_lo[k]), float(r_hi[k]), float(v_lo[k]),
                             float(v_hi[k]), float(w_r[k]), float(w_v[k]), float(reach[k]), scene.margin,
                             envelope[k], (float(start[k]), float(width[k]))))
-    return found
+    return found + [None] * (len(centres) - len(found))

@@ -39,7 +39,7 @@ import dataclasses
 import numpy as np
 
 from ...model import EchoData
-from .polar import Scene, extents, oversampling
+from .polar import Scene, extents, oversampling, sample_grids
 
 LEAF_SAMPLES = 16  # the default first stage: the fewest pulses whose leaf grid is at least this wide in angle
 MAX_LEAVES = 64  # ... and no more leaves than this (a leaf's launches and host work cost alike however short it is)
@@ -83,10 +83,9 @@ class _Frames:
         self.mids = 0.5 * (self.tx[None] + rx)
         self.baseline = np.linalg.norm(rx - self.tx[None], axis=-1).max(axis=0)  # (N,)
         step = max(1, echo.n_pulses // 64)  # the array's two ends every ~1/64 of the track
-        track = np.concatenate([self.mids[[0, -1], ::step].reshape(-1, 3), self.mids[[0, -1], -1]])
-        k = scene.skeleton
-        square = np.sum(track * track, axis=1)[:, None] + np.sum(k * k, axis=1)[None, :] - 2 * track @ k.T
-        self.r_near = float(np.sqrt(max(float(square.min()), 0.0))) - scene.margin
+        ends = sorted({0, len(chosen) - 1})  # the array's first and last receiver (one when they are the same)
+        track = np.concatenate([self.mids[ends, ::step].reshape(-1, 3), self.mids[ends, -1]])
+        self.r_near = float(scene.offsets(track)[0].min()) - scene.margin
 
     def frames(self, nodes: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(centres (n, 3), axes (n, 3), half-lengths (n,), largest baselines (n,)) of the nodes
@@ -143,14 +142,15 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         found = extents(centres, axes, halves, scene, window + np.stack([-widen, widen], axis=1), bw, f0, c, limits)
         extents_of.update(zip(nodes, found))
 
-    def node_grid(p0, p1, rho):
-        """The polar grid of the node of pulses p0..p1-1 at oversampling rho (None: it sees nothing)."""
-        find_extents([(p0, p1)])
-        key = (p0, p1, rho)
-        if key not in grids_at:
-            ext = extents_of[(p0, p1)]
-            grids_at[key] = None if ext is None else ext.sample(rho, taps)
-        return grids_at[key]
+    def grids_for(nodes, rho) -> list:
+        """The polar grids of the nodes (p0, p1) at oversampling rho (None: a node that sees nothing),
+        those not yet sampled at once."""
+        find_extents(nodes)
+        new = [n for n in dict.fromkeys(nodes) if (n, rho) not in grids_at]
+        seen = [n for n in new if extents_of[n] is not None]
+        grids_at.update({(n, rho): None for n in new})
+        grids_at.update(zip([(n, rho) for n in seen], sample_grids([extents_of[n] for n in seen], rho, taps)))
+        return [grids_at[(n, rho)] for n in nodes]
 
     def reach(nodes) -> float:
         """Pixels read at the final stage a pixel if these nodes were the top ones (kernels/ffbp.cl skips
@@ -161,8 +161,11 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         first = 1
         rho0 = oversampling(taps, tolerance, 1)
         while first < echo.n_pulses:
-            g = next((node_grid(p, min(p + first, echo.n_pulses), rho0) for p in (echo.n_pulses // 2,)), None)
-            if g is not None and g.n_v - 2 * taps >= LEAF_SAMPLES and -(-echo.n_pulses // first) <= MAX_LEAVES:
+            middle = (echo.n_pulses // 2, min(echo.n_pulses // 2 + first, echo.n_pulses))
+            find_extents([middle])
+            ext = extents_of[middle]  # only its rows are needed, not the sampled grid
+            if ext is not None and ext.rows(rho0, taps) - 2 * taps >= LEAF_SAMPLES and \
+                    -(-echo.n_pulses // first) <= MAX_LEAVES:
                 break
             first *= 2  # doubling, whatever the factor (a factor of 4 would jump past the best)
         first = min(first, echo.n_pulses)
@@ -171,15 +174,14 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
     top = len(pulses) - 1
     for _ in range(2):
         rho = oversampling(taps, tolerance, top + 1)
-        grids = [[node_grid(p0, p1, rho) if level <= top else None for p0, p1 in pulses[level]]
-                 for level in range(len(pulses))]
+        grids = [grids_for(pulses[0], rho)] + [[None] * len(level) for level in pulses[1:]]
         if all(g is None for g in grids[0]):
             raise ValueError("grid: no pixel lies within the recorded range window (and the integration angle, "
                              "if given) of any sub-aperture: the sonar never sees this grid")
         new_top = 0
         while new_top + 1 < len(pulses):
             level = new_top + 1
-            level_grids = [node_grid(p0, p1, rho) for p0, p1 in pulses[level]]
+            level_grids = grids_for(pulses[level], rho)
             cost = factor * sum(g.computed for g in level_grids if g is not None)
             saving = n_pixels * (reach(pulses[new_top]) - reach(pulses[level]))
             if cost > saving:
@@ -190,6 +192,5 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
             break
         top = new_top
     rho = oversampling(taps, tolerance, top + 1)  # the stages of the tree as it stands, settled or not
-    grids = [[node_grid(p0, p1, rho) for p0, p1 in pulses[level]] if level <= top else [] for level in
-             range(len(pulses))]
+    grids = [grids_for(pulses[level], rho) if level <= top else [] for level in range(len(pulses))]
     return Tree(pulses, children, grids, top, rho, first)

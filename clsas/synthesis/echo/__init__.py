@@ -1,9 +1,12 @@
 """Echo synthesis (kernels/echo.cl): :mod:`.pipeline` (simulate, synthesize, delays, noise) drives
-the NumPy reference and the OpenCL launcher of :mod:`.synth`, with the options of :mod:`.options`."""
+the NumPy reference (:mod:`.reference`) and the OpenCL launcher (:mod:`.launch`), both reading a
+pulse block's reach and weights through :mod:`.blocks`, with the options of :mod:`.options`
+resolved into :mod:`.physics`, the kernel's records declared in :mod:`.records`."""
 
 from .options import SynthesisOptions
 from .pipeline import Synthesis, add_noise, delays, signal_power, simulate, synthesize
-from .synth import accumulate_reference
+from . import records as synth  # the records' old home: tests/test_cstruct.py imports them as synth (to go)
+from .reference import accumulate_reference
 
 __all__ = ["Synthesis", "SynthesisOptions", "accumulate_reference", "add_noise", "delays", "signal_power", "simulate",
            "synthesize"]

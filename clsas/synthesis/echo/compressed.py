@@ -29,6 +29,13 @@ raw echo weighted by d and d^2, so a path adds c0 Y0 + c1 Y1 + c2 Y2 with c0 = a
 c2 = a' (b'^2 / 2 + q). Left out: the third-order terms (b' h)^3 / 6 and |q| h^2 b' h, h = T fs / 2
 (below 1e-3 for the band losses and speeds of sonar scenes), and the shift of the support by
 delta against the chirp (the echo's edges; relative error about delta / (2 h)).
+
+Two routes, chosen by their work per path (:attr:`clsas.synthesis.echo.physics.Physics.compress_raw`):
+the taps above (N_TABLES (2 L + 2) table values a path, N_TABLES = 3 for paths with their own
+laws), or the raw echo (T fs samples a path) range-compressed afterwards record by record
+(:meth:`CompressedResponse.compress`: exactly ``range_compress``'s matched filter, so that route
+drops nothing) when the taps would cost more: a short pulse sampled near its bandwidth (Heremans's
+T fs = 125 against 2 L + 2 = 250 taps at -40 dB) or paths with their own laws.
 """
 
 from __future__ import annotations
@@ -135,7 +142,7 @@ class CompressedResponse:
 
     def coefficients(self, amp, laws: dict | None):
         """(centre shift delta (samples), (3,) + amp.shape complex coefficients c0, c1, c2) of paths
-        with amplitudes ``amp`` and, when given, their own laws (:func:`.synth.in_pulse_laws`)."""
+        with amplitudes ``amp`` and, when given, their own laws (:func:`.reference.in_pulse_laws`)."""
         amp = np.asarray(amp, np.complex128)
         if laws is None:
             zero = np.zeros(amp.shape)
@@ -149,9 +156,9 @@ class CompressedResponse:
 
     def accumulate(self, start, frac, amp, n_samples: int, laws: dict | None = None) -> np.ndarray:
         """The compressed records (R, n_samples) complex128 of R records of N paths (the NumPy
-        twin of kernels/echo.cl ``echo_accumulate_compressed``): ``start``, ``frac`` (R, N) the
+        twin of kernels/echo.cl ``add_compressed_echo``): ``start``, ``frac`` (R, N) the
         raw echo centres, ``amp`` (R, N) with the carrier phase, ``laws`` as for
-        :func:`.synth.accumulate_reference`."""
+        :func:`.reference.accumulate_reference`."""
         delta, coeff = self.coefficients(amp, laws)
         u = np.asarray(start) + np.asarray(frac) - delta
         s = np.floor(u)
@@ -175,6 +182,20 @@ class CompressedResponse:
             out[r] = np.bincount(k[keep], weights=resp.real[keep], minlength=n_samples) \
                 + 1j * np.bincount(k[keep], weights=resp.imag[keep], minlength=n_samples)
         return out
+
+    def compress(self, records: np.ndarray, waveform: Waveform) -> np.ndarray:
+        """Raw ``records`` (..., n) range-compressed as :func:`clsas.range_compress` does (the
+        matched filter with this response's window over an FFT of next_fast_len(n + pulse) points,
+        the first n outputs), in the records' dtype."""
+        n = records.shape[-1]
+        replica = 2 * int(np.floor(self.half_len + 1e-9)) + 1
+        n_fft = scipy.fft.next_fast_len(n + replica, real=False)
+        h = matched_filter(waveform, waveform.fs, n_fft, self.window)
+        if records.dtype == np.complex64:
+            h = h.astype(np.complex64)
+        spec = scipy.fft.fft(records, n=n_fft, axis=-1)
+        spec *= h
+        return scipy.fft.ifft(spec, axis=-1)[..., :n].astype(records.dtype, copy=False)
 
     def planar(self, real) -> tuple[np.ndarray, np.ndarray]:
         """The tables as the kernel reads them: (3, PHASES + 1, 2 parts, row) and the impulse

@@ -2,16 +2,15 @@
 
 Pass A computes every path's delay (the recording window follows from them), pass B the
 records, a block of pulses at a time so that memory stays bounded; the backends are in
-:mod:`.synth`.
+:mod:`.reference` and :mod:`.launch`.
 
-Noise (``snr_db``): Kiang & Kiang 2022 section VII-C adds white Gaussian noise "at a given
-level" to the received signal s_rb1(tau, eta) of its eq. (7) without defining the SNR further;
-clsas defines it per receiver as
-
-    SNR = P_s / sigma^2,  P_s = mean of |s|^2 over the samples where the noise-free echo is nonzero,
-
-with complex circular noise of variance sigma^2 (sigma^2 / 2 per real component) added to
-every recorded sample. Seeded by ``seed``; the same seed gives the same noise on either backend.
+Noise (``snr_db``): complex white Gaussian noise added to every recorded raw sample, seeded by
+``seed`` (the same seed gives the same noise on either backend). ``simulate`` takes the SNR
+per sample of the echo, the mean of |s|^2 over the samples where the noise-free echo is nonzero
+over the noise variance; :func:`add_noise` also takes it over the whole record
+(``reference="record"``), the other reading of Kiang & Kiang 2022 section VII-C, which does not
+define its SNR. The two readings, their exact conversion and what each means after compression
+are derived in :func:`add_noise`.
 """
 
 from __future__ import annotations
@@ -25,13 +24,16 @@ from ...model import EchoData
 from ...scene.scenario import Scenario
 from ...scene.targets import Scatterers, scatterers_of
 from ..occlusion import DEFAULT_REUSE_TOLERANCE, PathWeights, has_meshes, needs_path_weights, scene_scatterers
-from ...validate import scalar
+from ...validate import choice, scalar
 from ..checks import SNR_DB_RANGE, check_arguments, warn_pulse_overlap
 from ..window import check_cube_size, node_span, receiver_nodes
 from .options import AUTO, DEFAULT_CHUNK_BYTES, SynthesisOptions, auto_flag
 from ..propagation import BandAbsorption, boundaries, path_kinds
 from .compressed import DEFAULT_LEVEL_DB, CompressedResponse
-from .synth import Physics, _NumpySynth, _OpenCLSynth, on_floor, path_record
+from .launch import OpenCLSynth
+from .physics import Physics, on_floor
+from .records import path_record
+from .reference import NumpySynth
 
 
 def _pulse_blocks(n_pulses: int, per_pulse_bytes: int, chunk_bytes: int) -> list[slice]:
@@ -101,24 +103,61 @@ def signal_power(data, n_valid=None, block: int = 64) -> tuple[np.ndarray, np.nd
     return sums, counts
 
 
-def add_noise(data, snr_db: float, seed, n_valid=None, block: int = 64, power=None):
-    """Add complex white Gaussian noise at ``snr_db`` per receiver (see the module docstring).
+#: The powers an SNR can be taken over (:func:`add_noise`).
+SNR_REFERENCES = ("echo", "record")
+
+
+def add_noise(data, snr_db: float, seed, n_valid=None, block: int = 64, power=None, reference: str = "echo"):
+    """Add complex white Gaussian noise at ``snr_db`` per receiver.
 
     ``data`` is (n_rx, n_pulses, n_samples): a NumPy array (changed in place and returned) or
     a zarr array (read, noised and written back a pulse block at a time). Receiver h records
-    only its first ``n_valid[h]`` samples (default all), and only those get noise. ``power``:
-    :func:`signal_power`'s (sums, counts) when already known, else computed from ``data``.
-    Noise is drawn pulse block by pulse block (same draws for the same ``seed`` whatever the
-    backend).
+    only its first ``n_valid[h]`` samples (default all; an EchoData's are
+    ``provenance["n_valid"]``), and only those get noise. ``power``: :func:`signal_power`'s
+    (sums, counts) when already known, else computed from ``data``. Noise is drawn pulse block
+    by pulse block (same draws for the same ``seed`` whatever the backend).
+
+    The SNR. Receiver h's noise is circular with variance sigma^2 (sigma^2 / 2 per real
+    component), SNR = P / sigma^2, and ``reference`` says which signal power P is meant:
+
+    - ``"echo"`` (default; ``simulate(snr_db=)``): P_echo = the mean of |s|^2 over the samples
+      where the noise-free echo is nonzero (n_echo of them: n_pulses x the echo's length);
+    - ``"record"``: P_record = the mean of |s|^2 over every recorded sample (n_rec = n_pulses x
+      n_valid[h]), zeros included: MATLAB's ``awgn(s, snr, "measured")`` on the whole record.
+
+    Kiang & Kiang 2022 section VII-C adds "white Gaussian noise at a given level" to the
+    received signal s_rb1(tau, eta) of its eq. (7) and quotes SNRs (-15 dB: 1.956 % error; >=
+    -17 dB: 1.8-2.2 %; -20 dB: no SoWVD peak, Figs. 20-22) without saying over which samples the
+    signal power is taken. Both readings are natural: eq. (7)'s s_rb1 is a rect of the pulse
+    length T on each pulse, nonzero only on the echo ("echo", which is also ``awgn(s, snr)``
+    without "measured" for a unit-amplitude echo, 0 dBW on its support), and the simulated
+    matrix s_rb1 covers the recording window, whose mean power includes the zeros around the
+    echo ("record"). They differ by the echo's duty in the record, exactly:
+
+        SNR_record = SNR_echo + 10 log10(n_echo / n_rec)  dB,
+
+    since P_record n_rec = P_echo n_echo (the zeros add no power); :func:`snr_offset_db` gives
+    10 log10(n_echo / n_rec) per receiver. clsas's windows span the echo's migration over the
+    exposure (a pulse length T at each pulse plus the range walk and curvature), so the offset
+    grows with the exposure and the walk (``clsas reproduce kiang2022 --snr-sweep`` prints it
+    per receiver). The paper's window is not given; in a window wider than clsas's the same
+    noise would read as a lower "record" SNR still.
+
+    After processing, what counts is the same in either reading: a point echo of N = T fs
+    samples of power P_echo range-compresses (eq. 8) to a peak N^2 P_echo over noise N sigma^2,
+    N SNR_echo per pulse (+20 dB on Table I, T fs = 100), and azimuth compression over M pulses
+    multiplies it by M (tests/test_moving_noise.py measures both).
     """
     scalar("add_noise snr_db", snr_db, low=SNR_DB_RANGE[0], high=SNR_DB_RANGE[1], unit="dB")
+    choice("add_noise reference", reference, SNR_REFERENCES)
     n_valid = np.full(data.shape[0], data.shape[2]) if n_valid is None else np.asarray(n_valid)
     sums, counts = signal_power(data, n_valid) if power is None else power
     total, heard = sums.sum(axis=1), counts.sum(axis=1)
     for h in range(data.shape[0]):
         if heard[h] == 0:
             raise ValueError(f"receiver {h} recorded no echo: its SNR is undefined")
-    sigma = np.sqrt(total / heard / 10 ** (snr_db / 10) / 2).astype(np.float32)
+    samples = heard if reference == "echo" else n_valid * data.shape[1]
+    sigma = np.sqrt(total / samples / 10 ** (snr_db / 10) / 2).astype(np.float32)
     rng = np.random.default_rng(seed)
     in_place = isinstance(data, np.ndarray)
     for s in range(0, data.shape[1], block):
@@ -131,6 +170,17 @@ def add_noise(data, snr_db: float, seed, n_valid=None, block: int = 64, power=No
             data[:, s:s + block] = part
     return data
 
+
+def snr_offset_db(data, n_valid=None, power=None) -> np.ndarray:
+    """SNR_record - SNR_echo per receiver, dB (n_rx,): 10 log10 of the fraction of the recorded
+    samples where the noise-free echo ``data`` is nonzero (:func:`add_noise` derives it); <= 0.
+    ``n_valid`` and ``power`` as in :func:`add_noise`."""
+    n_valid = np.full(data.shape[0], data.shape[2]) if n_valid is None else np.asarray(n_valid)
+    _, counts = signal_power(data, n_valid) if power is None else power
+    heard = counts.sum(axis=1)
+    if np.any(heard == 0):
+        raise ValueError(f"receivers {np.flatnonzero(heard == 0).tolist()} recorded no echo: their SNR is undefined")
+    return 10 * np.log10(heard / (n_valid * data.shape[1]))
 
 def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_occlusion: bool,
                        reuse_tolerance: float):
@@ -152,7 +202,7 @@ def resolve_physics(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers
     and absorption on, and first-order multipath, in a scene with a seafloor; multipath also with
     a sea surface). ``scat``: every scatterer, the seafloor's facets last. ``prune``: leave out
     the path kinds that are dark for every scatterer (a bounce off the seabed next to a scatterer
-    that lies on it, :func:`.synth.on_floor`: a scene of seafloor facets alone)."""
+    that lies on it, :func:`.physics.on_floor`: a scene of seafloor facets alone)."""
     floor = getattr(scenario, "seafloor", None) is not None
     planes = boundaries(scenario)
     order = (1 if planes else 0) if opts.multipath == AUTO else opts.multipath
@@ -165,9 +215,8 @@ def resolve_physics(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers
     absorption = BandAbsorption.of(scenario.medium, scenario.waveform) if absorbing else None
     response = None if opts.compressed is False else \
         CompressedResponse.of(scenario.waveform, opts.compressed, opts.compressed_level_db)
-    return Physics(kinds=kinds, intra_pulse=opts.intra_pulse, absorption=absorption,
-                   spreading=spreading, stop_and_go=opts.stop_and_go, moving=bool(np.any(scat.vel != 0)),
-                   response=response, floor_first=floor_first)
+    return Physics(opts, kinds=kinds, absorption=absorption, spreading=spreading,
+                   moving=bool(np.any(scat.vel != 0)), response=response, floor_first=floor_first)
 
 
 def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion, prune: bool = True):
@@ -189,11 +238,11 @@ def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion, prune: bo
     kinds = len(physics.kinds)
     if opts.backend == "numpy":
         span = int(0.5 * scenario.waveform.duration * scenario.waveform.fs) + 2
-        synth = _NumpySynth(*args)
+        synth = NumpySynth(*args)
         per_pulse = n_rx * scat.count * kinds * (16 * 8 + 48 * span)
     else:
         tau_hi = node_span(scenario, scenario.eta, _delay_bound(scenario, scat, physics))
-        synth = _OpenCLSynth(*args, double=opts.double,
+        synth = OpenCLSynth(*args, double=opts.double,
                              nodes=receiver_nodes(scenario, scenario.eta, tau_hi, strict=not opts.stop_and_go))
         per_pulse = n_rx * scat.count * kinds * path_record(synth.real, physics.extended).itemsize
     return synth, _pulse_blocks(n_pulses, per_pulse, opts.chunk_bytes)
@@ -230,7 +279,7 @@ class Synthesis(NamedTuple):
     nodes : (rx_tau (n_nodes,) s, rx_pos (n_rx, n_pulses, n_nodes, 3) m), the receivers'
     positions over each pulse; node_error_m : their largest departure from the exact track;
     n_scatterers : point scatterers synthesized (mesh facets included);
-    physics : what the paths carried (:class:`clsas.synthesis.echo.synth.Physics`).
+    physics : what the paths carried (:class:`clsas.synthesis.echo.physics.Physics`).
     """
 
     data: np.ndarray
@@ -269,15 +318,14 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
     with stage(f"echo delays ({name})", f"{n_rx} receivers x {n_pulses} pulses x {n_scat} scatterers"), \
             Progress(n_pulses, "pulses", "echo delays", progress, leave=False) as bar:
         for sl in blocks:
-            a, b = synth.extents(sl)
-            lo, hi = np.minimum(lo, a), np.maximum(hi, b)
+            synth.extents(sl, lo, hi)
             bar.done(sl.stop - sl.start)
     warn_pulse_overlap(scenario, synth)
     lo, hi = lo / wf.fs, hi / wf.fs  # s, whole samples
     # the nodes span the recording window (and not beyond sampled motion errors)
     tau_span = node_span(scenario, scenario.eta, hi.max() + 0.5 * wf.duration + 2 / wf.fs)
     if name == "opencl" and hi.max() > synth.rx_tau[-1]:
-        synth = _OpenCLSynth(*synth.args, double=double,
+        synth = OpenCLSynth(*synth.args, double=double,
                              nodes=receiver_nodes(scenario, scenario.eta, tau_span, strict=not opts.stop_and_go))
     t0, n_valid, origin = _window(scenario, lo, hi)
     _check_targets_in_windows(scenario, lo, hi, t0, n_valid)
@@ -287,13 +335,17 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
     check_cube_size(n_rx, n_pulses, n_samples, opts.max_bytes, origin, n_nodes=nodes[0].size)
     data = np.zeros((n_rx, n_pulses, n_samples), dtype=opts.dtype)
     # pass B in blocks that also bound the records' memory (complex128 on the host, the
-    # kernel's output buffer and its copy)
-    per_pulse = n_rx * (synth.scat.count * 32 + 3 * 16 * n_samples)
+    # kernel's output buffer and its copy; the raw route's FFTs of about twice the samples)
+    per_pulse = n_rx * (synth.scat.count * 32 + (7 if synth.physics.compress_raw else 3) * 16 * n_samples)
     with stage(f"echo synthesis ({name})", f"{n_rx} receivers x {n_pulses} pulses x {n_samples} samples "
                f"({data.nbytes / 2**20:.1f} MiB) x {n_scat} scatterers"), \
             Progress(n_pulses, "pulses", f"echo synthesis ({name})", progress) as bar:
         for sl in _pulse_blocks(n_pulses, per_pulse, chunk_bytes):
             block = synth.records(sl, t0, n_samples)
+            if synth.physics.compress_raw:  # the raw route into the compressed domain (.compressed)
+                for h in range(n_rx):
+                    block[h, :, n_valid[h]:] = 0
+                block = synth.physics.response.compress(block, wf)
             if not np.all(np.isfinite(block)):
                 raise ValueError("the echo has non-finite samples: a scatterer coincides with the transmitter or a "
                                  "receiver (zero path length); move it away")
@@ -303,6 +355,15 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
     for h in range(n_rx):
         data[h, :, n_valid[h]:] = 0
     return Synthesis(data, t0, n_valid, origin, nodes[:2], float(nodes[2]), n_scat, synth.physics)
+
+
+def _compressed_provenance(opts: SynthesisOptions, physics: Physics) -> dict:
+    """How the echo reached the compressed domain: the response's taps (and the share of its energy
+    dropped), or the raw route (nothing dropped: ``discarded_db`` None)."""
+    resp = physics.response
+    return {"window": opts.compressed, "level_db": opts.compressed_level_db,
+            "route": "raw echo + matched filter" if physics.compress_raw else "taps", "taps": resp.taps,
+            "discarded_db": None if physics.compress_raw else resp.discarded_db}
 
 
 def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool = False, snr_db: float | None = None,
@@ -354,7 +415,9 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         window named), each path's compressed point response written around its exact delay
         over the taps where it exceeds ``compressed_level_db`` re its peak
         (:mod:`clsas.synthesis.echo.compressed`). For large scenes (a seafloor's facets): the
-        work per path is those taps instead of the whole pulse. Not with ``snr_db`` (the noise is
+        work per path is those taps instead of the whole pulse; where the taps would cost more
+        than the pulse's samples, the raw echo is synthesized and range-compressed record by
+        record instead (``provenance["compressed"]["route"]``). Not with ``snr_db`` (the noise is
         defined on raw samples).
     compressed_level_db : float
         dB in [-120, -10]: where the compressed response is cut (default -40).
@@ -411,9 +474,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
                     "absorption": out.physics.absorption is not None,
                     "paths": [kind.name for kind in out.physics.kinds],
                     "intra_pulse": out.physics.intra_pulse if out.physics.doppler else "none", "snr_db": snr_db,
-                    **({"compressed": {"window": opts.compressed, "level_db": opts.compressed_level_db,
-                                       "taps": out.physics.response.taps,
-                                       "discarded_db": out.physics.response.discarded_db}} if out.physics.response else {}),
+                    **({"compressed": _compressed_provenance(opts, out.physics)} if out.physics.response else {}),
                     "seed": seed if seed is None or isinstance(seed, int) else str(seed),
                     "n_scatterers": out.n_scatterers, "occlusion": occlusion is not None,
                     "hull_occlusion": bool(opts.hull_occlusion and needs_path_weights(scenario)),

@@ -1,0 +1,172 @@
+"""The moving-target chain in noise (Kiang & Kiang 2022 section VII-C, Figs. 20-22) and the SNR.
+
+The paper does not say over which samples its SNR's signal power is taken; clsas offers both
+readings (:func:`clsas.synthesis.echo.pipeline.add_noise`, which derives them): "echo" (the
+mean power over the samples the echo occupies, ``simulate(snr_db=)``) and "record" (over every
+recorded sample). They differ by the echo's duty in the record, exactly; the tests below check
+that, and the processing gains the derivation predicts, on simulated echoes.
+
+The chain (case 1's point target, the Table I sonar, 1024 pulses at 80 Hz; the paper uses 6400),
+"echo" reading, measured: -13 dB 0.03-0.15 %, -15 dB 0.04-0.28 %, -16 dB 0.08-0.48 % (seeds
+1-5); -17 dB 0.13-0.34 %, -18 dB 0.10-0.27 % or (seed 1) an EstimationError naming receiver B
+(seeds 1-3); -20 and -22 dB: EstimationError, the echo stands out of the noise in 10-21 % of A's
+pulses (the paper halts at -20 dB). Confidence 1.00 and |sigma| 0.013-0.016 m/s (0.3-0.4 %)
+wherever it estimates. At -17 dB the SoWVD scores below its threshold on some receivers and the
+rate is confirmed by the focus (:data:`clsas.estimate.moving.chain.FOCUS_DB`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import clsas
+from clsas import PointTargets
+from clsas.errors import EstimationError
+from clsas.estimate.moving.extent import extent
+from clsas.scene import presets
+from clsas.synthesis.echo.pipeline import add_noise, signal_power, snr_offset_db
+
+CENTRE = (1989.0, 0.0, -350.0)
+CASE1 = presets.KIANG_CASES[1]
+
+
+def point_scene(n_pulses: int):
+    return presets.kiang2022(n_pulses=n_pulses).replace(targets=(PointTargets(CENTRE, velocity=CASE1),))
+
+
+@pytest.fixture(scope="module")
+def short_echo():
+    """64 pulses of case 1's point target, noise-free."""
+    return clsas.simulate(point_scene(64), backend="numpy", progress=False)
+
+
+@pytest.fixture(scope="module")
+def chain_echo():
+    """1024 pulses of case 1's point target, noise-free (the chain's scene)."""
+    return clsas.simulate(point_scene(1024), backend="numpy", progress=False)
+
+
+def noisy(echo, snr_db, seed, reference="echo"):
+    data = add_noise(echo.data.copy(), snr_db, seed, echo.provenance["n_valid"], reference=reference)
+    return echo.replace(data=data)
+
+
+@pytest.mark.parametrize("reference", ["echo", "record"])
+def test_noise_variance_follows_the_reading(short_echo, reference):
+    """sigma^2 = P / 10^(SNR / 10) with P the mean |s|^2 over the echo's samples ("echo") or over
+    every recorded sample ("record")."""
+    n_valid = np.array(short_echo.provenance["n_valid"])
+    sums, counts = signal_power(short_echo.data, n_valid)
+    noise = noisy(short_echo, -10.0, 7, reference).data - short_echo.data
+    for h in range(len(short_echo.receivers)):
+        recorded = noise[h, :, :n_valid[h]]
+        samples = counts[h].sum() if reference == "echo" else recorded.size
+        expected = sums[h].sum() / samples / 10 ** (-10.0 / 10)
+        assert np.mean(np.abs(recorded) ** 2) == pytest.approx(expected, rel=0.02)  # ~40 k samples: 0.5 % noise
+        assert not np.any(noise[h, :, n_valid[h]:])
+
+
+def test_readings_differ_by_the_duty(short_echo):
+    """SNR_record = SNR_echo + 10 log10(n_echo / n_rec): the same noise, to float32 rounding."""
+    offset = snr_offset_db(short_echo.data, short_echo.provenance["n_valid"])
+    n_valid = np.array(short_echo.provenance["n_valid"])
+    _, counts = signal_power(short_echo.data, n_valid)
+    assert np.allclose(offset, 10 * np.log10(counts.sum(axis=1) / (n_valid * short_echo.n_pulses)))
+    assert np.all(offset < -0.05)  # the window holds the migration: wider than the pulse
+    for h in range(len(short_echo.receivers)):
+        as_echo = noisy(short_echo, -10.0, 3, "echo").data[h]
+        as_record = noisy(short_echo, -10.0 + float(offset[h]), 3, "record").data[h]
+        assert np.allclose(as_echo, as_record, rtol=0, atol=1e-5 * np.abs(as_echo).max())
+
+
+def test_range_compression_gain_is_n_snr_echo(chain_echo):
+    """A point echo of N = T fs samples compresses to a peak N^2 P_echo over noise N sigma^2:
+    the compressed SNR is N SNR_echo (20 dB above it on Table I, N = 100), less the ~0.3 dB the
+    critically sampled chirp (F_r = B) loses at the peak."""
+    short_echo = chain_echo
+    snr_db = -15.0
+    clean = clsas.range_compress(short_echo, upsample=8)  # the peak sampled within 1/16 of a sample
+    noise = clsas.range_compress(noisy(short_echo, snr_db, 5), upsample=8).data - clean.data
+    n = short_echo.waveform.duration * short_echo.fs
+    pulses = np.arange(short_echo.n_pulses)
+    for h in range(len(short_echo.receivers)):
+        at = np.argmax(np.abs(clean.data[h]), axis=1)  # per pulse: where the filter meets the echo
+        peak = np.abs(clean.data[h, pulses, at]) ** 2
+        gain_db = 10 * np.log10(np.mean(peak) / np.mean(np.abs(noise[h, pulses, at]) ** 2)) - snr_db
+        assert gain_db == pytest.approx(10 * np.log10(n) - 0.3, abs=0.5)  # 1024 noise samples: +-0.14 dB
+
+def test_extent_ignores_the_noise_floor():
+    """A point's extent in a focused image 30 dB over its noise floor: the same middle and about
+    the same size as without noise (the level is the floor's plus 20 dB below the peak, not 20
+    dB below the peak alone, which noise fills once the smoothed image is < ~20 dB over it)."""
+    rng = np.random.default_rng(1)
+    eta, tau = np.arange(1024) * 0.016, np.arange(400) * 25e-6
+    cell_eta, cell_tau = 0.016, 50e-6
+    spot = (np.sinc((eta[:, None] - 8.0) / cell_eta) * np.sinc((tau[None, :] - 5e-3) / cell_tau)).astype(np.complex64)
+    clean = extent(spot, eta, tau, cell_eta, cell_tau)
+    sigma = 10 ** (-30 / 20)
+    image = spot + sigma * (rng.standard_normal(spot.shape) + 1j * rng.standard_normal(spot.shape)) / np.sqrt(2)
+    ext = extent(image, eta, tau, cell_eta, cell_tau)
+    assert abs(ext.eta_mid - 8.0) < 0.5 * cell_eta and abs(ext.tau_mid - 5e-3) < 0.25 * cell_tau
+    assert (ext.eta[1] - ext.eta[0]) < 1.5 * (clean.eta[1] - clean.eta[0])
+    assert (ext.tau[1] - ext.tau[0]) < 1.5 * (clean.tau[1] - clean.tau[0])
+
+
+def velocity_error(echo):
+    est = clsas.estimate_motion(echo, position=CENTRE)
+    v = np.array(CASE1)
+    return est, float(np.linalg.norm(est.velocity - v) / np.linalg.norm(v))
+
+
+def test_chain_at_minus_15_db(chain_echo):
+    """"echo" SNR -15 dB (the stricter reading of the paper's -15 dB, where it reports 1.956 %):
+    measured 0.04-0.28 % over seeds 1-5 (this seed: 0.15 %), confidence 1.00."""
+    est, err = velocity_error(noisy(chain_echo, -15.0, 2))
+    assert err < 0.02
+    assert est.confidence > 0.9
+    assert err * np.linalg.norm(CASE1) < 3 * np.linalg.norm(est.sigma)  # honest sigma
+
+
+def test_chain_at_the_papers_floor_record_reading(chain_echo):
+    """"record" SNR -17 dB (the paper's floor read over the whole record: on this 12.8 s scene an
+    "echo" SNR 0.8, 3.8 and 0.5 dB higher at A, B and C): an estimate within the paper's 3 %."""
+    offset = snr_offset_db(chain_echo.data, chain_echo.provenance["n_valid"])
+    assert np.allclose(offset, (-0.83, -3.77, -0.53), atol=0.05)
+    est, err = velocity_error(noisy(chain_echo, -17.0, 1, "record"))
+    assert err < 0.02 and est.confidence > 0.9
+
+
+def test_chain_at_the_papers_floor_echo_reading(chain_echo):
+    """"echo" SNR -17 dB on 1024 pulses: measured 0.13-0.34 % (seeds 1-3; this one 0.13 %)."""
+    est, err = velocity_error(noisy(chain_echo, -17.0, 3))
+    assert err < 0.02 and est.confidence > 0.9
+    assert err * np.linalg.norm(CASE1) < 3 * np.linalg.norm(est.sigma)
+
+
+def test_chain_below_its_floor_says_which_receiver_and_why(chain_echo):
+    """"echo" SNR -18 dB, seed 1: B's SoWVD has no peak (14.9 dB against 26) and its record
+    focused with the best candidate holds no target (14.2 dB over the median against 20);
+    -20 dB: the echo stands out of the noise in too few of A's pulses."""
+    with pytest.raises(EstimationError, match=r"receiver B: no SoWVD peak stands out of the background.* holds no "
+                                              r"target: image peak"):
+        clsas.estimate_motion(noisy(chain_echo, -18.0, 1), position=CENTRE)
+    with pytest.raises(EstimationError, match=r"receiver A: the echo stands out of the noise in \d+ % of the pulses"):
+        clsas.estimate_motion(noisy(chain_echo, -20.0, 1), position=CENTRE)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("snr_db", [-13.0, -15.0, -16.0, -17.0])
+def test_chain_over_seeds(chain_echo, snr_db):
+    """Seeds 1-5 at each SNR ("echo" reading): error < 2 %, within 3 sigma, confident, or at -17
+    dB an EstimationError naming the receiver."""
+    for seed in range(1, 6):
+        try:
+            est, err = velocity_error(noisy(chain_echo, snr_db, seed))
+        except EstimationError as error:
+            assert snr_db <= -17.0 and str(error).startswith("receiver "), (seed, error)
+            continue
+        assert err < 0.02, (seed, err)
+        assert est.confidence > 0.9, (seed, est.confidence)
+        assert err * np.linalg.norm(CASE1) < 3 * np.linalg.norm(est.sigma), (seed, err, est.sigma)
+
