@@ -30,7 +30,7 @@ from .. import validate
 from ..model import MAX_ECHO_FS, EchoData, Image, Medium, Waveform
 from ..interp import resample
 from ..scene.scenario import MAX_ELEMENT
-from .rangecomp import spectral_window
+from ..pulse import spectral_window
 
 STRAIGHTNESS = 0.05  # allowed deviation of the track from a line, wavelengths
 

@@ -67,7 +67,8 @@ from ... import validate as v
 from ...interp import INTERPOLATORS, TAP_WINDOWS, check_options, check_sizes, resample_prechecked
 from ...model import EchoData, Image
 from ..multireceiver import interleave, line_array
-from ..rangecomp import check_window, check_workers
+from ...pulse import check_window
+from ..rangecomp import check_workers
 from ..record import LineRecord, azimuth_weights, check_elements, image_of, oversampling
 from .phase import compress_azimuth, decouple
 from .stationary import StationaryPoints, hermite, migration
