@@ -176,7 +176,7 @@ def judge(target: Target, p: Param, value, timeout: float) -> str | None:
 
 @functools.cache
 def fixtures() -> dict:
-    from clsas.estimate import moving
+    from clsas.estimate import dpca, moving
     from clsas.scene import presets
 
     with warnings.catch_warnings():
@@ -185,14 +185,21 @@ def fixtures() -> dict:
         echo = clsas.simulate(point, progress=False, backend="numpy")
         strip = clsas.simulate(presets.point_scene("huang2022", n_pulses=16), progress=False)
         kiang = clsas.simulate(presets.kiang2022_case(1, n_pulses=128), progress=False)
+        mono = clsas.range_compress(clsas.simulate(dataclasses.replace(point, array=clsas.Array(rx_offsets=[[0.0, 0.0, 0.0]])),
+                                                   progress=False, backend="numpy"))
     compressed = clsas.range_compress(echo)
     strip_c = clsas.range_compress(strip)
+    pairs = dpca.estimate(compressed, point.array, point.platform.speed)
+    track = dpca.integrate(pairs, compressed.eta, point.platform.speed, point.array)
+    still = dataclasses.replace(track, along=np.zeros_like(track.along), cross=np.zeros_like(track.cross),
+                                heading=np.zeros_like(track.heading))  # the true track: no motion
     folder = Path(tempfile.mkdtemp(prefix="clsas-fuzz-"))
     rng = np.random.default_rng(0)
     img = (0.01 * (rng.standard_normal((64, 16)) + 1j * rng.standard_normal((64, 16)))).astype(np.complex64)
     img[32, ::4] += 10
     return {"scene": point, "echo": echo, "compressed": compressed, "strip": strip_c,
             "record": clsas.pca_record(strip_c), "kiang": kiang, "layout": moving.layout_of(kiang),
+            "pairs": pairs, "track": still, "mono": mono, "motion": clsas.estimate_motion(kiang),
             "grid": clsas.Grid.plane(np.linspace(95, 105, 8), np.linspace(-2, 2, 8), point.platform.start[2]),
             "image": clsas.Image(img, ("y", "x"), {"y": np.arange(64) * 0.01, "x": np.arange(16) * 0.01}),
             "folder": folder, "saved": clsas.save(compressed, folder / "e.nc"),
@@ -268,6 +275,41 @@ def targets() -> list:
         t("EchoData.replace", kw(comp.replace), "clsas.model.echo", ("fs", R), ("compressed", F)),
         t("use_memory_budget", lambda nbytes="1G": clsas.use_memory_budget(nbytes).__enter__(), "clsas.budget",
           ("nbytes", "other", True)),
+        # added since the first hardening (session 3): the seafloor and the water, simulate's new
+        # options, the moving-target chain's entry points, DPCA, the conversions
+        t("Seafloor", kw(clsas.Seafloor, extent=(90.0, 110.0, -5.0, 5.0), z=-10.0), "clsas.scene.seafloor",
+          ("z", R), ("spacing", R), ("ripple_wavelength", R), ("ripple_height", R), ("ripple_direction", R),
+          ("scatterers_per_cell", R), ("facet_spacing", R, True), ("beam_nulls", I), ("seed", I), ("law", C),
+          ("sediment", "other")),  # a name or a Sediment: other kinds are TypeErrors
+        t("Sediment", kw(clsas.Sediment), "clsas.scene.seafloor", ("density_ratio", R), ("sound_speed_ratio", R),
+          ("loss", R), ("spectral_exponent", R), ("spectral_strength", R), ("volume_ratio", R),
+          ("lambert_mu_db", R, True)),
+        t("SeaSurface", kw(clsas.SeaSurface), "clsas.scene.surface", ("z", R), ("rms_height", R)),
+        t("Medium.absorption", kw(clsas.Medium), "clsas.model.medium", ("depth", R), ("ph", R)),
+        t("absorption_db_per_km", lambda frequency_hz=50e3: clsas.absorption_db_per_km(frequency_hz),
+          "clsas.synthesis", ("frequency_hz", "other")),  # a number or an array of them
+        t("simulate.options", kw(clsas.simulate, scene, progress=False, backend="numpy"), "clsas.synthesis",
+          ("intra_pulse", C), ("compressed_level_db", R), ("precision", C), ("reuse_tolerance", R)),
+        t("estimate_motions", kw(clsas.estimate_motions, f["kiang"], n_targets=1), "clsas.estimate.moving",
+          ("n_targets", I), ("p0", R), ("threshold_db", R)),
+        t("focus_moving", kw(clsas.focus_moving, f["kiang"], f["motion"], half_size=2.0, spacing=0.1),
+          "clsas.estimate.moving", ("tau_span", R, True), ("sharpen", F), ("method", C), ("spacing", R, True),
+          ("half_size", "other", True)),  # a number or (range, along-track)
+        t("dpca.estimate", kw(dpca.estimate, comp, scene.array, scene.platform.speed), "clsas.estimate.dpca",
+          ("speed", R), ("lags", I), ("t_lags", I), ("block", I), ("n_angles", I), ("min_coherence", R)),
+        t("dpca.integrate", lambda speed=scene.platform.speed, heading0=0.0: dpca.integrate(
+            f["pairs"], comp.eta, speed, scene.array, heading0=heading0), "clsas.estimate.dpca", ("speed", R),
+          ("heading0", R)),
+        t("dpca.compensate_record", kw(dpca.compensate_record, comp, f["track"], scene, list(range(4, 11))),
+          "clsas.estimate.dpca", ("depth", R, True), ("subaperture", I), ("workers", I, True)),
+        t("line_record", kw(clsas.line_record, f["mono"]), "clsas.image.record", ("interp", C), ("tap_window", C),
+          ("stop_and_go", F, True)),
+        t("scenario_to_toml", lambda inline_meshes=None: clsas.scenario_to_toml(scene, inline_meshes=inline_meshes),
+          "clsas.io.toml", ("inline_meshes", F, True)),
+        t("to_xarray", lambda obj=comp: clsas.to_xarray(obj), "clsas.io.dataset", ("obj", "other")),
+        t("from_xarray", lambda ds=clsas.to_xarray(comp): clsas.from_xarray(ds), "clsas.io.dataset", ("ds", "other")),
+        t("use_backend", lambda name="numpy": clsas.use_backend(name).__exit__(None, None, None), "clsas.backend",
+          ("name", C)),
     ]
     return out
 

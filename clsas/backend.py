@@ -63,7 +63,7 @@ class use_backend:
     """
 
     def __init__(self, name: str):
-        checked = _check_name(name, "backend")
+        checked = _check_name(name, "use_backend name: the backend")
         self._previous = _choice.get()
         self._token = _choice.set(checked)
         self.name = checked

@@ -10,8 +10,8 @@ import numpy as np
 
 import clsas
 from clsas import metrics
-from clsas.model import Grid, Image
-from clsas.image.backprojection import backproject
+from clsas.model import Image
+from clsas.reproduce._points import backprojected
 from clsas.scene import presets
 from clsas.scene.scenario import (
     Array,
@@ -72,9 +72,7 @@ def compare_with_backprojection(image: Image, echo, points, band_length: float):
     rows = []
     for p in points:
         mine = patch(image, p, 6 * cell_y, 6 * cell_x)
-        bp = backproject(echo, Grid.points(mine.positions, dims=("y", "x")), backend="opencl", interp="sinc8",
-                         aperture=aperture, progress=False)
-        bp = Image(data=bp.data, dims=("y", "x"), axes=mine.axes, positions=mine.positions)
+        bp = backprojected(echo, mine, aperture)
         a = metrics.analyse_point(mine, near=(p[1], p[0]), radius=cell_y)
         b = metrics.analyse_point(bp, near=(p[1], p[0]), radius=cell_y)
         rows.append({

@@ -264,3 +264,14 @@ def test_ctrl_c_prints_one_line_and_exits_130(tmp_path):
     assert child.returncode == 130, err
     assert err.strip().splitlines()[-1] == "clsas: interrupted" and "Traceback" not in err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("args, message", [(["reproduce", "kiang2022", "--cases", "99"], "--cases must be among"),
+                                           (["reproduce", "heremans2009", "--pings", "0"], "--pings must be >= 8")])
+def test_a_reproduction_refusing_its_options_ends_in_one_error_line(capsys, args, message):
+    """The reproductions refuse their options with SystemExit("message"): that was status 1 and a
+    bare line; now the one "clsas: error:" line and status 2 of every other command."""
+    assert cli.main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("clsas: error:") and message in err, err
+

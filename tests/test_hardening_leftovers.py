@@ -92,3 +92,26 @@ def test_dpca_estimate_keeps_the_budget(extent):
 def test_a_choice_is_judged_by_membership(value):
     with pytest.raises(ValueError, match=r"^range_compress window: must be one of \('none', 'hamming'"):
         validate.choice("range_compress window", value, ("none", "hamming"))
+
+
+@pytest.mark.parametrize("value", [None, 1.0, "a", object(), {"attrs": {}}])
+def test_from_xarray_refuses_what_is_not_a_dataset_by_name(value):
+    """These were AttributeErrors ('float' object has no attribute 'attrs')."""
+    with pytest.raises(TypeError, match="^from_xarray ds: must be an xarray.Dataset"):
+        clsas.from_xarray(value)
+    with pytest.raises(TypeError, match="^to_xarray obj: must be an EchoData or an Image"):
+        clsas.to_xarray(value)
+
+
+def test_from_xarray_names_a_dataset_of_another_kind():
+    ds = clsas.to_xarray(compressed())
+    ds.attrs["clsas_kind"] = "Scenario"
+    with pytest.raises(ValueError, match="^from_xarray ds: the dataset's clsas_kind attribute is 'Scenario'"):
+        clsas.from_xarray(ds)
+
+
+@pytest.mark.parametrize("name", [None, "", "cuda", 3])
+def test_use_backend_names_its_parameter(name):
+    """The message said "backend must be one of" without naming use_backend's ``name``."""
+    with pytest.raises(ValueError, match=r"^use_backend name: the backend must be one of \('numpy', 'opencl'"):
+        clsas.use_backend(name)

@@ -127,3 +127,8 @@ def _main(argv) -> int:
             message = f"out of memory ({message}); lower the sizes or CLSAS_MEMORY_BUDGET"
         print(f"clsas: error: {message}", file=sys.stderr)
         return 2
+    except SystemExit as stop:  # a command's own refusal, SystemExit("message") (the reproductions'):
+        if not isinstance(stop.code, str):  # one error line and status 2, as every other command's
+            raise
+        print(f"clsas: error: {' '.join(stop.code.split())}", file=sys.stderr)
+        return 2

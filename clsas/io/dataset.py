@@ -262,14 +262,16 @@ def to_xarray(obj):
         return echo_to_xarray(obj)
     if isinstance(obj, Image):
         return image_to_xarray(obj)
-    raise TypeError(f"to_xarray takes an EchoData or an Image, got {type(obj).__name__}")
+    raise TypeError(f"to_xarray obj: must be an EchoData or an Image, got {type(obj).__name__}")
 
 
 def from_xarray(ds):
     """EchoData or Image, by the dataset's ``clsas_kind`` attribute."""
+    if not isinstance(getattr(ds, "attrs", None), dict) or not hasattr(ds, "data_vars"):
+        raise TypeError(f"from_xarray ds: must be an xarray.Dataset made by clsas.to_xarray, got {type(ds).__name__}")
     kind = ds.attrs.get("clsas_kind")
     if kind == "EchoData":
         return echo_from_xarray(ds)
     if kind == "Image":
         return image_from_xarray(ds)
-    raise ValueError(f"the dataset's clsas_kind attribute is {kind!r}; expected 'EchoData' or 'Image'")
+    raise ValueError(f"from_xarray ds: the dataset's clsas_kind attribute is {kind!r}; expected 'EchoData' or 'Image'")
