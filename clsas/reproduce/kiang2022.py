@@ -390,7 +390,8 @@ def run_snr_sweep(args) -> int:
           "over the samples the echo occupies (clsas.simulate's snr_db), 'record' over every recorded sample. "
           "SNR_record = SNR_echo + 10 log10(duty), here "
           + ", ".join(f"{n} {o:+.1f} dB" for n, o in zip(clean.receivers, offset)) + ".")
-    print(f"  {'SNR dB':>7} {'record: error %':>16} {'conf':>5} {'echo: error %':>14} {'conf':>5}  paper")
+    print("  error % (|sigma| / |v| %) and confidence in each reading")
+    print(f"  {'SNR dB':>7} {'record: error (sigma) %':>26} {'conf':>5} {'echo: error (sigma) %':>24} {'conf':>5}  paper")
     failed = {}
     for snr in SNR_SWEEP_DB:
         cells = []
@@ -399,13 +400,14 @@ def run_snr_sweep(args) -> int:
                                         "position": "given"})
             row = run_case(case, sub, clean)
             if "est" in row:
-                cells.append(f"{row['err_pct']:.3f} {row['est'].confidence:5.2f}")
+                sigma = 100 * np.linalg.norm(row["est"].sigma) / np.linalg.norm(row["v_true"])
+                cells.append(f"{row['err_pct']:.3f} ({sigma:.3f}) {row['est'].confidence:5.2f}")
             else:
-                cells.append(f"{'halted':>5}     -")
+                cells.append(f"{'halted':>15}     -")
                 failed[(snr, reading)] = row["error"]
         paper = ("halted" if snr <= PAPER_SNR["halts_db"] else
                  f"{PAPER_SNR['error_pct'][0]}-{PAPER_SNR['error_pct'][1]} %" if snr >= PAPER_SNR["floor_db"] else "-")
-        print(f"  {snr:7.1f} {cells[0]:>22} {cells[1]:>20}  {paper}")
+        print(f"  {snr:7.1f} {cells[0]:>32} {cells[1]:>30}  {paper}")
     for (snr, reading), error in failed.items():
         print(f"  {snr:g} dB ({reading}): {error}")
     return 0
