@@ -399,6 +399,13 @@ def test_bad_input(seafloor):
         dpca.correlations(f, f, 2, delay=np.nan, fs=1e5)
     with pytest.raises(ValueError, match="compensate_record depth: must be a finite number"):
         dpca.compensate_record(echo, track, scene, receivers=range(4, 11), depth=float("nan"))
+    with pytest.raises(ValueError, match=r"compensate_record depth: must be in \[-1e\+06, 1e\+06\] m, got 1e\+300"):
+        dpca.compensate_record(echo, track, scene, receivers=range(4, 11), depth=1e300)
+    with pytest.raises(ValueError, match="compensate_record depth: the plane z = -5000 m lies .* beyond the record's mid"):
+        dpca.compensate_record(echo, track, scene, receivers=range(4, 11), depth=-5000.0)
+    for bad, error in ((2**64, ValueError), (2.0, TypeError), (True, TypeError)):
+        with pytest.raises(error, match="compensate_record workers"):
+            dpca.compensate_record(echo, track, scene, receivers=range(4, 11), workers=bad)
     with pytest.raises(ValueError, match="delay_records: dt must have shape"):
         dpca.delay_records(echo.data, np.zeros(echo.data.shape[1]), 5e4, echo.fs)
     with pytest.raises(ValueError, match="delay_records: dt must be finite"):

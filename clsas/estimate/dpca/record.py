@@ -36,6 +36,7 @@ import scipy.fft
 from ... import validate
 from ...model import EchoData
 from ...image.multireceiver import pca_record
+from ...image.rangecomp import check_workers
 from ...image.record import LineRecord
 from ...kernelmath import unit_phasor
 from ...scene.scenario import Scenario
@@ -117,8 +118,10 @@ def compensate_record(echo: EchoData, trajectory: Trajectory, scenario: Scenario
     (:func:`beam_correction`, see the module docstring). depth : m, z of the imaged plane
     (default: the track's, a horizontal geometry)."""
     _check_subaperture("compensate_record", subaperture, len(echo.receivers) * echo.n_pulses)
+    workers = check_workers(workers, "compensate_record workers")
     if depth is not None:
-        depth = validate.scalar("compensate_record depth", depth, unit="m")
+        depth = validate.scalar("compensate_record depth", depth, low=-validate.MAX_COORDINATE,
+                                high=validate.MAX_COORDINATE, unit="m")
     straight = compensate(echo, trajectory, scenario, workers=workers)
     record = pca_record(straight, receivers, backend=backend)
     u, x = displacement(trajectory, scenario, echo.eta)
@@ -131,4 +134,8 @@ def compensate_record(echo: EchoData, trajectory: Trajectory, scenario: Scenario
     if depth is not None:
         r_mid = echo.medium.sound_speed * (record.t0 + record.n_samples / (2 * record.fs)) / 2
         n_z = (float(depth) - record.track[1]) / r_mid
+        if not abs(n_z) < 1.0:
+            raise ValueError(f"compensate_record depth: the plane z = {depth:g} m lies {abs(depth - record.track[1]):.4g} m "
+                             f"from the track, beyond the record's mid range {r_mid:.4g} m; give the z of a plane the "
+                             "beam reaches")
     return beam_correction(record, x_rows, n_z, subaperture, workers)
