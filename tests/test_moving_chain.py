@@ -211,6 +211,11 @@ def test_bad_input():
         estimate_receiver(echo, "A", threshold_db=np.nan)
     with pytest.raises(TypeError, match="p0 must be a finite number of seconds"):
         estimate_receiver(echo, "A", p0="0.1")
+    with pytest.raises(ValueError, match="p0 must be a finite number of seconds"):
+        estimate_receiver(echo, "A", p0=np.nan)
+    for kind in (True, 1j, None):
+        with pytest.raises(TypeError, match="threshold_db must be a finite number"):
+            estimate_receiver(echo, "A", threshold_db=kind)
     with pytest.raises(ValueError, match="n_targets must be an integer >= 1"):
         estimate_receivers(echo, "A", n_targets=0)
     short = echo.replace(data=echo.data[:, :32], eta=echo.eta[:32], tx_pos=echo.tx_pos[:32],

@@ -332,10 +332,13 @@ def sharpened_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: 
 
 
 def _check_chain_options(p0, threshold_db, focus_db) -> None:
-    if isinstance(p0, bool) or not isinstance(p0, (int, float, np.number)) or not np.isfinite(p0):
+    if isinstance(p0, (bool, np.complexfloating)) or not isinstance(p0, (int, float, np.number)):
         raise TypeError(f"p0 must be a finite number of seconds, got {p0!r}")
-    if isinstance(threshold_db, bool) or not isinstance(threshold_db, (int, float, np.number)) \
-            or not np.isfinite(threshold_db):
+    if not np.isfinite(p0):
+        raise ValueError(f"p0 must be a finite number of seconds, got {p0!r}")
+    if isinstance(threshold_db, (bool, np.complexfloating)) or not isinstance(threshold_db, (int, float, np.number)):
+        raise TypeError(f"threshold_db must be a finite number of dB, got {threshold_db!r}")
+    if not np.isfinite(threshold_db):
         raise ValueError(f"threshold_db must be a finite number of dB, got {threshold_db!r}")
     if focus_db is not None:
         validate.scalar("focus_db", focus_db, unit="dB", why="or None")
