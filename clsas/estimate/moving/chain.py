@@ -42,7 +42,10 @@ critical sampling, not the chain: with F_r = B = 20 kHz the rectangular chirp's 
 beyond +-B / 2 wraps to the opposite band edge, where the matched filter's group delay differs by
 B / K_r = T. They sit well below the peak of the unweighted compression, lower with a Taylor
 window, and sink below the sidelobes once F_r exceeds B by a quarter. The chain keeps the
-unweighted matched filter (its range resolution feeds tau_c).
+unweighted matched filter (its range resolution feeds tau_c). With intra-pulse Doppler the echo's band is
+shifted by -f_dc and, at F_r = B, its far edge wraps round: that copy carries a slow-time Doppler
+f_dc F_r / f0 away from the target's, so it focuses seconds away in eta as well, and
+:func:`locate` zeroes that band first (:func:`wrapped_band`).
 
 Several targets (section VII-B): :func:`.targets.estimate_receivers` takes the strongest SoWVD peak,
 focuses it, windows its image, undoes the chain on the window (inverse azimuth compression,
