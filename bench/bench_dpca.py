@@ -13,19 +13,66 @@ to 2 x 128 so the whole linear correlation is held), interleaved A B C A B C, fo
 by a quadratic phase error; rate = iterations per second. All on the host (NumPy / scipy.fft).
 
 The figures are in the JSON output (--json); rerun with --quick for a short run.
+
+``--bias SEEDS`` measures instead the yaw bias of issue #30 on a motionless platform (no
+timing): the 24-hydrophone sonar of tests/test_dpca_bias.py (:func:`motionless_scene`) over a
+speckle seafloor 0.5x, 1x and 4x the beam's footprint long, transmitters 1x and 2x the
+hydrophones' length, SEEDS seafloors of 30 pings each (``--pings``); per case the mean of the
+per-pair yaws over all pairs and seeds with its standard error (from the spread of the seeds'
+means), the per-pair RMS and the load average.
 """
 
 from __future__ import annotations
 
+import argparse
+import os
 import statistics
+import sys
 import time
 
 import numpy as np
 from _harness import arguments, measure, report
 
+import clsas
 from clsas import EchoData, Image, Medium, Waveform
 from clsas.estimate import autofocus, dpca
 from clsas.scene import presets
+from clsas.scene.scenario import Array, Platform, PulseSchedule, Scenario
+from clsas.scene.targets import PointTargets
+
+ACROSS = (27.0, 47.0)      # m, the bias scenes' seafloor across track
+R0 = 37.0                  # m, the range at which their footprint is measured
+
+
+def bias_sonar(tx_factor: float, pings: int) -> Scenario:
+    """The issue #30 sonar: 24 hydrophones 5 cm long and 5 cm apart (contiguous), a transmitter
+    ``tx_factor`` x 5 cm long in the middle, 100 kHz, 20 kHz bandwidth, 5 ms chirp, 1 m/s, 12
+    phase-centre spacings a ping (D = 0.3 m); no targets."""
+    d = 0.05
+    array = Array.uniform_line(24, d, first=-12 * d, tx_length=tx_factor * d, rx_length=d)
+    return Scenario(medium=Medium(1500.0), waveform=Waveform(f0=100e3, bandwidth=20e3, duration=5e-3, fs=25e3),
+                    platform=Platform(speed=1.0), array=array, schedule=PulseSchedule(prf=1 / 0.3, n_pulses=pings))
+
+
+def footprint(scene: Scenario) -> float:
+    """The two-way main lobe's along-track width at R0, m (between the first nulls)."""
+    return 2 * R0 * scene.waveform.wavelength(scene.medium) / max(scene.array.tx_length, scene.array.rx_length[0])
+
+
+def motionless_scene(tx_factor: float, extent: float, pings: int = 30, seed: int = 3):
+    """(scene, the seafloor's dpca.SeafloorExtent, range-compressed echo): :func:`bias_sonar`
+    over a speckle seafloor of random point scatterers (20 a square metre, complex Gaussian
+    reflectivities) ACROSS m across track and ``extent`` x the footprint long, centred on the
+    track, on a motionless platform (every pair's true yaw is 0)."""
+    scene = bias_sonar(tx_factor, pings)
+    half = extent * footprint(scene) / 2
+    rng = np.random.default_rng(seed)
+    n = int(20 * (ACROSS[1] - ACROSS[0]) * 2 * half)
+    pos = np.stack([rng.uniform(*ACROSS, n), rng.uniform(-half, half, n), np.zeros(n)], -1)
+    floor = PointTargets(pos, reflectivity=(rng.normal(size=n) + 1j * rng.normal(size=n)) / np.sqrt(2))
+    scene = scene.replace(targets=(floor,))
+    echo = clsas.range_compress(clsas.simulate(scene, progress=False), upsample=2)
+    return scene, dpca.SeafloorExtent(x=ACROSS, y=(-half, half)), echo
 
 
 def dpca_track(n_pings: int, n_samples: int, rng) -> tuple[EchoData, object, float]:
@@ -65,8 +112,34 @@ def blurred_image(n: int, rng) -> Image:
     return Image(blurred, ("y", "x"), {"y": np.arange(n) * 0.01, "x": np.arange(n) * 0.01})
 
 
+def yaw_bias(args, seeds: int, pings: int) -> None:
+    """The --bias rows (see the module docstring): seeds 1000 .. 1000 + seeds - 1."""
+    for tx_factor in (1.0, 2.0):
+        for extent in (0.5, 1.0, 4.0):
+            means, rms, start = [], [], time.perf_counter()
+            for seed in range(1000, 1000 + seeds):
+                scene, _, echo = motionless_scene(tx_factor, extent, pings, seed)
+                yaw = dpca.estimate(echo, scene.array, scene.platform.speed).yaw
+                means.append(float(np.mean(yaw)))
+                rms.append(float(np.std(yaw)))
+            seconds = time.perf_counter() - start
+            error = float(np.std(means, ddof=1) / np.sqrt(seeds)) if seeds > 1 else float("nan")
+            report(args, "dpca-yaw-bias", "numpy", {"tx_factor": tx_factor, "extent": extent, "seeds": seeds,
+                                                    "pings": pings}, seeds * (pings - 1) / seconds,
+                   "ping pairs/s (with simulation)", seconds, yaw_mean_urad=1e6 * float(np.mean(means)),
+                   yaw_error_urad=1e6 * error, pair_rms_urad=1e6 * float(np.mean(rms)),
+                   load=[round(x, 2) for x in os.getloadavg()])
+
+
 def main() -> None:
+    extra = argparse.ArgumentParser(add_help=False)
+    extra.add_argument("--bias", type=int, default=0, metavar="SEEDS")
+    extra.add_argument("--pings", type=int, default=30)
+    own, sys.argv[1:] = extra.parse_known_args()
     args = arguments(__doc__.splitlines()[0])
+    if own.bias:
+        yaw_bias(args, own.bias, own.pings)
+        return
     rng = np.random.default_rng(0)
     repeats = args.repeats or 3
     n_pings, n_samples = (100, 2048) if args.quick else (1000, 2048)

@@ -78,12 +78,13 @@ def kernel_taps(interp: str, window: str = "kaiser", oversampling: float = 1.25)
     return tap_table(INTERPOLATORS[interp], window, oversampling).astype(np.float32)
 
 
-def check_options(interp: str, window: str, oversampling: float) -> None:
-    if interp not in INTERPOLATORS:
-        raise ValueError(f"interp must be one of {sorted(INTERPOLATORS)}, got {interp!r}")
-    if window not in TAP_WINDOWS:
-        raise ValueError(f"window must be one of {TAP_WINDOWS}, got {window!r}")
-    v.scalar("oversampling", oversampling, low=1.0, low_open=True, why="source sampling rate over its band")
+def check_options(interp: str, window: str, oversampling: float, who: str = "resample",
+                  window_name: str = "window") -> None:
+    """The interpolator's choices, named as the caller ``who`` calls them (``window_name``: its
+    name for the tap window)."""
+    v.choice(f"{who} interp", interp, sorted(INTERPOLATORS))
+    v.choice(f"{who} {window_name}", window, TAP_WINDOWS)
+    v.scalar(f"{who} oversampling", oversampling, low=1.0, low_open=True, why="source sampling rate over its band")
 
 
 def check_sizes(caller: str, src_shape: tuple, n_out: int, interp: str, out_name: str) -> None:

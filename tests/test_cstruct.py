@@ -9,10 +9,10 @@ import pytest
 from clsas import cstruct, geometry
 from clsas.image.backprojection import exact_kernel, tile_kernel
 from clsas.image.ffbp import program
-from clsas.synthesis.echo import synth
+from clsas.synthesis.echo import records as echo_records
 
-RECORDS = {"node_t": geometry.NODE, "echo_pulse_t": synth.PULSE, "echo_rx_t": synth.RECEIVER,
-           "echo_params_t": synth.PARAMS, **{f"tile_ref_t ({legs})": ref for legs, ref in tile_kernel.TILE_REFS.items()},
+RECORDS = {"node_t": geometry.NODE, "echo_pulse_t": echo_records.PULSE, "echo_rx_t": echo_records.RECEIVER,
+           "echo_params_t": echo_records.PARAMS, **{f"tile_ref_t ({legs})": ref for legs, ref in tile_kernel.TILE_REFS.items()},
            "tile_params_t": tile_kernel.TILE_PARAMS, "bp_pixels_t": tile_kernel.PIXELS,
            "bp_moving_pixels_t": tile_kernel.MOVING_PIXELS, "bp_pulse_t": exact_kernel.PULSE,
            "bp_block_params_t": exact_kernel.BLOCK_PARAMS, "bp_points_t": exact_kernel.POINTS,

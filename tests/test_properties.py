@@ -19,7 +19,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import clsas
-from clsas.image.rangecomp import KAISER_BETA_MAX, TAYLOR_NBAR_MAX, TAYLOR_SLL_MAX, WINDOWS, spectral_window
+from clsas.pulse import KAISER_BETA_MAX, TAYLOR_NBAR_MAX, TAYLOR_SLL_MAX, WINDOWS, spectral_window
 from clsas.scene.scenario import Array, Medium, Platform, PulseSchedule, SamplingWarning, Scenario, Waveform
 from clsas.scene.targets import PointTargets
 

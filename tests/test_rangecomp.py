@@ -24,13 +24,8 @@ from _tolerances import phase_error, rel_l2
 
 from clsas import metrics
 from clsas.model import EchoData
-from clsas.image.rangecomp import (
-    WINDOWS,
-    lfm_replica,
-    range_compress,
-    spectral_window,
-    taylor_coefficients,
-)
+from clsas.image.rangecomp import range_compress
+from clsas.pulse import WINDOWS, lfm_replica, spectral_window, taylor_coefficients
 from clsas.scene.scenario import Medium, Waveform
 
 F0 = 100e3

@@ -8,14 +8,8 @@ from .multireceiver import pca_record
 from .ncs import nonlinear_chirp_scaling
 from .omegak import omega_k
 from .ptrs import ptrs_image
-from .rangecomp import (
-           WINDOWS,
-           lfm_replica,
-           matched_filter,
-           range_compress,
-           spectral_window,
-           upsample_records,
-)
+from ..pulse import WINDOWS, lfm_replica, matched_filter, spectral_window
+from .rangecomp import range_compress, upsample_records
 from .rda import range_doppler
 from .stolt import stolt
 from .record import LineRecord, line_record

@@ -14,7 +14,7 @@ eq. 42 is already applied), with k = 2 pi (f0 + f_b) / c:
    k_x' = sqrt(4k^2 - k_u^2) - 2 k0, spaced 4 pi df / c (one output column per input one).
 4. Extraction and weighting (eqs. 44-45): the rectangle |k_y| <= B_ky / 2 = 2 pi / D and
    2 k_min - 2 k0 <= k_x' <= sqrt(4 k_max^2 - (2 pi / D)^2) - 2 k0, a 2-D window over it
-   (``window``: "none", "hamming", "taylor", "kaiser"; :func:`clsas.image.rangecomp.spectral_window`,
+   (``window``: "none", "hamming", "taylor", "kaiser"; :func:`clsas.pulse.spectral_window`,
    whose Hamming 0.54 + 0.46 cos is eq. 46's 0.5386 - 0.46164 cos to 0.2 %; over k_y it is the
    template's band weighting, :mod:`clsas.image.strip`), and the element-pattern deconvolution
    1 / A(k_y) with A = sinc(L_tx k_y / 4 pi) sinc(L_rx k_y / 4 pi) (the one-way pattern
@@ -40,7 +40,7 @@ import scipy.fft
 
 from ..kernelmath import unit_phasor
 from ..model import Image
-from .rangecomp import spectral_window
+from ..pulse import spectral_window
 from .stolt import StoltAxes, stolt
 from .strip import follows_template, strip_image, strip_job
 

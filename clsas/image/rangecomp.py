@@ -32,9 +32,7 @@ import scipy.fft
 from .. import budget
 from .. import validate as v
 from ..model import EchoData
-from ..pulse import (  # noqa: F401 - the matched filter's names, re-exported where range compression used them
-    KAISER_BETA_MAX, TAYLOR_NBAR_MAX, TAYLOR_SLL_MAX, WINDOW_OPTIONS, WINDOWS, check_window, lfm_replica,
-    matched_filter, spectral_window, taylor_coefficients)
+from ..pulse import check_window, matched_filter
 
 MAX_UPSAMPLE = 64
 

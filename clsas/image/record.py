@@ -28,9 +28,9 @@ import scipy.fft
 
 from .. import validate
 from ..model import MAX_ECHO_FS, EchoData, Image, Medium, Waveform
-from ..interp import resample
+from ..interp import INTERPOLATORS, TAP_WINDOWS, resample
 from ..scene.scenario import MAX_ELEMENT
-from .rangecomp import spectral_window
+from ..pulse import spectral_window
 
 STRAIGHTNESS = 0.05  # allowed deviation of the track from a line, wavelengths
 
@@ -194,6 +194,8 @@ def line_record(echo: EchoData, receiver=0, stop_and_go: bool | None = None, bac
     left to the imagers.
     """
     validate.instance("line_record echo", echo, EchoData, "an EchoData")
+    validate.choice("line_record interp", interp, sorted(INTERPOLATORS))
+    validate.choice("line_record tap_window", tap_window, TAP_WINDOWS)
     if np.ndim(receiver) != 0:
         raise ValueError(f"receiver: must be one index or name, got {receiver!r}")
     h = echo.select_receivers(receiver, "receiver")[0]

@@ -145,7 +145,7 @@ def stolt(spectrum, ku, axes: StoltAxes, interp: str = "sinc8", window: str = "k
     -------
     complex (n_ku, axes.n_out): ``out`` if given, else complex128 from NumPy, complex64 from OpenCL.
     """
-    check_options(interp, window, oversampling)
+    check_options(interp, window, oversampling, who="stolt")
     spectrum = np.asarray(spectrum)
     ku = _check(spectrum, ku, axes)
     check_sizes("stolt spectrum", spectrum.shape, axes.n_out, interp, "axes.n_out")

@@ -35,7 +35,8 @@ from .. import budget
 from .. import validate as v
 from ..interp import INTERPOLATORS, TAP_WINDOWS
 from ..model import EchoData, Image
-from .rangecomp import check_window, check_workers
+from ..pulse import check_window
+from .rangecomp import check_workers
 from ..kernelmath import unit_phasor
 from .record import LineRecord, as_record, azimuth_weights, check_elements, element_lengths, image_of, oversampling
 

@@ -30,7 +30,10 @@ def paper_names() -> list[str]:
 
 
 def paper(name: str) -> ModuleType:
-    """The reproduction module of ``name``."""
+    """The reproduction module of ``name`` (one of :func:`paper_names`)."""
+    names = paper_names()
+    if not isinstance(name, str) or name not in names:
+        raise ValueError(f"paper: must be one of {tuple(names)}, got {name!r}")
     return importlib.import_module(f"{__name__}.{name}")
 
 

@@ -85,9 +85,10 @@ R0 = 100.0
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--pings", type=int, default=32, help="pings simulated (default 32)")
     parser.add_argument("--out", default="reproduce-heremans2009", help="folder for the PNG images")
-    parser.add_argument("--seed", type=int, default=5, help="seed of the seafloor's scatterers")
+    parser.add_argument("--seed", type=report.count(0), default=5, help="seed of the seafloor's scatterers")
     parser.add_argument("--kiang-cases", type=int, nargs="*", default=[5, 6, 8],
-                        help="Kiang & Kiang 2022 cases to autofocus with PGA (default 5 6 8; none to skip)")
+                        help="Kiang & Kiang 2022 cases to autofocus with PGA (default 5 6 8; the option with no "
+                             "case skips PGA)")
     parser.add_argument("--kiang-sway", type=float, nargs=2, default=[1.0, 0.7], metavar=("SWAY", "HEAVE"),
                         help="the Kiang targets' sway (x, 6 s period) and heave (z, 9 s period) amplitudes in mm "
                              "(default 1.0 0.7; 0 0 for none)")

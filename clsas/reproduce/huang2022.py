@@ -57,8 +57,8 @@ NUMPY_FRACTION = 512  # the NumPy reference of back-projection is timed on this 
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--pulses", type=int, default=64, help="pulses (>= 40 cover the six points' apertures)")
-    parser.add_argument("--timing-pulses", type=int, default=64,
+    parser.add_argument("--pulses", type=report.count(1), default=64, help="pulses (>= 40 cover the six points' apertures)")
+    parser.add_argument("--timing-pulses", type=report.count(1), default=64,
                         help="pulses of the scene timed for Table 3 (64: ~1 min with its experiment; "
                              "back-projection's cost grows as the square of it: 256 takes ~15 min)")
     parser.add_argument("--backend", default="opencl", help="numpy, opencl or auto")

@@ -329,6 +329,19 @@ def _cpu_name() -> str:
     return platform.processor()
 
 
+def count(low: int):
+    """An argparse type: an integer >= ``low`` (argparse names the option in its error)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < low:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {text!r}")
+        return value
+    return parse
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options every reproduction shares: ``--json PATH``."""
     parser.add_argument("--json", metavar="PATH", default=None,

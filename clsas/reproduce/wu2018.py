@@ -54,8 +54,8 @@ IMAGERS = ("nonlinear_chirp_scaling", "omega_k", "range_doppler", "chirp_scaling
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--pulses", type=int, default=96, help="pulses (>= 40 cover the points' apertures)")
-    parser.add_argument("--seed", type=int, default=2018, help="seed of the random yaw and pitch")
+    parser.add_argument("--pulses", type=report.count(1), default=96, help="pulses (>= 40 cover the points' apertures)")
+    parser.add_argument("--seed", type=report.count(0), default=2018, help="seed of the random yaw and pitch")
     parser.add_argument("--imager", default="nonlinear_chirp_scaling", choices=IMAGERS,
                         help="the strip-map imager (default: nonlinear chirp scaling, the paper's)")
     report.add_arguments(parser)

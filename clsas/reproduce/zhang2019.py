@@ -70,7 +70,7 @@ FREQUENCY_DOMAIN_RATE = 2.5e5  # image pixels a second of Table 5's round of fou
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--pulses", type=int, default=208, help="pulses (208 cover every point's aperture)")
+    parser.add_argument("--pulses", type=report.count(1), default=208, help="pulses (208 cover every point's aperture)")
     parser.add_argument("--paper-size", action="store_true",
                         help="time Table 5 on the whole 18-point swath at the paper's image size (36 M pixels x "
                              f"6240 pulse-receiver pairs; back-projection on 1/{BP_ROWS} of the rows, scaled): the "

@@ -3,7 +3,7 @@ and the beam's mean look angle they depend on."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -263,6 +263,36 @@ def look_moments(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
         sin2 = np.where(empty, np.nan, second / weight)
         fraction = np.where(empty, 0.0, main / weight)
     return sin2, fraction, np.where(empty, 0.0, weight / (np.pi * SUB_RANGES * r_blocks[None, :]))
+
+
+# A block whose seafloor weight the extent's near or far edge cuts by more than this fraction
+# is left out of the estimate (see :func:`inside_swath`).
+RANGE_EDGE = 0.02
+
+
+def inside_swath(array: Array, f0: float, c: float, r: np.ndarray, centre: np.ndarray,
+                 extent: SeafloorExtent | None, span: float = 0.0, ahead: float = 0.0,
+                 content: np.ndarray | None = None) -> np.ndarray:
+    """(pair, block) bool: True where the seafloor's near and far edges (``extent.x``) leave a
+    range block's rings whole over the beam, i.e. its :func:`look_moments` content is within
+    RANGE_EDGE of the content of the same seafloor open in range; all True without an extent.
+
+    A block that holds a range edge of the seafloor holds it unevenly: at the near edge only
+    the look angles near broadside reach it at its nearest ranges, at the far edge the wide
+    look angles reach beyond the broadside ones; its scatterers fill the block unevenly in
+    range. Their yaw is biased by what the correction takes at the block's centre range and
+    by the range sidelobes of the neighbouring ranges (those of an unwindowed chirp reach
+    c T / 2 either way): near edges read a negative yaw, far edges a positive one, and they
+    do not cancel (tests/test_dpca_bias.py, bench/bench_dpca.py --bias). ``content``: the
+    blocks' content from :func:`look_moments` if already computed (same arguments)."""
+    if extent is None:
+        shape = (np.asarray(centre).shape[0], np.asarray(r).size)
+        return np.ones(shape, dtype=bool)
+    if content is None:
+        content = look_moments(array, f0, c, r, centre, extent, span, ahead)[2]
+    open_range = replace(extent, x=(min(extent.x[0], 0.0), np.inf))
+    whole = look_moments(array, f0, c, r, centre, open_range, span, ahead)[2]
+    return content >= (1 - RANGE_EDGE) * whole
 
 
 MIN_POINTS = 100  # static point scatterers a scenario needs for scenario_extent to take them as its seafloor

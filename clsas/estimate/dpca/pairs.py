@@ -15,8 +15,8 @@ from ...model import EchoData
 from ...scene.scenario import Array
 from ...kernelmath import unit_phasor
 from .correlate import aligned, correlations, parabola, peak_ratio
-from .geometry import (ANGLES, SUB_RANGES, SeafloorExtent, beam_sin2, look_moments, main_lobe_sin2, pairing, pca_delay,
-                       scenario_extent, xlag_offset)
+from .geometry import (ANGLES, SUB_RANGES, SeafloorExtent, beam_sin2, inside_swath, look_moments, main_lobe_sin2,
+                       pairing, pca_delay, scenario_extent, xlag_offset)
 
 log = logging.getLogger("clsas")
 
@@ -260,8 +260,10 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     ahead = pc[:n_couples].mean() - array.tx_offset[1] + speed * float(np.median(r_blocks)) / c
     centre = echo.tx_pos[1:].copy()
     centre[:, 1] += ahead
-    sin2, main_fraction, content = look_moments(array, f0, c, r_blocks, centre, extent, c / 2 * block / echo.fs,
-                                                ahead)
+    block_span = c / 2 * block / echo.fs
+    sin2, main_fraction, content = look_moments(array, f0, c, r_blocks, centre, extent, block_span, ahead)
+    # blocks that hold the seafloor's near or far edge are left out of the yaw (see below)
+    whole = inside_swath(array, f0, c, r_blocks, centre, extent, block_span, ahead, content)
     data = records[..., :n_blocks * block].reshape(h, echo.n_pulses, n_blocks, block)
     step = pc[1] - pc[0]
     span = n_couples * step
@@ -335,13 +337,26 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
                                lags={int(k) - lags for k in np.unique(nearest[good])}, every=True)
     sway = -c * delays[nearest, pp, bb] / 2
     yaw = yaws[nearest, pp, bb]
-    # Blocks weighted by their coherence rho (pass 2's beam peak): the phase of a correlation
-    # over N samples at coherence rho has variance (1 - rho^2) / (2 N rho^2), the same N in every
-    # block (it lowered the yaw error on the seed-004 scene, tests/test_dpca.py).
+    # The sway's blocks weighted by their coherence rho (pass 2's beam peak): the phase of a
+    # correlation over N samples at coherence rho has variance (1 - rho^2) / (2 N rho^2), the same
+    # N in every block. Not the yaw's: a block's coherence and its yaw error are correlated (the
+    # blocks that hold more of the seafloor's wide look angles decorrelate more and read a more
+    # negative yaw), so weighting by it biased the yaw positive on a motionless platform
+    # (bench/bench_dpca.py --bias).
     rho = np.clip(fine[nearest, pp, bb], 0.0, 1 - 1e-9)
     weight = rho**2 / (1 - rho**2)
+    # The yaw from the blocks inside the seafloor's swath (geometry.inside_swath), unless a pair has
+    # none left (a swath narrower than two blocks); the sway and surge keep the edge blocks (the
+    # bias measured there is the yaw's).
+    inside = good & whole
+    lacking = ~inside.any(axis=1)
+    if np.any(lacking):
+        log.warning("dpca.estimate: %d ping pairs have no usable range block inside the seafloor's swath (its "
+                    "range edges cut every block that holds it): their yaw comes from the edge blocks and may be "
+                    "biased", int(lacking.sum()))
+        inside[lacking] = good[lacking]
     (su, su_e), (sw, sw_e), (yw, yw_e) = robust_mean(surge, seafloor), robust_mean(sway, good, weight), \
-        robust_mean(yaw, good, weight)
+        robust_mean(yaw, inside)
     coh = np.nanmedian(np.where(good, coherence, np.nan), axis=1)
     log.info("dpca: %d ping pairs, %d couples, %d range blocks; median coherence %.2f", echo.n_pulses - 1,
              n_couples, n_blocks, float(np.median(coh)))

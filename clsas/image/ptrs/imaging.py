@@ -67,7 +67,8 @@ from ... import validate as v
 from ...interp import INTERPOLATORS, TAP_WINDOWS, check_options, check_sizes, resample_prechecked
 from ...model import EchoData, Image
 from ..multireceiver import interleave, line_array
-from ..rangecomp import check_window, check_workers
+from ...pulse import check_window
+from ..rangecomp import check_workers
 from ..record import LineRecord, azimuth_weights, check_elements, image_of, oversampling
 from .phase import compress_azimuth, decouple
 from .stationary import StationaryPoints, hermite, migration
@@ -249,7 +250,7 @@ def ptrs_image(echo: EchoData, *, receivers=None, block_width: float | None = No
     _check_budget(n_rx, n_p, n_fp, n_cols, rows.size, n_ft, len(blocks) + nodes.size, points.n_s, n_r, segment)
     knab = oversampling(fs, echo.waveform)  # the Knab window's parameter
     if rcmc:  # resample's checks, once for every receiver and sub-block (the positions are finite by construction)
-        check_options(interp, tap_window, knab)
+        check_options(interp, tap_window, knab, who="ptrs_image", window_name="tap_window")
         check_sizes("ptrs_image rcmc", (rows.size, segment), segment, interp, "a sub-block's columns")
     for h in arr.receivers:
         v.bounded_gain("ptrs_image echo.data", echo.data[h], float(n_r) * n_fp * n_rx,

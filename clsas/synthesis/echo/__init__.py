@@ -5,7 +5,6 @@ resolved into :mod:`.physics`, the kernel's records declared in :mod:`.records`.
 
 from .options import SynthesisOptions
 from .pipeline import Synthesis, add_noise, delays, signal_power, simulate, synthesize
-from . import records as synth  # the records' old home: tests/test_cstruct.py imports them as synth (to go)
 from .reference import accumulate_reference
 
 __all__ = ["Synthesis", "SynthesisOptions", "accumulate_reference", "add_noise", "delays", "signal_power", "simulate",
