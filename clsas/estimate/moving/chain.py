@@ -42,7 +42,10 @@ critical sampling, not the chain: with F_r = B = 20 kHz the rectangular chirp's 
 beyond +-B / 2 wraps to the opposite band edge, where the matched filter's group delay differs by
 B / K_r = T. They sit well below the peak of the unweighted compression, lower with a Taylor
 window, and sink below the sidelobes once F_r exceeds B by a quarter. The chain keeps the
-unweighted matched filter (its range resolution feeds tau_c).
+unweighted matched filter (its range resolution feeds tau_c). With intra-pulse Doppler the echo's band is
+shifted by -f_dc and, at F_r = B, its far edge wraps round: that copy carries a slow-time Doppler
+f_dc F_r / f0 away from the target's, so it focuses seconds away in eta as well, and
+:func:`locate` zeroes that band first (:func:`wrapped_band`).
 
 Several targets (section VII-B): :func:`.targets.estimate_receivers` takes the strongest SoWVD peak,
 focuses it, windows its image, undoes the chain on the window (inverse azimuth compression,
@@ -57,6 +60,7 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft
 
 from ... import validate
 from ...model import EchoData
@@ -66,11 +70,15 @@ from ...kernelmath import unit_phasor
 from . import filters, radon, trace
 from .doppler import Doppler
 from .extent import Extent, extent
+from .layout import range_doppler
 from .sharpen import polynomial_phase, residual_phase
 from .sowvd import RateSearch, rate_search, rfrt
 
 log = logging.getLogger("clsas")
 
+#: The band :func:`wrapped_band` zeroes reaches this fraction of the bandwidth beyond the
+#: target's largest Doppler centroid over the aperture.
+WRAP_MARGIN = 0.01
 #: Default lag offset p0 (s): Kiang & Kiang 2022 Fig. 5(b) reads f_eta = 1.934 Hz for
 #: K = 4.834 Hz/s, i.e. 4 p0 = 0.4 s.
 P0 = 0.1
@@ -142,7 +150,9 @@ class ReceiverEstimate(Doppler):
 @dataclass(frozen=True)
 class Records:
     """One receiver's range-compressed record: x (n_pulses, n_samples) at fast times
-    t0 + k / fs after each emission eta (n_pulses,); f0 the carrier and bandwidth the chirp's, Hz."""
+    t0 + k / fs after each emission eta (n_pulses,); f0 the carrier and bandwidth the chirp's, Hz;
+    range_doppler (s/Hz) the layout's (:func:`.layout.range_doppler`: 0 for an echo synthesized
+    without intra-pulse Doppler); fs_raw the raw echo's sampling rate, Hz (fs / :data:`UPSAMPLE`)."""
 
     x: np.ndarray
     eta: np.ndarray
@@ -151,6 +161,11 @@ class Records:
     f0: float
     bandwidth: float
     name: str
+    range_doppler: float = 0.0
+
+    @property
+    def fs_raw(self) -> float:
+        return self.fs / UPSAMPLE
 
     @property
     def prf(self) -> float:
@@ -200,7 +215,47 @@ def compressed_receiver(echo: EchoData, receiver: str) -> EchoData:
 def records_of(comp: EchoData) -> Records:
     """The :class:`Records` of a one-receiver range-compressed EchoData (:func:`compressed_receiver`)."""
     return Records(x=comp.data[0], eta=comp.eta, t0=float(comp.t0[0]), fs=comp.fs, f0=comp.waveform.f0,
-                   bandwidth=comp.waveform.bandwidth, name=comp.receivers[0])
+                   bandwidth=comp.waveform.bandwidth, name=comp.receivers[0], range_doppler=range_doppler(comp))
+
+
+def wrapped_band(rec: Records, doppler_centroid: float, fm_rate: float) -> tuple[float, float] | None:
+    """(lo, hi), Hz: the range-frequency band of ``rec`` where the target's echo lands wrapped
+    around the raw sampling rate, or None when none does.
+
+    With intra-pulse Doppler (``rec.range_doppler`` != 0) the echo is the chirp shifted in
+    frequency by -f_D (:mod:`.layout`; f_D = f_dc + K d over the aperture): its band
+    [-B / 2 - f_D, B / 2 - f_D]. Where the raw sampling rate F_r leaves less than |f_D| beyond
+    B / 2 (Table I: F_r = B), the band's far edge wraps to the opposite edge of the sampled band,
+    [-F_r / 2, -F_r / 2 + B / 2 + |f_D| - F_r / 2] when f_D < 0 (mirrored when f_D > 0). The matched
+    filter compresses that sliver T after (or before) the target, and its slow-time phase is
+    that of the carrier f0 -+ F_r: a Doppler f_dc F_r / f0 (aliased by the PRF) away from the
+    target's, so it focuses as a ghost T away in range and seconds away in eta, which the
+    extent took for part of the target (Table II speeds with |f_dc| > ~600 Hz at 512 pulses).
+    The real echo holds nothing in that band. The band's width covers |f_dc| + |K| T_a / 2 and
+    :data:`WRAP_MARGIN` x B more (the scatterers' centroids differ by a few Hz)."""
+    if rec.range_doppler == 0.0:
+        return None
+    reach = abs(doppler_centroid) + 0.5 * abs(fm_rate) * float(np.ptp(rec.eta)) + WRAP_MARGIN * rec.bandwidth
+    excess = 0.5 * rec.bandwidth + reach - 0.5 * rec.fs_raw
+    if not np.isfinite(excess) or excess <= 0.0:
+        return None
+    excess = min(excess, rec.fs_raw)
+    edge = 0.5 * rec.fs_raw
+    return (-edge, -edge + excess) if doppler_centroid < 0 else (edge - excess, edge)
+
+
+def without_wrapped_band(rec: Records, doppler_centroid: float, fm_rate: float) -> Records:
+    """``rec`` with its :func:`wrapped_band` zeroed in range frequency (the ghost of the echo's
+    wrapped band edge removed), or ``rec`` itself when there is none."""
+    band = wrapped_band(rec, doppler_centroid, fm_rate)
+    if band is None:
+        return rec
+    n = rec.x.shape[1]
+    f = scipy.fft.fftfreq(n, 1.0 / rec.fs)
+    keep = ~((f >= band[0]) & (f <= band[1]))
+    spec = scipy.fft.fft(rec.x, axis=1, workers=-1)
+    spec *= keep[None, :]
+    return dataclasses.replace(rec, x=scipy.fft.ifft(spec, axis=1, workers=-1).astype(np.complex64))
 
 
 def records(echo: EchoData, receiver: str) -> Records:
@@ -453,6 +508,7 @@ def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None 
     lo = int(np.clip(np.floor(k0 - half), 0, n - 2))
     bins = slice(lo, int(np.clip(np.ceil(k0 + half) + 1, lo + 2, n)))
     ref = est if reference is None else reference
+    rec = without_wrapped_band(rec, ref.doppler_centroid, ref.fm_rate)
     if sharpen:
         image, eta_axis, _ = sharpened_bins(rec, ref.fm_rate, ref.doppler_centroid, bins, higher_order)
     else:
