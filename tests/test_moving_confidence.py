@@ -218,9 +218,9 @@ def test_the_wrapped_band_edge_of_a_fast_target_is_not_taken_for_the_target(open
     Doppler: the echo's band, shifted by 822 Hz, wraps at Table I's F_r = B, and the wrapped
     sliver focused as a ghost 5 ms and 29-100 s away that the extent took for the target (eta_c
     29-100 s off, the centroids 14.5 Hz off, the velocity 8 sigma off at confidence 0.94).
-    With the band zeroed (:func:`chain.wrapped_band`): eta_c within 0.5 s of the middle of the
+    With the band zeroed (:func:`clsas.estimate.moving.records.wrapped_band`): eta_c within 0.5 s of the middle of the
     record (measured 0.03-0.08 s) and the velocity within 0.1 % (measured < 0.01 %)."""
-    from clsas.estimate.moving.chain import records, wrapped_band
+    from clsas.estimate.moving.records import records, wrapped_band
 
     _, _, v = random_target(7)
     sc, echo = _echo(CENTRE[None], np.ones(1), v, 512)

@@ -49,7 +49,8 @@ from ... import validate
 from ...image.backprojection import backproject
 from ...model import EchoData, Grid, Image
 from . import filters
-from .chain import compressed_receiver, records_of, sharpened_bins
+from .chain import sharpened_bins
+from .records import compressed_receiver, records_of
 from .receiver_focus import focus_receiver
 from .closedforms import Predicted, delay_history, delay_terms, higher_order_delay
 from .layout import Layout

@@ -63,7 +63,8 @@ from ... import validate
 from ...errors import EstimationError
 from ...model import EchoData
 from . import consistency
-from .chain import MIN_TIME_BANDWIDTH, UPSAMPLE, check_pulse_times, estimate_records, locate, records, with_rate
+from .chain import MIN_TIME_BANDWIDTH, estimate_records, locate, with_rate
+from .records import UPSAMPLE, check_pulse_times, records
 from .closedforms import delay_terms, higher_order_delay
 from .doppler import Doppler
 from .extent import SMOOTH_CELLS

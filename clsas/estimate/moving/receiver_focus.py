@@ -8,7 +8,8 @@ import numpy as np
 from ... import validate
 from ...errors import EstimationError
 from ...model import EchoData, Image
-from .chain import MIN_TIME_BANDWIDTH, UPSAMPLE, ReceiverEstimate, focus_bins, records, sharpened_bins
+from .chain import MIN_TIME_BANDWIDTH, ReceiverEstimate, focus_bins, sharpened_bins
+from .records import UPSAMPLE, records
 from .doppler import Doppler
 from .sharpen import fm_rate_correction
 
