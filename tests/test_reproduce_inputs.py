@@ -34,3 +34,13 @@ def test_counts_on_the_command_line_are_named(name, option, value, low, capsys):
 
 def test_count_accepts_its_range():
     assert report.count(0)("0") == 0 and report.count(1)("7") == 7
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf", "x"])
+def test_kiang2022_snr_is_a_finite_number(value, capsys):
+    parser = argparse.ArgumentParser(prog="clsas reproduce kiang2022")
+    reproduce.paper("kiang2022").add_arguments(parser)
+    with pytest.raises(SystemExit):
+        parser.parse_args([f"--snr={value}"])
+    assert f"argument --snr: must be a finite number, got '{value}'" in capsys.readouterr().err
+    assert parser.parse_args(["--snr", "-15"]).snr == -15.0

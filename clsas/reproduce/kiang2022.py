@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from . import report
+
 log = logging.getLogger("clsas")
 
 CENTRE = (1989.0, 0.0, -350.0)  # section II-B: the target's centre at eta = 0, m
@@ -85,7 +87,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--position", choices=("given", "estimated", "both"), default="given",
                         help="give the target's position (the paper), estimate it with v, or both (two estimates "
                              "from one echo)")
-    parser.add_argument("--snr", type=float, default=None,
+    parser.add_argument("--snr", type=report.finite, default=None,
                         help="add white noise at this SNR, dB (the paper does not define its SNR: see --snr-reading)")
     parser.add_argument("--snr-reading", choices=SNR_READINGS, default="echo",
                         help="the signal power of --snr: the mean over the samples the echo occupies ('echo', "
@@ -100,8 +102,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--backend", default=None, help="echo synthesis backend (numpy, opencl; default: auto)")
     parser.add_argument("--sota", type=int, nargs="*", default=[1],
                         help="cases to verify with RDA, CSA and omega-k run stop-and-go (section VII-A; default: 1)")
-    from . import report
-
     report.add_arguments(parser)
 
 
@@ -281,8 +281,6 @@ def run(args) -> int:
         return run_two(args)
     if args.snr_sweep:
         return run_snr_sweep(args)
-    from . import report
-
     report.check_output(args)
     rep = report.Report("kiang2022", "Kiang & Kiang 2022 Table II: a moving target's velocity from A, B and "
                         f"sonobuoy C ({args.targets})", assumptions=[

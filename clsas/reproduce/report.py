@@ -342,6 +342,17 @@ def count(low: int):
     return parse
 
 
+def finite(text: str) -> float:
+    """An argparse type: a finite real number (argparse names the option in its error)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    return value
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options every reproduction shares: ``--json PATH``."""
     parser.add_argument("--json", metavar="PATH", default=None,
