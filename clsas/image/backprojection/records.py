@@ -30,16 +30,8 @@ block there, the records never leaving the device), and prepared records give a 
 image bit for bit on both backends.
 
 Records sampled nearer their Nyquist rate (fs < 1.25 B: no short FIR holds there) are
-FFT-upsampled block by block instead: block b holds the original samples [b UPSAMPLE_BLOCK,
-(b + 1) UPSAMPLE_BLOCK) and its FFT also reads UPSAMPLE_GUARD samples on each side (zeros outside
-the record): the block plus its guards (512 samples) is transformed, its spectrum zero-padded to
-``upsample`` times its length (:func:`rangecomp._upsample_spectrum`), transformed back, and the
-block's own part kept. A prepared sample therefore depends on its block only, not on the span or
-on how many records are transformed at once. The guard truncates the band-limited interpolation
-kernel: the blocks depart from one FFT of the whole zero-padded record
-(:func:`rangecomp.upsample_records`) by far less than linear interpolation's own error
-(tests/test_backprojection.py holds the difference). The blocks run on the host (scipy.fft): an
-OpenCL FFT on PoCL was many times slower.
+FFT-upsampled on the host, block by block (:func:`clsas.image.upsample.upsample_blocks`), the
+spans rounded out to whole blocks so that a prepared sample depends on its block only.
 
 Device memory. A PreparedRecords holds its samples on the host (complex64, read-only); its device
 buffers are made on first OpenCL use, one per receiver (and one complex128 copy per receiver for
@@ -50,23 +42,18 @@ in place (CL_MEM_USE_HOST_PTR: no copy); on a GPU it is a copy in device memory.
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
-import scipy.fft
 
 from ... import backend as _backend
 from ... import budget, validate
 from ...model import EchoData, Grid
 from .. import upsample as fir
-from ..rangecomp import _upsample_spectrum, check_workers
+from ..rangecomp import check_workers
+from ..upsample import FFT_BATCH_BYTES, UPSAMPLE_BLOCK, upsample_blocks  # noqa: F401 (FFT_BATCH_BYTES: ffbp's budget)
 
 INTERPOLATORS = ("linear", "sinc8")
 # samples an interpolator reads around floor(k) (before, after), in samples of the records it reads
 INTERP_REACH = {"linear": (0, 1), "sinc8": (3, 4)}
-UPSAMPLE_BLOCK = 384  # original samples a block of the upsampling keeps (the FFT: 512 points)
-UPSAMPLE_GUARD = 64  # original samples each side a block's FFT reads beyond it
-FFT_BATCH_BYTES = 32 * 2**20  # upsampled spectra in memory at once
 UPLOAD_BYTES = 64 * 2**20  # records prepared and uploaded at once when a call prepares its own
 MIN_SAMPLES = 8  # samples of the shortest prepared record (sinc8 loads eight at once)
 
@@ -160,38 +147,6 @@ def _blocks_of(span: np.ndarray, t0: float, fs: float, n: int, interp: str, fact
         first = first // UPSAMPLE_BLOCK * UPSAMPLE_BLOCK
         stop = min(-(-stop // UPSAMPLE_BLOCK) * UPSAMPLE_BLOCK, n)
     return first, stop
-
-
-def upsample_blocks(records: np.ndarray, factor: int, first: int, stop: int, workers: int | None = None,
-                    out: np.ndarray | None = None) -> np.ndarray:
-    """Original samples [first, stop) of the (R, n) records, FFT-upsampled by ``factor`` block by
-    block (module docstring; ``first`` a multiple of UPSAMPLE_BLOCK): complex64 (R, (stop - first) factor),
-    sample j at original position first + j / factor. Written into ``out`` when given."""
-    n_rec, n = records.shape
-    block, guard = UPSAMPLE_BLOCK, UPSAMPLE_GUARD
-    if first % block or not 0 <= first < stop <= n:
-        raise ValueError(f"first must be a multiple of {block} and 0 <= first < stop <= {n}, got {first}, {stop}")
-    workers = os.cpu_count() if workers is None else int(workers)
-    n_blocks = -(-(stop - first) // block)
-    width = block + 2 * guard
-    lo, hi = first - guard, first + n_blocks * block + guard
-    out = np.empty((n_rec, (stop - first) * factor), np.complex64) if out is None else out
-    per_record = n_blocks * width * factor * 16
-    batch = max(1, int(FFT_BATCH_BYTES // per_record))
-    for s in range(0, n_rec, batch):
-        e = min(s + batch, n_rec)
-        padded = np.zeros((e - s, hi - lo), np.complex64)
-        padded[:, max(lo, 0) - lo:min(hi, n) - lo] = records[s:e, max(lo, 0):min(hi, n)]
-        windows = np.lib.stride_tricks.sliding_window_view(padded, width, axis=-1)[:, ::block]
-        spec = scipy.fft.fft(windows, axis=-1, workers=workers)
-        spec *= factor
-        up = scipy.fft.ifft(_upsample_spectrum(spec, factor), axis=-1, workers=workers, overwrite_x=True)
-        kept = up[..., guard * factor:(guard + block) * factor]  # (records, blocks, block factor)
-        whole = (stop - first) // block  # blocks kept whole, copied once into out's view of them
-        out[s:e, :whole * block * factor].reshape(e - s, whole, block * factor)[...] = kept[:, :whole]
-        if whole < n_blocks:  # the last block, cut at the record's end
-            out[s:e, whole * block * factor:] = kept[:, whole, :(stop - first - whole * block) * factor]
-    return out
 
 
 class PreparedRecords:
@@ -391,8 +346,8 @@ def prepare(compressed: EchoData, upsample: int = 8, interp: str = "linear", rec
     ----------
     compressed : EchoData, range-compressed (:func:`clsas.range_compress`).
     upsample : int in [1, 64]
-        FFT upsampling of the records for ``interp="linear"`` (ignored by sinc8, which reads the
-        original samples).
+        Upsampling of the records for ``interp="linear"`` (the FIR, or FFT blocks for echoes
+        sampled below 1.25 B: module docstring; ignored by sinc8, which reads the original samples).
     interp : {"linear", "sinc8"}, the interpolator the calls will use.
     receivers : indices or names of the receivers to prepare (default: all).
     grid : None, Grid, or a fast-time span
@@ -401,7 +356,7 @@ def prepare(compressed: EchoData, upsample: int = 8, interp: str = "linear", rec
         ``(start, stop)`` in seconds (fast time after emission), the same for every receiver, or
         an array (len(receivers), 2), one span per receiver.
     target_velocity : 3-vector, m/s, optional; the velocity the calls will give, for ``grid``'s reach.
-    workers : int, scipy.fft threads (default: all cores).
+    workers : int, scipy.fft threads of the FFT blocks (default: all cores).
 
     Returns
     -------
