@@ -182,8 +182,8 @@ def upsample_blocks(records: np.ndarray, factor: int, first: int, stop: int, wor
         spec *= factor
         up = scipy.fft.ifft(_upsample_spectrum(spec, factor), axis=-1, workers=workers, overwrite_x=True)
         kept = up[..., guard * factor:(guard + block) * factor]  # (records, blocks, block factor)
-        whole = (stop - first) // block  # blocks kept whole, copied once into out's view of them
-        out[s:e, :whole * block * factor].reshape(e - s, whole, block * factor)[...] = kept[:, :whole]
+        whole = (stop - first) // block  # blocks kept whole
+        out[s:e, :whole * block * factor] = kept[:, :whole].reshape(e - s, whole * block * factor)
         if whole < n_blocks:  # the last block, cut at the record's end
             out[s:e, whole * block * factor:] = kept[:, whole, :(stop - first - whole * block) * factor]
     return out

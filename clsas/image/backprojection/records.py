@@ -104,7 +104,7 @@ def reach(echo: EchoData, receivers, positions: np.ndarray, target_velocity=None
     v = np.zeros(3) if target_velocity is None else np.asarray(target_velocity, dtype=np.float64)
     t_end = float(np.max(echo.t0)) + echo.n_samples / echo.fs
     grow = np.linalg.norm(v) * t_end
-    # the pixels' box a coordinate at a time (a reduction over the first axis of (M, 3) is ~15x slower)
+    # the pixels' box a coordinate at a time (NumPy's reduction over the first axis of (M, 3) is slow)
     box_lo = np.array([pts[:, k].min() for k in range(3)])
     box_hi = np.array([pts[:, k].max() for k in range(3)])
     lo = box_lo + echo.eta[:, None] * v - grow  # (P, 3)
