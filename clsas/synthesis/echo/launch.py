@@ -24,6 +24,7 @@ from ... import geometry, opencl
 from ..paths import bottom_coefficient
 from ..propagation import BOTTOM
 from .blocks import BlockSynth
+from . import grid
 from .compressed import PAD, PHASES
 from .physics import on_floor
 from .records import (BOTTOM_TABLE, CHUNK_SCATTERERS, PARAMS, PULSE, RECEIVER, ROWS, SCATTERER, UNHEARD,
@@ -113,6 +114,9 @@ class OpenCLSynth(BlockSynth):
             self.table_buf, self.impulse_buf = (
                 cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=a)
                 for a in (table, impulse))
+        if ph.grid is not None:
+            defines.update(GRID=ph.grid.terms, GRID_RATE=grid.RATE, GRID_TAPS=grid.TAPS, GRID_BETA=repr(grid.BETA),
+                           TAPER=grid.TAPER, GRID_BLOCK=grid.BLOCK, GRID_PAD=ph.grid.pad)
         preamble = records_preamble(self.real, ph.extended)
         prg = opencl.program("echo", defines=defines, double=double, preamble=preamble)
         self.k_paths = cl.Kernel(prg, "echo_paths")
@@ -126,7 +130,7 @@ class OpenCLSynth(BlockSynth):
         self.k_bounds = cl.Kernel(prg, "echo_bounds")
         self.k_extents = cl.Kernel(prg, "echo_extents")
         self.k_spread = cl.Kernel(prg, "echo_spread")
-        self.k_acc = cl.Kernel(prg, "echo_accumulate")
+        self.k_acc = cl.Kernel(prg, "echo_grid" if ph.grid is not None else "echo_accumulate")
         wf = sc.waveform
         self.params = np.zeros((), PARAMS)
         self.params["c"], self.params["f0"], self.params["fs"] = c, wf.f0, wf.fs
@@ -315,6 +319,8 @@ class OpenCLSynth(BlockSynth):
         bounds = cl.Buffer(self.rt.context, mf.READ_WRITE, 8 * h * pc * n_chunks)
         self.k_bounds(q, *groups(n_chunks, pc, h), paths_buf, self.real(self.half_len), np.int32(n), np.int32(pc),
                       bounds)
+        if self.physics.grid is not None:
+            return self._grid_records(paths_buf, bounds, n, pc, shift, n_samples)
         rows = 16 * ROWS
         n_pad = -(-n_samples // rows) * rows
         out = cl.Buffer(self.rt.context, mf.WRITE_ONLY, np.dtype(self.cplx).itemsize * h * pc * n_pad)
@@ -329,4 +335,21 @@ class OpenCLSynth(BlockSynth):
         host = np.empty((h, pc, n_pad), self.cplx)
         cl.enqueue_copy(q, host, out)
         return host[:, :, :n_samples]
+
+    def _grid_records(self, paths_buf, bounds, n: int, pc: int, shift: np.ndarray, n_samples: int) -> np.ndarray:
+        """The grid route (:mod:`.grid`): the kernel's grids and tails, then the plan's FFT filter."""
+        cl, q, plan = self.cl, self.rt.queue, self.physics.grid
+        h, mf = self.n_rx, cl.mem_flags
+        n_grid = plan.grid_samples(n_samples)
+        size = np.dtype(self.cplx).itemsize
+        grids = cl.Buffer(self.rt.context, mf.WRITE_ONLY, size * h * pc * plan.terms * grid.RATE * n_grid)
+        tails = cl.Buffer(self.rt.context, mf.WRITE_ONLY, size * h * pc * n_grid)
+        shift_buf = cl.Buffer(self.rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=shift)
+        self.k_acc(q, *groups(n_grid // grid.BLOCK, pc, h), paths_buf, bounds, self.real(self.alpha),
+                   self.real(self.half_len), np.int32(n), np.int32(pc), np.int32(n_grid), shift_buf, grids, tails)
+        host_grids = np.empty((h, pc, plan.terms, grid.RATE * n_grid), self.cplx)
+        host_tails = np.empty((h, pc, n_grid), self.cplx)
+        cl.enqueue_copy(q, host_grids, grids)
+        cl.enqueue_copy(q, host_tails, tails)
+        return plan.finish(host_grids, host_tails, n_samples)
 

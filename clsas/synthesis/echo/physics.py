@@ -10,6 +10,7 @@ import numpy as np
 from ...scene.targets import Scatterers
 from ..propagation import BOTTOM, DIRECT, BandAbsorption
 from .compressed import CompressedResponse
+from .grid import GridPlan
 from .options import SynthesisOptions
 
 
@@ -20,7 +21,8 @@ class Physics:
     ``spreading`` (the "auto" resolved), ``moving`` (some scatterer has a velocity); ``response``:
     synthesis into the range-compressed domain with these tabulated responses (None: raw echoes);
     ``floor_first``: the index of the first seafloor facet among the scatterers (None: none;
-    :func:`on_floor`). ``extended``: the paths need their own chirp and envelope."""
+    :func:`on_floor`). ``extended``: the paths need their own chirp and envelope. ``grid``: the raw
+    records are made by the grid route (:class:`.grid.GridPlan`; None: each path's samples)."""
 
     options: SynthesisOptions
     kinds: tuple = (DIRECT,)
@@ -29,6 +31,7 @@ class Physics:
     moving: bool = False
     response: CompressedResponse | None = None
     floor_first: int | None = None
+    grid: GridPlan | None = None
 
     @property
     def stop_and_go(self) -> bool:

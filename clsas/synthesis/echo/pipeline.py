@@ -15,6 +15,7 @@ are derived in :func:`add_noise`.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import NamedTuple
 
 import numpy as np
@@ -30,10 +31,14 @@ from ..window import check_cube_size, node_span, receiver_nodes
 from .options import AUTO, DEFAULT_CHUNK_BYTES, SynthesisOptions, auto_flag
 from ..propagation import BandAbsorption, boundaries, path_kinds
 from .compressed import DEFAULT_LEVEL_DB, CompressedResponse
+from .grid import ENVELOPE_BOUND, RATE, GridPlan, envelope_bound
 from .launch import OpenCLSynth
 from .physics import Physics, on_floor
 from .records import path_record
 from .reference import NumpySynth
+
+
+GRID_AUTO_PATHS = 100_000  # paths a record from which accumulation="auto" takes the grid route
 
 
 def _pulse_blocks(n_pulses: int, per_pulse_bytes: int, chunk_bytes: int) -> list[slice]:
@@ -219,6 +224,34 @@ def resolve_physics(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers
                    moving=bool(np.any(scat.vel != 0)), response=response, floor_first=floor_first)
 
 
+def grid_plan(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers, physics: Physics) -> GridPlan | None:
+    """The grid route's plan (:mod:`.grid`) when ``opts.accumulation`` asks for it, or is "auto" and the
+    scene has at least GRID_AUTO_PATHS paths a record; None for the direct route. ValueError when
+    "grid" is asked for paths it cannot make: paths with their own chirp (intra-pulse Doppler),
+    compressed synthesis by taps, or a band envelope too steep for its second-order series."""
+    if opts.accumulation == "direct" or (opts.accumulation == "auto" and scat.count * len(physics.kinds) < GRID_AUTO_PATHS):
+        return None
+    why = None
+    if physics.doppler:
+        why = "paths with intra-pulse Doppler have their own chirp (give intra_pulse='none' or stop_and_go=True)"
+    elif physics.writes_taps:
+        why = "synthesis into the compressed domain writes each path's taps here"
+    else:
+        wf, c = scenario.waveform, scenario.medium.sound_speed
+        longest = c * _delay_bound(scenario, scat, physics)
+        bound = max(envelope_bound(physics.absorption, kind.out.planes + kind.back.planes, longest, wf, c)
+                    for kind in physics.kinds)
+        if bound > ENVELOPE_BOUND:
+            why = (f"the band envelope (absorption, surface roughness) reaches |b| h + |g| h^2 = {bound:.3g} over "
+                   f"the pulse, above {ENVELOPE_BOUND} (its second-order series would be off by ~{bound ** 3 / 6:.1e})")
+    if why is not None:
+        if opts.accumulation == "grid":
+            raise ValueError(f"simulate accumulation: 'grid' cannot make these paths: {why}; use accumulation='direct' or 'auto'")
+        return None
+    wf = scenario.waveform
+    return GridPlan(0.5 * wf.chirp_rate / wf.fs ** 2, 0.5 * wf.duration * wf.fs, 3 if physics.extended else 1)
+
+
 def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion, prune: bool = True):
     """The backend's synthesizer and the pulse blocks that keep its working memory under ``opts.chunk_bytes``."""
     scat = scene_scatterers(scenario)
@@ -234,6 +267,7 @@ def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion, prune: bo
                              f"receivers), got {occlusion.shape}")
     occlusion = _with_mesh_weights(scenario, occlusion, opts.stop_and_go, opts.hull_occlusion, opts.reuse_tolerance)
     physics = resolve_physics(scenario, opts, scat, prune)
+    physics = dataclasses.replace(physics, grid=grid_plan(scenario, opts, scat, physics))
     args = (scenario, scat, occlusion, physics)
     kinds = len(physics.kinds)
     if opts.backend == "numpy":
@@ -337,6 +371,8 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
     # pass B in blocks that also bound the records' memory (complex128 on the host, the
     # kernel's output buffer and its copy; the raw route's FFTs of about twice the samples)
     per_pulse = n_rx * (synth.scat.count * 32 + (7 if synth.physics.compress_raw else 3) * 16 * n_samples)
+    if synth.physics.grid is not None:  # the grids, their spectra and the tails
+        per_pulse += n_rx * 3 * 16 * (synth.physics.grid.terms * RATE + 1) * synth.physics.grid.grid_samples(n_samples)
     with stage(f"echo synthesis ({name})", f"{n_rx} receivers x {n_pulses} pulses x {n_samples} samples "
                f"({data.nbytes / 2**20:.1f} MiB) x {n_scat} scatterers"), \
             Progress(n_pulses, "pulses", f"echo synthesis ({name})", progress) as bar:
@@ -371,7 +407,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
              occlusion=None, max_bytes: int | None = None, chunk_bytes: int = DEFAULT_CHUNK_BYTES,
              hull_occlusion: bool = True, reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE,
              absorption: bool | str = AUTO, multipath: int | str = AUTO,
-             intra_pulse: str = "moving", compressed: bool | str = False,
+             intra_pulse: str = "moving", accumulation: str = "auto", compressed: bool | str = False,
              compressed_level_db: float = DEFAULT_LEVEL_DB) -> EchoData:
     """Synthesize the raw echoes of ``scenario`` (see the module docstring for the model).
 
@@ -409,6 +445,13 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         scatterers with a velocity, "all" for every path (stationary scatterers seen from the
         moving platform too), "none" for one delay per path (the pulse placed at its centre's
         delay: the stop-in-pulse model). Ignored with ``stop_and_go``.
+    accumulation : {"auto", "direct", "grid"}
+        How the raw records are made: "direct" adds each path's T fs samples; "grid" places each
+        path as a fractional-delay impulse on a fast-time grid of 4 points a sample and filters
+        each record once by the pulse (FFT), subtracting the smoothed pulse's tails path by path
+        (:mod:`clsas.synthesis.echo.grid`: the same exact delays, the pulse band-limited; paths
+        without intra-pulse Doppler, band envelopes within a second-order series). "auto"
+        (default): "grid" for scenes of at least 100,000 paths a record where it applies.
     compressed : bool or str
         Synthesize straight into the range-compressed domain: the echo
         ``range_compress(simulate(...), window=W)`` would give (W = "none" for True, or the
@@ -454,7 +497,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         raise ValueError(f"simulate snr_db: noise ({snr_db!r} dB) is defined on raw samples; with compressed="
                          f"{compressed!r} simulate the raw echo with noise and range_compress it instead")
     opts = SynthesisOptions(backend=backend, precision=precision, stop_and_go=stop_and_go, spreading=spreading,
-                            absorption=absorption, multipath=multipath, intra_pulse=intra_pulse,
+                            absorption=absorption, multipath=multipath, intra_pulse=intra_pulse, accumulation=accumulation,
                             compressed=compressed, compressed_level_db=compressed_level_db,
                             hull_occlusion=hull_occlusion, reuse_tolerance=reuse_tolerance, max_bytes=max_bytes,
                             chunk_bytes=chunk_bytes, progress=progress)
@@ -474,6 +517,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
                     "absorption": out.physics.absorption is not None,
                     "paths": [kind.name for kind in out.physics.kinds],
                     "intra_pulse": out.physics.intra_pulse if out.physics.doppler else "none", "snr_db": snr_db,
+                    "accumulation": "direct" if out.physics.grid is None else "grid",
                     **({"compressed": _compressed_provenance(opts, out.physics)} if out.physics.response else {}),
                     "seed": seed if seed is None or isinstance(seed, int) else str(seed),
                     "n_scatterers": out.n_scatterers, "occlusion": occlusion is not None,

@@ -143,7 +143,10 @@ class NumpySynth(BlockSynth):
             laws = {k: v.reshape(h * n_p, n) for k, v in in_pulse_laws(p, wf).items()} \
                 if self.physics.extended else None
             args = (start.reshape(h * n_p, n), frac.reshape(h * n_p, n), amp.reshape(h * n_p, n))
-            if self.physics.writes_taps:
+            if self.physics.grid is not None:
+                plan = self.physics.grid
+                out = out + plan.finish(*plan.spread(*args, n_samples, laws), n_samples)
+            elif self.physics.writes_taps:
                 out = out + self.physics.response.accumulate(*args, n_samples, laws)
             else:
                 out = out + accumulate_reference(*args, self.alpha, self.half_len, n_samples, laws)
