@@ -269,6 +269,9 @@ __kernel void echo_paths(__global const double *tsoa, __global const double *fso
     const double8 top = clamp(-beta / (2.0 * gamma), lo, hi);
     double8 level = fmax(at_lo, at_hi);
     level = select(level, fmax(level, (gamma * top + beta) * top), gamma < 0.0);
+#ifdef GRID
+    level = (double8)0.0;  /* the grid route expands the envelope itself: the amplitude stays whole */
+#endif
     {
         const double8 m = exp(level);
         double x_m[8];
@@ -667,14 +670,15 @@ inline void expj_cycles8(real8_t cyc, real8_t *cs, real8_t *sn)
 /* The grid route (clsas/synthesis/echo/grid.py, NumPy twin GridPlan.spread): one work-item per
  * GRID_BLOCK samples of one (receiver, pulse) record, covering the grid points GRID_RATE t .. of the
  * samples t = GRID_BLOCK b - GRID_PAD .. + GRID_BLOCK - 1 (output window coordinates) and the tail entries
- * of those samples. Each path that reaches them adds its impulse, spread by the kernel
- * exp(GRID_BETA (sqrt(1 - (2 x / GRID_TAPS)^2) - 1)) over the grid points about R u (8 lanes), to
+ * of those samples. Each path that reaches them adds its impulse, spread by the kernel phi over the
+ * GRID_TAPS grid points about GRID_RATE u (taps[k 8 + l]: lane l's polynomial, degree GRID_DEGREE), to
  * each of the GRID terms (its amplitude times 1, b, b^2 / 2 + g: the band envelope's Taylor
  * series), and subtracts what the tapered pulse adds outside its edges (h < |d| < h + TAPER, 8
  * lanes either side). grid[((h P + p) GRID + j) GRID_RATE n_grid + m], tails[(h P + p) n_grid + i]. */
 __kernel void echo_grid(__global const echo_path_t *paths, __global const int2 *bounds, const real_t alpha,
-                        const real_t half_len, const int n_scat, const int n_pulses, const int n_grid,
-                        __global const int *shift, __global complex_t *grid, __global complex_t *tails)
+                        const real_t half_len, __global const real_t *taps, const int n_scat,
+                        const int n_pulses, const int n_grid, __global const int *shift,
+                        __global complex_t *grid, __global complex_t *tails)
 {
     const int b = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
     const int k0 = GRID_BLOCK * b;  /* the block's first sample, grid coordinates (sample + GRID_PAD) */
@@ -684,7 +688,7 @@ __kernel void echo_grid(__global const echo_path_t *paths, __global const int2 *
     const int n_chunks = (n_scat + CHUNK - 1) / CHUNK;
     const int sh = shift[h];
     const real8_t lane = (real8_t)(0, 1, 2, 3, 4, 5, 6, 7);
-    const int left0 = (int)ceil(-half_len - (real_t)TAPER), right0 = (int)floor(half_len) + 1;
+    const int left0 = -(int)(half_len + (real_t)TAPER), right0 = (int)half_len + 1;  /* ceil, floor of positives */
     real_t acc_re[GRID][GRID_RATE * GRID_BLOCK], acc_im[GRID][GRID_RATE * GRID_BLOCK];
     real_t tail_re[GRID_BLOCK], tail_im[GRID_BLOCK];
     for (int j = 0; j < GRID; ++j)
@@ -703,32 +707,30 @@ __kernel void echo_grid(__global const echo_path_t *paths, __global const int2 *
             const int s = v.start - sh;  /* the centre's sample, output window coordinates */
             const real_t fr = v.frac;
             real_t cr[GRID], ci[GRID];
-            cr[0] = v.amp[0];
+            cr[0] = v.amp[0];  /* the grid route's paths carry no level (echo_paths) */
             ci[0] = v.amp[1];
 #if GRID == 3
-            {   /* the band envelope exp(b d + g d^2 - level) ~= exp(-level) (1 + b d + (b^2 / 2 + g) d^2) */
-                const real_t e = exp(-v.level);
+            {   /* the band envelope exp(b d + g d^2) ~= 1 + b d + (b^2 / 2 + g) d^2 */
                 const real_t e1 = v.beta, e2 = (real_t)0.5 * v.beta * v.beta + v.gamma;
-                cr[0] *= e;
-                ci[0] *= e;
                 cr[1] = cr[0] * e1;
                 ci[1] = ci[0] * e1;
                 cr[2] = cr[0] * e2;
                 ci[2] = ci[0] * e2;
             }
 #endif
-            /* the impulse: grid points GRID_RATE (s - t_first) + first + l, l = 0..7 */
+            /* the impulse: grid points GRID_RATE (s - t_first) + first + l, l = 0..7, the taps
+             * polynomials in t = first - x + GRID_TAPS / 2 (Horner, 8 lanes) */
             if (s + 2 >= t_first && s - 1 <= t_last) {
-                const real_t xf = (real_t)GRID_RATE * fr;
-                const int first = (int)ceil(xf - (real_t)(0.5 * GRID_TAPS));
-                const real8_t z = (lane + (real_t)first - xf) * (real_t)(2.0 / GRID_TAPS);
-                const real8_t in = (real_t)1 - z * z;
-                real8_t phi = exp((real_t)GRID_BETA * (sqrt(fmax(in, (real8_t)0)) - (real_t)1));
-                phi = select((real8_t)0, phi, in > (real_t)0);
+                const real_t a = (real_t)GRID_RATE * fr - (real_t)(0.5 * GRID_TAPS);
+                int first = convert_int(a);
+                first += (a > (real_t)first);  /* ceil by truncation and fix-up */
+                const real_t t = (real_t)first - a;
+                real8_t phi = vload8(GRID_DEGREE, taps);
+                for (int k = GRID_DEGREE - 1; k >= 0; --k) phi = phi * t + vload8(k, taps);
                 real_t ph[8];
                 vstore8(phi, 0, ph);
                 const int m0 = GRID_RATE * (s - t_first) + first;
-                for (int l = 0; l < 8; ++l) {
+                for (int l = 0; l < GRID_TAPS; ++l) {
                     const int m = m0 + l;
                     if (m < 0 || m >= GRID_RATE * GRID_BLOCK) continue;
                     for (int j = 0; j < GRID; ++j) {
@@ -745,8 +747,9 @@ __kernel void echo_grid(__global const echo_path_t *paths, __global const int2 *
                 const real8_t x = fabs(d) - half_len;
                 real8_t cs, sn;
                 expj_cycles8(alpha * d * d, &cs, &sn);
-                real8_t w = (real_t)-0.5 * ((real_t)1 + cospi(fmin(fmax(x, (real8_t)0), (real8_t)TAPER)
-                                                             * (real_t)(1.0 / TAPER)));
+                real8_t hc, hs;  /* the half Hann taper 0.5 (1 + cos(pi x / TAPER)) */
+                expj_cycles8(fmin(fmax(x, (real8_t)0), (real8_t)TAPER) * (real_t)(0.5 / TAPER), &hc, &hs);
+                real8_t w = (real_t)-0.5 * ((real_t)1 + hc);
                 w = select((real8_t)0, w, (x > (real_t)0) & (x < (real_t)TAPER));
                 real8_t pr = (real8_t)cr[0], pi = (real8_t)ci[0];
 #if GRID == 3

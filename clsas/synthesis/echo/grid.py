@@ -37,6 +37,7 @@ the grid per term and one inverse FFT.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -51,6 +52,7 @@ LANES = 8  # the kernel evaluates a path's taps, and each tail, on 8 lanes
 BLOCK = 64  # samples a work-item of kernels/echo.cl echo_grid makes; grids span whole blocks
 ENVELOPE_BOUND = 0.1  # the largest |b| h + |g| h^2 the second-order envelope is used for
 QUADRATURE = 256  # Gauss-Legendre nodes for phi's Fourier transform
+DEGREE = 7  # the taps' polynomials in the fraction (their largest error ~1.4e-6 of the peak, at phi's edge)
 
 
 def kernel(x):
@@ -66,6 +68,29 @@ def kernel_transform(nu) -> np.ndarray:
     x, w = 0.5 * TAPS * x, 0.5 * TAPS * w
     nu = np.asarray(nu, dtype=np.float64)
     return (np.cos(2.0 * np.pi * nu[..., None] * x) * (w * kernel(x))).sum(axis=-1)
+
+
+@functools.cache
+def tap_polynomials() -> np.ndarray:
+    """(DEGREE + 1, LANES): the taps phi(l - TAPS / 2 + t), l = 0 .. LANES - 1, as polynomials in
+    t in [0, 1) (coefficient k of t^k in row k; fitted at Chebyshev nodes): a path whose grid
+    position is x puts phi(first + l - x) on grid point first + l, first = ceil(x - TAPS / 2),
+    t = first - x + TAPS / 2 (the Horner form kernels/echo.cl evaluates on 8 lanes)."""
+    t = 0.5 - 0.5 * np.cos(np.pi * (np.arange(64) + 0.5) / 64)
+    out = np.zeros((DEGREE + 1, LANES))
+    for lane in range(TAPS):
+        out[:, lane] = np.polynomial.polynomial.polyfit(t, kernel(lane - 0.5 * TAPS + t), DEGREE)
+    return out
+
+
+def taps(t) -> np.ndarray:
+    """(..., LANES) the taps at fractions ``t`` (...,) (:func:`tap_polynomials`)."""
+    coef = tap_polynomials()
+    t = np.asarray(t, dtype=np.float64)[..., None]
+    out = np.zeros(t.shape[:-1] + (LANES,)) + coef[DEGREE]
+    for k in range(DEGREE - 1, -1, -1):
+        out = out * t + coef[k]
+    return out
 
 
 def taper(x) -> np.ndarray:
@@ -164,8 +189,8 @@ class GridPlan:
             xf = RATE * fr
             first = np.ceil(xf - 0.5 * TAPS).astype(np.int64)
             m = RATE * s[:, None] + first[:, None] + lanes  # (n, LANES) grid points
-            phi = kernel(first[:, None] + lanes - xf[:, None])
-            ok = (m >= 0) & (m < RATE * n_grid) & (phi != 0)
+            phi = taps(first - xf + 0.5 * TAPS)
+            ok = (m >= 0) & (m < RATE * n_grid) & (lanes < TAPS)
             for j in range(self.terms):
                 vals = c[j][:, None] * phi
                 grids[r, j] = np.bincount(m[ok], vals.real[ok], RATE * n_grid) \

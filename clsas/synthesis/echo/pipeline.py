@@ -220,8 +220,12 @@ def resolve_physics(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers
     absorption = BandAbsorption.of(scenario.medium, scenario.waveform) if absorbing else None
     response = None if opts.compressed is False else \
         CompressedResponse.of(scenario.waveform, opts.compressed, opts.compressed_level_db)
+    wf = scenario.waveform
+    speed = float(np.max(np.linalg.norm(scat.vel, axis=1), initial=0.0)) + scenario.platform.speed
+    mismatch = np.pi * speed / scenario.medium.sound_speed * wf.bandwidth * wf.duration
     return Physics(opts, kinds=kinds, absorption=absorption, spreading=spreading,
-                   moving=bool(np.any(scat.vel != 0)), response=response, floor_first=floor_first)
+                   moving=bool(np.any(scat.vel != 0)), response=response, floor_first=floor_first,
+                   doppler_mismatch=float(mismatch))
 
 
 def grid_plan(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers, physics: Physics) -> GridPlan | None:
@@ -303,6 +307,25 @@ def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = F
                                                            spreading=False, absorption=False), None, prune=False)
     kind = [k.name for k in synth.physics.kinds].index(path)
     return np.concatenate([synth.delays(sl, kind) for sl in blocks], axis=1)
+
+
+def window_extents(scenario: Scenario, options: SynthesisOptions | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Per receiver (H,), the echo-centre extents in whole samples from t = 0 (floor of the
+    earliest, floor of the latest + 1) over the scenario's pulses, the path kinds ``options``
+    resolve to, and the scatterers each pulse hears (the seafloor's facets in its beam's reach):
+    the extents :func:`simulate` derives its recording window from (pass A). inf, -inf for a
+    receiver that hears nothing. For splitting a run into pulse blocks (:mod:`clsas.distributed`)."""
+    if not isinstance(scenario, Scenario):
+        raise TypeError(f"scenario must be a Scenario, got {type(scenario).__name__}")
+    opts = SynthesisOptions() if options is None else options
+    if not isinstance(opts, SynthesisOptions):
+        raise TypeError(f"options must be a SynthesisOptions, got {type(opts).__name__}")
+    synth, blocks = _make_synth(scenario, opts, None)
+    lo = np.full((scenario.n_receivers, synth.scat.count), np.inf)
+    hi = np.full((scenario.n_receivers, synth.scat.count), -np.inf)
+    for sl in blocks:
+        synth.extents(sl, lo, hi)
+    return lo.min(axis=1), hi.max(axis=1)
 
 
 class Synthesis(NamedTuple):
@@ -387,7 +410,6 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
                                  "receiver (zero path length); move it away")
             data[:, sl] = block
             bar.done(sl.stop - sl.start)
-    synth.release()
     for h in range(n_rx):
         data[h, :, n_valid[h]:] = 0
     return Synthesis(data, t0, n_valid, origin, nodes[:2], float(nodes[2]), n_scat, synth.physics)
