@@ -14,7 +14,7 @@ import clsas
 from clsas.scene import presets
 from clsas.scene.seafloor import Seafloor
 from clsas.scene.targets import PointTargets
-from clsas.synthesis.echo import SynthesisOptions, pipeline, synthesize
+from clsas.synthesis.echo import SynthesisOptions, resolve, synthesize
 from clsas.synthesis.echo.grid import GridPlan
 from clsas.synthesis.echo.reference import accumulate_reference
 
@@ -85,7 +85,7 @@ def test_auto_takes_the_grid_for_large_scenes(seafloor_scene, monkeypatch):
     (provenance names it); scenes with intra-pulse Doppler stay direct."""
     small = clsas.simulate(seafloor_scene, backend="numpy", progress=False)
     assert small.provenance["accumulation"] == "direct"
-    monkeypatch.setattr(pipeline, "GRID_AUTO_PATHS", 1000)
+    monkeypatch.setattr(resolve, "GRID_AUTO_PATHS", 1000)
     large = clsas.simulate(seafloor_scene, backend="numpy", progress=False)
     assert large.provenance["accumulation"] == "grid"
     moving = presets.huang2022(n_pulses=2).replace(targets=(PointTargets([[30.0, 0.0, 0.0]] * 1000,
