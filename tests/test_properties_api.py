@@ -26,7 +26,7 @@ from hypothesis import strategies as st
 from _properties import CHECKS, Domain, choices, fixed, flags, integers, parameter_properties, reals
 
 import clsas
-from clsas import cli, io
+from clsas import cli, io, validate
 from clsas.atomic import TEMPORARY_TAG
 from clsas.errors import DataFileError, EstimationError, ScenarioFileError
 from clsas.estimate import autofocus, dpca, moving
@@ -320,12 +320,13 @@ test_closed_forms_bad_values, test_closed_forms_valid_values, test_closed_forms_
     prefix="closed_forms", setup=layout, may_refuse=True, budget=1 << 20, examples=10, labels={"model": "model"},
     check=lambda out: all(np.isfinite([p.fm_rate, p.doppler_centroid, p.tau_c, p.eta_c]).all() for p in out.values()),
     domains={"position": fixed([(1989.0, 0.0, -350.0), (100.0, 50.0, -10.0)],
-                               [((np.nan, 0, 0), ValueError, "position")]),
+                               [((np.nan, 0, 0), ValueError), ((1e300, 0.0, 0.0), ValueError),
+                                ((1.0, 2.0), ValueError), ("a", TypeError), (1j, TypeError), (None, TypeError)]),
              "velocity": fixed([(5.0, 5.0, 0.0), (0.0, 0.0, 0.0)],
-                               [((np.inf, 0, 0), ValueError, "velocity")]),
+                               [((np.inf, 0, 0), ValueError), ((1500.0, 0.0, 0.0), ValueError),
+                                ((1e300, 0.0, 0.0), ValueError), ("a", TypeError), (None, TypeError)]),
+             "eta_ref": reals(-validate.MAX_TIME, validate.MAX_TIME, none=True, valid=st.floats(-10.0, 10.0)),
              "model": choices(("exact", "paper"))})
-# closed_forms position 1e300 (NaN out), velocity 1500 m/s (NaN out), position "a" (a ValueError) and
-# eta_ref NaN (accepted): not held here (see the report)
 
 
 # --- added since the first hardening, session 3: the moving chain's other entry points, DPCA's
@@ -339,12 +340,22 @@ def motion():
         return clsas.estimate_motion(kiang())
 
 
+def _chain_number(default: float) -> Domain:
+    """The moving chain's p0 (s) and threshold_db (dB): any finite number; valid draws keep the
+    default (the estimator's run is what the valid property pays for). Integers beyond a float64's
+    int64 cast (2**64, 10**400) are left out until the chain names them (an unnamed TypeError from
+    np.isfinite; reported to the moving developer, session 4)."""
+    domain = reals(valid=st.just(default))
+    return Domain(domain.valid, domain.bad.filter(lambda case: not (isinstance(case[0], int) and
+                                                                      abs(case[0]) >= 2**63)))
+
+
 test_estimate_motions_bad_values, test_estimate_motions_valid_values, test_estimate_motions_budget = \
     parameter_properties(lambda **kw: clsas.estimate_motions(kiang(), **kw), prefix="estimate_motions", setup=kiang,
                          outcomes=(EstimationError,), may_refuse=True, budget=256 << 20, examples=4,
-                         domains={"n_targets": integers(1, 4, valid=st.integers(1, 2))})
-# p0 and threshold_db: not held (2**64 an unnamed TypeError from isfinite, None/True/'a' ValueErrors;
-# reported to the moving developer)
+                         labels={"p0": "p0", "threshold_db": "threshold_db"},
+                         domains={"n_targets": integers(1, 4, valid=st.integers(1, 2)),
+                                  "p0": _chain_number(moving.chain.P0), "threshold_db": _chain_number(26.0)})
 test_estimate_motions_valid_values = slow(test_estimate_motions_valid_values)
 test_estimate_motions_budget = slow(test_estimate_motions_budget)
 
