@@ -47,6 +47,31 @@ def name_max(folder: Path) -> int:
         return 255
 
 
+def check_output(name: str, value, suffixes: tuple, overwrite: bool = True) -> Path:
+    """The Path of a single file to write, checked before anything is computed: a str or
+    os.PathLike (TypeError), one of ``suffixes`` (ValueError), an existing folder
+    (FileNotFoundError), a name the folder holds (ValueError), and what is there a regular file
+    that may be replaced (IsADirectoryError, FileExistsError; ``overwrite``). Every message
+    starts with ``name``."""
+    if not isinstance(value, (str, os.PathLike)) or isinstance(value, bytes):
+        raise TypeError(f"{name}: must be a file name (str or os.PathLike), got {value!r:.60} ({type(value).__name__})")
+    path = Path(value)
+    if path.suffix.lower() not in suffixes:
+        raise ValueError(f"{name}: {str(path)!r} must end in {', '.join(suffixes)}")
+    if not path.parent.is_dir():
+        what = "does not exist" if not path.parent.exists() else "is a file, not a folder"
+        raise FileNotFoundError(f"{name}: the folder {str(path.parent)!r} {what}")
+    if len(os.fsencode(path.name)) > name_max(path.parent):
+        raise ValueError(f"{name}: the file name is {len(os.fsencode(path.name))} bytes long; the folder "
+                         f"{str(path.parent)!r} allows names of at most {name_max(path.parent)}")
+    if path.exists() or path.is_symlink():
+        if not path.is_file():
+            raise IsADirectoryError(f"{name}: {str(path)!r} exists and is not a regular file; not replaced")
+        if not overwrite:
+            raise FileExistsError(f"{name}: {str(path)!r} exists; give --overwrite to replace it")
+    return path
+
+
 def remove(path: Path) -> None:
     """Delete a file or a folder tree we wrote (never following a symbolic link)."""
     if path.is_dir() and not path.is_symlink():
