@@ -29,6 +29,7 @@ import secrets
 import shutil
 import signal
 import threading
+import warnings
 from pathlib import Path
 
 log = logging.getLogger("clsas")
@@ -133,10 +134,28 @@ def _signals_as_exceptions():
         _pending.clear()
 
 
+def stale_temporaries(path: Path) -> list:
+    """The temporaries of ``path`` already beside it: left by a save that was killed where no
+    handler runs (SIGKILL, the out-of-memory killer, a power cut), or one still running."""
+    stem = os.fsencode(path.name)[:_TEMPORARY_NAME_BYTES].decode(errors="ignore")
+    try:
+        return sorted(p for p in path.parent.iterdir()
+                      if p.name.startswith(f".{stem}.") and p.name.endswith(f"{TEMPORARY_TAG}{path.suffix}"))
+    except OSError:
+        return []
+
+
 @contextlib.contextmanager
 def temporary(path: Path):
     """A temporary name beside ``path`` (see the module docstring); whatever is there when the
-    block ends (error, Ctrl-C, SIGTERM, or not renamed) is deleted."""
+    block ends (error, Ctrl-C, SIGTERM, or not renamed) is deleted. Temporaries of ``path``
+    already there (:func:`stale_temporaries`) are named in a RuntimeWarning, never deleted: a
+    save elsewhere may still be writing one."""
+    stale = stale_temporaries(path)
+    if stale:
+        warnings.warn(f"{str(path)!r}: {', '.join(repr(p.name) for p in stale)} beside it: left by a save that was "
+                      "killed (SIGKILL, out of memory) or one still running; delete them once no save of it runs",
+                      RuntimeWarning, stacklevel=3)
     tmp = temporary_name(path)
     terminated = None
     with _signals_as_exceptions():

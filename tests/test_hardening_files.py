@@ -11,6 +11,7 @@ import sys
 import textwrap
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -277,6 +278,24 @@ def test_scenario_files_are_written_with_the_umask_mode(tmp_path):
 
 
 # --- interruption --------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_a_temporary_left_by_a_killed_save_is_named_not_deleted(tmp_path, suffix):
+    """SIGKILL (or the out-of-memory killer) runs no handler: the fresh-clone trial's killed
+    `clsas simulate` left `.big.nc.<random>.clsas-tmp.nc`. The next save of that target names it
+    in a warning (another save may still be writing it: it is not deleted)."""
+    path = tmp_path / f"k{suffix}"
+    left = tmp_path / f".k{suffix}.0123456789ab{TEMPORARY_TAG}{suffix}"
+    left.write_bytes(b"partial") if suffix == ".nc" else left.mkdir()
+    (tmp_path / f".other{suffix}.0123456789ab{TEMPORARY_TAG}{suffix}").write_bytes(b"another target's")
+    with pytest.warns(RuntimeWarning, match=f"'{left.name}' beside it: left by a save that was killed"):
+        io.save(_echo(1), path)
+    assert left.exists() and np.array_equal(io.load(path).data, _echo(1).data)
+    left.unlink() if suffix == ".nc" else left.rmdir()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        io.save(_echo(2), path)
+
 
 def test_ctrl_c_during_a_save_leaves_no_temporary_and_the_old_file(tmp_path, monkeypatch):
     for suffix in SUFFIXES:
