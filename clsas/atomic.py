@@ -176,8 +176,11 @@ def replace(tmp: Path, path: Path) -> None:
     """Move the written ``tmp`` onto ``path`` with one rename: ``os.replace`` for a file; for a
     folder over a folder, one exchange of the two (the old one, now under ``tmp``'s name, is
     deleted). The folder holding them is synced. A signal noted while the temporary was
-    written stops it first (:func:`check_signals`)."""
+    written stops it first (:func:`check_signals`). The temporary's data reach the disk
+    before the rename (:func:`sync_tree`), so that a crash after it finds the new file whole,
+    not an empty or short one (nor, for a store, the old one deleted and the new one lost)."""
     check_signals()
+    sync_tree(tmp)
     if tmp.is_dir() and path.is_dir() and not path.is_symlink():
         if not _exchange(tmp, path):
             _replace_in_two_steps(tmp, path)
@@ -214,6 +217,25 @@ def _replace_in_two_steps(tmp: Path, path: Path) -> None:
         os.rename(aside, path)
         raise
     os.rename(aside, tmp)  # deleted by the caller with the temporary
+
+
+def sync_tree(path: Path) -> None:
+    """fsync a file, or every file and folder of a tree from the bottom up (a zarr store); a
+    symbolic link is not followed. Folders that cannot be synced are skipped."""
+    if path.is_symlink():
+        return
+    if not path.is_dir():
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        return
+    for folder, _, files in os.walk(path, topdown=False):
+        for name in files:
+            if not os.path.islink(os.path.join(folder, name)):
+                sync_tree(Path(folder, name))
+        sync_folder(Path(folder))
 
 
 def sync_folder(folder: Path) -> None:
