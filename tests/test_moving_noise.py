@@ -170,3 +170,44 @@ def test_chain_over_seeds(chain_echo, snr_db):
         assert est.confidence > 0.9, (seed, est.confidence)
         assert err * np.linalg.norm(CASE1) < 3 * np.linalg.norm(est.sigma), (seed, err, est.sigma)
 
+
+
+def test_simulate_takes_either_reading():
+    """``simulate(snr_reference=)``: with the same seed the "record" reading's noise is the "echo"
+    reading's scaled by 10^(offset / 20) per receiver, offset = :func:`snr_offset_db` of the
+    noise-free echo (the same draws; float32 rounding), and the provenance says which."""
+    scene = point_scene(64)
+    clean = clsas.simulate(scene, backend="numpy", progress=False)
+    offset = clsas.snr_offset_db(clean)
+    as_echo = clsas.simulate(scene, backend="numpy", progress=False, snr_db=-10.0, seed=4)
+    as_record = clsas.simulate(scene, backend="numpy", progress=False, snr_db=-10.0, seed=4, snr_reference="record")
+    assert as_echo.provenance["snr_reference"] == "echo" and as_record.provenance["snr_reference"] == "record"
+    for h in range(len(clean.receivers)):
+        n_echo, n_record = as_echo.data[h] - clean.data[h], as_record.data[h] - clean.data[h]
+        scale = 10 ** (offset[h] / 20)
+        assert np.allclose(n_record, scale * n_echo, rtol=0, atol=1e-4 * np.abs(n_echo).max())
+    assert np.allclose(offset, snr_offset_db(clean.data, clean.provenance["n_valid"]))
+
+
+def hull_echo(case: int, n_pulses: int = 2048):
+    """The scaled hull of Table II ``case`` (default mesh, hull occlusion), noise-free."""
+    return clsas.simulate(presets.kiang2022_case(case, n_pulses=n_pulses), backend="opencl", progress=False)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", [1, 5, 6])
+def test_hull_at_the_papers_noise(opencl_device, case):
+    """Issue 26 item 3 on the hull: the scaled Albacore of Table II cases 1, 5 and 6 (2048 pulses,
+    25.6 s) at "echo" SNR -15 and -17 dB (the stricter reading: the mean power over the samples
+    the hull's echo occupies; the "record" reading of the same numbers is 1.6-9.7 dB easier on
+    these scenes), seed 1: an estimate within 3 % (asserted below 2 %), confident, its error
+    within 3 sigma. Measured (load 6-9, seeds 1-2): see the report in the commit and
+    :data:`HULL_MEASURED`."""
+    echo = hull_echo(case)
+    v = np.array(presets.KIANG_CASES[case])
+    for snr_db in (-15.0, -17.0):
+        est = clsas.estimate_motion(noisy(echo, snr_db, 1), position=CENTRE)
+        err = float(np.linalg.norm(est.velocity - v))
+        assert err / np.linalg.norm(v) < 0.02, (case, snr_db, est.velocity)
+        assert est.confidence > 0.9, (case, snr_db, est.confidence, est.problems)
+        assert err < 3 * np.linalg.norm(est.sigma), (case, snr_db, err, est.sigma)
