@@ -15,8 +15,7 @@ target (eqs. 1-2, 21, the R'' of C; f_dc = f_dc,eq, K = K_a,eq):
    the noise in too few pulses, or when no SoWVD peak stands out of the maps' background
    (:data:`THRESHOLD_DB`) and the record focused with the best candidate holds no target
    either (:data:`FOCUS_DB`: the SoWVD, a fourth-order product of the record, loses to the noise
-   well before the coherent focus does: at -17 dB SNR on 1024 pulses it scores 23-28 dB on the
-   right K, its noise candidates 16-20 dB),
+   well before the coherent focus does: tests/test_moving_noise.py has the scores),
 3. RCMC (eq. 17, :mod:`.filters`), Radon transform of |s_rcmc| -> slope -> f_dc (:mod:`.radon`),
 4. range-walk compensation and azimuth compression (eqs. 18-20; :func:`.filters.compress`) of
    the target's neighbourhood (:data:`EXTENT_WINDOW` around the Radon intercept, the trace's delay
@@ -84,8 +83,8 @@ THRESHOLD_DB = 26.0
 #: Below :data:`THRESHOLD_DB` the rate search's best candidate is still taken when the record
 #: focused with it holds a target: its image's peak this far over the image's median, dB (step 2
 #: of the module docstring). Focused noise peaks ~13 dB over its median on a 10^6-pixel image
-#: (the largest of n exponential powers over their median: ln n / ln 2); a point focused on
-#: 1024 pulses at -17 dB SNR per raw sample stands ~33 dB over it.
+#: (the largest of n exponential powers over their median: ln n / ln 2); a point focused at
+#: the paper's floor stands well over it (tests/test_moving_noise.py).
 FOCUS_DB = 20.0
 #: Fraction of the pulses in which the echo must stand out of the noise (:mod:`.trace`); at
 #: -25 dB SNR it does in ~10 % of Table I's pulses, at -15 dB in all of them.
@@ -201,8 +200,8 @@ def doppler_centroid_walking(rec: Records, rcmc: np.ndarray) -> tuple[float, flo
     """:func:`doppler_centroid_radon` on the power |s_rcmc|^2 less each range cell's mean over the
     pulses. In heavy noise the floor-subtracted magnitude's cells keep a mean that differs from
     cell to cell (the floor's estimate, the window's uneven noise), which adds up to a line of
-    slope 0 stronger than a walking trace (Table II case 5 at A, -15 dB: f_dc 0.5 Hz against
-    270); with the means removed the walking trace is the strongest line. A trace that keeps its
+    slope 0 stronger than a walking trace (Table II case 5 at A, -15 dB: tests/test_moving_noise.py);
+    with the means removed the walking trace is the strongest line. A trace that keeps its
     range cell (f_dc ~ 0) is removed with them: :func:`with_rate` keeps whichever focuses."""
     power = np.abs(rcmc).astype(np.float32) ** 2
     power -= power.mean(axis=0)

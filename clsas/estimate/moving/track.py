@@ -6,9 +6,9 @@ Not in Kiang & Kiang 2022; like :mod:`.trace` it only looks at |s(tau, eta)|. Wh
 :func:`.trace.support` averages the power of each range cell over :data:`.trace.PULSES` pulses,
 so it finds a trace only where the echo keeps its cell over those pulses and stands out of the
 noise there. On the scaled hull at the paper's -15 dB (Table II cases 5 and 6: a range walk of
-0.8-1.7 upsampled samples a pulse and the echo spread over 2-4 m of range) it stands out in a
-few cells of two thirds of the pulses, the band fitted to them misses the trace, and the RFRT
-sums noise over the whole record (SoWVD score 15-16 dB, the noise's).
+about one upsampled sample a pulse and the echo spread over metres of range) it stands out in a
+few cells of some of the pulses, the band fitted to them misses the trace, and the RFRT sums
+noise over the whole record: the SoWVD scores the noise's level (tests/test_moving_noise.py).
 
 Here the trace is followed over the whole record instead:
 
@@ -29,8 +29,8 @@ Here the trace is followed over the whole record instead:
 
 Why only the bright cells: the RFRT sums x_k^2 over the gate; the scatterers of a hull add there
 with unrelated phases, while every noisy cell adds a term of the noise's power, so cells with
-little echo lower the line's SNR (measured on case 5 at A, -15 dB: the true trace +-20 samples
-scores 31 dB, +-60 samples 17.5 dB, the noise's level).
+little echo lower the line's SNR (on case 5 at A a band three times wider about the true trace
+drops the SoWVD's score to the noise's level: tests/test_moving_noise.py).
 """
 
 from __future__ import annotations
