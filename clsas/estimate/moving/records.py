@@ -107,7 +107,10 @@ def wrapped_band(rec: Records, doppler_centroid: float, fm_rate: float) -> list[
     before) the target, and its slow-time phase is that of the carrier f0 -+ F_r: a Doppler
     f_dc F_r / f0 (aliased by the PRF) away from the target's, so it focuses as a ghost T away
     in range and seconds away in eta, which the extent took for part of the target (Table II
-    speeds with |f_dc| > ~600 Hz at 512 pulses). The real echo holds nothing in that band.
+    speeds with |f_dc| > ~600 Hz at 512 pulses). The real echo holds nothing in that band. A
+    guard band (F_r > B + 2 max |f_D|) would keep the echo unwrapped, but Table I fixes F_r = B_r
+    = 20 kHz, so :func:`clsas.scene.presets.kiang2022` keeps the paper's rate and the chain and
+    :func:`clsas.focus_moving` zero the band instead.
 
     f_D runs over f_dc -+ |K| T_a / 2: when that interval holds both signs (a small centroid over
     a long aperture) both edges wrap, each by its own extreme. Each band reaches
