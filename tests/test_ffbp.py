@@ -212,6 +212,16 @@ def test_a_grid_scene_is_kept_only_while_nothing_can_change_it():
     base[..., 2] += 1.0
     assert ffbp_package._scene(view) is not first
     assert np.allclose(ffbp_package._scene(view).plane.centroid[2], first.plane.centroid[2] + 1.0)
+    # a Grid's own positions made writeable again by their owner (NumPy allows it) and changed
+    own = Grid.plane(np.arange(42.0, 43.0, 0.1), np.arange(-1.0, 1.0, 0.1), DEPTH)
+    kept = ffbp_package._scene(own)
+    own.positions.flags.writeable = True
+    own.positions[..., 2] += 1.0
+    assert ffbp_package._scene(own) is not kept  # writeable: read again
+    own.positions.flags.writeable = False
+    again = ffbp_package._scene(own)
+    assert np.allclose(again.plane.centroid[2], kept.plane.centroid[2] + 1.0)
+    assert ffbp_package._scene(own) is again
 
 
 def test_leaves_no_tile_can_hold_go_through_backproject(opencl_device, monkeypatch):
@@ -410,7 +420,7 @@ def test_a_single_point_is_imaged_as_backproject_images_it(opencl_device):
     ref = backproject(echo, grid, backend="opencl", progress=False)
     img = ffbp(echo, grid, backend="opencl", progress=False)
     assert abs(ref.data[0]) > 0
-    assert abs(img.data[0] - ref.data[0]) / abs(ref.data[0]) < 3e-5  # measured 2.3e-7 (one level: leaves to the point)
+    assert abs(img.data[0] - ref.data[0]) / abs(ref.data[0]) < 3e-6  # measured 2.3e-7 (one level: leaves to the point)
 
 
 @pytest.mark.parametrize("first, factor", [(1, 2), (1, 4), (None, 4)])
