@@ -81,8 +81,9 @@ def _assert_unbiased(pairs, extent, tx_factor, beam_mean):
 
 
 # seafloors averaged a case by test_motionless_yaw_is_unbiased_over_seafloors, by transmitter
-# length: enough for a standard error of the mean near 0.1 urad (a pair's yaw scatters by
-# 4-5 urad with the 1x transmitter, 7-8 urad with the 2x one)
+# length: enough for a standard error of the mean near 0.12 urad (a seafloor's 29 pairs share
+# its speckle: their mean scatters by about 1.5 urad from seafloor to seafloor with the 2x
+# transmitter, less with the 1x one)
 SEAFLOORS = {1.0: 64, 2.0: 160}
 
 
@@ -92,16 +93,17 @@ SEAFLOORS = {1.0: 64, 2.0: 160}
 def test_motionless_yaw_is_unbiased_over_seafloors(tx_factor, extent):
     """The issue's done-when: per-pair yaw |mean| < 0.2 urad on a motionless platform for
     seafloors 0.5x, 1x and 4x the footprint and two transmitter lengths. A seafloor of 30 pings
-    resolves the mean to 0.8-1.4 urad (speckle), so SEAFLOORS of them are averaged: the mean
+    resolves the mean to 1-1.5 urad (speckle), so SEAFLOORS of them are averaged: the mean
     must lie within 0.2 urad plus twice its standard error, and that standard error must be
-    at most 0.12 urad, so that a bias of 0.5 urad cannot pass. bench_dpca.py --bias measures
-    the same cases on other seafloors (its JSON rows)."""
+    at most 0.15 urad, so that a bias of 0.5 urad cannot pass. bench_dpca.py --bias measures
+    the same cases on other seafloors (its JSON rows). Run time: 6 cases, about 45 min at
+    load 10 on 2 cores (the 2x transmitter's 1x seafloor: 514 s)."""
     means = []
     for seed in range(SEAFLOORS[tx_factor]):
         scene, _, echo = motionless_scene(tx_factor, extent, 30, 100 + seed)
         means.append(np.mean(dpca.estimate(echo, scene.array, scene.platform.speed).yaw))
     mean, error = float(np.mean(means)), float(np.std(means, ddof=1) / np.sqrt(len(means)))
-    assert error < 0.12e-6, error
+    assert error < 0.15e-6, error
     assert abs(mean) < 0.2e-6 + 2 * error, (mean, error)
 
 
