@@ -127,8 +127,8 @@ typedef float16 realv16_t;
  * C = sqrt(2) cos(pi r) by their polynomials in r (odd of degree 9, even of degree 10; least-squares
  * fits made minimax by Lawson's reweighting, the factors pi and sqrt(2) inside the coefficients),
  * then cos(2 pi r) = 1 - S^2 and sin(2 pi r) = S C: two operations for the doubling and none for
- * pi r. Error in float32 over [-1/2, 1/2] below 8e-7 (sin 2.9e-7, cos 7.7e-7, as common.h's
- * expj_near16: 4.7e-7, 7.1e-7); the kernel-versus-reference tests hold the images to it. */
+ * pi r. Error in float32 over [-1/2, 1/2] below 8e-7 (sin 2.9e-7, cos 7.7e-7; the polynomials in pi r
+ * it replaced: 4.7e-7, 7.1e-7); the kernel-versus-reference tests hold the images to it. */
 #define EXPJ_NEAR16(r_in, cs_out, sn_out)                                                                      \
     do {                                                                                                      \
         const float16 r_ = (r_in), q_ = r_ * r_;                                                              \

@@ -82,22 +82,6 @@ inline void expj_fraction(float r, float *cs, float *sn) { CLSAS_EXPJ_FRACTION(f
 inline void expj_fraction8(float8 r, float8 *cs, float8 *sn) { CLSAS_EXPJ_FRACTION(float8, r, cs, sn); }
 inline void expj_fraction16(float16 r, float16 *cs, float16 *sn) { CLSAS_EXPJ_FRACTION(float16, r, cs, sn); }
 
-/* CLSAS_EXPJ_FRACTION for a phase r already in [-1/2, 1/2] cycles (reduced by rounding, e.g.
- * r = x - round(x)): the same polynomials without the fold (the same values). */
-#define CLSAS_EXPJ_NEAR(T, r_in, cs_out, sn_out)                                                  \
-    do {                                                                                          \
-        const T s_ = M_PI_F * (r_in), q_ = s_ * s_;                                               \
-        const T sin_ = s_ * (9.999999765e-01f + q_ * (-1.666664759e-01f + q_ * (8.332899165e-03f  \
-                       + q_ * (-1.980086171e-04f + q_ * 2.590422739e-06f))));                     \
-        const T cos_ = 9.999999998e-01f + q_ * (-4.999999936e-01f + q_ * (4.166663620e-02f        \
-                       + q_ * (-1.388836078e-03f + q_ * (2.476013213e-05f + q_ * -2.605101538e-07f)))); \
-        *(sn_out) = 2.0f * sin_ * cos_;                                                           \
-        *(cs_out) = 1.0f - 2.0f * sin_ * sin_;                                                    \
-    } while (0)
-
-inline void expj_near(float r, float *cs, float *sn) { CLSAS_EXPJ_NEAR(float, r, cs, sn); }
-inline void expj_near16(float16 r, float16 *cs, float16 *sn) { CLSAS_EXPJ_NEAR(float16, r, cs, sn); }
-
 /* sinc(x) = sin(pi x) / (pi x), sinc(0) = 1 */
 inline real_t sinc(real_t x)
 {

@@ -552,3 +552,27 @@ def test_rows_of_a_work_item_leave_the_image_unchanged(opencl_device, kiang_echo
         GridPlan(grid, rows=0)
     with pytest.raises(TypeError, match="rows"):
         GridPlan(grid, rows=6.0)
+
+
+def test_numpy_reference_keeps_its_working_set_within_the_budget():
+    """The NumPy reference works on as many pixel-pulses at a time as the memory budget holds
+    (WORK_BYTES each): 48^2 pixels x 32 pulses took all 73728 pixel-pulses at once whatever the
+    budget (~150 bytes each); under an 8 MiB budget its peak (traced by tracemalloc) stays within
+    it, and the image is the same."""
+    import tracemalloc
+
+    from _bp_memory import echo_of
+
+    echo = echo_of(1, 32, 512)
+    grid = Grid.plane(np.linspace(40.0, 45.0, 48), np.linspace(-5.0, 5.0, 48), 0.0)
+    images = []
+    for limit in (8 << 20, 1 << 30):
+        with clsas.use_memory_budget(limit):
+            tracemalloc.start()
+            try:
+                images.append(clsas.backproject(echo, grid, backend="numpy", progress=False).data)
+                peak = tracemalloc.get_traced_memory()[1]
+            finally:
+                tracemalloc.stop()
+        assert peak < limit, (limit, peak)
+    np.testing.assert_allclose(images[0], images[1], rtol=0, atol=1e-9 * np.abs(images[1]).max())

@@ -62,6 +62,7 @@ def build_ahead() -> dict:
     import numpy as np
 
     import clsas
+    from ..image import upsample
     from ..scene import presets
 
     done = {}
@@ -88,6 +89,8 @@ def build_ahead() -> dict:
                           ("backproject aperture", {"aperture": 0.5}), ("backproject stop-and-go", {"stop_and_go": True})):
         timed(name, lambda: clsas.backproject(echo, grid, **kw, **options))
     timed("ffbp", lambda: clsas.ffbp(echo, grid, **kw))
+    # the scene samples at fs = B, where back-projection upsamples by FFT: build the FIR's kernel too
+    timed("upsample FIR", lambda: upsample.upsample_fir(echo.data[0], 8, 0, echo.n_samples))
     return done
 
 

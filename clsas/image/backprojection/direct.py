@@ -11,7 +11,8 @@ which focuses a moving target, Kiang & Kiang 2022), every selected receiver h an
     image(P) += s_h,p(tau) exp(+j 2 pi f0 tau),
 
 s the range-compressed record sampled at ``t0_h + k / fs``: its value at tau comes from linear
-interpolation of the record FFT-upsampled by ``upsample`` in blocks (``interp="linear"``;
+interpolation of the record upsampled by ``upsample`` (a 24-tap windowed-sinc FIR on the device, FFT
+blocks for echoes sampled below 1.25 B: :mod:`clsas.image.upsample`; ``interp="linear"``;
 :mod:`clsas.image.backprojection.records`: only the fast-time span the grid reaches) or from an
 8-tap Kaiser-windowed sinc of :mod:`clsas.interp` on the original samples (``interp="sinc8"``;
 :func:`clsas.interp.read_rows` in the reference, ``kernels/interp.h`` in the kernels). The
@@ -95,8 +96,9 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
     receivers : indices or names of the receivers to sum coherently (default: all; with prepared
         records: theirs, of which a subset may be chosen).
     interp : {"linear", "sinc8"}
-        Linear interpolation of data FFT-upsampled by ``upsample`` (in blocks:
-        :mod:`clsas.image.backprojection.records`), or an 8-tap windowed sinc on the original
+        Linear interpolation of data upsampled by ``upsample`` (a 24-tap windowed-sinc FIR on the
+        device, FFT blocks for echoes sampled below 1.25 B: :mod:`clsas.image.upsample`), or an
+        8-tap windowed sinc on the original
         samples. Default "linear", or the prepared records' (which a different value contradicts).
     upsample : int in [1, 64], default 8 (or the prepared records'). A call on an echo upsamples
         only the fast-time span the grid reaches; to image many grids from one echo, prepare the

@@ -5,17 +5,20 @@ from __future__ import annotations
 
 import numpy as np
 
+from ... import budget
 from ...geometry import legs
 from ...interp import read_rows
 from ...progress import Progress
 from .records import PreparedRecords
 from .tiles import GridPlan
 
+WORK_BYTES = 400  # the temporaries a pixel-pulse holds at once (tests/test_backprojection.py measures it)
+
 
 def backproject_reference(records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,
                           span: tuple[int, int]):
-    """The float64 NumPy reference (vectorised over pixels, at most 2^20 pixels and a few pulses
-    at a time): image (M,) complex128. The sample index of a delay tau is k = (tau - t0) fs,
+    """The float64 NumPy reference (vectorised over pixels, at most 2^22 pixel-pulses and as many
+    as WORK_BYTES each leave within the memory budget at a time): image (M,) complex128. The sample index of a delay tau is k = (tau - t0) fs,
     split into floor(k) and its fraction before the records' offset (an integer) is taken off,
     as the kernels do, so that records prepared over any span covering the grid read alike. With
     an ``aperture`` a pixel's contribution is kept when it lies, at q where the pulse meets it,
@@ -25,8 +28,11 @@ def backproject_reference(records: PreparedRecords, plan: GridPlan, aperture, ve
     pixels = plan.grid.positions.reshape(-1, 3)
     image = np.zeros(pixels.shape[0], dtype=np.complex128)
     f0, fs = echo.waveform.f0, records.fs
-    chunk = min(pixels.shape[0], 2**20)
-    block = max(1, 2**22 // chunk)
+    budget.check_bytes("backproject's NumPy reference (one pixel-pulse at a time)", WORK_BYTES,
+                       "use the OpenCL backend")
+    work = int(min(2**22, budget.memory_budget() // WORK_BYTES))  # pixel-pulses at a time
+    chunk = min(pixels.shape[0], work)
+    block = max(1, work // chunk)
     jobs = [(i, h, np.arange(s, min(s + block, span[1]))) for i, h in enumerate(records.receivers)
             for s in range(span[0], span[1], block)]
     bar = Progress(pixels.shape[0] * len(records.receivers) * (span[1] - span[0]), "pixel-pulses",
