@@ -269,6 +269,9 @@ __kernel void echo_paths(__global const double *tsoa, __global const double *fso
     const double8 top = clamp(-beta / (2.0 * gamma), lo, hi);
     double8 level = fmax(at_lo, at_hi);
     level = select(level, fmax(level, (gamma * top + beta) * top), gamma < 0.0);
+#ifdef GRID
+    level = (double8)0.0;  /* the grid route expands the envelope itself: the amplitude stays whole */
+#endif
     {
         const double8 m = exp(level);
         double x_m[8];
@@ -377,9 +380,13 @@ inline int2 path_reach(const echo_path_t v, real_t half_len)
     return (int2)(v.start + iu - COMPRESSED, v.start + iu + COMPRESSED + 1);
 #else
 #ifdef EXTENDED
-    const real_t a = v.frac + v.lo, b = v.frac + v.hi;
+    real_t a = v.frac + v.lo, b = v.frac + v.hi;
 #else
-    const real_t a = v.frac - half_len, b = v.frac + half_len;
+    real_t a = v.frac - half_len, b = v.frac + half_len;
+#endif
+#ifdef GRID
+    a -= (real_t)(TAPER + 1);  /* the grid route's tails past the pulse's edges */
+    b += (real_t)(TAPER + 1);
 #endif
     int ia = convert_int(a), ib = convert_int(b);
     ia -= (a < (real_t)ia);  /* floor */
@@ -640,3 +647,134 @@ __kernel void echo_accumulate(__global const echo_path_t *paths, __global const 
             o[l] = (kr + l < n_valid) ? complex_new(re[l], im[l]) : complex_new((real_t)0, (real_t)0);
     }
 }
+
+#ifdef GRID
+#ifdef CLSAS_DOUBLE
+typedef double8 real8_t;
+#define convert_real8 convert_double8
+inline void expj_cycles8(real8_t cyc, real8_t *cs, real8_t *sn)
+{
+    const real8_t r = cyc - convert_double8(convert_long8(cyc));
+    *cs = cospi((real8_t)2.0 * r);
+    *sn = sinpi((real8_t)2.0 * r);
+}
+#else
+typedef float8 real8_t;
+#define convert_real8 convert_float8
+inline void expj_cycles8(real8_t cyc, real8_t *cs, real8_t *sn)
+{
+    expj_fraction8(cyc - convert_float8(convert_int8(cyc)), cs, sn);
+}
+#endif
+
+/* The grid route (clsas/synthesis/echo/grid.py, NumPy twin GridPlan.spread): one work-item per
+ * GRID_BLOCK samples of one (receiver, pulse) record, covering the grid points GRID_RATE t .. of the
+ * samples t = GRID_BLOCK b - GRID_PAD .. + GRID_BLOCK - 1 (output window coordinates) and the tail entries
+ * of those samples. Each path that reaches them adds its impulse, spread by the kernel phi over the
+ * GRID_TAPS grid points about GRID_RATE u (taps[k 8 + l]: lane l's polynomial, degree GRID_DEGREE), to
+ * each of the GRID terms (its amplitude times 1, b, b^2 / 2 + g: the band envelope's Taylor
+ * series), and subtracts what the tapered pulse adds outside its edges (h < |d| < h + TAPER, 8
+ * lanes either side). grid[((h P + p) GRID + j) GRID_RATE n_grid + m], tails[(h P + p) n_grid + i]. */
+__kernel void echo_grid(__global const echo_path_t *paths, __global const int2 *bounds, const real_t alpha,
+                        const real_t half_len, __global const real_t *taps, const int n_scat,
+                        const int n_pulses, const int n_grid, __global const int *shift,
+                        __global complex_t *grid, __global complex_t *tails)
+{
+    const int b = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
+    const int k0 = GRID_BLOCK * b;  /* the block's first sample, grid coordinates (sample + GRID_PAD) */
+    if (k0 >= n_grid) return;
+    const int t_first = k0 - GRID_PAD, t_last = t_first + GRID_BLOCK - 1;  /* output window coordinates */
+    const size_t rec = (size_t)h * n_pulses + p;
+    const int n_chunks = (n_scat + CHUNK - 1) / CHUNK;
+    const int sh = shift[h];
+    const real8_t lane = (real8_t)(0, 1, 2, 3, 4, 5, 6, 7);
+    const int left0 = -(int)(half_len + (real_t)TAPER), right0 = (int)half_len + 1;  /* ceil, floor of positives */
+    real_t acc_re[GRID][GRID_RATE * GRID_BLOCK], acc_im[GRID][GRID_RATE * GRID_BLOCK];
+    real_t tail_re[GRID_BLOCK], tail_im[GRID_BLOCK];
+    for (int j = 0; j < GRID; ++j)
+        for (int m = 0; m < GRID_RATE * GRID_BLOCK; ++m) acc_re[j][m] = acc_im[j][m] = (real_t)0;
+    for (int m = 0; m < GRID_BLOCK; ++m) tail_re[m] = tail_im[m] = (real_t)0;
+    __global const echo_path_t *rp = paths + rec * n_scat;
+    for (int c = 0; c < n_chunks; ++c) {
+        const int2 bd = bounds[rec * n_chunks + c] - sh;
+        if (bd.y < t_first || bd.x > t_last) continue;
+        const int j1 = min(n_scat, (c + 1) * CHUNK);
+        for (int q = c * CHUNK; q < j1; ++q) {
+            const echo_path_t v = rp[q];
+            const int2 reach = path_reach(v, half_len) - sh;
+            if (reach.y < t_first || reach.x > t_last) continue;
+            if (v.amp[0] == (real_t)0 && v.amp[1] == (real_t)0) continue;  /* dark (shadowed, padding) */
+            const int s = v.start - sh;  /* the centre's sample, output window coordinates */
+            const real_t fr = v.frac;
+            real_t cr[GRID], ci[GRID];
+            cr[0] = v.amp[0];  /* the grid route's paths carry no level (echo_paths) */
+            ci[0] = v.amp[1];
+#if GRID == 3
+            {   /* the band envelope exp(b d + g d^2) ~= 1 + b d + (b^2 / 2 + g) d^2 */
+                const real_t e1 = v.beta, e2 = (real_t)0.5 * v.beta * v.beta + v.gamma;
+                cr[1] = cr[0] * e1;
+                ci[1] = ci[0] * e1;
+                cr[2] = cr[0] * e2;
+                ci[2] = ci[0] * e2;
+            }
+#endif
+            /* the impulse: grid points GRID_RATE (s - t_first) + first + l, l = 0..7, the taps
+             * polynomials in t = first - x + GRID_TAPS / 2 (Horner, 8 lanes) */
+            if (s + 2 >= t_first && s - 1 <= t_last) {
+                const real_t a = (real_t)GRID_RATE * fr - (real_t)(0.5 * GRID_TAPS);
+                int first = convert_int(a);
+                first += (a > (real_t)first);  /* ceil by truncation and fix-up */
+                const real_t t = (real_t)first - a;
+                real8_t phi = vload8(GRID_DEGREE, taps);
+                for (int k = GRID_DEGREE - 1; k >= 0; --k) phi = phi * t + vload8(k, taps);
+                real_t ph[8];
+                vstore8(phi, 0, ph);
+                const int m0 = GRID_RATE * (s - t_first) + first;
+                for (int l = 0; l < GRID_TAPS; ++l) {
+                    const int m = m0 + l;
+                    if (m < 0 || m >= GRID_RATE * GRID_BLOCK) continue;
+                    for (int j = 0; j < GRID; ++j) {
+                        acc_re[j][m] += cr[j] * ph[l];
+                        acc_im[j][m] += ci[j] * ph[l];
+                    }
+                }
+            }
+            /* the tails: minus the tapered pulse at the samples s + offset outside the pulse */
+            for (int side = 0; side < 2; ++side) {
+                const int o0 = side == 0 ? left0 : right0;
+                if (s + o0 + 7 < t_first || s + o0 > t_last) continue;
+                const real8_t d = lane + (real_t)o0 - fr;
+                const real8_t x = fabs(d) - half_len;
+                real8_t cs, sn;
+                expj_cycles8(alpha * d * d, &cs, &sn);
+                real8_t hc, hs;  /* the half Hann taper 0.5 (1 + cos(pi x / TAPER)) */
+                expj_cycles8(fmin(fmax(x, (real8_t)0), (real8_t)TAPER) * (real_t)(0.5 / TAPER), &hc, &hs);
+                real8_t w = (real_t)-0.5 * ((real_t)1 + hc);
+                w = select((real8_t)0, w, (x > (real_t)0) & (x < (real_t)TAPER));
+                real8_t pr = (real8_t)cr[0], pi = (real8_t)ci[0];
+#if GRID == 3
+                pr += d * (cr[1] + d * cr[2]);
+                pi += d * (ci[1] + d * ci[2]);
+#endif
+                const real8_t vr = w * (pr * cs - pi * sn), vi = w * (pr * sn + pi * cs);
+                real_t xr[8], xi[8];
+                vstore8(vr, 0, xr);
+                vstore8(vi, 0, xi);
+                for (int l = 0; l < 8; ++l) {
+                    const int k = s + o0 + l - t_first;
+                    if (k < 0 || k >= GRID_BLOCK) continue;
+                    tail_re[k] += xr[l];
+                    tail_im[k] += xi[l];
+                }
+            }
+        }
+    }
+    for (int j = 0; j < GRID; ++j) {
+        __global complex_t *o = grid + (rec * GRID + j) * (size_t)(GRID_RATE * n_grid) + GRID_RATE * k0;
+        for (int m = 0; m < GRID_RATE * GRID_BLOCK; ++m) o[m] = complex_new(acc_re[j][m], acc_im[j][m]);
+    }
+    __global complex_t *o = tails + rec * n_grid + k0;
+    for (int m = 0; m < GRID_BLOCK; ++m) o[m] = complex_new(tail_re[m], tail_im[m]);
+}
+#endif
+

@@ -50,15 +50,17 @@ def test_compressed_matches_range_compress_within_40_db(backend, window):
         assert peak_error_db(got, ref) < -40.0, (intra, peak_error_db(got, ref))
 
 
-def test_compressed_moving_target_with_a_window(backend):
-    """A point moving at 2.2 m/s: its Doppler shifts the compressed peak by ~5 samples (range-
-    Doppler coupling, taken exactly); left out is the pulse's support moving against its chirp,
-    which a window's taper hides: measured -40.1 dB with Hamming (-30 dB without a window,
-    where the echo's edges carry full weight)."""
-    sc = sparse_scene(velocity=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (1.0, -2.0, 0.0)))
+@pytest.mark.parametrize("velocity", [(1.0, -2.0, 0.0), (5.0, 0.0, 0.0)])
+def test_compressed_moving_target_with_a_window(backend, velocity):
+    """A point moving at 2.2 m/s (1 m/s radial) or 5 m/s radial on Huang's sonar (B T = 200): the
+    chirp mismatch pi (2 v / c) B T / 2 is 1.8 and 2.9 rad, beyond what the taps' second-order
+    series takes (reviewer's E1: -32 dB at 2.2 m/s radial, -19 dB at 5), so the raw route
+    (exact) makes them: measured -106..-108 dB re the peak on OpenCL, -137 dB with NumPy."""
+    sc = sparse_scene(velocity=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), velocity))
     ref = range_compress(simulate(sc, backend="numpy", progress=False, intra_pulse="moving"), window="hamming")
     got = simulate(sc, backend=backend, progress=False, compressed="hamming", intra_pulse="moving")
-    assert peak_error_db(got, ref) < -38.0
+    assert got.provenance["compressed"]["route"] == "raw echo + matched filter"
+    assert peak_error_db(got, ref) < (-86.0 if backend == "opencl" else -117.0)
 
 
 def test_dense_scene_error_is_the_discarded_energy(backend, rng):

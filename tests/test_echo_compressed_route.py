@@ -39,7 +39,7 @@ def test_raw_route_equals_range_compress(backend, window):
     np.testing.assert_array_equal(got.t0, ref.t0)
     for h, n in enumerate(got.provenance["n_valid"]):
         ref.data[h, :, n:] = 0  # simulate records nothing past a receiver's window
-    assert error_db(got, ref) < -93.0, error_db(got, ref)
+    assert error_db(got, ref) < (-93.0 if backend == "opencl" else -114.0), error_db(got, ref)
 
 
 def test_route_follows_the_work_per_path():
@@ -53,3 +53,8 @@ def test_route_follows_the_work_per_path():
     assert Physics(plain, response=heremans).compress_raw
     assert Physics(SynthesisOptions(intra_pulse="all", backend="numpy"), response=huang, moving=True).compress_raw
     assert not Physics(plain).compress_raw and not Physics(plain).writes_taps
+    # paths with their own chirp: the taps while its mismatch is small, the raw route beyond (E1)
+    doppler = SynthesisOptions(intra_pulse="all", backend="numpy")
+    slow = CompressedResponse.of(presets.huang2022().waveform, "hamming", -40.0)
+    assert Physics(doppler, response=slow, moving=True, doppler_mismatch=0.05).writes_taps
+    assert Physics(doppler, response=slow, moving=True, doppler_mismatch=0.5).compress_raw

@@ -4,8 +4,8 @@ pulse block's reach and weights through :mod:`.blocks`, with the options of :mod
 resolved into :mod:`.physics`, the kernel's records declared in :mod:`.records`."""
 
 from .options import SynthesisOptions
-from .pipeline import Synthesis, add_noise, delays, signal_power, simulate, synthesize
+from .pipeline import Synthesis, add_noise, delays, signal_power, simulate, synthesize, window_extents
 from .reference import accumulate_reference
 
 __all__ = ["Synthesis", "SynthesisOptions", "accumulate_reference", "add_noise", "delays", "signal_power", "simulate",
-           "synthesize"]
+           "synthesize", "window_extents"]

@@ -26,9 +26,13 @@ i.e. the echo of a path centred at u - delta (the range-Doppler coupling of the 
 shift f moves the compressed peak by -f / K) times exp(b' d' + q d'^2), q = g + j 2 pi (c - alpha),
 expanded to second order: 1 + b' d' + (b'^2 / 2 + q) d'^2. The tables Y1 and Y2 are Y0 with the
 raw echo weighted by d and d^2, so a path adds c0 Y0 + c1 Y1 + c2 Y2 with c0 = a', c1 = a' b',
-c2 = a' (b'^2 / 2 + q). Left out: the third-order terms (b' h)^3 / 6 and |q| h^2 b' h, h = T fs / 2
-(below 1e-3 for the band losses and speeds of sonar scenes), and the shift of the support by
-delta against the chirp (the echo's edges; relative error about delta / (2 h)).
+c2 = a' (b'^2 / 2 + q). Left out: the third-order terms (b' h)^3 / 6, |q| h^2 b' h and (|q| h^2)^2 / 2
+and beyond, h = T fs / 2, and the shift of the support by delta against the chirp (the echo's
+edges; relative error about delta / (2 h)). The band losses of sonar scenes keep b' h small, but
+the chirp mismatch of a moving path is not: |q| h^2 ~ pi (2 v_r / c) B T / 2 rad, 0.9 rad at
+2.2 m/s radial with B T = 200 (-32 dB measured). So paths with intra-pulse Doppler take the raw
+route once the bound of that mismatch over the scene's speeds exceeds 0.1 rad
+(:attr:`clsas.synthesis.echo.physics.Physics.compress_raw`).
 
 Two routes, chosen by their work per path (:attr:`clsas.synthesis.echo.physics.Physics.compress_raw`):
 the taps above (N_TABLES (2 L + 2) table values a path, N_TABLES = 3 for paths with their own

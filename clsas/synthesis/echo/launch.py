@@ -24,6 +24,7 @@ from ... import geometry, opencl
 from ..paths import bottom_coefficient
 from ..propagation import BOTTOM
 from .blocks import BlockSynth
+from . import grid
 from .compressed import PAD, PHASES
 from .physics import on_floor
 from .records import (BOTTOM_TABLE, CHUNK_SCATTERERS, PARAMS, PULSE, RECEIVER, ROWS, SCATTERER, UNHEARD,
@@ -41,7 +42,7 @@ def groups(n_x: int, *rest: int) -> tuple[tuple, tuple]:
 class OpenCLSynth(BlockSynth):
     """The kernels of kernels/echo.cl: paths in double, accumulation in float (or double)."""
 
-    def __init__(self, *args, double: bool, nodes, cache_bytes: int = 2 * 2**30):
+    def __init__(self, *args, double: bool, nodes):
         super().__init__(*args)
         import pyopencl as cl
 
@@ -50,7 +51,6 @@ class OpenCLSynth(BlockSynth):
         if not opencl.has_fp64(self.rt.device):
             raise RuntimeError(f"echo synthesis computes delays in double; device {self.rt.device.name!r} has no fp64")
         self.double = double
-        self.cache, self.cached_bytes, self.cache_bytes = {}, 0, cache_bytes
         self.real = np.float64 if double else np.float32
         self.cplx = np.complex128 if double else np.complex64
         ph = self.physics
@@ -113,6 +113,11 @@ class OpenCLSynth(BlockSynth):
             self.table_buf, self.impulse_buf = (
                 cl.Buffer(self.rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=a)
                 for a in (table, impulse))
+        if ph.grid is not None:
+            defines.update(GRID=ph.grid.terms, GRID_RATE=grid.RATE, GRID_TAPS=grid.TAPS, GRID_DEGREE=grid.DEGREE,
+                           TAPER=grid.TAPER, GRID_BLOCK=grid.BLOCK, GRID_PAD=ph.grid.pad)
+            self.taps_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                                      hostbuf=np.ascontiguousarray(grid.tap_polynomials(), dtype=self.real))
         preamble = records_preamble(self.real, ph.extended)
         prg = opencl.program("echo", defines=defines, double=double, preamble=preamble)
         self.k_paths = cl.Kernel(prg, "echo_paths")
@@ -126,7 +131,7 @@ class OpenCLSynth(BlockSynth):
         self.k_bounds = cl.Kernel(prg, "echo_bounds")
         self.k_extents = cl.Kernel(prg, "echo_extents")
         self.k_spread = cl.Kernel(prg, "echo_spread")
-        self.k_acc = cl.Kernel(prg, "echo_accumulate")
+        self.k_acc = cl.Kernel(prg, "echo_grid" if ph.grid is not None else "echo_accumulate")
         wf = sc.waveform
         self.params = np.zeros((), PARAMS)
         self.params["c"], self.params["f0"], self.params["fs"] = c, wf.f0, wf.fs
@@ -221,11 +226,6 @@ class OpenCLSynth(BlockSynth):
                    np.int32(n_act // 8), paths_buf)
         return paths_buf, pc, (jump, n_act, stride)
 
-    def release(self) -> None:
-        """Drop the cached path buffers (after pass B)."""
-        self.cache.clear()
-        self.cached_bytes = 0
-
     def delays(self, pulses: slice, kind: int = 0) -> np.ndarray:
         """Delays (H, P, N) of the block's paths of ``physics.kinds[kind]`` (0: direct) from the
         kernel, in scatterer order (every facet, in the beam's reach or not)."""
@@ -252,26 +252,18 @@ class OpenCLSynth(BlockSynth):
                       out)
         host = np.empty((self.n_rx, 2))
         self.cl.enqueue_copy(self.rt.queue, host, out)
-        return (host[:, 1] - host[:, 0]) / self.scenario.waveform.fs
-
-    def _path_bytes(self, pc: int, stride: int) -> int:
-        return self.path_dtype.itemsize * self.n_rx * pc * stride
+        spread = host[:, 1] - host[:, 0]  # -inf for a receiver that hears nothing then
+        return np.where(np.isfinite(spread), spread, 0.0) / self.scenario.waveform.fs
 
     def extents(self, pulses: slice, lo: np.ndarray, hi: np.ndarray) -> None:
         """Widen ``lo``, ``hi`` (H, N), in place, to (floor(min u), floor(max u) + 1) per (receiver,
         scatterer) over every path kind and the block's pulses that hear it (inf, -inf: none),
         reduced on the device; the facets the block's beam reaches are one contiguous range of
-        scatterers, widened as a slice. With an occlusion factor the paths are computed unweighted
-        and not kept for pass B: the weights (hull ray casting for meshes) are then computed once,
-        by pass B, whose pulse blocks need not match these."""
+        scatterers, widened as a slice. The echo centres alone are computed (DELAYS_ONLY): pass B
+        computes its own paths with their weights, in pulse blocks of its own."""
         cl, q = self.cl, self.rt.queue
         h = self.n_rx
-        reusable = self.occlusion is None  # unweighted paths are pass B's paths only without weights
-        paths_buf, pc, block = self._run_paths(pulses, np.zeros(h), weighted=False, delays_only=not reusable)
-        jump, n_act, stride = block
-        if reusable and self.cached_bytes + self._path_bytes(pc, stride) <= self.cache_bytes:
-            self.cache[(pulses.start, pulses.stop)] = (paths_buf, pc, block)
-            self.cached_bytes += self._path_bytes(pc, stride)
+        paths_buf, pc, (jump, n_act, stride) = self._run_paths(pulses, np.zeros(h), weighted=False, delays_only=True)
         ext = cl.Buffer(self.rt.context, cl.mem_flags.WRITE_ONLY, 8 * h * stride)
         self.k_extents(q, *groups(stride, h), paths_buf, np.int32(stride), np.int32(pc), ext)
         host = np.empty((h, len(self.physics.kinds), n_act, 2), np.int32)
@@ -298,23 +290,18 @@ class OpenCLSynth(BlockSynth):
             widen(slice(self.split, self.split + n_reach), slice(n_t + jump, n_t + jump + n_reach))
 
     def records(self, pulses: slice, t0: np.ndarray, n_samples: int) -> np.ndarray:
-        """The block's records; reuses the paths of extents() when the window starts on a whole sample."""
+        """The block's records (H, P, n_samples), the window of receiver h starting at t0[h]."""
         cl, q = self.cl, self.rt.queue
         h = self.n_rx
-        first = t0 * self.scenario.waveform.fs
-        whole = np.all(np.abs(first - np.round(first)) < 1e-6) and np.all(np.abs(first) < 2**31)
-        cached = self.cache.pop((pulses.start, pulses.stop), None) if whole else None
-        if cached is not None:
-            paths_buf, pc, (_, _, n) = cached
-            shift = np.round(first).astype(np.int32)
-        else:
-            paths_buf, pc, (_, _, n) = self._run_paths(pulses, t0)
-            shift = np.zeros(h, np.int32)
+        paths_buf, pc, (_, _, n) = self._run_paths(pulses, t0)
+        shift = np.zeros(h, np.int32)
         n_chunks = -(-n // CHUNK_SCATTERERS)
         mf = cl.mem_flags
         bounds = cl.Buffer(self.rt.context, mf.READ_WRITE, 8 * h * pc * n_chunks)
         self.k_bounds(q, *groups(n_chunks, pc, h), paths_buf, self.real(self.half_len), np.int32(n), np.int32(pc),
                       bounds)
+        if self.physics.grid is not None:
+            return self._grid_records(paths_buf, bounds, n, pc, shift, n_samples)
         rows = 16 * ROWS
         n_pad = -(-n_samples // rows) * rows
         out = cl.Buffer(self.rt.context, mf.WRITE_ONLY, np.dtype(self.cplx).itemsize * h * pc * n_pad)
@@ -329,4 +316,22 @@ class OpenCLSynth(BlockSynth):
         host = np.empty((h, pc, n_pad), self.cplx)
         cl.enqueue_copy(q, host, out)
         return host[:, :, :n_samples]
+
+    def _grid_records(self, paths_buf, bounds, n: int, pc: int, shift: np.ndarray, n_samples: int) -> np.ndarray:
+        """The grid route (:mod:`.grid`): the kernel's grids and tails, then the plan's FFT filter."""
+        cl, q, plan = self.cl, self.rt.queue, self.physics.grid
+        h, mf = self.n_rx, cl.mem_flags
+        n_grid = plan.grid_samples(n_samples)
+        size = np.dtype(self.cplx).itemsize
+        grids = cl.Buffer(self.rt.context, mf.WRITE_ONLY, size * h * pc * plan.terms * grid.RATE * n_grid)
+        tails = cl.Buffer(self.rt.context, mf.WRITE_ONLY, size * h * pc * n_grid)
+        shift_buf = cl.Buffer(self.rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=shift)
+        self.k_acc(q, *groups(n_grid // grid.BLOCK, pc, h), paths_buf, bounds, self.real(self.alpha),
+                   self.real(self.half_len), self.taps_buf, np.int32(n), np.int32(pc), np.int32(n_grid), shift_buf,
+                   grids, tails)
+        host_grids = np.empty((h, pc, plan.terms, grid.RATE * n_grid), self.cplx)
+        host_tails = np.empty((h, pc, n_grid), self.cplx)
+        cl.enqueue_copy(q, host_grids, grids)
+        cl.enqueue_copy(q, host_tails, tails)
+        return plan.finish(host_grids, host_tails, n_samples)
 

@@ -16,6 +16,7 @@ from .compressed import DEFAULT_LEVEL_DB
 DTYPES = (np.dtype(np.complex64), np.dtype(np.complex128))
 DEFAULT_CHUNK_BYTES = 256 * 2**20
 INTRA_PULSE = ("moving", "all", "none")
+ACCUMULATIONS = ("auto", "direct", "grid")  # how the raw records are made (simulate's ``accumulation``)
 AUTO = "auto"
 
 
@@ -40,6 +41,8 @@ class SynthesisOptions:
     spreading, absorption : bool, or "auto": on when the scenario has a seafloor.
     multipath : 0, 1 or 2 (the most bounces a path may have), or "auto": 1 when the scenario has
     a sea surface or a seafloor. intra_pulse : "moving" (default), "all" or "none".
+    accumulation : "auto" (default), "direct" (each path's samples) or "grid" (fractional-delay impulses
+    on an oversampled grid and one FFT filter per record, :mod:`clsas.synthesis.echo.grid`).
     compressed : False (raw echoes), True or a window name of :func:`clsas.range_compress`
     (synthesis into the range-compressed domain; True: no window); compressed_level_db : dB in
     [-120, -10], the level re the peak below which the compressed response's taps are dropped.
@@ -55,6 +58,7 @@ class SynthesisOptions:
     absorption: bool | str = "auto"
     multipath: int | str = "auto"
     intra_pulse: str = "moving"
+    accumulation: str = "auto"
     compressed: bool | str = False
     compressed_level_db: float = DEFAULT_LEVEL_DB
     hull_occlusion: bool = True
@@ -73,6 +77,7 @@ class SynthesisOptions:
             object.__setattr__(self, "multipath", v.integer("multipath", self.multipath, low=0, high=2,
                                                             why='the most bounces a path may have, or "auto"'))
         v.choice("intra_pulse", self.intra_pulse, INTRA_PULSE)
+        v.choice("accumulation", self.accumulation, ACCUMULATIONS)
         if isinstance(self.compressed, (bool, np.bool_)):
             object.__setattr__(self, "compressed", "none" if self.compressed else False)
         else:

@@ -15,6 +15,7 @@ are derived in :func:`add_noise`.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import NamedTuple
 
 import numpy as np
@@ -22,42 +23,24 @@ import numpy as np
 from ...progress import Progress, stage
 from ...model import EchoData
 from ...scene.scenario import Scenario
-from ...scene.targets import Scatterers, scatterers_of
 from ..occlusion import DEFAULT_REUSE_TOLERANCE, PathWeights, has_meshes, needs_path_weights, scene_scatterers
 from ...validate import choice, compression, instance, integer, scalar
 from ..checks import SNR_DB_RANGE, check_arguments, warn_pulse_overlap
 from ..window import check_cube_size, node_span, receiver_nodes
 from .options import AUTO, DEFAULT_CHUNK_BYTES, SynthesisOptions, auto_flag
-from ..propagation import BandAbsorption, boundaries, path_kinds
-from .compressed import DEFAULT_LEVEL_DB, CompressedResponse
+from ..propagation import boundaries, path_kinds
+from .compressed import DEFAULT_LEVEL_DB
+from .grid import RATE
 from .launch import OpenCLSynth
-from .physics import Physics, on_floor
+from .physics import Physics
 from .records import path_record
 from .reference import NumpySynth
+from .resolve import delay_bound, grid_plan, resolve_physics
 
 
 def _pulse_blocks(n_pulses: int, per_pulse_bytes: int, chunk_bytes: int) -> list[slice]:
     size = int(max(1, min(n_pulses, chunk_bytes // max(1, per_pulse_bytes))))
     return [slice(s, min(s + size, n_pulses)) for s in range(0, n_pulses, size)]
-
-
-def _delay_bound(scenario: Scenario, scat: Scatterers, physics: Physics) -> float:
-    """An upper bound guess of every delay (s) for the node span, from the first/middle/last
-    pulses, over every path kind (image transmitters and receivers): the scatterers' bounding
-    box's farthest corner on each leg."""
-    eta = scenario.eta[[0, scenario.eta.size // 2, -1]]
-    c = scenario.medium.sound_speed
-    worst = 0.0
-    for p in range(eta.size):
-        q = scat.p0 + scat.vel * eta[p]
-        corners = np.array(np.meshgrid(*np.stack([q.min(axis=0), q.max(axis=0)], axis=1), indexing="ij")).reshape(3, -1).T
-        for kind in physics.kinds:  # the farthest point of the scatterers' box is one of its corners
-            tx = kind.out.image.points(scenario.tx_position(eta[p:p + 1]))[0]
-            out = np.max(np.linalg.norm(corners - tx, axis=1))
-            back = max(np.max(np.linalg.norm(corners - kind.back.image.points(scenario.receiver_position(h, eta[p])),
-                                             axis=1)) for h in range(scenario.n_receivers))
-            worst = max(worst, out + back)
-    return 1.2 * worst / c + scenario.waveform.duration
 
 
 def _window(scenario: Scenario, lo: np.ndarray, hi: np.ndarray):
@@ -222,28 +205,6 @@ def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_oc
     return lambda pulses: mesh(pulses) * occlusion[:, pulses]
 
 
-def resolve_physics(scenario: Scenario, opts: SynthesisOptions, scat: Scatterers, prune: bool = True) -> Physics:
-    """What the paths carry for ``scenario`` under ``opts`` (the "auto" options resolved: spreading
-    and absorption on, and first-order multipath, in a scene with a seafloor; multipath also with
-    a sea surface). ``scat``: every scatterer, the seafloor's facets last. ``prune``: leave out
-    the path kinds that are dark for every scatterer (a bounce off the seabed next to a scatterer
-    that lies on it, :func:`.physics.on_floor`: a scene of seafloor facets alone)."""
-    floor = getattr(scenario, "seafloor", None) is not None
-    planes = boundaries(scenario)
-    order = (1 if planes else 0) if opts.multipath == AUTO else opts.multipath
-    kinds = path_kinds(planes, order)
-    floor_first = scatterers_of(scenario.targets).count if floor else None
-    if prune and floor and np.all(on_floor(scat, floor_first, kinds)):
-        kinds = tuple(kind for kind in kinds if not Physics.touches_floor(kind))
-    spreading = floor if opts.spreading == AUTO else opts.spreading
-    absorbing = floor if opts.absorption == AUTO else opts.absorption
-    absorption = BandAbsorption.of(scenario.medium, scenario.waveform) if absorbing else None
-    response = None if opts.compressed is False else \
-        CompressedResponse.of(scenario.waveform, opts.compressed, opts.compressed_level_db)
-    return Physics(opts, kinds=kinds, absorption=absorption, spreading=spreading,
-                   moving=bool(np.any(scat.vel != 0)), response=response, floor_first=floor_first)
-
-
 def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion, prune: bool = True):
     """The backend's synthesizer and the pulse blocks that keep its working memory under ``opts.chunk_bytes``."""
     scat = scene_scatterers(scenario)
@@ -259,6 +220,7 @@ def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion, prune: bo
                              f"receivers), got {occlusion.shape}")
     occlusion = _with_mesh_weights(scenario, occlusion, opts.stop_and_go, opts.hull_occlusion, opts.reuse_tolerance)
     physics = resolve_physics(scenario, opts, scat, prune)
+    physics = dataclasses.replace(physics, grid=grid_plan(scenario, opts, scat, physics))
     args = (scenario, scat, occlusion, physics)
     kinds = len(physics.kinds)
     if opts.backend == "numpy":
@@ -266,7 +228,7 @@ def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion, prune: bo
         synth = NumpySynth(*args)
         per_pulse = n_rx * scat.count * kinds * (16 * 8 + 48 * span)
     else:
-        tau_hi = node_span(scenario, scenario.eta, _delay_bound(scenario, scat, physics))
+        tau_hi = node_span(scenario, scenario.eta, delay_bound(scenario, scat, physics))
         synth = OpenCLSynth(*args, double=opts.double,
                              nodes=receiver_nodes(scenario, scenario.eta, tau_hi, strict=not opts.stop_and_go))
         per_pulse = n_rx * scat.count * kinds * path_record(synth.real, physics.extended).itemsize
@@ -294,6 +256,25 @@ def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = F
                                                            spreading=False, absorption=False), None, prune=False)
     kind = [k.name for k in synth.physics.kinds].index(path)
     return np.concatenate([synth.delays(sl, kind) for sl in blocks], axis=1)
+
+
+def window_extents(scenario: Scenario, options: SynthesisOptions | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Per receiver (H,), the echo-centre extents in whole samples from t = 0 (floor of the
+    earliest, floor of the latest + 1) over the scenario's pulses, the path kinds ``options``
+    resolve to, and the scatterers each pulse hears (the seafloor's facets in its beam's reach):
+    the extents :func:`simulate` derives its recording window from (pass A). inf, -inf for a
+    receiver that hears nothing. For splitting a run into pulse blocks (:mod:`clsas.distributed`)."""
+    if not isinstance(scenario, Scenario):
+        raise TypeError(f"scenario must be a Scenario, got {type(scenario).__name__}")
+    opts = SynthesisOptions() if options is None else options
+    if not isinstance(opts, SynthesisOptions):
+        raise TypeError(f"options must be a SynthesisOptions, got {type(opts).__name__}")
+    synth, blocks = _make_synth(scenario, opts, None)
+    lo = np.full((scenario.n_receivers, synth.scat.count), np.inf)
+    hi = np.full((scenario.n_receivers, synth.scat.count), -np.inf)
+    for sl in blocks:
+        synth.extents(sl, lo, hi)
+    return lo.min(axis=1), hi.max(axis=1)
 
 
 class Synthesis(NamedTuple):
@@ -362,6 +343,8 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
     # pass B in blocks that also bound the records' memory (complex128 on the host, the
     # kernel's output buffer and its copy; the raw route's FFTs of about twice the samples)
     per_pulse = n_rx * (synth.scat.count * 32 + (7 if synth.physics.compress_raw else 3) * 16 * n_samples)
+    if synth.physics.grid is not None:  # the grids, their spectra and the tails
+        per_pulse += n_rx * 3 * 16 * (synth.physics.grid.terms * RATE + 1) * synth.physics.grid.grid_samples(n_samples)
     with stage(f"echo synthesis ({name})", f"{n_rx} receivers x {n_pulses} pulses x {n_samples} samples "
                f"({data.nbytes / 2**20:.1f} MiB) x {n_scat} scatterers"), \
             Progress(n_pulses, "pulses", f"echo synthesis ({name})", progress) as bar:
@@ -376,7 +359,6 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
                                  "receiver (zero path length); move it away")
             data[:, sl] = block
             bar.done(sl.stop - sl.start)
-    synth.release()
     for h in range(n_rx):
         data[h, :, n_valid[h]:] = 0
     return Synthesis(data, t0, n_valid, origin, nodes[:2], float(nodes[2]), n_scat, synth.physics)
@@ -396,7 +378,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
              occlusion=None, max_bytes: int | None = None, chunk_bytes: int = DEFAULT_CHUNK_BYTES,
              hull_occlusion: bool = True, reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE,
              absorption: bool | str = AUTO, multipath: int | str = AUTO,
-             intra_pulse: str = "moving", compressed: bool | str = False,
+             intra_pulse: str = "moving", accumulation: str = "auto", compressed: bool | str = False,
              compressed_level_db: float = DEFAULT_LEVEL_DB, snr_reference: str = "echo") -> EchoData:
     """Synthesize the raw echoes of ``scenario`` (see the module docstring for the model).
 
@@ -439,6 +421,13 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         scatterers with a velocity, "all" for every path (stationary scatterers seen from the
         moving platform too), "none" for one delay per path (the pulse placed at its centre's
         delay: the stop-in-pulse model). Ignored with ``stop_and_go``.
+    accumulation : {"auto", "direct", "grid"}
+        How the raw records are made: "direct" adds each path's T fs samples; "grid" places each
+        path as a fractional-delay impulse on a fast-time grid of 4 points a sample and filters
+        each record once by the pulse (FFT), subtracting the smoothed pulse's tails path by path
+        (:mod:`clsas.synthesis.echo.grid`: the same exact delays, the pulse band-limited; paths
+        without intra-pulse Doppler, band envelopes within a second-order series). "auto"
+        (default): "grid" for scenes of at least 100,000 paths a record where it applies.
     compressed : bool or str
         Synthesize straight into the range-compressed domain: the echo
         ``range_compress(simulate(...), window=W)`` would give (W = "none" for True, or the
@@ -485,7 +474,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         raise ValueError(f"simulate snr_db: noise ({snr_db!r} dB) is defined on raw samples; with compressed="
                          f"{compressed!r} simulate the raw echo with noise and range_compress it instead")
     opts = SynthesisOptions(backend=backend, precision=precision, stop_and_go=stop_and_go, spreading=spreading,
-                            absorption=absorption, multipath=multipath, intra_pulse=intra_pulse,
+                            absorption=absorption, multipath=multipath, intra_pulse=intra_pulse, accumulation=accumulation,
                             compressed=compressed, compressed_level_db=compressed_level_db,
                             hull_occlusion=hull_occlusion, reuse_tolerance=reuse_tolerance, max_bytes=max_bytes,
                             chunk_bytes=chunk_bytes, progress=progress)
@@ -505,6 +494,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
                     "absorption": out.physics.absorption is not None,
                     "paths": [kind.name for kind in out.physics.kinds],
                     "intra_pulse": out.physics.intra_pulse if out.physics.doppler else "none", "snr_db": snr_db,
+                    "accumulation": "direct" if out.physics.grid is None else "grid",
                     **({"snr_reference": snr_reference} if snr_db is not None else {}),
                     **({"compressed": _compressed_provenance(opts, out.physics)} if out.physics.response else {}),
                     "seed": seed if seed is None or isinstance(seed, int) else str(seed),

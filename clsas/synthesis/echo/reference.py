@@ -112,9 +112,6 @@ class NumpySynth(BlockSynth):
         """Delays (H, P, N), s, of the paths of ``physics.kinds[kind]`` (0: direct)."""
         return self._paths(pulses, self.physics.kinds[kind]).tau
 
-    def release(self) -> None:
-        """Nothing is cached by the reference."""
-
     def extents(self, pulses: slice, lo: np.ndarray, hi: np.ndarray) -> None:
         """Widen ``lo``, ``hi`` (H, N), in place, to the block's extents (:func:`sample_extents`) over
         every path kind."""
@@ -125,8 +122,11 @@ class NumpySynth(BlockSynth):
             np.maximum(hi, b, out=hi)
 
     def spread(self, pulse: int) -> np.ndarray:
-        """(H,) s: the spread of the direct paths' delays at ``pulse`` over the scatterers heard then."""
+        """(H,) s: the spread of the direct paths' delays at ``pulse`` over the scatterers heard then
+        (0 when none is)."""
         tau = self._paths(slice(pulse, pulse + 1), self.physics.kinds[0]).tau[:, 0, self.heard(slice(pulse, pulse + 1))[0]]
+        if tau.shape[1] == 0:  # the beam reaches no facet then
+            return np.zeros(self.n_rx)
         return tau.max(axis=1) - tau.min(axis=1)
 
     def records(self, pulses: slice, t0: np.ndarray, n_samples: int) -> np.ndarray:
@@ -143,7 +143,10 @@ class NumpySynth(BlockSynth):
             laws = {k: v.reshape(h * n_p, n) for k, v in in_pulse_laws(p, wf).items()} \
                 if self.physics.extended else None
             args = (start.reshape(h * n_p, n), frac.reshape(h * n_p, n), amp.reshape(h * n_p, n))
-            if self.physics.writes_taps:
+            if self.physics.grid is not None:
+                plan = self.physics.grid
+                out = out + plan.finish(*plan.spread(*args, n_samples, laws), n_samples)
+            elif self.physics.writes_taps:
                 out = out + self.physics.response.accumulate(*args, n_samples, laws)
             else:
                 out = out + accumulate_reference(*args, self.alpha, self.half_len, n_samples, laws)
