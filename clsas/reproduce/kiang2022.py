@@ -411,10 +411,12 @@ def run_snr_sweep(args) -> int:
     return 0
 
 def _tau_finding(differences_ms: list) -> str:
-    """The tau-offset experiment's finding, from its rows (paper - clsas, ms)."""
+    """The tau-offset experiment's finding, from its rows (paper - clsas, ms: < 0 when the
+    paper's is earlier)."""
     lo, hi = min(differences_ms), max(differences_ms)
-    if lo > 0:
-        return (f"In every case run here the paper's tau_c is {lo:.1f}-{hi:.1f} ms earlier than the two-way delay "
+    if hi < 0 or lo > 0:
+        side, near, far = ("earlier", -hi, -lo) if hi < 0 else ("later", lo, hi)
+        return (f"In every case run here the paper's tau_c is {near:.1f}-{far:.1f} ms {side} than the two-way delay "
                 f"at every receiver, whatever the velocity: a near-constant offset ({hi - lo:.1f} ms spread).")
     return f"The paper's tau_c differs from the two-way delay by {lo:+.1f} to {hi:+.1f} ms: not one offset."
 
