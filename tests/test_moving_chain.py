@@ -216,6 +216,13 @@ def test_bad_input():
     for kind in (True, 1j, None):
         with pytest.raises(TypeError, match="threshold_db must be a finite number"):
             estimate_receiver(echo, "A", threshold_db=kind)
+    # ints past float's range: np.isfinite raised an unnamed TypeError on them
+    with pytest.raises(ValueError, match="p0 must be a finite number of seconds"):
+        estimate_receiver(echo, "A", p0=10**400)
+    with pytest.raises(ValueError, match="threshold_db must be a finite number"):
+        estimate_receiver(echo, "A", threshold_db=-(10**400))
+    with pytest.raises(ValueError, match="p0 must be between one pulse"):
+        estimate_receiver(echo, "A", p0=2**64)
     with pytest.raises(ValueError, match="n_targets must be an integer >= 1"):
         estimate_receivers(echo, "A", n_targets=0)
     short = echo.replace(data=echo.data[:, :32], eta=echo.eta[:32], tx_pos=echo.tx_pos[:32],

@@ -162,3 +162,23 @@ test_focus_moving_budget_bad, _, test_focus_moving_budget = parameter_properties
     prefix="focus_moving", setup=small_motion, budget=16 << 20, examples=6, may_refuse=True,
     domains={"half_size": reals(0.0, 1e4, low_open=True, none=True, valid=st.floats(1e2, 1e4)),
              "spacing": reals(0.0, 100.0, low_open=True, valid=st.floats(0.01, 0.1))})
+
+
+def test_delay_history_refuses_what_would_overflow_by_name():
+    """delay_history(..., eta=[1e300]) returned NaN, and a scalar eta an unnamed TypeError from
+    meet_time; positions, velocities and emission times are bounded as closed_forms' are
+    (validate.MAX_COORDINATE, MAX_SPEED, MAX_TIME), by name, and eta of any shape works."""
+    lay, p, v = layout(), (1989.0, 0.0, -350.0), (5.0, 5.0, 0.0)
+    tau = moving.delay_history(lay, "A", p, v, np.array([[0.0, 1.0], [2.0, 3.0]]))
+    assert tau.shape == (2, 2) and np.all(np.isfinite(tau)) and np.all(np.diff(tau.ravel()) != 0)
+    assert np.ndim(moving.delay_history(lay, "A", p, v, 0.5)) == 0
+    for eta in ([1e300], [np.nan], 1e7):
+        with pytest.raises(ValueError, match="^delay_history eta: must"):
+            moving.delay_history(lay, "A", p, v, eta)
+    for eta in ("a", None, [1j]):
+        with pytest.raises(TypeError, match="^delay_history eta: must"):
+            moving.delay_history(lay, "A", p, v, eta)
+    with pytest.raises(ValueError, match="^delay_history position: must be within"):
+        moving.delay_history(lay, "A", (1e300, 0.0, 0.0), v, [0.0])
+    with pytest.raises(ValueError, match="^delay_history velocity: must be within"):
+        moving.delay_history(lay, "A", p, (1500.0, 0.0, 0.0), [0.0])

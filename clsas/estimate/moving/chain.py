@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -295,14 +296,23 @@ def sharpened_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: 
     return image, eta_axis, total
 
 
+def _finite(value) -> bool:
+    """Whether the real number ``value`` is finite as a float (an int past float's range is not;
+    np.isfinite raised an unnamed TypeError on ints past int64)."""
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
+
+
 def _check_chain_options(p0, threshold_db, focus_db) -> None:
     if isinstance(p0, (bool, np.complexfloating)) or not isinstance(p0, (int, float, np.number)):
         raise TypeError(f"p0 must be a finite number of seconds, got {p0!r}")
-    if not np.isfinite(p0):
+    if not _finite(p0):
         raise ValueError(f"p0 must be a finite number of seconds, got {p0!r}")
     if isinstance(threshold_db, (bool, np.complexfloating)) or not isinstance(threshold_db, (int, float, np.number)):
         raise TypeError(f"threshold_db must be a finite number of dB, got {threshold_db!r}")
-    if not np.isfinite(threshold_db):
+    if not _finite(threshold_db):
         raise ValueError(f"threshold_db must be a finite number of dB, got {threshold_db!r}")
     if focus_db is not None:
         validate.scalar("focus_db", focus_db, unit="dB", why="or None")

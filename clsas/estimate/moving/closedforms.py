@@ -138,18 +138,18 @@ def delay_history(layout: Layout, receiver: str, position, velocity, eta) -> np.
     ``position`` (slow time 0) moving with ``velocity``, for emissions at slow times ``eta`` (s,
     any shape; the result has its shape): the model whose Taylor coefficients at eta_ref are
     :func:`delay_terms` (module docstring), evaluated in full."""
-    p, v = _vector("position", position), _vector("velocity", velocity)
-    if p.shape != (3,) or v.shape != (3,):
-        raise ValueError(f"position and velocity must have shape (3,), got {p.shape} and {v.shape}")
+    p = validate.vector3("delay_history position", position)
+    v = validate.vector3("delay_history velocity", velocity, bound=validate.MAX_SPEED)
+    times = validate.array("delay_history eta", np.ravel(eta), (-1,), bound=validate.MAX_TIME)
     c = layout.sound_speed
     rx, v_rx = layout.receiver(receiver)
-    dt = np.asarray(eta, dtype=np.float64)[..., None] - layout.eta_ref
+    dt = times[:, None] - layout.eta_ref
     tx = layout.tx_position + layout.tx_velocity * dt
     q = p + v * (dt + layout.eta_ref)
     t1 = meet_time(q - tx, np.broadcast_to(v, q.shape), c)
     scatter = q + v * t1[..., None]
     t2 = meet_time(rx + v_rx * (dt + t1[..., None]) - scatter, np.broadcast_to(v_rx, q.shape), c)
-    return t1 + t2
+    return (t1 + t2).reshape(np.shape(eta))
 
 
 def higher_order_delay(layout: Layout, receiver: str, position, velocity, eta) -> np.ndarray:
