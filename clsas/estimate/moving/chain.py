@@ -305,7 +305,8 @@ def _finite(value) -> bool:
         return False
 
 
-def _check_chain_options(p0, threshold_db, focus_db) -> None:
+def _check_chain_options(p0, threshold_db, focus_db) -> tuple[float, float]:
+    """(p0, threshold_db) as floats, checked."""
     if isinstance(p0, (bool, np.complexfloating)) or not isinstance(p0, (int, float, np.number)):
         raise TypeError(f"p0 must be a finite number of seconds, got {p0!r}")
     if not _finite(p0):
@@ -316,12 +317,13 @@ def _check_chain_options(p0, threshold_db, focus_db) -> None:
         raise ValueError(f"threshold_db must be a finite number of dB, got {threshold_db!r}")
     if focus_db is not None:
         validate.scalar("focus_db", focus_db, unit="dB", why="or None")
+    return float(p0), float(threshold_db)
 
 
 def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHOLD_DB,
                      focus_db: float | None = FOCUS_DB) -> ReceiverEstimate:
     """Steps 2-5 on a receiver's :func:`records`: :func:`estimate_receiver` without the range compression."""
-    _check_chain_options(p0, threshold_db, focus_db)
+    p0, threshold_db = _check_chain_options(p0, threshold_db, focus_db)
     search = dataclasses.replace(sowvd(rec, p0, threshold_db), primary=None)
     ratio_db = search.score_db
     if ratio_db >= threshold_db:
