@@ -9,6 +9,7 @@ import pytest
 from _tolerances import phase_error, rel_l2
 
 from clsas import metrics
+from clsas.errors import MemoryBudgetError
 from clsas.image import range_compress
 from clsas.scene import presets
 from clsas.scene.scenario import (
@@ -295,7 +296,7 @@ def test_bad_input_is_refused():
     with pytest.raises(ValueError, match="targets is empty"):
         simulate(sc, backend="numpy", progress=False)
     sc = sc.replace(targets=(target,))
-    with pytest.raises(ValueError, match="max_bytes allows"):
+    with pytest.raises(MemoryBudgetError, match="max_bytes allows"):  # the CLI catches it by kind
         simulate(sc, backend="numpy", progress=False, max_bytes=1000)
     with pytest.raises(ValueError, match="shorter recording window"):
         simulate(sc.replace(recording=Recording(t0=0.0, n_samples=10**9)), backend="numpy", progress=False)

@@ -67,6 +67,7 @@ def load_scene(name: str, pulses: int | None):
 
 def run_simulate(args) -> int:
     from .. import budget, io
+    from ..errors import MemoryBudgetError
     from ..synthesis import simulate
     from ..synthesis.echo.options import DEFAULT_CHUNK_BYTES
 
@@ -82,9 +83,7 @@ def run_simulate(args) -> int:
     try:
         echo = simulate(scene, snr_db=args.snr, seed=args.seed, backend=args.backend, progress=args.progress,
                         max_bytes=cube)
-    except ValueError as err:
-        if "max_bytes" not in str(err):
-            raise
+    except MemoryBudgetError as err:
         raise UsageError(f"{err} [here max_bytes is the memory budget of {allowed / 2**30:.3g} GiB less the "
                          "synthesis's and the save's working memory: lower --pulses or raise CLSAS_MEMORY_BUDGET]") from None
     took = time.perf_counter() - t

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import MemoryBudgetError
 from ..scene.scenario import MOTION_COMPONENTS
 
 
@@ -65,10 +66,10 @@ def receiver_nodes(scenario, eta: np.ndarray, tau_hi: float, max_error: float | 
 
 def check_cube_size(n_rx: int, n_pulses: int, n_samples: int, max_bytes: int, origin: str, n_nodes: int = 2) -> None:
     """Refuse an echo cube (complex64) and its receiver nodes (float64) larger than ``max_bytes``
-    before allocating them."""
+    before allocating them: a :class:`clsas.errors.MemoryBudgetError` (a ValueError)."""
     need = 8 * n_rx * n_pulses * n_samples + 24 * n_rx * n_pulses * n_nodes
     if need > max_bytes:
-        raise ValueError(
+        raise MemoryBudgetError(
             f"the echo cube would need {need / 2**30:.2f} GiB ({n_rx} receivers x {n_pulses} pulses x "
             f"{n_samples} samples of complex64 and {n_nodes} receiver nodes a pulse; window {origin}) but max_bytes allows "
             f"{max_bytes / 2**30:.2f} GiB. Reduce it: fewer pulses (PulseSchedule), fewer receivers, a "
