@@ -62,7 +62,12 @@ process's CPU time counts the work it did, where its wall time also counts the t
 processes held the cores, so that ratio moves less with the load than the wall-time ratio (both are
 reported; the wall-time ratio on a quiet machine is the issue's figure).
 
-``--only torchbp|fixed-cost|rates`` runs one part.
+Rows a work-item (``bench: "backprojection-rows"``): the issue's scene (stop-and-go, linear,
+upsample 1) on ``GridPlan(grid, rows=r)`` for r = 4, 6 (the default) and 8, interleaved, with
+``over_rows4`` (median wall and CPU time over those of 4 rows): bp_tile's work-item holds r rows of
+16 pixels.
+
+``--only torchbp|fixed-cost|rates|rows`` runs one part.
 """
 
 from __future__ import annotations
@@ -243,7 +248,32 @@ def rates(args) -> None:
                    **({"speedup": rate["opencl"] / rate["numpy"]} if backend == "numpy" else {}))
 
 
-PARTS = {"torchbp": versus_torchbp, "fixed-cost": fixed_cost, "rates": rates}
+def rows(args) -> None:
+    """The ``backprojection-rows`` rows (module docstring)."""
+    n_pix, n_pulses = (256, 256) if args.quick else (512, 1024)
+    echo, grid = scene(n_pulses, 4096, n_pix)
+    plans = {r: GridPlan(grid, rows=r) for r in (4, 6, 8)}
+    runs = {r: (lambda plan=plan: backproject(echo, plan, interp="linear", upsample=1, stop_and_go=True,
+                                              progress=False)) for r, plan in plans.items()}
+    for run in runs.values():
+        run()  # warm-up: kernel builds, tilings
+    seconds, cpu = {r: [] for r in runs}, {r: [] for r in runs}
+    for _ in range(args.repeats or (3 if args.quick else 5)):
+        for r, run in runs.items():
+            _, wall, used = timed(run)
+            seconds[r].append(wall)
+            cpu[r].append(used)
+    work = grid.size * n_pulses / 1e9
+    for r in runs:
+        median = statistics.median(seconds[r])
+        report(args, "backprojection-rows", "opencl", {"pixels": grid.size, "pulses": n_pulses, "receivers": 1,
+                                                       "samples": 4096}, work / median, "G backprojections/s",
+               median, rows=r, min_seconds=min(seconds[r]), cpu_seconds=statistics.median(cpu[r]),
+               cpu_min_seconds=min(cpu[r]), over_rows4=median / statistics.median(seconds[4]),
+               over_rows4_cpu=statistics.median(cpu[r]) / statistics.median(cpu[4]), runs=len(seconds[r]))
+
+
+PARTS = {"torchbp": versus_torchbp, "fixed-cost": fixed_cost, "rates": rates, "rows": rows}
 
 
 def main() -> None:

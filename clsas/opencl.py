@@ -325,8 +325,12 @@ def _silenced(name: str, texts: list):
         warnings.filterwarnings("ignore", message=".*compiler output", module="pyopencl")
         warnings.filterwarnings("ignore", message="From-source build succeeded", module="pyopencl")
         os.dup2(sink.fileno(), 2)
+        interrupted = False  # by Ctrl-C (or SystemExit): the compiler's "1 error generated." is not news
         try:
             yield texts
+        except BaseException as err:
+            interrupted = not isinstance(err, Exception)
+            raise
         finally:
             os.dup2(saved, 2)
             os.close(saved)
@@ -334,5 +338,5 @@ def _silenced(name: str, texts: list):
             texts.append(sink.read().decode(errors="replace"))
             kept = [line for text in texts for line in str(text or "").splitlines() if not HARMLESS_OUTPUT.search(line)]
             kept = [line for line in kept if "warning:" in line or "error:" in line] or kept
-            if kept:
+            if kept and not interrupted:
                 _log.warning("building kernels/%s.cl, the compiler said:\n%s", name, "\n".join(kept))

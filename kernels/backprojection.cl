@@ -123,6 +123,23 @@ typedef float16 realv16_t;
 #define ROUND_MAGIC 12582912.0f /* 1.5 * 2^23 */
 #define NEAR_FRACTION(x) ((x) - (((x) + ROUND_MAGIC) - ROUND_MAGIC))
 
+/* exp(j 2 pi r) for r in [-1/2, 1/2] cycles by the double angle of pi r: S = sqrt(2) sin(pi r) and
+ * C = sqrt(2) cos(pi r) by their polynomials in r (odd of degree 9, even of degree 10; least-squares
+ * fits made minimax by Lawson's reweighting, the factors pi and sqrt(2) inside the coefficients),
+ * then cos(2 pi r) = 1 - S^2 and sin(2 pi r) = S C: two operations for the doubling and none for
+ * pi r. Error in float32 over [-1/2, 1/2] below 8e-7 (sin 2.9e-7, cos 7.7e-7, as common.h's
+ * expj_near16: 4.7e-7, 7.1e-7); the kernel-versus-reference tests hold the images to it. */
+#define EXPJ_NEAR16(r_in, cs_out, sn_out)                                                                      \
+    do {                                                                                                      \
+        const float16 r_ = (r_in), q_ = r_ * r_;                                                              \
+        const float16 s_ = r_ * (4.4428828341e+00f + q_ * (-7.3082411545e+00f + q_ * (3.6062889577e+00f       \
+                           + q_ * (-8.4576359296e-01f + q_ * 1.0920574741e-01f))));                            \
+        const float16 c_ = 1.4142135621e+00f + q_ * (-6.9788641101e+00f + q_ * (5.7398815459e+00f            \
+                           + q_ * (-1.8882749990e+00f + q_ * (3.3225188128e-01f + q_ * -3.4502165919e-02f)))); \
+        *(sn_out) = s_ * c_;                                                                                  \
+        *(cs_out) = fma(-s_, s_, 1.0f);                                                                       \
+    } while (0)
+
 /* A pixel row's fields: loaded where used (the pulse loop then holds no more than they need) */
 #define FIELD(f) LOAD_F16(px[r].f)
 
@@ -155,14 +172,14 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
          * side in program order, which the out-of-order core overlaps */
         const tile_ref_t R = tref[p];
         __global const float *rec = records + (size_t)2 * p * n;
-        const float3 b = vload3(0, R.leg1);
+        const float3 b = vload3(0, R.leg1), b2 = 2.0f * b;  /* N1 = 2 B.delta + |delta|^2 */
         float16 s1[ROWS], s[ROWS], frac[ROWS], cs[ROWS], sn[ROWS];
         int16 keep[ROWS];
         volatile int16 first[ROWS];  /* the lanes' first samples, read back one by one as scalars */
 #ifndef MOVING
         if (R.poly) {
             FOR_ROWS {  /* leg 1 without a square root or a division */
-                const float16 n1 = 2.0f * (b.x * FIELD(dx) + b.y * FIELD(dy) + b.z * FIELD(dz)) + FIELD(dd);
+                const float16 n1 = fma(b2.x, FIELD(dx), fma(b2.y, FIELD(dy), fma(b2.z, FIELD(dz), FIELD(dd))));
                 const float16 x = n1 * R.k2;
                 s1[r] = (n1 * R.k1) * LEG_POLY(x);
             }
@@ -170,7 +187,7 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
 #endif
         {
             FOR_ROWS {  /* leg 1: the stable root */
-                const float16 n1 = 2.0f * (b.x * FIELD(dx) + b.y * FIELD(dy) + b.z * FIELD(dz)) + FIELD(dd);
+                const float16 n1 = fma(b2.x, FIELD(dx), fma(b2.y, FIELD(dy), fma(b2.z, FIELD(dz), FIELD(dd))));
 #ifdef MOVING
                 const float16 b1 = R.b1 - FIELD(dv);
 #else
@@ -212,7 +229,7 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
         }
         FOR_ROWS {  /* carrier exp(+j 2 pi f0 tau): cycles f0 T_ref (reduced) + f0 s, reduced to [-1/2, 1/2] */
             const float16 cyc = R.cycles + s[r] * f0s;
-            expj_near16(NEAR_FRACTION(cyc), &cs[r], &sn[r]);
+            EXPJ_NEAR16(NEAR_FRACTION(cyc), &cs[r], &sn[r]);
         }
         FOR_ROWS {
             const volatile int *i = (const volatile int *)&first[r];
@@ -226,7 +243,7 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             const float16 a_im = (float16)(w0.s159d, w1.s159d, w2.s159d, w3.s159d);
             const float16 b_re = (float16)(w0.s26ae, w1.s26ae, w2.s26ae, w3.s26ae);
             const float16 b_im = (float16)(w0.s37bf, w1.s37bf, w2.s37bf, w3.s37bf);
-            const float16 dr = mix(a_re, b_re, frac[r]), di = mix(a_im, b_im, frac[r]);
+            const float16 dr = fma(b_re - a_re, frac[r], a_re), di = fma(b_im - a_im, frac[r], a_im);
 #else
             /* samples i - 3 .. i + 4 of each lane, the taps of the nearest fractional-offset row */
             const int16 row = NEAREST_TAP_ROW(convert_int16, frac[r]);

@@ -97,7 +97,7 @@ def test_aperture_sums_only_the_pulses_that_see_a_tile(opencl_device):
     d = q - echo.tx_pos[pulses][:, None, :]
     kept = np.abs(d[..., 1] / np.linalg.norm(d, axis=-1)) <= half_sin     # (P, M): the reference's mask
     tile = np.empty(pixels.shape[0], int)
-    tile[tiling.order[tiling.real]] = np.repeat(tiling.tile, TileKernel.LANES * TileKernel.ROWS)[tiling.real]
+    tile[tiling.order[tiling.real]] = np.repeat(tiling.tile, TileKernel.LANES * tiling.rows)[tiling.real]
     p_idx, m_idx = np.nonzero(kept)
     assert np.all((spans[tile[m_idx], 0] <= p_idx) & (p_idx < spans[tile[m_idx], 1]))
     culled = 1 - (spans[:, 1] - spans[:, 0]).sum() / (spans.shape[0] * echo.n_pulses)
@@ -141,7 +141,7 @@ def test_full_size_tiles_match_reference(opencl_device, kiang_echo, centre):
 def _slot_offsets(tiles, pixels):
     """|pixel - its tile's reference point| of every real slot of a tiling."""
     real = tiles.real
-    slot_tile = np.repeat(tiles.tile, TileKernel.LANES * TileKernel.ROWS)
+    slot_tile = np.repeat(tiles.tile, TileKernel.LANES * tiles.rows)
     return np.linalg.norm(pixels[tiles.order[real]] - tiles.centres[slot_tile[real]], axis=-1)
 
 
@@ -149,7 +149,7 @@ def test_tiles_cover_every_pixel_once_within_the_phase_budget(rng):
     pixels = rng.uniform(-40.0, 40.0, (5000, 3)) + [2000.0, 0.0, -300.0]
     tiles = plan_tiles(pixels, 150e3, 1500.0)
     assert np.array_equal(np.sort(tiles.order[tiles.real]), np.arange(len(pixels)))
-    assert tiles.order.size % (TileKernel.LANES * TileKernel.ROWS) == 0
+    assert tiles.order.size % (TileKernel.LANES * tiles.rows) == 0
     assert tile_half_extent(150e3, 1500.0) == pytest.approx(3.34, abs=0.01)
     assert _slot_offsets(tiles, pixels).max() <= tile_half_extent(150e3, 1500.0)
     assert tiles.phase_bound <= PHASE_BUDGET
@@ -540,3 +540,15 @@ def test_one_leg_for_a_monostatic_receiver(opencl_device, kiang_echo):
         ref = backproject(kiang_echo, grid, backend="numpy", **kw)
         got = backproject(kiang_echo, grid, backend="opencl", **kw)
         assert rel_l2(got.data, ref.data) < 1.5e-3  # measured 1.6e-4 and 2.0e-4 (full-size tiles, as above)
+
+def test_rows_of_a_work_item_leave_the_image_unchanged(opencl_device, kiang_echo):
+    """GridPlan's rows (of 16 pixels a bp_tile work-item) change only how the tiles are padded and
+    launched, not a pixel's tile or arithmetic: the images are identical bit for bit."""
+    grid = around((30.0, 1.0, -43.0), 0.05, 0.05, 20, 20)
+    images = [backproject(kiang_echo, GridPlan(grid, rows=r), receivers=["A"], stop_and_go=True,
+                          progress=False).data for r in (4, 6, 8)]
+    assert np.array_equal(images[0], images[1]) and np.array_equal(images[0], images[2])
+    with pytest.raises(ValueError, match="rows"):
+        GridPlan(grid, rows=0)
+    with pytest.raises(TypeError, match="rows"):
+        GridPlan(grid, rows=6.0)

@@ -8,12 +8,14 @@ each ping's emission time plus half the two-way travel time to the scene centre 
 from __future__ import annotations
 
 import dataclasses
+import tracemalloc
 
 import numpy as np
 import pytest
 
 import clsas
 from clsas import metrics
+from clsas.errors import MemoryBudgetError
 from clsas.estimate import autofocus, dpca
 from clsas.image.multireceiver import pca_record
 from clsas.scene import presets
@@ -414,6 +416,22 @@ def test_bad_input(seafloor):
         dpca.delay_records(echo.data, np.zeros(echo.data.shape[:2]), 5e4, 0.0)
     with pytest.raises(ValueError, match="delay_records f0"):
         dpca.delay_records(echo.data, np.zeros(echo.data.shape[:2]), np.nan, echo.fs)
+
+
+def test_compensate_record_checks_the_budget_first(seafloor):
+    """Under a budget too small for the record, compensate_record refuses before its first
+    allocation (it allocated 1.6-3.4 MB before refusing under 1 MiB: issue #27)."""
+    scene, _, echo, pairs = seafloor
+    track = dpca.integrate(pairs, echo.eta, scene.platform.speed, scene.array)
+    tracemalloc.start()
+    try:
+        with clsas.use_memory_budget(1 << 20), pytest.raises(MemoryBudgetError, match="compensate_record"):
+            dpca.compensate_record(echo, track, scene, receivers=range(4, 11))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 64 << 10
+    assert dpca.compensate_record(echo, track, scene, receivers=range(4, 11)).n_u == 7 * echo.n_pulses
 
 
 @pytest.mark.slow

@@ -411,3 +411,76 @@ def test_a_single_point_is_imaged_as_backproject_images_it(opencl_device):
     img = ffbp(echo, grid, backend="opencl", progress=False)
     assert abs(ref.data[0]) > 0
     assert abs(img.data[0] - ref.data[0]) / abs(ref.data[0]) < 3e-5  # measured 2.3e-7 (one level: leaves to the point)
+
+
+@pytest.mark.parametrize("first, factor", [(1, 2), (1, 4), (None, 4)])
+def test_one_receiver_moving_while_it_records(opencl_device, first, factor):
+    """One receiver of the array (it moves 0.17 m while it records a pulse: its phase centre moves
+    with the echo's delay, so a one-pulse leaf has a length): one-pulse leaves (first=1, issue 27:
+    their polar grids used to hold sines far outside [-1, 1]) and the default tree, merged, match
+    back-projection. Relative L2 measured 0.0050-0.0061 (OpenCL and NumPy alike); 0.22-1.15 with
+    first=1 and 0.008-0.014 by default before the receiver's motion counted in the sub-apertures'
+    lengths."""
+    echo = echo_of("straight")
+    patch = Grid.plane(np.arange(43.7, 44.3, 0.015), np.arange(-0.3, 0.3, 0.02), DEPTH)
+    for grid, backends in ((patch, ("numpy", "opencl")), (GRID, ("opencl",))):
+        ref = backproject(echo, grid, receivers=[0], backend="opencl", progress=False)
+        for backend in backends:
+            img = ffbp(echo, grid, receivers=[0], first=first, factor=factor, backend=backend, progress=False)
+            assert img.provenance["levels"] >= (2 if first == 1 else 1)
+            assert rel_l2(img.data, ref.data) < 0.05
+
+
+def test_one_pulse_leaves_stay_within_the_sines():
+    """A one-pulse monostatic leaf has no band in v (W_v = 0): its polar grid's step in sine is
+    capped so that the padded rows stay within |v| <= 2 (they reached 3e4, and Grid.points refused
+    the leaf's points)."""
+    echo = _geometry_only_echo(16)
+    grid = Grid.plane(np.linspace(45.0, 47.0, 16), np.linspace(-0.1, 0.1, 16), DEPTH)
+    tree = plan(echo, [0], Scene.of(grid.positions), 2, 0.1, 8, 1, None)
+    for g in tree.grids[0]:
+        assert -2.0 <= g.v0 and g.v0 + (g.n_v - 1) * g.dv <= 2.0
+
+
+@pytest.mark.parametrize("options", [dict(first=1, factor=2), dict(first=2), dict(interp="sinc8", first=4), dict()])
+def test_numpy_memory_stays_within_the_plan(options):
+    """The NumPy backend's traced peak (its first stage by back-projection's reference, its merges
+    by merge_reference, the tap tables built afresh) stays within the memory plan the budget is
+    checked against. Measured 8.8-70 MB against plans of 39-178 MB."""
+    import tracemalloc
+
+    from clsas.interp import tap_table
+
+    echo = _geometry_only_echo(64)
+    grid = Grid.plane(np.linspace(45.0, 47.0, 48), np.linspace(-0.4, 0.4, 48), DEPTH)
+    tap_table.cache_clear()
+    tracemalloc.start()
+    try:
+        img = ffbp(echo, grid, backend="numpy", progress=False, **options)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak <= img.provenance["memory_bytes"]
+
+
+@pytest.mark.parametrize("options", [dict(backend="numpy", interp="sinc8"), dict(backend="opencl", tolerance=0.37),
+                                     dict(backend="numpy", first=3)])
+def test_a_small_budget_refuses_before_planning(opencl_device, options):
+    """Under a 64 KiB budget ffbp refuses (the tap tables, the plan's temporaries, the records)
+    before it builds a table or plans (it used to build 1.6-4.1 MB first, issue 27)."""
+    import tracemalloc
+
+    from clsas.interp import tap_table
+
+    echo = echo_of("straight")
+    grid = Grid.plane(np.linspace(43.9, 44.1, 6), np.linspace(-0.1, 0.1, 6), DEPTH)  # its own bytes fit
+    tap_table.cache_clear()
+    with clsas.use_memory_budget(1 << 16):
+        tracemalloc.start()
+        try:
+            with pytest.raises(clsas.budget.MemoryBudgetError, match="tables and plan"):
+                ffbp(echo, grid, progress=False, **options)
+            peak = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+    assert peak < 1 << 16

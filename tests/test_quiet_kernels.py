@@ -44,3 +44,20 @@ def test_a_fresh_process_building_kernels_prints_nothing(opencl_device):
     env.update(PYOPENCL_NO_CACHE="1", POCL_KERNEL_CACHE="0")  # a cold build, as on a fresh machine
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
     assert out.returncode == 0 and out.stderr == "" and out.stdout == ""
+
+
+def test_an_interrupted_build_logs_nothing(capfd, caplog, monkeypatch):
+    """Ctrl-C during a build: the compiler's "1 error generated." is not logged (the CLI prints its
+    one line), and the interrupt goes on."""
+    monkeypatch.delenv("CLSAS_DEBUG", raising=False)
+    monkeypatch.delenv("PYOPENCL_COMPILER_OUTPUT", raising=False)
+    with caplog.at_level(logging.WARNING, logger="clsas"):
+        try:
+            with opencl.quiet_build("x"):
+                _say("x.cl:1:1: error: interrupted\n1 error generated.\n")
+                raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            pass
+        else:
+            raise AssertionError("the interrupt was swallowed")
+    assert capfd.readouterr().err == "" and not caplog.records

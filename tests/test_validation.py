@@ -70,7 +70,7 @@ def test_an_overflowing_image_raises(opencl_device):
     returning inf."""
     echo = clsas.range_compress(clsas.simulate(scene(10.0), backend="numpy", progress=False))
     huge = echo.replace(data=(echo.data / np.abs(echo.data).max() * np.float32(3e38)).astype(np.complex64))
-    grid = Grid.plane(np.linspace(29.5, 30.5, 4), [0.0], 0.0)
+    grid = Grid.plane(np.linspace(29.5, 30.5, 5), [0.0], 0.0)  # a pixel on the target at 30 m: 6 pulses sum past the max
     for backend in ("numpy", "opencl"):
         with pytest.raises(ValueError, match="backproject: the image overflows complex64"):
             clsas.backproject(huge, grid, backend=backend, progress=False)

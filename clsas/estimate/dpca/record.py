@@ -33,9 +33,9 @@ import dataclasses
 import numpy as np
 import scipy.fft
 
-from ... import validate
+from ... import budget, validate
 from ...model import EchoData
-from ...image.multireceiver import pca_record
+from ...image.multireceiver import BYTES_PER_SAMPLE, pca_record
 from ...image.rangecomp import check_workers
 from ...image.record import LineRecord
 from ...kernelmath import unit_phasor
@@ -108,6 +108,29 @@ def beam_correction(record: LineRecord, x: np.ndarray, n_z: float = 0.0, subaper
         **record.provenance, "beam_correction": {"subaperture": int(subaperture), "n_z": float(n_z)}})
 
 
+def _chosen(echo: EchoData, receivers) -> int:
+    """How many receivers the record interleaves (the rows a ping), at most the echo's: all of
+    them for None (pca_record checks what they are)."""
+    return echo.n_rx if receivers is None or not hasattr(receivers, "__len__") else min(len(receivers), echo.n_rx)
+
+
+def _check_budget(echo: EchoData, hydrophones: int, chosen: int, subaperture: int) -> None:
+    """Refuse before the first allocation what compensate_record holds at its peak (bytes per
+    sample of the echo, complex64 8, complex128 16): the compensated copy of the echo (8, held to
+    the end) with, in turn, :func:`compensate`'s delay over the hydrophones' records (their
+    spectra, the phase ramp in complex128 and its argument, the delayed copy: 48), pca_record's
+    interleaved rows (multireceiver.BYTES_PER_SAMPLE) and one receiver's working records, and
+    beam_correction's record, its range spectrum, the padded and summed buffers, the result
+    and its cast (48) with one sub-aperture's tables (about ten arrays of float64 or complex64
+    over twice its rows); ``chosen`` receivers interleaved."""
+    per_ping = echo.n_pulses * echo.n_samples
+    rows = scipy.fft.next_fast_len(2 * subaperture) * echo.n_samples
+    peak = max(48 * hydrophones * per_ping, BYTES_PER_SAMPLE * chosen * per_ping + 64 * per_ping,
+               48 * chosen * per_ping + 32 * subaperture * echo.n_samples + 80 * rows)
+    budget.check_bytes(f"compensate_record of {chosen} receivers x {echo.n_pulses} pings x {echo.n_samples} samples",
+                       8 * echo.n_rx * per_ping + peak, "fewer pings or samples at a time")
+
+
 def compensate_record(echo: EchoData, trajectory: Trajectory, scenario: Scenario, receivers=None,
                       depth: float | None = None, subaperture: int = 32, backend: str | None = None,
                       workers: int | None = -1) -> LineRecord:
@@ -117,8 +140,10 @@ def compensate_record(echo: EchoData, trajectory: Trajectory, scenario: Scenario
     phase centres must not overlap between pings), then eq. (75) over the beam
     (:func:`beam_correction`, see the module docstring). depth : m, z of the imaged plane
     (default: the track's, a horizontal geometry)."""
-    _check_subaperture("compensate_record", subaperture, len(echo.receivers) * echo.n_pulses)
+    chosen = _chosen(echo, receivers)
+    _check_subaperture("compensate_record", subaperture, chosen * echo.n_pulses)
     workers = check_workers(workers, "compensate_record workers")
+    _check_budget(echo, scenario.array.n_receivers, chosen, subaperture)
     if depth is not None:
         depth = validate.scalar("compensate_record depth", depth, low=-validate.MAX_COORDINATE,
                                 high=validate.MAX_COORDINATE, unit="m")

@@ -37,7 +37,7 @@ class _Chunk:
         import pyopencl as cl
 
         mf = cl.mem_flags
-        width = tile.LANES * tile.ROWS
+        width = tile.LANES * tile.rows
         self.first, self.n = first, stop - first
         slots = tiling.order[first:stop]
         owner = tiling.tile[first // width:stop // width]
@@ -71,12 +71,12 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     image = np.zeros(pixels.shape[0], dtype=np.complex128)
     image_buf = cl.Buffer(ctx, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=image)
     positions = cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=pixels)
-    tile = TileKernel(records.interp, aperture, velocity, stop_and_go)
+    tiles = plan.tiling(f0, c)
+    tile = TileKernel(records.interp, aperture, velocity, stop_and_go, rows=tiles.rows)
     kernels = {h: tile.for_receiver(echo, h) for h in records.receivers}  # each receiver's legs (TileKernel.legs_for)
     taps = tile.taps(ctx)
     params = tile.params(c, f0, fs)
-    tiles = plan.tiling(f0, c)
-    chunk = PIXEL_CHUNK // (tile.LANES * tile.ROWS) * (tile.LANES * tile.ROWS)
+    chunk = PIXEL_CHUNK // (tile.LANES * tile.rows) * (tile.LANES * tile.rows)
     upload = records.upload_pulses()
     jobs = [(first, i, np.arange(s, min(s + upload, span[1]))) for first in range(0, tiles.order.size, chunk)
             for i in range(len(records.receivers)) for s in range(span[0], span[1], upload)]

@@ -1,7 +1,7 @@
 """Records prepared for back-projection: the interpolator's samples of the fast-time span a grid reaches.
 
 :func:`prepare` pays once what every :func:`clsas.backproject` call on an echo otherwise pays
-again: the FFT upsampling of each record (``interp="linear"``) and its upload to the device.
+again: the upsampling of each record (``interp="linear"``) and its upload to the device.
 The :class:`PreparedRecords` it returns is accepted by ``backproject`` in place of the echo and
 gives the bit-identical image, on both backends::
 
@@ -15,22 +15,23 @@ receiver, over all pulses; :func:`reach`), which makes one call on a small patch
 are not upsampled (sinc8, or upsample=1) are the echo's own, read in place whole.
 ``backproject`` refuses a grid whose reach the records do not cover.
 
-Upsampling in blocks. The records are FFT-upsampled block by block: block b holds the original
-samples [b UPSAMPLE_BLOCK, (b + 1) UPSAMPLE_BLOCK) and its FFT also reads UPSAMPLE_GUARD samples
-on each side (zeros outside the record): the block plus its guards (512 samples) is transformed,
-its spectrum zero-padded to ``upsample`` times its length (:func:`rangecomp._upsample_spectrum`),
-transformed back, and the block's own part kept. A prepared sample therefore depends on its block
-only, not on the span or on how many records are transformed at once, so records prepared for a
-wider span (or the whole record) give the same image, bit for bit, as records prepared for the
-grid itself. The guard truncates the band-limited interpolation kernel: the blocks depart from
-one FFT of the whole zero-padded record (:func:`rangecomp.upsample_records`) by far less than
-linear interpolation's own error on x8 upsampled data (up to (2 pi 0.4 / 8)^2 / 8 = 1.2e-2 at
-fs = 1.25 B; tests/test_backprojection.py holds the difference). Small FFTs (512 -> 4096 points)
-stay in cache: no 8x-long temporaries, and the guards cost a third more transform than the block
-itself (with 128-sample blocks they cost as much again, and the upsampling was most of a small
-grid's call: bench_backprojection's fixed-cost rows). An OpenCL FFT
-on PoCL was tried and was many times slower than scipy.fft with two workers, so the upsampling
-stays on the host.
+Upsampling. Records whose occupied band fits the FIR's (B / (2 fs) <= ``upsample.MAX_BAND``
+= 0.4, i.e. fs >= 1.25 B) are upsampled by a 24-tap Kaiser-windowed-sinc polyphase FIR
+(:mod:`clsas.image.upsample`), which departs from exact band-limited (FFT) upsampling by at most
+3.2e-4 a unit tone in that band (a fortieth of the linear interpolator's own error on x8
+records, (2 pi 0.4 / 8)^2 / 8 = 1.2e-2 at fs = 1.25 B; records also carry a little energy beyond
+B / 2, the chirp's spectral skirts, which the FIR passes less faithfully: tests/test_upsample.py
+holds both departures). An output depends only on the samples around it, so any span gives the
+same samples, bit for bit. The FIR runs on the OpenCL device when the default backend is OpenCL
+(:func:`clsas.use_backend`; "auto" with a device found), whichever backend the back-projection
+itself runs on, and as its NumPy twin otherwise: the host samples of :func:`prepare` and of the
+NumPy reference are then those a plain OpenCL call makes on the device (it upsamples each upload
+block there, the records never leaving the device), and prepared records give a plain call's
+image bit for bit on both backends.
+
+Records sampled nearer their Nyquist rate (fs < 1.25 B: no short FIR holds there) are
+FFT-upsampled on the host, block by block (:func:`clsas.image.upsample.upsample_blocks`), the
+spans rounded out to whole blocks so that a prepared sample depends on its block only.
 
 Device memory. A PreparedRecords holds its samples on the host (complex64, read-only); its device
 buffers are made on first OpenCL use, one per receiver (and one complex128 copy per receiver for
@@ -41,21 +42,18 @@ in place (CL_MEM_USE_HOST_PTR: no copy); on a GPU it is a copy in device memory.
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
-import scipy.fft
 
+from ... import backend as _backend
 from ... import budget, validate
 from ...model import EchoData, Grid
-from ..rangecomp import _upsample_spectrum, check_workers
+from .. import upsample as fir
+from ..rangecomp import check_workers
+from ..upsample import FFT_BATCH_BYTES, UPSAMPLE_BLOCK, upsample_blocks  # noqa: F401 (FFT_BATCH_BYTES: ffbp's budget)
 
 INTERPOLATORS = ("linear", "sinc8")
 # samples an interpolator reads around floor(k) (before, after), in samples of the records it reads
 INTERP_REACH = {"linear": (0, 1), "sinc8": (3, 4)}
-UPSAMPLE_BLOCK = 384  # original samples a block of the upsampling keeps (the FFT: 512 points)
-UPSAMPLE_GUARD = 64  # original samples each side a block's FFT reads beyond it
-FFT_BATCH_BYTES = 32 * 2**20  # upsampled spectra in memory at once
 UPLOAD_BYTES = 64 * 2**20  # records prepared and uploaded at once when a call prepares its own
 MIN_SAMPLES = 8  # samples of the shortest prepared record (sinc8 loads eight at once)
 
@@ -106,7 +104,7 @@ def reach(echo: EchoData, receivers, positions: np.ndarray, target_velocity=None
     v = np.zeros(3) if target_velocity is None else np.asarray(target_velocity, dtype=np.float64)
     t_end = float(np.max(echo.t0)) + echo.n_samples / echo.fs
     grow = np.linalg.norm(v) * t_end
-    # the pixels' box a coordinate at a time (a reduction over the first axis of (M, 3) is ~15x slower)
+    # the pixels' box a coordinate at a time (NumPy's reduction over the first axis of (M, 3) is slow)
     box_lo = np.array([pts[:, k].min() for k in range(3)])
     box_hi = np.array([pts[:, k].max() for k in range(3)])
     lo = box_lo + echo.eta[:, None] * v - grow  # (P, 3)
@@ -125,12 +123,13 @@ def reach(echo: EchoData, receivers, positions: np.ndarray, target_velocity=None
     return out
 
 
-def _blocks_of(span: np.ndarray, t0: float, fs: float, n: int, interp: str, factor: int) -> tuple[int, int]:
+def _blocks_of(span: np.ndarray, t0: float, fs: float, n: int, interp: str, factor: int,
+               blocks: bool) -> tuple[int, int]:
     """The original samples [first, stop) to prepare for a fast-time span (s): the span's samples
     widened by the interpolator's reach (in original samples, plus one for rounding), clipped to
-    the record, and for upsampled records rounded out to whole UPSAMPLE_BLOCKs; records that are
-    not upsampled are read in place, whole ((0, n): a view costs nothing, a cut would be a copy),
-    unless the span misses them."""
+    the record, and for FFT-upsampled records (``blocks``) rounded out to whole UPSAMPLE_BLOCKs;
+    records that are not upsampled are read in place, whole ((0, n): a view costs nothing, a cut
+    would be a copy), unless the span misses them."""
     before, after = INTERP_REACH[interp]
     if factor > 1:  # the linear interpolator's two upsampled samples lie within one original sample
         before, after = 0, 1
@@ -144,42 +143,10 @@ def _blocks_of(span: np.ndarray, t0: float, fs: float, n: int, interp: str, fact
     if stop - first < MIN_SAMPLES:  # the kernels load whole windows of a record: keep at least one
         stop = min(first + MIN_SAMPLES, n)
         first = max(stop - MIN_SAMPLES, 0)
-    if factor > 1:
+    if blocks:
         first = first // UPSAMPLE_BLOCK * UPSAMPLE_BLOCK
         stop = min(-(-stop // UPSAMPLE_BLOCK) * UPSAMPLE_BLOCK, n)
     return first, stop
-
-
-def upsample_blocks(records: np.ndarray, factor: int, first: int, stop: int, workers: int | None = None,
-                    out: np.ndarray | None = None) -> np.ndarray:
-    """Original samples [first, stop) of the (R, n) records, FFT-upsampled by ``factor`` block by
-    block (module docstring; ``first`` a multiple of UPSAMPLE_BLOCK): complex64 (R, (stop - first) factor),
-    sample j at original position first + j / factor. Written into ``out`` when given."""
-    n_rec, n = records.shape
-    block, guard = UPSAMPLE_BLOCK, UPSAMPLE_GUARD
-    if first % block or not 0 <= first < stop <= n:
-        raise ValueError(f"first must be a multiple of {block} and 0 <= first < stop <= {n}, got {first}, {stop}")
-    workers = os.cpu_count() if workers is None else int(workers)
-    n_blocks = -(-(stop - first) // block)
-    width = block + 2 * guard
-    lo, hi = first - guard, first + n_blocks * block + guard
-    out = np.empty((n_rec, (stop - first) * factor), np.complex64) if out is None else out
-    per_record = n_blocks * width * factor * 16
-    batch = max(1, int(FFT_BATCH_BYTES // per_record))
-    for s in range(0, n_rec, batch):
-        e = min(s + batch, n_rec)
-        padded = np.zeros((e - s, hi - lo), np.complex64)
-        padded[:, max(lo, 0) - lo:min(hi, n) - lo] = records[s:e, max(lo, 0):min(hi, n)]
-        windows = np.lib.stride_tricks.sliding_window_view(padded, width, axis=-1)[:, ::block]
-        spec = scipy.fft.fft(windows, axis=-1, workers=workers)
-        spec *= factor
-        up = scipy.fft.ifft(_upsample_spectrum(spec, factor), axis=-1, workers=workers, overwrite_x=True)
-        kept = up[..., guard * factor:(guard + block) * factor]  # (records, blocks, block factor)
-        whole = (stop - first) // block  # blocks kept whole, copied once into out's view of them
-        out[s:e, :whole * block * factor].reshape(e - s, whole, block * factor)[...] = kept[:, :whole]
-        if whole < n_blocks:  # the last block, cut at the record's end
-            out[s:e, whole * block * factor:] = kept[:, whole, :(stop - first - whole * block) * factor]
-    return out
 
 
 class PreparedRecords:
@@ -192,6 +159,8 @@ class PreparedRecords:
     receivers : tuple of int, the echo's receivers prepared (indices), summed by default.
     interp : {"linear", "sinc8"}; upsample : int as asked; factor : int, the upsampling applied
         (``upsample`` for linear, 1 for sinc8); fs : float, Hz, the prepared samples' rate.
+    upsampler : {"fir", "fft", None}, how the records are upsampled (module docstring; None when
+        ``factor`` is 1).
     offset : (len(receivers),) int, the prepared records' first sample, counted in samples at
         ``fs`` from the echo's window start t0: receiver i's prepared sample j lies at fast time
         ``t0 + (offset[i] + j) / fs``.
@@ -206,7 +175,9 @@ class PreparedRecords:
         self.interp, self.upsample = interp, int(upsample)
         self.factor = self.upsample if interp == "linear" else 1
         self.fs = echo.fs * self.factor
+        self.upsampler = upsampler_for(echo, self.factor)
         self._workers = workers
+        self._fir_device = None  # the FIR runs on the device (decided on first use: the default backend)
         bounds = self._samples_for(spans)
         self._bounds = bounds  # original samples [first, stop) per receiver
         self.offset = bounds[:, 0] * self.factor
@@ -230,7 +201,8 @@ class PreparedRecords:
         """(len(receivers), 2) int64: the original samples [first, stop) to prepare for the fast-time
         ``spans`` (len(receivers), 2) s (:func:`_blocks_of`)."""
         echo = self.echo
-        bounds = [_blocks_of(spans[i], echo.t0[h], echo.fs, echo.n_samples, self.interp, self.factor)
+        blocks = self.upsampler == "fft"
+        bounds = [_blocks_of(spans[i], echo.t0[h], echo.fs, echo.n_samples, self.interp, self.factor, blocks)
                   for i, h in enumerate(self.receivers)]
         return np.asarray(bounds, dtype=np.int64).reshape(-1, 2)
 
@@ -253,7 +225,18 @@ class PreparedRecords:
             return np.zeros((pulses.size, MIN_SAMPLES), np.complex64)
         if self.factor == 1:
             return np.ascontiguousarray(block[:, first:stop], dtype=np.complex64)  # a view when it already is
-        return upsample_blocks(block, self.factor, first, stop, self._workers)
+        if self.upsampler == "fft":
+            return upsample_blocks(block, self.factor, first, stop, self._workers)
+        if self.fir_on_device:
+            return fir.upsample_fir(block, self.factor, first, stop)
+        return fir.upsample_reference(block, self.factor, first, stop)
+
+    @property
+    def fir_on_device(self) -> bool:
+        """True when the FIR upsampler runs on the OpenCL device (the default backend is OpenCL)."""
+        if self._fir_device is None:
+            self._fir_device = self.upsampler == "fir" and _backend.resolve(None) == "opencl"
+        return self._fir_device
 
     def samples(self, i: int, pulses: np.ndarray) -> np.ndarray:
         """Receiver ``receivers[i]``'s prepared records of the consecutive ``pulses``, complex64
@@ -278,6 +261,8 @@ class PreparedRecords:
                 host.flags.writeable = False
                 self._device[key] = (cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=host), host)
             return self._device[key][0], self._host[i].shape[1], 0
+        if self.fir_on_device and not double and self._bounds[i, 1] > self._bounds[i, 0]:
+            return self._upsampled_on_device(ctx, i, pulses), int(self.length[i]), int(pulses[0])
         records = self.samples(i, pulses)
         if records.dtype == dtype and records.flags.c_contiguous and records.base is not None:
             # a view of the echo itself (no upsampling, no cut): the device reads it in place; the
@@ -287,6 +272,26 @@ class PreparedRecords:
         # kernels may still be queued, and a USE_HOST_PTR buffer's array would go with it
         records = np.ascontiguousarray(records, dtype=dtype)
         return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=records), records.shape[1], int(pulses[0])
+
+    def _upsampled_on_device(self, ctx, i: int, pulses: np.ndarray):
+        """A device buffer of receiver ``receivers[i]``'s records of the consecutive ``pulses``,
+        upsampled by the FIR on the device (the kernel enqueued on the runtime's queue, which the
+        back-projection kernels then read in order)."""
+        import pyopencl as cl
+
+        from ... import opencl
+
+        mf = cl.mem_flags
+        first, stop = (int(b) for b in self._bounds[i])
+        rows = self.echo.data[self.receivers[i], pulses[0]:pulses[-1] + 1]
+        src = np.ascontiguousarray(rows, np.complex64)
+        # the echo's own rows are read in place (the call finishes its queue before it returns and
+        # the echo outlives it); a converted copy is copied, as it goes with this function
+        flags = mf.USE_HOST_PTR if np.shares_memory(src, self.echo.data) else mf.COPY_HOST_PTR
+        src_buf = cl.Buffer(ctx, mf.READ_ONLY | flags, hostbuf=src)
+        dst = cl.Buffer(ctx, mf.READ_WRITE, size=8 * src.shape[0] * int(self.length[i]))
+        fir.enqueue(opencl.runtime().queue, src_buf, src.shape[1], src.shape[0], first, stop, self.factor, dst)
+        return dst
 
     def subset(self, chosen) -> "PreparedRecords":
         """The same records for the receivers ``chosen`` (echo indices, all prepared), in that
@@ -341,8 +346,8 @@ def prepare(compressed: EchoData, upsample: int = 8, interp: str = "linear", rec
     ----------
     compressed : EchoData, range-compressed (:func:`clsas.range_compress`).
     upsample : int in [1, 64]
-        FFT upsampling of the records for ``interp="linear"`` (ignored by sinc8, which reads the
-        original samples).
+        Upsampling of the records for ``interp="linear"`` (the FIR, or FFT blocks for echoes
+        sampled below 1.25 B: module docstring; ignored by sinc8, which reads the original samples).
     interp : {"linear", "sinc8"}, the interpolator the calls will use.
     receivers : indices or names of the receivers to prepare (default: all).
     grid : None, Grid, or a fast-time span
@@ -351,7 +356,7 @@ def prepare(compressed: EchoData, upsample: int = 8, interp: str = "linear", rec
         ``(start, stop)`` in seconds (fast time after emission), the same for every receiver, or
         an array (len(receivers), 2), one span per receiver.
     target_velocity : 3-vector, m/s, optional; the velocity the calls will give, for ``grid``'s reach.
-    workers : int, scipy.fft threads (default: all cores).
+    workers : int, scipy.fft threads of the FFT blocks (default: all cores).
 
     Returns
     -------
@@ -366,6 +371,14 @@ def prepare(compressed: EchoData, upsample: int = 8, interp: str = "linear", rec
         workers = check_workers(workers, "prepare workers")
     spans = fast_time_spans(compressed, chosen, grid, velocity)
     return PreparedRecords(compressed, chosen, interp, upsample, spans, materialise=True, workers=workers)
+
+
+def upsampler_for(echo: EchoData, factor: int):
+    """How records of ``echo`` are upsampled by ``factor``: "fir" when the echo's band fits the
+    FIR's (B / (2 fs) <= upsample.MAX_BAND), "fft" nearer the Nyquist rate, None for factor 1."""
+    if factor == 1:
+        return None
+    return "fir" if echo.waveform.bandwidth / (2.0 * echo.fs) <= fir.MAX_BAND * (1 + 1e-9) else "fft"
 
 
 def fast_time_spans(echo: EchoData, chosen, grid, velocity) -> np.ndarray:

@@ -73,8 +73,9 @@ from ... import opencl
 from ...cstruct import declare_all, record_dtype
 from ...geometry import legs, two_node_velocity, uniform_nodes
 from ...interp import TAP_ROWS, kernel_taps
-from .tiles import LANES, ROWS, GridPlan, aperture_spans, tile_half_extent
+from .tiles import LANES, GridPlan, aperture_spans, tile_half_extent
 
+ITEM_ROWS = 4  # rows of LANES pixels a work-item unless the caller's tiling has others (ffbp's leaves: 4)
 PULSE_BLOCK = 64  # pulses a launch: the float sums' block (relative error below 64 x 6e-8)
 NODE_TOLERANCE = 1 / 2000  # of a wavelength: a receiver's allowed departure from linear motion over a tile
 SPAN_FACTOR = 2.5  # a tile's delay span is +-SPAN_FACTOR * half_extent / c around its reference
@@ -117,8 +118,8 @@ LEG_DEFINES = {"same": "SAME_LEGS", "mono": "MONO", "two": None}
 class TileKernel:
     """bp_tile for one configuration: the interpolator ``interp`` ("linear" or "sinc8"), the full
     integration angle ``aperture`` (rad, or None), the pixels' ``velocity`` (m/s), ``stop_and_go``,
-    ``row_shift`` (ffbp's first stage: each tile reads its own leaf's rows of the records), and
-    ``legs``, how the kernel computes the return leg (:meth:`legs_for` chooses it for a receiver):
+    ``row_shift`` (ffbp's first stage: each tile reads its own leaf's rows of the records),
+    ``rows`` (of LANES pixels a work-item: the tiling's, :attr:`.tiles.Tiling.rows`), and ``legs``, how the kernel computes the return leg (:meth:`legs_for` chooses it for a receiver):
 
     - ``"two"``: both legs, for any receiver (the module docstring);
     - ``"same"``: stop-and-go with the receiver at the transmitter (a monostatic sonar): t2 = t1;
@@ -126,14 +127,14 @@ class TileKernel:
       moving uniformly (two position nodes): the return leg in closed form from the outgoing one
       (the module docstring).
 
-    A work-item is ROWS rows of LANES pixels of one tile (:attr:`items_per_slot`: a tile's
-    slots come in whole work-items); slot m = LANES (ROWS g + r) + lane of work-item g.
+    A work-item is ``rows`` rows of LANES pixels of one tile (a tile's slots come in whole
+    work-items); slot m = LANES (rows g + r) + lane of work-item g. ``ROWS`` is the default.
     """
 
-    LANES, ROWS, PULSE_BLOCK = LANES, ROWS, PULSE_BLOCK
+    LANES, ROWS, PULSE_BLOCK = LANES, ITEM_ROWS, PULSE_BLOCK
 
     def __init__(self, interp: str, aperture: float | None = None, velocity=(0.0, 0.0, 0.0),
-                 stop_and_go: bool = False, row_shift: bool = False, legs: str = "two"):
+                 stop_and_go: bool = False, row_shift: bool = False, legs: str = "two", rows: int = ITEM_ROWS):
         if legs not in TILE_REFS:
             raise ValueError(f"legs must be one of {sorted(TILE_REFS)}, got {legs!r}")
         self.interp, self.aperture, self.stop_and_go = interp, aperture, bool(stop_and_go)
@@ -144,18 +145,18 @@ class TileKernel:
         if (legs == "same") != (legs == "same" and self.stop_and_go) or (legs == "mono" and (self.stop_and_go
                                                                                               or self.moving)):
             raise ValueError(f"legs={legs!r} needs {'stop-and-go' if legs == 'same' else 'exact delays and pixels at rest'}")
-        self.legs = legs
+        self.legs, self.rows = legs, int(rows)
         self.reference_dtype = TILE_REFS[legs]
         self.pixels = MOVING_PIXELS if self.moving else PIXELS
         self.pulse_span = aperture is not None and not row_shift  # a tile sums only the pulses that can see it
         self.defines = {"INTERP_LINEAR" if interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS,
-                        "BP_TILE": 1, "ROWS": ROWS, **({"APERTURE": 1} if aperture is not None else {}),
+                        "BP_TILE": 1, "ROWS": self.rows, **({"APERTURE": 1} if aperture is not None else {}),
                         **({"MOVING": 1} if self.moving else {}), **({"ROW_SHIFT": 1} if row_shift else {}),
                         **({LEG_DEFINES[legs]: 1} if LEG_DEFINES[legs] else {}),
                         **({"PULSE_SPAN": 1} if self.pulse_span else {})}
         self.preamble = declare_all({"tile_ref_t": self.reference_dtype, "tile_params_t": TILE_PARAMS,
                                      "bp_pixels_t": self.pixels}) + _horner("LEG_POLY", LEG_POLY)
-        self.field_defines = {"BP_FIELDS": 1, "ROWS": ROWS, "TAP_ROWS": TAP_ROWS, **({"MOVING": 1} if self.moving else {})}
+        self.field_defines = {"BP_FIELDS": 1, "ROWS": self.rows, "TAP_ROWS": TAP_ROWS, **({"MOVING": 1} if self.moving else {})}
         self.ref_defines = {"BP_REFS": 1, "TAP_ROWS": TAP_ROWS, **({"MOVING": 1} if self.moving else {}),
                             **({"STOP_AND_GO": 1} if self.stop_and_go else {}),
                             **({LEG_DEFINES[legs]: 1} if LEG_DEFINES[legs] else {})}
@@ -181,7 +182,7 @@ class TileKernel:
         if legs == self.legs:
             return self
         return TileKernel(self.interp, self.aperture, self.velocity, self.stop_and_go,
-                          "ROW_SHIFT" in self.defines, legs)
+                          "ROW_SHIFT" in self.defines, legs, self.rows)
 
     @staticmethod
     def half_extent(f0: float, c: float) -> float:

@@ -17,9 +17,13 @@ import dataclasses
 
 import numpy as np
 
+from ... import validate
 from ...model import Grid
 
-LANES, ROWS = 16, 4  # bp_tile: a work-item holds ROWS float16 vectors of pixels (tiles padded to LANES x ROWS)
+# bp_tile: a work-item holds rows float16 vectors of LANES pixels (tiles padded to LANES x rows); ROWS for
+# direct back-projection's tilings (six rows: more independent chains for the out-of-order core, fewer
+# pulse-loop overheads a pixel than four; bench/bench_backprojection.py's "rows" part compares them)
+LANES, ROWS = 16, 6
 PHASE_BUDGET = 2e-3  # rad: the float32 geometry's share of the 0.01 rad phase budget
 ERROR_FACTOR = 8.0  # float32 roundings per |delta| / c of delay (tile_kernel's docstring)
 EPS32 = float(np.finfo(np.float32).eps)
@@ -41,7 +45,7 @@ class Tiling:
     tile, ``centres`` (T, 3) m: the tiles' reference points (the centres of their bounding boxes),
     ``half_extent`` m: the largest half-diagonal of a tile's bounding box (at least every
     |pixel - its reference point|), ``phase_bound`` rad: the float32 geometry's phase error bound
-    2 pi f0 ERROR_FACTOR eps32 half_extent / c.
+    2 pi f0 ERROR_FACTOR eps32 half_extent / c, ``rows``: the rows of LANES pixels a work-item.
     """
 
     order: np.ndarray
@@ -49,6 +53,7 @@ class Tiling:
     centres: np.ndarray
     half_extent: float
     phase_bound: float
+    rows: int = ROWS
 
     @property
     def real(self) -> np.ndarray:
@@ -56,10 +61,10 @@ class Tiling:
         return self.order >= 0
 
 
-def _padded_order(parts: list) -> tuple[np.ndarray, np.ndarray]:
+def _padded_order(parts: list, rows: int) -> tuple[np.ndarray, np.ndarray]:
     """(order, work-items' tiles) of tiles given as arrays of pixel indices, each padded with -1 to
-    whole work-items."""
-    width = LANES * ROWS
+    whole work-items of ``rows`` x LANES."""
+    width = LANES * rows
     counts = np.array([p.size for p in parts])
     padded = -(-counts // width) * width
     order = np.full(int(padded.sum()), -1, np.int64)
@@ -143,10 +148,11 @@ def _cells(pixels: np.ndarray, budget: float):
     return np.split(by_key, first[1:]), low, high
 
 
-def plan_tiles(positions: np.ndarray, f0: float, c: float, half_extent: float | None = None) -> Tiling:
+def plan_tiles(positions: np.ndarray, f0: float, c: float, half_extent: float | None = None,
+               rows: int = ROWS) -> Tiling:
     """The tiles of the pixels ``positions`` (a grid's (..., 3) array, m; see the module docstring)
     whose pixels lie within ``half_extent`` (default :func:`tile_half_extent`) of their reference
-    points, the centres of their bounding boxes. Raises ValueError when the bound is not met (it
+    points, the centres of their bounding boxes, in work-items of ``rows`` x LANES. Raises ValueError when the bound is not met (it
     is by construction; the check guards the arithmetic)."""
     positions = np.asarray(positions, dtype=np.float64)
     budget = tile_half_extent(f0, c) if half_extent is None else float(half_extent)
@@ -156,7 +162,7 @@ def plan_tiles(positions: np.ndarray, f0: float, c: float, half_extent: float | 
     if found is None:
         found = _cells(positions.reshape(-1, 3), budget)
     parts, low, high = found
-    order, tile = _padded_order(parts)
+    order, tile = _padded_order(parts, rows)
     extent = float(0.5 * np.sqrt(np.max(np.sum((high - low) ** 2, axis=1))))
     if extent > budget * (1 + 1e-9):
         raise ValueError(f"tiles reach {extent:.3g} m from their reference points, beyond the {budget:.3g} m "
@@ -164,25 +170,27 @@ def plan_tiles(positions: np.ndarray, f0: float, c: float, half_extent: float | 
     bound = 2 * np.pi * f0 * ERROR_FACTOR * EPS32 * extent / c
     for a in (order, tile):
         a.flags.writeable = False
-    return Tiling(order, tile, 0.5 * (low + high), extent, float(bound))
+    return Tiling(order, tile, 0.5 * (low + high), extent, float(bound), rows)
 
 
 class GridPlan:
     """A grid and its tile plan (:func:`plan_tiles`), made on first use for a carrier and sound
     speed and kept. Pass it to :func:`backproject` in place of the grid to image the same grid
     again without tiling it again (e.g. re-imaging an echo at several target velocities or after
-    autofocus). It holds 8 bytes a pixel once used (the tile order)."""
+    autofocus). It holds 8 bytes a pixel once used (the tile order). ``rows``: the rows of LANES
+    pixels a bp_tile work-item holds (default ROWS; a tuning knob the benches compare)."""
 
-    def __init__(self, grid: Grid):
+    def __init__(self, grid: Grid, rows: int = ROWS):
         if not isinstance(grid, Grid):
             raise TypeError(f"grid must be a clsas.model.Grid, got {type(grid).__name__}")
+        self.rows = validate.integer("rows", rows, 1, 16, why="rows of 16 pixels a bp_tile work-item")
         self.grid = grid
         self._tilings = {}
 
     def tiling(self, f0: float, c: float) -> Tiling:
         key = (float(f0), float(c))
         if key not in self._tilings:
-            self._tilings[key] = plan_tiles(self.grid.positions, f0, c)
+            self._tilings[key] = plan_tiles(self.grid.positions, f0, c, rows=self.rows)
         return self._tilings[key]
 
 

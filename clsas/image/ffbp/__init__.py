@@ -45,12 +45,13 @@ import numpy as np
 
 from ... import backend as _backend
 from ... import budget, validate
+from ...interp import INTERPOLATORS, TAP_ROWS
 from ...model import EchoData, Grid, Image
 from ...progress import Progress, stage
 from ..backprojection.records import FFT_BATCH_BYTES, check_options
 from .leaves import BATCH_POINTS, RECORD_BYTES, FirstStage
-from .merge import KERNEL_TAPS
-from .polar import Scene
+from .merge import CHUNK, KERNEL_TAPS
+from .polar import CHUNK_NODES, Scene
 from .store import DeviceStore, HostStore
 from .tree import Tree, plan
 
@@ -59,10 +60,79 @@ DEFAULT_FACTOR = 4  # children a merge (bench_ffbp --factors compares 2)
 
 __all__ = ["DEFAULT_FACTOR", "DEFAULT_TOLERANCE", "ffbp", "memory_plan"]
 
-SAMPLE_BYTES = 8  # a polar or image sample on OpenCL (complex64)
+SAMPLE_BYTES = {"opencl": 8, "numpy": 16}  # a polar or image sample (complex64 on the device, complex128 on NumPy)
 LEAF_BATCH_BYTES = 40  # held a polar sample of a first-stage batch (leaves.py: device image 16, fields 16, work-items)
 LEAF_BYTES = 200  # transient a sample of the leaf being tiled (points, padded blocks, offsets; float64)
-GRID_BYTES = 2 * SAMPLE_BYTES + 24 + 3 * 8  # a pixel: the image (device, host), the pixels' copy, the scene's float temporaries
+GRID_BYTES = 2 * 8 + 24 + 3 * 8  # a pixel: the image (device, host), the pixels' copy, the scene's float temporaries
+# NumPy backend (tests/test_ffbp.py holds the traced peaks below these):
+REFERENCE_PIXEL_PULSE_BYTES = 320  # back-projection's reference (a leaf): a pixel-pulse of its chunk
+REFERENCE_SAMPLE_BYTES = 400  # ... and a leaf sample (its points, their Grid, image, demodulation)
+MERGE_SAMPLE_BYTES = 320  # merge_reference: an output sample of its chunk (merge.CHUNK)
+# planning (tree.plan), a skeleton point (polar.Scene): the track's ranges (up to 2 x 66 rows:
+# tree._Frames) and CHUNK_NODES sub-apertures' ranges, sines and bins (polar._extents), float64
+PLAN_BYTES = 8 * (2 * 66 + 6 * CHUNK_NODES)
+TABLE_COPIES = {"knab": 8, "kaiser": 16}  # float64 temporaries of building a tap table (interp.tap_table)
+
+
+def _tables(taps: int, interp: str) -> float:
+    """Bytes of the tap tables a call may build and keep (interp.tap_table caches a few): the merge's
+    Knab table (built, kept in float64 and float32) and, for interp="sinc8", the first stage's
+    Kaiser table (built, kept)."""
+    row = 8.0 * TAP_ROWS
+    merge = row * taps * (TABLE_COPIES["knab"] + 1.5)
+    first = 0.0 if interp == "linear" else row * INTERPOLATORS[interp] * (TABLE_COPIES["kaiser"] + 1.5)
+    return merge + first
+
+
+def _fixed_parts(n_pixels: int, skeleton: int, taps: int, interp: str, backend: str, echo_bytes: float) -> dict:
+    """The parts of :func:`memory_plan` that do not depend on the tree: ``image``, ``records``,
+    ``tables`` and ``planning`` (the tree's plan, before any other part is allocated)."""
+    return {"image": 2 * SAMPLE_BYTES[backend] * n_pixels,
+            "records": min(RECORD_BYTES, echo_bytes) + 3 * min(FFT_BATCH_BYTES, 2 * echo_bytes),
+            "tables": _tables(taps, interp),
+            "planning": PLAN_BYTES * skeleton}
+
+
+def memory_plan(tree: Tree, n_pixels: int, factor: int, echo_bytes: float = float("inf"), *, taps: int = 8,
+                interp: str = "linear", backend: str = "opencl") -> dict:
+    """Bytes held at most at once by :func:`ffbp` besides the user's grid and echo, by part, from
+    the tree's allocation plan (issue 15, item 6), and their ``total``:
+
+    - ``image``: the result, n_pixels samples (SAMPLE_BYTES: complex64 on the device, complex128
+      on NumPy) and its copy on the host;
+    - ``tree``: the depth-first walk (store.py): building a node of level l + 1 holds one group of
+      its ``factor`` children's images, at most factor x the largest node of level l, for every
+      level below the top at once;
+    - ``top``: the group of top nodes waiting for the final stage (closed once it holds n_pixels
+      samples, so at most n_pixels + the largest top node);
+    - ``first_stage``: OpenCL: a batch of leaves (leaves.BATCH_POINTS samples x LEAF_BATCH_BYTES)
+      and the leaf being tiled (its samples x LEAF_BYTES); NumPy: the batch's images and one leaf's
+      back-projection by the reference (a chunk of its pixel-pulses);
+    - ``merge``: NumPy: the reference merge's chunk (merge.CHUNK samples) and its result;
+    - ``records``: the prepared records (leaves.RECORD_BYTES, or the whole echo's prepared
+      samples ``echo_bytes`` if fewer) and the upsampling's spectra
+      (backprojection.records.FFT_BATCH_BYTES, three copies, or three times the echo's if fewer);
+    - ``tables``: the tap tables built and kept (the merge's, and the first stage's for sinc8);
+    - ``planning``: not held with the others (the plan is made first), so counted as 0 here
+      (:func:`ffbp` checks it with the fixed parts before planning).
+    """
+    largest = [max((g.size for g in level if g is not None), default=0) for level in tree.grids[:tree.top + 1]]
+    leaf_batch = min(BATCH_POINTS, sum(g.size for g in tree.grids[0] if g is not None))
+    sample = SAMPLE_BYTES[backend]
+    parts = _fixed_parts(n_pixels, 0, taps, interp, backend, echo_bytes)
+    parts.update(tree=sample * factor * sum(largest[:-1]), top=sample * (n_pixels + largest[-1]))
+    if backend == "numpy":
+        chunk = min(largest[0], 2**20)  # backproject_reference's chunk of pixels, and its pulses
+        pulses = min(tree.first, max(1, 2**22 // max(chunk, 1)))
+        parts["first_stage"] = (sample * leaf_batch + REFERENCE_SAMPLE_BYTES * largest[0]
+                                + REFERENCE_PIXEL_PULSE_BYTES * chunk * pulses)
+        target = max(largest[1:] + [n_pixels])
+        parts["merge"] = MERGE_SAMPLE_BYTES * min(target, CHUNK) + (sample + 4) * target  # out, spans' masks
+    else:
+        parts["first_stage"] = LEAF_BATCH_BYTES * leaf_batch + LEAF_BYTES * largest[0]
+        parts["merge"] = 0
+    parts["total"] = sum(parts.values())
+    return parts
 
 
 def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsample, aperture, stop_and_go):
@@ -93,33 +163,6 @@ def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsamp
                              "transmitter); ffbp's polar grids follow "
                              "the platform, so leave it out with receivers=... and image it with clsas.backproject")
     return chosen
-
-
-def memory_plan(tree: Tree, n_pixels: int, factor: int, echo_bytes: float = float("inf")) -> dict:
-    """Bytes held at most at once by :func:`ffbp` on OpenCL besides the user's grid and echo, by
-    part, from the tree's allocation plan (issue 15, item 6), and their ``total``:
-
-    - ``image``: the result, n_pixels complex64 on the device and its copy on the host;
-    - ``tree``: the depth-first walk (store.py): building a node of level l + 1 holds one group of
-      its ``factor`` children's images, at most factor x the largest node of level l, for every
-      level below the top at once;
-    - ``top``: the group of top nodes waiting for the final stage (closed once it holds n_pixels
-      samples, so at most n_pixels + the largest top node);
-    - ``first_stage``: a batch of leaves (leaves.BATCH_POINTS samples x LEAF_BATCH_BYTES) and the
-      leaf being tiled (its samples x LEAF_BYTES);
-    - ``records``: the prepared records (leaves.RECORD_BYTES, or the whole echo's prepared
-      samples ``echo_bytes`` if fewer) and the upsampling's spectra
-      (backprojection.records.FFT_BATCH_BYTES, three copies, or three times the echo's if fewer).
-    """
-    largest = [max((g.size for g in level if g is not None), default=0) for level in tree.grids[:tree.top + 1]]
-    leaf_batch = min(BATCH_POINTS, sum(g.size for g in tree.grids[0] if g is not None))
-    parts = {"image": 2 * SAMPLE_BYTES * n_pixels,
-             "tree": SAMPLE_BYTES * factor * sum(largest[:-1]),
-             "top": SAMPLE_BYTES * (n_pixels + largest[-1]),
-             "first_stage": LEAF_BATCH_BYTES * leaf_batch + LEAF_BYTES * largest[0],
-             "records": min(RECORD_BYTES, echo_bytes) + 3 * min(FFT_BATCH_BYTES, 2 * echo_bytes)}
-    parts["total"] = sum(parts.values())
-    return parts
 
 
 _SCENES = weakref.WeakKeyDictionary()  # Grid -> its Scene, for calls that image many echoes onto one grid
@@ -189,10 +232,14 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
     chosen = _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsample, aperture, stop_and_go)
     name = _backend.resolve(backend)
     scene = _scene(grid)
-    tree = plan(echo, chosen, scene, int(factor), float(tolerance), taps, first, aperture)
     echo_bytes = 8.0 * (upsample if interp == "linear" else 1) * echo.n_samples * echo.n_pulses * len(chosen)
-    budget.check_bytes(f"ffbp of {echo.n_pulses} pulses onto {grid.size} pixels ({tree.top + 1} levels)",
-                       memory_plan(tree, grid.size, int(factor), echo_bytes)["total"],
+    budget.check_bytes(f"ffbp of {echo.n_pulses} pulses onto {grid.size} pixels (its image, records, tables and "
+                       "plan)", sum(_fixed_parts(grid.size, scene.skeleton.shape[0], taps, interp, name,
+                                                 echo_bytes).values()),
+                       "image fewer pixels at a time (tiles of the grid)")
+    tree = plan(echo, chosen, scene, int(factor), float(tolerance), taps, first, aperture)
+    memory = memory_plan(tree, grid.size, int(factor), echo_bytes, taps=taps, interp=interp, backend=name)["total"]
+    budget.check_bytes(f"ffbp of {echo.n_pulses} pulses onto {grid.size} pixels ({tree.top + 1} levels)", memory,
                        "image fewer pixels at a time (tiles of the grid), or give a larger tolerance")
     f0, c = echo.waveform.f0, echo.medium.sound_speed
     pixels = grid.positions.reshape(-1, 3)
@@ -235,7 +282,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
                  provenance={"algorithm": "ffbp", "backend": name, "factor": int(factor), "tolerance": float(tolerance),
                              "taps": int(taps), "first": tree.first, "levels": top + 1,
                              "oversampling": tree.rho, "polar_samples": tree.samples(),
-                             "memory_bytes": memory_plan(tree, pixels.shape[0], int(factor), echo_bytes)["total"],
+                             "memory_bytes": memory,
                              "interp": interp, "upsample": int(upsample),
                              "receivers": [echo.receivers[h] for h in chosen], "aperture": aperture,
                              "stop_and_go": bool(stop_and_go), "echo": dict(echo.provenance)})

@@ -44,7 +44,9 @@ axis): d(r, v, a) = sqrt(r^2 - 2 r a v + a^2). At frequency f the phase 2 pi f 2
 the maxima taken over a = +-L, v over the grid's span and r = r_min (the nearest scene range;
 both bounds fall with r). The first term of W_r is the pulse band (f in f0 +- B/2), the second
 the range curvature of a long sub-aperture (its polar image is not band-limited to B alone).
-Samples every dr = 1 / (2 W_r rho) and dv = 1 / (2 W_v rho) oversample the band by rho; a
+Samples every dr = 1 / (2 W_r rho) and dv = 1 / (2 W_v rho) oversample the band by rho (dv at most
+1 / pad, pad the grid's padding in samples: a one-pulse monostatic sub-aperture has W_v = 0, and a
+finer step only oversamples more); a
 T-tap windowed sinc (Knab's window for that oversampling, :func:`clsas.interp.tap_table`)
 then interpolates a band-edge component with an error e_T(rho) (amplitude and phase, relative;
 tabulated by :func:`interpolation_error`). A merge tree of S interpolation stages makes 2 S
@@ -74,12 +76,14 @@ OFFSET_ROWS = 4  # origins whose distances to the skeleton are computed at once 
 RAGGED = True  # polar grids computed only within their rows' spans (False: whole rectangles, for comparison)
 
 
-@functools.lru_cache(maxsize=64)
+@functools.lru_cache(maxsize=2 * RHO_STEPS.size)  # both interpolators, every oversampling
 def interpolation_error(taps: int, rho: float) -> float:
     """The largest error |interpolated - exact| of a unit complex exponential at the band edge
     (1 / (2 rho) cycles a sample) over all fractional offsets, for the ``taps``-tap Knab-windowed
-    sinc of the tap table at oversampling ``rho``."""
-    table = tap_table(taps, "knab", float(rho))
+    sinc of the tap table at oversampling ``rho``. The table is built and dropped (the uncached
+    :func:`clsas.interp.tap_table`: the rule walks many oversamplings, whose tables would push the
+    ones in use out of its cache); only the error is kept."""
+    table = tap_table.__wrapped__(taps, "knab", float(rho))
     f = 1 / (2 * rho)
     w = np.linspace(0.0, 1.0, table.shape[0])
     x = np.arange(taps) - (taps // 2 - 1)
@@ -95,9 +99,10 @@ def oversampling(taps: int, tolerance: float, stages: int) -> float:
         if interpolation_error(taps, float(rho)) <= budget:
             return float(rho)
     best = interpolation_error(taps, float(RHO_STEPS[-1]))
-    raise ValueError(f"tolerance {tolerance} needs an interpolation error below {budget:.2g} at each of {stages} "
+    advice = "a larger tolerance" if taps == 8 else "taps=8 or a larger tolerance"
+    raise ValueError(f"ffbp tolerance: {tolerance} needs an interpolation error below {budget:.2g} at each of {stages} "
                      f"stages, which the {taps}-tap interpolator does not reach ({best:.2g} at oversampling "
-                     f"{RHO_STEPS[-1]}); use taps=8 or a larger tolerance")
+                     f"{RHO_STEPS[-1]}); use {advice}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -322,9 +327,12 @@ class Extent:
 
     def _sampling(self, rho: float, taps: int) -> tuple:
         """(r0, dr, n_r, v0, dv, n_v, pad) of the polar grid at oversampling ``rho`` (:meth:`sample`)."""
-        dr = 1 / (2 * self.w_r * rho)
-        dv = 1 / (2 * max(self.w_v, 1e-12) * rho)
         pad = taps // 2 + 2  # the interpolator reads taps / 2 samples either side; 2 more for frame shifts
+        dr = 1 / (2 * self.w_r * rho)
+        # a sub-aperture of (nearly) zero length (one pulse, monostatic) has no band in v (W_v = 0):
+        # any step samples it, so the step is capped to keep the padding within one unit of sine
+        # of the scene's (|v| <= 2: points within twice their range of the centre)
+        dv = min(1 / (2 * max(self.w_v, 1e-12) * rho), 1.0 / pad)
         n_r = int(np.ceil((self.r_hi - self.r_lo) / dr)) + 1 + 2 * pad
         n_v = int(np.ceil((self.v_hi - self.v_lo) / dv)) + 1 + 2 * pad
         return self.r_lo - pad * dr, dr, n_r, self.v_lo - pad * dv, dv, n_v, pad

@@ -7,7 +7,9 @@ longer leaves faster in every case where the angle rule alone gave more);
 a node of level l + 1 is ``factor`` consecutive nodes of level l. A node's frame:
 
 - centre C: the mean of its phase centres, the midpoints of the transmitter at emission and
-  each selected receiver (the mean of its position nodes over the recording);
+  each selected receiver at each of its position nodes over the recording (a receiver that moves
+  while it records has its phase centre move with the echo's delay: a one-pulse node has a
+  length too);
 - axis u: the unit chord of the transmitter's track from the node's first to its last pulse
   (a one-pulse node: the chord over its neighbours);
 - half-length L: max |a| + max |b| + max |T - R|^2 / (4 r_near) over its phase centres, a
@@ -78,12 +80,13 @@ class _Frames:
     """Phase centres and bistatic baselines of the echo's pulses, and node frames from them."""
 
     def __init__(self, echo: EchoData, chosen: list, scene: Scene):
-        rx = echo.rx_pos[chosen].mean(axis=2)  # (n_sel, N, 3)
+        rx = np.moveaxis(echo.rx_pos[chosen], 2, 1)  # (n_sel, nodes, N, 3): each receiver over its recording
+        rx = rx.reshape(-1, *rx.shape[2:])  # (n_sel x nodes, N, 3), receiver by receiver
         self.tx = echo.tx_pos
         self.mids = 0.5 * (self.tx[None] + rx)
         self.baseline = np.linalg.norm(rx - self.tx[None], axis=-1).max(axis=0)  # (N,)
         step = max(1, echo.n_pulses // 64)  # the array's two ends every ~1/64 of the track
-        ends = sorted({0, len(chosen) - 1})  # the array's first and last receiver (one when they are the same)
+        ends = sorted({0, rx.shape[0] - 1})  # the first receiver's first node, the last one's last (or the same)
         track = np.concatenate([self.mids[ends, ::step].reshape(-1, 3), self.mids[ends, -1]])
         self.r_near = float(scene.offsets(track)[0].min()) - scene.margin
 
@@ -176,8 +179,9 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         rho = oversampling(taps, tolerance, top + 1)
         grids = [grids_for(pulses[0], rho)] + [[None] * len(level) for level in pulses[1:]]
         if all(g is None for g in grids[0]):
-            raise ValueError("grid: no pixel lies within the recorded range window (and the integration angle, "
-                             "if given) of any sub-aperture: the sonar never sees this grid")
+            angle = "" if aperture is None else f" and within the integration angle ffbp aperture={aperture!r} rad"
+            raise ValueError(f"grid: no pixel lies within the recorded range window{angle} of any sub-aperture: the "
+                             "sonar never sees this grid")
         new_top = 0
         while new_top + 1 < len(pulses):
             level = new_top + 1
