@@ -42,6 +42,10 @@ from clsas.scene.targets import PointTargets
 
 ACROSS = (27.0, 47.0)      # m, the bias scenes' seafloor across track
 R0 = 37.0                  # m, the range at which their footprint is measured
+# scatterers a square metre of the bias scenes' seafloor up to one footprint long; a longer one
+# holds as many a range cell (3.75 cm x its length) as one footprint long at this density, i.e.
+# the speckle of the 0.5x case doubled, for a quarter of the simulation at 4x
+DENSITY = 20.0
 
 
 def bias_sonar(tx_factor: float, pings: int) -> Scenario:
@@ -61,13 +65,13 @@ def footprint(scene: Scenario) -> float:
 
 def motionless_scene(tx_factor: float, extent: float, pings: int = 30, seed: int = 3):
     """(scene, the seafloor's dpca.SeafloorExtent, range-compressed echo): :func:`bias_sonar`
-    over a speckle seafloor of random point scatterers (20 a square metre, complex Gaussian
-    reflectivities) ACROSS m across track and ``extent`` x the footprint long, centred on the
-    track, on a motionless platform (every pair's true yaw is 0)."""
+    over a speckle seafloor of random point scatterers (DENSITY / max(1, extent) a square metre,
+    complex Gaussian reflectivities) ACROSS m across track and ``extent`` x the footprint long,
+    centred on the track, on a motionless platform (every pair's true yaw is 0)."""
     scene = bias_sonar(tx_factor, pings)
     half = extent * footprint(scene) / 2
     rng = np.random.default_rng(seed)
-    n = int(20 * (ACROSS[1] - ACROSS[0]) * 2 * half)
+    n = int(DENSITY / max(1.0, extent) * (ACROSS[1] - ACROSS[0]) * 2 * half)
     pos = np.stack([rng.uniform(*ACROSS, n), rng.uniform(-half, half, n), np.zeros(n)], -1)
     floor = PointTargets(pos, reflectivity=(rng.normal(size=n) + 1j * rng.normal(size=n)) / np.sqrt(2))
     scene = scene.replace(targets=(floor,))

@@ -29,6 +29,7 @@ import secrets
 import shutil
 import signal
 import threading
+import warnings
 from pathlib import Path
 
 log = logging.getLogger("clsas")
@@ -45,6 +46,31 @@ def name_max(folder: Path) -> int:
         return int(os.pathconf(folder, "PC_NAME_MAX"))
     except (OSError, ValueError, AttributeError):  # pragma: no cover - non-POSIX
         return 255
+
+
+def check_output(name: str, value, suffixes: tuple, overwrite: bool = True) -> Path:
+    """The Path of a single file to write, checked before anything is computed: a str or
+    os.PathLike (TypeError), one of ``suffixes`` (ValueError), an existing folder
+    (FileNotFoundError), a name the folder holds (ValueError), and what is there a regular file
+    that may be replaced (IsADirectoryError, FileExistsError; ``overwrite``). Every message
+    starts with ``name``."""
+    if not isinstance(value, (str, os.PathLike)) or isinstance(value, bytes):
+        raise TypeError(f"{name}: must be a file name (str or os.PathLike), got {value!r:.60} ({type(value).__name__})")
+    path = Path(value)
+    if path.suffix.lower() not in suffixes:
+        raise ValueError(f"{name}: {str(path)!r} must end in {', '.join(suffixes)}")
+    if not path.parent.is_dir():
+        what = "does not exist" if not path.parent.exists() else "is a file, not a folder"
+        raise FileNotFoundError(f"{name}: the folder {str(path.parent)!r} {what}")
+    if len(os.fsencode(path.name)) > name_max(path.parent):
+        raise ValueError(f"{name}: the file name is {len(os.fsencode(path.name))} bytes long; the folder "
+                         f"{str(path.parent)!r} allows names of at most {name_max(path.parent)}")
+    if path.exists() or path.is_symlink():
+        if not path.is_file():
+            raise IsADirectoryError(f"{name}: {str(path)!r} exists and is not a regular file; not replaced")
+        if not overwrite:
+            raise FileExistsError(f"{name}: {str(path)!r} exists; give --overwrite to replace it")
+    return path
 
 
 def remove(path: Path) -> None:
@@ -108,10 +134,28 @@ def _signals_as_exceptions():
         _pending.clear()
 
 
+def stale_temporaries(path: Path) -> list:
+    """The temporaries of ``path`` already beside it: left by a save that was killed where no
+    handler runs (SIGKILL, the out-of-memory killer, a power cut), or one still running."""
+    stem = os.fsencode(path.name)[:_TEMPORARY_NAME_BYTES].decode(errors="ignore")
+    try:
+        return sorted(p for p in path.parent.iterdir()
+                      if p.name.startswith(f".{stem}.") and p.name.endswith(f"{TEMPORARY_TAG}{path.suffix}"))
+    except OSError:
+        return []
+
+
 @contextlib.contextmanager
 def temporary(path: Path):
     """A temporary name beside ``path`` (see the module docstring); whatever is there when the
-    block ends (error, Ctrl-C, SIGTERM, or not renamed) is deleted."""
+    block ends (error, Ctrl-C, SIGTERM, or not renamed) is deleted. Temporaries of ``path``
+    already there (:func:`stale_temporaries`) are named in a RuntimeWarning, never deleted: a
+    save elsewhere may still be writing one."""
+    stale = stale_temporaries(path)
+    if stale:
+        warnings.warn(f"{str(path)!r}: {', '.join(repr(p.name) for p in stale)} beside it: left by a save that was "
+                      "killed (SIGKILL, out of memory) or one still running; delete them once no save of it runs",
+                      RuntimeWarning, stacklevel=3)
     tmp = temporary_name(path)
     terminated = None
     with _signals_as_exceptions():
@@ -132,8 +176,11 @@ def replace(tmp: Path, path: Path) -> None:
     """Move the written ``tmp`` onto ``path`` with one rename: ``os.replace`` for a file; for a
     folder over a folder, one exchange of the two (the old one, now under ``tmp``'s name, is
     deleted). The folder holding them is synced. A signal noted while the temporary was
-    written stops it first (:func:`check_signals`)."""
+    written stops it first (:func:`check_signals`). The temporary's data reach the disk
+    before the rename (:func:`sync_tree`), so that a crash after it finds the new file whole,
+    not an empty or short one (nor, for a store, the old one deleted and the new one lost)."""
     check_signals()
+    sync_tree(tmp)
     if tmp.is_dir() and path.is_dir() and not path.is_symlink():
         if not _exchange(tmp, path):
             _replace_in_two_steps(tmp, path)
@@ -170,6 +217,25 @@ def _replace_in_two_steps(tmp: Path, path: Path) -> None:
         os.rename(aside, path)
         raise
     os.rename(aside, tmp)  # deleted by the caller with the temporary
+
+
+def sync_tree(path: Path) -> None:
+    """fsync a file, or every file and folder of a tree from the bottom up (a zarr store); a
+    symbolic link is not followed. Folders that cannot be synced are skipped."""
+    if path.is_symlink():
+        return
+    if not path.is_dir():
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        return
+    for folder, _, files in os.walk(path, topdown=False):
+        for name in files:
+            if not os.path.islink(os.path.join(folder, name)):
+                sync_tree(Path(folder, name))
+        sync_folder(Path(folder))
 
 
 def sync_folder(folder: Path) -> None:

@@ -29,6 +29,8 @@ import contextvars
 import os
 import warnings
 
+from .thread_setting import ThreadSetting
+
 BACKENDS = ("numpy", "opencl", "auto")
 
 #: set by use_backend in the current context; None defers to CLSAS_BACKEND, then "auto"
@@ -53,7 +55,7 @@ def default() -> str:
     return "auto"
 
 
-class use_backend:
+class use_backend(ThreadSetting):
     """Set the default backend of the current thread (context); as a context manager, restore
     the previous one on exit.
 
@@ -63,19 +65,8 @@ class use_backend:
     """
 
     def __init__(self, name: str):
-        checked = _check_name(name, "use_backend name: the backend")
-        self._previous = _choice.get()
-        self._token = _choice.set(checked)
-        self.name = checked
-
-    def __enter__(self) -> "use_backend":
-        return self
-
-    def __exit__(self, *exc_info) -> None:
-        try:
-            _choice.reset(self._token)
-        except (RuntimeError, ValueError):  # the same object entered twice, or exited in another context
-            _choice.set(self._previous)
+        self.name = _check_name(name, "use_backend name: the backend")
+        super().__init__(_choice, self.name)
 
     def __repr__(self) -> str:
         return f"use_backend({self.name!r})"

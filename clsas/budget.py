@@ -30,6 +30,7 @@ import os
 import re
 
 from .errors import MemoryBudgetError
+from .thread_setting import ThreadSetting
 
 ENV = "CLSAS_MEMORY_BUDGET"
 DEFAULT_FRACTION = 0.5  # of physical memory
@@ -79,24 +80,14 @@ def memory_budget() -> int:
     return int(DEFAULT_FRACTION * physical_memory())
 
 
-class use_memory_budget:
+class use_memory_budget(ThreadSetting):
     """Set the memory budget of the current thread (context): bytes, or a string like ``"16G"``;
     as a context manager, restore the previous one on exit. ``None`` goes back to the
     environment variable or the default."""
 
     def __init__(self, nbytes):
         self.nbytes = None if nbytes is None else parse_bytes(nbytes, "use_memory_budget nbytes")
-        self._previous = _choice.get()
-        self._token = _choice.set(self.nbytes)
-
-    def __enter__(self) -> "use_memory_budget":
-        return self
-
-    def __exit__(self, *exc_info) -> None:
-        try:
-            _choice.reset(self._token)
-        except (RuntimeError, ValueError):  # the same object entered twice, or exited in another context
-            _choice.set(self._previous)
+        super().__init__(_choice, self.nbytes)
 
     def __repr__(self) -> str:
         return f"use_memory_budget({self.nbytes!r})"

@@ -90,7 +90,7 @@ def _extents(scenario: Scenario, client, pulses_per_task: int, backend, stop_and
     multipath = SynthesisOptions(multipath=multipath).multipath  # checked here, before any task
     futures = [client.submit(_block_extent, pulse_block(scenario, a, b), backend, stop_and_go, multipath, pure=False)
                for a, b in _blocks(scenario.eta.size, pulses_per_task)]
-    extents = client.gather(futures)
+    extents = _gather(client, futures)
     fs = scenario.waveform.fs
     return np.min([e[0] for e in extents], axis=0) / fs, np.max([e[1] for e in extents], axis=0) / fs
 
@@ -178,7 +178,7 @@ def simulate(scenario: Scenario, client, pulses_per_task: int = 64, snr_db: floa
                 _zarr_template(head, tmp, "echo", (1, int(pulses_per_task)))
             futures = [client.submit(_simulate_block, pulse_block(scenario, a, b), kwargs,
                                      None if tmp is None else str(tmp), a, n_valid, pure=False) for a, b in blocks]
-            parts = client.gather(futures)
+            parts = _gather(client, futures)
         power = (np.concatenate([p[1][0] for p in parts], axis=1), np.concatenate([p[1][1] for p in parts], axis=1))
         provenance = dict(parts[0][2], snr_db=snr_db,
                           seed=seed if seed is None or isinstance(seed, int) else str(seed),
@@ -207,6 +207,17 @@ def simulate(scenario: Scenario, client, pulses_per_task: int = 64, snr_db: floa
 
         save(echo, out)
     return echo
+
+
+def _gather(client, futures) -> list:
+    """The tasks' results; when one fails (or the gather is interrupted), the others are
+    cancelled before the error goes on, so that none keeps writing into a store the failure is
+    about to delete (nor wastes the workers' time)."""
+    try:
+        return client.gather(futures)
+    except BaseException:
+        client.cancel(futures)
+        raise
 
 
 def _store(out, gather: bool, what: str) -> Path | None:
@@ -324,7 +335,7 @@ def backproject(echo: EchoData, grid: Grid, client, rows_per_task: int | None = 
             shared = client.scatter(echo, broadcast=True)
             futures = [client.submit(_backproject_band, shared, grid_band(grid, a, b), kwargs,
                                      None if tmp is None else str(tmp), a, pure=False) for a, b in bands]
-            parts = client.gather(futures)
+            parts = _gather(client, futures)
         provenance = dict(parts[0][1], distributed={"tasks": len(bands), "rows_per_task": int(rows),
                                                     "written_by": "workers" if store else "client"})
         if "exact_fallback_blocks" in provenance:

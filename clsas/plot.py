@@ -11,7 +11,6 @@ track, m; eta slow time, tau fast time, s); two axes in the same unit are drawn 
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -145,27 +144,9 @@ def save_figure(figure_or_ax, path) -> Path:
 
 
 def check_picture(name: str, value, overwrite: bool = True) -> Path:
-    """The Path of a picture to write, checked before anything is drawn: a str or os.PathLike
-    (TypeError), a suffix of :data:`PICTURE_SUFFIXES` (ValueError), an existing folder
-    (FileNotFoundError), a name the folder holds (ValueError), and what is there a regular file
-    that may be replaced (IsADirectoryError, FileExistsError; ``overwrite``)."""
-    if not isinstance(value, (str, os.PathLike)) or isinstance(value, bytes):
-        raise TypeError(f"{name}: must be a file name (str or os.PathLike), got {value!r:.60} ({type(value).__name__})")
-    path = Path(value)
-    if path.suffix.lower() not in PICTURE_SUFFIXES:
-        raise ValueError(f"{name}: {str(path)!r} must end in {', '.join(PICTURE_SUFFIXES)}")
-    if not path.parent.is_dir():
-        what = "does not exist" if not path.parent.exists() else "is a file, not a folder"
-        raise FileNotFoundError(f"{name}: the folder {str(path.parent)!r} {what}")
-    if len(os.fsencode(path.name)) > atomic.name_max(path.parent):
-        raise ValueError(f"{name}: the file name is {len(os.fsencode(path.name))} bytes long; the folder "
-                         f"{str(path.parent)!r} allows names of at most {atomic.name_max(path.parent)}")
-    if path.exists() or path.is_symlink():
-        if not path.is_file():
-            raise IsADirectoryError(f"{name}: {str(path)!r} exists and is not a regular file; not replaced")
-        if not overwrite:
-            raise FileExistsError(f"{name}: {str(path)!r} exists; give --overwrite to replace it")
-    return path
+    """The Path of a picture to write, checked before anything is drawn
+    (:func:`clsas.atomic.check_output` with :data:`PICTURE_SUFFIXES`)."""
+    return atomic.check_output(name, value, PICTURE_SUFFIXES, overwrite)
 
 
 def _check_image(caller: str, image, floor_db) -> None:

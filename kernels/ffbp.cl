@@ -18,7 +18,10 @@
  * at 150 kHz; AVX2 has no double <-> long vector conversion, PoCL makes it sixteen scalar ones);
  * the interpolation, the phase factor and the sum in float: each lane's TAPS rows of
  * TAPS complex samples times the range taps, weighted by the angle taps, and the lanes' complex
- * sums formed eight at a time across lanes (lanes.h).
+ * sums formed eight at a time across lanes (lanes.h). Sixteen whole points are loaded as three
+ * double16 and de-interleaved in registers, and sixteen results all stored (none past the end or
+ * zeroed outside a span) go out as two float16 (interleaved in registers): the lane-by-lane loops
+ * remain for the last, partial work-item and a span's edges.
  *
  * The records (declared once by clsas/image/ffbp/program.py, put in front of this source):
  * ffbp_frame_t, a polar grid's frame (PolarGrid.record): centre, axis, e1, e2 (m, unit vectors),
@@ -138,33 +141,41 @@ __kernel void ffbp_fields(__global const ffbp_item_t *items, __global const ffbp
 }
 
 /* The first stage's demodulated leaf image from bp_tile's slots (clsas/image/ffbp/leaves.py):
- * work-item g of a leaf's items[first + g] (leaf, row, first range sample, tile) holds slots
- * 16 (first + g) .. + 15 of image; each slot inside its row's span spans[row] (the samples
- * lo <= i < hi computed, within the leaf's grid, frame; the launcher zeroes the rest) goes to
- * out[out_offset + row * n_r + column] times exp(-j 2 pi cycles_per_m r) (the demodulation by its
- * range r), complex64. */
-__kernel void ffbp_leaf(__global const double2 *image, __global const ffbp_item_t *items, const int first,
-                        const int count, const ffbp_frame_t frame, __global const int2 *spans,
+ * work-item (q, j) writes the sixteen range samples 16 q .. 16 q + 15 (those < n_r) of row j of
+ * the leaf's grid (frame) to out[out_offset + j * n_r + i]: bp_tile's slots 16 g .. 16 g + 15 of
+ * image, g = slots[slot_first + j * ceil(n_r / 16) + q] (-1: a group no tile computed), times
+ * exp(-j 2 pi cycles_per_m r) (the demodulation by its range r), complex64; zero where g = -1 and
+ * outside the row's span spans[span_first + j] (the samples lo <= i < hi computed). */
+__kernel void ffbp_leaf(__global const double2 *image, __global const int *slots, const long slot_first,
+                        __global const int2 *spans, const long span_first, const ffbp_frame_t frame,
                         const double cycles_per_m, const long out_offset, __global float2 *out)
 {
-    if (get_global_id(0) >= count)  /* the launch is padded to whole work-groups */
+    const int q = get_global_id(0), j = get_global_id(1), n_r = frame.n_r;
+    const int groups = (n_r + 15) / 16, i0 = 16 * q;
+    if (q >= groups || j >= frame.n_v)  /* the launch is padded to whole work-groups */
         return;
-    const int g = first + get_global_id(0);
-    const ffbp_item_t t = items[g];
-    const int n_r = frame.n_r;
-    if (t.row >= frame.n_v)
+    const int g = slots[slot_first + (size_t)j * groups + q];
+    const int2 span = spans[span_first + j];
+    const int lo = g < 0 ? 16 : max(0, span.x - i0), hi = min(min(16, span.y - i0), n_r - i0);
+    __global float2 *o = out + out_offset + (size_t)j * n_r + i0;
+    const int n = min(16, n_r - i0);
+    if (lo >= hi) {
+        for (int l = 0; l < n; ++l)
+            o[l] = (float2)(0.0f, 0.0f);
         return;
-    const int2 span = spans[t.row];
-    const double16 cycles = cycles_per_m * (frame.r0 + (t.sample + LANE_INDEX) * frame.dr);
+    }
+    const double16 cycles = cycles_per_m * (frame.r0 + (i0 + LANE_INDEX) * frame.dr);
     float16 cs, sn;
     expj_fraction16(convert_float16(cycles - convert_double16(convert_int16(cycles))), &cs, &sn);
     float c_out[16], s_out[16];
     vstore16(cs, 0, c_out);
     vstore16(sn, 0, s_out);
-    __global float2 *o = out + out_offset + (size_t)t.row * n_r + t.sample;
-    for (int l = max(0, span.x - t.sample); l < min(16, span.y - t.sample); ++l) {
-        const double2 v = image[16 * (size_t)g + l];
-        const float2 a = (float2)((float)v.x, (float)v.y);
+    for (int l = 0; l < n; ++l) {
+        float2 a = (float2)(0.0f, 0.0f);
+        if (l >= lo && l < hi) {
+            const double2 v = image[16 * (size_t)g + l];
+            a = (float2)((float)v.x, (float)v.y);
+        }
         o[l] = (float2)(a.x * c_out[l] + a.y * s_out[l], a.y * c_out[l] - a.x * s_out[l]);
     }
 }
@@ -199,16 +210,24 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
     if (n_valid <= 0)  /* past the points (the launch is padded to whole work-groups) */
         return;
     first = i0;
-    double px[16], py[16], pz[16];
-    for (int l = 0; l < 16; ++l) {
-        const double3 q = vload3(i0 + min(l, n_valid - 1), points);
-        px[l] = q.x;
-        py[l] = q.y;
-        pz[l] = q.z;
+    if (n_valid == 16) {  /* sixteen points' 48 coordinates in three loads, de-interleaved in registers */
+        __global const double *p = points + 3 * (size_t)i0;
+        const double16 a = LOAD_D16(p), b = LOAD_D16(p + 16), c = LOAD_D16(p + 32);
+        x = (double16)(a.s0369, a.scf, b.s258b, b.se, c.s147a, c.sd);
+        y = (double16)(a.s147a, a.sd, b.s0369, b.scf, c.s258b, c.se);
+        z = (double16)(a.s258b, a.se, b.s147a, b.sd, c.s0369, c.scf);
+    } else {
+        double px[16], py[16], pz[16];
+        for (int l = 0; l < 16; ++l) {
+            const double3 q = vload3(i0 + min(l, n_valid - 1), points);
+            px[l] = q.x;
+            py[l] = q.y;
+            pz[l] = q.z;
+        }
+        x = vload16(0, px);
+        y = vload16(0, py);
+        z = vload16(0, pz);
     }
-    x = vload16(0, px);
-    y = vload16(0, py);
-    z = vload16(0, pz);
     r_p = (double16)0.0;
 #endif
     /* the lanes' bounding box: its centre and half-diagonal, for a cheap test of each child */
@@ -267,6 +286,28 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
         const float16 re = (float16)(lo.even, hi.even), im = (float16)(lo.odd, hi.odd);
         acc_re += re * cs - im * sn;
         acc_im += re * sn + im * cs;
+    }
+#ifdef PARENT_GRID
+    const int whole = n_valid == 16 && i0 >= span.x && i0 + 16 <= span.y;  /* every lane stored, none zeroed */
+#else
+    const int whole = n_valid == 16;
+#endif
+    if (whole) {  /* the sixteen complex results interleaved in registers, two stores */
+        __global float *o = (__global float *)(out + first);
+        const float16 lo = (float16)(acc_re.s0, acc_im.s0, acc_re.s1, acc_im.s1, acc_re.s2, acc_im.s2, acc_re.s3,
+                                     acc_im.s3, acc_re.s4, acc_im.s4, acc_re.s5, acc_im.s5, acc_re.s6, acc_im.s6,
+                                     acc_re.s7, acc_im.s7);
+        const float16 hi = (float16)(acc_re.s8, acc_im.s8, acc_re.s9, acc_im.s9, acc_re.sa, acc_im.sa, acc_re.sb,
+                                     acc_im.sb, acc_re.sc, acc_im.sc, acc_re.sd, acc_im.sd, acc_re.se, acc_im.se,
+                                     acc_re.sf, acc_im.sf);
+#ifdef PARENT_GRID
+        STORE_F16(lo, o);
+        STORE_F16(hi, o + 16);
+#else
+        STORE_F16(LOAD_F16(o) + lo, o);
+        STORE_F16(LOAD_F16(o + 16) + hi, o + 16);
+#endif
+        return;
     }
     float re_out[16], im_out[16];
     vstore16(acc_re, 0, re_out);

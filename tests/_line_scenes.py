@@ -11,7 +11,7 @@ import numpy as np
 import clsas
 from clsas import metrics
 from clsas.model import Image
-from clsas.reproduce._points import backprojected
+from clsas.reproduce._points import backprojected, patch
 from clsas.scene import presets
 from clsas.scene.scenario import (
     Array,
@@ -50,16 +50,6 @@ def huang_six(n_pulses: int = 32):
     return sc, clsas.range_compress(clsas.simulate(sc, backend="opencl", progress=False))
 
 
-def patch(image: Image, point, half_y: float, half_x: float) -> Image:
-    """The part of ``image`` within +-half_y, +-half_x (m) of ``point`` (x, y, z)."""
-    y, x = image.axes["y"], image.axes["x"]
-    rows = np.flatnonzero(np.abs(y - point[1]) <= half_y)
-    cols = np.flatnonzero(np.abs(x - point[0]) <= half_x)
-    sub = np.ix_(rows, cols)
-    return Image(data=image.data[sub], dims=("y", "x"), axes={"y": y[rows], "x": x[cols]},
-                 positions=image.positions[sub])
-
-
 def compare_with_backprojection(image: Image, echo, points, band_length: float):
     """Per point: location differences along y and x (in resolution cells D / 2 and c / (2 B)),
     the largest PSLR and ISLR differences (dB) over both cuts, and the SSIM of ``image``
@@ -71,7 +61,7 @@ def compare_with_backprojection(image: Image, echo, points, band_length: float):
     cell_y, cell_x = band_length / 2, echo.medium.sound_speed / (2 * echo.waveform.bandwidth)
     rows = []
     for p in points:
-        mine = patch(image, p, 6 * cell_y, 6 * cell_x)
+        mine = patch(image, p, (6 * cell_y, 6 * cell_x))
         bp = backprojected(echo, mine, aperture)
         a = metrics.analyse_point(mine, near=(p[1], p[0]), radius=cell_y)
         b = metrics.analyse_point(bp, near=(p[1], p[0]), radius=cell_y)

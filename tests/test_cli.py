@@ -207,6 +207,16 @@ def test_outputs_are_checked_before_any_work_and_never_replace_the_input(tmp_pat
         (["plot", "s.nc", "-o", "s.nc"], "that is the input file"),
         (["plot", "s.nc", "-o", "/nonexistent/x.png"], "-o: the folder '/nonexistent' does not exist"),
         (["plot", "s.nc", "--floor", "nan"], "--floor: must be a number of dB"),
+        # the fresh-clone trial (session 4): options that did nothing, or failed only after the work
+        (["image", "s.nc", "-o", "e.nc", "--elements", "a,b"], "--elements applies to --algorithm omegak, rda"),
+        (["image", "s.nc", "-a", "omegak", "-o", "e.nc", "--elements", "a,b"], "--elements: expected LTX,LRX"),
+        (["image", "s.nc", "-a", "omegak", "-o", "e.nc", "--elements", "0,nan"], "must be finite and > 0 m"),
+        (["image", "s.nc", "-a", "omegak", "-o", "e.nc", "--grid", "1:2:1,0:1:1,0"], "--grid applies to"),
+        (["image", "s.nc", "-o", "e.nc", "--grid", "1e300:2e300:1e299,0:1:1,0"],
+         "--grid 1e300:2e300:1e299,0:1:1,0: Grid.plane x: must be within"),
+        (["demo", "-o", "/nonexistent/demo"], "the folder /nonexistent does not exist"),
+        (["reproduce", "wu2018", "--json", "taken.nc"], "--json: 'taken.nc' must end in .json"),
+        (["reproduce", "wu2018", "--json", "/nonexistent/r.json"], "--json: the folder '/nonexistent' does not exist"),
     ]
     for args, message in cases:
         assert cli.main(["--no-progress", *args]) == 2, args
@@ -228,6 +238,20 @@ def test_overwrite_replaces_and_plot_takes_o(tmp_path, capsys, monkeypatch):
     assert (tmp_path / "p.png").stat().st_mtime_ns >= first
     assert cli.main(["plot", "s.nc", "--png", "q.svg"]) == 0 and (tmp_path / "q.svg").stat().st_size > 1000
     assert not [p for p in tmp_path.iterdir() if ".clsas-tmp" in p.name]
+
+
+def test_a_reproductions_json_is_replaced_only_with_overwrite(tmp_path, capsys, monkeypatch):
+    """`clsas reproduce wu2018 --json mine.txt` wrote over a user's file after the whole run (the
+    fresh-clone trial, session 4): its --json is now checked first, as every output is."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "r.json").write_text("mine")
+    assert cli.main(["reproduce", "wu2018", "--json", "r.json"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--json: 'r.json' exists; give --overwrite to replace it" in err, err
+    assert (tmp_path / "r.json").read_text() == "mine"
+    argv = ["reproduce", "wu2018", "--json", "r.json", "--overwrite"]
+    args = cli.build_parser(argv).parse_args(argv)
+    assert cli._reproduce(lambda a: 7, args) == 7  # the reproduction runs (and its write_json replaces the file)
 
 
 def test_simulate_refuses_a_cube_over_the_budget_up_front(tmp_path):

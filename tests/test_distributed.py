@@ -126,3 +126,24 @@ class _NoClient:
         raise AssertionError("submitted work before checking the arguments")
 
     gather = scatter = submit
+
+
+def test_a_failed_task_cancels_the_others_before_the_store_goes():
+    """The review (session 4, H3): one task's error reached the caller, whose temporary store was
+    then deleted, while the other tasks went on writing chunks into it. Now they are cancelled
+    first (a stub client: the gather fails as dask's does when a task raises)."""
+    from clsas.distributed import _gather
+
+    class Client:
+        cancelled = None
+
+        def gather(self, futures):
+            raise RuntimeError("task 0 failed")
+
+        def cancel(self, futures):
+            self.cancelled = list(futures)
+
+    client = Client()
+    with pytest.raises(RuntimeError, match="task 0 failed"):
+        _gather(client, ["f0", "f1", "f2"])
+    assert client.cancelled == ["f0", "f1", "f2"]

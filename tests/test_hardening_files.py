@@ -11,6 +11,7 @@ import sys
 import textwrap
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -277,6 +278,63 @@ def test_scenario_files_are_written_with_the_umask_mode(tmp_path):
 
 
 # --- interruption --------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_every_file_of_the_temporary_reaches_the_disk_before_the_rename(tmp_path, monkeypatch, suffix):
+    """The review (session 4, H2): a zarr store's chunks were never fsynced, and the old store
+    was deleted after the exchange: a power cut could lose both. Every file of the temporary is
+    now synced before the rename (NetCDF files, scenario TOML and pictures alike)."""
+    from clsas import atomic
+
+    path = io.save(_echo(1), tmp_path / f"d{suffix}")
+    synced, renamed = [], []
+    real_fsync, real_replace = os.fsync, atomic.replace
+
+    def fsync(fd):
+        synced.append(os.readlink(f"/proc/self/fd/{fd}"))
+        return real_fsync(fd)
+
+    def replace(tmp, target):
+        renamed.append(sorted(str(p) for p in ([tmp] if tmp.is_file() else tmp.rglob("*")) if p.is_file()))
+        return real_replace(tmp, target)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    monkeypatch.setattr(atomic, "replace", replace)
+    io.save(_echo(2), path)
+    monkeypatch.undo()
+    assert renamed and renamed[0], "no replace seen"
+    assert set(renamed[0]) <= set(synced), sorted(set(renamed[0]) - set(synced))[:3]
+    np.testing.assert_array_equal(io.load(path).data, _echo(2).data)
+
+
+def test_a_store_given_by_a_symbolic_link_is_refused_before_writing(tmp_path):
+    """The review (session 4, H4): save over a .zarr symbolic link wrote and verified the whole
+    store, then failed in the rename with an error naming the temporary."""
+    real = io.save(_echo(1), tmp_path / "real.zarr")
+    (tmp_path / "link.zarr").symlink_to(real.name)
+    with pytest.raises(FileExistsError, match="link.zarr' is a symbolic link"):
+        io.save(_echo(2), tmp_path / "link.zarr")
+    np.testing.assert_array_equal(io.load(real).data, _echo(1).data)
+    assert _leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+def test_a_temporary_left_by_a_killed_save_is_named_not_deleted(tmp_path, suffix):
+    """SIGKILL (or the out-of-memory killer) runs no handler: the fresh-clone trial's killed
+    `clsas simulate` left `.big.nc.<random>.clsas-tmp.nc`. The next save of that target names it
+    in a warning (another save may still be writing it: it is not deleted)."""
+    path = tmp_path / f"k{suffix}"
+    left = tmp_path / f".k{suffix}.0123456789ab{TEMPORARY_TAG}{suffix}"
+    left.write_bytes(b"partial") if suffix == ".nc" else left.mkdir()
+    (tmp_path / f".other{suffix}.0123456789ab{TEMPORARY_TAG}{suffix}").write_bytes(b"another target's")
+    with pytest.warns(RuntimeWarning, match=f"'{left.name}' beside it: left by a save that was killed"):
+        io.save(_echo(1), path)
+    assert left.exists() and np.array_equal(io.load(path).data, _echo(1).data)
+    left.unlink() if suffix == ".nc" else left.rmdir()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        io.save(_echo(2), path)
+
 
 def test_ctrl_c_during_a_save_leaves_no_temporary_and_the_old_file(tmp_path, monkeypatch):
     for suffix in SUFFIXES:

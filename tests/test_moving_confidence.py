@@ -229,8 +229,25 @@ def test_the_wrapped_band_edge_of_a_fast_target_is_not_taken_for_the_target(open
     middle = 0.5 * (echo.eta[0] + echo.eta[-1])
     for name, rx in est.receivers.items():
         assert abs(rx.eta_c - middle) < 0.5, name
-        band = wrapped_band(records(echo, name), rx.doppler_centroid, rx.fm_rate)
+        (band,) = wrapped_band(records(echo, name), rx.doppler_centroid, rx.fm_rate)  # f_D < 0 throughout
         edge = 0.5 * echo.fs
         assert band[0] == -edge and band[1] - band[0] > abs(rx.doppler_centroid), (name, band)
     none = clsas.simulate(sc, backend="opencl", progress=False, intra_pulse="none")
-    assert wrapped_band(records(none, "A"), -822.0, 0.15) is None
+    assert wrapped_band(records(none, "A"), -822.0, 0.15) == []
+
+
+def test_both_band_edges_wrap_when_the_doppler_changes_sign():
+    """Review M2: f_D = f_dc + K d takes both signs when |K| T_a / 2 > |f_dc| (f_dc 50 Hz, K 7.5
+    Hz/s over 80 s: f_D from -250 to 350 Hz), and both edges of the band wrap at F_r = B: the top
+    by 350 Hz (and the margin), the bottom by 250 Hz."""
+    from clsas.estimate.moving.records import Records, wrapped_band
+
+    eta = np.arange(6400) / 80.0 - 40.0
+    rec = Records(x=np.zeros((6400, 8), np.complex64), eta=eta, t0=0.0, fs=40e3, f0=150e3, bandwidth=20e3, name="A",
+                  range_doppler=1e-6)
+    margin = 0.01 * 20e3
+    top, bottom = wrapped_band(rec, 50.0, 7.5)
+    assert top == pytest.approx((10e3 - 350.0 - margin, 10e3), abs=1.0)
+    assert bottom == pytest.approx((-10e3, -10e3 + 250.0 + margin), abs=1.0)
+    (only,) = wrapped_band(rec, 800.0, 7.5)  # f_D from 500 to 1100 Hz: the top edge only
+    assert only == pytest.approx((10e3 - 1100.0 - margin, 10e3), abs=1.0)

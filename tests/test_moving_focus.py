@@ -282,3 +282,35 @@ def test_the_hull_is_focused_over_its_length(opencl_device, case):
         assert 0.6 * length < got < 1.1 * length, (name, got, length)
         assert reflecting[name] < 0.8 * length, (name, reflecting[name], length)  # the taper: what reflects
         assert 0.95 * reflecting[name] < got, (name, got, reflecting[name])  # nothing that reflects is lost
+
+
+@pytest.mark.slow  # ~20 s of CPU (run once: passed, 106 s wall at load 11)
+def test_a_fast_targets_image_holds_no_wrapped_band_ghost(opencl_device, monkeypatch):
+    """With intra-pulse Doppler at F_r = B the echo's band edge wraps round the sampling rate
+    (:func:`clsas.estimate.moving.records.wrapped_band`): unless zeroed, it focuses as a ghost
+    c T / 2 = 3.75 m nearer in range and metres away along the track. A point at 6.3 m/s
+    (v = (6, 2, 0), f_dc ~ 1200 Hz at A, 1024 pulses): with the band kept, receiver A's image
+    holds the ghost at dr -3.75 m, dy -11.6 m, -27.2 dB re the peak; focus_moving (band zeroed)
+    leaves -38.2 dB there (measured)."""
+    import sys
+
+    import clsas
+
+    sc = presets.kiang2022(n_pulses=1024).replace(targets=(PointTargets(CENTRE, velocity=(6.0, 2.0, 0.0)),))
+    echo = clsas.simulate(sc, backend="opencl", progress=False)
+    est = clsas.estimate_motion(echo, position=CENTRE)
+    kw = dict(half_size=(5.0, 14.0), spacing=0.05)
+    zeroed = clsas.focus_moving(echo, est, **kw)["A"]
+    focus_module = sys.modules["clsas.estimate.moving.focus"]
+    monkeypatch.setattr(focus_module, "without_wrapped_band", lambda rec, f_dc, k: rec)
+    kept = clsas.focus_moving(echo, est, **kw)["A"]
+    power_z, power_k = np.abs(zeroed.data) ** 2, np.abs(kept.data) ** 2
+    r, y = kept.axes["r"], kept.axes["y"]
+    iy, ir = np.unravel_index(np.argmax(power_k), power_k.shape)
+    dr, dy = r[None, :] - r[ir], y[:, None] - y[iy]
+    ring = (np.abs(dr + 3.75) < 0.3) & (np.abs(dy) > 3.0)  # the ghost's range, away from the leakage copy
+    gy, gr = np.unravel_index(np.argmax(np.where(ring, power_k, 0.0)), power_k.shape)
+    ghost_kept = 10 * np.log10(power_k[gy, gr] / power_k.max())
+    ghost_zeroed = 10 * np.log10(power_z[gy, gr] / power_z.max())
+    assert ghost_kept > -32.0, ghost_kept  # the ghost is there without the zeroing
+    assert ghost_zeroed < ghost_kept - 8.0 and ghost_zeroed < -35.0, (ghost_kept, ghost_zeroed)

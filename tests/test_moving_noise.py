@@ -11,8 +11,20 @@ The chain (case 1's point target, the Table I sonar, 1024 pulses at 80 Hz; the p
 1-5); -17 dB 0.13-0.34 %, -18 dB 0.10-0.27 % or (seed 1) an EstimationError naming receiver B
 (seeds 1-3); -20 and -22 dB: EstimationError, the echo stands out of the noise in 10-21 % of A's
 pulses (the paper halts at -20 dB). Confidence 1.00 and |sigma| 0.013-0.016 m/s (0.3-0.4 %)
-wherever it estimates. At -17 dB the SoWVD scores below its threshold on some receivers and the
-rate is confirmed by the focus (:data:`clsas.estimate.moving.chain.FOCUS_DB`).
+wherever it estimates. At -17 dB the SoWVD scores below its threshold on some receivers (23-28
+dB on the right K, its noise candidates 16-20 dB) and the rate is confirmed by the focus
+(:data:`clsas.estimate.moving.chain.FOCUS_DB`: the point focused on 1024 pulses stands ~33 dB
+over the image's median, focused noise ~13 dB).
+
+The hull (the scaled Albacore, 2048 pulses, "echo" reading, seeds 1-2, load 6-11): before the
+followed trace (:mod:`clsas.estimate.moving.track`) cases 5 and 6 raised EstimationError at -15
+and -17 dB: receiver A's cell gate (:func:`clsas.estimate.moving.trace.support`) caught the
+walking trace (0.8-1.7 upsampled samples a pulse, the echo over 2-4 m of range) in a few cells
+of two thirds of the pulses, its band missed the trace and the SoWVD scored 15-16 dB (the
+noise's). On case 5 at A, -15 dB, the true trace +-20 samples scores 31 dB, +-60 samples 17.5
+dB; the bright cells of the followed trace 31-38 dB (-17 dB: 25.6 dB, K within 0.4 %). The
+Radon line of the floor-subtracted magnitude there read f_dc 0.5 Hz against 270 (a line of slope
+0 from the cells' uneven means); on the power less each cell's mean, 270.9 Hz.
 """
 
 from __future__ import annotations
@@ -123,7 +135,7 @@ def test_chain_at_minus_15_db(chain_echo):
     """"echo" SNR -15 dB (the stricter reading of the paper's -15 dB, where it reports 1.956 %):
     measured 0.04-0.28 % over seeds 1-5 (this seed: 0.15 %), confidence 1.00."""
     est, err = velocity_error(noisy(chain_echo, -15.0, 2))
-    assert err < 0.02
+    assert err < 0.01  # ~10x the seeds' largest (0.28 %); the paper's 3 % is the reproduction's verdict
     assert est.confidence > 0.9
     assert err * np.linalg.norm(CASE1) < 3 * np.linalg.norm(est.sigma)  # honest sigma
 
@@ -134,13 +146,13 @@ def test_chain_at_the_papers_floor_record_reading(chain_echo):
     offset = snr_offset_db(chain_echo.data, chain_echo.provenance["n_valid"])
     assert np.allclose(offset, (-0.83, -3.77, -0.53), atol=0.05)
     est, err = velocity_error(noisy(chain_echo, -17.0, 1, "record"))
-    assert err < 0.02 and est.confidence > 0.9
+    assert err < 0.01 and est.confidence > 0.9
 
 
 def test_chain_at_the_papers_floor_echo_reading(chain_echo):
     """"echo" SNR -17 dB on 1024 pulses: measured 0.13-0.34 % (seeds 1-3; this one 0.13 %)."""
     est, err = velocity_error(noisy(chain_echo, -17.0, 3))
-    assert err < 0.02 and est.confidence > 0.9
+    assert err < 0.01 and est.confidence > 0.9
     assert err * np.linalg.norm(CASE1) < 3 * np.linalg.norm(est.sigma)
 
 
@@ -170,3 +182,47 @@ def test_chain_over_seeds(chain_echo, snr_db):
         assert est.confidence > 0.9, (seed, est.confidence)
         assert err * np.linalg.norm(CASE1) < 3 * np.linalg.norm(est.sigma), (seed, err, est.sigma)
 
+
+
+def test_simulate_takes_either_reading():
+    """``simulate(snr_reference=)``: with the same seed the "record" reading's noise is the "echo"
+    reading's scaled by 10^(offset / 20) per receiver, offset = :func:`snr_offset_db` of the
+    noise-free echo (the same draws; float32 rounding), and the provenance says which."""
+    scene = point_scene(64)
+    clean = clsas.simulate(scene, backend="numpy", progress=False)
+    offset = clsas.snr_offset_db(clean)
+    as_echo = clsas.simulate(scene, backend="numpy", progress=False, snr_db=-10.0, seed=4)
+    as_record = clsas.simulate(scene, backend="numpy", progress=False, snr_db=-10.0, seed=4, snr_reference="record")
+    assert as_echo.provenance["snr_reference"] == "echo" and as_record.provenance["snr_reference"] == "record"
+    for h in range(len(clean.receivers)):
+        n_echo, n_record = as_echo.data[h] - clean.data[h], as_record.data[h] - clean.data[h]
+        scale = 10 ** (offset[h] / 20)
+        assert np.allclose(n_record, scale * n_echo, rtol=0, atol=1e-4 * np.abs(n_echo).max())
+    assert np.allclose(offset, snr_offset_db(clean.data, clean.provenance["n_valid"]))
+
+
+def hull_echo(case: int, n_pulses: int = 2048):
+    """The scaled hull of Table II ``case`` (default mesh, hull occlusion), noise-free."""
+    return clsas.simulate(presets.kiang2022_case(case, n_pulses=n_pulses), backend="opencl", progress=False)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", [1, 5, 6])
+def test_hull_at_the_papers_noise(opencl_device, case):
+    """Issue 26 item 3 on the hull: the scaled Albacore of Table II cases 1, 5 and 6 (2048 pulses,
+    25.6 s) at "echo" SNR -15 and -17 dB (the stricter reading: the mean power over the samples
+    the hull's echo occupies; the "record" reading of the same numbers is 1.6-9.7 dB easier on
+    these scenes), seed 1: an estimate within the paper's 3 % (asserted below 2 %), confident, its
+    error within 3 sigma. Measured (load 6-11; |sigma| / |v| in brackets, confidence 0.98-1.00):
+    case 1 -15 dB 0.39 / 0.34 % (seeds 1 / 2), -17 dB 0.41 / 0.33 % (1.3 %); case 5 -15 dB 0.13 %,
+    -17 dB 0.13 % (seed 1; 0.33 %); case 6 -15 dB 0.30 / 0.23 %, -17 dB 0.36 / 0.23 % (1.0 %).
+    Noise-free the same echoes give 0.39, 0.12 and 0.24 %: the hull's own bias (its middle is
+    not its centre), not the noise, sets the error."""
+    echo = hull_echo(case)
+    v = np.array(presets.KIANG_CASES[case])
+    for snr_db in (-15.0, -17.0):
+        est = clsas.estimate_motion(noisy(echo, snr_db, 1), position=CENTRE)
+        err = float(np.linalg.norm(est.velocity - v))
+        assert err / np.linalg.norm(v) < 0.02, (case, snr_db, est.velocity)
+        assert est.confidence > 0.9, (case, snr_db, est.confidence, est.problems)
+        assert err < 3 * np.linalg.norm(est.sigma), (case, snr_db, err, est.sigma)

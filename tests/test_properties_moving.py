@@ -8,10 +8,11 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import warnings
 
 import numpy as np
 import pytest
-from _properties import fixed, parameter_properties, reals
+from _properties import choices, fixed, parameter_properties, reals
 from hypothesis import strategies as st
 
 import clsas
@@ -99,3 +100,65 @@ def test_closed_forms_eta_ref_moves_a_layout():
         assert from_layout[name].fm_rate == pytest.approx(from_scene[name].fm_rate, rel=1e-9)
         assert from_layout[name].doppler_centroid == pytest.approx(from_scene[name].doppler_centroid, rel=1e-9)
         assert from_layout[name].tau_c == pytest.approx(from_scene[name].tau_c, rel=1e-12)
+
+
+@functools.cache
+def small_scene():
+    return presets.kiang2022(n_pulses=64).replace(targets=(PointTargets(CENTRE, velocity=presets.KIANG_CASES[1]),))
+
+
+test_simulate_snr_reference_bad_values, test_simulate_snr_reference_valid_values, _ = parameter_properties(
+    lambda **kw: clsas.simulate(small_scene(), backend="numpy", progress=False, **{"snr_db": -10.0, "seed": 1, **kw}),
+    prefix="simulate", setup=small_scene, budget=None, examples=4,
+    check=lambda echo: np.all(np.isfinite(echo.data)),
+    domains={"snr_reference": choices(("echo", "record"))})
+
+
+@functools.cache
+def clean_data():
+    return small_echo().data
+
+
+test_snr_offset_db_bad_values, test_snr_offset_db_valid_values, _ = parameter_properties(
+    lambda data=None, **kw: clsas.snr_offset_db(small_echo() if data is None else data, **kw),
+    prefix="snr_offset_db", setup=small_echo, budget=None, examples=10,
+    check=lambda offset: np.all(np.isfinite(offset)) and np.all(offset <= 0),
+    domains={
+        "data": fixed([None, clean_data()],
+                      [("abc", TypeError), (3.0, TypeError), ([1.0, 2.0], TypeError),
+                       (np.zeros((2, 3)), ValueError), (np.zeros((3, 0, 4), np.complex64), ValueError)]),
+        "n_valid": fixed([None, [100, 100, 100]],
+                         [([0, 1, 1], ValueError), ([1, 1], ValueError), ([1.5, 1, 1], TypeError),
+                          ([10**9, 1, 1], ValueError), ("abc", ValueError)]),
+    })
+
+
+def test_snr_offset_db_refuses_a_noisy_or_compressed_echo():
+    with pytest.raises(ValueError, match="snr_offset_db data: must be a noise-free echo"):
+        clsas.snr_offset_db(small_echo().replace(provenance={**small_echo().provenance, "snr_db": 3.0}))
+    with pytest.raises(ValueError, match="snr_offset_db data: must be a raw echo"):
+        clsas.snr_offset_db(clsas.range_compress(small_echo()))
+
+
+@functools.cache
+def small_motion():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return clsas.estimate_motion(small_echo(), position=CENTRE)
+
+
+def test_focus_moving_image_refused_by_the_budget():
+    """Issue 27: half_size 1e4 m at 1 cm (2e6 x 2e6 pixels, ~29 TiB) was a MemoryError from NumPy
+    under any budget; now a MemoryBudgetError naming half_size and spacing before allocating."""
+    from clsas.errors import MemoryBudgetError
+
+    with clsas.use_memory_budget(16 << 20), pytest.raises(MemoryBudgetError, match=r"half_size .* spacing"):
+        clsas.focus_moving(small_echo(), small_motion(), half_size=1e4, spacing=0.01)
+
+
+# every image drawn (and the default here) is millions of pixels: refused before allocating
+test_focus_moving_budget_bad, _, test_focus_moving_budget = parameter_properties(
+    lambda **kw: clsas.focus_moving(small_echo(), small_motion(), **{"half_size": 1e3, "spacing": 0.01, **kw}),
+    prefix="focus_moving", setup=small_motion, budget=16 << 20, examples=6, may_refuse=True,
+    domains={"half_size": reals(0.0, 1e4, low_open=True, none=True, valid=st.floats(1e2, 1e4)),
+             "spacing": reals(0.0, 100.0, low_open=True, valid=st.floats(0.01, 0.1))})

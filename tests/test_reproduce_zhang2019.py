@@ -67,3 +67,21 @@ def test_reproduce_zhang2019_runs(tmp_path, opencl_device):
     blocks = {e["name"]: e for e in doc["experiments"]}["sub-blocks"]
     assert blocks["columns"][-2:] == ["BP / PTRS", "BP (NumPy reference) / PTRS"]
     assert all(row[-1] > 10 * row[-2] for row in blocks["rows"])
+
+
+@pytest.mark.parametrize("numpy", [False, True])
+def test_sub_blocks_experiment_with_and_without_the_numpy_reference(numpy):
+    """The sub-blocks experiment from ``timing``'s seconds: the NumPy reference's column and
+    sentence only when ``timing`` ran it (its default numpy_rows=0 leaves 'bp_numpy' out, which
+    raised KeyError)."""
+    t = {"ptrs_1": 2.0, "ptrs_4": 3.0, "ptrs_8": 4.5, "bp": 30.0, "pixels": 1e6}
+    if numpy:
+        t["bp_numpy"] = 3000.0
+    rep = report.Report("zhang2019", "test")
+    zhang2019._sub_blocks(rep, t)
+    exp = rep.experiments["sub-blocks"]
+    assert [row[0] for row in exp.rows] == [1, 4, 8]
+    assert len(exp.columns) == 4 + numpy and all(len(row) == 4 + numpy for row in exp.rows)
+    assert exp.rows[1][2] == pytest.approx(1.5) and exp.rows[2][3] == pytest.approx(30.0 / 4.5)
+    assert ("NumPy reference" in exp.finding) == numpy
+    assert "1.50x 4" in exp.finding and f"{(30 / 4.5) / (30 / 3):.2f}x" in exp.finding

@@ -10,11 +10,12 @@ written is not left behind: :mod:`clsas.atomic`); ``CLSAS_DEBUG=1`` shows the tr
 from __future__ import annotations
 
 import argparse
+import functools
 import logging
 import os
 import sys
 
-from ._common import UsageError
+from ._common import UsageError, add_overwrite_argument, check_json
 
 DESCRIPTION = """\
 Synthetic aperture sonar simulation and imaging.
@@ -83,7 +84,15 @@ def _add_reproductions(sub, argv: list) -> None:
         if name == chosen:
             module = reproduce.paper(name)
             module.add_arguments(one)
-            one.set_defaults(run=module.run)
+            add_overwrite_argument(one)
+            one.set_defaults(run=functools.partial(_reproduce, module.run))
+
+
+def _reproduce(run, args) -> int:
+    """A reproduction, its ``--json`` output checked first as every command's outputs are."""
+    if getattr(args, "json", None) is not None:
+        check_json("--json", args.json, args.overwrite)
+    return run(args)
 
 
 def _configure_logging(verbose: int) -> None:

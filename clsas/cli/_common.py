@@ -39,7 +39,19 @@ def parse_grid(text: str):
         z = float(parts[2])
     except ValueError:
         raise UsageError(f"--grid: the plane's height Z must be a number of metres, got {parts[2]!r}") from None
-    return Grid.plane(x, y, z)
+    try:
+        return Grid.plane(x, y, z)
+    except ValueError as err:  # coordinates beyond the model's bounds (+-1e6 m), a NaN height
+        raise UsageError(f"--grid {text}: {err}") from None
+
+
+def check_json(option: str, value, overwrite: bool) -> Path:
+    """A JSON output (the reproductions' ``--json``), checked before any work as every other
+    output is (:func:`clsas.atomic.check_output`: a .json name in an existing folder, an existing
+    regular file only with ``overwrite``)."""
+    from ..atomic import check_output
+
+    return check_output(option, value, (".json",), overwrite)
 
 
 def add_overwrite_argument(parser) -> None:

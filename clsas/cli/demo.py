@@ -35,7 +35,9 @@ def run(args) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} is an existing file; give a folder for the demo's files")
-    out.mkdir(parents=True, exist_ok=True)
+    if not out.parent.is_dir():
+        raise UsageError(f"--out {out}: the folder {out.parent} does not exist (the demo makes only its own folder)")
+    out.mkdir(exist_ok=True)
     info = backend.info()
     print("backend:", json.dumps(info))
     ok = True

@@ -139,19 +139,28 @@ def default_grid(echo, max_pixels: int = DEFAULT_MAX_PIXELS):
     return Grid.plane(np.linspace(x_track + r0, x_track + r1, nx), np.linspace(y0, y1, ny), z)
 
 
-def _elements(text, echo):
-    """--elements, else the stored scenario's transmitter and longest receiver (both directive)."""
+def _parse_elements(text):
+    """--elements LTX,LRX (m, both finite and > 0), or None."""
     if text is None:
-        array = echo.scenario.array if echo.scenario is not None else None
-        if array is None or array.n_receivers == 0 or array.tx_length <= 0 or array.rx_length.min() <= 0:
-            return None
-        print(f"elements from the file's scenario: L_tx = {array.tx_length:g} m, L_rx = {array.rx_length.max():g} m")
-        return float(array.tx_length), float(array.rx_length.max())
+        return None
     try:
         ltx, lrx = (float(v) for v in text.split(","))
     except ValueError:
         raise UsageError(f"--elements: expected LTX,LRX in metres, got {text!r}") from None
+    if not (np.isfinite([ltx, lrx]).all() and ltx > 0 and lrx > 0):
+        raise UsageError(f"--elements: the lengths must be finite and > 0 m, got {text!r}")
     return ltx, lrx
+
+
+def _elements(given, echo):
+    """--elements (parsed), else the stored scenario's transmitter and longest receiver (both directive)."""
+    if given is not None:
+        return given
+    array = echo.scenario.array if echo.scenario is not None else None
+    if array is None or array.n_receivers == 0 or array.tx_length <= 0 or array.rx_length.min() <= 0:
+        return None
+    print(f"elements from the file's scenario: L_tx = {array.tx_length:g} m, L_rx = {array.rx_length.max():g} m")
+    return float(array.tx_length), float(array.rx_length.max())
 
 
 def run_image(args) -> int:
@@ -169,12 +178,18 @@ def run_image(args) -> int:
         raise UsageError("give -o IMAGE.nc and/or --png PICTURE.png: nothing would be written")
     outputs = check_outputs({"-o": args.out}, {"--png": args.png}, inputs=(args.echo,), overwrite=args.overwrite)
     _check_floor(args.floor)
-    grid = parse_grid(args.grid) if args.grid and args.algorithm in ("bp", "ffbp") else None
+    strip = args.algorithm in STRIP_IMAGERS
+    if args.grid and strip:
+        raise UsageError("--grid applies to --algorithm bp and ffbp only (the frequency-domain imagers have their own grid)")
+    if args.elements is not None and not strip:
+        raise UsageError(f"--elements applies to --algorithm {', '.join(STRIP_IMAGERS)} only (bp and ffbp have no band "
+                         "limit or pattern deconvolution)")
+    grid = parse_grid(args.grid) if args.grid else None
+    elements = _parse_elements(args.elements)
     echo = io.load(args.echo)
     if not isinstance(echo, EchoData):
         raise UsageError(f"{args.echo} holds an image, not echoes; `clsas plot` shows it")
     t = time.perf_counter()
-    strip = args.algorithm in STRIP_IMAGERS
     if not echo.compressed:  # omega-k weights range in its own band: the compression then stays unweighted
         echo = range_compress(echo, window="none" if args.algorithm == "omegak" else args.window or "none")
     elif args.window and not strip:
@@ -186,12 +201,10 @@ def run_image(args) -> int:
         imager = backproject if args.algorithm == "bp" else ffbp
         image = imager(echo, grid, backend=args.backend, progress=args.progress)
     else:
-        if args.grid:
-            raise UsageError("--grid applies to --algorithm bp and ffbp only (the frequency-domain imagers have their own grid)")
         record = pca_record(echo, backend=args.backend) if echo.n_rx > 1 else echo
         imager = {"omegak": omega_k, "rda": range_doppler, "csa": chirp_scaling, "ncs": nonlinear_chirp_scaling}[
             args.algorithm]
-        image = imager(record, elements=_elements(args.elements, echo), window=args.window or "none",
+        image = imager(record, elements=_elements(elements, echo), window=args.window or "none",
                        backend=args.backend)
         what = f"{args.algorithm} ({echo.n_rx} receivers merged by PCA)" if echo.n_rx > 1 else args.algorithm
     if args.window:

@@ -9,13 +9,15 @@ import numpy as np
 PATCH = 0.6  # m either side of a point: the pixels back-projected and measured
 
 
-def patch(image, point, half: float = PATCH):
-    """The part of ``image`` within +-``half`` m of ``point`` (x, y, z) in both dims."""
+def patch(image, point, half=PATCH):
+    """The part of ``image`` (dims ("y", "x")) within +-``half`` m of ``point`` (x, y, z): one
+    number for both dims, or a pair (half_y, half_x)."""
     from clsas.model import Image
 
+    half_y, half_x = (half, half) if np.ndim(half) == 0 else half
     y, x = image.axes["y"], image.axes["x"]
-    rows = np.flatnonzero(np.abs(y - point[1]) <= half)
-    cols = np.flatnonzero(np.abs(x - point[0]) <= half)
+    rows = np.flatnonzero(np.abs(y - point[1]) <= half_y)
+    cols = np.flatnonzero(np.abs(x - point[0]) <= half_x)
     sub = np.ix_(rows, cols)
     return Image(data=image.data[sub], dims=("y", "x"), axes={"y": y[rows], "x": x[cols]},
                  positions=image.positions[sub])

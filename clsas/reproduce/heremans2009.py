@@ -105,7 +105,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 ALTITUDE = 15.0   # m, the seafloor below the track (presets.heremans2009_seafloor)
-SIMULATION_S = 8.5 / 8   # s a ping, a facet a resolution cell and a simulation (measured, load ~3)
+# s a ping, a facet a resolution cell and a simulation: a rough rate on 2 cores for the progress
+# line's time estimate of the simulation stage only (it decides nothing else)
+SIMULATION_S = 8.5 / 8
 
 
 def _scene(pings: int, seed: int, scatterers_per_cell: float = 4.0):

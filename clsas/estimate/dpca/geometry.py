@@ -272,27 +272,38 @@ RANGE_EDGE = 0.02
 
 def inside_swath(array: Array, f0: float, c: float, r: np.ndarray, centre: np.ndarray,
                  extent: SeafloorExtent | None, span: float = 0.0, ahead: float = 0.0,
-                 content: np.ndarray | None = None) -> np.ndarray:
+                 content: np.ndarray | None = None, guard: float = 0.0) -> np.ndarray:
     """(pair, block) bool: True where the seafloor's near and far edges (``extent.x``) leave a
     range block's rings whole over the beam, i.e. its :func:`look_moments` content is within
-    RANGE_EDGE of the content of the same seafloor open in range; all True without an extent.
+    RANGE_EDGE of the content of the same seafloor open in range (its near edge moved to the
+    track, its far edge to infinity), and where the block's span (``r`` +- ``span`` / 2, m) keeps
+    ``guard`` m of slant range from both edges (the slant ranges of x_min and x_max from the
+    track at the extent's depth); all True without an extent. A block that holds no seafloor
+    at all (before the nearest return, beyond the swath) has no edge in it and reads True
+    unless the guard takes it out: :func:`look_moments`' content says whether it holds any.
 
     A block that holds a range edge of the seafloor holds it unevenly: at the near edge only
     the look angles near broadside reach it at its nearest ranges, at the far edge the wide
     look angles reach beyond the broadside ones; its scatterers fill the block unevenly in
     range. Their yaw is biased by what the correction takes at the block's centre range and
-    by the range sidelobes of the neighbouring ranges (those of an unwindowed chirp reach
-    c T / 2 either way): near edges read a negative yaw, far edges a positive one, and they
-    do not cancel (tests/test_dpca_bias.py, bench/bench_dpca.py --bias). ``content``: the
-    blocks' content from :func:`look_moments` if already computed (same arguments)."""
+    by the range sidelobes of the neighbouring ranges: near edges read a negative yaw, far
+    edges a positive one, and they do not cancel. The bias reaches further than the rings'
+    cut, whatever the beam: the blocks next to an edge read it too (the estimator's ``guard``
+    is a block's length; tests/test_dpca_bias.py, bench/bench_dpca.py --bias). ``content``:
+    the blocks' content from :func:`look_moments` if already computed (same arguments)."""
     if extent is None:
         shape = (np.asarray(centre).shape[0], np.asarray(r).size)
         return np.ones(shape, dtype=bool)
     if content is None:
         content = look_moments(array, f0, c, r, centre, extent, span, ahead)[2]
-    open_range = replace(extent, x=(min(extent.x[0], 0.0), np.inf))
+    track_x = float(np.min(np.asarray(centre)[:, 0]))
+    open_range = replace(extent, x=(min(extent.x[0], track_x), np.inf))
     whole = look_moments(array, f0, c, r, centre, open_range, span, ahead)[2]
-    return content >= (1 - RANGE_EDGE) * whole
+    height = float(np.median(np.asarray(centre)[:, 2])) - extent.z
+    near = np.hypot(max(extent.x[0] - track_x, 0.0), height)
+    far = np.hypot(extent.x[1] - track_x, height)
+    clear = (np.asarray(r) - span / 2 >= near + guard) & (np.asarray(r) + span / 2 <= far - guard)
+    return (content >= (1 - RANGE_EDGE) * whole) & clear[None, :]
 
 
 MIN_POINTS = 100  # static point scatterers a scenario needs for scenario_extent to take them as its seafloor

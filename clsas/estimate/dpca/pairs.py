@@ -32,6 +32,11 @@ class PingPairs:
     blocks : how many range blocks entered each estimate
     lags : the x-lags tested were -lags..lags (the couples used follow from it)
     two_way : s, the median two-way travel time of the range blocks used
+    yaw_from_edges : bool (n_pulses - 1,), True where no range block of the pair kept clear of
+        the seafloor's range edges (geometry.inside_swath: a swath narrower than three or four
+        blocks), so that its yaw comes from blocks that hold an edge and may be
+        biased by several urad the way the edge reads (near edges negative, far edges
+        positive); None when not known (built by hand)
     yaw_bias : rad (n_pulses - 1,), how far the yaw may be biased a pair, the same way every pair,
         by what the phase-centre correction assumes of the look angles: without the seafloor's
         extent, D (<sin^2>_beam - <sin^2>_main lobe) / r, the difference between a seafloor that
@@ -50,6 +55,7 @@ class PingPairs:
     lags: int
     two_way: float
     yaw_bias: np.ndarray | None = None
+    yaw_from_edges: np.ndarray | None = None
 
 
 # Range blocks holding less than this fraction of a ping pair's main-lobe level (its third
@@ -73,15 +79,23 @@ FINE_T_LAGS = 2
 
 
 def _weighted_median(x: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Per row of ``x`` (pair, block): the value below which half the row's weight ``w`` (>= 0,
-    0 for blocks left out) lies; NaN for a row without weight."""
-    x = np.where(w > 0, x, np.inf)
-    order = np.argsort(x, axis=1)
-    xs, ws = np.take_along_axis(x, order, axis=1), np.take_along_axis(np.where(w > 0, w, 0.0), order, axis=1)
-    cw = np.cumsum(ws, axis=1)
-    k = np.argmax(cw >= 0.5 * cw[:, -1:], axis=1)
-    out = xs[np.arange(x.shape[0]), k]
-    return np.where(cw[:, -1] > 0, out, np.nan)
+    """Per row of ``x`` (pair, block): the weighted median, the midpoint of the lowest value
+    below which half the row's weight ``w`` (>= 0, 0 for blocks left out) lies and the highest
+    value above which half lies (the two differ where the cumulative weight meets exactly one
+    half, e.g. an even count of equal weights: taking the lower one biased a trim around it
+    towards the upper tail); NaN for a row without weight."""
+    def lower(values):
+        values = np.where(w > 0, values, np.inf)
+        order = np.argsort(values, axis=1)
+        xs, ws = np.take_along_axis(values, order, axis=1), np.take_along_axis(np.where(w > 0, w, 0.0), order, axis=1)
+        cw = np.cumsum(ws, axis=1)
+        k = np.argmax(cw >= 0.5 * cw[:, -1:], axis=1)
+        return xs[np.arange(x.shape[0]), k]
+
+    total = np.sum(np.where(w > 0, w, 0.0), axis=1)
+    with np.errstate(invalid="ignore"):
+        middle = 0.5 * (lower(x) - lower(-x))
+    return np.where(total > 0, middle, np.nan)
 
 
 def _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles, extent) -> None:
@@ -263,7 +277,8 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     block_span = c / 2 * block / echo.fs
     sin2, main_fraction, content = look_moments(array, f0, c, r_blocks, centre, extent, block_span, ahead)
     # blocks that hold the seafloor's near or far edge are left out of the yaw (see below)
-    whole = inside_swath(array, f0, c, r_blocks, centre, extent, block_span, ahead, content)
+    # and those next to them (a block's length from them: the bias reaches that far, inside_swath)
+    whole = inside_swath(array, f0, c, r_blocks, centre, extent, block_span, ahead, content, guard=block_span)
     data = records[..., :n_blocks * block].reshape(h, echo.n_pulses, n_blocks, block)
     step = pc[1] - pc[0]
     span = n_couples * step
@@ -293,7 +308,6 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     ranked = np.sort(np.where(good, energy, 0.0), axis=1)[:, ::-1]
     level = ranked[np.arange(ranked.shape[0]), np.clip(np.sum(good, axis=1) - 1, 0, 2)]
     good &= energy >= WEAK_BLOCK * level[:, None]
-    typical = np.nanmedian(np.where(good, energy, np.nan), axis=1, keepdims=True)
     counts = good.sum(axis=1)
     if np.any(counts == 0):
         worst = int(np.argmin(counts))
@@ -302,6 +316,7 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
                          f"in its main lobe ({int(np.sum(main_fraction[worst] >= MAIN_LOBE))} of {n_blocks} blocks "
                          "do, by the extent): the pings do not correlate (too little overlap, or no seafloor return "
                          "in the records), or the seafloor's extent does not reach the beam")
+    typical = np.nanmedian(np.where(good, energy, np.nan), axis=1, keepdims=True)
 
     # Surge: a block dominated by a lone bright echo stays coherent at every x-lag (a single
     # scatterer decorrelates only over its whole beam), so its beam peaks hardly change with the
@@ -345,15 +360,16 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     # (bench/bench_dpca.py --bias).
     rho = np.clip(fine[nearest, pp, bb], 0.0, 1 - 1e-9)
     weight = rho**2 / (1 - rho**2)
-    # The yaw from the blocks inside the seafloor's swath (geometry.inside_swath), unless a pair has
-    # none left (a swath narrower than two blocks); the sway and surge keep the edge blocks (the
-    # bias measured there is the yaw's).
+    # The yaw from the blocks clear of the seafloor's range edges (geometry.inside_swath), unless a
+    # pair has none left (a swath narrower than three or four blocks: flagged in
+    # PingPairs.yaw_from_edges); the sway and surge keep the edge blocks (the bias measured there
+    # is the yaw's).
     inside = good & whole
     lacking = ~inside.any(axis=1)
     if np.any(lacking):
-        log.warning("dpca.estimate: %d ping pairs have no usable range block inside the seafloor's swath (its "
-                    "range edges cut every block that holds it): their yaw comes from the edge blocks and may be "
-                    "biased", int(lacking.sum()))
+        log.warning("dpca.estimate: %d ping pairs have no usable range block clear of the seafloor's range edges "
+                    "(its swath is narrower than three or four blocks): their yaw comes from the edge "
+                    "blocks and may be biased (PingPairs.yaw_from_edges)", int(lacking.sum()))
         inside[lacking] = good[lacking]
     (su, su_e), (sw, sw_e), (yw, yw_e) = robust_mean(surge, seafloor), robust_mean(sway, good, weight), \
         robust_mean(yaw, inside)
@@ -364,4 +380,5 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     bias = 0.0 if extent is not None else s * step * (beam_sin2(array, f0, c) - main_lobe_sin2(array, f0, c)) \
         / (c * two_way / 2)
     return PingPairs(surge=su, sway=sw, yaw=yw, surge_std=su_e, sway_std=sw_e, yaw_std=yw_e, coherence=coh,
-                     blocks=counts, lags=lags, two_way=two_way, yaw_bias=np.full(su.shape, abs(bias)))
+                     blocks=counts, lags=lags, two_way=two_way, yaw_bias=np.full(su.shape, abs(bias)),
+                     yaw_from_edges=lacking)

@@ -15,8 +15,7 @@ target (eqs. 1-2, 21, the R'' of C; f_dc = f_dc,eq, K = K_a,eq):
    the noise in too few pulses, or when no SoWVD peak stands out of the maps' background
    (:data:`THRESHOLD_DB`) and the record focused with the best candidate holds no target
    either (:data:`FOCUS_DB`: the SoWVD, a fourth-order product of the record, loses to the noise
-   well before the coherent focus does: at -17 dB SNR on 1024 pulses it scores 23-28 dB on the
-   right K, its noise candidates 16-20 dB),
+   well before the coherent focus does: tests/test_moving_noise.py has the scores),
 3. RCMC (eq. 17, :mod:`.filters`), Radon transform of |s_rcmc| -> slope -> f_dc (:mod:`.radon`),
 4. range-walk compensation and azimuth compression (eqs. 18-20; :func:`.filters.compress`) of
    the target's neighbourhood (:data:`EXTENT_WINDOW` around the Radon intercept, the trace's delay
@@ -65,7 +64,7 @@ from ... import validate
 from ...model import EchoData
 from ...errors import EstimationError
 from ...kernelmath import unit_phasor
-from . import filters, radon, trace
+from . import filters, radon, trace, track
 from .doppler import Doppler
 from .extent import Extent, extent
 from .records import UPSAMPLE, Records, records, without_wrapped_band
@@ -84,8 +83,8 @@ THRESHOLD_DB = 26.0
 #: Below :data:`THRESHOLD_DB` the rate search's best candidate is still taken when the record
 #: focused with it holds a target: its image's peak this far over the image's median, dB (step 2
 #: of the module docstring). Focused noise peaks ~13 dB over its median on a 10^6-pixel image
-#: (the largest of n exponential powers over their median: ln n / ln 2); a point focused on
-#: 1024 pulses at -17 dB SNR per raw sample stands ~33 dB over it.
+#: (the largest of n exponential powers over their median: ln n / ln 2); a point focused at
+#: the paper's floor stands well over it (tests/test_moving_noise.py).
 FOCUS_DB = 20.0
 #: Fraction of the pulses in which the echo must stand out of the noise (:mod:`.trace`); at
 #: -25 dB SNR it does in ~10 % of Table I's pulses, at -15 dB in all of them.
@@ -140,16 +139,33 @@ class ReceiverEstimate(Doppler):
         return abs(self.fm_rate) * self.aperture**2 >= MIN_TIME_BANDWIDTH
 
 
-def sowvd(rec: Records, p0: float) -> RateSearch:
+def sowvd(rec: Records, p0: float, threshold_db: float = THRESHOLD_DB) -> RateSearch:
     """Step 2: the gated RFRT (eqs. 10-11) of ``rec`` and the modified SoWVD maps (eqs. 12-14) at
-    lag offsets from ``p0`` whose agreement gives K_a,eq (:func:`.sowvd.rate_search`);
-    EstimationError when the echo stands out of the noise in too few pulses."""
+    lag offsets from ``p0`` whose agreement gives K_a,eq (:func:`.sowvd.rate_search`). The gate
+    is :mod:`.trace`'s cells that stand out of the noise; when its maps score below
+    ``threshold_db`` (or it covers too few pulses) the RFRT gated on the bright scatterers of
+    the trace followed over the whole record (:func:`.track.bright_gate`) is tried too and the
+    better-scoring search kept. EstimationError when the echo stands out of the noise in too
+    few pulses and the followed trace holds no target either."""
     gate = trace.support(rec.x, UPSAMPLE)
     coverage = float(np.mean(gate.any(axis=1)))
-    if coverage < MIN_COVERAGE:
+    search = None
+    if coverage >= MIN_COVERAGE:
+        search = rate_search(rfrt(rec.x, trace.band(rec.x, gate, UPSAMPLE)), rec.prf, p0)
+        if search.score_db >= threshold_db:
+            return search
+    bright = track.bright_gate(rec.x, UPSAMPLE)
+    followed = None if bright is None else rate_search(rfrt(rec.x, bright), rec.prf, p0)
+    if search is None and (followed is None or followed.score_db < threshold_db):
         raise EstimationError(f"receiver {rec.name}: the echo stands out of the noise in {100 * coverage:.0f} % of "
-                              f"the pulses < {100 * MIN_COVERAGE:.0f} %")
-    return rate_search(rfrt(rec.x, trace.band(rec.x, gate, UPSAMPLE)), rec.prf, p0)
+                              f"the pulses < {100 * MIN_COVERAGE:.0f} %"
+                              + ("" if followed is None else f", and the SoWVD on its followed trace scores "
+                                 f"{followed.score_db:.1f} dB < {threshold_db:.1f} dB"))
+    if followed is not None and (search is None or followed.score_db > search.score_db):
+        log.info("receiver %s: SoWVD on the followed trace's bright cells: %.1f dB (cell gate: %s)", rec.name,
+                 followed.score_db, "-" if search is None else f"{search.score_db:.1f} dB")
+        return followed
+    return search
 
 
 def rcmc(rec: Records, fm_rate: float) -> np.ndarray:
@@ -170,9 +186,26 @@ def doppler_centroid_radon(rec: Records, rcmc: np.ndarray) -> tuple[float, float
     image = np.abs(rcmc).astype(np.float32)
     image -= trace.floor(image)  # the noise's range profile would be a trace of slope 0
     np.maximum(image, 0, out=image)
+    return _line(rec, image)
+
+
+def _line(rec: Records, image: np.ndarray) -> tuple[float, float, bool]:
+    """(f_dc, tau at eta_ref, at the search's edge) of ``image``'s strongest straight trace."""
     slope, k_mid = radon.line_slope(image)
     limited = abs(slope) > SLOPE_LIMIT * image.shape[1] / max(image.shape[0] - 1, 1)
     return slope * rec.f0 * rec.prf / rec.fs, rec.t0 + k_mid / rec.fs, bool(limited)  # k_mid: the middle pulse's
+
+
+def doppler_centroid_walking(rec: Records, rcmc: np.ndarray) -> tuple[float, float, bool]:
+    """:func:`doppler_centroid_radon` on the power |s_rcmc|^2 less each range cell's mean over the
+    pulses. In heavy noise the floor-subtracted magnitude's cells keep a mean that differs from
+    cell to cell (the floor's estimate, the window's uneven noise), which adds up to a line of
+    slope 0 stronger than a walking trace (Table II case 5 at A, -15 dB: tests/test_moving_noise.py);
+    with the means removed the walking trace is the strongest line. A trace that keeps its
+    range cell (f_dc ~ 0) is removed with them: :func:`with_rate` keeps whichever focuses."""
+    power = np.abs(rcmc).astype(np.float32) ** 2
+    power -= power.mean(axis=0)
+    return _line(rec, power)
 
 
 def align_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: slice,
@@ -279,7 +312,7 @@ def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHO
                      focus_db: float | None = FOCUS_DB) -> ReceiverEstimate:
     """Steps 2-5 on a receiver's :func:`records`: :func:`estimate_receiver` without the range compression."""
     _check_chain_options(p0, threshold_db, focus_db)
-    search = dataclasses.replace(sowvd(rec, p0), primary=None)
+    search = dataclasses.replace(sowvd(rec, p0, threshold_db), primary=None)
     ratio_db = search.score_db
     if ratio_db >= threshold_db:
         return with_rate(rec, search)
@@ -312,17 +345,39 @@ def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None) ->
     k = search.fm_rate if fm_rate is None else search.refine(fm_rate)
     candidates = tuple(tuple(map(float, c)) for c in search.candidates)
     peak_to_background, p0, margin_db = search.peak_to_background, search.p0[0], search.margin_db
-    f_dc, tau_c, limited = doppler_centroid_radon(rec, rcmc(rec, k))
+    aligned = rcmc(rec, k)
+    lines = [doppler_centroid_radon(rec, aligned), doppler_centroid_walking(rec, aligned)]
+    del aligned
+    # the two lines agree (within two samples of walk over the aperture) unless noise or a
+    # still trace fooled one of them: then the one whose focus stands higher is kept
+    if abs(lines[0][0] - lines[1][0]) * rec.fs / rec.f0 * float(np.ptp(rec.eta)) <= 2.0:
+        lines = lines[:1]
     aperture = float(np.ptp(rec.eta) + 1.0 / rec.prf)
     if candidates:
         used = int(np.argmin([abs(c[0] - k) for c in candidates]))
         candidates = (candidates[used],) + tuple(candidates[:used]) + tuple(candidates[used + 1:])
-    est = ReceiverEstimate(fm_rate=k, doppler_centroid=f_dc, receiver=rec.name, tau_c=tau_c, eta_c=np.nan,
-                           peak_to_background=peak_to_background, p0=p0, aperture=aperture,
-                           tau_trace=tau_c, fm_rate_candidates=tuple(candidates), slope_limited=limited,
-                           search=search)
-    if est.focusable:
-        est = locate(rec, est, sharpen=True)
+    tried = []
+    for f_dc, tau_c, limited in lines:
+        est = ReceiverEstimate(fm_rate=k, doppler_centroid=f_dc, receiver=rec.name, tau_c=tau_c, eta_c=np.nan,
+                               peak_to_background=peak_to_background, p0=p0, aperture=aperture,
+                               tau_trace=tau_c, fm_rate_candidates=tuple(candidates), slope_limited=limited,
+                               search=search)
+        if not est.focusable:
+            break
+        try:
+            tried.append(locate(rec, est, sharpen=True))
+        except EstimationError:
+            if len(lines) == 1:
+                raise
+    if tried:
+        est = max(tried, key=lambda e: e.extent.peak_db)
+        if len(lines) > 1:
+            log.info("receiver %s: Radon lines at f_dc %s Hz; kept %.5g Hz (focus %s dB over the median)", rec.name,
+                     ", ".join(f"{f:.5g}" for f, _, _ in lines), est.doppler_centroid,
+                     ", ".join(f"{e.extent.peak_db:.1f}" for e in tried))
+    elif est.focusable:
+        raise EstimationError(f"receiver {rec.name}: the target's trace lies outside the record at every Radon line "
+                              f"(f_dc {', '.join(f'{f:.5g}' for f, _, _ in lines)} Hz)")
     log.info("receiver %s: K = %.5g Hz/s, f_dc = %.5g Hz, tau_c = %.6f s, eta_c = %.4g s, SoWVD score %.1f dB "
              "(next candidate %.1f dB lower)%s", rec.name, k, f_dc, est.tau_c, est.eta_c,
              20 * np.log10(peak_to_background), margin_db,

@@ -33,6 +33,10 @@ has the reference point's range and so its FM rate; across the whole target the 
 extent in range would put into a common estimate). The record is then advanced by that delay
 error phi / f0 and its phase rotated by phi before the back-projection.
 
+The wrapped band. With intra-pulse Doppler at F_r = B the echo's band edge wraps round the
+sampling rate and compresses T away in range (:func:`.records.wrapped_band`); that band is
+zeroed in each receiver's record first, as the chain does, or the image holds its ghost.
+
 Range-Doppler coupling. With intra-pulse Doppler each compressed peak lies f_dc(eta) / K_r after
 the delay at the pulse's centre that the back-projection computes (:mod:`.layout`; three range
 cells in Table II cases 6 and 8): the record is advanced by the reference point's
@@ -45,12 +49,12 @@ import logging
 
 import numpy as np
 
-from ... import validate
+from ... import budget, validate
 from ...image.backprojection import backproject
 from ...model import EchoData, Grid, Image
 from . import filters
 from .chain import sharpened_bins
-from .records import compressed_receiver, records_of
+from .records import compressed_receiver, records_of, without_wrapped_band
 from .receiver_focus import focus_receiver
 from .closedforms import Predicted, delay_history, delay_terms, higher_order_delay
 from .layout import Layout
@@ -68,6 +72,11 @@ SIZE_FACTOR = 1.5
 #: The default image's margin around the target, m (each side), and its least half-size, m.
 MARGIN_M = 1.5
 MIN_HALF_M = 3.0
+#: Bytes a "bp" pixel holds while the grid is built (its positions and ~3 temporaries of
+#: (n_y, n_r, 3) float64: :func:`ry_grid`), and per receiver (its complex64 image and the
+#: back-projection's float64 accumulators).
+GRID_PIXEL_BYTES = 96
+IMAGE_PIXEL_BYTES = 24
 
 
 def ry_grid(layout: Layout, position, velocity, r, y) -> Grid:
@@ -144,6 +153,12 @@ def _axes(est: MotionEstimate, half_size, spacing, tau_span):
     if tau_span is not None:
         half_r = 0.25 * layout.sound_speed * tau_span
     n_r, n_y = int(np.ceil(half_r / spacing)), int(np.ceil(half_y / spacing))
+    pixels = float(2 * n_r + 1) * float(2 * n_y + 1)
+    receivers = len(est.receivers) - len(est.cannot_focus)
+    budget.check_bytes(f"focus_moving's image of {2 * n_y + 1} x {2 * n_r + 1} pixels (half_size {half_r:g} x "
+                       f"{half_y:g} m, spacing {spacing:g} m) at {receivers} receiver(s)",
+                       pixels * (GRID_PIXEL_BYTES + IMAGE_PIXEL_BYTES * receivers),
+                       advice="ask for a smaller half_size or a coarser spacing")
     r = r_c + spacing * np.arange(-n_r, n_r + 1)
     y = q[1] + spacing * np.arange(-n_y, n_y + 1)
     return r, y
@@ -191,6 +206,13 @@ def focus(echo: EchoData, est: MotionEstimate, tau_span: float | None = None, sh
         if name in est.cannot_focus:
             continue
         comp = compressed_receiver(echo, name)
+        # the band where intra-pulse Doppler's shifted echo wraps round F_r zeroed, as the chain
+        # does (:func:`.records.wrapped_band`): its ghost would focus T away in range
+        _, f_dc, k = delay_terms(est.layout, name, est.position, est.velocity)
+        rec = records_of(comp)
+        clean = without_wrapped_band(rec, float(f_dc), float(k))
+        if clean is not rec:
+            comp = comp.replace(data=clean.x[None])
         provenance = {"algorithm": "clsas.estimate.moving.focus", "method": "bp", "receiver": name,
                       "velocity": est.velocity.tolist(), "position": est.position.tolist(),
                       "eta_ref": est.layout.eta_ref, "reference": "Kiang & Kiang 2022 section VI (r-y plane)",

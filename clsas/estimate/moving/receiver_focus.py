@@ -9,7 +9,7 @@ from ... import validate
 from ...errors import EstimationError
 from ...model import EchoData, Image
 from .chain import MIN_TIME_BANDWIDTH, ReceiverEstimate, focus_bins, sharpened_bins
-from .records import UPSAMPLE, records
+from .records import UPSAMPLE, records, without_wrapped_band
 from .doppler import Doppler
 from .sharpen import fm_rate_correction
 
@@ -24,7 +24,9 @@ def focus_receiver(echo: EchoData, receiver: str, rx_estimate: ReceiverEstimate,
     80 s apertures). ``sharpen``: the residual phase beyond those (what the estimate's errors
     leave) is found by image sharpness and removed (:func:`sharpened_bins`, :mod:`.sharpen`);
     the provenance then holds it ("residual_phase_cycles", (p2, p3, p4)) and the data's Taylor
-    FM rate ("sharpened_fm_rate", Hz/s).
+    FM rate ("sharpened_fm_rate", Hz/s). The range band where an echo with intra-pulse Doppler
+    wraps round the sampling rate is zeroed first (:func:`.records.wrapped_band`), as in the
+    chain's own focus.
 
     Returns an Image with dims ("eta", "tau"): eta spans one period PRF / |K| centred on the
     focus (see :mod:`.filters`), tau the receiver's fast times (all of them, or ``tau_span``
@@ -37,7 +39,8 @@ def focus_receiver(echo: EchoData, receiver: str, rx_estimate: ReceiverEstimate,
     if higher_order is not None:
         higher_order = validate.array("focus_receiver higher_order", higher_order, (echo.n_pulses,), bound=1.0,
                                       copy=False)
-    rec = records(echo, receiver)
+    # the band intra-pulse Doppler wraps round F_r zeroed, as the chain's locate does
+    rec = without_wrapped_band(records(echo, receiver), rx_estimate.doppler_centroid, rx_estimate.fm_rate)
     aperture = float(np.ptp(rec.eta) + 1.0 / rec.prf)
     if abs(rx_estimate.fm_rate) * aperture**2 < MIN_TIME_BANDWIDTH:
         raise EstimationError(f"receiver {receiver}: cannot focus: |K_a,eq| T_a^2 = "

@@ -94,41 +94,55 @@ def records_of(comp: EchoData) -> Records:
                    bandwidth=comp.waveform.bandwidth, name=comp.receivers[0], range_doppler=range_doppler(comp))
 
 
-def wrapped_band(rec: Records, doppler_centroid: float, fm_rate: float) -> tuple[float, float] | None:
-    """(lo, hi), Hz: the range-frequency band of ``rec`` where the target's echo lands wrapped
-    around the raw sampling rate, or None when none does.
+def wrapped_band(rec: Records, doppler_centroid: float, fm_rate: float) -> list[tuple[float, float]]:
+    """[(lo, hi), ...], Hz: the range-frequency bands of ``rec`` where the target's echo lands
+    wrapped around the raw sampling rate (none, one or both edges of the sampled band).
 
     With intra-pulse Doppler (``rec.range_doppler`` != 0) the echo is the chirp shifted in
     frequency by -f_D (:mod:`.layout`; f_D = f_dc + K d over the aperture): its band
     [-B / 2 - f_D, B / 2 - f_D]. Where the raw sampling rate F_r leaves less than |f_D| beyond
     B / 2 (Table I: F_r = B), the band's far edge wraps to the opposite edge of the sampled band,
-    [-F_r / 2, -F_r / 2 + B / 2 + |f_D| - F_r / 2] when f_D < 0 (mirrored when f_D > 0). The matched
-    filter compresses that sliver T after (or before) the target, and its slow-time phase is
-    that of the carrier f0 -+ F_r: a Doppler f_dc F_r / f0 (aliased by the PRF) away from the
-    target's, so it focuses as a ghost T away in range and seconds away in eta, which the
-    extent took for part of the target (Table II speeds with |f_dc| > ~600 Hz at 512 pulses).
-    The real echo holds nothing in that band. The band's width covers |f_dc| + |K| T_a / 2 and
-    :data:`WRAP_MARGIN` x B more (the scatterers' centroids differ by a few Hz)."""
+    [-F_r / 2, -F_r / 2 + B / 2 + |f_D| - F_r / 2] for f_D < 0 (mirrored for f_D > 0: the
+    band's lower edge wraps to the top). The matched filter compresses that sliver T after (or
+    before) the target, and its slow-time phase is that of the carrier f0 -+ F_r: a Doppler
+    f_dc F_r / f0 (aliased by the PRF) away from the target's, so it focuses as a ghost T away
+    in range and seconds away in eta, which the extent took for part of the target (Table II
+    speeds with |f_dc| > ~600 Hz at 512 pulses). The real echo holds nothing in that band. A
+    guard band (F_r > B + 2 max |f_D|) would keep the echo unwrapped, but Table I fixes F_r = B_r
+    = 20 kHz, so :func:`clsas.scene.presets.kiang2022` keeps the paper's rate and the chain and
+    :func:`clsas.focus_moving` zero the band instead.
+
+    f_D runs over f_dc -+ |K| T_a / 2: when that interval holds both signs (a small centroid over
+    a long aperture) both edges wrap, each by its own extreme. Each band reaches
+    :data:`WRAP_MARGIN` x B beyond its extreme (the scatterers' centroids differ by a few Hz)."""
     if rec.range_doppler == 0.0:
-        return None
-    reach = abs(doppler_centroid) + 0.5 * abs(fm_rate) * float(np.ptp(rec.eta)) + WRAP_MARGIN * rec.bandwidth
-    excess = 0.5 * rec.bandwidth + reach - 0.5 * rec.fs_raw
-    if not np.isfinite(excess) or excess <= 0.0:
-        return None
-    excess = min(excess, rec.fs_raw)
+        return []
+    sweep = 0.5 * abs(fm_rate) * float(np.ptp(rec.eta))
+    margin = WRAP_MARGIN * rec.bandwidth
     edge = 0.5 * rec.fs_raw
-    return (-edge, -edge + excess) if doppler_centroid < 0 else (edge - excess, edge)
+    bands = []
+    # f_D > 0: the band moves down, its lower edge -B/2 - f_D passes -F_r/2 and lands at the top
+    for extreme, top in ((doppler_centroid + sweep, True), (doppler_centroid - sweep, False)):
+        reach = (extreme if top else -extreme) + margin
+        excess = 0.5 * rec.bandwidth + reach - edge
+        if not np.isfinite(excess) or excess <= 0.0 or reach <= margin:
+            continue
+        excess = min(excess, rec.fs_raw)
+        bands.append((edge - excess, edge) if top else (-edge, -edge + excess))
+    return bands
 
 
 def without_wrapped_band(rec: Records, doppler_centroid: float, fm_rate: float) -> Records:
-    """``rec`` with its :func:`wrapped_band` zeroed in range frequency (the ghost of the echo's
-    wrapped band edge removed), or ``rec`` itself when there is none."""
-    band = wrapped_band(rec, doppler_centroid, fm_rate)
-    if band is None:
+    """``rec`` with its :func:`wrapped_band` s zeroed in range frequency (the ghost of the echo's
+    wrapped band edges removed), or ``rec`` itself when there is none."""
+    bands = wrapped_band(rec, doppler_centroid, fm_rate)
+    if not bands:
         return rec
     n = rec.x.shape[1]
     f = scipy.fft.fftfreq(n, 1.0 / rec.fs)
-    keep = ~((f >= band[0]) & (f <= band[1]))
+    keep = np.ones(n, bool)
+    for lo, hi in bands:
+        keep &= ~((f >= lo) & (f <= hi))
     spec = scipy.fft.fft(rec.x, axis=1, workers=-1)
     spec *= keep[None, :]
     return dataclasses.replace(rec, x=scipy.fft.ifft(spec, axis=1, workers=-1).astype(np.complex64))

@@ -185,6 +185,7 @@ class PreparedRecords:
         t0 = np.asarray(echo.t0)[list(self.receivers)]
         self.span = np.column_stack([t0 + self.offset / self.fs, t0 + (self.offset + self.length) / self.fs])
         self._device = {}
+        self._scratch = {}  # per context: the device buffer a call's upload blocks are upsampled into, in turn
         self._host = None
         if materialise and self.factor > 1:  # records not upsampled are views of the echo: nothing to hold
             held = 8.0 * echo.n_pulses * float(np.sum(np.maximum(self.length, MIN_SAMPLES)))
@@ -289,8 +290,18 @@ class PreparedRecords:
         # the echo outlives it); a converted copy is copied, as it goes with this function
         flags = mf.USE_HOST_PTR if np.shares_memory(src, self.echo.data) else mf.COPY_HOST_PTR
         src_buf = cl.Buffer(ctx, mf.READ_ONLY | flags, hostbuf=src)
-        dst = cl.Buffer(ctx, mf.READ_WRITE, size=8 * src.shape[0] * int(self.length[i]))
-        fir.enqueue(opencl.runtime().queue, src_buf, src.shape[1], src.shape[0], first, stop, self.factor, dst)
+        queue = opencl.runtime().queue
+        size = 8 * src.shape[0] * int(self.length[i])
+        # every upload block of the call is upsampled into one buffer (a fresh one costs its page
+        # faults each time): on an in-order queue a block's upsampling runs after the kernels
+        # enqueued before it, which read the previous block, have finished
+        in_order = not queue.properties & cl.command_queue_properties.OUT_OF_ORDER_EXEC_MODE_ENABLE
+        key = int(ctx.int_ptr)
+        if not in_order or key not in self._scratch or self._scratch[key].size < size:
+            size_all = 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))
+            self._scratch[key] = cl.Buffer(ctx, mf.READ_WRITE, size=max(size, size_all))
+        dst = self._scratch[key]
+        fir.enqueue(queue, src_buf, src.shape[1], src.shape[0], first, stop, self.factor, dst)
         return dst
 
     def subset(self, chosen) -> "PreparedRecords":

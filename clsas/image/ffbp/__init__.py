@@ -165,19 +165,26 @@ def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsamp
     return chosen
 
 
-_SCENES = weakref.WeakKeyDictionary()  # Grid -> its Scene, for calls that image many echoes onto one grid
+_SCENES = weakref.WeakKeyDictionary()  # Grid -> (its Scene, a sample of its positions), for many echoes onto one grid
+FINGERPRINT = 4096  # pixels compared on every later call (every n-th one): a grid changed since is planned anew
 
 
 def _scene(grid: Grid) -> Scene:
     """The grid's :class:`Scene` (its skeleton, margin and plane: a pass over every pixel), kept
     for later calls on the same Grid while it lives; only when its positions are read-only and
-    their own memory (a Grid's own positions: nothing else can change them)."""
+    their own memory (a Grid's own positions: nothing else can change them), and checked on every
+    later call: still read-only, and FINGERPRINT of its pixels unchanged (NumPy lets an owner make
+    them writeable again; a change to other pixels after that is not seen)."""
     positions = grid.positions
     if positions.flags.writeable or not positions.flags.owndata:
+        _SCENES.pop(grid, None)
         return Scene.of(positions)
-    if grid not in _SCENES:
-        _SCENES[grid] = Scene.of(positions)
-    return _SCENES[grid]
+    flat = positions.reshape(-1, 3)
+    sample = flat[::max(1, flat.shape[0] // FINGERPRINT)]
+    kept = _SCENES.get(grid)
+    if kept is None or not np.array_equal(kept[1], sample):
+        kept = _SCENES[grid] = (Scene.of(positions), sample.copy())
+    return kept[0]
 
 
 def _slots(grids: list, nodes: list) -> tuple[list, list]:

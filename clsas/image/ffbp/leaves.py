@@ -99,6 +99,20 @@ def polar_tiles(grids: list, bv: int, br: int):
     return items, np.concatenate(centres), tv_of * tr_of
 
 
+def _slots(grids: list, items: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The work-item of ``items`` (:func:`polar_tiles`) that holds each group of LANES range samples
+    of each grid's rows, or -1 (a group no tile computed: zero): (sum of n_v x ceil(n_r / LANES),)
+    int32, grid by grid and row by row, and where each grid's groups start (len(grids) + 1,)."""
+    groups = np.array([-(-g.n_r // LANES) for g in grids])
+    first = np.cumsum(np.r_[0, groups * np.array([g.n_v for g in grids])])
+    slots = np.full(int(first[-1]), -1, np.int32)
+    leaf, row = items["leaf"], items["row"]
+    inside = row < np.array([g.n_v for g in grids])[leaf]  # rows past a grid's edge (whole work-items) dropped
+    at = first[leaf] + row * groups[leaf] + items["sample"] // LANES
+    slots[at[inside]] = np.flatnonzero(inside)
+    return slots, first
+
+
 def _row_step(grid: PolarGrid) -> float:
     """The largest distance (m) between neighbouring angle rows of a polar grid: at its far range r,
     r dv / cos(theta) with the largest |v| = sin(theta) (cos(theta) bounded below by 1e-3)."""
@@ -152,14 +166,10 @@ class FirstStage:
             cl.enqueue_copy(rt.queue, out, np.ascontiguousarray(self._demodulated(made, grid), np.complex64),
                             dst_offset=8 * offset)
             return
-        image, items, first, count = made
-        if grid.spans is not None:  # the samples outside the rows' spans are zero
-            cl.enqueue_fill_buffer(rt.queue, out, np.zeros(1, np.complex64), 8 * offset, 8 * grid.size)
-        if count:
-            spans = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=grid.row_spans)
-            program.kernel("ffbp_leaf")(rt.queue, *opencl.work_groups(count), image, items, np.int32(first),
-                                        np.int32(count), program.frames([grid])[0], spans,
-                                        np.float64(self.demodulate), np.int64(offset), out)
+        image, slots, slot_first, spans, span_first = made
+        program.kernel("ffbp_leaf")(rt.queue, *opencl.work_groups_2d(-(-grid.n_r // LANES), grid.n_v), image, slots,
+                                    np.int64(slot_first), spans, np.int64(span_first), program.frames([grid])[0],
+                                    np.float64(self.demodulate), np.int64(offset), out)
 
     def _demodulated(self, image: np.ndarray, grid: PolarGrid) -> np.ndarray:
         """The leaf's image demodulated by its ranges, zero outside its rows' spans."""
@@ -322,8 +332,11 @@ class FirstStage:
                 kern.launch(queue, pixels=pix, tile_of=tile_of, refs=ref_buf, ref_stride=self.first, ref_first=0,
                             records=data, n_samples=n_samples, taps=taps, params=params, p_first=s,
                             p_count=min(tile.PULSE_BLOCK, self.first - s), image=image, row_shift=row_shift)
+        slots, slot_first = _slots(leaves, items)
+        spans = np.concatenate([g.row_spans for g in leaves])
+        span_first = np.cumsum([0] + [g.n_v for g in leaves])
+        slots_buf, spans_buf = made(slots), made(spans)
         rt.queue.finish()  # the records' buffers may use host memory that the caller drops
-        ends = np.searchsorted(items["leaf"], np.arange(len(batch) + 1))
-        for j, k in enumerate(batch):  # the leaf's work-items ends[j] .. ends[j + 1] - 1 of image
-            self.ready[k] = (image, items_buf, int(ends[j]), int(ends[j + 1] - ends[j]))
+        for j, k in enumerate(batch):  # the leaf's slots and spans from slot_first[j] and span_first[j] on
+            self.ready[k] = (image, slots_buf, int(slot_first[j]), spans_buf, int(span_first[j]))
         return []

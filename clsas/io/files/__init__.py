@@ -68,9 +68,8 @@ def save(obj: EchoData | Image, path: str | os.PathLike, compression: int = 1, o
     zarr store (``.zarr``). See the module docstring for what happens on failure, interruption
     and memory.
 
-    ``compression``: the gzip level of a NetCDF file (1-9; 0 stores the chunks raw). Level 1
-    with byte shuffle saves ~15 % of a noisy echo and ~20 % of an image, and costs several times
-    the time of a raw write; zarr stores use zarr's default compressor unless it is 0.
+    ``compression``: the gzip level of a NetCDF file (1-9, with byte shuffle; 0 stores the
+    chunks raw, the fastest write); zarr stores use zarr's default compressor unless it is 0.
     ``overwrite``: replace an existing clsas file or store at ``path`` (default); False raises
     FileExistsError instead. Returns ``Path(path)``.
 
@@ -88,12 +87,12 @@ def save(obj: EchoData | Image, path: str | os.PathLike, compression: int = 1, o
             _write.write(ds, tmp, level)
             atomic.check_signals()  # a signal whose exception a writer's cleanup dropped
             _check(ds, tmp, path)
+            _target.replace(tmp, path)
         except (ClsasError, MemoryError):
             raise
         except Exception as err:  # noqa: BLE001 - the writers' errors, named by the target, not the temporary
             message = " ".join(str(err).replace(str(tmp), str(path)).split())
             raise OSError(f"save: writing {path} failed: {type(err).__name__}: {message}") from err
-        _target.replace(tmp, path)
     log.info("saved %s (%s) to %s", type(obj).__name__, "x".join(map(str, obj.data.shape)), path)
     return path
 

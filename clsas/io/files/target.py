@@ -73,6 +73,9 @@ def check_target(name: str, value, overwrite: bool = True) -> Path:
                          f"{str(folder)!r} allows names of at most {limit}")
     if not os.access(folder, os.W_OK | os.X_OK):
         raise PermissionError(f"{name}: cannot write in the folder {str(folder)!r} (permission denied)")
+    if path.is_symlink() and is_zarr(path):
+        raise FileExistsError(f"{name}: {str(path)!r} is a symbolic link; a store is replaced by swapping folders, "
+                              "which would replace the link, not the store it points to: give the store's own path")
     try:
         info = os.stat(path)
     except FileNotFoundError:

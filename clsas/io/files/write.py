@@ -10,7 +10,6 @@ peak).
 from __future__ import annotations
 
 import contextlib
-import os
 from pathlib import Path
 
 import numpy as np
@@ -71,7 +70,8 @@ def encoding(ds, zarr: bool, level: int) -> dict:
 
 def write(ds, path: Path, level: int) -> None:
     """``ds`` to ``path`` (NetCDF4, or a zarr v2 store with every chunk written, even those
-    all zero: a missing chunk then means a damaged store), synced to the disk."""
+    all zero: a missing chunk then means a damaged store); :func:`clsas.atomic.replace` syncs it
+    to the disk before moving it in place."""
     if is_zarr(path):
         with zarr_limits():
             ds.to_zarr(path, mode="w-", encoding=encoding(ds, True, level), consolidated=True, zarr_format=2,
@@ -84,8 +84,6 @@ def write(ds, path: Path, level: int) -> None:
             ds.dump_to_store(store, encoding=encoding(ds, False, level))
         finally:
             store.close()
-        with open(path, "rb+") as f:
-            os.fsync(f.fileno())
 
 
 def verify(ds, back, path: Path) -> None:

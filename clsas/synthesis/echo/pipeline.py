@@ -7,8 +7,8 @@ records, a block of pulses at a time so that memory stays bounded; the backends 
 Noise (``snr_db``): complex white Gaussian noise added to every recorded raw sample, seeded by
 ``seed`` (the same seed gives the same noise on either backend). ``simulate`` takes the SNR
 per sample of the echo, the mean of |s|^2 over the samples where the noise-free echo is nonzero
-over the noise variance; :func:`add_noise` also takes it over the whole record
-(``reference="record"``), the other reading of Kiang & Kiang 2022 section VII-C, which does not
+over the noise variance (``snr_reference="echo"``), or over the whole record
+(``snr_reference="record"``), the other reading of Kiang & Kiang 2022 section VII-C, which does not
 define its SNR. The two readings, their exact conversion and what each means after compression
 are derived in :func:`add_noise`.
 """
@@ -24,7 +24,7 @@ from ...progress import Progress, stage
 from ...model import EchoData
 from ...scene.scenario import Scenario
 from ..occlusion import DEFAULT_REUSE_TOLERANCE, PathWeights, has_meshes, needs_path_weights, scene_scatterers
-from ...validate import choice, scalar
+from ...validate import choice, compression, instance, integer, scalar
 from ..checks import SNR_DB_RANGE, check_arguments, warn_pulse_overlap
 from ..window import check_cube_size, node_span, receiver_nodes
 from .options import AUTO, DEFAULT_CHUNK_BYTES, SynthesisOptions, auto_flag
@@ -154,11 +154,36 @@ def add_noise(data, snr_db: float, seed, n_valid=None, block: int = 64, power=No
     return data
 
 
+def _noise_free(data, n_valid):
+    """(array (n_rx, n_pulses, n_samples), n_valid (n_rx,) ints) of :func:`snr_offset_db`'s
+    arguments, checked."""
+    if isinstance(data, EchoData):
+        compression("snr_offset_db data", data, compressed=False, advice="the offset is the raw echo's duty")
+        if data.provenance.get("snr_db") is not None:
+            raise ValueError(f"snr_offset_db data: must be a noise-free echo (the offset is its duty in the record), "
+                             f"got one with snr_db {data.provenance['snr_db']}")
+        n_valid = data.provenance.get("n_valid") if n_valid is None else n_valid
+        data = data.data
+    instance("snr_offset_db data", data, np.ndarray, "an EchoData or an array (n_rx, n_pulses, n_samples)")
+    if data.ndim != 3 or 0 in data.shape:
+        raise ValueError(f"snr_offset_db data: must be (n_rx, n_pulses, n_samples) with none empty, got shape "
+                         f"{data.shape}")
+    if n_valid is None:
+        return data, np.full(data.shape[0], data.shape[2])
+    if np.ndim(n_valid) != 1 or len(n_valid) != data.shape[0]:
+        raise ValueError(f"snr_offset_db n_valid: must be {data.shape[0]} counts (one a receiver), got shape "
+                         f"{np.shape(n_valid)}")
+    return data, np.array([integer("snr_offset_db n_valid", n, 1, data.shape[2]) for n in n_valid])
+
+
 def snr_offset_db(data, n_valid=None, power=None) -> np.ndarray:
     """SNR_record - SNR_echo per receiver, dB (n_rx,): 10 log10 of the fraction of the recorded
     samples where the noise-free echo ``data`` is nonzero (:func:`add_noise` derives it); <= 0.
-    ``n_valid`` and ``power`` as in :func:`add_noise`."""
-    n_valid = np.full(data.shape[0], data.shape[2]) if n_valid is None else np.asarray(n_valid)
+    ``data``: a noise-free raw EchoData (its ``provenance["n_valid"]`` used) or an array
+    (n_rx, n_pulses, n_samples); ``n_valid`` and ``power`` as in :func:`add_noise`. So
+    ``simulate(sc, snr_db=x, snr_reference="record")`` and ``simulate(sc, snr_db=x -
+    snr_offset_db(clean)[h])`` give receiver h the same noise."""
+    data, n_valid = _noise_free(data, n_valid)
     _, counts = signal_power(data, n_valid) if power is None else power
     heard = counts.sum(axis=1)
     if np.any(heard == 0):
@@ -354,7 +379,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
              hull_occlusion: bool = True, reuse_tolerance: float = DEFAULT_REUSE_TOLERANCE,
              absorption: bool | str = AUTO, multipath: int | str = AUTO,
              intra_pulse: str = "moving", accumulation: str = "auto", compressed: bool | str = False,
-             compressed_level_db: float = DEFAULT_LEVEL_DB) -> EchoData:
+             compressed_level_db: float = DEFAULT_LEVEL_DB, snr_reference: str = "echo") -> EchoData:
     """Synthesize the raw echoes of ``scenario`` (see the module docstring for the model).
 
     Parameters
@@ -366,6 +391,11 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         non-stop-and-go delays.
     snr_db : float, optional
         Add white Gaussian noise at this SNR (definition in the module docstring); ``seed`` seeds it.
+    snr_reference : {"echo", "record"}
+        The signal power ``snr_db`` is taken over (:func:`add_noise`): "echo" (default) the mean
+        |s|^2 over the samples where the noise-free echo is nonzero, "record" over every recorded
+        sample (MATLAB's ``awgn(s, snr, "measured")`` on the whole record; one reading of Kiang &
+        Kiang 2022's SNR). They differ by :func:`snr_offset_db`.
     precision : {"single", "double"}
         Accumulation precision of the OpenCL kernel (delays are always double). The returned
         samples are complex64 either way (DESIGN.md); :func:`synthesize` returns them in
@@ -439,6 +469,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
         stop_and_go=stop_and_go, progress=progress, hull_occlusion=hull_occlusion))
     for name, value in (("spreading", spreading), ("absorption", absorption)):
         auto_flag(f"simulate {name}", value)
+    choice("simulate snr_reference", snr_reference, SNR_REFERENCES)
     if compressed is not False and snr_db is not None:
         raise ValueError(f"simulate snr_db: noise ({snr_db!r} dB) is defined on raw samples; with compressed="
                          f"{compressed!r} simulate the raw echo with noise and range_compress it instead")
@@ -450,7 +481,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
     out = synthesize(scenario, opts, occlusion)
     data = out.data
     if snr_db is not None:
-        add_noise(data, float(snr_db), seed, out.n_valid)
+        add_noise(data, float(snr_db), seed, out.n_valid, reference=snr_reference)
     rx_tau, rx_pos = out.nodes
     n_rx = scenario.n_receivers
     return EchoData(
@@ -464,6 +495,7 @@ def simulate(scenario: Scenario, backend: str | None = None, stop_and_go: bool =
                     "paths": [kind.name for kind in out.physics.kinds],
                     "intra_pulse": out.physics.intra_pulse if out.physics.doppler else "none", "snr_db": snr_db,
                     "accumulation": "direct" if out.physics.grid is None else "grid",
+                    **({"snr_reference": snr_reference} if snr_db is not None else {}),
                     **({"compressed": _compressed_provenance(opts, out.physics)} if out.physics.response else {}),
                     "seed": seed if seed is None or isinstance(seed, int) else str(seed),
                     "n_scatterers": out.n_scatterers, "occlusion": occlusion is not None,
