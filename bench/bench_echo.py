@@ -11,10 +11,11 @@ and the size of intra-pulse Doppler for stationary scatterers.
 2. ``echo_seafloor``: Heremans's 15-receiver sonar over a 100 m (along) x 60 m (across, ground
    range 40-100 m) sand swath 15 m below (clsas.simulate's defaults: speckle facets 4 a
    resolution cell, spreading, absorption; the seabed bounces are dark for facets and pruned);
-   the middle 8 pulses (2 with --quick) of the track, raw, compressed="hamming" and
-   compressed=True, timed interleaved (A B C A B C, one warm-up each), min and median, with the
-   load average, and the route each compressed mode took (its taps, or the raw echo then the
-   matched filter, clsas/synthesis/echo/compressed.py); rate = facets in the beam's reach x pulses x receivers per second (the facets
+   the middle 8 pulses (2 with --quick) of the track, raw and compressed=True each by the direct
+   and the grid accumulation (old and new: clsas/synthesis/echo/grid.py; the grid route's OpenCL
+   synthesis runs in one pass), and compressed="hamming", timed interleaved (A B C D E A B C D E,
+   one warm-up each), min and median, with the load average, and the route each compressed mode
+   took (its taps, or the raw echo then the matched filter, clsas/synthesis/echo/compressed.py); rate = facets in the beam's reach x pulses x receivers per second (the facets
    out of a pulse's reach carry no echo and are skipped). ``swath_estimate_s``: the whole swath
    at 256 pulses (its facets in reach x pulses x receivers) divided by that rate: an
    extrapolation from the measured middle pulses, not a run of the whole swath.
@@ -92,12 +93,13 @@ def seafloor(args) -> None:
     whole = swath_scene(SWATH_PULSES)
     whole_work = paths_in_reach(whole, every=8)
     whole_facets = generate(whole.seafloor, whole).count
-    modes = {"raw": False, "compressed_hamming": "hamming", "compressed": True}
+    modes = {"raw_direct": (False, "direct"), "raw_grid": (False, "grid"), "compressed_direct": (True, "direct"),
+             "compressed_grid": (True, "grid"), "compressed_hamming": ("hamming", "auto")}
     echoes = {}
 
     def run(name, mode):
         def call():
-            echoes[name] = simulate(sc, backend="opencl", progress=False, compressed=mode)
+            echoes[name] = simulate(sc, backend="opencl", progress=False, compressed=mode[0], accumulation=mode[1])
         return call
 
     timed = interleaved({name: run(name, mode) for name, mode in modes.items()}, repeats=args.repeats or 2)
@@ -108,7 +110,8 @@ def seafloor(args) -> None:
                  "swath_pulses": SWATH_PULSES, "swath_paths_in_reach": whole_work,
                  "swath_estimate_s": whole_work / rate,
                  "case": f"Heremans swath, middle {n_pulses} pulses measured; swath_estimate_s extrapolated"}
-        if name != "raw":
+        extra["accumulation"] = echoes[name].provenance["accumulation"]
+        if name.startswith("compressed"):
             how = echoes[name].provenance["compressed"]
             extra.update(route=how["route"], taps=how["taps"], discarded_db=how["discarded_db"])
         report(args, "echo_seafloor", "opencl", {"facets": echoes[name].provenance["n_scatterers"],

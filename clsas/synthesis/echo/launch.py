@@ -143,6 +143,49 @@ class OpenCLSynth(BlockSynth):
             self.params["abs_a2"] = ph.absorption.a2
         self.legs = [legs_record(kind) for kind in ph.kinds]
 
+    def delay_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) (H,) s: bounds of the delay of every path the kernel can compute, over the
+        pulses and path kinds: the (image) transmitter's distance to a box holding the
+        scatterers then (the targets over the pulses and their flight, the facets in the pulse's
+        reach) plus the box's distance to the box of receiver h's (image) nodes over the pulse,
+        nearest and farthest, over c. The positions the kernel uses lie in those boxes."""
+        c, sc = self.scenario.medium.sound_speed, self.scenario
+        n_p = self.eta.size
+        box_lo, box_hi = np.full((n_p, 3), np.inf), np.full((n_p, 3), -np.inf)
+        n_t = self.floor_first
+        if n_t:
+            p0, vel = self.scat.p0[:n_t], self.scat.vel[:n_t]
+            ends = [p0 + vel * self.eta[0], p0 + vel * (self.eta[-1] + self.rx_tau[-1])]
+            box_lo[:] = np.minimum(ends[0].min(axis=0), ends[1].min(axis=0))
+            box_hi[:] = np.maximum(ends[0].max(axis=0), ends[1].max(axis=0))
+        spans = self.reach(slice(None))
+        if spans is not None:
+            facets = self.scat.p0[n_t:]
+            size = 1024
+            starts = np.arange(0, facets.shape[0], size)
+            chunk_lo, chunk_hi = np.minimum.reduceat(facets, starts), np.maximum.reduceat(facets, starts)
+            for p, (a, b) in enumerate(spans):
+                if b > a:
+                    k = slice(a // size, (b - 1) // size + 1)
+                    box_lo[p] = np.minimum(box_lo[p], chunk_lo[k].min(axis=0))
+                    box_hi[p] = np.maximum(box_hi[p], chunk_hi[k].max(axis=0))
+        heard = np.all(np.isfinite(box_lo), axis=1)
+        box_lo, box_hi = np.where(heard[:, None], box_lo, 0.0), np.where(heard[:, None], box_hi, 0.0)
+        lo, hi = np.full(self.n_rx, np.inf), np.full(self.n_rx, -np.inf)
+        for kind in self.physics.kinds:
+            tx = kind.out.image.points(self.tx)  # (P, 3)
+            out_lo = np.linalg.norm(np.clip(tx, box_lo, box_hi) - tx, axis=1)
+            out_hi = np.linalg.norm(np.maximum(np.abs(tx - box_lo), np.abs(tx - box_hi)), axis=1)
+            nodes = kind.back.image.points(self.rx_pos.reshape(-1, 3)).reshape(self.rx_pos.shape)  # (H, P, N, 3)
+            r_lo, r_hi = nodes.min(axis=2), nodes.max(axis=2)
+            gap = np.maximum(0.0, np.maximum(box_lo - r_hi, r_lo - box_hi))
+            back_lo = np.linalg.norm(gap, axis=-1)
+            back_hi = np.linalg.norm(np.maximum(np.abs(r_hi - box_lo), np.abs(box_hi - r_lo)), axis=-1)
+            tau_lo, tau_hi = (out_lo + back_lo) / c, (out_hi + back_hi) / c  # (H, P)
+            lo = np.minimum(lo, np.where(heard, tau_lo, np.inf).min(axis=1))
+            hi = np.maximum(hi, np.where(heard, tau_hi, -np.inf).max(axis=1))
+        return lo, hi
+
     def _bottom_table(self):
         planes = [p for kind in self.physics.kinds for p in kind.out.planes + kind.back.planes if p.law == BOTTOM]
         table = np.zeros((BOTTOM_TABLE, 2))
@@ -261,9 +304,15 @@ class OpenCLSynth(BlockSynth):
         reduced on the device; the facets the block's beam reaches are one contiguous range of
         scatterers, widened as a slice. The echo centres alone are computed (DELAYS_ONLY): pass B
         computes its own paths with their weights, in pulse blocks of its own."""
+        paths_buf, pc, block = self._run_paths(pulses, np.zeros(self.n_rx), weighted=False, delays_only=True)
+        self._widen(paths_buf, pc, block, lo, hi, np.zeros(self.n_rx, np.int64))
+
+    def _widen(self, paths_buf, pc: int, block: tuple, lo: np.ndarray, hi: np.ndarray, offset: np.ndarray) -> None:
+        """Widen ``lo``, ``hi`` (H, N) by the extents of a block's paths (:meth:`extents`) whose
+        starts are ``offset`` (H,) samples after t = 0."""
         cl, q = self.cl, self.rt.queue
         h = self.n_rx
-        paths_buf, pc, (jump, n_act, stride) = self._run_paths(pulses, np.zeros(h), weighted=False, delays_only=True)
+        jump, n_act, stride = block
         ext = cl.Buffer(self.rt.context, cl.mem_flags.WRITE_ONLY, 8 * h * stride)
         self.k_extents(q, *groups(stride, h), paths_buf, np.int32(stride), np.int32(pc), ext)
         host = np.empty((h, len(self.physics.kinds), n_act, 2), np.int32)
@@ -274,6 +323,7 @@ class OpenCLSynth(BlockSynth):
             first = ext[:, 0, :, 0] if ext.shape[1] == 1 else ext[..., 0].min(axis=1)
             last = (ext[:, 0, :, 1] if ext.shape[1] == 1 else ext[..., 1].max(axis=1)) + 1
             heard = first != UNHEARD  # some pulse of the block hears it
+            first, last = first + offset[:, None], last + offset[:, None]
             if isinstance(scatterers, slice):
                 np.minimum(lo[:, scatterers], first, out=lo[:, scatterers], where=heard)
                 np.maximum(hi[:, scatterers], last, out=hi[:, scatterers], where=heard)
@@ -289,11 +339,16 @@ class OpenCLSynth(BlockSynth):
         if n_reach > 0:
             widen(slice(self.split, self.split + n_reach), slice(n_t + jump, n_t + jump + n_reach))
 
-    def records(self, pulses: slice, t0: np.ndarray, n_samples: int) -> np.ndarray:
-        """The block's records (H, P, n_samples), the window of receiver h starting at t0[h]."""
+    def records(self, pulses: slice, t0: np.ndarray, n_samples: int, extents=None) -> np.ndarray:
+        """The block's records (H, P, n_samples), the window of receiver h starting at t0[h] (a
+        whole sample when ``extents`` is given: (lo, hi) (H, N) are then widened by the block's
+        paths as :meth:`extents` does, so that one pass gives the records and the extents)."""
         cl, q = self.cl, self.rt.queue
         h = self.n_rx
-        paths_buf, pc, (_, _, n) = self._run_paths(pulses, t0)
+        paths_buf, pc, block = self._run_paths(pulses, t0)
+        n = block[2]
+        if extents is not None:
+            self._widen(paths_buf, pc, block, *extents, np.round(t0 * self.scenario.waveform.fs).astype(np.int64))
         shift = np.zeros(h, np.int32)
         n_chunks = -(-n // CHUNK_SCATTERERS)
         mf = cl.mem_flags

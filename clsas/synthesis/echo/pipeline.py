@@ -2,7 +2,9 @@
 
 Pass A computes every path's delay (the recording window follows from them), pass B the
 records, a block of pulses at a time so that memory stays bounded; the backends are in
-:mod:`.reference` and :mod:`.launch`.
+:mod:`.reference` and :mod:`.launch`. The OpenCL grid route (large scenes) runs in one pass: the
+records over a window that bounds every delay, the extents from the same paths, then the
+recording window cut from it (:func:`_one_pass_window`).
 
 Noise (``snr_db``): complex white Gaussian noise added to every recorded raw sample, seeded by
 ``seed`` (the same seed gives the same noise on either backend). ``simulate`` takes the SNR
@@ -316,40 +318,88 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
         check_cube_size(scenario.n_receivers, scenario.eta.size, int(np.max(n_valid)), opts.max_bytes,
                         "given by Scenario.recording")
     synth, blocks = _make_synth(scenario, opts, occlusion)
-    name, double, progress, chunk_bytes = opts.backend, opts.double, opts.progress, opts.chunk_bytes
     wf = scenario.waveform
     n_rx, n_pulses, n_scat = scenario.n_receivers, scenario.eta.size, synth.scat.count
     lo = np.full((n_rx, n_scat), np.inf)
     hi = np.full((n_rx, n_scat), -np.inf)
-    with stage(f"echo delays ({name})", f"{n_rx} receivers x {n_pulses} pulses x {n_scat} scatterers"), \
-            Progress(n_pulses, "pulses", "echo delays", progress, leave=False) as bar:
-        for sl in blocks:
-            synth.extents(sl, lo, hi)
-            bar.done(sl.stop - sl.start)
+    bound = _one_pass_window(scenario, opts, synth)
+    if bound is None:  # pass A: the delays, for the recording window
+        with stage(f"echo delays ({opts.backend})", f"{n_rx} receivers x {n_pulses} pulses x {n_scat} scatterers"), \
+                Progress(n_pulses, "pulses", "echo delays", opts.progress, leave=False) as bar:
+            for sl in blocks:
+                synth.extents(sl, lo, hi)
+                bar.done(sl.stop - sl.start)
+    else:  # one pass over a window that holds the recording window: pass B widens the extents
+        t0_b, n_b = bound
+        data_b = _records(scenario, opts, synth, t0_b, n_b, (lo, hi))
     warn_pulse_overlap(scenario, synth)
     lo, hi = lo / wf.fs, hi / wf.fs  # s, whole samples
     # the nodes span the recording window (and not beyond sampled motion errors)
     tau_span = node_span(scenario, scenario.eta, hi.max() + 0.5 * wf.duration + 2 / wf.fs)
-    if name == "opencl" and hi.max() > synth.rx_tau[-1]:
-        synth = OpenCLSynth(*synth.args, double=double,
+    if opts.backend == "opencl" and bound is None and hi.max() > synth.rx_tau[-1]:
+        synth = OpenCLSynth(*synth.args, double=opts.double,
                              nodes=receiver_nodes(scenario, scenario.eta, tau_span, strict=not opts.stop_and_go))
     t0, n_valid, origin = _window(scenario, lo, hi)
     _check_targets_in_windows(scenario, lo, hi, t0, n_valid)
     n_samples = int(n_valid.max())
-    nodes = (synth.rx_tau, synth.rx_pos, synth.rx_node_error) if name == "opencl" else \
+    nodes = (synth.rx_tau, synth.rx_pos, synth.rx_node_error) if opts.backend == "opencl" else \
         (lambda n: (n[0], n[1], n[3]))(receiver_nodes(scenario, scenario.eta, tau_span, strict=False))
     check_cube_size(n_rx, n_pulses, n_samples, opts.max_bytes, origin, n_nodes=nodes[0].size)
+    if bound is None:
+        data = _records(scenario, opts, synth, t0, n_valid)
+    else:
+        data = np.zeros((n_rx, n_pulses, n_samples), dtype=opts.dtype)
+        shift = np.round((t0 - t0_b) * wf.fs).astype(np.int64)
+        if np.any(shift < 0) or np.any(shift + n_valid > n_b):
+            raise RuntimeError(f"echo synthesis: the recording window (starts {t0.tolist()} s, {n_valid.tolist()} "
+                               f"samples) is not inside its bound (starts {t0_b.tolist()} s, {n_b.tolist()}): a bug")
+        for h in range(n_rx):
+            data[h, :, :n_valid[h]] = data_b[h, :, shift[h]:shift[h] + n_valid[h]]
+        del data_b
+    return Synthesis(data, t0, n_valid, origin, nodes[:2], float(nodes[2]), n_scat, synth.physics)
+
+
+def _one_pass_window(scenario: Scenario, opts: SynthesisOptions, synth):
+    """(t0 (H,) s, samples (H,)) of a window that holds every echo, from the delays' bounds
+    (:meth:`.launch.OpenCLSynth.delay_bounds`), for a synthesis in one pass (records and extents
+    from the same paths, then cut to the recording window): the OpenCL grid route of a scene
+    whose window is derived from the geometry, when the bound's cube fits the memory budget.
+    None: two passes (the delays first)."""
+    if opts.backend != "opencl" or synth.physics.grid is None or scenario.recording is not None:
+        return None
+    wf = scenario.waveform
+    lo, hi = synth.delay_bounds()
+    if not np.all(np.isfinite(lo)):
+        return None
+    lo_s, hi_s = np.floor(lo * wf.fs) / wf.fs, (np.floor(hi * wf.fs) + 1) / wf.fs  # whole samples, as the extents
+    first = np.floor((lo_s - 0.5 * wf.duration) * wf.fs) - 1  # _window's arithmetic, and a sample to spare
+    last = np.ceil((hi_s + 0.5 * wf.duration) * wf.fs) + 1
+    n_b = (last - first + 1).astype(np.int64)
+    if 2 * scenario.n_receivers * scenario.eta.size * int(n_b.max()) * np.dtype(opts.dtype).itemsize > opts.max_bytes:
+        return None
+    if hi.max() + 0.5 * wf.duration > synth.rx_tau[-1]:  # the nodes must span the bound's window
+        return None
+    return first / wf.fs, n_b
+
+
+def _records(scenario: Scenario, opts: SynthesisOptions, synth, t0: np.ndarray, n_valid: np.ndarray, extents=None):
+    """Pass B: the records (H, P, max n_valid) in ``opts.dtype``, receiver h's window starting at
+    t0[h] with n_valid[h] samples (zeros beyond), in pulse blocks that also bound the records'
+    memory (complex128 on the host, the kernel's output buffer and its copy; the raw route's FFTs
+    of about twice the samples; the grid route's grids); ``extents`` (lo, hi) widened on the way
+    (:meth:`.launch.OpenCLSynth.records`)."""
+    wf, name = scenario.waveform, opts.backend
+    n_rx, n_pulses, n_scat = scenario.n_receivers, scenario.eta.size, synth.scat.count
+    n_samples = int(np.max(n_valid))
     data = np.zeros((n_rx, n_pulses, n_samples), dtype=opts.dtype)
-    # pass B in blocks that also bound the records' memory (complex128 on the host, the
-    # kernel's output buffer and its copy; the raw route's FFTs of about twice the samples)
-    per_pulse = n_rx * (synth.scat.count * 32 + (7 if synth.physics.compress_raw else 3) * 16 * n_samples)
+    per_pulse = n_rx * (n_scat * 32 + (7 if synth.physics.compress_raw else 3) * 16 * n_samples)
     if synth.physics.grid is not None:  # the grids, their spectra and the tails
         per_pulse += n_rx * 3 * 16 * (synth.physics.grid.terms * RATE + 1) * synth.physics.grid.grid_samples(n_samples)
     with stage(f"echo synthesis ({name})", f"{n_rx} receivers x {n_pulses} pulses x {n_samples} samples "
                f"({data.nbytes / 2**20:.1f} MiB) x {n_scat} scatterers"), \
-            Progress(n_pulses, "pulses", f"echo synthesis ({name})", progress) as bar:
-        for sl in _pulse_blocks(n_pulses, per_pulse, chunk_bytes):
-            block = synth.records(sl, t0, n_samples)
+            Progress(n_pulses, "pulses", f"echo synthesis ({name})", opts.progress) as bar:
+        for sl in _pulse_blocks(n_pulses, per_pulse, opts.chunk_bytes):
+            block = synth.records(sl, t0, n_samples) if extents is None else synth.records(sl, t0, n_samples, extents)
             if synth.physics.compress_raw:  # the raw route into the compressed domain (.compressed)
                 for h in range(n_rx):
                     block[h, :, n_valid[h]:] = 0
@@ -361,7 +411,7 @@ def synthesize(scenario: Scenario, options: SynthesisOptions | None = None, occl
             bar.done(sl.stop - sl.start)
     for h in range(n_rx):
         data[h, :, n_valid[h]:] = 0
-    return Synthesis(data, t0, n_valid, origin, nodes[:2], float(nodes[2]), n_scat, synth.physics)
+    return data
 
 
 def _compressed_provenance(opts: SynthesisOptions, physics: Physics) -> dict:
