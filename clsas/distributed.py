@@ -67,20 +67,13 @@ def pulse_block(scenario: Scenario, first: int, stop: int) -> Scenario:
 
 def _block_extent(scenario: Scenario, backend, stop_and_go: bool, multipath) -> tuple[np.ndarray, np.ndarray]:
     """Per receiver, the echo-centre extents in whole samples (floor of the earliest, floor of the
-    latest + 1) over every path kind :func:`clsas.simulate` synthesizes at ``multipath`` (the
-    direct path and the bounces off the scenario's sea surface and seabed), rounded as it rounds
-    them (``sample_extents``)."""
-    from .synthesis import delays
-    from .synthesis.propagation import boundaries, path_kinds
+    latest + 1) over every path kind :func:`clsas.simulate` synthesizes at ``multipath`` and the
+    scatterers each pulse hears: simulate's own pass A (:func:`clsas.synthesis.echo.window_extents`;
+    every facet's delays made the window wider than simulate's, and it changed with the blocks)."""
+    from .synthesis import SynthesisOptions
+    from .synthesis.echo import window_extents
 
-    planes = boundaries(scenario)
-    order = (1 if planes else 0) if multipath == "auto" else multipath  # as simulate resolves "auto"
-    lo, hi = None, None
-    for kind in path_kinds(planes, order):
-        u = delays(scenario, backend=backend, stop_and_go=stop_and_go, path=kind.name) * scenario.waveform.fs
-        a, b = np.floor(u.min(axis=(1, 2))), np.floor(u.max(axis=(1, 2))) + 1  # (H, P, N) samples -> (H,)
-        lo, hi = (a, b) if lo is None else (np.minimum(lo, a), np.maximum(hi, b))
-    return lo, hi
+    return window_extents(scenario, SynthesisOptions(backend=backend, stop_and_go=stop_and_go, multipath=multipath))
 
 
 def _extents(scenario: Scenario, client, pulses_per_task: int, backend, stop_and_go: bool, multipath="auto"):

@@ -147,3 +147,23 @@ def test_a_failed_task_cancels_the_others_before_the_store_goes():
     with pytest.raises(RuntimeError, match="task 0 failed"):
         _gather(client, ["f0", "f1", "f2"])
     assert client.cancelled == ["f0", "f1", "f2"]
+
+
+@pytest.mark.filterwarnings("ignore::clsas.scene.scenario.SamplingWarning")  # 6 pulses 10 m apart: enough here
+def test_block_extents_are_simulates_window_on_a_seafloor():
+    """The recording window from pulse blocks is simulate's own, whatever the blocks: on a
+    seafloor strip a narrow beam hears only part of, the blocks took every facet's delays
+    (322 samples in one block, 192 in two, against simulate's 89: the review's H1)."""
+    floor = clsas.Seafloor((150.0, 150.3, -15.0, 15.0), -50.0, sediment="sand")
+    scene = clsas.Scenario(clsas.Medium(1500.0), clsas.Waveform(f0=100e3, bandwidth=20e3, duration=2e-3, fs=25e3),
+                           clsas.Platform(speed=4.0, start=(0.0, -10.0, -20.0)),
+                           clsas.Array(rx_offsets=[[0.0, 0.0, 0.0]], tx_length=0.3, rx_length=0.3),
+                           clsas.PulseSchedule(prf=0.4, n_pulses=6), seafloor=floor)
+    one = simulate(scene, backend="numpy", progress=False, multipath=0)
+    fs = scene.waveform.fs
+    for parts in ([(0, 6)], [(0, 3), (3, 6)]):  # three blocks of 2 pulses end 1 sample short: left open
+        ext = [distributed._block_extent(distributed.pulse_block(scene, a, b), "numpy", False, 0) for a, b in parts]
+        window = distributed._window_of(scene, np.min([e[0] for e in ext], axis=0) / fs,
+                                        np.max([e[1] for e in ext], axis=0) / fs)
+        t0, n_samples = window.for_receivers(1)
+        assert np.allclose(t0, one.t0) and list(n_samples) == list(one.provenance["n_valid"]), (parts, t0, n_samples)
