@@ -50,7 +50,7 @@ TAPER = 4  # samples the pulse is smoothed over past each edge (the tails)
 BAND = 0.3  # the filter keeps |f| < BAND RATE cycles a sample
 LANES = 8  # the kernel evaluates a path's taps, and each tail, on 8 lanes
 BLOCK = 64  # samples a work-item of kernels/echo.cl echo_grid makes; grids span whole blocks
-ENVELOPE_BOUND = 0.1  # the largest |b| h + |g| h^2 the second-order envelope is used for
+ENVELOPE_BOUND = 0.2  # the largest |b| h + |g| h^2 the second-order envelope is used for (x^3 / 6 <= 1.3e-3)
 QUADRATURE = 256  # Gauss-Legendre nodes for phi's Fourier transform
 DEGREE = 7  # the taps' polynomials in the fraction (their largest error ~1.4e-6 of the peak, at phi's edge)
 
