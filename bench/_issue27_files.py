@@ -128,7 +128,7 @@ def cli_ctrl_c_prints_one_line():
     """A traceback on Ctrl-C (and an interrupted save leaves no temporary: SIGINT and SIGTERM)."""
     for signum, status in ((signal.SIGINT, 130), (signal.SIGTERM, 143)):
         where = folder()
-        rc, _, err, _ = cli("simulate", "huang2022", "--pulses", "256", "-o", "x.nc", cwd=where,
+        rc, _, err, _ = cli("simulate", "huang2022", "--pulses", "1024", "-o", "x.nc", cwd=where,
                             signal_after=(signum, 4.0))
         if rc == 0:
             raise Failed(f"signal {signum.name} after 4 s: the command had finished (make it longer)")
