@@ -52,7 +52,7 @@ _EXPORTS = {
     "save": (".io", "save"),
     "scenario_to_toml": (".io", "scenario_to_toml"),
     "simulate": (".synthesis", "simulate"),
-    "snr_offset_db": (".synthesis.echo.pipeline", "snr_offset_db"),
+    "snr_offset_db": (".synthesis.echo.noise", "snr_offset_db"),
     "to_xarray": (".io", "to_xarray"),
     "use_backend": (".backend", "use_backend"),
     "use_memory_budget": (".budget", "use_memory_budget"),

@@ -1,7 +1,7 @@
 """The moving-target chain in noise (Kiang & Kiang 2022 section VII-C, Figs. 20-22) and the SNR.
 
 The paper does not say over which samples its SNR's signal power is taken; clsas offers both
-readings (:func:`clsas.synthesis.echo.pipeline.add_noise`, which derives them): "echo" (the
+readings (:func:`clsas.synthesis.echo.noise.add_noise`, which derives them): "echo" (the
 mean power over the samples the echo occupies, ``simulate(snr_db=)``) and "record" (over every
 recorded sample). They differ by the echo's duty in the record, exactly; the tests below check
 that, and the processing gains the derivation predicts, on simulated echoes.
@@ -37,7 +37,7 @@ from clsas import PointTargets
 from clsas.errors import EstimationError
 from clsas.estimate.moving.extent import extent
 from clsas.scene import presets
-from clsas.synthesis.echo.pipeline import add_noise, signal_power, snr_offset_db
+from clsas.synthesis.echo.noise import add_noise, signal_power, snr_offset_db
 
 CENTRE = (1989.0, 0.0, -350.0)
 CASE1 = presets.KIANG_CASES[1]

@@ -72,7 +72,7 @@ TWO_TARGET_OFFSET = (0.0, 50.0, 0.0)  # m, the second target from the first (dir
 # SoWVD has no peak and the method halts.
 PAPER_SNR = {"floor_db": -17.0, "error_pct": (1.8, 2.2), "halts_db": -20.0}
 SNR_SWEEP_DB = (-5.0, -10.0, -13.0, -15.0, -17.0, -20.0)
-SNR_READINGS = ("echo", "record")  # clsas.synthesis.echo.pipeline.SNR_REFERENCES
+SNR_READINGS = ("echo", "record")  # clsas.synthesis.echo.noise.SNR_REFERENCES
 PAPER_SSIM = {"RDA": 0.9398, "CSA": 0.9111, "omega-k": 0.9082}  # section VII-A, case 1, against Fig. 18(a)
 
 
@@ -93,7 +93,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the signal power of --snr: the mean over the samples the echo occupies ('echo', "
                              "clsas.simulate's) or over every recorded sample ('record', MATLAB's awgn "
                              "'measured' on the whole record); they differ by the echo's duty in the record "
-                             "(clsas.synthesis.echo.pipeline.add_noise)")
+                             "(clsas.synthesis.echo.noise.add_noise)")
     parser.add_argument("--snr-sweep", action="store_true",
                         help=f"section VII-C: the first of --cases at SNR {', '.join(f'{x:g}' for x in SNR_SWEEP_DB)} "
                              "dB beside the paper's Fig. 22")
@@ -132,9 +132,9 @@ def window(image, centre_r: float, centre_y: float, half: float):
 
 def with_noise(echo, snr_db: float, seed, reading: str):
     """``echo`` with white noise at ``snr_db`` dB read as ``reading`` ("echo" or "record":
-    :func:`clsas.synthesis.echo.pipeline.add_noise` derives both), and SNR_record - SNR_echo per
-    receiver, dB (:func:`~clsas.synthesis.echo.pipeline.snr_offset_db`)."""
-    from ..synthesis.echo.pipeline import add_noise, snr_offset_db
+    :func:`clsas.synthesis.echo.noise.add_noise` derives both), and SNR_record - SNR_echo per
+    receiver, dB (:func:`~clsas.synthesis.echo.noise.snr_offset_db`)."""
+    from ..synthesis.echo.noise import add_noise, snr_offset_db
 
     n_valid = echo.provenance["n_valid"]
     offset = snr_offset_db(echo.data, n_valid)

@@ -44,7 +44,7 @@ sidelobes of the unweighted compression (-13, -18 dB), which are symmetric about
 and ``clsas reproduce kiang2022``.)
 
 Noise. A point echo at -15 dB SNR per raw sample compresses to ~35 dB over the noise on 1024
-pulses (:func:`clsas.synthesis.echo.pipeline.add_noise`), and the smoothing, which spreads a
+pulses (:func:`clsas.synthesis.echo.noise.add_noise`), and the smoothing, which spreads a
 point's peak over its 5 x 5 cells, leaves it ~20 dB over the smoothed noise: a level 20 dB below
 the peak alone then lies in the noise, and the extent filled the window. So each range column's noise floor (its median over the rows: the target
 fills a small part of the period) is taken off first, and its spread measured (1.4826 x the
