@@ -588,8 +588,7 @@ inline void add_compressed_echo(const echo_path_t v, const int2 reach, const int
 
 /* out[(h P + p) n_pad + k] for the ROWS x 16 samples k of the work-item; records of n_pad samples
  * (a multiple of 16 ROWS); samples at k >= n_valid are zero. A path's echo centre is
- * start - shift[h] + frac (shift: integer samples between the window the starts were computed
- * for and the output window). Each path that reaches the work-item's samples adds its raw echo
+ * start + frac (samples of the output window). Each path that reaches the work-item's samples adds its raw echo
  * (add_raw_echo) or, COMPRESSED, its compressed response (add_compressed_echo). */
 __kernel void echo_accumulate(__global const echo_path_t *paths, __global const int2 *bounds,
                               const real_t alpha, const real_t half_len,
@@ -598,14 +597,13 @@ __kernel void echo_accumulate(__global const echo_path_t *paths, __global const 
                               const int imp_len, const int lag0, const int edge_lo, const int edge_hi,
 #endif
                               const int n_scat, const int n_pulses, const int n_pad, const int n_valid,
-                              __global const int *shift, __global complex_t *out)
+                              __global complex_t *out)
 {
     const int b = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
     const int k0 = 16 * ROWS * b, k_last = k0 + 16 * ROWS - 1;
     if (k0 >= n_pad) return;
     const size_t rec = (size_t)h * n_pulses + p;
     const int n_chunks = (n_scat + CHUNK - 1) / CHUNK;
-    const int sh = shift[h];
 #ifndef COMPRESSED
     real_t rho_c = (real_t)0, rho_s = (real_t)0;  /* exp(j 2 pi alpha 512): plain paths' row step's own step */
 #ifndef EXTENDED
@@ -621,19 +619,19 @@ __kernel void echo_accumulate(__global const echo_path_t *paths, __global const 
     for (int r = 0; r < ROWS; ++r) acc_re[r] = acc_im[r] = (realv_t)0;
     __global const echo_path_t *rp = paths + rec * n_scat;
     for (int c = 0; c < n_chunks; ++c) {
-        const int2 bd = bounds[rec * n_chunks + c] - sh;
+        const int2 bd = bounds[rec * n_chunks + c];
         if (bd.y < k0 || bd.x > k_last) continue;
         const int j1 = min(n_scat, (c + 1) * CHUNK);
         for (int j = c * CHUNK; j < j1; ++j) {
             const echo_path_t v = rp[j];
-            const int2 reach = path_reach(v, half_len) - sh;
+            const int2 reach = path_reach(v, half_len);
             if (reach.y < k0 || reach.x > k_last) continue;
             if (v.amp[0] == (real_t)0 && v.amp[1] == (real_t)0) continue;  /* dark (shadowed, padding) */
 #ifdef COMPRESSED
             add_compressed_echo(v, reach, k0, table, row, impulse, imp_len, lag0, edge_lo, edge_hi, alpha, half_len,
                                 acc_re, acc_im);
 #else
-            add_raw_echo(v, reach, v.start - sh, k0, alpha, half_len, rho_c, rho_s, acc_re, acc_im);
+            add_raw_echo(v, reach, v.start, k0, alpha, half_len, rho_c, rho_s, acc_re, acc_im);
 #endif
         }
     }
@@ -677,8 +675,8 @@ inline void expj_cycles8(real8_t cyc, real8_t *cs, real8_t *sn)
  * lanes either side). grid[((h P + p) GRID + j) GRID_RATE n_grid + m], tails[(h P + p) n_grid + i]. */
 __kernel void echo_grid(__global const echo_path_t *paths, __global const int2 *bounds, const real_t alpha,
                         const real_t half_len, __global const real_t *taps, const int n_scat,
-                        const int n_pulses, const int n_grid, __global const int *shift,
-                        __global complex_t *grid, __global complex_t *tails)
+                        const int n_pulses, const int n_grid, __global complex_t *grid,
+                        __global complex_t *tails)
 {
     const int b = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
     const int k0 = GRID_BLOCK * b;  /* the block's first sample, grid coordinates (sample + GRID_PAD) */
@@ -686,7 +684,6 @@ __kernel void echo_grid(__global const echo_path_t *paths, __global const int2 *
     const int t_first = k0 - GRID_PAD, t_last = t_first + GRID_BLOCK - 1;  /* output window coordinates */
     const size_t rec = (size_t)h * n_pulses + p;
     const int n_chunks = (n_scat + CHUNK - 1) / CHUNK;
-    const int sh = shift[h];
     const real8_t lane = (real8_t)(0, 1, 2, 3, 4, 5, 6, 7);
     const int left0 = -(int)(half_len + (real_t)TAPER), right0 = (int)half_len + 1;  /* ceil, floor of positives */
     real_t acc_re[GRID][GRID_RATE * GRID_BLOCK], acc_im[GRID][GRID_RATE * GRID_BLOCK];
@@ -696,15 +693,15 @@ __kernel void echo_grid(__global const echo_path_t *paths, __global const int2 *
     for (int m = 0; m < GRID_BLOCK; ++m) tail_re[m] = tail_im[m] = (real_t)0;
     __global const echo_path_t *rp = paths + rec * n_scat;
     for (int c = 0; c < n_chunks; ++c) {
-        const int2 bd = bounds[rec * n_chunks + c] - sh;
+        const int2 bd = bounds[rec * n_chunks + c];
         if (bd.y < t_first || bd.x > t_last) continue;
         const int j1 = min(n_scat, (c + 1) * CHUNK);
         for (int q = c * CHUNK; q < j1; ++q) {
             const echo_path_t v = rp[q];
-            const int2 reach = path_reach(v, half_len) - sh;
+            const int2 reach = path_reach(v, half_len);
             if (reach.y < t_first || reach.x > t_last) continue;
             if (v.amp[0] == (real_t)0 && v.amp[1] == (real_t)0) continue;  /* dark (shadowed, padding) */
-            const int s = v.start - sh;  /* the centre's sample, output window coordinates */
+            const int s = v.start;  /* the centre's sample, output window coordinates */
             const real_t fr = v.frac;
             real_t cr[GRID], ci[GRID];
             cr[0] = v.amp[0];  /* the grid route's paths carry no level (echo_paths) */

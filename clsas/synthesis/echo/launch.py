@@ -349,30 +349,28 @@ class OpenCLSynth(BlockSynth):
         n = block[2]
         if extents is not None:
             self._widen(paths_buf, pc, block, *extents, np.round(t0 * self.scenario.waveform.fs).astype(np.int64))
-        shift = np.zeros(h, np.int32)
         n_chunks = -(-n // CHUNK_SCATTERERS)
         mf = cl.mem_flags
         bounds = cl.Buffer(self.rt.context, mf.READ_WRITE, 8 * h * pc * n_chunks)
         self.k_bounds(q, *groups(n_chunks, pc, h), paths_buf, self.real(self.half_len), np.int32(n), np.int32(pc),
                       bounds)
         if self.physics.grid is not None:
-            return self._grid_records(paths_buf, bounds, n, pc, shift, n_samples)
+            return self._grid_records(paths_buf, bounds, n, pc, n_samples)
         rows = 16 * ROWS
         n_pad = -(-n_samples // rows) * rows
         out = cl.Buffer(self.rt.context, mf.WRITE_ONLY, np.dtype(self.cplx).itemsize * h * pc * n_pad)
-        shift_buf = cl.Buffer(self.rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=shift)
         compressed = ()
         if self.physics.writes_taps:
             resp = self.physics.response
             compressed = (self.table_buf, np.int32(self.table_row), self.impulse_buf, np.int32(self.impulse_len),
                           np.int32(resp.lag0), np.int32(resp.edges[0]), np.int32(resp.edges[1]))
         self.k_acc(q, *groups(n_pad // rows, pc, h), paths_buf, bounds, self.real(self.alpha), self.real(self.half_len),
-                   *compressed, np.int32(n), np.int32(pc), np.int32(n_pad), np.int32(n_samples), shift_buf, out)
+                   *compressed, np.int32(n), np.int32(pc), np.int32(n_pad), np.int32(n_samples), out)
         host = np.empty((h, pc, n_pad), self.cplx)
         cl.enqueue_copy(q, host, out)
         return host[:, :, :n_samples]
 
-    def _grid_records(self, paths_buf, bounds, n: int, pc: int, shift: np.ndarray, n_samples: int) -> np.ndarray:
+    def _grid_records(self, paths_buf, bounds, n: int, pc: int, n_samples: int) -> np.ndarray:
         """The grid route (:mod:`.grid`): the kernel's grids and tails, then the plan's FFT filter."""
         cl, q, plan = self.cl, self.rt.queue, self.physics.grid
         h, mf = self.n_rx, cl.mem_flags
@@ -380,10 +378,8 @@ class OpenCLSynth(BlockSynth):
         size = np.dtype(self.cplx).itemsize
         grids = cl.Buffer(self.rt.context, mf.WRITE_ONLY, size * h * pc * plan.terms * grid.RATE * n_grid)
         tails = cl.Buffer(self.rt.context, mf.WRITE_ONLY, size * h * pc * n_grid)
-        shift_buf = cl.Buffer(self.rt.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=shift)
         self.k_acc(q, *groups(n_grid // grid.BLOCK, pc, h), paths_buf, bounds, self.real(self.alpha),
-                   self.real(self.half_len), self.taps_buf, np.int32(n), np.int32(pc), np.int32(n_grid), shift_buf,
-                   grids, tails)
+                   self.real(self.half_len), self.taps_buf, np.int32(n), np.int32(pc), np.int32(n_grid), grids, tails)
         host_grids = np.empty((h, pc, plan.terms, grid.RATE * n_grid), self.cplx)
         host_tails = np.empty((h, pc, n_grid), self.cplx)
         cl.enqueue_copy(q, host_grids, grids)
