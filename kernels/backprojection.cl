@@ -258,18 +258,25 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
         }
     }
     for (int r = 0; r < ROWS; ++r) {
+        const int m = 16 * (ROWS * g + r);
+#ifdef SCATTER
         float re[16], im[16];
         vstore16(acc_re[r], 0, re);
         vstore16(acc_im[r], 0, im);
-        const int m = 16 * (ROWS * g + r);
         for (int l = 0; l < 16; ++l) {
-#ifdef SCATTER
             if (index[m + l] >= 0)
                 image[index[m + l]] += (double2)(re[l], im[l]);
-#else
-            image[m + l] += (double2)(re[l], im[l]);
-#endif
         }
+#else
+        /* the row's 16 slots are contiguous: four vectors of 4 (re, im) pairs, the same double
+         * additions as slot by slot */
+        const float16 re = acc_re[r], im = acc_im[r];
+        __global double *o = (__global double *)(image + m);
+        STORE_D8(LOAD_D8(o) + convert_double8((float8)(re.s0, im.s0, re.s1, im.s1, re.s2, im.s2, re.s3, im.s3)), o);
+        STORE_D8(LOAD_D8(o + 8) + convert_double8((float8)(re.s4, im.s4, re.s5, im.s5, re.s6, im.s6, re.s7, im.s7)), o + 8);
+        STORE_D8(LOAD_D8(o + 16) + convert_double8((float8)(re.s8, im.s8, re.s9, im.s9, re.sa, im.sa, re.sb, im.sb)), o + 16);
+        STORE_D8(LOAD_D8(o + 24) + convert_double8((float8)(re.sc, im.sc, re.sd, im.sd, re.se, im.se, re.sf, im.sf)), o + 24);
+#endif
     }
 }
 
