@@ -143,6 +143,16 @@ typedef float16 realv16_t;
 /* A pixel row's fields: loaded where used (the pulse loop then holds no more than they need) */
 #define FIELD(f) LOAD_F16(px[r].f)
 
+/* Row r's first samples into first[r], two halves of 8 lanes: on AVX-512 CPUs a 16-lane store
+ * does not forward to the scalar loads of its upper half (those wait until the store reaches
+ * the cache), whereas an 8-lane store forwards to all of its lanes */
+#define STORE_FIRST(r, v)     \
+    do {                      \
+        const int16 v_ = (v); \
+        first[r][0] = v_.lo;  \
+        first[r][1] = v_.hi;  \
+    } while (0)
+
 __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_of, __global const tile_ref_t *ref,
                       const int ref_stride, const int ref_first, __global const sample_t *data, __global const float *taps,
                       const tile_params_t params, const int p_first, const int p_count, const int n,
@@ -175,7 +185,7 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
         const float3 b = vload3(0, R.leg1), b2 = 2.0f * b;  /* N1 = 2 B.delta + |delta|^2 */
         float16 s1[ROWS], s[ROWS], frac[ROWS], cs[ROWS], sn[ROWS];
         int16 keep[ROWS];
-        volatile int16 first[ROWS];  /* the lanes' first samples, read back one by one as scalars */
+        volatile int8 first[ROWS][2];  /* the lanes' first samples, read back one by one as scalars */
 #ifndef MOVING
         if (R.poly) {
             FOR_ROWS {  /* leg 1 without a square root or a division */
@@ -217,10 +227,10 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             const int16 ki = k + R.k_ref;
 #ifdef INTERP_LINEAR
             keep[r] = as_uint16(ki) < (uint16)(n - 1);  /* samples ki and ki + 1 exist */
-            first[r] = select((int16)0, ki, keep[r]);
+            STORE_FIRST(r, select((int16)0, ki, keep[r]));
 #else
             keep[r] = as_uint16(ki - 3) <= (uint16)(n - 8);  /* samples ki - 3 .. ki + 4 exist */
-            first[r] = select((int16)0, ki - 3, keep[r]);
+            STORE_FIRST(r, select((int16)0, ki - 3, keep[r]));
 #endif
 #ifdef APERTURE
             /* sin theta = (q - tx).y / (c t1), q - tx = B + delta + v s1 */
@@ -232,7 +242,7 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             EXPJ_NEAR16(NEAR_FRACTION(cyc), &cs[r], &sn[r]);
         }
         FOR_ROWS {
-            const volatile int *i = (const volatile int *)&first[r];
+            const volatile int *i = (const volatile int *)&first[r][0];
 #ifdef INTERP_LINEAR
             /* samples i and i + 1 of each lane in one 4-wide load, transposed in registers */
 #define W(L) LOAD_F4(rec + 2 * i[0x##L])
