@@ -21,6 +21,13 @@ hydrophones' length, SEEDS seafloors of 30 pings each (``--pings``); per case th
 per-pair yaws over all pairs and seeds with its standard error (from the spread of the seeds'
 means), the same corrected by the seafloors' control variate (:class:`PhaseCentreControl`:
 controlled_mean_urad, controlled_error_urad), the per-pair RMS and the load average.
+
+``--edges SEEDS`` measures how the motionless yaw depends on a range block's distance from the
+seafloor's near or far slant edge (issue #30's edge blocks; no timing): per case (transmitter,
+extent, block length) and per edge (near, far) and depth into the swath (the block's middle, m, to
+that edge, rounded to 0.25 m; negative outside), the mean over SEEDS seafloors of the block's mean yaw over the pairs
+(PingPairs.block_yaw), its standard error and the fraction of pairs whose yaw took the block
+(PingPairs.block_inside).
 """
 
 from __future__ import annotations
@@ -48,6 +55,8 @@ R0 = 37.0                  # m, the range at which their footprint is measured
 # holds as many a range cell (3.75 cm x its length) as one footprint long at this density, i.e.
 # the speckle of the 0.5x case doubled, for a quarter of the simulation at 4x
 DENSITY = 20.0
+# the --edges cases: (transmitter factor, seafloor extent, block length in samples); --quick: the first
+EDGE_CASES = ((1.0, 1.0, 128), (1.0, 1.0, 64), (2.0, 1.0, 128), (1.0, 4.0, 128))
 
 
 def bias_sonar(tx_factor: float, pings: int) -> Scenario:
@@ -246,14 +255,45 @@ def yaw_bias(args, seeds: int, pings: int) -> None:
                    pair_rms_urad=1e6 * float(np.mean(rms)), load=[round(x, 2) for x in os.getloadavg()])
 
 
+def edge_profile(args, seeds: int, pings: int) -> None:
+    """The --edges rows (see the module docstring): seeds 1000 .. 1000 + seeds - 1."""
+    for tx_factor, extent, block in EDGE_CASES[:1] if args.quick else EDGE_CASES:
+        yaws, start = {}, time.perf_counter()
+        for seed in range(1000, 1000 + seeds):
+            scene, floor, echo = motionless_scene(tx_factor, extent, pings, seed)
+            pairs = dpca.estimate(echo, scene.array, scene.platform.speed, block=block)
+            for r, column, kept in zip(pairs.block_range, pairs.block_yaw.T, pairs.block_inside.T):
+                if np.any(np.isfinite(column)):
+                    # the depth into the swath of the block's middle from the nearer slant edge
+                    edge = "near" if r - floor.x[0] < floor.x[1] - r else "far"
+                    depth = round(float(min(r - floor.x[0], floor.x[1] - r)) * 4) / 4
+                    yaws.setdefault((edge, depth), []).append((float(np.nanmean(column)), float(np.mean(kept))))
+        seconds = time.perf_counter() - start
+        for edge, depth in sorted(yaws):
+            values = np.array(yaws[edge, depth])
+            if values.shape[0] < 2:
+                continue
+            report(args, "dpca-yaw-edges", "numpy", {"tx_factor": tx_factor, "extent": extent, "block": block,
+                                                     "seeds": seeds, "pings": pings, "edge": edge,
+                                                     "depth_m": depth},
+                   values.shape[0] / seconds, "block means/s (with simulation)", seconds,
+                   yaw_mean_urad=1e6 * float(np.mean(values[:, 0])),
+                   yaw_error_urad=1e6 * float(np.std(values[:, 0], ddof=1) / np.sqrt(values.shape[0])),
+                   kept=float(np.mean(values[:, 1])), load=[round(x, 2) for x in os.getloadavg()])
+
+
 def main() -> None:
     extra = argparse.ArgumentParser(add_help=False)
     extra.add_argument("--bias", type=int, default=0, metavar="SEEDS")
+    extra.add_argument("--edges", type=int, default=0, metavar="SEEDS")
     extra.add_argument("--pings", type=int, default=30)
     own, sys.argv[1:] = extra.parse_known_args()
     args = arguments(__doc__.splitlines()[0])
     if own.bias:
         yaw_bias(args, own.bias, own.pings)
+        return
+    if own.edges:
+        edge_profile(args, own.edges, own.pings)
         return
     rng = np.random.default_rng(0)
     repeats = args.repeats or 3

@@ -231,6 +231,27 @@ def test_yaw_from_edges_is_flagged(caplog):
     assert "yaw_from_edges" in caplog.text
 
 
+def test_block_yaws_are_reported():
+    """PingPairs.block_yaw / block_inside / block_range: each range block's own yaw, the blocks
+    the pair's yaw was taken from and their ranges (for seeing the yaw's dependence on range,
+    bench_dpca.py --edges): the pair's yaw is the (trimmed) mean of its blocks inside the swath."""
+    scene, floor, echo = motionless(1.0, 0.5)
+    pairs = dpca.estimate(echo, scene.array, scene.platform.speed, extent=floor)
+    n_blocks = pairs.block_range.size
+    assert pairs.block_yaw.shape == pairs.block_inside.shape == (pairs.yaw.size, n_blocks)
+    assert np.allclose(np.diff(pairs.block_range), scene.medium.sound_speed / 2 * 128 / echo.fs)
+    assert np.all(np.isfinite(pairs.block_yaw[pairs.block_inside]))
+    assert np.array_equal(pairs.block_inside.sum(axis=1) >= 1, np.ones(pairs.yaw.size, bool))
+    # the blocks inside lie within the seafloor's slant swath, a block from its edges
+    used = pairs.block_range[pairs.block_inside.any(axis=0)]
+    assert used.min() > floor.x[0] + 128 / echo.fs * scene.medium.sound_speed / 2
+    assert used.max() < floor.x[1] - 128 / echo.fs * scene.medium.sound_speed / 2
+    inside = np.where(pairs.block_inside, pairs.block_yaw, np.nan)
+    assert np.all((pairs.yaw >= np.nanmin(inside, axis=1)) & (pairs.yaw <= np.nanmax(inside, axis=1)))
+    # the outlier trim moves a few pairs' means; most are the plain mean of their blocks
+    assert np.median(np.abs(pairs.yaw - np.nanmean(inside, axis=1))) < 0.1 * np.median(pairs.yaw_std)
+
+
 def test_heading_uncertainty_is_a_random_walk():
     """dpca.integrate: the heading's standard error grows as the square root of the pings (a
     random walk of the per-pair yaw errors), the cross-track one faster; Trajectory.trusted
