@@ -36,6 +36,11 @@ case costs about 5 minutes). ``--scan`` adds one timed run each of the wide case
 square grids of half as many pixels a side (the aperture and the image grow together), and of
 the aperture case for the same pulses on a fixed 512^2 grid.
 
+Every run is timed twice: wall time and the process's CPU time (``time.process_time``: PoCL's
+worker threads run in this process, so it is the CPU-seconds the call used). On a loaded machine the
+wall ratios move with whatever else runs; the CPU ratios (``cpu_ratio_median``, ``cpu_ratio_best``)
+move much less, so both are reported.
+
 Each row carries the machine it was measured on (bench/_harness.py); the figures live in the
 JSON output (``--json``; ``bench/run_all.py`` collects them), not here.
 """
@@ -97,16 +102,18 @@ def scene(n_pulses: int, n_pixels: int, sonar: str = "narrow"):
     return echo, grid
 
 
-def interleaved(runs: dict, repeats: int) -> dict:
-    """Wall times of each run, interleaved (A B A B ...), after one warm-up run each."""
+def interleaved(runs: dict, repeats: int) -> tuple[dict, dict, dict]:
+    """Wall times and process CPU times of each run, interleaved (A B A B ...), after one warm-up
+    run each, and the warm-up's results."""
     results = {name: run() for name, run in runs.items()}
-    times = {name: [] for name in runs}
+    times, cpu = {name: [] for name in runs}, {name: [] for name in runs}
     for _ in range(repeats):
         for name, run in runs.items():
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.process_time()
             run()
             times[name].append(time.perf_counter() - start)
-    return times, results
+            cpu[name].append(time.process_time() - start_cpu)
+    return times, cpu, results
 
 
 def main() -> None:
@@ -137,17 +144,21 @@ def main() -> None:
                 "ffbp_new_grid": lambda: (_SCENES.clear(), ffbp(echo, grid, interp="linear", **kw, **options))[1]}
         if flags["--factors"]:
             runs["ffbp_factor2"] = lambda: ffbp(echo, grid, interp="linear", factor=2, **kw, **options)
-        times, images = interleaved(runs, reps)
+        times, cpu, images = interleaved(runs, reps)
         ref = images["direct"].data
         work = grid.size * pulses
         medians = {name: statistics.median(t) for name, t in times.items()}
+        cpu_medians = {name: statistics.median(t) for name, t in cpu.items()}
         for name, t in times.items():
             extra = {"method": name, "case": case, "min_seconds": min(t), "median_seconds": medians[name],
+                     "cpu_min_seconds": min(cpu[name]), "cpu_median_seconds": cpu_medians[name],
                      "rate_best": work / min(t), "runs": len(t), "commit": COMMIT}
             if name != "direct":
                 made = images[name]
                 extra.update(ratio_median=medians["direct"] / medians[name],
                              ratio_best=min(times["direct"]) / min(t),
+                             cpu_ratio_median=cpu_medians["direct"] / cpu_medians[name],
+                             cpu_ratio_best=min(cpu["direct"]) / min(cpu[name]),
                              rel_l2=float(np.linalg.norm(made.data - ref) / np.linalg.norm(ref)),
                              factor=made.provenance["factor"], levels=made.provenance["levels"],
                              first=made.provenance["first"], oversampling=made.provenance["oversampling"],
