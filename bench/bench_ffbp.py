@@ -36,6 +36,11 @@ case costs about 5 minutes). ``--scan`` adds one timed run each of the wide case
 square grids of half as many pixels a side (the aperture and the image grow together), and of
 the aperture case for the same pulses on a fixed 512^2 grid.
 
+``--stages`` adds one more ffbp call a case, after the timed ones, with the device's queue
+finished around each stage, and reports the process CPU seconds of each (``stages_cpu``: the tree's
+planning, the leaves (of which ``leaf_bp_tile``, back-projection's kernel itself), the merges, the
+final stage, and the rest), the cost breakdown that says where a case's time goes.
+
 Every run is timed twice: wall time and the process's CPU time (``time.process_time``: PoCL's
 worker threads run in this process, so it is the CPU-seconds the call used). On a loaded machine the
 wall ratios move with whatever else runs; the CPU ratios (``cpu_ratio_median``, ``cpu_ratio_best``)
@@ -47,6 +52,8 @@ JSON output (``--json``; ``bench/run_all.py`` collects them), not here.
 
 from __future__ import annotations
 
+import contextlib
+import importlib
 import pathlib
 import statistics
 import subprocess
@@ -57,11 +64,15 @@ import numpy as np
 from _harness import arguments, report
 
 import clsas
-from clsas import Array, Medium, Platform, PointTargets, PulseSchedule, Scenario, Waveform
+from clsas import Array, Medium, Platform, PointTargets, PulseSchedule, Scenario, Waveform, opencl
 from clsas.model import Grid
-from clsas.image.backprojection import backproject
+from clsas.image.backprojection import TileKernel, backproject
 from clsas.image.ffbp import ffbp
 from clsas.image.ffbp import _SCENES  # each Grid's Scene, kept between calls (cleared for ffbp_new_grid)
+from clsas.image.ffbp.leaves import FirstStage
+from clsas.image.ffbp.store import DeviceStore
+
+ffbp_package = importlib.import_module("clsas.image.ffbp")  # the package (clsas.image.ffbp is also the function)
 
 F0, B, FS, UP, DEPTH = 150e3, 20e3, 25e3, 8, -5.0
 # the two sonars: element length D (m; pulses every D / 4) and the image's ranges (m)
@@ -116,8 +127,52 @@ def interleaved(runs: dict, repeats: int) -> tuple[dict, dict, dict]:
     return times, cpu, results
 
 
+@contextlib.contextmanager
+def _stage_clock(totals: dict):
+    """Within the block, ffbp's stages add their process CPU seconds to ``totals`` (the device's
+    queue finished before and after each, so that its work is counted where it was enqueued)."""
+    queue = opencl.runtime().queue
+    targets = {"plan": (ffbp_package, "plan"), "leaves": (FirstStage, "image_into"),
+               "leaf_bp_tile": (TileKernel, "launch"), "merges": (DeviceStore, "merge"),
+               "final": (DeviceStore, "final")}
+    saved = {name: getattr(owner, attr) for name, (owner, attr) in targets.items()}
+
+    def clocked(name, original):
+        def run(*args, **kwargs):
+            queue.finish()
+            start = time.process_time()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                queue.finish()
+                totals[name] = totals.get(name, 0.0) + time.process_time() - start
+        return run
+
+    for name, (owner, attr) in targets.items():
+        setattr(owner, attr, clocked(name, saved[name]))
+    try:
+        yield totals
+    finally:
+        for name, (owner, attr) in targets.items():
+            setattr(owner, attr, saved[name])
+
+
+def stages(run) -> dict:
+    """Process CPU seconds of each stage of one call ``run()`` (:func:`_stage_clock`) and ``rest``
+    (the call's CPU time outside them: checks, the walk, the result's copy)."""
+    totals = {}
+    start = time.process_time()
+    with _stage_clock(totals):
+        run()
+    total = time.process_time() - start
+    parts = {k: totals.get(k, 0.0) for k in ("plan", "leaves", "leaf_bp_tile", "merges", "final")}
+    parts["rest"] = total - parts["plan"] - parts["leaves"] - parts["merges"] - parts["final"]
+    parts["total"] = total
+    return {k: round(v, 4) for k, v in parts.items()}
+
+
 def main() -> None:
-    flags = {flag: flag in sys.argv for flag in ("--scan", "--big", "--factors")}
+    flags = {flag: flag in sys.argv for flag in ("--scan", "--big", "--factors", "--stages")}
     sys.argv = [a for a in sys.argv if a not in flags]
     scan, big = flags["--scan"], flags["--big"]
     args = arguments(__doc__.splitlines()[0])
@@ -163,6 +218,8 @@ def main() -> None:
                              factor=made.provenance["factor"], levels=made.provenance["levels"],
                              first=made.provenance["first"], oversampling=made.provenance["oversampling"],
                              polar_samples=made.provenance["polar_samples"])
+                if flags["--stages"] and name == "ffbp":
+                    extra["stages_cpu"] = stages(runs["ffbp"])
             report(args, "ffbp", "opencl", {"pixels": grid.size, "pulses": pulses, "receivers": 1},
                    work / medians[name], "BP/s", medians[name], **extra)
 
