@@ -88,7 +88,7 @@ class _Frames:
         step = max(1, echo.n_pulses // 64)  # the array's two ends every ~1/64 of the track
         ends = sorted({0, rx.shape[0] - 1})  # the first receiver's first node, the last one's last (or the same)
         track = np.concatenate([self.mids[ends, ::step].reshape(-1, 3), self.mids[ends, -1]])
-        self.r_near = float(scene.offsets(track)[0].min()) - scene.margin
+        self.r_near = float(scene.nearest(track).min()) - scene.margin
 
     def frames(self, nodes: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(centres (n, 3), axes (n, 3), half-lengths (n,), largest baselines (n,)) of the nodes
