@@ -31,7 +31,9 @@
  * ffbp_merge: frames[k] the children's frames, images holding the children at offsets (complex
  * samples), parent the parent's frame and spans its rows' computed samples [x, y) (PARENT_GRID:
  * samples outside them are written zero, and a work-item wholly outside writes only zeros),
- * plane, cycles_per_m = 2 f0 / c; the result goes to out from out_offset on.
+ * plane, cycles_per_m = 2 f0 / c; the result goes to out from out_offset on (onto points it is
+ * added into out, or with POINTS_STORE written over it: the final stage's first group, which
+ * so needs no zeroed image; every point of the launch is written, those no child reaches as 0).
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 
@@ -313,7 +315,7 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
         const float16 hi = (float16)(acc_re.s8, acc_im.s8, acc_re.s9, acc_im.s9, acc_re.sa, acc_im.sa, acc_re.sb,
                                      acc_im.sb, acc_re.sc, acc_im.sc, acc_re.sd, acc_im.sd, acc_re.se, acc_im.se,
                                      acc_re.sf, acc_im.sf);
-#ifdef PARENT_GRID
+#if defined(PARENT_GRID) || defined(POINTS_STORE)
         STORE_F16(lo, o);
         STORE_F16(hi, o + 16);
 #else
@@ -326,9 +328,11 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
     vstore16(acc_re, 0, re_out);
     vstore16(acc_im, 0, im_out);
     for (int l = 0; l < n_valid; ++l) {
-#ifdef PARENT_GRID
+#if defined(PARENT_GRID)
         const int in = i0 + l >= span.x && i0 + l < span.y;
         out[first + l] = in ? (float2)(re_out[l], im_out[l]) : (float2)(0.0f, 0.0f);
+#elif defined(POINTS_STORE)
+        out[first + l] = (float2)(re_out[l], im_out[l]);
 #else
         out[first + l] += (float2)(re_out[l], im_out[l]);
 #endif

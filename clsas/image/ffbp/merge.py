@@ -120,13 +120,13 @@ def merge_opencl(children, targets, f0: float, c: float, taps: int, rho: float, 
 
 
 def merge_device(grids: list, images, offsets, targets, f0: float, c: float, taps: int, rho: float, out,
-                 out_offset: int = 0) -> None:
+                 out_offset: int = 0, store: bool = False) -> None:
     """Enqueue ffbp_merge (kernels/ffbp.cl) on device buffers, without waiting: the children's
     polar grids ``grids`` and their complex64 images in the buffer ``images`` at element
     ``offsets``; ``targets`` the parent PolarGrid (its demodulated image is written to ``out``
     from element ``out_offset`` on, zero outside its rows' spans; a work-item wholly outside
     them only writes its zeros) or :class:`DevicePoints` (their values are *added* into
-    ``out`` (count,) complex64)."""
+    ``out`` (count,) complex64, or with ``store`` written over it, every point)."""
     import pyopencl as cl
 
     if taps not in KERNEL_TAPS:
@@ -138,7 +138,7 @@ def merge_device(grids: list, images, offsets, targets, f0: float, c: float, tap
         n_out, size = targets.size, opencl.work_groups_2d(-(-targets.n_r // LANES), targets.n_v)
         parent, points, spans = program.frames([targets])[0], images, targets.row_spans  # points unused
     else:
-        kern = program.kernel("ffbp_merge", taps)
+        kern = program.kernel("ffbp_merge", taps, **({"POINTS_STORE": 1} if store else {}))
         n_out, size = targets.count, opencl.work_groups(-(-targets.count // LANES))
         parent, points, spans = np.zeros((), program.FRAME)[()], targets.buffer, np.zeros((1, 2), np.int32)
     plane = program.plane(grids[0].plane)

@@ -59,7 +59,7 @@ class DeviceStore:
         self.pixels = DevicePoints(cl.Buffer(self.rt.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=self.host_pixels),
                                    pixels.shape[0])
         self.flat = cl.Buffer(self.rt.context, mf.READ_WRITE, 8 * pixels.shape[0])
-        cl.enqueue_fill_buffer(self.rt.queue, self.flat, np.zeros(1, np.complex64), 0, 8 * pixels.shape[0])
+        self.written = False  # the first final stage writes the image (no zero fill), later ones add
 
     def group(self, size: int):
         return self.cl.Buffer(self.rt.context, self.cl.mem_flags.READ_WRITE, 8 * max(size, 1))
@@ -71,9 +71,12 @@ class DeviceStore:
         merge_device(grids, group, offsets, parent, *self.args, out, offset)
 
     def final(self, grids: list, group, offsets: list) -> None:
-        merge_device(grids, group, offsets, self.pixels, *self.args, self.flat)
+        merge_device(grids, group, offsets, self.pixels, *self.args, self.flat, store=not self.written)
+        self.written = True
 
     def result(self) -> np.ndarray:
+        if not self.written:  # no top node saw a pixel
+            return np.zeros(self.host_pixels.shape[0], np.complex64)
         flat = np.empty(self.host_pixels.shape[0], np.complex64)
         self.cl.enqueue_copy(self.rt.queue, flat, self.flat)
         return flat
