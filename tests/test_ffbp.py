@@ -110,11 +110,12 @@ def test_points_match_direct_backprojection(opencl_device, track):
 
 def test_speckle_matches_direct_backprojection(opencl_device):
     """3000 random complex scatterers (a seafloor-like speckle): relative L2 measured 0.0051 (0.0047
-    with factor 2); 0.0049 since e115a3a."""
+    with factor 2); 0.0049 since e115a3a. The bound is ten times that, not the default
+    tolerance's 0.1 (which a tenfold regression would still meet)."""
     ref = direct("straight", "speckle")
     img = ffbp(echo_of("straight", "speckle"), GRID, backend="opencl")
     err = rel_l2(img.data, ref.data)
-    assert err <= 0.07
+    assert err <= 0.05
     assert metrics.ssim(img, ref) >= 0.95
 
 
