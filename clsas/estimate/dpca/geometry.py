@@ -284,13 +284,22 @@ def inside_swath(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
 
     A block that holds a range edge of the seafloor holds it unevenly: at the near edge only
     the look angles near broadside reach it at its nearest ranges, at the far edge the wide
-    look angles reach beyond the broadside ones; its scatterers fill the block unevenly in
-    range. Their yaw is biased by what the correction takes at the block's centre range and
-    by the range sidelobes of the neighbouring ranges: near edges read a negative yaw, far
-    edges a positive one, and they do not cancel. The bias reaches further than the rings'
-    cut, whatever the beam: the blocks next to an edge read it too (the estimator's ``guard``
-    is a block's length; tests/test_dpca_bias.py, bench/bench_dpca.py --bias). ``content``:
-    the blocks' content from :func:`look_moments` if already computed (same arguments)."""
+    look angles reach beyond the broadside ones. The yaw is biased further in than that: on a
+    motionless platform, blocks within a few metres of the near edge read a negative yaw and
+    those within a few metres of the far edge a positive one, many times the bias allowed a pair
+    (bench/bench_dpca.py --edges; PingPairs.block_yaw shows it on any data). What is known of
+    it, by experiment (issue #30's report): the bias is proportional to the pings' advance D
+    (a phase-centre term: the block's scatterers read as if their mean sin^2 theta differed
+    from the correction's); the depth it reaches is a distance in range, the same
+    for blocks of 64, 128 and 256 samples, at 1 and 0.1 m/s (D kept), for 5 and 2.5 ms
+    chirps, without and with a Hamming range window and at 27 and 37 m, and deeper at the near
+    edge of a seafloor that fills the beam's sidelobes (4x the footprint) than of one that
+    ends at the main lobe. It is not the cut of the rings (the far edge's rings are whole, the
+    2x transmitter's near rings too) nor range sidelobes; what sets its depth is not derived,
+    so the ``guard`` (the estimator gives a block's length) is a measured rule: it leaves the
+    deepest part of the zone in the yaw for the seafloors that fill the sidelobes (the 1x
+    transmitter's 4x seafloor reads a negative bias: tests/test_dpca_bias.py).
+    ``content``: the blocks' content from :func:`look_moments` if already computed (same arguments)."""
     if extent is None:
         shape = (np.asarray(centre).shape[0], np.asarray(r).size)
         return np.ones(shape, dtype=bool)
