@@ -156,7 +156,8 @@ def sowvd(rec: Records, p0: float, threshold_db: float = THRESHOLD_DB) -> RateSe
         if search.score_db >= threshold_db:
             return search
     bright = track.bright_gate(rec.x, UPSAMPLE)
-    followed = None if bright is None else rate_search(rfrt(rec.x, bright), rec.prf, p0)
+    followed = None if bright is None else dataclasses.replace(rate_search(rfrt(rec.x, bright.gate), rec.prf, p0),
+                                                               trace_line=(bright.slope, bright.sample))
     if search is None and (followed is None or followed.score_db < threshold_db):
         raise EstimationError(f"receiver {rec.name}: the echo stands out of the noise in {100 * coverage:.0f} % of "
                               f"the pulses < {100 * MIN_COVERAGE:.0f} %"
@@ -205,6 +206,32 @@ def doppler_centroid_walking(rec: Records, rcmc: np.ndarray) -> tuple[float, flo
     with the means removed the walking trace is the strongest line. A trace that keeps its
     range cell (f_dc ~ 0) is removed with them: :func:`with_rate` keeps whichever focuses."""
     power = np.abs(rcmc).astype(np.float32) ** 2
+    power -= power.mean(axis=0)
+    return _line(rec, power)
+
+
+def doppler_centroid_whitened(rec: Records, fm_rate: float) -> tuple[float, float, bool]:
+    """:func:`doppler_centroid_walking` on the record whitened per range cell *before* the RCMC
+    with ``fm_rate``. The RCMC shifts every pulse by K d^2 / (2 f0): over long apertures
+    hundreds of samples (~950 at Table I's 6400 pulses, receiver A), so whatever the record's
+    noise floor does across its window (~10x weaker within a pulse length of its ends) and the
+    samples shifted in from beyond the record (zeros) become parabolas in |s_rcmc| that no
+    per-cell floor taken after the shift removes, and whose tangents are strong straight lines
+    (in heavy noise the Radon slope then runs to its search's edge). Here each cell is divided
+    by its noise floor (:func:`.trace.floor`) first, and the samples the shift brings in from
+    beyond the recorded cells are set to the mean power of the others."""
+    power = np.abs(rec.x).astype(np.float32) ** 2
+    level = np.median(power[::2], axis=0)
+    live = np.flatnonzero(level > trace.RECORDING * float(level.max())) if power.size else np.zeros(0, int)
+    if live.size == 0:
+        return _line(rec, power)
+    shift = fm_rate * rec.d**2 / (2 * rec.f0)
+    scale = (1.0 / np.sqrt(trace.floor(power))).astype(np.float32)
+    del power
+    power = np.abs(filters.advance(rec.x * scale[None, :], rec.fs, shift)) ** 2
+    source = np.arange(rec.x.shape[1])[None, :] + (shift * rec.fs)[:, None]  # advance reads x(tau + shift)
+    beyond = (source < live[0]) | (source > live[-1])
+    power[beyond] = float(power[~beyond].mean()) if np.any(~beyond) else 0.0
     power -= power.mean(axis=0)
     return _line(rec, power)
 
@@ -358,12 +385,19 @@ def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None) ->
     candidates = tuple(tuple(map(float, c)) for c in search.candidates)
     peak_to_background, p0, margin_db = search.peak_to_background, search.p0[0], search.margin_db
     aligned = rcmc(rec, k)
-    lines = [doppler_centroid_radon(rec, aligned), doppler_centroid_walking(rec, aligned)]
+    found = [doppler_centroid_radon(rec, aligned), doppler_centroid_walking(rec, aligned)]
     del aligned
-    # the two lines agree (within two samples of walk over the aperture) unless noise or a
-    # still trace fooled one of them: then the one whose focus stands higher is kept
-    if abs(lines[0][0] - lines[1][0]) * rec.fs / rec.f0 * float(np.ptp(rec.eta)) <= 2.0:
-        lines = lines[:1]
+    found.append(doppler_centroid_whitened(rec, k))
+    if search.trace_line is not None:  # the followed trace's tangent at eta_ref (:mod:`.track`)
+        slope, sample = search.trace_line
+        found.append((slope * rec.f0 * rec.prf / rec.fs, rec.t0 + sample / rec.fs, False))
+    # the lines agree (within two samples of walk over the aperture) unless noise, a still trace
+    # or a long aperture's bent noise floor fooled one of them: then the one whose focus stands
+    # higher is kept
+    lines = []
+    for line in found:
+        if all(abs(line[0] - kept[0]) * rec.fs / rec.f0 * float(np.ptp(rec.eta)) > 2.0 for kept in lines):
+            lines.append(line)
     aperture = float(np.ptp(rec.eta) + 1.0 / rec.prf)
     if candidates:
         used = int(np.argmin([abs(c[0] - k) for c in candidates]))
@@ -391,9 +425,9 @@ def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None) ->
         raise EstimationError(f"receiver {rec.name}: the target's trace lies outside the record at every Radon line "
                               f"(f_dc {', '.join(f'{f:.5g}' for f, _, _ in lines)} Hz)")
     log.info("receiver %s: K = %.5g Hz/s, f_dc = %.5g Hz, tau_c = %.6f s, eta_c = %.4g s, SoWVD score %.1f dB "
-             "(next candidate %.1f dB lower)%s", rec.name, k, f_dc, est.tau_c, est.eta_c,
+             "(next candidate %.1f dB lower)%s", rec.name, k, est.doppler_centroid, est.tau_c, est.eta_c,
              20 * np.log10(peak_to_background), margin_db,
-             "; the Radon slope is at its search's edge" if limited else "")
+             "; the Radon slope is at its search's edge" if est.slope_limited else "")
     return est
 
 
