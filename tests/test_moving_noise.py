@@ -167,6 +167,26 @@ def test_chain_below_its_floor_says_which_receiver_and_why(chain_echo):
         clsas.estimate_motion(noisy(chain_echo, -20.0, 1), position=CENTRE)
 
 
+def test_a_weak_candidate_is_confirmed_by_its_focus_not_its_brightness(chain_echo):
+    """Review M6. Below the SoWVD threshold a rate is taken only when the record focused with it
+    is sharper there than 3 focus steps off (chain.sharpness): at "echo" SNR -17 dB (seed 3, the
+    fallback's own case) the right K's peak stands well over the detuned ones; a K 5 % off
+    (~25 focus steps) leaves an image that is as bright or brighter 3 steps towards the truth,
+    which the peak over the median alone (also > FOCUS_DB there) did not tell."""
+    import dataclasses
+
+    from clsas.estimate.moving import chain
+    from clsas.estimate.moving.records import records
+
+    rec = records(noisy(chain_echo, -17.0, 3), "A")
+    est = chain.estimate_records(rec)
+    at, detuned = chain.sharpness(rec, est)
+    assert at - max(detuned) > 2 * chain.SHARP_DB, (at, detuned)
+    wrong = chain.locate(rec, dataclasses.replace(est, fm_rate=1.05 * est.fm_rate))
+    at, detuned = chain.sharpness(rec, wrong)
+    assert at - max(detuned) < chain.SHARP_DB, (at, detuned)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("snr_db", [-13.0, -15.0, -16.0, -17.0])
 def test_chain_over_seeds(chain_echo, snr_db):

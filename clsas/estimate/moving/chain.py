@@ -14,7 +14,8 @@ target (eqs. 1-2, 21, the R'' of C; f_dc = f_dc,eq, K = K_a,eq):
    :class:`clsas.errors.EstimationError` is raised (section VII-C) when the echo stands out of
    the noise in too few pulses, or when no SoWVD peak stands out of the maps' background
    (:data:`THRESHOLD_DB`) and the record focused with the best candidate holds no target
-   either (:data:`FOCUS_DB`: the SoWVD, a fourth-order product of the record, loses to the noise
+   either, or holds something bright that this K does not focus (:data:`FOCUS_DB`,
+   :func:`sharpness`: the SoWVD, a fourth-order product of the record, loses to the noise
    well before the coherent focus does: tests/test_moving_noise.py has the scores),
 3. RCMC (eq. 17, :mod:`.filters`), Radon transform of |s_rcmc| -> slope -> f_dc (:mod:`.radon`),
 4. range-walk compensation and azimuth compression (eqs. 18-20; :func:`.filters.compress`) of
@@ -87,6 +88,11 @@ THRESHOLD_DB = 26.0
 #: (the largest of n exponential powers over their median: ln n / ln 2); a point focused at
 #: the paper's floor stands well over it (tests/test_moving_noise.py).
 FOCUS_DB = 20.0
+#: A candidate confirmed by the focus (:data:`FOCUS_DB`) must also be sharp: its image's peak
+#: this far above the record's focused :data:`SHARP_STEPS` focus steps off in K (:func:`sharpness`), dB.
+SHARP_DB = 3.0
+#: Focus steps (4 / T_a^2 each) off the candidate K at which :func:`sharpness` refocuses.
+SHARP_STEPS = 3.0
 #: Fraction of the pulses in which the echo must stand out of the noise (:mod:`.trace`); at
 #: -25 dB SNR it does in ~10 % of Table I's pulses, at -15 dB in all of them.
 MIN_COVERAGE = 0.25
@@ -96,6 +102,9 @@ MIN_TIME_BANDWIDTH = 4.0
 #: Samples shifted beyond those a focus window needs (:func:`focus_bins`): the band-limited shift
 #: of a record cut there reaches the window attenuated by ~1 / (pi MARGIN) (-46 dB).
 MARGIN = 64
+#: :func:`bent`: the RCMC's largest shift, in pulse lengths, beyond which the record's bent noise
+#: floor can fool the Radon lines.
+PULSE_SPANS = 1.0
 #: Half-width of the focused window searched for the target's extent, s of two-way delay
 #: (+-12 m of range at 1500 m/s: the scaled Albacore is 10.35 m long).
 EXTENT_WINDOW = 0.016
@@ -208,6 +217,17 @@ def doppler_centroid_walking(rec: Records, rcmc: np.ndarray) -> tuple[float, flo
     power = np.abs(rcmc).astype(np.float32) ** 2
     power -= power.mean(axis=0)
     return _line(rec, power)
+
+
+def bent(rec: Records, fm_rate: float) -> bool:
+    """Whether the RCMC with ``fm_rate`` moves the record's ends by more than a pulse length
+    (the span over which the compressed noise floor changes near a window's ends): then the
+    Radon lines of |s_rcmc| can follow the bent floor (:func:`doppler_centroid_whitened`) and
+    :func:`with_rate` also tries the whitened record's line and the followed trace's tangent.
+    Over Table I's 2048 pulses the RCMC moves the ends by up to ~160 upsampled samples (Table II
+    case 6) against a pulse's 200; over 6400 pulses by ~1000 (case 1)."""
+    shift = abs(fm_rate) * float(np.max(rec.d**2)) / (2 * rec.f0)
+    return bool(shift > PULSE_SPANS * rec.pulse_length)  # False when either is nan
 
 
 def doppler_centroid_whitened(rec: Records, fm_rate: float) -> tuple[float, float, bool]:
@@ -371,9 +391,30 @@ def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHO
     if not est.extent.peak_db >= focus_db:
         raise EstimationError(f"{weak}, and focused with its best candidate K = {search.fm_rate:.4g} Hz/s the record "
                               f"holds no target: image peak {est.extent.peak_db:.1f} dB over its median < {focus_db:g} dB")
+    at, detuned = sharpness(rec, est)
+    if not at - max(detuned) >= SHARP_DB:
+        raise EstimationError(f"{weak}, and focused with its best candidate K = {search.fm_rate:.4g} Hz/s the record's "
+                              f"peak ({at:.1f} dB over its median) is not sharper there than at K -+ {SHARP_STEPS:g} "
+                              f"focus steps ({detuned[0]:.1f}, {detuned[1]:.1f} dB): something bright, not a target "
+                              f"focused by that K")
     log.info("receiver %s: SoWVD score %.1f dB below the threshold %.1f dB; K = %.5g Hz/s confirmed by the focus "
-             "(image peak %.1f dB over its median)", rec.name, ratio_db, threshold_db, est.fm_rate, est.extent.peak_db)
+             "(image peak %.1f dB over its median, %.1f dB over the record focused %g focus steps off)", rec.name,
+             ratio_db, threshold_db, est.fm_rate, est.extent.peak_db, at - max(detuned), SHARP_STEPS)
     return est
+
+
+def sharpness(rec: Records, est: ReceiverEstimate) -> tuple[float, tuple[float, float]]:
+    """(peak over median of ``rec`` focused with est's K and f_dc, dB; the same focused with K
+    -+ :data:`SHARP_STEPS` focus steps 4 / T_a^2), all with the quadratic focus. A focus step is
+    the rate error that leaves one cycle of quadratic phase at the aperture's ends (pi dK
+    (T_a / 2)^2 = pi): a focused target's peak falls well below its own three steps away, while
+    a bright feature that the rate does not focus (clutter, a stationary highlight, the noise's
+    largest value) stays as bright (review M6: the image's peak over its median alone confirms
+    brightness, not focus)."""
+    step = SHARP_STEPS * 4.0 / est.aperture**2
+    peaks = [locate(rec, est, reference=Doppler(fm_rate=k, doppler_centroid=est.doppler_centroid)).extent.peak_db
+             for k in (est.fm_rate, est.fm_rate - step, est.fm_rate + step)]
+    return peaks[0], (peaks[1], peaks[2])
 
 
 def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None) -> ReceiverEstimate:
@@ -387,10 +428,11 @@ def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None) ->
     aligned = rcmc(rec, k)
     found = [doppler_centroid_radon(rec, aligned), doppler_centroid_walking(rec, aligned)]
     del aligned
-    found.append(doppler_centroid_whitened(rec, k))
-    if search.trace_line is not None:  # the followed trace's tangent at eta_ref (:mod:`.track`)
-        slope, sample = search.trace_line
-        found.append((slope * rec.f0 * rec.prf / rec.fs, rec.t0 + sample / rec.fs, False))
+    if bent(rec, k):
+        found.append(doppler_centroid_whitened(rec, k))
+        if search.trace_line is not None:  # the followed trace's tangent at eta_ref (:mod:`.track`)
+            slope, sample = search.trace_line
+            found.append((slope * rec.f0 * rec.prf / rec.fs, rec.t0 + sample / rec.fs, False))
     # the lines agree (within two samples of walk over the aperture) unless noise, a still trace
     # or a long aperture's bent noise floor fooled one of them: then the one whose focus stands
     # higher is kept
