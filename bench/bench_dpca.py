@@ -19,12 +19,21 @@ timing): the 24-hydrophone sonar of tests/test_dpca_bias.py (:func:`motionless_s
 speckle seafloor 0.5x, 1x and 4x the beam's footprint long, transmitters 1x and 2x the
 hydrophones' length, SEEDS seafloors of 30 pings each (``--pings``); per case the mean of the
 per-pair yaws over all pairs and seeds with its standard error (from the spread of the seeds'
-means), the per-pair RMS and the load average.
+means), the same corrected by the seafloors' control variate (:class:`PhaseCentreControl`:
+controlled_mean_urad, controlled_error_urad), the per-pair RMS and the load average.
+
+``--edges SEEDS`` measures how the motionless yaw depends on a range block's distance from the
+seafloor's near or far slant edge (issue #30's edge blocks; no timing): per case (transmitter,
+extent, block length) and per edge (near, far) and depth into the swath (the block's middle, m, to
+that edge, rounded to 0.25 m; negative outside), the mean over SEEDS seafloors of the block's mean yaw over the pairs
+(PingPairs.block_yaw), its standard error and the fraction of pairs whose yaw took the block
+(PingPairs.block_inside).
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import statistics
 import sys
@@ -46,6 +55,8 @@ R0 = 37.0                  # m, the range at which their footprint is measured
 # holds as many a range cell (3.75 cm x its length) as one footprint long at this density, i.e.
 # the speckle of the 0.5x case doubled, for a quarter of the simulation at 4x
 DENSITY = 20.0
+# the --edges cases: (transmitter factor, seafloor extent, block length in samples); --quick: the first
+EDGE_CASES = ((1.0, 1.0, 128), (1.0, 1.0, 64), (2.0, 1.0, 128), (1.0, 4.0, 128))
 
 
 def bias_sonar(tx_factor: float, pings: int) -> Scenario:
@@ -71,12 +82,117 @@ def motionless_scene(tx_factor: float, extent: float, pings: int = 30, seed: int
     scene = bias_sonar(tx_factor, pings)
     half = extent * footprint(scene) / 2
     rng = np.random.default_rng(seed)
-    n = int(DENSITY / max(1.0, extent) * (ACROSS[1] - ACROSS[0]) * 2 * half)
+    n = seafloor_points(extent, half)
     pos = np.stack([rng.uniform(*ACROSS, n), rng.uniform(-half, half, n), np.zeros(n)], -1)
     floor = PointTargets(pos, reflectivity=(rng.normal(size=n) + 1j * rng.normal(size=n)) / np.sqrt(2))
     scene = scene.replace(targets=(floor,))
     echo = clsas.range_compress(clsas.simulate(scene, progress=False), upsample=2)
     return scene, dpca.SeafloorExtent(x=ACROSS, y=(-half, half)), echo
+
+
+class PhaseCentreControl:
+    """A control variate for the motionless yaw of :func:`motionless_scene` (issue #30): what the
+    seafloor's own scatterers make each ping pair read through the phase-centre approximation's
+    residual, computed from the scatterers the simulation placed, and zero in expectation by
+    construction, so that subtracting it (scaled) from the estimator's mean yaw removes speckle
+    without touching the bias.
+
+    The phase-centre correction takes out D cos^2(theta) / (4 r)-type delays with the mean
+    <sin^2 theta> of each range block (dpca.geometry.pca_delay, look_moments): a scatterer at
+    along-track direction cosine s reads -D (s^2 - m) / r of yaw, m the block's mean. A block's
+    finite set of scatterers, each weighted by its reflectivity's power |a|^2 and the two-way
+    pattern P(s), does not average that to zero: the speckle of the yaw that is shared by a
+    seafloor's pairs (they see the same scatterers a few degrees apart). Per ping pair p and
+    range ring b (fixed rings BLOCK m long inside the swath, a ring's length from its edges; the
+    same for every seafloor)
+
+        C_pb = -(D / r_b) sum_{k in b} |a_k|^2 P(s_kp) (s_kp^2 - m_pb) / W_pb,
+
+    s_kp seen from the couples' phase centre, m_pb = int P s^2 dA / int P dA over the part of
+    the rectangle ring b holds and W_pb = (n / A) int P dA: both integrals by Gauss-Legendre
+    quadrature (the seafloor's rectangle of area A holds n points drawn uniformly, E|a|^2 = 1),
+    so E[sum |a|^2 P (s^2 - m)] = (n / A) (int P s^2 - m int P) = 0: E[C_pb] = 0 for every
+    pair and ring, whatever the estimator does. C_p is the mean over the rings. The
+    estimator's mean corrected by it, mean(Y) - beta (mean(C) - 0), has the estimator's own
+    expectation for any beta (beta fitted across seafloors: the usual O(1 / seafloors) term
+    of an estimated coefficient, far below the standard error at the test's counts); a
+    bias of the estimator (the correction's m, the edge blocks, the weighting) is not in C and
+    cannot be taken out by it. Only its variance changes: by 1 - corr(Y, C)^2."""
+
+    BLOCK = 1.92    # m, the rings' length (the estimator's 128-sample blocks at 50 kHz)
+    NODES = (8, 512)  # Gauss-Legendre nodes in range and in azimuth per ring
+
+    def __init__(self, scene: Scenario, half: float, n_points: int):
+        array, c, f0 = scene.array, scene.medium.sound_speed, scene.waveform.f0
+        prf = scene.schedule.prf
+        s, pc, n_couples = dpca.geometry.pairing(array, scene.platform.speed, prf, 2)
+        self.D = s * (pc[1] - pc[0])
+        edges = np.arange(ACROSS[0] + self.BLOCK, ACROSS[1] - self.BLOCK + 1e-9, self.BLOCK)
+        self.lo, self.r = edges[:-1], edges[:-1] + self.BLOCK / 2
+        ahead = pc[:n_couples].mean() - array.tx_offset[1] + scene.platform.speed * 2 * R0 / c
+        self.y = scene.platform.speed * scene.eta[1:] + ahead        # couples' centre, pair p (x = z = 0)
+        self.pattern = lambda sin_t: dpca.geometry._pattern(array, f0, c, sin_t)
+        self.half = half
+        xr, wr = np.polynomial.legendre.leggauss(self.NODES[0])
+        xp, wp = np.polynomial.legendre.leggauss(self.NODES[1])
+        density = n_points / ((ACROSS[1] - ACROSS[0]) * 2 * half)
+        weight, second = np.zeros((self.y.size, self.r.size)), np.zeros((self.y.size, self.r.size))
+        for b, lo in enumerate(self.lo):
+            rho = lo + self.BLOCK * (xr + 1) / 2                   # (node,)
+            for p, yc in enumerate(self.y):
+                bound = np.arccos(ACROSS[0] / rho)                 # x = rho cos(phi) >= ACROSS[0]
+                a0 = np.maximum(-bound, np.arcsin(np.clip((-half - yc) / rho, -1, 1)))
+                a1 = np.minimum(bound, np.arcsin(np.clip((half - yc) / rho, -1, 1)))
+                a1 = np.maximum(a1, a0)
+                phi = a0[:, None] + (a1 - a0)[:, None] * (xp[None, :] + 1) / 2
+                sin_t = np.sin(phi)
+                area = (a1 - a0)[:, None] / 2 * wp[None, :] * (self.BLOCK / 2 * wr * rho)[:, None]
+                pw = self.pattern(sin_t) * area
+                weight[p, b], second[p, b] = pw.sum(), (pw * sin_t**2).sum()
+        self.m = second / weight
+        self.W = density * weight
+
+    def __call__(self, positions: np.ndarray, reflectivity: np.ndarray) -> np.ndarray:
+        """C_p (pair,), rad: the control variate of one seafloor (its points' positions (n, 3)
+        and reflectivities (n,))."""
+        rng = np.hypot(positions[:, 0], positions[:, 1][None, :] - self.y[:, None])   # (pair, n)
+        ring = np.floor((rng - self.lo[0]) / self.BLOCK).astype(int)
+        inside = (ring >= 0) & (ring < self.r.size)
+        sin_t = (positions[:, 1][None, :] - self.y[:, None]) / rng
+        power = np.abs(reflectivity) ** 2 * self.pattern(sin_t)
+        out = np.zeros((self.y.size, self.r.size))
+        for p in range(self.y.size):
+            k = inside[p]
+            num = np.bincount(ring[p, k], power[p, k] * (sin_t[p, k] ** 2 - self.m[p, ring[p, k]]),
+                              minlength=self.r.size)
+            out[p] = -self.D / self.r * num / self.W[p]
+        return out.mean(axis=1)
+
+
+@functools.cache
+def seafloor_control(tx_factor: float, extent: float, pings: int = 30) -> PhaseCentreControl:
+    """The :class:`PhaseCentreControl` of :func:`motionless_scene`'s seafloors (the same for
+    every seed: the geometry and the number of points do not depend on it)."""
+    scene = bias_sonar(tx_factor, pings)
+    half = extent * footprint(scene) / 2
+    return PhaseCentreControl(scene, half, seafloor_points(extent, half))
+
+
+def seafloor_points(extent: float, half: float) -> int:
+    """How many random points :func:`motionless_scene` draws for a seafloor ``half`` m either
+    side of the track along it."""
+    return int(DENSITY / max(1.0, extent) * (ACROSS[1] - ACROSS[0]) * 2 * half)
+
+
+def controlled_mean(means, controls) -> tuple[float, float, float]:
+    """(mean, its standard error, beta): the seafloors' mean yaws ``means`` corrected by their
+    control variates ``controls`` (E = 0, :class:`PhaseCentreControl`), beta the least-squares
+    coefficient across the seafloors; the standard error from the residuals (n - 2 degrees of
+    freedom)."""
+    y, x = np.asarray(means, dtype=float), np.asarray(controls, dtype=float)
+    beta = float(np.cov(y, x)[0, 1] / np.var(x, ddof=1))
+    adjusted = y - beta * x
+    return float(np.mean(adjusted)), float(np.sqrt(np.sum((adjusted - adjusted.mean()) ** 2) / (y.size - 2) / y.size)), beta
 
 
 def dpca_track(n_pings: int, n_samples: int, rng) -> tuple[EchoData, object, float]:
@@ -120,29 +236,64 @@ def yaw_bias(args, seeds: int, pings: int) -> None:
     """The --bias rows (see the module docstring): seeds 1000 .. 1000 + seeds - 1."""
     for tx_factor in (1.0, 2.0):
         for extent in (0.5, 1.0, 4.0):
-            means, rms, start = [], [], time.perf_counter()
+            control = seafloor_control(tx_factor, extent, pings)
+            means, controls, rms, start = [], [], [], time.perf_counter()
             for seed in range(1000, 1000 + seeds):
                 scene, _, echo = motionless_scene(tx_factor, extent, pings, seed)
                 yaw = dpca.estimate(echo, scene.array, scene.platform.speed).yaw
                 means.append(float(np.mean(yaw)))
                 rms.append(float(np.std(yaw)))
+                controls.append(float(np.mean(control(scene.targets[0].positions, scene.targets[0].reflectivity))))
             seconds = time.perf_counter() - start
             error = float(np.std(means, ddof=1) / np.sqrt(seeds)) if seeds > 1 else float("nan")
+            controlled, controlled_error, beta = controlled_mean(means, controls) if seeds > 2 else (np.nan,) * 3
             report(args, "dpca-yaw-bias", "numpy", {"tx_factor": tx_factor, "extent": extent, "seeds": seeds,
                                                     "pings": pings}, seeds * (pings - 1) / seconds,
                    "ping pairs/s (with simulation)", seconds, yaw_mean_urad=1e6 * float(np.mean(means)),
-                   yaw_error_urad=1e6 * error, pair_rms_urad=1e6 * float(np.mean(rms)),
-                   load=[round(x, 2) for x in os.getloadavg()])
+                   yaw_error_urad=1e6 * error, controlled_mean_urad=1e6 * controlled,
+                   controlled_error_urad=1e6 * controlled_error, control_beta=beta,
+                   pair_rms_urad=1e6 * float(np.mean(rms)), load=[round(x, 2) for x in os.getloadavg()])
+
+
+def edge_profile(args, seeds: int, pings: int) -> None:
+    """The --edges rows (see the module docstring): seeds 1000 .. 1000 + seeds - 1."""
+    for tx_factor, extent, block in EDGE_CASES[:1] if args.quick else EDGE_CASES:
+        yaws, start = {}, time.perf_counter()
+        for seed in range(1000, 1000 + seeds):
+            scene, floor, echo = motionless_scene(tx_factor, extent, pings, seed)
+            pairs = dpca.estimate(echo, scene.array, scene.platform.speed, block=block)
+            for r, column, kept in zip(pairs.block_range, pairs.block_yaw.T, pairs.block_inside.T):
+                if np.any(np.isfinite(column)):
+                    # the depth into the swath of the block's middle from the nearer slant edge
+                    edge = "near" if r - floor.x[0] < floor.x[1] - r else "far"
+                    depth = round(float(min(r - floor.x[0], floor.x[1] - r)) * 4) / 4
+                    yaws.setdefault((edge, depth), []).append((float(np.nanmean(column)), float(np.mean(kept))))
+        seconds = time.perf_counter() - start
+        for edge, depth in sorted(yaws):
+            values = np.array(yaws[edge, depth])
+            if values.shape[0] < 2:
+                continue
+            report(args, "dpca-yaw-edges", "numpy", {"tx_factor": tx_factor, "extent": extent, "block": block,
+                                                     "seeds": seeds, "pings": pings, "edge": edge,
+                                                     "depth_m": depth},
+                   values.shape[0] / seconds, "block means/s (with simulation)", seconds,
+                   yaw_mean_urad=1e6 * float(np.mean(values[:, 0])),
+                   yaw_error_urad=1e6 * float(np.std(values[:, 0], ddof=1) / np.sqrt(values.shape[0])),
+                   kept=float(np.mean(values[:, 1])), load=[round(x, 2) for x in os.getloadavg()])
 
 
 def main() -> None:
     extra = argparse.ArgumentParser(add_help=False)
     extra.add_argument("--bias", type=int, default=0, metavar="SEEDS")
+    extra.add_argument("--edges", type=int, default=0, metavar="SEEDS")
     extra.add_argument("--pings", type=int, default=30)
     own, sys.argv[1:] = extra.parse_known_args()
     args = arguments(__doc__.splitlines()[0])
     if own.bias:
         yaw_bias(args, own.bias, own.pings)
+        return
+    if own.edges:
+        edge_profile(args, own.edges, own.pings)
         return
     rng = np.random.default_rng(0)
     repeats = args.repeats or 3

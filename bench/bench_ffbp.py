@@ -36,12 +36,24 @@ case costs about 5 minutes). ``--scan`` adds one timed run each of the wide case
 square grids of half as many pixels a side (the aperture and the image grow together), and of
 the aperture case for the same pulses on a fixed 512^2 grid.
 
+``--stages`` adds one more ffbp call a case, after the timed ones, with the device's queue
+finished around each stage, and reports the process CPU seconds of each (``stages_cpu``: the tree's
+planning, the leaves (of which ``leaf_bp_tile``, back-projection's kernel itself), the merges, the
+final stage, and the rest), the cost breakdown that says where a case's time goes.
+
+Every run is timed twice: wall time and the process's CPU time (``time.process_time``: PoCL's
+worker threads run in this process, so it is the CPU-seconds the call used). On a loaded machine the
+wall ratios move with whatever else runs; the CPU ratios (``cpu_ratio_median``, ``cpu_ratio_best``)
+move much less, so both are reported.
+
 Each row carries the machine it was measured on (bench/_harness.py); the figures live in the
 JSON output (``--json``; ``bench/run_all.py`` collects them), not here.
 """
 
 from __future__ import annotations
 
+import contextlib
+import importlib
 import pathlib
 import statistics
 import subprocess
@@ -52,11 +64,15 @@ import numpy as np
 from _harness import arguments, report
 
 import clsas
-from clsas import Array, Medium, Platform, PointTargets, PulseSchedule, Scenario, Waveform
+from clsas import Array, Medium, Platform, PointTargets, PulseSchedule, Scenario, Waveform, opencl
 from clsas.model import Grid
-from clsas.image.backprojection import backproject
+from clsas.image.backprojection import TileKernel, backproject
 from clsas.image.ffbp import ffbp
 from clsas.image.ffbp import _SCENES  # each Grid's Scene, kept between calls (cleared for ffbp_new_grid)
+from clsas.image.ffbp.leaves import FirstStage
+from clsas.image.ffbp.store import DeviceStore
+
+ffbp_package = importlib.import_module("clsas.image.ffbp")  # the package (clsas.image.ffbp is also the function)
 
 F0, B, FS, UP, DEPTH = 150e3, 20e3, 25e3, 8, -5.0
 # the two sonars: element length D (m; pulses every D / 4) and the image's ranges (m)
@@ -97,20 +113,66 @@ def scene(n_pulses: int, n_pixels: int, sonar: str = "narrow"):
     return echo, grid
 
 
-def interleaved(runs: dict, repeats: int) -> dict:
-    """Wall times of each run, interleaved (A B A B ...), after one warm-up run each."""
+def interleaved(runs: dict, repeats: int) -> tuple[dict, dict, dict]:
+    """Wall times and process CPU times of each run, interleaved (A B A B ...), after one warm-up
+    run each, and the warm-up's results."""
     results = {name: run() for name, run in runs.items()}
-    times = {name: [] for name in runs}
+    times, cpu = {name: [] for name in runs}, {name: [] for name in runs}
     for _ in range(repeats):
         for name, run in runs.items():
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.process_time()
             run()
             times[name].append(time.perf_counter() - start)
-    return times, results
+            cpu[name].append(time.process_time() - start_cpu)
+    return times, cpu, results
+
+
+@contextlib.contextmanager
+def _stage_clock(totals: dict):
+    """Within the block, ffbp's stages add their process CPU seconds to ``totals`` (the device's
+    queue finished before and after each, so that its work is counted where it was enqueued)."""
+    queue = opencl.runtime().queue
+    targets = {"plan": (ffbp_package, "plan"), "leaves": (FirstStage, "image_into"),
+               "leaf_bp_tile": (TileKernel, "launch"), "merges": (DeviceStore, "merge"),
+               "final": (DeviceStore, "final")}
+    saved = {name: getattr(owner, attr) for name, (owner, attr) in targets.items()}
+
+    def clocked(name, original):
+        def run(*args, **kwargs):
+            queue.finish()
+            start = time.process_time()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                queue.finish()
+                totals[name] = totals.get(name, 0.0) + time.process_time() - start
+        return run
+
+    for name, (owner, attr) in targets.items():
+        setattr(owner, attr, clocked(name, saved[name]))
+    try:
+        yield totals
+    finally:
+        for name, (owner, attr) in targets.items():
+            setattr(owner, attr, saved[name])
+
+
+def stages(run) -> dict:
+    """Process CPU seconds of each stage of one call ``run()`` (:func:`_stage_clock`) and ``rest``
+    (the call's CPU time outside them: checks, the walk, the result's copy)."""
+    totals = {}
+    start = time.process_time()
+    with _stage_clock(totals):
+        run()
+    total = time.process_time() - start
+    parts = {k: totals.get(k, 0.0) for k in ("plan", "leaves", "leaf_bp_tile", "merges", "final")}
+    parts["rest"] = total - parts["plan"] - parts["leaves"] - parts["merges"] - parts["final"]
+    parts["total"] = total
+    return {k: round(v, 4) for k, v in parts.items()}
 
 
 def main() -> None:
-    flags = {flag: flag in sys.argv for flag in ("--scan", "--big", "--factors")}
+    flags = {flag: flag in sys.argv for flag in ("--scan", "--big", "--factors", "--stages")}
     sys.argv = [a for a in sys.argv if a not in flags]
     scan, big = flags["--scan"], flags["--big"]
     args = arguments(__doc__.splitlines()[0])
@@ -137,21 +199,27 @@ def main() -> None:
                 "ffbp_new_grid": lambda: (_SCENES.clear(), ffbp(echo, grid, interp="linear", **kw, **options))[1]}
         if flags["--factors"]:
             runs["ffbp_factor2"] = lambda: ffbp(echo, grid, interp="linear", factor=2, **kw, **options)
-        times, images = interleaved(runs, reps)
+        times, cpu, images = interleaved(runs, reps)
         ref = images["direct"].data
         work = grid.size * pulses
         medians = {name: statistics.median(t) for name, t in times.items()}
+        cpu_medians = {name: statistics.median(t) for name, t in cpu.items()}
         for name, t in times.items():
             extra = {"method": name, "case": case, "min_seconds": min(t), "median_seconds": medians[name],
+                     "cpu_min_seconds": min(cpu[name]), "cpu_median_seconds": cpu_medians[name],
                      "rate_best": work / min(t), "runs": len(t), "commit": COMMIT}
             if name != "direct":
                 made = images[name]
                 extra.update(ratio_median=medians["direct"] / medians[name],
                              ratio_best=min(times["direct"]) / min(t),
+                             cpu_ratio_median=cpu_medians["direct"] / cpu_medians[name],
+                             cpu_ratio_best=min(cpu["direct"]) / min(cpu[name]),
                              rel_l2=float(np.linalg.norm(made.data - ref) / np.linalg.norm(ref)),
                              factor=made.provenance["factor"], levels=made.provenance["levels"],
                              first=made.provenance["first"], oversampling=made.provenance["oversampling"],
                              polar_samples=made.provenance["polar_samples"])
+                if flags["--stages"] and name == "ffbp":
+                    extra["stages_cpu"] = stages(runs["ffbp"])
             report(args, "ffbp", "opencl", {"pixels": grid.size, "pulses": pulses, "receivers": 1},
                    work / medians[name], "BP/s", medians[name], **extra)
 

@@ -143,6 +143,16 @@ typedef float16 realv16_t;
 /* A pixel row's fields: loaded where used (the pulse loop then holds no more than they need) */
 #define FIELD(f) LOAD_F16(px[r].f)
 
+/* Row r's first samples into first[r], two halves of 8 lanes: on AVX-512 CPUs a 16-lane store
+ * does not forward to the scalar loads of its upper half (those wait until the store reaches
+ * the cache), whereas an 8-lane store forwards to all of its lanes */
+#define STORE_FIRST(r, v)     \
+    do {                      \
+        const int16 v_ = (v); \
+        first[r][0] = v_.lo;  \
+        first[r][1] = v_.hi;  \
+    } while (0)
+
 __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_of, __global const tile_ref_t *ref,
                       const int ref_stride, const int ref_first, __global const sample_t *data, __global const float *taps,
                       const tile_params_t params, const int p_first, const int p_count, const int n,
@@ -175,7 +185,7 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
         const float3 b = vload3(0, R.leg1), b2 = 2.0f * b;  /* N1 = 2 B.delta + |delta|^2 */
         float16 s1[ROWS], s[ROWS], frac[ROWS], cs[ROWS], sn[ROWS];
         int16 keep[ROWS];
-        volatile int16 first[ROWS];  /* the lanes' first samples, read back one by one as scalars */
+        volatile int8 first[ROWS][2];  /* the lanes' first samples, read back one by one as scalars */
 #ifndef MOVING
         if (R.poly) {
             FOR_ROWS {  /* leg 1 without a square root or a division */
@@ -217,10 +227,10 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             const int16 ki = k + R.k_ref;
 #ifdef INTERP_LINEAR
             keep[r] = as_uint16(ki) < (uint16)(n - 1);  /* samples ki and ki + 1 exist */
-            first[r] = select((int16)0, ki, keep[r]);
+            STORE_FIRST(r, select((int16)0, ki, keep[r]));
 #else
             keep[r] = as_uint16(ki - 3) <= (uint16)(n - 8);  /* samples ki - 3 .. ki + 4 exist */
-            first[r] = select((int16)0, ki - 3, keep[r]);
+            STORE_FIRST(r, select((int16)0, ki - 3, keep[r]));
 #endif
 #ifdef APERTURE
             /* sin theta = (q - tx).y / (c t1), q - tx = B + delta + v s1 */
@@ -232,7 +242,7 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             EXPJ_NEAR16(NEAR_FRACTION(cyc), &cs[r], &sn[r]);
         }
         FOR_ROWS {
-            const volatile int *i = (const volatile int *)&first[r];
+            const volatile int *i = (const volatile int *)&first[r][0];
 #ifdef INTERP_LINEAR
             /* samples i and i + 1 of each lane in one 4-wide load, transposed in registers */
 #define W(L) LOAD_F4(rec + 2 * i[0x##L])
@@ -258,18 +268,25 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
         }
     }
     for (int r = 0; r < ROWS; ++r) {
+        const int m = 16 * (ROWS * g + r);
+#ifdef SCATTER
         float re[16], im[16];
         vstore16(acc_re[r], 0, re);
         vstore16(acc_im[r], 0, im);
-        const int m = 16 * (ROWS * g + r);
         for (int l = 0; l < 16; ++l) {
-#ifdef SCATTER
             if (index[m + l] >= 0)
                 image[index[m + l]] += (double2)(re[l], im[l]);
-#else
-            image[m + l] += (double2)(re[l], im[l]);
-#endif
         }
+#else
+        /* the row's 16 slots are contiguous: four vectors of 4 (re, im) pairs, the same double
+         * additions as slot by slot */
+        const float16 re = acc_re[r], im = acc_im[r];
+        __global double *o = (__global double *)(image + m);
+        STORE_D8(LOAD_D8(o) + convert_double8((float8)(re.s0, im.s0, re.s1, im.s1, re.s2, im.s2, re.s3, im.s3)), o);
+        STORE_D8(LOAD_D8(o + 8) + convert_double8((float8)(re.s4, im.s4, re.s5, im.s5, re.s6, im.s6, re.s7, im.s7)), o + 8);
+        STORE_D8(LOAD_D8(o + 16) + convert_double8((float8)(re.s8, im.s8, re.s9, im.s9, re.sa, im.sa, re.sb, im.sb)), o + 16);
+        STORE_D8(LOAD_D8(o + 24) + convert_double8((float8)(re.sc, im.sc, re.sd, im.sd, re.se, im.se, re.sf, im.sf)), o + 24);
+#endif
     }
 }
 

@@ -167,6 +167,19 @@ __kernel void ffbp_leaf(__global const double2 *image, __global const int *slots
     const double16 cycles = cycles_per_m * (frame.r0 + (i0 + LANE_INDEX) * frame.dr);
     float16 cs, sn;
     expj_fraction16(convert_float16(cycles - convert_double16(convert_int16(cycles))), &cs, &sn);
+    if (lo == 0 && hi == 16) {  /* a whole group: two double16 loads, two float16 stores (re, im interleaved) */
+        __global const double *p = (__global const double *)(image + 16 * (size_t)g);
+        const double16 a = LOAD_D16(p), b = LOAD_D16(p + 16);
+        const float16 re = (float16)(convert_float8(a.even), convert_float8(b.even));
+        const float16 im = (float16)(convert_float8(a.odd), convert_float8(b.odd));
+        const float16 o_re = re * cs + im * sn, o_im = im * cs - re * sn;
+        __global float *q = (__global float *)o;
+        STORE_F16(((float16)(o_re.s0, o_im.s0, o_re.s1, o_im.s1, o_re.s2, o_im.s2, o_re.s3, o_im.s3, o_re.s4, o_im.s4,
+                             o_re.s5, o_im.s5, o_re.s6, o_im.s6, o_re.s7, o_im.s7)), q);
+        STORE_F16(((float16)(o_re.s8, o_im.s8, o_re.s9, o_im.s9, o_re.sa, o_im.sa, o_re.sb, o_im.sb, o_re.sc, o_im.sc,
+                             o_re.sd, o_im.sd, o_re.se, o_im.se, o_re.sf, o_im.sf)), q + 16);
+        return;
+    }
     float c_out[16], s_out[16];
     vstore16(cs, 0, c_out);
     vstore16(sn, 0, s_out);

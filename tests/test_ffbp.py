@@ -247,6 +247,23 @@ def test_leaves_no_tile_can_hold_go_through_backproject(opencl_device, monkeypat
         assert rel_l2(got, one * grids[k].inside()) < 1e-6
 
 
+@pytest.mark.parametrize("budget", [1.0, 0.5])
+def test_tile_shapes_passed_over_by_their_estimate_would_have_failed(opencl_device, monkeypatch, budget):
+    """The first stage passes over tile shapes whose estimated half-diagonal exceeds the budget
+    (leaves.TILE_SLACK) without computing their fields: with a budget that makes the launcher
+    halve its tiles (1 m: 16 x 128 -> 4 x 64 samples; 0.5 m: -> 4 x 16), the image is the one
+    every shape checked gives (TILE_SLACK infinite), bit for bit: the same tiles."""
+    from clsas.image.backprojection import TileKernel
+    from clsas.image.ffbp import leaves
+
+    monkeypatch.setattr(TileKernel, "half_extent", staticmethod(lambda f0, c: budget))
+    echo = echo_of("straight")
+    skipping = ffbp(echo, GRID, backend="opencl", progress=False).data
+    monkeypatch.setattr(leaves, "TILE_SLACK", float("inf"))
+    checked = ffbp(echo, GRID, backend="opencl", progress=False).data
+    assert np.array_equal(skipping, checked)
+
+
 def test_rows_spans_are_the_envelope_over_each_rows_window():
     """The rows' spans of every grid of a tree (sampled together, by sparse tables of the extents'
     envelopes) against each row's window of envelope bins read directly (polar.sample_grids'

@@ -74,6 +74,15 @@ def fir_taps(factor: int) -> np.ndarray:
     return table
 
 
+def phase_vectors(factor: int) -> np.ndarray:
+    """(ceil(factor / 8), TAPS, 16) float32: the kernel's tap vectors, lane 2 q + c of vector v at
+    step t = :func:`fir_taps` [8 v + q, t] for both parts c (zero for phases 8 v + q >= factor)."""
+    n_vec = -(-factor // 8)
+    table = np.zeros((8 * n_vec, TAPS), np.float32)
+    table[:factor] = fir_taps(factor)
+    return np.ascontiguousarray(np.repeat(table.reshape(n_vec, 8, TAPS).transpose(0, 2, 1), 2, axis=2))
+
+
 def worst_tone_error(factor: int, band: float = MAX_BAND, n_freq: int = 801) -> float:
     """max over |f| <= ``band`` (cycles a sample) and the phases of |H_p(f) - exp(j 2 pi f p / factor)|
     (the module docstring): the FIR's departure from exact band-limited upsampling, per unit tone."""
@@ -120,7 +129,8 @@ def enqueue(queue, src, n_src: int, n_rows: int, first: int, stop: int, factor: 
     n_src complex64) upsampled over original samples [first, stop) into ``dst`` (n_rows x
     (stop - first) factor complex64); returns its event."""
     taps = _taps_buffer(queue.context, factor)
-    kern = opencl.kernel("upsample", "upsample_fir", defines={"FACTOR": factor, "TAPS": TAPS})
+    kern = opencl.kernel("upsample", "upsample_fir", defines={"FACTOR": factor, "TAPS": TAPS,
+                                                              "PHASE_VECS": -(-factor // 8)})
     global_size, local_size = opencl.work_groups_2d(-(-(stop - first) // 8), n_rows, ROWS_GROUP)
     return kern(queue, global_size, local_size, src, np.int32(n_src), np.int32(n_rows), np.int32(first),
                 np.int32(stop - first), taps, dst)
@@ -135,7 +145,7 @@ def _taps_buffer(ctx, factor: int):
         import pyopencl as cl
 
         _TAP_BUFFERS[key] = cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                                      hostbuf=np.ascontiguousarray(fir_taps(factor)))
+                                      hostbuf=phase_vectors(factor))
     return _TAP_BUFFERS[key]
 
 

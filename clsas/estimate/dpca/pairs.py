@@ -42,6 +42,13 @@ class PingPairs:
         extent, D (<sin^2>_beam - <sin^2>_main lobe) / r, the difference between a seafloor that
         fills the whole beam and one that fills only its main lobe (a narrower one biases it
         more: give ``extent``); 0 with the extent; None when not known (built by hand)
+    block_yaw : rad (n_pulses - 1, block), each range block's own yaw (pass 2), NaN where the
+        block entered no estimate (weak, incoherent, beyond the seafloor); ``yaw`` is the robust
+        mean of the blocks clear of the seafloor's range edges (``block_inside``): for seeing
+        how the yaw depends on range (bench/bench_dpca.py --edges); None when built by hand
+    block_inside : bool (n_pulses - 1, block), the blocks ``yaw`` was taken from (before the
+        outlier trim); None when built by hand
+    block_range : m (block,), the blocks' centre slant ranges; None when built by hand
     """
 
     surge: np.ndarray
@@ -56,6 +63,9 @@ class PingPairs:
     two_way: float
     yaw_bias: np.ndarray | None = None
     yaw_from_edges: np.ndarray | None = None
+    block_yaw: np.ndarray | None = None
+    block_inside: np.ndarray | None = None
+    block_range: np.ndarray | None = None
 
 
 # Range blocks holding less than this fraction of a ping pair's main-lobe level (its third
@@ -381,4 +391,5 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
         / (c * two_way / 2)
     return PingPairs(surge=su, sway=sw, yaw=yw, surge_std=su_e, sway_std=sw_e, yaw_std=yw_e, coherence=coh,
                      blocks=counts, lags=lags, two_way=two_way, yaw_bias=np.full(su.shape, abs(bias)),
-                     yaw_from_edges=lacking)
+                     yaw_from_edges=lacking, block_yaw=np.where(good, yaw, np.nan), block_inside=inside,
+                     block_range=r_blocks)

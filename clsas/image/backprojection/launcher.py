@@ -2,10 +2,11 @@
 in launches of bp_tile (:class:`.tile_kernel.TileKernel`) or, for ``precision="double"`` and
 receivers whose motion is not linear over a tile, bp_block (:class:`.exact_kernel.ExactKernel`).
 
-Memory: the kernels add into the double image in the grid's order (each slot's pixel index: no
-reordering afterwards), which on a CPU device is the host array itself (CL_MEM_USE_HOST_PTR);
-the pixels are processed in chunks of at most ``PIXEL_CHUNK`` (2^22) slots on the device, whose
-fields bp_fields computes there (64 bytes a slot, 80 with a target velocity); the records a block
+Memory: the pixels are processed in chunks of at most ``PIXEL_CHUNK`` (2^22) slots on the device,
+whose fields bp_fields computes there (64 bytes a slot, 80 with a target velocity); the kernels
+add into a double image of the chunk's slots (16 bytes a slot: a work-item's rows are contiguous,
+written as whole vectors), which the host puts in the grid's order once the chunk's kernels have
+finished; the records a block
 of at most ``records.UPLOAD_BYTES`` at a time (at most two blocks in flight: the host waits for
 the kernels of the block before last), the per-(tile, pulse) references REF_PULSES pulses at a
 time. Records prepared with :func:`.records.prepare` are held whole instead, and a
@@ -30,8 +31,8 @@ REF_PULSES = 64  # pulses whose tile references are computed at once
 class _Chunk:
     """The device side of slots ``first`` .. ``stop - 1`` of the plan's tiling: their pixel
     indices (``index``, -1 for padding), the work-items' tiles relative to the chunk's first tile
-    and those tiles (``tiles``, a range of the tiling's), and bp_tile's pixel fields (computed on
-    the device by bp_fields)."""
+    and those tiles (``tiles``, a range of the tiling's), bp_tile's pixel fields (computed on
+    the device by bp_fields) and the slots' sums (``sums``, double2 a slot, zeroed)."""
 
     def __init__(self, ctx, queue, tiling, tile: TileKernel, positions, first: int, stop: int):
         import pyopencl as cl
@@ -40,6 +41,8 @@ class _Chunk:
         width = tile.LANES * tile.rows
         self.first, self.n = first, stop - first
         slots = tiling.order[first:stop]
+        self.sums = cl.Buffer(ctx, mf.READ_WRITE, 16 * self.n)  # the slots' double image
+        cl.enqueue_fill_buffer(queue, self.sums, np.zeros(1, np.complex128), 0, 16 * self.n)
         owner = tiling.tile[first // width:stop // width]
         self.tiles = np.arange(owner[0], owner[-1] + 1)
         self.pixels_here = int(np.count_nonzero(slots >= 0))
@@ -53,6 +56,16 @@ class _Chunk:
         self.centres = made(tiling.centres[self.tiles])
         self.pixels = tile.fields(queue, positions=positions, index=self.index, tile_of=self.tile_of,
                                   centres=self.centres, n_slots=self.n)
+
+    def add_into(self, queue, image: np.ndarray) -> None:
+        """Add the slots' sums into ``image`` (M,) complex128 at their pixels (after the chunk's
+        kernels: the read waits for them on the in-order queue)."""
+        import pyopencl as cl
+
+        sums = np.empty(self.n, np.complex128)
+        cl.enqueue_copy(queue, sums, self.sums)
+        real = self.slots >= 0
+        image[self.slots[real]] += sums[real]
 
 
 def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,
@@ -69,7 +82,6 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
     pixels = np.ascontiguousarray(plan.grid.positions.reshape(-1, 3), np.float64)
     image = np.zeros(pixels.shape[0], dtype=np.complex128)
-    image_buf = cl.Buffer(ctx, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=image)
     positions = cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=pixels)
     tiles = plan.tiling(f0, c)
     tile = TileKernel(records.interp, aperture, velocity, stop_and_go, rows=tiles.rows)
@@ -102,6 +114,9 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
         kernel_seconds += retire(1)
         records_buf, n_samples, base = records.buffer(ctx, i, pulses, double)
         if chunk_state is None or chunk_state.first != first:
+            if chunk_state is not None:
+                kernel_seconds += retire(0)
+                chunk_state.add_into(queue, image)
             chunk_state = _Chunk(ctx, queue, tiles, tile, positions, first, min(first + chunk, tiles.order.size))
         skip = int(pulses[0] - base)  # the job's first pulse in the buffer (which may hold earlier pulses)
         in_flight.append(events := [])
@@ -131,8 +146,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                         events.append(kernel.launch(
                             queue, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
                             ref_stride=part.size, ref_first=skip + s, records=records_buf, n_samples=n_samples,
-                            taps=taps, params=params, p_first=skip + p0, p_count=count, image=image_buf,
-                            index=chunk_state.index, spans=spans))
+                            taps=taps, params=params, p_first=skip + p0, p_count=count, image=chunk_state.sums,
+                            spans=spans))
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)
@@ -143,9 +158,9 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                                     velocity, records.interp, aperture, stop_and_go, double)
             for p0, count in blocks:
                 events.append(exact.launch(queue, records=records_buf, n_samples=n_samples, taps=taps,
-                                           p_first=skip + p0, p_count=count, image=image_buf, index=chunk_state.index))
+                                           p_first=skip + p0, p_count=count, image=chunk_state.sums))
     kernel_seconds += retire(0)
-    mapped, _ = cl.enqueue_map_buffer(queue, image_buf, cl.map_flags.READ, 0, image.shape, image.dtype)
-    mapped.base.release()  # the image is the host array (read after the map: a GPU copies it back there)
+    if chunk_state is not None:
+        chunk_state.add_into(queue, image)
     bar.close()
     return image, fallbacks, kernel_seconds

@@ -109,18 +109,16 @@ def reach(echo: EchoData, receivers, positions: np.ndarray, target_velocity=None
     box_hi = np.array([pts[:, k].max() for k in range(3)])
     lo = box_lo + echo.eta[:, None] * v - grow  # (P, 3)
     hi = box_hi + echo.eta[:, None] * v + grow
-    near1, far1 = _box_distances(echo.tx_pos, echo.tx_pos, lo, hi)
-    out = np.empty((len(receivers), 2))
-    for row, h in enumerate(receivers):
-        nodes, pos = echo.rx_tau[h], echo.rx_pos[h]  # (N,), (P, N, 3)
-        r_lo, r_hi = pos.min(axis=1), pos.max(axis=1)
-        if nodes.size > 1:  # rx_position extrapolates linearly beyond the nodes
-            speed = np.max(np.linalg.norm(np.diff(pos, axis=1), axis=-1) / np.diff(nodes), axis=1)
-            extra = (speed * (max(t_end - nodes[-1], 0.0) + max(nodes[0], 0.0)))[:, None]
-            r_lo, r_hi = r_lo - extra, r_hi + extra
-        near2, far2 = _box_distances(r_lo, r_hi, lo, hi)
-        out[row] = np.min(near1 + near2) / c, np.max(far1 + far2) / c
-    return out
+    near1, far1 = _box_distances(echo.tx_pos, echo.tx_pos, lo, hi)  # (P,)
+    h = np.asarray(receivers, dtype=np.intp)
+    nodes, pos = echo.rx_tau[h], echo.rx_pos[h]  # (H, N), (H, P, N, 3): every receiver at once
+    r_lo, r_hi = pos.min(axis=2), pos.max(axis=2)  # (H, P, 3)
+    if nodes.shape[1] > 1:  # rx_position extrapolates linearly beyond the nodes
+        speed = np.max(np.linalg.norm(np.diff(pos, axis=2), axis=-1) / np.diff(nodes)[:, None, :], axis=2)  # (H, P)
+        extra = speed * (np.maximum(t_end - nodes[:, -1], 0.0) + np.maximum(nodes[:, 0], 0.0))[:, None]
+        r_lo, r_hi = r_lo - extra[..., None], r_hi + extra[..., None]
+    near2, far2 = _box_distances(r_lo, r_hi, lo, hi)  # (H, P)
+    return np.stack([np.min(near1 + near2, axis=1) / c, np.max(far1 + far2, axis=1) / c], axis=1)
 
 
 def _blocks_of(span: np.ndarray, t0: float, fs: float, n: int, interp: str, factor: int,

@@ -17,7 +17,9 @@ rows x ``br`` range samples (``bv`` a multiple of ROWS, ``br`` of LANES: every t
 work-items) whose reference point is the block's middle sample, halved until every sample lies
 within :meth:`~clsas.image.backprojection.TileKernel.half_extent` of its reference (the same
 phase budget as back-projection's own tiles), which the launcher checks on the offsets the
-ffbp_fields kernel computes for bp_tile anyway. The tiles' references (a leaf's tiles for its
+ffbp_fields kernel computes for bp_tile anyway (shapes whose half-diagonal estimated from the
+grids' largest steps exceeds the budget by more than TILE_SLACK are passed over unchecked: a
+short leaf's coarse angles no longer cost a round of fields a halving). The tiles' references (a leaf's tiles for its
 pulses) are computed on the device (TileKernel's bp_refs, a launch a leaf) where the receivers
 move uniformly, else on the host (which checks that the motion is linear over a tile). Slots
 past the grid's edge repeat its last sample and are dropped; a tile's groups of LANES range
@@ -47,6 +49,7 @@ from .polar import PolarGrid
 BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~40 bytes each held)
 RECORD_BYTES = 256 * 2**20  # prepared records held at once
 TILE_ROWS, TILE_SAMPLES = 16, 128  # the largest tile tried (rows x range samples)
+TILE_SLACK = 1.1  # a tile shape is tried when its estimated half-diagonal is within this of the budget
 REF_CHUNK = 2**18  # (pulse, tile) pairs whose references are computed at once (~100 bytes each held)
 
 
@@ -290,8 +293,20 @@ class FirstStage:
 
         plane = program.plane(grids[batch[0]].plane)
         frames = made(program.frames([grids[k] for k in batch]))
-        bv, br = TILE_ROWS, TILE_SAMPLES
         leaves = [grids[k] for k in batch]
+        step_r, step_v = max(g.dr for g in leaves), max(_row_step(g) for g in leaves)
+
+        def halved(bv: int, br: int) -> tuple[int, int]:
+            """The tiles' longer side halved."""
+            if br > LANES and (br * step_r >= bv * step_v or bv == ROWS):
+                return bv, br // 2
+            return bv // 2, br
+
+        # shapes whose half-diagonal (from the largest steps) exceeds the budget by a margin are
+        # passed over without computing their fields; the fields decide the rest
+        bv, br = TILE_ROWS, TILE_SAMPLES
+        while (bv, br) != (ROWS, LANES) and 0.5 * np.hypot(br * step_r, bv * step_v) > TILE_SLACK * budget:
+            bv, br = halved(bv, br)
         while True:  # the largest tiles whose samples all lie within the budget of their references
             items, centres, n_tiles = polar_tiles(leaves, bv, br)
             fields = np.empty(items.size, tile.pixels)  # one record a item: LANES samples
@@ -306,13 +321,7 @@ class FirstStage:
                 break
             if br == LANES and bv == ROWS:  # samples too far apart for any tile (a short leaf's coarse angles)
                 return batch
-            # halve the tiles' longer side
-            along_r = br * max(g.dr for g in leaves)
-            along_v = bv * max(_row_step(g) for g in leaves)
-            if br > LANES and (along_r >= along_v or bv == ROWS):
-                br //= 2
-            else:
-                bv //= 2
+            bv, br = halved(bv, br)
         first_tile = np.cumsum(np.r_[0, n_tiles])
         refs = self._device_references(tile, records, batch, centres, first_tile, b0, extent)
         if refs is None:

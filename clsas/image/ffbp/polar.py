@@ -269,6 +269,18 @@ class Scene:
                 a -= np.sum(axes[rows] * origins[rows], axis=1)[:, None]
         return r, along
 
+    @functools.cached_property
+    def _search_tree(self):
+        """A k-d tree of the skeleton (built once a Scene, which ffbp keeps a Grid's lifetime)."""
+        from scipy.spatial import cKDTree
+
+        return cKDTree(self.skeleton)
+
+    def nearest(self, points: np.ndarray) -> np.ndarray:
+        """The distance (n,) m from each of ``points`` (n, 3) to its nearest skeleton point (exact:
+        a k-d tree's nearest neighbour, not a scan of every pair)."""
+        return self._search_tree.query(points)[0]
+
     @classmethod
     def of(cls, positions: np.ndarray) -> "Scene":
         shape = positions.shape[:-1]

@@ -88,7 +88,7 @@ class _Frames:
         step = max(1, echo.n_pulses // 64)  # the array's two ends every ~1/64 of the track
         ends = sorted({0, rx.shape[0] - 1})  # the first receiver's first node, the last one's last (or the same)
         track = np.concatenate([self.mids[ends, ::step].reshape(-1, 3), self.mids[ends, -1]])
-        self.r_near = float(scene.offsets(track)[0].min()) - scene.margin
+        self.r_near = float(scene.nearest(track).min()) - scene.margin
 
     def frames(self, nodes: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(centres (n, 3), axes (n, 3), half-lengths (n,), largest baselines (n,)) of the nodes
@@ -161,17 +161,16 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         return sum(extents_of[node].reach for node in nodes if extents_of[node] is not None)
 
     if first is None:
-        first = 1
+        # doubling from one, whatever the factor (a factor of 4 would jump past the best); lengths
+        # that make more than MAX_LEAVES leaves are passed over unprobed, and the rest probed at once
         rho0 = oversampling(taps, tolerance, 1)
-        while first < echo.n_pulses:
-            middle = (echo.n_pulses // 2, min(echo.n_pulses // 2 + first, echo.n_pulses))
-            find_extents([middle])
-            ext = extents_of[middle]  # only its rows are needed, not the sampled grid
-            if ext is not None and ext.rows(rho0, taps) - 2 * taps >= LEAF_SAMPLES and \
-                    -(-echo.n_pulses // first) <= MAX_LEAVES:
-                break
-            first *= 2  # doubling, whatever the factor (a factor of 4 would jump past the best)
-        first = min(first, echo.n_pulses)
+        lengths = [1 << k for k in range(max(echo.n_pulses - 1, 1).bit_length())
+                   if -(-echo.n_pulses // (1 << k)) <= MAX_LEAVES]
+        middles = [(echo.n_pulses // 2, min(echo.n_pulses // 2 + n, echo.n_pulses)) for n in lengths]
+        find_extents(middles)
+        wide = [n for n, m in zip(lengths, middles)  # only their rows are needed, not the sampled grids
+                if extents_of[m] is not None and extents_of[m].rows(rho0, taps) - 2 * taps >= LEAF_SAMPLES]
+        first = wide[0] if wide else echo.n_pulses
     pulses, children = _levels(echo.n_pulses, first, factor)
     find_extents([node for level in pulses for node in level])
     top = len(pulses) - 1
