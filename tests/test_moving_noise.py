@@ -246,3 +246,26 @@ def test_hull_at_the_papers_noise(opencl_device, case):
         assert err / np.linalg.norm(v) < 0.02, (case, snr_db, est.velocity)
         assert est.confidence > 0.9, (case, snr_db, est.confidence, est.problems)
         assert err < 3 * np.linalg.norm(est.sigma), (case, snr_db, err, est.sigma)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", [1, 5, 6])
+def test_hull_at_the_papers_noise_over_6400_pulses(opencl_device, case):
+    """The paper's aperture: 6400 pulses (80 s), the hull of Table II ``case``, "echo" SNR -15 and
+    -17 dB, seed 1. Receiver A of case 1 raised EstimationError here: the trace bends ~1000
+    upsampled samples over the record and the followed trace started from one straight line over
+    all of it (clsas.estimate.moving.track, now grown from the middle 2048 pulses). Measured
+    (load 5-9, position given): case 1 -15 dB 0.61 % (|sigma| / |v| 1.4 %, confidence 0.96);
+    case 6 -15 dB 3.1 %, flagged (confidence 0.02: receiver C's Radon slope at its search's
+    edge). The contract asserted: within 2 % and confident, or flagged (confidence < 0.5 with
+    a problem naming a receiver); case 1 must estimate."""
+    echo = hull_echo(case, 6400)
+    v = np.array(presets.KIANG_CASES[case])
+    for snr_db in (-15.0, -17.0):
+        est = clsas.estimate_motion(noisy(echo, snr_db, 1), position=CENTRE)
+        err = float(np.linalg.norm(est.velocity - v) / np.linalg.norm(v))
+        if case == 1 or est.confidence >= 0.5:
+            assert err < 0.02 and est.confidence > 0.5, (case, snr_db, err, est.confidence, est.problems)
+            assert err * np.linalg.norm(v) < 3 * np.linalg.norm(est.sigma), (case, snr_db, err, est.sigma)
+        else:
+            assert any(p.startswith("receiver ") for p in est.problems), (case, snr_db, est.problems)
