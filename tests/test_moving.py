@@ -310,6 +310,7 @@ def test_point_target_on_another_layout_position_estimated(opencl_device):
     assert set(est.receivers) == {"A", "B", "C", "D"} and est.position_estimated
     assert np.linalg.norm(est.velocity - velocity) / np.linalg.norm(velocity) < 0.002
     assert np.linalg.norm(est.position - position) < 0.3
+    assert not est.position_problem and est.problems == ()  # a point: its position is not flagged (review M3)
 
 
 @pytest.mark.slow

@@ -167,6 +167,26 @@ def test_chain_below_its_floor_says_which_receiver_and_why(chain_echo):
         clsas.estimate_motion(noisy(chain_echo, -20.0, 1), position=CENTRE)
 
 
+def test_a_weak_candidate_is_confirmed_by_its_focus_not_its_brightness(chain_echo):
+    """Review M6. Below the SoWVD threshold a rate is taken only when the record focused with it
+    is sharper there than 3 focus steps off (chain.sharpness): at "echo" SNR -17 dB (seed 3, the
+    fallback's own case) the right K's peak stands well over the detuned ones; a K 5 % off
+    (~25 focus steps) leaves an image that is as bright or brighter 3 steps towards the truth,
+    which the peak over the median alone (also > FOCUS_DB there) did not tell."""
+    import dataclasses
+
+    from clsas.estimate.moving import chain
+    from clsas.estimate.moving.records import records
+
+    rec = records(noisy(chain_echo, -17.0, 3), "A")
+    est = chain.estimate_records(rec)
+    at, detuned = chain.sharpness(rec, est)
+    assert at - max(detuned) > 2 * chain.SHARP_DB, (at, detuned)
+    wrong = chain.locate(rec, dataclasses.replace(est, fm_rate=1.05 * est.fm_rate))
+    at, detuned = chain.sharpness(rec, wrong)
+    assert at - max(detuned) < chain.SHARP_DB, (at, detuned)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("snr_db", [-13.0, -15.0, -16.0, -17.0])
 def test_chain_over_seeds(chain_echo, snr_db):
@@ -226,3 +246,33 @@ def test_hull_at_the_papers_noise(opencl_device, case):
         assert err / np.linalg.norm(v) < 0.02, (case, snr_db, est.velocity)
         assert est.confidence > 0.9, (case, snr_db, est.confidence, est.problems)
         assert err < 3 * np.linalg.norm(est.sigma), (case, snr_db, err, est.sigma)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", [1, 5, 6])
+def test_hull_at_the_papers_noise_over_6400_pulses(opencl_device, case):
+    """The paper's aperture: 6400 pulses (80 s), the hull of Table II ``case``, "echo" SNR -15 and
+    -17 dB, seed 1. Receiver A of case 1 raised EstimationError at -15 dB: the trace bends ~1000
+    upsampled samples over the record and the followed trace started from one straight line over
+    all of it (clsas.estimate.moving.track, now grown from the middle 2048 pulses). Measured
+    (load 2-9, position given, each run once by script, not yet through this test): case 1
+    -15 dB 0.61 % (|sigma| / |v| 1.4 %, confidence 0.96); case 1 -17 dB EstimationError naming
+    receiver A (SoWVD 16.3 dB, its best candidate K = -54.6 Hz/s does not focus: open, issue
+    #26 item 3); case 5 -15 dB 0.16 % (0.41 %, confidence 1.00); case 6 -15 dB 3.1 %, flagged (confidence 0.02: receiver C's Radon slope at its
+    search's edge). Asserted: case 1 at -15 dB within 2 %, confident, within 3 sigma; every other
+    run within 2 % and confident, or flagged (confidence < 0.5 with a problem naming a
+    receiver), or an EstimationError naming the receiver."""
+    echo = hull_echo(case, 6400)
+    v = np.array(presets.KIANG_CASES[case])
+    for snr_db in (-15.0, -17.0):
+        try:
+            est = clsas.estimate_motion(noisy(echo, snr_db, 1), position=CENTRE)
+        except EstimationError as error:
+            assert (case, snr_db) != (1, -15.0) and str(error).startswith("receiver "), (case, snr_db, error)
+            continue
+        err = float(np.linalg.norm(est.velocity - v) / np.linalg.norm(v))
+        if (case, snr_db) == (1, -15.0) or est.confidence >= 0.5:
+            assert err < 0.02 and est.confidence > 0.5, (case, snr_db, err, est.confidence, est.problems)
+            assert err * np.linalg.norm(v) < 3 * np.linalg.norm(est.sigma), (case, snr_db, err, est.sigma)
+        else:
+            assert any(p.startswith("receiver ") for p in est.problems), (case, snr_db, est.problems)

@@ -14,7 +14,8 @@ target (eqs. 1-2, 21, the R'' of C; f_dc = f_dc,eq, K = K_a,eq):
    :class:`clsas.errors.EstimationError` is raised (section VII-C) when the echo stands out of
    the noise in too few pulses, or when no SoWVD peak stands out of the maps' background
    (:data:`THRESHOLD_DB`) and the record focused with the best candidate holds no target
-   either (:data:`FOCUS_DB`: the SoWVD, a fourth-order product of the record, loses to the noise
+   either, or holds something bright that this K does not focus (:data:`FOCUS_DB`,
+   :func:`sharpness`: the SoWVD, a fourth-order product of the record, loses to the noise
    well before the coherent focus does: tests/test_moving_noise.py has the scores),
 3. RCMC (eq. 17, :mod:`.filters`), Radon transform of |s_rcmc| -> slope -> f_dc (:mod:`.radon`),
 4. range-walk compensation and azimuth compression (eqs. 18-20; :func:`.filters.compress`) of
@@ -87,6 +88,11 @@ THRESHOLD_DB = 26.0
 #: (the largest of n exponential powers over their median: ln n / ln 2); a point focused at
 #: the paper's floor stands well over it (tests/test_moving_noise.py).
 FOCUS_DB = 20.0
+#: A candidate confirmed by the focus (:data:`FOCUS_DB`) must also be sharp: its image's peak
+#: this far above the record's focused :data:`SHARP_STEPS` focus steps off in K (:func:`sharpness`), dB.
+SHARP_DB = 3.0
+#: Focus steps (4 / T_a^2 each) off the candidate K at which :func:`sharpness` refocuses.
+SHARP_STEPS = 3.0
 #: Fraction of the pulses in which the echo must stand out of the noise (:mod:`.trace`); at
 #: -25 dB SNR it does in ~10 % of Table I's pulses, at -15 dB in all of them.
 MIN_COVERAGE = 0.25
@@ -96,6 +102,9 @@ MIN_TIME_BANDWIDTH = 4.0
 #: Samples shifted beyond those a focus window needs (:func:`focus_bins`): the band-limited shift
 #: of a record cut there reaches the window attenuated by ~1 / (pi MARGIN) (-46 dB).
 MARGIN = 64
+#: :func:`bent`: the RCMC's largest shift, in pulse lengths, beyond which the record's bent noise
+#: floor can fool the Radon lines.
+PULSE_SPANS = 1.0
 #: Half-width of the focused window searched for the target's extent, s of two-way delay
 #: (+-12 m of range at 1500 m/s: the scaled Albacore is 10.35 m long).
 EXTENT_WINDOW = 0.016
@@ -156,7 +165,8 @@ def sowvd(rec: Records, p0: float, threshold_db: float = THRESHOLD_DB) -> RateSe
         if search.score_db >= threshold_db:
             return search
     bright = track.bright_gate(rec.x, UPSAMPLE)
-    followed = None if bright is None else rate_search(rfrt(rec.x, bright), rec.prf, p0)
+    followed = None if bright is None else dataclasses.replace(rate_search(rfrt(rec.x, bright.gate), rec.prf, p0),
+                                                               trace_line=(bright.slope, bright.sample))
     if search is None and (followed is None or followed.score_db < threshold_db):
         raise EstimationError(f"receiver {rec.name}: the echo stands out of the noise in {100 * coverage:.0f} % of "
                               f"the pulses < {100 * MIN_COVERAGE:.0f} %"
@@ -205,6 +215,43 @@ def doppler_centroid_walking(rec: Records, rcmc: np.ndarray) -> tuple[float, flo
     with the means removed the walking trace is the strongest line. A trace that keeps its
     range cell (f_dc ~ 0) is removed with them: :func:`with_rate` keeps whichever focuses."""
     power = np.abs(rcmc).astype(np.float32) ** 2
+    power -= power.mean(axis=0)
+    return _line(rec, power)
+
+
+def bent(rec: Records, fm_rate: float) -> bool:
+    """Whether the RCMC with ``fm_rate`` moves the record's ends by more than a pulse length
+    (the span over which the compressed noise floor changes near a window's ends): then the
+    Radon lines of |s_rcmc| can follow the bent floor (:func:`doppler_centroid_whitened`) and
+    :func:`with_rate` also tries the whitened record's line and the followed trace's tangent.
+    Over Table I's 2048 pulses the RCMC moves the ends by up to ~160 upsampled samples (Table II
+    case 6) against a pulse's 200; over 6400 pulses by ~1000 (case 1)."""
+    shift = abs(fm_rate) * float(np.max(rec.d**2)) / (2 * rec.f0)
+    return bool(shift > PULSE_SPANS * rec.pulse_length)  # False when either is nan
+
+
+def doppler_centroid_whitened(rec: Records, fm_rate: float) -> tuple[float, float, bool]:
+    """:func:`doppler_centroid_walking` on the record whitened per range cell *before* the RCMC
+    with ``fm_rate``. The RCMC shifts every pulse by K d^2 / (2 f0): over long apertures
+    hundreds of samples (~950 at Table I's 6400 pulses, receiver A), so whatever the record's
+    noise floor does across its window (~10x weaker within a pulse length of its ends) and the
+    samples shifted in from beyond the record (zeros) become parabolas in |s_rcmc| that no
+    per-cell floor taken after the shift removes, and whose tangents are strong straight lines
+    (in heavy noise the Radon slope then runs to its search's edge). Here each cell is divided
+    by its noise floor (:func:`.trace.floor`) first, and the samples the shift brings in from
+    beyond the recorded cells are set to the mean power of the others."""
+    power = np.abs(rec.x).astype(np.float32) ** 2
+    level = np.median(power[::2], axis=0)
+    live = np.flatnonzero(level > trace.RECORDING * float(level.max())) if power.size else np.zeros(0, int)
+    if live.size == 0:
+        return _line(rec, power)
+    shift = fm_rate * rec.d**2 / (2 * rec.f0)
+    scale = (1.0 / np.sqrt(trace.floor(power))).astype(np.float32)
+    del power
+    power = np.abs(filters.advance(rec.x * scale[None, :], rec.fs, shift)) ** 2
+    source = np.arange(rec.x.shape[1])[None, :] + (shift * rec.fs)[:, None]  # advance reads x(tau + shift)
+    beyond = (source < live[0]) | (source > live[-1])
+    power[beyond] = float(power[~beyond].mean()) if np.any(~beyond) else 0.0
     power -= power.mean(axis=0)
     return _line(rec, power)
 
@@ -344,9 +391,30 @@ def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHO
     if not est.extent.peak_db >= focus_db:
         raise EstimationError(f"{weak}, and focused with its best candidate K = {search.fm_rate:.4g} Hz/s the record "
                               f"holds no target: image peak {est.extent.peak_db:.1f} dB over its median < {focus_db:g} dB")
+    at, detuned = sharpness(rec, est)
+    if not at - max(detuned) >= SHARP_DB:
+        raise EstimationError(f"{weak}, and focused with its best candidate K = {search.fm_rate:.4g} Hz/s the record's "
+                              f"peak ({at:.1f} dB over its median) is not sharper there than at K -+ {SHARP_STEPS:g} "
+                              f"focus steps ({detuned[0]:.1f}, {detuned[1]:.1f} dB): something bright, not a target "
+                              f"focused by that K")
     log.info("receiver %s: SoWVD score %.1f dB below the threshold %.1f dB; K = %.5g Hz/s confirmed by the focus "
-             "(image peak %.1f dB over its median)", rec.name, ratio_db, threshold_db, est.fm_rate, est.extent.peak_db)
+             "(image peak %.1f dB over its median, %.1f dB over the record focused %g focus steps off)", rec.name,
+             ratio_db, threshold_db, est.fm_rate, est.extent.peak_db, at - max(detuned), SHARP_STEPS)
     return est
+
+
+def sharpness(rec: Records, est: ReceiverEstimate) -> tuple[float, tuple[float, float]]:
+    """(peak over median of ``rec`` focused with est's K and f_dc, dB; the same focused with K
+    -+ :data:`SHARP_STEPS` focus steps 4 / T_a^2), all with the quadratic focus. A focus step is
+    the rate error that leaves one cycle of quadratic phase at the aperture's ends (pi dK
+    (T_a / 2)^2 = pi): a focused target's peak falls well below its own three steps away, while
+    a bright feature that the rate does not focus (clutter, a stationary highlight, the noise's
+    largest value) stays as bright (review M6: the image's peak over its median alone confirms
+    brightness, not focus)."""
+    step = SHARP_STEPS * 4.0 / est.aperture**2
+    peaks = [locate(rec, est, reference=Doppler(fm_rate=k, doppler_centroid=est.doppler_centroid)).extent.peak_db
+             for k in (est.fm_rate, est.fm_rate - step, est.fm_rate + step)]
+    return peaks[0], (peaks[1], peaks[2])
 
 
 def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None) -> ReceiverEstimate:
@@ -358,12 +426,20 @@ def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None) ->
     candidates = tuple(tuple(map(float, c)) for c in search.candidates)
     peak_to_background, p0, margin_db = search.peak_to_background, search.p0[0], search.margin_db
     aligned = rcmc(rec, k)
-    lines = [doppler_centroid_radon(rec, aligned), doppler_centroid_walking(rec, aligned)]
+    found = [doppler_centroid_radon(rec, aligned), doppler_centroid_walking(rec, aligned)]
     del aligned
-    # the two lines agree (within two samples of walk over the aperture) unless noise or a
-    # still trace fooled one of them: then the one whose focus stands higher is kept
-    if abs(lines[0][0] - lines[1][0]) * rec.fs / rec.f0 * float(np.ptp(rec.eta)) <= 2.0:
-        lines = lines[:1]
+    if bent(rec, k):
+        found.append(doppler_centroid_whitened(rec, k))
+        if search.trace_line is not None:  # the followed trace's tangent at eta_ref (:mod:`.track`)
+            slope, sample = search.trace_line
+            found.append((slope * rec.f0 * rec.prf / rec.fs, rec.t0 + sample / rec.fs, False))
+    # the lines agree (within two samples of walk over the aperture) unless noise, a still trace
+    # or a long aperture's bent noise floor fooled one of them: then the one whose focus stands
+    # higher is kept
+    lines = []
+    for line in found:
+        if all(abs(line[0] - kept[0]) * rec.fs / rec.f0 * float(np.ptp(rec.eta)) > 2.0 for kept in lines):
+            lines.append(line)
     aperture = float(np.ptp(rec.eta) + 1.0 / rec.prf)
     if candidates:
         used = int(np.argmin([abs(c[0] - k) for c in candidates]))
@@ -391,9 +467,9 @@ def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None) ->
         raise EstimationError(f"receiver {rec.name}: the target's trace lies outside the record at every Radon line "
                               f"(f_dc {', '.join(f'{f:.5g}' for f, _, _ in lines)} Hz)")
     log.info("receiver %s: K = %.5g Hz/s, f_dc = %.5g Hz, tau_c = %.6f s, eta_c = %.4g s, SoWVD score %.1f dB "
-             "(next candidate %.1f dB lower)%s", rec.name, k, f_dc, est.tau_c, est.eta_c,
+             "(next candidate %.1f dB lower)%s", rec.name, k, est.doppler_centroid, est.tau_c, est.eta_c,
              20 * np.log10(peak_to_background), margin_db,
-             "; the Radon slope is at its search's edge" if limited else "")
+             "; the Radon slope is at its search's edge" if est.slope_limited else "")
     return est
 
 

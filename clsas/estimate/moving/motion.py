@@ -35,6 +35,17 @@ in range, the prior keeps it near the given point where the delays cannot (depth
 centroid carries :data:`REFINED_SIGMA` (the focus reads the aperture, the closed forms are Taylor
 coefficients at eta_ref).
 
+Position when not given. Solved from the delays, centroids and rates (:func:`.velocity.solve_motion`),
+it is the point whose delays and centroids those are: on a point target the target; on an
+extended one each receiver's image middle is a different point of it (a receiver that sees the
+hull end-on sees its near end), and the solve, which has 9 equations for 6 unknowns, absorbs
+the difference in its residuals: its formal sigma of centimetres says nothing about it (Table II
+cases 1, 5, 6 on the hull: the position 0.8-1.3 m off; tests/test_moving_position.py). So the
+target's size in the images (:func:`target_extent`) widens ``position_sigma`` as for a given
+position (:data:`MIDDLE_FRACTION` of it, every component), and beyond :data:`POSITION_FLAG_SIZE`
+the estimate says so (:attr:`MotionEstimate.position_problem`). The velocity's confidence is not
+lowered by it: the velocity comes out as well as with the position given.
+
 Refocus. The chain compresses with the quadratic phase only; over long apertures the delay's
 higher-order terms (cubic and beyond: carrier cycles at the ends of Table II case 6's 25 s)
 smear the image to one side, which moves the middle of its extent. So the solution is used
@@ -86,6 +97,17 @@ MIDDLE_FRACTION = 1.0 / (2.0 * np.sqrt(3.0))
 EXTENDED_CELLS = 4.0
 #: A point's own extent in range at the extent's level, range cells 1 / B (:mod:`.extent`).
 POINT_CELLS = 2.0
+#: A point's image as the chain measures it (:mod:`.extent`) spans about twice the nominal
+#: (SMOOTH_CELLS + 1) / (|K| T_a) in eta and ~8 range cells 1 / B in tau: 2.05x and 7.9-8.0 cells
+#: on tests/test_moving.py::test_point_target_on_another_layout_position_estimated (512 pulses).
+#: The position's size (:func:`target_extent`) counts beyond these, with a margin.
+POINT_ETA_SPANS = 2.5
+#: See :data:`POINT_ETA_SPANS`.
+POINT_TAU_SPAN_CELLS = 10.0
+#: An estimated position is flagged (:attr:`MotionEstimate.position_problem`) when the target's
+#: images reach this far beyond a point's, m: a point's extent, measured in noise or at another
+#: layout, reaches a few tenths of a metre (tests/test_moving.py).
+POSITION_FLAG_SIZE = 1.0
 #: :func:`estimate` keeps the receivers' range-compressed records between its passes up to this
 #: many bytes in all (above, each is made again when needed, one at a time).
 KEEP_RECORDS_BYTES = 256 << 20
@@ -115,7 +137,9 @@ class MotionEstimate:
     of c (tau_c,measured - tau_c,model) / 2 over the receivers at the solution, m: a few
     centimetres when the focused scatterer is at ``position``; metres when a given position is
     not where the strongest scatterer is (an extended target: estimate the position instead).
-    layout : the geometry used.
+    layout : the geometry used. position_problem : "" or, when the position was estimated on
+    an extended target, why it may be off (also in ``problems``; its ``position_sigma`` then
+    holds the target's size: module docstring, "Position when not given").
     """
 
     velocity: np.ndarray
@@ -134,11 +158,14 @@ class MotionEstimate:
     consistency: consistency.Consistency | None = field(default=None, repr=False)
     repicked: tuple = ()
     given_position: np.ndarray | None = None
+    position_problem: str = ""
 
     @property
     def problems(self) -> tuple:
-        """One sentence per receiver that disagrees with the solution, naming it and why."""
-        return tuple(self.consistency.problems.values()) if self.consistency is not None else ()
+        """One sentence per receiver that disagrees with the solution, naming it and why, and
+        one about the position when it may be off (:attr:`position_problem`)."""
+        found = tuple(self.consistency.problems.values()) if self.consistency is not None else ()
+        return found + ((self.position_problem,) if self.position_problem else ())
 
     @property
     def speed(self) -> float:
@@ -188,19 +215,23 @@ def refined_centroid(rx, layout: Layout) -> tuple[float, float]:
     return f, centroid_sigma(f)
 
 
-def target_extent(layout: Layout, receivers: dict, position, velocity) -> tuple[float, float]:
+def target_extent(layout: Layout, receivers: dict, position, velocity, point_eta_spans: float = 1.0,
+                  point_tau_cells: float = POINT_CELLS) -> tuple[float, float]:
     """(size, range size), m, of the target in the chain's focused images beyond a point's own:
     the largest along-track extent |V_h| x eta span and range extent c tau span / 2 over the
-    receivers that focused it (those with an extent); size is the larger of the two."""
+    receivers that focused it (those with an extent); size is the larger of the two. A point's
+    own extent: ``point_eta_spans`` x (SMOOTH_CELLS + 1) / (|K| T_a) in eta, ``point_tau_cells``
+    / B in tau."""
     along = across = 0.0
     for name, rx in receivers.items():
         ext = getattr(rx, "extent", None)
         if ext is None:
             continue
-        point = (SMOOTH_CELLS + 1.0) / (abs(float(rx.fm_rate)) * float(getattr(rx, "aperture", layout.aperture)))
+        point = point_eta_spans * (SMOOTH_CELLS + 1.0) / (abs(float(rx.fm_rate))
+                                                         * float(getattr(rx, "aperture", layout.aperture)))
         speed = abs(along_track_speed(layout, name, position, velocity))
         along = max(along, speed * max(0.0, float(ext.eta[1] - ext.eta[0]) - point))
-        across = max(across, 0.5 * layout.sound_speed * max(0.0, float(ext.tau[1] - ext.tau[0]) - POINT_CELLS
+        across = max(across, 0.5 * layout.sound_speed * max(0.0, float(ext.tau[1] - ext.tau[0]) - point_tau_cells
                                                             / layout.bandwidth))
     return max(along, across), across
 
@@ -229,9 +260,20 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
             (float(rx.doppler_centroid), centroid_sigma(rx.doppler_centroid))
     rates = {n: float(rx.fm_rate) for n, rx in receivers.items()}
     delays = pulse_delays(layout, receivers, centroids)
+    position_problem = ""
     if position is None:
         sol = solve_motion(layout, delays, centroids, rates, sigmas)
         check = consistency.check(layout, receivers, sol.position, sol.velocity, sol.fit_chi2, sol.fit_dof)
+        size, _ = target_extent(layout, receivers, sol.position, sol.velocity, POINT_ETA_SPANS, POINT_TAU_SPAN_CELLS)
+        if size > EXTENDED_CELLS * layout.sound_speed / (2 * layout.bandwidth):
+            # the delays and centroids are each receiver's image middle, not one point: the
+            # position is anywhere within the target's size (module docstring, "Position")
+            spread = MIDDLE_FRACTION * size
+            sol = dataclasses.replace(sol, position_sigma=np.sqrt(sol.position_sigma**2 + spread**2))
+            if size > POSITION_FLAG_SIZE:
+                position_problem = (f"position: estimated from the middles of an extended target's images ({size:.1f} m "
+                                    f"across them), which differ between receivers: it may be off by up to half that "
+                                    f"(1-sigma {spread:.2f} m per component); give the position if it is known")
     else:
         sol = solve_velocity(layout, position, centroids, sigmas, rates)
         size, across = target_extent(layout, receivers, position, sol.velocity)
@@ -253,7 +295,8 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
                          residual=sol.residual, confidence=conf, sigma=np.sqrt(np.abs(np.diag(cov))),
                          position_sigma=sol.position_sigma * check.birge, position_estimated=sol.position_estimated,
                          centroids=centroids, cannot_focus=blind, range_residual=range_residual, layout=layout,
-                         centroid_sigmas=sigmas, consistency=check, given_position=position)
+                         centroid_sigmas=sigmas, consistency=check, given_position=position,
+                         position_problem=position_problem)
     if not quiet:
         announce(est)
     return est

@@ -28,7 +28,8 @@ class Records:
     """One receiver's range-compressed record: x (n_pulses, n_samples) at fast times
     t0 + k / fs after each emission eta (n_pulses,); f0 the carrier and bandwidth the chirp's, Hz;
     range_doppler (s/Hz) the layout's (:func:`.layout.range_doppler`: 0 for an echo synthesized
-    without intra-pulse Doppler); fs_raw the raw echo's sampling rate, Hz (fs / :data:`UPSAMPLE`)."""
+    without intra-pulse Doppler); fs_raw the raw echo's sampling rate, Hz (fs / :data:`UPSAMPLE`);
+    pulse_length the transmitted pulse's duration T, s (nan when not known)."""
 
     x: np.ndarray
     eta: np.ndarray
@@ -38,6 +39,7 @@ class Records:
     bandwidth: float
     name: str
     range_doppler: float = 0.0
+    pulse_length: float = float("nan")
 
     @property
     def fs_raw(self) -> float:
@@ -91,7 +93,8 @@ def compressed_receiver(echo: EchoData, receiver: str) -> EchoData:
 def records_of(comp: EchoData) -> Records:
     """The :class:`Records` of a one-receiver range-compressed EchoData (:func:`compressed_receiver`)."""
     return Records(x=comp.data[0], eta=comp.eta, t0=float(comp.t0[0]), fs=comp.fs, f0=comp.waveform.f0,
-                   bandwidth=comp.waveform.bandwidth, name=comp.receivers[0], range_doppler=range_doppler(comp))
+                   bandwidth=comp.waveform.bandwidth, name=comp.receivers[0], range_doppler=range_doppler(comp),
+                   pulse_length=float(comp.waveform.duration))
 
 
 def wrapped_band(rec: Records, doppler_centroid: float, fm_rate: float) -> list[tuple[float, float]]:

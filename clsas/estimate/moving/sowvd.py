@@ -228,7 +228,9 @@ class RateSearch:
     candidate, dB (inf when there is none). p0 : the lag offsets, s. primary : the first map
     (p0[0]) as a :class:`SoWVD` whose peak is the chosen K (None once dropped to save memory).
     line, prf, maps, n_lags: what :meth:`refine` needs (the RFRT line; per map its lag offset in
-    pulses, f_p and f_eta axes and strongest f_p row per f_eta column).
+    pulses, f_p and f_eta axes and strongest f_p row per f_eta column). trace_line : (slope in
+    samples a pulse, sample) at the middle pulse of the trace the RFRT's gate followed
+    (:func:`.track.bright_gate`), or None when its gate was not a followed trace.
     """
 
     fm_rate: float
@@ -241,6 +243,7 @@ class RateSearch:
     prf: float = float("nan")
     maps: tuple = field(default=(), repr=False)
     n_lags: int = 0
+    trace_line: tuple | None = None
 
     def refine(self, k: float) -> float:
         """A candidate K (Hz/s) refined below one bin in every map, the median over them."""

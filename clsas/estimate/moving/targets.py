@@ -33,7 +33,7 @@ from . import filters
 from .chain import FOCUS_DB, P0, THRESHOLD_DB, ReceiverEstimate, compress, estimate_records
 from .records import Records, records
 from .layout import layout_of
-from .motion import MotionEstimate, _check_position, _refocus, announce, check_echo, motion_from_receivers
+from .motion import MotionEstimate, _check_position, _refocus, _repick, announce, check_echo, motion_from_receivers
 
 log = logging.getLogger("clsas")
 
@@ -152,7 +152,12 @@ def estimate_motions(echo: EchoData, n_targets: int = 2, positions=None, receive
     out = []
     for t, (est, group) in enumerate(solved):
         others = {name: [found[name][assignment[name][u]] for u in range(n_targets) if u != t] for name in names}
-        out.append(_refocus(layout, est, dict(group), _cleaned(echo, others), None if positions is None else positions[t]))
+        record_of, estimates = _cleaned(echo, others), dict(group)
+        position = None if positions is None else positions[t]
+        est = _refocus(layout, est, estimates, record_of, position)
+        # a receiver whose FM rate is a cross-term of the targets (both targets can take the same
+        # SoWVD peak between their rates) is re-run with the candidate its solution predicts
+        out.append(_repick(layout, est, estimates, record_of, position))
         announce(out[-1])
     return out
 

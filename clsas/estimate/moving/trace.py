@@ -85,14 +85,11 @@ def band(records: np.ndarray, gate: np.ndarray, upsample: int = 1) -> np.ndarray
     rows, power, weight = rows[keep], power[keep], weight[keep]
     middle = power @ np.arange(n_samples, dtype=np.float64) / weight
     x = (rows - 0.5 * (n_pulses - 1)) / max(n_pulses - 1, 1)
-    use = np.ones(rows.size, bool)
-    for _ in range(BAND_PASSES):
-        coef = np.polyfit(x[use], middle[use], 2, w=np.sqrt(weight[use]))
-        residual = middle - np.polyval(coef, x)
-        mad = float(np.median(np.abs(residual[use]))) + 0.5
-        use = np.abs(residual) <= BAND_REJECT * mad
-        if use.sum() < 8:
-            return gate
+    fit = robust_polyfit(x, middle, np.sqrt(weight), np.ones(rows.size, bool), reject=BAND_REJECT, mad_floor=0.5,
+                         passes=BAND_PASSES, min_points=8, too_few="fail", readmit=True)
+    if fit is None:
+        return gate
+    coef, use = fit
     centre = np.polyval(coef, (np.arange(n_pulses) - 0.5 * (n_pulses - 1)) / max(n_pulses - 1, 1))
     # the half-width: the gated cells' spread about the fit where it holds, and a resolution cell
     cells = np.nonzero(gate[rows[use]])
@@ -100,3 +97,33 @@ def band(records: np.ndarray, gate: np.ndarray, upsample: int = 1) -> np.ndarray
     half = float(np.percentile(spread, 90)) + upsample if spread.size else 2.0 * upsample
     k = np.arange(n_samples)
     return gate | (np.abs(k[None, :] - centre[:, None]) <= half)
+
+
+def robust_polyfit(x: np.ndarray, y: np.ndarray, w: np.ndarray, use: np.ndarray, *, reject: float,
+                   mad_floor: float, passes: int, min_points: int, too_few: str, readmit: bool,
+                   degree: int = 2) -> tuple[np.ndarray, np.ndarray] | None:
+    """A weighted polynomial fit of ``y`` over ``x`` (each (m,); weights ``w`` as np.polyfit's)
+    that drops outliers: fitted to the points ``use`` (bool (m,)), the points further than
+    ``reject`` median absolute deviations of the fitted points' residuals (plus ``mad_floor``, in
+    y's units: a near-perfect fit must not reject everything) are dropped and the fit repeated, at
+    most ``passes`` times (``passes`` >= 1), and not again once the kept points stop changing.
+
+    The stopping rule when fewer than ``min_points`` would be kept: ``too_few="fail"`` returns
+    None, ``too_few="keep"`` keeps the last fit and its points. ``readmit``: a point dropped in one
+    pass may come back in the next when the new fit passes near it (else the points kept only
+    shrink). Returns (the last fit's coefficients, highest power first; the points its residuals
+    keep: those it was fitted to when it stopped on too few or on no change)."""
+    use = np.asarray(use, bool)
+    for _ in range(passes):
+        coef = np.polyfit(x[use], y[use], degree, w=w[use])
+        residual = y - np.polyval(coef, x)
+        mad = float(np.median(np.abs(residual[use]))) + mad_floor
+        keep = np.abs(residual) <= reject * mad
+        if not readmit:
+            keep &= use
+        if keep.sum() < min_points:
+            return None if too_few == "fail" else (coef, use)
+        if np.array_equal(keep, use):  # the next fit would be this one
+            return coef, use
+        use = keep
+    return coef, use

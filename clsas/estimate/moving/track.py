@@ -14,18 +14,29 @@ Here the trace is followed over the whole record instead:
 
 1. the power whitened per range cell (over its noise floor, :func:`.trace.floor`), less each
    cell's mean over the pulses (what a target that keeps its range cell leaves is
-   :mod:`.trace`'s), its strongest straight trace (:func:`.radon.line_slope`, the whole record:
-   the power of every pulse adds);
+   :mod:`.trace`'s), its strongest straight trace (:func:`.radon.line_slope`) over the middle
+   :data:`SEED` pulses (the whole record when shorter: the power of every pulse adds; over longer
+   records the trace bends away from any straight line: ~1000 samples over Table I's 6400
+   pulses at receiver A, Table II case 1, where a straight line over the whole record found
+   something else and the EstimationError of tests/test_moving_noise.py's 6400-pulse test
+   followed);
 2. the whitened power sheared along that centre line, +-:data:`HALF_WIDTH` samples about it; each
    block of :data:`BLOCK` pulses averaged, correlated with the whole record's profile (the
    target's range profile on the trace) and its offset taken at the best lag; a robust parabola
    through the blocks' centres (weighted by their correlation peaks) is the new centre line
    (the trace's delay is a parabola in eta, chain module docstring); repeated
-   :data:`PASSES` times;
-3. the profile along the final centre line, averaged over every pulse: its cells that stand
+   :data:`PASSES` times; then (records longer than :data:`SEED`) over a stretch :data:`GROW`
+   times longer about the middle, the line extrapolated into it and each block's offset searched
+   within :data:`LAG_SIGMAS` standard deviations of the extrapolation at the stretch's ends (the
+   blocks' scatter about the fit propagated through the polynomial), a cubic from then on (the
+   delay's higher-order terms show over long apertures), :data:`GROWN_PASSES` times, until the
+   stretch is the whole record: the trace is followed however far it walks;
+4. the profile along the final centre line, averaged over every pulse: its cells that stand
    :data:`EXCESS_SIGMAS` standard deviations of the average over the noise and reach
    :data:`BRIGHT` of the brightest are the target's bright scatterers; the gate is those cells
-   (and one resolution cell each side) on every pulse.
+   (and one resolution cell each side) on every pulse. The centre line's tangent at the middle
+   pulse is a Doppler centroid measured on the trace itself (:func:`.chain.with_rate` tries it
+   beside the Radon lines of the RCMC'd record).
 
 Why only the bright cells: the RFRT sums x_k^2 over the gate; the scatterers of a hull add there
 with unrelated phases, while every noisy cell adds a term of the noise's power, so cells with
@@ -34,6 +45,8 @@ drops the SoWVD's score to the noise's level: tests/test_moving_noise.py).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import maximum_filter1d
@@ -48,6 +61,21 @@ BLOCK = 256
 PASSES = 3
 #: Blocks whose offset is this many median absolute deviations off the parabola are dropped.
 REJECT = 4.0
+#: Pulses in the middle of the record on which the trace is first found as a straight line (step
+#: 1): over them the trace bends little (it bends as the square of the stretch's length).
+SEED = 2048
+#: Each further stretch is this many times longer than the last (step 3).
+GROW = 2.0
+#: A longer stretch's blocks search offsets this many standard deviations of the extrapolated
+#: line at its ends (at least :data:`HALF_WIDTH` / 2 samples, at most :data:`MAX_LAG`).
+LAG_SIGMAS = 6.0
+#: Samples.
+MAX_LAG = 1000
+#: The polynomial followed beyond the seed's stretch: over long records the delay's cubic term
+#: shows (its higher-order terms: :func:`.closedforms.higher_order_delay`).
+GROWN_DEGREE = 3
+#: Refinements at each longer stretch.
+GROWN_PASSES = 2
 #: A gated cell's profile stands this many standard deviations of the average over the noise.
 EXCESS_SIGMAS = 10.0
 #: ... and reaches this fraction of the brightest cell's excess.
@@ -74,53 +102,102 @@ def _sheared(power: np.ndarray, centre: np.ndarray, half: int) -> tuple[np.ndarr
     return window.astype(np.float32), idx, inside
 
 
+def _refined(power: np.ndarray, stretch: slice, centre: np.ndarray, lag_half: int, degree: int
+             ) -> tuple[np.ndarray, float, np.ndarray] | None:
+    """One pass of step 2 over the pulses ``stretch`` about ``centre`` (n_pulses,) samples: the
+    blocks' offsets within +-``lag_half`` samples, a robust polynomial of ``degree`` through
+    them. (coefficients over x = (pulse - middle pulse) / n_pulses, the fit's residual standard
+    deviation scaled to one block (samples), the x of the blocks' middles), or None when no block
+    correlates with the profile."""
+    n_pulses = power.shape[0]
+    lo, hi, _ = stretch.indices(n_pulses)
+    starts = np.arange(lo, hi - BLOCK + 1, BLOCK // 2)
+    middles = starts + 0.5 * (BLOCK - 1)
+    x = (middles - 0.5 * (n_pulses - 1)) / n_pulses
+    window, _, inside = _sheared(power[lo:hi], centre[lo:hi], HALF_WIDTH // 2 + lag_half)
+    counts = np.maximum(inside.sum(axis=0), 1)
+    profile = window.sum(axis=0) / counts
+    profile -= np.median(profile)  # the noise's mean: correlated, it would pull every block to lag 0
+    lags = np.arange(-lag_half, lag_half + 1)
+    offsets, heights = np.empty(starts.size), np.empty(starts.size)
+    for b, s in enumerate(starts - lo):
+        block = window[s:s + BLOCK].mean(axis=0)
+        block -= np.median(block)
+        corr = np.correlate(block, profile, mode="full")[profile.size - 1 + lags]
+        j = int(np.argmax(corr))
+        offsets[b], heights[b] = lags[j], max(float(corr[j]), 0.0)
+    if not np.any(heights > 0):
+        return None
+    at = centre[np.round(middles).astype(np.int64)] + offsets
+    coef, use = trace.robust_polyfit(x, at, np.sqrt(heights), heights > 0, reject=REJECT, mad_floor=1.0,
+                                     passes=4, min_points=4, too_few="keep", readmit=False, degree=degree)
+    spread = float(np.std(at[use] - np.polyval(coef, x[use]))) if use.sum() > degree + 1 else float(lag_half)
+    return coef, spread, x[use]
+
+
+def _extrapolation_sigma(x_fit: np.ndarray, spread: float, degree: int, x_new: np.ndarray) -> float:
+    """Samples: the largest standard deviation, at ``x_new``, of a polynomial of ``degree``
+    fitted with equal weights to points at ``x_fit`` scattered by ``spread`` samples (the lag
+    window of the next stretch: :func:`centre_line`)."""
+    basis = np.vander(x_fit, degree + 1)
+    cov = spread**2 * np.linalg.pinv(basis.T @ basis)
+    at = np.vander(np.atleast_1d(x_new), degree + 1)
+    return float(np.sqrt(np.max(np.einsum("ij,jk,ik->i", at, cov, at))))
+
+
 def centre_line(power: np.ndarray) -> np.ndarray | None:
     """The trace's centre, samples (n_pulses,), in a whitened power map (steps 1-2 of the
     module docstring), or None when the record is too short for blocks."""
     n_pulses = power.shape[0]
     if n_pulses < 2 * BLOCK:
         return None
-    # each cell's mean over the pulses taken off: its fluctuations (the floor's estimate) would
-    # make a line of slope 0 stronger than the trace
-    slope, k_mid = radon.line_slope(power - power.mean(axis=0))
     n = np.arange(n_pulses, dtype=np.float64)
+    x_all = (n - 0.5 * (n_pulses - 1)) / n_pulses
+    length = min(n_pulses, SEED)
+    stretch = slice((n_pulses - length) // 2, (n_pulses - length) // 2 + length)
+    # each cell's mean over the pulses taken off: its fluctuations (the floor's estimate) would
+    # make a line of slope 0 stronger than the trace. The mean over the whole record: over the
+    # seed's pulses alone it would take off the bottom of a trace that bends back (it keeps its
+    # cells there for much of the seed, but not of the record)
+    slope, k_mid = radon.line_slope(power[stretch] - power.mean(axis=0))
     centre = k_mid + slope * (n - 0.5 * (n_pulses - 1))
-    starts = np.arange(0, n_pulses - BLOCK + 1, BLOCK // 2)
-    middles = starts + 0.5 * (BLOCK - 1)
-    x = (middles - 0.5 * (n_pulses - 1)) / n_pulses
-    for _ in range(PASSES):
-        window, _, inside = _sheared(power, centre, HALF_WIDTH)
-        counts = np.maximum(inside.sum(axis=0), 1)
-        profile = window.sum(axis=0) / counts
-        profile -= np.median(profile)  # the noise's mean: correlated, it would pull every block to lag 0
-        lags = np.arange(-HALF_WIDTH // 2, HALF_WIDTH // 2 + 1)
-        offsets, heights = np.empty(starts.size), np.empty(starts.size)
-        for b, s in enumerate(starts):
-            block = window[s:s + BLOCK].mean(axis=0)
-            block -= np.median(block)
-            corr = np.correlate(block, profile, mode="full")[profile.size - 1 + lags]
-            j = int(np.argmax(corr))
-            offsets[b], heights[b] = lags[j], max(float(corr[j]), 0.0)
-        if not np.any(heights > 0):
+    lag_half, degree, passes = HALF_WIDTH // 2, 2, PASSES
+    while True:
+        for _ in range(passes):
+            fit = _refined(power, stretch, centre, lag_half, degree)
+            if fit is None:
+                return centre
+            coef, spread, x_fit = fit
+            centre = np.polyval(coef, x_all)
+        if length == n_pulses:
             return centre
-        at = centre[np.round(middles).astype(np.int64)] + offsets
-        use = heights > 0
-        for _ in range(4):
-            coef = np.polyfit(x[use], at[use], 2, w=np.sqrt(heights[use]))
-            residual = at - np.polyval(coef, x)
-            mad = float(np.median(np.abs(residual[use]))) + 1.0
-            keep = use & (np.abs(residual) <= REJECT * mad)
-            if keep.sum() < 4 or np.array_equal(keep, use):
-                break
-            use = keep
-        centre = np.polyval(coef, (n - 0.5 * (n_pulses - 1)) / n_pulses)
-    return centre
+        # step 3: a longer stretch about the middle; where the line is extrapolated into it the
+        # blocks search as far as it may be off there
+        length = min(n_pulses, int(GROW * length))
+        stretch = slice((n_pulses - length) // 2, (n_pulses - length) // 2 + length)
+        degree, passes = GROWN_DEGREE, GROWN_PASSES
+        ends = x_all[[stretch.start, stretch.stop - 1]]
+        lag_half = max(HALF_WIDTH // 2, int(np.ceil(LAG_SIGMAS * _extrapolation_sigma(x_fit, spread, degree, ends))))
+        lag_half = min(lag_half, MAX_LAG)
 
 
-def bright_gate(records: np.ndarray, upsample: int = 1) -> np.ndarray | None:
-    """Bool (n_pulses, n_samples): the cells of the target's bright scatterers along its trace in
-    ``records`` (range-compressed, ``upsample`` x the bandwidth; module docstring), or None when
-    no cell of the profile stands out (no trace, or a noise-free record)."""
+@dataclass(frozen=True)
+class FollowedTrace:
+    """:func:`bright_gate`'s result: gate bool (n_pulses, n_samples), the bright scatterers'
+    cells along the followed trace; slope (samples a pulse) and sample of the trace's centre line
+    at the middle pulse (its tangent there: the delay's linear term f_dc / f0, chain module
+    docstring)."""
+
+    gate: np.ndarray
+    slope: float
+    sample: float
+
+
+def bright_gate(records: np.ndarray, upsample: int = 1) -> FollowedTrace | None:
+    """The cells of the target's bright scatterers along its trace in ``records``
+    (range-compressed, ``upsample`` x the bandwidth; module docstring) and the trace's tangent at
+    the middle pulse, or None when no cell of the profile stands out (no trace, or a noise-free
+    record)."""
     power = _whitened(records)
     if power is None:
         return None
@@ -141,4 +218,8 @@ def bright_gate(records: np.ndarray, upsample: int = 1) -> np.ndarray | None:
     rows = np.broadcast_to(np.arange(records.shape[0])[:, None], idx.shape)
     take = inside & bright[None, :]
     gate[rows[take], idx[take]] = True
-    return gate
+    middle = 0.5 * (records.shape[0] - 1)
+    below, above = int(np.floor(middle)), int(np.ceil(middle))
+    ends = slice(max(below - 1, 0), above + 2)  # the centre line is a low-order polynomial
+    slope = float(np.mean(np.diff(centre[ends])))
+    return FollowedTrace(gate=gate, slope=slope, sample=float(np.interp(middle, np.arange(centre.size), centre)))

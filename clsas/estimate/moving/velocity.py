@@ -40,8 +40,10 @@ of the middle of the hull's image at each receiver (:mod:`.extent`), which is it
 when the receiver sees the hull along its length; it fails where a receiver cannot: Table II
 case 7 (A and B cannot focus: no along-track history) and case 8 (A and B see the hull end-on,
 only its nose, and the depth, fixed by the small difference of C's and A's depression angles,
-moves far). The solve does not detect this by itself (its residuals absorb it); give the
-position for extended targets when it is known (``clsas reproduce kiang2022 --position both``
+moves far). The solve does not detect this by itself (its residuals absorb it);
+:func:`.motion.estimate` widens the position's sigma by the target's size in its images and
+flags it (:attr:`.motion.MotionEstimate.position_problem`); give the position for extended
+targets when it is known (``clsas reproduce kiang2022 --position both``
 prints both estimates).
 """
 
