@@ -21,7 +21,7 @@ from _harness import arguments, measure, report
 
 import clsas
 from clsas.model import Grid
-from clsas.estimate.moving import chain, closed_forms, receiver_focus, higher_order_delay, layout_of, mapping, solve_motion, solve_velocity
+from clsas.estimate.moving import centroid, chain, closed_forms, receiver_focus, higher_order_delay, layout_of, mapping, solve_motion, solve_velocity
 from clsas.estimate.moving.closedforms import delay_terms
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets
@@ -48,9 +48,9 @@ def main() -> None:
     k, f_dc = est.fm_rate, est.doppler_centroid
     steps["range compression"] = measure(lambda: chain.records(echo, "A"), repeats=repeats)
     steps["RFRT + SoWVD (K)"] = measure(lambda: chain.sowvd(rec, chain.P0), repeats=repeats)
-    rcmc = chain.rcmc(rec, k)
-    steps["RCMC"] = measure(lambda: chain.rcmc(rec, k), repeats=repeats)
-    steps["Radon (f_dc)"] = measure(lambda: chain.doppler_centroid_radon(rec, rcmc), repeats=repeats)
+    rcmc = centroid.rcmc(rec, k)
+    steps["RCMC"] = measure(lambda: centroid.rcmc(rec, k), repeats=repeats)
+    steps["Radon (f_dc)"] = measure(lambda: centroid.doppler_centroid_radon(rec, rcmc), repeats=repeats)
     steps["RWC + azimuth compression"] = measure(
         lambda: chain.focus_bins(rec, k, f_dc, slice(0, rec.x.shape[1])), repeats=repeats)
     steps["estimate_receiver (A, whole)"] = measure(lambda: chain.estimate_receiver(echo, "A"), repeats=repeats)
