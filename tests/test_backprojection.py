@@ -512,13 +512,53 @@ def test_references_on_the_device_match_the_host(opencl_device, kiang_echo, opti
                                         2.5, offset=17)
         got = np.empty_like(host)
         cl.enqueue_copy(opencl_device.queue, got, dev)
-        for name in host.dtype.names:
-            a, b = got[name].astype(np.float64), host[name].astype(np.float64)
-            if name in ("k_ref", "poly"):
-                assert np.array_equal(a, b), (h, name)
-            else:
-                scale = np.max(np.abs(b), axis=-1, keepdims=True) if b.ndim == 3 else np.abs(b)
-                assert np.all(np.abs(a - b) <= 2e-7 * np.maximum(scale, 1e-30) + 1e-30), (h, name)
+        _same_references(got, host, h)
+    # receivers B and C (the same legs) in one launch, each with its own records' offset: (T, 2, P)
+    tile = TileKernel("linear", **options).for_receiver(kiang_echo, 1)
+    dev = tile.references_on_device(opencl_device.queue, kiang_echo, [1, 2], pulses, buf, len(centres),
+                                    kiang_echo.fs, 2.5, offset=np.array([17, 5]))
+    got = np.empty((len(centres), 2, pulses.size), tile.reference_dtype)
+    cl.enqueue_copy(opencl_device.queue, got, dev)
+    for j, (h, offset) in enumerate(((1, 17), (2, 5))):
+        host, _ = tile.references(kiang_echo, h, pulses, centres, kiang_echo.fs, 2.5, offset=offset)
+        _same_references(got[:, j], host, h)
+
+
+def _same_references(got, host, h):
+    for name in host.dtype.names:
+        a, b = got[name].astype(np.float64), host[name].astype(np.float64)
+        if name in ("k_ref", "poly"):
+            assert np.array_equal(a, b), (h, name)
+        else:
+            scale = np.max(np.abs(b), axis=-1, keepdims=True) if b.ndim == 3 else np.abs(b)
+            assert np.all(np.abs(a - b) <= 2e-7 * np.maximum(scale, 1e-30) + 1e-30), (h, name)
+
+
+@pytest.mark.parametrize("case", ["kiang", "kiang-stop-and-go", "huang"])
+def test_receivers_in_one_launch_give_the_identical_image(opencl_device, kiang_echo, monkeypatch, case):
+    """A plain call upsamples several receivers' records into one buffer and sums them in one
+    bp_tile launch (a block a receiver, each block's float sum added into the double image in turn)
+    with one bp_refs launch for their references: the image is bit-identical to one launch a
+    receiver (GROUP_BYTES 0), for receivers of mixed legs (Kiang: A alone, B and C together) and
+    for Huang's 32 receivers (groups of several)."""
+    from clsas.image.backprojection import launcher, records as records_module
+
+    if case == "huang":
+        echo = compressed(presets.point_scene("huang2022", n_pulses=16))
+        grid = Grid.plane(np.linspace(40.0, 80.0, 40), np.linspace(-4.0, 4.0, 24), 0.0)
+    else:
+        echo, grid = kiang_echo, around((30.0, 1.0, -43.0), 0.1, 0.1, 10, 10)
+    kw = dict(stop_and_go=case == "kiang-stop-and-go", progress=False)
+    groups = []
+    monkeypatch.setattr(launcher, "_groups", lambda *a, _f=launcher._groups: groups.append(_f(*a)) or groups[-1])
+    together = backproject(echo, grid, **kw).data
+    assert max(len(g) for g in groups[-1]) > 1
+    if case != "huang":
+        assert [len(g) for g in groups[-1]] == [1, 2]
+    monkeypatch.setattr(records_module, "GROUP_BYTES", 0)
+    alone = backproject(echo, grid, **kw).data
+    assert all(len(g) == 1 for g in groups[-1])
+    assert np.array_equal(together, alone)
 
 
 def test_one_leg_for_a_monostatic_receiver(opencl_device, kiang_echo):

@@ -26,6 +26,7 @@ from .tiles import GridPlan
 
 PIXEL_CHUNK = 2**22  # slots on the device at once
 REF_PULSES = 64  # pulses whose tile references are computed at once
+REF_BYTES = 16 * 2**20  # the references of a group of receivers (REF_PULSES pulses each) computed at once
 
 
 class _Chunk:
@@ -90,8 +91,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     params = tile.params(c, f0, fs)
     chunk = PIXEL_CHUNK // (tile.LANES * tile.rows) * (tile.LANES * tile.rows)
     upload = records.upload_pulses()
-    jobs = [(first, i, np.arange(s, min(s + upload, span[1]))) for first in range(0, tiles.order.size, chunk)
-            for i in range(len(records.receivers)) for s in range(span[0], span[1], upload)]
+    jobs = [(first, members, np.arange(s, min(s + upload, span[1]))) for first in range(0, tiles.order.size, chunk)
+            for members in _groups(records, kernels, tile, tiles, double) for s in range(span[0], span[1], upload)]
     fallbacks, chunk_state, in_flight, work, kernel_seconds = 0, None, [], [], 0.0
     bar = Progress(pixels.shape[0] * len(records.receivers) * (span[1] - span[0]), "pixel-pulses",
                    "back-projection (opencl)", progress)
@@ -109,10 +110,11 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
             bar.done(work.pop(0))  # the progress bar counts finished kernels' pixel-pulses
         return seconds
 
-    for first, i, pulses in jobs:
+    for first, members, pulses in jobs:
+        i = members[0]
         h, offset = records.receivers[i], int(records.offset[i])
         kernel_seconds += retire(1)
-        records_buf, n_samples, base = records.buffer(ctx, i, pulses, double)
+        records_buf, n_samples, base, rec_block = records.group_buffer(ctx, members, pulses, double)
         if chunk_state is None or chunk_state.first != first:
             if chunk_state is not None:
                 kernel_seconds += retire(0)
@@ -120,7 +122,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
             chunk_state = _Chunk(ctx, queue, tiles, tile, positions, first, min(first + chunk, tiles.order.size))
         skip = int(pulses[0] - base)  # the job's first pulse in the buffer (which may hold earlier pulses)
         in_flight.append(events := [])
-        work.append(chunk_state.pixels_here * pulses.size)
+        work.append(chunk_state.pixels_here * pulses.size * len(members))
         exact = None
         for s in range(0, pulses.size, REF_PULSES):
             # a sub-block's references are computed while the previous sub-block's kernels run
@@ -128,8 +130,10 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                       for p0 in range(s, min(s + REF_PULSES, pulses.size), tile.PULSE_BLOCK)]
             if not double:
                 part, kernel = pulses[s:s + REF_PULSES], kernels[h]
-                ref_buf = kernel.references_on_device(queue, echo, h, part, chunk_state.centres, chunk_state.tiles.size,
-                                                      fs, tiles.half_extent, offset)
+                group = [records.receivers[m] for m in members]  # one receiver, or several with h's legs
+                ref_buf = kernel.references_on_device(queue, echo, group, part, chunk_state.centres,
+                                                      chunk_state.tiles.size, fs, tiles.half_extent,
+                                                      records.offset[list(members)])
                 if ref_buf is None:  # a receiver followed between several nodes: on the host
                     ref, linear = kernel.references(echo, h, part, tiles.centres[chunk_state.tiles], fs,
                                                     tiles.half_extent, offset)
@@ -145,9 +149,10 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                     for p0, count in blocks:
                         events.append(kernel.launch(
                             queue, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
-                            ref_stride=part.size, ref_first=skip + s, records=records_buf, n_samples=n_samples,
-                            taps=taps, params=params, p_first=skip + p0, p_count=count, image=chunk_state.sums,
-                            spans=spans))
+                            ref_stride=part.size * len(members), ref_first=skip + s, records=records_buf,
+                            n_samples=n_samples, taps=taps, params=params, p_first=skip + p0, p_count=count,
+                            image=chunk_state.sums, spans=spans, n_blocks=len(members), rec_block=rec_block,
+                            ref_block=part.size))
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)
@@ -164,3 +169,25 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
         chunk_state.add_into(queue, image)
     bar.close()
     return image, fallbacks, kernel_seconds
+
+
+def _groups(records: PreparedRecords, kernels: dict, tile: TileKernel, tiles, double: bool) -> list[tuple]:
+    """The receivers (indices into ``records.receivers``) a job images together, in their order: one
+    bp_refs and one bp_tile launch (a block a receiver) for each group instead of one a receiver.
+    Consecutive receivers share a group when their records share a buffer (:meth:`.records.PreparedRecords.group_size`),
+    bp_tile computes their legs alike, bp_refs computes their references, no aperture restricts
+    their pulses (spans are a tile's, not a receiver's), and their references fit REF_BYTES."""
+    echo = records.echo
+    limit = min(records.group_size(double),
+                max(1, REF_BYTES // (tiles.centres.shape[0] * REF_PULSES * tile.reference_dtype.itemsize)))
+    groups: list[list] = []
+    joins_last = False
+    for i, h in enumerate(records.receivers):
+        joins = limit > 1 and not tile.pulse_span and kernels[h].on_device(echo, h)
+        if (joins and joins_last and len(groups[-1]) < limit
+                and kernels[records.receivers[groups[-1][0]]].legs == kernels[h].legs):
+            groups[-1].append(i)
+        else:
+            groups.append([i])
+        joins_last = joins
+    return [tuple(g) for g in groups]
