@@ -96,11 +96,7 @@ typedef float16 realv16_t;
  *   MONO: alpha, w;
  * params (tile_params_t): a1, fs (of the data), f0, velocity v, half_sin = sin(aperture / 2), c;
  * data[p n + i]: the receiver's range-compressed record of pulse p; taps: the 8-tap table (interp.h);
- * image[m] += the sum over pulses p_first .. p_first + p_count - 1, block by block: n_blocks blocks
- *   (the receivers of one launch, clsas/image/backprojection/launcher.py), block b's pulse p read
- *   from record row b rec_block + p and reference ref_block b + p (of its tile's), its float sum
- *   added into the double image before the next block's (the same additions, in the same order,
- *   as one launch a block).
+ * image[m] += the sum over pulses p_first .. p_first + p_count - 1.
  * ROW_SHIFT (ffbp's first stage, clsas/image/ffbp/leaves.py: many sub-apertures a launch): pulse p
  *   of tile t reads record row p + row_shift[t] (its reference stays ref[t * ref_stride + p - ref_first]). */
 #ifdef ROW_SHIFT
@@ -159,15 +155,15 @@ typedef float16 realv16_t;
 
 __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_of, __global const tile_ref_t *ref,
                       const int ref_stride, const int ref_first, __global const sample_t *data, __global const float *taps,
-                      const tile_params_t params, const int p_first, const int p_count, const int n_blocks,
-                      const int rec_block, const int ref_block, const int n, const int n_items,
-                      __global double2 *image SCATTER_PARAM ROW_SHIFT_PARAM PULSE_SPAN_PARAM)
+                      const tile_params_t params, const int p_first, const int p_count, const int n,
+                      const int n_items, __global double2 *image SCATTER_PARAM ROW_SHIFT_PARAM PULSE_SPAN_PARAM)
 {
     const int g = get_global_id(0);
     if (g >= n_items)  /* the launch is padded to whole work-groups */
         return;
-    __global const tile_ref_t *tile_ref = ref + (size_t)tile_of[g] * ref_stride - ref_first;
+    __global const tile_ref_t *tref = ref + (size_t)tile_of[g] * ref_stride - ref_first;
     __global const bp_pixels_t *px = pix + ROWS * g;
+    __global const float *records = (__global const float *)(data + (size_t)TILE_ROW_SHIFT * n);
     const float a1 = params.a1, f0 = params.f0;
 #ifdef SAME_LEGS
     const float fs = 2.0f * params.fs, f0s = 2.0f * f0;  /* s = 2 s1 */
@@ -175,127 +171,122 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
     const float fs = params.fs, f0s = f0;
 #endif
     const float3 vel = vload3(0, params.velocity);
-    const int p_begin = TILE_BEGIN, p_end = TILE_END;
-    for (int blk = 0; blk < n_blocks; ++blk) {  /* a receiver's pulses a block */
-        __global const tile_ref_t *tref = tile_ref + blk * ref_block;
-        const size_t row0 = (size_t)TILE_ROW_SHIFT + (size_t)blk * rec_block;
-        __global const float *records = (__global const float *)(data + row0 * n);
-        float16 acc_re[ROWS], acc_im[ROWS];
-        FOR_ROWS {
-            acc_re[r] = (float16)0.0f;
-            acc_im[r] = (float16)0.0f;
-        }
-        for (int p = p_begin; p < p_end; ++p) {
-            /* each step for all ROWS rows before the next: ROWS independent dependency chains side by
-             * side in program order, which the out-of-order core overlaps */
-            const tile_ref_t R = tref[p];
-            __global const float *rec = records + (size_t)2 * p * n;
-            const float3 b = vload3(0, R.leg1), b2 = 2.0f * b;  /* N1 = 2 B.delta + |delta|^2 */
-            float16 s1[ROWS], s[ROWS], frac[ROWS], cs[ROWS], sn[ROWS];
-            int16 keep[ROWS];
-            volatile int8 first[ROWS][2];  /* the lanes' first samples, read back one by one as scalars */
+    float16 acc_re[ROWS], acc_im[ROWS];
+    FOR_ROWS {
+        acc_re[r] = (float16)0.0f;
+        acc_im[r] = (float16)0.0f;
+    }
+    const int p_end = TILE_END;
+    for (int p = TILE_BEGIN; p < p_end; ++p) {
+        /* each step for all ROWS rows before the next: ROWS independent dependency chains side by
+         * side in program order, which the out-of-order core overlaps */
+        const tile_ref_t R = tref[p];
+        __global const float *rec = records + (size_t)2 * p * n;
+        const float3 b = vload3(0, R.leg1), b2 = 2.0f * b;  /* N1 = 2 B.delta + |delta|^2 */
+        float16 s1[ROWS], s[ROWS], frac[ROWS], cs[ROWS], sn[ROWS];
+        int16 keep[ROWS];
+        volatile int8 first[ROWS][2];  /* the lanes' first samples, read back one by one as scalars */
 #ifndef MOVING
-            if (R.poly) {
-                FOR_ROWS {  /* leg 1 without a square root or a division */
-                    const float16 n1 = fma(b2.x, FIELD(dx), fma(b2.y, FIELD(dy), fma(b2.z, FIELD(dz), FIELD(dd))));
-                    const float16 x = n1 * R.k2;
-                    s1[r] = (n1 * R.k1) * LEG_POLY(x);
-                }
-            } else
+        if (R.poly) {
+            FOR_ROWS {  /* leg 1 without a square root or a division */
+                const float16 n1 = fma(b2.x, FIELD(dx), fma(b2.y, FIELD(dy), fma(b2.z, FIELD(dz), FIELD(dd))));
+                const float16 x = n1 * R.k2;
+                s1[r] = (n1 * R.k1) * LEG_POLY(x);
+            }
+        } else
 #endif
-            {
-                FOR_ROWS {  /* leg 1: the stable root */
-                    const float16 n1 = fma(b2.x, FIELD(dx), fma(b2.y, FIELD(dy), fma(b2.z, FIELD(dz), FIELD(dd))));
+        {
+            FOR_ROWS {  /* leg 1: the stable root */
+                const float16 n1 = fma(b2.x, FIELD(dx), fma(b2.y, FIELD(dy), fma(b2.z, FIELD(dz), FIELD(dd))));
 #ifdef MOVING
-                    const float16 b1 = R.b1 - FIELD(dv);
+                const float16 b1 = R.b1 - FIELD(dv);
 #else
-                    const float16 b1 = (float16)R.b1;
+                const float16 b1 = (float16)R.b1;
 #endif
-                    s1[r] = n1 / (b1 + sqrt(b1 * b1 + a1 * n1));
-                }
+                s1[r] = n1 / (b1 + sqrt(b1 * b1 + a1 * n1));
             }
-            FOR_ROWS {
+        }
+        FOR_ROWS {
 #if defined(SAME_LEGS)
-                s[r] = s1[r];  /* fs and f0s carry the factor 2 */
+            s[r] = s1[r];  /* fs and f0s carry the factor 2 */
 #elif defined(MONO)
-                s[r] = R.alpha * s1[r] - (R.w[0] * FIELD(dx) + R.w[1] * FIELD(dy) + R.w[2] * FIELD(dz));
+            s[r] = R.alpha * s1[r] - (R.w[0] * FIELD(dx) + R.w[1] * FIELD(dy) + R.w[2] * FIELD(dz));
 #else
-                /* leg 2: s2 = t2 - t2_ref, e = (v_r - v) s1 - delta; s = s1 + s2 */
-                const float3 v_r = vload3(0, R.v_rx), cc = vload3(0, R.leg2), u = v_r - vel;
-                const float16 ex = u.x * s1[r] - FIELD(dx), ey = u.y * s1[r] - FIELD(dy), ez = u.z * s1[r] - FIELD(dz);
-                const float16 n2 = 2.0f * (cc.x * ex + cc.y * ey + cc.z * ez) + (ex * ex + ey * ey + ez * ez);
-                const float16 b2 = R.b2 - (v_r.x * ex + v_r.y * ey + v_r.z * ez);
-                s[r] = s1[r] + n2 / (b2 + sqrt(b2 * b2 + R.a2 * n2));
+            /* leg 2: s2 = t2 - t2_ref, e = (v_r - v) s1 - delta; s = s1 + s2 */
+            const float3 v_r = vload3(0, R.v_rx), cc = vload3(0, R.leg2), u = v_r - vel;
+            const float16 ex = u.x * s1[r] - FIELD(dx), ey = u.y * s1[r] - FIELD(dy), ez = u.z * s1[r] - FIELD(dz);
+            const float16 n2 = 2.0f * (cc.x * ex + cc.y * ey + cc.z * ez) + (ex * ex + ey * ey + ez * ez);
+            const float16 b2 = R.b2 - (v_r.x * ex + v_r.y * ey + v_r.z * ez);
+            s[r] = s1[r] + n2 / (b2 + sqrt(b2 * b2 + R.a2 * n2));
 #endif
-            }
-            FOR_ROWS {  /* sample index K_ref + (k_frac + s fs), positive: truncation is the floor */
-                const float16 kf = R.k_frac + s[r] * fs;
-                const int16 k = convert_int16(kf);
-                frac[r] = kf - convert_float16(k);
-                const int16 ki = k + R.k_ref;
+        }
+        FOR_ROWS {  /* sample index K_ref + (k_frac + s fs), positive: truncation is the floor */
+            const float16 kf = R.k_frac + s[r] * fs;
+            const int16 k = convert_int16(kf);
+            frac[r] = kf - convert_float16(k);
+            const int16 ki = k + R.k_ref;
 #ifdef INTERP_LINEAR
-                keep[r] = as_uint16(ki) < (uint16)(n - 1);  /* samples ki and ki + 1 exist */
-                STORE_FIRST(r, select((int16)0, ki, keep[r]));
+            keep[r] = as_uint16(ki) < (uint16)(n - 1);  /* samples ki and ki + 1 exist */
+            STORE_FIRST(r, select((int16)0, ki, keep[r]));
 #else
-                keep[r] = as_uint16(ki - 3) <= (uint16)(n - 8);  /* samples ki - 3 .. ki + 4 exist */
-                STORE_FIRST(r, select((int16)0, ki - 3, keep[r]));
+            keep[r] = as_uint16(ki - 3) <= (uint16)(n - 8);  /* samples ki - 3 .. ki + 4 exist */
+            STORE_FIRST(r, select((int16)0, ki - 3, keep[r]));
 #endif
 #ifdef APERTURE
-                /* sin theta = (q - tx).y / (c t1), q - tx = B + delta + v s1 */
-                keep[r] &= fabs(b.y + FIELD(dy) + vel.y * s1[r]) <= params.half_sin * (R.range1 + params.c * s1[r]);
+            /* sin theta = (q - tx).y / (c t1), q - tx = B + delta + v s1 */
+            keep[r] &= fabs(b.y + FIELD(dy) + vel.y * s1[r]) <= params.half_sin * (R.range1 + params.c * s1[r]);
 #endif
-            }
-            FOR_ROWS {  /* carrier exp(+j 2 pi f0 tau): cycles f0 T_ref (reduced) + f0 s, reduced to [-1/2, 1/2] */
-                const float16 cyc = R.cycles + s[r] * f0s;
-                EXPJ_NEAR16(NEAR_FRACTION(cyc), &cs[r], &sn[r]);
-            }
-            FOR_ROWS {
-                const volatile int *i = (const volatile int *)&first[r][0];
+        }
+        FOR_ROWS {  /* carrier exp(+j 2 pi f0 tau): cycles f0 T_ref (reduced) + f0 s, reduced to [-1/2, 1/2] */
+            const float16 cyc = R.cycles + s[r] * f0s;
+            EXPJ_NEAR16(NEAR_FRACTION(cyc), &cs[r], &sn[r]);
+        }
+        FOR_ROWS {
+            const volatile int *i = (const volatile int *)&first[r][0];
 #ifdef INTERP_LINEAR
-                /* samples i and i + 1 of each lane in one 4-wide load, transposed in registers */
+            /* samples i and i + 1 of each lane in one 4-wide load, transposed in registers */
 #define W(L) LOAD_F4(rec + 2 * i[0x##L])
-                const float16 w0 = (float16)(W(0), W(1), W(2), W(3)), w1 = (float16)(W(4), W(5), W(6), W(7));
-                const float16 w2 = (float16)(W(8), W(9), W(a), W(b)), w3 = (float16)(W(c), W(d), W(e), W(f));
+            const float16 w0 = (float16)(W(0), W(1), W(2), W(3)), w1 = (float16)(W(4), W(5), W(6), W(7));
+            const float16 w2 = (float16)(W(8), W(9), W(a), W(b)), w3 = (float16)(W(c), W(d), W(e), W(f));
 #undef W
-                const float16 a_re = (float16)(w0.s048c, w1.s048c, w2.s048c, w3.s048c);
-                const float16 a_im = (float16)(w0.s159d, w1.s159d, w2.s159d, w3.s159d);
-                const float16 b_re = (float16)(w0.s26ae, w1.s26ae, w2.s26ae, w3.s26ae);
-                const float16 b_im = (float16)(w0.s37bf, w1.s37bf, w2.s37bf, w3.s37bf);
-                const float16 dr = fma(b_re - a_re, frac[r], a_re), di = fma(b_im - a_im, frac[r], a_im);
+            const float16 a_re = (float16)(w0.s048c, w1.s048c, w2.s048c, w3.s048c);
+            const float16 a_im = (float16)(w0.s159d, w1.s159d, w2.s159d, w3.s159d);
+            const float16 b_re = (float16)(w0.s26ae, w1.s26ae, w2.s26ae, w3.s26ae);
+            const float16 b_im = (float16)(w0.s37bf, w1.s37bf, w2.s37bf, w3.s37bf);
+            const float16 dr = fma(b_re - a_re, frac[r], a_re), di = fma(b_im - a_im, frac[r], a_im);
 #else
-                /* samples i - 3 .. i + 4 of each lane, the taps of the nearest fractional-offset row */
-                const int16 row = NEAREST_TAP_ROW(convert_int16, frac[r]);
+            /* samples i - 3 .. i + 4 of each lane, the taps of the nearest fractional-offset row */
+            const int16 row = NEAREST_TAP_ROW(convert_int16, frac[r]);
 #define W(L) LOAD_F16(rec + 2 * i[0x##L])
-                const float16 lo = sinc8_lanes(taps, row.lo, W(0), W(1), W(2), W(3), W(4), W(5), W(6), W(7));
-                const float16 hi = sinc8_lanes(taps, row.hi, W(8), W(9), W(a), W(b), W(c), W(d), W(e), W(f));
+            const float16 lo = sinc8_lanes(taps, row.lo, W(0), W(1), W(2), W(3), W(4), W(5), W(6), W(7));
+            const float16 hi = sinc8_lanes(taps, row.hi, W(8), W(9), W(a), W(b), W(c), W(d), W(e), W(f));
 #undef W
-                const float16 dr = (float16)(lo.even, hi.even), di = (float16)(lo.odd, hi.odd);
+            const float16 dr = (float16)(lo.even, hi.even), di = (float16)(lo.odd, hi.odd);
 #endif
-                acc_re[r] = select(acc_re[r], acc_re[r] + dr * cs[r] - di * sn[r], keep[r]);
-                acc_im[r] = select(acc_im[r], acc_im[r] + dr * sn[r] + di * cs[r], keep[r]);
-            }
+            acc_re[r] = select(acc_re[r], acc_re[r] + dr * cs[r] - di * sn[r], keep[r]);
+            acc_im[r] = select(acc_im[r], acc_im[r] + dr * sn[r] + di * cs[r], keep[r]);
         }
-        for (int r = 0; r < ROWS; ++r) {
-            const int m = 16 * (ROWS * g + r);
+    }
+    for (int r = 0; r < ROWS; ++r) {
+        const int m = 16 * (ROWS * g + r);
 #ifdef SCATTER
-            float re[16], im[16];
-            vstore16(acc_re[r], 0, re);
-            vstore16(acc_im[r], 0, im);
-            for (int l = 0; l < 16; ++l) {
-                if (index[m + l] >= 0)
-                    image[index[m + l]] += (double2)(re[l], im[l]);
-            }
-#else
-            /* the row's 16 slots are contiguous: four vectors of 4 (re, im) pairs, the same double
-             * additions as slot by slot */
-            const float16 re = acc_re[r], im = acc_im[r];
-            __global double *o = (__global double *)(image + m);
-            STORE_D8(LOAD_D8(o) + convert_double8((float8)(re.s0, im.s0, re.s1, im.s1, re.s2, im.s2, re.s3, im.s3)), o);
-            STORE_D8(LOAD_D8(o + 8) + convert_double8((float8)(re.s4, im.s4, re.s5, im.s5, re.s6, im.s6, re.s7, im.s7)), o + 8);
-            STORE_D8(LOAD_D8(o + 16) + convert_double8((float8)(re.s8, im.s8, re.s9, im.s9, re.sa, im.sa, re.sb, im.sb)), o + 16);
-            STORE_D8(LOAD_D8(o + 24) + convert_double8((float8)(re.sc, im.sc, re.sd, im.sd, re.se, im.se, re.sf, im.sf)), o + 24);
-#endif
+        float re[16], im[16];
+        vstore16(acc_re[r], 0, re);
+        vstore16(acc_im[r], 0, im);
+        for (int l = 0; l < 16; ++l) {
+            if (index[m + l] >= 0)
+                image[index[m + l]] += (double2)(re[l], im[l]);
         }
+#else
+        /* the row's 16 slots are contiguous: four vectors of 4 (re, im) pairs, the same double
+         * additions as slot by slot */
+        const float16 re = acc_re[r], im = acc_im[r];
+        __global double *o = (__global double *)(image + m);
+        STORE_D8(LOAD_D8(o) + convert_double8((float8)(re.s0, im.s0, re.s1, im.s1, re.s2, im.s2, re.s3, im.s3)), o);
+        STORE_D8(LOAD_D8(o + 8) + convert_double8((float8)(re.s4, im.s4, re.s5, im.s5, re.s6, im.s6, re.s7, im.s7)), o + 8);
+        STORE_D8(LOAD_D8(o + 16) + convert_double8((float8)(re.s8, im.s8, re.s9, im.s9, re.sa, im.sa, re.sb, im.sb)), o + 16);
+        STORE_D8(LOAD_D8(o + 24) + convert_double8((float8)(re.sc, im.sc, re.sd, im.sd, re.se, im.se, re.sf, im.sf)), o + 24);
+#endif
     }
 }
 

@@ -61,17 +61,17 @@
         }                                                                                             \
     }
 
-/* src: n_rows rows of n_src complex samples; dst: rows of n_kept FACTOR outputs, row dst_row + r
- * the upsampled original samples first .. first + n_kept - 1 of src row r; taps: PHASE_VECS x
- * TAPS float16 tap vectors. Global size (ceil(n_kept / 8), rows padded). */
+/* src: n_rows rows of n_src complex samples; dst: n_rows rows of n_kept FACTOR outputs, the
+ * upsampled original samples first .. first + n_kept - 1; taps: PHASE_VECS x TAPS float16 tap
+ * vectors. Global size (ceil(n_kept / 8), rows padded). */
 __kernel void upsample_fir(__global const float2 *src, const int n_src, const int n_rows, const int first,
-                           const int n_kept, __global const float *taps, const int dst_row, __global float2 *dst)
+                           const int n_kept, __global const float *taps, __global float2 *dst)
 {
     const int j0 = 8 * get_global_id(0), r = get_global_id(1);
     if (r >= n_rows || j0 >= n_kept)
         return;
     __global const float *row = (__global const float *)(src + (size_t)r * n_src);
-    __global float *out = (__global float *)(dst + ((size_t)(dst_row + r) * n_kept + j0) * FACTOR);
+    __global float *out = (__global float *)(dst + ((size_t)r * n_kept + j0) * FACTOR);
     const int s0 = first + j0 - HALF, count = min(8, n_kept - j0);
     const int inside = s0 >= 0 && s0 + 7 + TAPS - 1 < n_src;
     __global const double *pairs = (__global const double *)row + (inside ? s0 : 0); /* sample s0 + i at pairs[i] */

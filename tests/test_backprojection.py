@@ -534,28 +534,27 @@ def _same_references(got, host, h):
             assert np.all(np.abs(a - b) <= 2e-7 * np.maximum(scale, 1e-30) + 1e-30), (h, name)
 
 
-@pytest.mark.parametrize("case", ["kiang", "kiang-stop-and-go", "huang"])
-def test_receivers_in_one_launch_give_the_identical_image(opencl_device, kiang_echo, monkeypatch, case):
-    """A plain call upsamples several receivers' records into one buffer and sums them in one
-    bp_tile launch (a block a receiver, each block's float sum added into the double image in turn)
-    with one bp_refs launch for their references: the image is bit-identical to one launch a
-    receiver (GROUP_BYTES 0), for receivers of mixed legs (Kiang: A alone, B and C together) and
-    for Huang's 32 receivers (groups of several)."""
-    from clsas.image.backprojection import launcher, records as records_module
+@pytest.mark.parametrize("case", ["kiang", "kiang-stop-and-go", "kiang-aperture", "huang"])
+def test_references_of_several_receivers_at_once_give_the_identical_image(opencl_device, kiang_echo, monkeypatch,
+                                                                          case):
+    """A call computes consecutive receivers' references (same legs) in one bp_refs launch and each
+    receiver's bp_tile launch reads its slice: the image is bit-identical to one bp_refs launch a
+    receiver (REF_BYTES 0), for receivers of mixed legs (Kiang: A alone, B and C together), with an
+    aperture (each receiver's pulse spans from its slice) and for Huang's 32 receivers."""
+    from clsas.image.backprojection import launcher
 
     if case == "huang":
         echo = compressed(presets.point_scene("huang2022", n_pulses=16))
         grid = Grid.plane(np.linspace(40.0, 80.0, 40), np.linspace(-4.0, 4.0, 24), 0.0)
     else:
         echo, grid = kiang_echo, around((30.0, 1.0, -43.0), 0.1, 0.1, 10, 10)
-    kw = dict(stop_and_go=case == "kiang-stop-and-go", progress=False)
+    kw = dict(stop_and_go=case == "kiang-stop-and-go", aperture=0.3 if case == "kiang-aperture" else None,
+              progress=False)
     groups = []
     monkeypatch.setattr(launcher, "_groups", lambda *a, _f=launcher._groups: groups.append(_f(*a)) or groups[-1])
     together = backproject(echo, grid, **kw).data
-    assert max(len(g) for g in groups[-1]) > 1
-    if case != "huang":
-        assert [len(g) for g in groups[-1]] == [1, 2]
-    monkeypatch.setattr(records_module, "GROUP_BYTES", 0)
+    assert [len(g) for g in groups[-1]] == ([32] if case == "huang" else [1, 2])
+    monkeypatch.setattr(launcher, "REF_BYTES", 0)
     alone = backproject(echo, grid, **kw).data
     assert all(len(g) == 1 for g in groups[-1])
     assert np.array_equal(together, alone)

@@ -124,16 +124,16 @@ def upsample_reference(records: np.ndarray, factor: int, first: int, stop: int) 
     return out.reshape(n_rec, m * factor).astype(np.complex64)
 
 
-def enqueue(queue, src, n_src: int, n_rows: int, first: int, stop: int, factor: int, dst, dst_row: int = 0):
+def enqueue(queue, src, n_src: int, n_rows: int, first: int, stop: int, factor: int, dst):
     """Enqueue ``upsample_fir`` (kernels/upsample.cl): rows of the device buffer ``src`` (n_rows x
-    n_src complex64) upsampled over original samples [first, stop) into rows ``dst_row`` ..
-    ``dst_row + n_rows - 1`` of ``dst`` (rows of (stop - first) factor complex64); returns its event."""
+    n_src complex64) upsampled over original samples [first, stop) into ``dst`` (n_rows x
+    (stop - first) factor complex64); returns its event."""
     taps = _taps_buffer(queue.context, factor)
     kern = opencl.kernel("upsample", "upsample_fir", defines={"FACTOR": factor, "TAPS": TAPS,
                                                               "PHASE_VECS": -(-factor // 8)})
     global_size, local_size = opencl.work_groups_2d(-(-(stop - first) // 8), n_rows, ROWS_GROUP)
     return kern(queue, global_size, local_size, src, np.int32(n_src), np.int32(n_rows), np.int32(first),
-                np.int32(stop - first), taps, np.int32(dst_row), dst)
+                np.int32(stop - first), taps, dst)
 
 
 _TAP_BUFFERS: dict = {}

@@ -26,7 +26,7 @@ from .tiles import GridPlan
 
 PIXEL_CHUNK = 2**22  # slots on the device at once
 REF_PULSES = 64  # pulses whose tile references are computed at once
-REF_BYTES = 16 * 2**20  # the references of a group of receivers (REF_PULSES pulses each) computed at once
+REF_BYTES = 16 * 2**20  # a group of receivers' references (every pulse of the call) held at once (_groups)
 
 
 class _Chunk:
@@ -91,8 +91,10 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     params = tile.params(c, f0, fs)
     chunk = PIXEL_CHUNK // (tile.LANES * tile.rows) * (tile.LANES * tile.rows)
     upload = records.upload_pulses()
-    jobs = [(first, members, np.arange(s, min(s + upload, span[1]))) for first in range(0, tiles.order.size, chunk)
-            for members in _groups(records, kernels, tile, tiles, double) for s in range(span[0], span[1], upload)]
+    jobs = [(first, i, np.arange(s, min(s + upload, span[1]))) for first in range(0, tiles.order.size, chunk)
+            for i in range(len(records.receivers)) for s in range(span[0], span[1], upload)]
+    group_of = {i: g for g in _groups(records, kernels, tile, tiles, span) for i in g}
+    shared = {}  # (chunk, group, first pulse of the sub-block): the group's references, until its last member's
     fallbacks, chunk_state, in_flight, work, kernel_seconds = 0, None, [], [], 0.0
     bar = Progress(pixels.shape[0] * len(records.receivers) * (span[1] - span[0]), "pixel-pulses",
                    "back-projection (opencl)", progress)
@@ -110,11 +112,10 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
             bar.done(work.pop(0))  # the progress bar counts finished kernels' pixel-pulses
         return seconds
 
-    for first, members, pulses in jobs:
-        i = members[0]
+    for first, i, pulses in jobs:
         h, offset = records.receivers[i], int(records.offset[i])
         kernel_seconds += retire(1)
-        records_buf, n_samples, base, rec_block = records.group_buffer(ctx, members, pulses, double)
+        records_buf, n_samples, base = records.buffer(ctx, i, pulses, double)
         if chunk_state is None or chunk_state.first != first:
             if chunk_state is not None:
                 kernel_seconds += retire(0)
@@ -122,7 +123,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
             chunk_state = _Chunk(ctx, queue, tiles, tile, positions, first, min(first + chunk, tiles.order.size))
         skip = int(pulses[0] - base)  # the job's first pulse in the buffer (which may hold earlier pulses)
         in_flight.append(events := [])
-        work.append(chunk_state.pixels_here * pulses.size * len(members))
+        work.append(chunk_state.pixels_here * pulses.size)
         exact = None
         for s in range(0, pulses.size, REF_PULSES):
             # a sub-block's references are computed while the previous sub-block's kernels run
@@ -130,10 +131,18 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                       for p0 in range(s, min(s + REF_PULSES, pulses.size), tile.PULSE_BLOCK)]
             if not double:
                 part, kernel = pulses[s:s + REF_PULSES], kernels[h]
-                group = [records.receivers[m] for m in members]  # one receiver, or several with h's legs
-                ref_buf = kernel.references_on_device(queue, echo, group, part, chunk_state.centres,
-                                                      chunk_state.tiles.size, fs, tiles.half_extent,
-                                                      records.offset[list(members)])
+                group = group_of[i]
+                ref_stride, ref_first = part.size * len(group), skip + s - part.size * group.index(i)
+                if len(group) > 1:  # every member's references from one bp_refs launch, (T, members, P)
+                    key = (first, group, int(part[0]))
+                    if key not in shared:
+                        shared[key] = kernel.references_on_device(
+                            queue, echo, [records.receivers[m] for m in group], part, chunk_state.centres,
+                            chunk_state.tiles.size, fs, tiles.half_extent, records.offset[list(group)])
+                    ref_buf = shared[key] if i != group[-1] else shared.pop(key)
+                else:
+                    ref_buf = kernel.references_on_device(queue, echo, h, part, chunk_state.centres,
+                                                          chunk_state.tiles.size, fs, tiles.half_extent, offset)
                 if ref_buf is None:  # a receiver followed between several nodes: on the host
                     ref, linear = kernel.references(echo, h, part, tiles.centres[chunk_state.tiles], fs,
                                                     tiles.half_extent, offset)
@@ -142,17 +151,17 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                     spans = None
                     if tile.pulse_span:
                         ref, _ = cl.enqueue_map_buffer(queue, ref_buf, cl.map_flags.READ, 0,
-                                                       (chunk_state.tiles.size, part.size), kernel.reference_dtype)
+                                                       (chunk_state.tiles.size, ref_stride), kernel.reference_dtype)
+                        mine = ref[:, skip + s - ref_first:][:, :part.size]  # this receiver's (T, P)
                         spans = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
-                                          hostbuf=tile.spans(ref, tiles.half_extent, c, skip + s))
+                                          hostbuf=tile.spans(mine, tiles.half_extent, c, skip + s))
                         ref.base.release()
                     for p0, count in blocks:
                         events.append(kernel.launch(
                             queue, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
-                            ref_stride=part.size * len(members), ref_first=skip + s, records=records_buf,
-                            n_samples=n_samples, taps=taps, params=params, p_first=skip + p0, p_count=count,
-                            image=chunk_state.sums, spans=spans, n_blocks=len(members), rec_block=rec_block,
-                            ref_block=part.size))
+                            ref_stride=ref_stride, ref_first=ref_first, records=records_buf, n_samples=n_samples,
+                            taps=taps, params=params, p_first=skip + p0, p_count=count, image=chunk_state.sums,
+                            spans=spans))
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)
@@ -171,19 +180,21 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     return image, fallbacks, kernel_seconds
 
 
-def _groups(records: PreparedRecords, kernels: dict, tile: TileKernel, tiles, double: bool) -> list[tuple]:
-    """The receivers (indices into ``records.receivers``) a job images together, in their order: one
-    bp_refs and one bp_tile launch (a block a receiver) for each group instead of one a receiver.
-    Consecutive receivers share a group when their records share a buffer (:meth:`.records.PreparedRecords.group_size`),
-    bp_tile computes their legs alike, bp_refs computes their references, no aperture restricts
-    their pulses (spans are a tile's, not a receiver's), and their references fit REF_BYTES."""
+def _groups(records: PreparedRecords, kernels: dict, tile: TileKernel, tiles, span: tuple[int, int]) -> list[tuple]:
+    """The receivers (indices into ``records.receivers``, in their order) whose references one
+    bp_refs launch computes (a launch a pulse sub-block and chunk instead of one a receiver):
+    consecutive receivers with the same legs whose references bp_refs computes (:meth:`.tile_kernel.TileKernel.on_device`),
+    as many as keep their references for every pulse of the call within REF_BYTES. bp_tile still
+    runs a receiver a launch: all of its work-items then read the same receiver's records, which
+    stay in cache (several receivers a launch, each work-item sweeping their records in turn, ran
+    up to 1.8x slower)."""
     echo = records.echo
-    limit = min(records.group_size(double),
-                max(1, REF_BYTES // (tiles.centres.shape[0] * REF_PULSES * tile.reference_dtype.itemsize)))
+    per_receiver = tiles.centres.shape[0] * (span[1] - span[0]) * tile.reference_dtype.itemsize
+    limit = max(1, int(REF_BYTES // max(per_receiver, 1)))
     groups: list[list] = []
     joins_last = False
     for i, h in enumerate(records.receivers):
-        joins = limit > 1 and not tile.pulse_span and kernels[h].on_device(echo, h)
+        joins = limit > 1 and kernels[h].on_device(echo, h)
         if (joins and joins_last and len(groups[-1]) < limit
                 and kernels[records.receivers[groups[-1][0]]].legs == kernels[h].legs):
             groups[-1].append(i)

@@ -55,7 +55,6 @@ INTERPOLATORS = ("linear", "sinc8")
 # samples an interpolator reads around floor(k) (before, after), in samples of the records it reads
 INTERP_REACH = {"linear": (0, 1), "sinc8": (3, 4)}
 UPLOAD_BYTES = 64 * 2**20  # records prepared and uploaded at once when a call prepares its own
-GROUP_BYTES = 32 * 2**20  # a call's FIR-upsampled records of several receivers in one device buffer (:meth:`PreparedRecords.group_size`)
 MIN_SAMPLES = 8  # samples of the shortest prepared record (sinc8 loads eight at once)
 
 
@@ -178,13 +177,6 @@ class PreparedRecords:
         self._workers = workers
         self._fir_device = None  # the FIR runs on the device (decided on first use: the default backend)
         bounds = self._samples_for(spans)
-        if not materialise and self.upsampler == "fir" and np.any(bounds[:, 1] > bounds[:, 0]):
-            # every receiver over the union of their spans: records of one length and offset, which a
-            # call upsamples several receivers at a time into one buffer (group_buffer); an output
-            # depends only on the samples around it, so the samples and the image are those of the
-            # receiver's own span
-            bounds = np.broadcast_to([bounds[:, 0].min(initial=bounds[0, 0], where=bounds[:, 1] > bounds[:, 0]),
-                                      bounds[:, 1].max()], bounds.shape).copy()
         self._bounds = bounds  # original samples [first, stop) per receiver
         self.offset = bounds[:, 0] * self.factor
         self.length = (bounds[:, 1] - bounds[:, 0]) * self.factor
@@ -280,34 +272,10 @@ class PreparedRecords:
         records = np.ascontiguousarray(records, dtype=dtype)
         return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=records), records.shape[1], int(pulses[0])
 
-    def group_size(self, double: bool) -> int:
-        """Receivers whose records of a call's upload block :meth:`group_buffer` holds in one device
-        buffer: up to GROUP_BYTES of records upsampled by the FIR on the device during the call
-        (records of one length: the module docstring); 1 for any other records (prepared ones,
-        each receiver's own buffer; the echo's own; FFT blocks; ``double``)."""
-        if self._host is not None or double or not self.fir_on_device or np.any(self._bounds[:, 1] <= self._bounds[:, 0]):
-            return 1
-        per_receiver = 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))
-        return max(1, int(GROUP_BYTES // per_receiver))
-
-    def group_buffer(self, ctx, members, pulses: np.ndarray, double: bool):
-        """(device buffer, samples per record, the buffer's first pulse, rows between receivers) of
-        the receivers ``receivers[i]`` for i in ``members`` (at most :meth:`group_size`) over the
-        consecutive ``pulses``: member j's pulse p at row j rows + p - first pulse. One member:
-        :meth:`buffer` (rows 0)."""
-        if len(members) == 1:
-            return (*self.buffer(ctx, members[0], pulses, double), 0)
-        if len(members) > self.group_size(double):
-            raise ValueError(f"group_buffer: {len(members)} receivers, more than the {self.group_size(double)} a buffer holds")
-        for j, i in enumerate(members):
-            dst = self._upsampled_on_device(ctx, i, pulses, j * pulses.size, len(members))
-        return dst, int(self.length[members[0]]), int(pulses[0]), int(pulses.size)
-
-    def _upsampled_on_device(self, ctx, i: int, pulses: np.ndarray, dst_row: int = 0, members: int = 1):
+    def _upsampled_on_device(self, ctx, i: int, pulses: np.ndarray):
         """A device buffer of receiver ``receivers[i]``'s records of the consecutive ``pulses``,
         upsampled by the FIR on the device (the kernel enqueued on the runtime's queue, which the
-        back-projection kernels then read in order) into its rows ``dst_row`` on; the buffer holds
-        ``members`` receivers' records."""
+        back-projection kernels then read in order)."""
         import pyopencl as cl
 
         from ... import opencl
@@ -321,17 +289,17 @@ class PreparedRecords:
         flags = mf.USE_HOST_PTR if np.shares_memory(src, self.echo.data) else mf.COPY_HOST_PTR
         src_buf = cl.Buffer(ctx, mf.READ_ONLY | flags, hostbuf=src)
         queue = opencl.runtime().queue
-        size = 8 * members * src.shape[0] * int(self.length[i])  # the whole group's rows (member 0 makes the buffer)
+        size = 8 * src.shape[0] * int(self.length[i])
         # every upload block of the call is upsampled into one buffer (a fresh one costs its page
         # faults each time): on an in-order queue a block's upsampling runs after the kernels
         # enqueued before it, which read the previous block, have finished
         in_order = not queue.properties & cl.command_queue_properties.OUT_OF_ORDER_EXEC_MODE_ENABLE
         key = int(ctx.int_ptr)
         if not in_order or key not in self._scratch or self._scratch[key].size < size:
-            size_all = 8 * members * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))
+            size_all = 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))
             self._scratch[key] = cl.Buffer(ctx, mf.READ_WRITE, size=max(size, size_all))
         dst = self._scratch[key]
-        fir.enqueue(queue, src_buf, src.shape[1], src.shape[0], first, stop, self.factor, dst, dst_row)
+        fir.enqueue(queue, src_buf, src.shape[1], src.shape[0], first, stop, self.factor, dst)
         return dst
 
     def subset(self, chosen) -> "PreparedRecords":

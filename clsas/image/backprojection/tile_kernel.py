@@ -333,19 +333,14 @@ class TileKernel:
         return fields
 
     def launch(self, queue, *, pixels, tile_of, refs, ref_stride: int, ref_first: int, records, n_samples: int, taps,
-               params, p_first: int, p_count: int, image, index=None, row_shift=None, spans=None, n_blocks: int = 1,
-               rec_block: int = 0, ref_block: int = 0):
+               params, p_first: int, p_count: int, image, index=None, row_shift=None, spans=None):
         """Enqueue bp_tile over the work-items of ``tile_of`` (a device buffer of one int32 a
         work-item; ``pixels`` ROWS records a work-item): add pulses p_first .. p_first + p_count
         - 1 of the ``records`` (rows of ``n_samples`` samples) into the double ``image``: at each
         slot's pixel ``index`` (device int32 a slot, -1 for padding) when given, else at the slot;
         ``refs`` holds tile t's reference of pulse p at t * ref_stride + p - ref_first.
-        ``n_blocks`` blocks (receivers) in one launch: block b reads record rows b rec_block + p and
-        references b ref_block + p - ref_first of its tile's, its sum added into the image before
-        the next block's (as n_blocks launches would). ``row_shift`` (with row_shift=True) and
-        ``spans`` (with an aperture, one block) as in the kernel's comment. Returns the event."""
-        if spans is not None and n_blocks != 1:
-            raise ValueError(f"bp_tile: pulse spans (an aperture) take one block a launch, got n_blocks={n_blocks}")
+        ``row_shift`` (with row_shift=True) and ``spans`` (with an aperture) as in the kernel's
+        comment. Returns the event."""
         extra = (row_shift,) if "ROW_SHIFT" in self.defines else ()
         extra += (spans,) if self.pulse_span else ()
         n_items = tile_of.size // 4
@@ -353,6 +348,5 @@ class TileKernel:
         kern = opencl.kernel("backprojection", "bp_tile", preamble=self.preamble, defines=defines)
         return kern(queue, *opencl.work_groups(n_items), pixels, tile_of, refs, np.int32(ref_stride),
                     np.int32(ref_first), records, taps, params, np.int32(p_first), np.int32(p_count),
-                    np.int32(n_blocks), np.int32(rec_block), np.int32(ref_block), np.int32(n_samples),
-                    np.int32(n_items), image, *((index,) if index is not None else ()), *extra)
+                    np.int32(n_samples), np.int32(n_items), image, *((index,) if index is not None else ()), *extra)
 
