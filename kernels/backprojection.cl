@@ -253,7 +253,8 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             const float16 a_im = (float16)(w0.s159d, w1.s159d, w2.s159d, w3.s159d);
             const float16 b_re = (float16)(w0.s26ae, w1.s26ae, w2.s26ae, w3.s26ae);
             const float16 b_im = (float16)(w0.s37bf, w1.s37bf, w2.s37bf, w3.s37bf);
-            const float16 dr = fma(b_re - a_re, frac[r], a_re), di = fma(b_im - a_im, frac[r], a_im);
+            const float16 dr = select((float16)0.0f, fma(b_re - a_re, frac[r], a_re), keep[r]);
+            const float16 di = select((float16)0.0f, fma(b_im - a_im, frac[r], a_im), keep[r]);
 #else
             /* samples i - 3 .. i + 4 of each lane, the taps of the nearest fractional-offset row */
             const int16 row = NEAREST_TAP_ROW(convert_int16, frac[r]);
@@ -261,10 +262,12 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             const float16 lo = sinc8_lanes(taps, row.lo, W(0), W(1), W(2), W(3), W(4), W(5), W(6), W(7));
             const float16 hi = sinc8_lanes(taps, row.hi, W(8), W(9), W(a), W(b), W(c), W(d), W(e), W(f));
 #undef W
-            const float16 dr = (float16)(lo.even, hi.even), di = (float16)(lo.odd, hi.odd);
+            const float16 dr = select((float16)0.0f, (float16)(lo.even, hi.even), keep[r]);
+            const float16 di = select((float16)0.0f, (float16)(lo.odd, hi.odd), keep[r]);
 #endif
-            acc_re[r] = select(acc_re[r], acc_re[r] + dr * cs[r] - di * sn[r], keep[r]);
-            acc_im[r] = select(acc_im[r], acc_im[r] + dr * sn[r] + di * cs[r], keep[r]);
+            /* a lane not kept adds zeros (its sample zeroed where it is made: no blend of the sums) */
+            acc_re[r] = acc_re[r] + dr * cs[r] - di * sn[r];
+            acc_im[r] = acc_im[r] + dr * sn[r] + di * cs[r];
         }
     }
     for (int r = 0; r < ROWS; ++r) {
