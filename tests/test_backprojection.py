@@ -615,3 +615,22 @@ def test_numpy_reference_keeps_its_working_set_within_the_budget():
                 tracemalloc.stop()
         assert peak < limit, (limit, peak)
     np.testing.assert_allclose(images[0], images[1], rtol=0, atol=1e-9 * np.abs(images[1]).max())
+
+
+@pytest.mark.parametrize("nodes", [[0.0], [0.0, 0.2], [-0.05, 0.05, 0.1, 0.3], [0.01, 0.2, 0.4]])
+def test_receivers_at_emission_for_the_references(nodes, rng):
+    """bp_refs' receiver positions at emission, all receivers at once (tile_kernel._at_emission),
+    are EchoData.rx_position(h, 0)'s to the last bit, for one node, two, several from before the
+    emission and several all after it (extrapolated)."""
+    from clsas import EchoData, Medium, Waveform
+    from clsas.image.backprojection.tile_kernel import _at_emission
+
+    n_rx, n_pulses, tau = 3, 6, np.asarray(nodes)
+    echo = EchoData(data=np.zeros((n_rx, n_pulses, 16), np.complex64), eta=np.arange(n_pulses) / 10.0,
+                    t0=np.full(n_rx, 0.1), fs=40e3, tx_pos=rng.normal(size=(n_pulses, 3)),
+                    rx_pos=rng.normal(size=(n_rx, n_pulses, tau.size, 3)), rx_tau=np.tile(tau, (n_rx, 1)),
+                    waveform=Waveform(f0=150e3, bandwidth=20e3, duration=1e-3, fs=40e3), medium=Medium(1500.0),
+                    receivers=("A", "B", "C"), compressed=True)
+    pulses = np.arange(1, 5)
+    want = np.stack([echo.rx_position(h, np.zeros(pulses.size), pulses=pulses) for h in (2, 0)])
+    assert np.array_equal(_at_emission(echo, np.array([2, 0]), pulses), want)

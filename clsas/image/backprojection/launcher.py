@@ -9,7 +9,9 @@ written as whole vectors), which the host puts in the grid's order once the chun
 finished; the records a block
 of at most ``records.UPLOAD_BYTES`` at a time (at most two blocks in flight: the host waits for
 the kernels of the block before last), the per-(tile, pulse) references REF_PULSES pulses at a
-time. Records prepared with :func:`.records.prepare` are held whole instead, and a
+time, for consecutive receivers of the same legs at once (one bp_refs launch; a group's references
+for every pulse of the call within ``REF_BYTES``, each kept until its last receiver's bp_tile
+launch: :func:`_groups`). Records prepared with :func:`.records.prepare` are held whole instead, and a
 :class:`.tiles.GridPlan` keeps the grid's tiling.
 """
 
@@ -186,8 +188,8 @@ def _groups(records: PreparedRecords, kernels: dict, tile: TileKernel, tiles, sp
     consecutive receivers with the same legs whose references bp_refs computes (:meth:`.tile_kernel.TileKernel.on_device`),
     as many as keep their references for every pulse of the call within REF_BYTES. bp_tile still
     runs a receiver a launch: all of its work-items then read the same receiver's records, which
-    stay in cache (several receivers a launch, each work-item sweeping their records in turn, ran
-    up to 1.8x slower)."""
+    stay in cache (several receivers a launch, each work-item sweeping their records in turn, was
+    slower: the commit d486032 gives the figures)."""
     echo = records.echo
     per_receiver = tiles.centres.shape[0] * (span[1] - span[0]) * tile.reference_dtype.itemsize
     limit = max(1, int(REF_BYTES // max(per_receiver, 1)))

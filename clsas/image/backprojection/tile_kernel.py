@@ -117,6 +117,18 @@ MOVING_PIXELS = record_dtype(_OFFSETS + [("dv", "f4", LANES)])
 LEG_DEFINES = {"same": "SAME_LEGS", "mono": "MONO", "two": None}
 
 
+def _at_emission(echo, hs: np.ndarray, pulses: np.ndarray) -> np.ndarray:
+    """(len(hs), len(pulses), 3) m: receivers ``hs`` at fast time 0 of each pulse, as
+    ``echo.rx_position(h, 0)`` gives them (the same arithmetic), every receiver at once."""
+    nodes, pos = echo.rx_tau[hs], echo.rx_pos[hs[:, None], pulses]  # (G, N), (G, P, N, 3)
+    if nodes.shape[1] == 1:
+        return pos[:, :, 0].copy()
+    g = np.arange(hs.size)
+    seg = np.clip(np.sum(nodes < 0.0, axis=1) - 1, 0, nodes.shape[1] - 2)  # searchsorted(nodes, 0) - 1
+    w = ((0.0 - nodes[g, seg]) / (nodes[g, seg + 1] - nodes[g, seg]))[:, None, None]
+    return pos[g, :, seg] * (1 - w) + pos[g, :, seg + 1] * w
+
+
 class TileKernel:
     """bp_tile for one configuration: the interpolator ``interp`` ("linear" or "sinc8"), the full
     integration angle ``aperture`` (rad, or None), the pixels' ``velocity`` (m/s), ``stop_and_go``,
@@ -292,10 +304,10 @@ class TileKernel:
         rt = opencl.runtime()
         pulse = np.zeros((hs.size, pulses.size), REF_PULSE)
         pulse["tx"], pulse["eta"] = echo.tx_pos[pulses], echo.eta[pulses]
-        for j, k in enumerate(hs):
-            pulse["rx0"][j] = echo.rx_position(int(k), np.zeros(pulses.size), pulses=pulses)
-            if not self.stop_and_go and echo.rx_tau[k].size == 2:
-                pulse["v_rx"][j] = two_node_velocity(echo, int(k), pulses)
+        pulse["rx0"] = _at_emission(echo, hs, pulses)
+        if not self.stop_and_go and echo.rx_tau.shape[-1] == 2:
+            pulse["v_rx"] = (echo.rx_pos[hs[:, None], pulses, 1] - echo.rx_pos[hs[:, None], pulses, 0]) / np.diff(
+                echo.rx_tau[hs], axis=-1)[:, :, None]  # two_node_velocity of every receiver
         pulse["t0"], pulse["offset"] = np.asarray(echo.t0)[hs][:, None], np.asarray(offsets)[:, None]
         c = echo.medium.sound_speed
         params = np.zeros((), REF_PARAMS)
