@@ -249,10 +249,14 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             const float16 w0 = (float16)(W(0), W(1), W(2), W(3)), w1 = (float16)(W(4), W(5), W(6), W(7));
             const float16 w2 = (float16)(W(8), W(9), W(a), W(b)), w3 = (float16)(W(c), W(d), W(e), W(f));
 #undef W
-            const float16 a_re = (float16)(w0.s048c, w1.s048c, w2.s048c, w3.s048c);
-            const float16 a_im = (float16)(w0.s159d, w1.s159d, w2.s159d, w3.s159d);
-            const float16 b_re = (float16)(w0.s26ae, w1.s26ae, w2.s26ae, w3.s26ae);
-            const float16 b_im = (float16)(w0.s37bf, w1.s37bf, w2.s37bf, w3.s37bf);
+            /* two stages of two-source permutes (8, not 12): lanes 0-7 (w0, w1) and 8-15 (w2, w3) of
+             * each part, then the halves joined */
+            const float16 a01 = (float16)(w0.s048c, w1.s048c, w0.s159d, w1.s159d);
+            const float16 b01 = (float16)(w0.s26ae, w1.s26ae, w0.s37bf, w1.s37bf);
+            const float16 a23 = (float16)(w2.s048c, w3.s048c, w2.s159d, w3.s159d);
+            const float16 b23 = (float16)(w2.s26ae, w3.s26ae, w2.s37bf, w3.s37bf);
+            const float16 a_re = (float16)(a01.lo, a23.lo), a_im = (float16)(a01.hi, a23.hi);
+            const float16 b_re = (float16)(b01.lo, b23.lo), b_im = (float16)(b01.hi, b23.hi);
             const float16 dr = select((float16)0.0f, fma(b_re - a_re, frac[r], a_re), keep[r]);
             const float16 di = select((float16)0.0f, fma(b_im - a_im, frac[r], a_im), keep[r]);
 #else
