@@ -28,6 +28,15 @@ extent, block length) and per edge (near, far) and depth into the swath (the blo
 that edge, rounded to 0.25 m; negative outside), the mean over SEEDS seafloors of the block's mean yaw over the pairs
 (PingPairs.block_yaw), its standard error and the fraction of pairs whose yaw took the block
 (PingPairs.block_inside).
+
+``--edge-cut SEEDS`` tells the two readings of the near-edge zone apart (no timing): each
+seafloor of :func:`motionless_scene` is estimated as drawn and again reaching NEARER m nearer
+the track (the same scatterers from ACROSS[0] on, more in front of them). The records of the
+blocks a few metres inside ACROSS[0] hold the same echoes in both up to the ring arcs at look
+angles wider than where ACROSS[0] cuts them; what moves is where the seafloor's near edge cuts
+their rings. Per block within 8 m of ACROSS[0]: its range, the near edge, the direction cosine
+at which that edge cuts the block's middle ring (cut_sin, and over the main lobe's half-width
+cut_over_lobe), and the mean block yaw over SEEDS seafloors with its standard error.
 """
 
 from __future__ import annotations
@@ -57,6 +66,10 @@ R0 = 37.0                  # m, the range at which their footprint is measured
 DENSITY = 20.0
 # the --edges cases: (transmitter factor, seafloor extent, block length in samples); --quick: the first
 EDGE_CASES = ((1.0, 1.0, 128), (1.0, 1.0, 64), (2.0, 1.0, 128), (1.0, 4.0, 128))
+# the --edge-cut cases: (transmitter factor, seafloor extent); --quick: the first. Each seafloor
+# is also drawn NEARER m nearer the track (three 128-sample blocks: the blocks stay on the same ranges)
+EDGE_CUT_CASES = ((1.0, 1.0), (1.0, 4.0))
+NEARER = 5.76
 
 
 def bias_sonar(tx_factor: float, pings: int) -> Scenario:
@@ -74,20 +87,27 @@ def footprint(scene: Scenario) -> float:
     return 2 * R0 * scene.waveform.wavelength(scene.medium) / max(scene.array.tx_length, scene.array.rx_length[0])
 
 
-def motionless_scene(tx_factor: float, extent: float, pings: int = 30, seed: int = 3):
+def motionless_scene(tx_factor: float, extent: float, pings: int = 30, seed: int = 3, nearer: float = 0.0):
     """(scene, the seafloor's dpca.SeafloorExtent, range-compressed echo): :func:`bias_sonar`
     over a speckle seafloor of random point scatterers (DENSITY / max(1, extent) a square metre,
     complex Gaussian reflectivities) ACROSS m across track and ``extent`` x the footprint long,
-    centred on the track, on a motionless platform (every pair's true yaw is 0)."""
+    centred on the track, on a motionless platform (every pair's true yaw is 0). ``nearer`` m:
+    the seafloor reaches that much nearer the track, the same scatterers in ACROSS (drawn first,
+    as without it) and as dense a draw in front of them (for --edge-cut)."""
     scene = bias_sonar(tx_factor, pings)
     half = extent * footprint(scene) / 2
     rng = np.random.default_rng(seed)
     n = seafloor_points(extent, half)
     pos = np.stack([rng.uniform(*ACROSS, n), rng.uniform(-half, half, n), np.zeros(n)], -1)
-    floor = PointTargets(pos, reflectivity=(rng.normal(size=n) + 1j * rng.normal(size=n)) / np.sqrt(2))
-    scene = scene.replace(targets=(floor,))
+    reflectivity = (rng.normal(size=n) + 1j * rng.normal(size=n)) / np.sqrt(2)
+    if nearer > 0:
+        m = int(round(n * nearer / (ACROSS[1] - ACROSS[0])))
+        front = np.stack([rng.uniform(ACROSS[0] - nearer, ACROSS[0], m), rng.uniform(-half, half, m), np.zeros(m)], -1)
+        pos = np.concatenate([pos, front])
+        reflectivity = np.concatenate([reflectivity, (rng.normal(size=m) + 1j * rng.normal(size=m)) / np.sqrt(2)])
+    scene = scene.replace(targets=(PointTargets(pos, reflectivity=reflectivity),))
     echo = clsas.range_compress(clsas.simulate(scene, progress=False), upsample=2)
-    return scene, dpca.SeafloorExtent(x=ACROSS, y=(-half, half)), echo
+    return scene, dpca.SeafloorExtent(x=(ACROSS[0] - nearer, ACROSS[1]), y=(-half, half)), echo
 
 
 class PhaseCentreControl:
@@ -282,10 +302,38 @@ def edge_profile(args, seeds: int, pings: int) -> None:
                    kept=float(np.mean(values[:, 1])), load=[round(x, 2) for x in os.getloadavg()])
 
 
+def edge_cut(args, seeds: int, pings: int) -> None:
+    """The --edge-cut rows (see the module docstring): seeds 1000 .. 1000 + seeds - 1."""
+    for tx_factor, extent in EDGE_CUT_CASES[:1] if args.quick else EDGE_CUT_CASES:
+        yaws, start = {}, time.perf_counter()
+        for seed in range(1000, 1000 + seeds):
+            for nearer in (0.0, NEARER):
+                scene, floor, echo = motionless_scene(tx_factor, extent, pings, seed, nearer)
+                pairs = dpca.estimate(echo, scene.array, scene.platform.speed)
+                for r, column in zip(pairs.block_range, pairs.block_yaw.T):
+                    if np.any(np.isfinite(column)):
+                        yaws.setdefault((round(float(r), 2), nearer, floor.x[0]), []).append(float(np.nanmean(column)))
+        seconds = time.perf_counter() - start
+        for (r, nearer, near_edge), values in sorted(yaws.items()):
+            if len(values) < 2 or r > ACROSS[0] + 8:
+                continue
+            # where the near edge cuts the block's middle ring: its along-track direction cosine
+            cut = float(np.sqrt(max(0.0, 1 - (near_edge / r) ** 2)))
+            report(args, "dpca-yaw-edge-cut", "numpy", {"tx_factor": tx_factor, "extent": extent, "seeds": seeds,
+                                                        "pings": pings, "nearer_m": nearer, "range_m": r},
+                   len(values) / seconds, "block means/s (with simulation)", seconds, near_edge_m=near_edge,
+                   cut_sin=round(cut, 3), cut_over_lobe=round(cut / dpca.geometry.main_lobe(scene.array, scene.waveform.f0,
+                                                                                             scene.medium.sound_speed), 2),
+                   yaw_mean_urad=1e6 * float(np.mean(values)),
+                   yaw_error_urad=1e6 * float(np.std(values, ddof=1) / np.sqrt(len(values))),
+                   load=[round(x, 2) for x in os.getloadavg()])
+
+
 def main() -> None:
     extra = argparse.ArgumentParser(add_help=False)
     extra.add_argument("--bias", type=int, default=0, metavar="SEEDS")
     extra.add_argument("--edges", type=int, default=0, metavar="SEEDS")
+    extra.add_argument("--edge-cut", type=int, default=0, metavar="SEEDS")
     extra.add_argument("--pings", type=int, default=30)
     own, sys.argv[1:] = extra.parse_known_args()
     args = arguments(__doc__.splitlines()[0])
@@ -294,6 +342,9 @@ def main() -> None:
         return
     if own.edges:
         edge_profile(args, own.edges, own.pings)
+        return
+    if own.edge_cut:
+        edge_cut(args, own.edge_cut, own.pings)
         return
     rng = np.random.default_rng(0)
     repeats = args.repeats or 3
