@@ -195,6 +195,50 @@ __kernel void ffbp_leaf(__global const double2 *image, __global const int *slots
     }
 }
 
+/* A parent row's work-item (sixteen samples i0 .. i0 + 15 of row j, the first at out[first]):
+ * wholly outside the row's span [span.x, span.y), it writes its n_valid zeros and returns 1. */
+inline int parent_zeros(__global float2 *out, const size_t first, const int n_valid, const int i0, const int2 span)
+{
+    if (i0 < span.y && i0 + 16 > span.x)
+        return 0;
+    for (int l = 0; l < n_valid; ++l)
+        out[first + l] = (float2)(0.0f, 0.0f);
+    return 1;
+}
+
+/* Sixteen complex values (acc_re, acc_im) as two float16, re and im interleaved. */
+inline float16 interleave_lo(const float16 re, const float16 im)
+{
+    return (float16)(re.s0, im.s0, re.s1, im.s1, re.s2, im.s2, re.s3, im.s3, re.s4, im.s4, re.s5, im.s5, re.s6, im.s6,
+                     re.s7, im.s7);
+}
+
+inline float16 interleave_hi(const float16 re, const float16 im)
+{
+    return (float16)(re.s8, im.s8, re.s9, im.s9, re.sa, im.sa, re.sb, im.sb, re.sc, im.sc, re.sd, im.sd, re.se, im.se,
+                     re.sf, im.sf);
+}
+
+/* A parent row's work-item's results written: the n_valid samples from out[first] on, zero
+ * outside the row's span; a work-item wholly inside it in two stores. */
+inline void store_parent(__global float2 *out, const size_t first, const int n_valid, const int i0, const int2 span,
+                         const float16 acc_re, const float16 acc_im)
+{
+    if (n_valid == 16 && i0 >= span.x && i0 + 16 <= span.y) {
+        __global float *o = (__global float *)(out + first);
+        STORE_F16(interleave_lo(acc_re, acc_im), o);
+        STORE_F16(interleave_hi(acc_re, acc_im), o + 16);
+        return;
+    }
+    float re_out[16], im_out[16];
+    vstore16(acc_re, 0, re_out);
+    vstore16(acc_im, 0, im_out);
+    for (int l = 0; l < n_valid; ++l) {
+        const int in = i0 + l >= span.x && i0 + l < span.y;
+        out[first + l] = in ? (float2)(re_out[l], im_out[l]) : (float2)(0.0f, 0.0f);
+    }
+}
+
 __kernel void ffbp_merge(__global const float2 *images, __global const long *offsets,
                          __global const ffbp_frame_t *frames, __global const float *taps,
                          __global const double *points, const ffbp_frame_t parent, __global const int2 *spans,
@@ -213,11 +257,8 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
         return;
     first = (size_t)j * parent.n_r + i0;
     const int2 span = spans[j];  /* the row's computed samples [span.x, span.y): zero elsewhere */
-    if (i0 >= span.y || i0 + 16 <= span.x) {
-        for (int l = 0; l < n_valid; ++l)
-            out[first + l] = (float2)(0.0f, 0.0f);
+    if (parent_zeros(out, first, n_valid, i0, span))
         return;
-    }
     r_p = polar_points16(parent, plane, j, i0 + LANE_INDEX, &x, &y, &z);
 #else
     const int i0 = 16 * get_global_id(0);
@@ -303,24 +344,16 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
         acc_im += re * sn + im * cs;
     }
 #ifdef PARENT_GRID
-    const int whole = n_valid == 16 && i0 >= span.x && i0 + 16 <= span.y;  /* every lane stored, none zeroed */
+    store_parent(out, first, n_valid, i0, span, acc_re, acc_im);
 #else
-    const int whole = n_valid == 16;
-#endif
-    if (whole) {  /* the sixteen complex results interleaved in registers, two stores */
+    if (n_valid == 16) {  /* the sixteen complex results interleaved in registers, two stores */
         __global float *o = (__global float *)(out + first);
-        const float16 lo = (float16)(acc_re.s0, acc_im.s0, acc_re.s1, acc_im.s1, acc_re.s2, acc_im.s2, acc_re.s3,
-                                     acc_im.s3, acc_re.s4, acc_im.s4, acc_re.s5, acc_im.s5, acc_re.s6, acc_im.s6,
-                                     acc_re.s7, acc_im.s7);
-        const float16 hi = (float16)(acc_re.s8, acc_im.s8, acc_re.s9, acc_im.s9, acc_re.sa, acc_im.sa, acc_re.sb,
-                                     acc_im.sb, acc_re.sc, acc_im.sc, acc_re.sd, acc_im.sd, acc_re.se, acc_im.se,
-                                     acc_re.sf, acc_im.sf);
-#if defined(PARENT_GRID) || defined(POINTS_STORE)
-        STORE_F16(lo, o);
-        STORE_F16(hi, o + 16);
+#ifdef POINTS_STORE
+        STORE_F16(interleave_lo(acc_re, acc_im), o);
+        STORE_F16(interleave_hi(acc_re, acc_im), o + 16);
 #else
-        STORE_F16(LOAD_F16(o) + lo, o);
-        STORE_F16(LOAD_F16(o + 16) + hi, o + 16);
+        STORE_F16(LOAD_F16(o) + interleave_lo(acc_re, acc_im), o);
+        STORE_F16(LOAD_F16(o + 16) + interleave_hi(acc_re, acc_im), o + 16);
 #endif
         return;
     }
@@ -328,13 +361,186 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
     vstore16(acc_re, 0, re_out);
     vstore16(acc_im, 0, im_out);
     for (int l = 0; l < n_valid; ++l) {
-#if defined(PARENT_GRID)
-        const int in = i0 + l >= span.x && i0 + l < span.y;
-        out[first + l] = in ? (float2)(re_out[l], im_out[l]) : (float2)(0.0f, 0.0f);
-#elif defined(POINTS_STORE)
+#ifdef POINTS_STORE
         out[first + l] = (float2)(re_out[l], im_out[l]);
 #else
         out[first + l] += (float2)(re_out[l], im_out[l]);
 #endif
     }
+#endif
 }
+
+#if TAPS == 8
+/* The two-pass merge (clsas/image/ffbp/merge.py, _two_pass and its docstring; children on the
+ * parent's axis, sampled for it). a = u . (C_c - C_p), the child's centre along the parent's axis. */
+inline double child_offset(const ffbp_frame_t f, const ffbp_frame_t parent)
+{
+    return dot(vload3(0, parent.axis), vload3(0, f.centre) - vload3(0, parent.centre));
+}
+
+#define SPREAD_MAX 3  /* window starts of one half's eight columns at most this far apart: the vector path */
+
+/* Eight pairs (x_L.sA for L = 0 .. 7): column A of eight lanes' duplicated taps (TAP_ROW8). */
+#define TAP_COLUMN(A) as_float16((double8)(x0.s##A, x1.s##A, x2.s##A, x3.s##A, x4.s##A, x5.s##A, x6.s##A, x7.s##A))
+
+/* Pass 1 for eight consecutive columns (col: the first's sample of row 0; rows n_r complex
+ * samples apart) of one child: lane L read down its column at rows iv.sL .. iv.sL + 7 with the
+ * taps of table row row.sL (ok.sL: every tap exists, else 0), re/im interleaved. Where the lanes'
+ * first rows lie within SPREAD_MAX of each other and all eight columns exist (whole), the rows
+ * are read whole (eight contiguous complex samples each, for every lane at once) and weighted by
+ * the lanes' own taps (transposed in registers), once for each first row among the lanes (each
+ * lane keeps the sum from its own); otherwise lane by lane. */
+inline float16 angle_half(const int8 ok, const int8 iv, const int8 row, __global const float *col, const int n_r,
+                          __global const float *taps, const int whole)
+{
+    const int8 first = select((int8)INT_MAX, iv, ok), last = select((int8)INT_MIN, iv, ok);
+    const int4 f4 = min(first.lo, first.hi), l4 = max(last.lo, last.hi);
+    const int2 f2 = min(f4.lo, f4.hi), l2 = max(l4.lo, l4.hi);
+    const int base = min(f2.x, f2.y);
+    if (base == INT_MAX)  /* no lane reads */
+        return (float16)0.0f;
+    const int spread = max(l2.x, l2.y) - base;
+    const int16 ok2 = ((int16)(ok, ok)).s08192a3b4c5d6e7f;  /* each lane twice: re and im */
+    if (whole && spread <= SPREAD_MAX) {
+        const double8 x0 = as_double8(TAP_ROW8(taps, row.s0)), x1 = as_double8(TAP_ROW8(taps, row.s1)),
+                      x2 = as_double8(TAP_ROW8(taps, row.s2)), x3 = as_double8(TAP_ROW8(taps, row.s3)),
+                      x4 = as_double8(TAP_ROW8(taps, row.s4)), x5 = as_double8(TAP_ROW8(taps, row.s5)),
+                      x6 = as_double8(TAP_ROW8(taps, row.s6)), x7 = as_double8(TAP_ROW8(taps, row.s7));
+        const float16 w0 = TAP_COLUMN(0), w1 = TAP_COLUMN(1), w2 = TAP_COLUMN(2), w3 = TAP_COLUMN(3),
+                      w4 = TAP_COLUMN(4), w5 = TAP_COLUMN(5), w6 = TAP_COLUMN(6), w7 = TAP_COLUMN(7);
+        const size_t step = 2 * (size_t)n_r;
+        __global const float *p = col + base * step;
+#define WINDOW8(q) (w0 * LOAD_F16(q) + w1 * LOAD_F16((q) + step) + w2 * LOAD_F16((q) + 2 * step)                 \
+                    + w3 * LOAD_F16((q) + 3 * step) + w4 * LOAD_F16((q) + 4 * step) + w5 * LOAD_F16((q) + 5 * step) \
+                    + w6 * LOAD_F16((q) + 6 * step) + w7 * LOAD_F16((q) + 7 * step))
+        float16 acc = WINDOW8(p);
+        if (spread > 0) {  /* the lanes whose window starts d rows lower take the window from there */
+            const int16 shift = ((int16)(iv, iv)).s08192a3b4c5d6e7f - base;
+            for (int d = 1; d <= spread; ++d)
+                acc = select(acc, WINDOW8(p + d * step), shift == d);
+        }
+#undef WINDOW8
+        return select((float16)0.0f, acc, ok2);
+    }
+    int ivs[8], rows[8], oks[8];
+    vstore8(iv, 0, ivs);
+    vstore8(row, 0, rows);
+    vstore8(ok, 0, oks);
+    float o[16];
+    for (int l = 0; l < 8; ++l) {
+        float re = 0.0f, im = 0.0f;
+        if (oks[l]) {
+            __global const float *p = col + 2 * ((size_t)ivs[l] * n_r + l);
+            for (int a = 0; a < 8; ++a) {
+                const float t = taps[8 * rows[l] + a];
+                re += t * p[2 * (size_t)a * n_r];
+                im += t * p[2 * (size_t)a * n_r + 1];
+            }
+        }
+        o[2 * l] = re;
+        o[2 * l + 1] = im;
+    }
+    return vload16(0, o);
+}
+
+/* Pass 1: work-item (q, j, k) writes child k's columns i0 = 16 q .. i0 + 15 (those < n_r) read
+ * down to parent row j's sines (merge.py: T_c[j, i]) to rows[starts[k] + j n_r + i]; only the
+ * columns pass 2 reads (the child ranges of the row's span, the taps either side: r_c grows with
+ * r_p along a row, as r_p > |a|) and only rows with a span. images holds the children at offsets,
+ * frames their frames, parent the parent's frame and spans its rows' computed samples. */
+__kernel void ffbp_angle(__global const float2 *images, __global const long *offsets,
+                         __global const ffbp_frame_t *frames, __global const float *taps, const ffbp_frame_t parent,
+                         __global const int2 *spans, __global const long *starts, __global float2 *rows)
+{
+    const int j = get_global_id(1), k = get_global_id(2), i0 = 16 * get_global_id(0);
+    const ffbp_frame_t f = frames[k];
+    const int n_r = f.n_r;
+    if (i0 >= n_r || j >= parent.n_v)  /* past the child's columns, or the launch's padding */
+        return;
+    const int2 span = spans[j];
+    if (span.x >= span.y)
+        return;
+    const double v = parent.v0 + j * parent.dv, a = child_offset(f, parent);
+    const double r_lo = parent.r0 + span.x * parent.dr, r_hi = parent.r0 + (span.y - 1) * parent.dr;
+    const double c_lo = (sqrt(r_lo * r_lo - 2.0 * a * v * r_lo + a * a) - f.r0) / f.dr;
+    const double c_hi = (sqrt(r_hi * r_hi - 2.0 * a * v * r_hi + a * a) - f.r0) / f.dr;
+    if (i0 + 15 < c_lo - (TAPS / 2 + 1) || i0 > c_hi + (TAPS / 2 + 1))
+        return;
+    const double16 rc = f.r0 + (i0 + LANE_INDEX) * f.dr;
+    const double16 disc = rc * rc - a * a * (1.0 - v * v);
+    const double16 rp = a * v + sqrt(fmax(disc, 0.0));
+    const double16 pv = clamp(((rp * v - a) / rc - f.v0) * (1.0 / f.dv), -1.0, 1e9);
+    const int16 fv = convert_int16(pv), iv = fv - (TAPS / 2 - 1);  /* floor where >= 0 */
+    const int16 lane = convert_int16(LANE_INDEX);
+    const int16 ok = convert_int16(disc >= 0.0 && pv >= 0.0) & (iv >= 0 && iv <= f.n_v - TAPS) & (i0 + lane < n_r);
+    const int16 row = select((int16)0, NEAREST_TAP_ROW(convert_int16, pv - convert_double16(fv)), ok);
+    __global const float *col = (__global const float *)(images + offsets[k] + i0);
+    const float16 lo = angle_half(ok.lo, iv.lo, row.lo, col, n_r, taps, i0 + 8 <= n_r);
+    const float16 hi = angle_half(ok.hi, iv.hi, row.hi, col + 16, n_r, taps, i0 + 16 <= n_r);
+    __global float2 *o = rows + starts[k] + (size_t)j * n_r + i0;
+    if (i0 + 16 <= n_r) {
+        STORE_F16(lo, (__global float *)o);
+        STORE_F16(hi, (__global float *)o + 16);
+        return;
+    }
+    float out[32];
+    vstore16(lo, 0, out);
+    vstore16(hi, 1, out);
+    for (int l = 0; l < n_r - i0; ++l)
+        o[l] = (float2)(out[2 * l], out[2 * l + 1]);
+}
+
+/* One lane's eight complex samples of pass 1's row from column ir.sL on (zero if not ok.sL). */
+#define ROW_WINDOW(L) (ok.s##L ? LOAD_F16(t + 2 * ir.s##L) : (float16)0.0f)
+
+/* Pass 2: work-item (q, j) writes parent samples i0 = 16 q .. i0 + 15 of row j (zero outside
+ * its span) to out[out_offset + j n_r + i]: for every child k, pass 1's row read at the child
+ * range r_c = sqrt(r_p^2 - 2 a r_p v + a^2) of each sample by the range taps, times
+ * exp(j 2 pi cycles_per_m (r_c - r_p)), summed. */
+__kernel void ffbp_range(__global const float2 *rows, __global const long *starts,
+                         __global const ffbp_frame_t *frames, __global const float *taps, const ffbp_frame_t parent,
+                         __global const int2 *spans, const double cycles_per_m, const int n_children,
+                         const long out_offset, __global float2 *out)
+{
+    out += out_offset;
+    const int j = get_global_id(1), i0 = 16 * get_global_id(0);
+    const int n_valid = min(16, parent.n_r - i0);
+    if (n_valid <= 0 || j >= parent.n_v)  /* the launch is padded to whole work-groups */
+        return;
+    const size_t first = (size_t)j * parent.n_r + i0;
+    const int2 span = spans[j];
+    if (parent_zeros(out, first, n_valid, i0, span))
+        return;
+    const double v = parent.v0 + j * parent.dv;
+    const double16 r_p = parent.r0 + (i0 + LANE_INDEX) * parent.dr;
+    float16 acc_re = (float16)0.0f, acc_im = (float16)0.0f;
+    for (int k = 0; k < n_children; ++k) {
+        const ffbp_frame_t f = frames[k];
+        const double a = child_offset(f, parent);
+        const double16 rc = sqrt(r_p * r_p - 2.0 * a * v * r_p + a * a);  /* growing with the lane */
+        if (rc.sf < f.r0 || rc.s0 > f.r0 + (f.n_r - 1.0) * f.dr)
+            continue;
+        const double16 pr = clamp((rc - f.r0) * (1.0 / f.dr), -1.0, 1e9);
+        const int16 fr = convert_int16(pr), ir = fr - (TAPS / 2 - 1);  /* floor where >= 0 */
+        const int16 ok = convert_int16(pr >= 0.0) & (ir >= 0 && ir <= f.n_r - TAPS);
+        const int8 ok8 = ok.lo | ok.hi;
+        const int4 ok4 = ok8.lo | ok8.hi;
+        const int2 ok2 = ok4.lo | ok4.hi;
+        if (!(ok2.x | ok2.y))
+            continue;
+        const int16 row_r = select((int16)0, NEAREST_TAP_ROW(convert_int16, pr - convert_double16(fr)), ok);
+        __global const float *t = (__global const float *)(rows + starts[k] + (size_t)j * f.n_r);
+        const double16 cycles = cycles_per_m * (rc - r_p);
+        float16 cs, sn;
+        expj_fraction16(convert_float16(cycles - convert_double16(convert_int16(cycles))), &cs, &sn);
+        const float16 lo = sinc8_lanes(taps, row_r.lo, ROW_WINDOW(0), ROW_WINDOW(1), ROW_WINDOW(2), ROW_WINDOW(3),
+                                       ROW_WINDOW(4), ROW_WINDOW(5), ROW_WINDOW(6), ROW_WINDOW(7));
+        const float16 hi = sinc8_lanes(taps, row_r.hi, ROW_WINDOW(8), ROW_WINDOW(9), ROW_WINDOW(a), ROW_WINDOW(b),
+                                       ROW_WINDOW(c), ROW_WINDOW(d), ROW_WINDOW(e), ROW_WINDOW(f));
+        const float16 re = (float16)(lo.even, hi.even), im = (float16)(lo.odd, hi.odd);
+        acc_re += re * cs - im * sn;
+        acc_im += re * sn + im * cs;
+    }
+    store_parent(out, first, n_valid, i0, span, acc_re, acc_im);
+}
+#endif
