@@ -372,16 +372,69 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
 
 #if TAPS == 8
 /* The two-pass merge (clsas/image/ffbp/merge.py, _two_pass and its docstring; children on the
- * parent's axis, sampled for it). a = u . (C_c - C_p), the child's centre along the parent's axis. */
+ * parent's axis, sampled for it). Geometry: a row's and a child's scalars (a, the child ranges of
+ * the row's span, one lane's position) in double; the other lanes' offsets from that lane in
+ * float (an offset of at most sixteen samples, so its float rounding is ~1e-7 of a sample), added
+ * to it in double. */
+#define LANE_FLOAT ((float16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))
+
+/* a = u . (C_c - C_p), the child's centre along the parent's axis. */
 inline double child_offset(const ffbp_frame_t f, const ffbp_frame_t parent)
 {
     return dot(vload3(0, parent.axis), vload3(0, f.centre) - vload3(0, parent.centre));
 }
 
+/* The child range of parent range r on the row of sine v (r_c^2 = r^2 - 2 a v r + a^2). */
+inline double child_range(const double r, const double a, const double v)
+{
+    return sqrt(r * r - 2.0 * a * v * r + a * a);
+}
+
+/* Whether pass 1 can give a parent row (sine v, computed samples span) anything of child f: the
+ * child columns pass 2 reads there ([*lo, *hi] from the child ranges of the span's ends, taps / 2
+ * + 1 either side: r_c grows with r_p along a row, as r_p > |a|) meet child rows at sines (v_c
+ * monotonic along the row) with a whole window of taps, within a sample's slack. Both passes
+ * decide alike from the same numbers (pass 1 writes nothing, pass 2 reads nothing, where not). */
+inline int row_meets_child(const ffbp_frame_t f, const ffbp_frame_t parent, const int2 span, const double v,
+                           const double a, double *lo, double *hi)
+{
+    if (span.x >= span.y)
+        return 0;
+    *lo = (child_range(parent.r0 + span.x * parent.dr, a, v) - f.r0) / f.dr - (TAPS / 2 + 1);
+    *hi = (child_range(parent.r0 + (span.y - 1) * parent.dr, a, v) - f.r0) / f.dr + (TAPS / 2 + 1);
+    const double k = a * a * (1.0 - v * v), r_a = f.r0 + *lo * f.dr, r_b = f.r0 + *hi * f.dr;
+    if (r_a * r_a <= k)
+        return 1;  /* the row meets a range so near only on its far side: not decided here */
+    const double v_a = ((a * v + sqrt(r_a * r_a - k)) * v - a) / r_a, v_b = ((a * v + sqrt(r_b * r_b - k)) * v - a) / r_b;
+    const double p_lo = (fmin(v_a, v_b) - f.v0) / f.dv, p_hi = (fmax(v_a, v_b) - f.v0) / f.dv;
+    return p_hi >= TAPS / 2 - 2 && p_lo < f.n_v - TAPS / 2 + 1;
+}
+
 #define SPREAD_MAX 3  /* window starts of one half's eight columns at most this far apart: the vector path */
 
-/* Eight pairs (x_L.sA for L = 0 .. 7): column A of eight lanes' duplicated taps (TAP_ROW8). */
-#define TAP_COLUMN(A) as_float16((double8)(x0.s##A, x1.s##A, x2.s##A, x3.s##A, x4.s##A, x5.s##A, x6.s##A, x7.s##A))
+/* The taps of eight lanes (t_L, eight taps each) transposed: w_A holds tap A of the eight lanes,
+ * each twice (re, im interleaved), three rounds of two-source permutes. */
+#define TRANSPOSE_TAPS(t0, t1, t2, t3, t4, t5, t6, t7)                                                     \
+    const float8 u0 = (float8)(t0.s0, t1.s0, t0.s2, t1.s2, t0.s4, t1.s4, t0.s6, t1.s6),                    \
+                 u1 = (float8)(t0.s1, t1.s1, t0.s3, t1.s3, t0.s5, t1.s5, t0.s7, t1.s7),                    \
+                 u2 = (float8)(t2.s0, t3.s0, t2.s2, t3.s2, t2.s4, t3.s4, t2.s6, t3.s6),                    \
+                 u3 = (float8)(t2.s1, t3.s1, t2.s3, t3.s3, t2.s5, t3.s5, t2.s7, t3.s7),                    \
+                 u4 = (float8)(t4.s0, t5.s0, t4.s2, t5.s2, t4.s4, t5.s4, t4.s6, t5.s6),                    \
+                 u5 = (float8)(t4.s1, t5.s1, t4.s3, t5.s3, t4.s5, t5.s5, t4.s7, t5.s7),                    \
+                 u6 = (float8)(t6.s0, t7.s0, t6.s2, t7.s2, t6.s4, t7.s4, t6.s6, t7.s6),                    \
+                 u7 = (float8)(t6.s1, t7.s1, t6.s3, t7.s3, t6.s5, t7.s5, t6.s7, t7.s7);                    \
+    const float8 y0 = (float8)(u0.s01, u2.s01, u0.s45, u2.s45), y2 = (float8)(u0.s23, u2.s23, u0.s67, u2.s67), \
+                 y1 = (float8)(u1.s01, u3.s01, u1.s45, u3.s45), y3 = (float8)(u1.s23, u3.s23, u1.s67, u3.s67), \
+                 y4 = (float8)(u4.s01, u6.s01, u4.s45, u6.s45), y6 = (float8)(u4.s23, u6.s23, u4.s67, u6.s67), \
+                 y5 = (float8)(u5.s01, u7.s01, u5.s45, u7.s45), y7 = (float8)(u5.s23, u7.s23, u5.s67, u7.s67); \
+    const float16 w0 = ((float16)(y0.lo, y4.lo, y0.lo, y4.lo)).s08192a3b4c5d6e7f,                           \
+                  w4 = ((float16)(y0.hi, y4.hi, y0.hi, y4.hi)).s08192a3b4c5d6e7f,                           \
+                  w2 = ((float16)(y2.lo, y6.lo, y2.lo, y6.lo)).s08192a3b4c5d6e7f,                           \
+                  w6 = ((float16)(y2.hi, y6.hi, y2.hi, y6.hi)).s08192a3b4c5d6e7f,                           \
+                  w1 = ((float16)(y1.lo, y5.lo, y1.lo, y5.lo)).s08192a3b4c5d6e7f,                           \
+                  w5 = ((float16)(y1.hi, y5.hi, y1.hi, y5.hi)).s08192a3b4c5d6e7f,                           \
+                  w3 = ((float16)(y3.lo, y7.lo, y3.lo, y7.lo)).s08192a3b4c5d6e7f,                           \
+                  w7 = ((float16)(y3.hi, y7.hi, y3.hi, y7.hi)).s08192a3b4c5d6e7f
 
 /* Pass 1 for eight consecutive columns (col: the first's sample of row 0; rows n_r complex
  * samples apart) of one child: lane L read down its column at rows iv.sL .. iv.sL + 7 with the
@@ -402,12 +455,10 @@ inline float16 angle_half(const int8 ok, const int8 iv, const int8 row, __global
     const int spread = max(l2.x, l2.y) - base;
     const int16 ok2 = ((int16)(ok, ok)).s08192a3b4c5d6e7f;  /* each lane twice: re and im */
     if (whole && spread <= SPREAD_MAX) {
-        const double8 x0 = as_double8(TAP_ROW8(taps, row.s0)), x1 = as_double8(TAP_ROW8(taps, row.s1)),
-                      x2 = as_double8(TAP_ROW8(taps, row.s2)), x3 = as_double8(TAP_ROW8(taps, row.s3)),
-                      x4 = as_double8(TAP_ROW8(taps, row.s4)), x5 = as_double8(TAP_ROW8(taps, row.s5)),
-                      x6 = as_double8(TAP_ROW8(taps, row.s6)), x7 = as_double8(TAP_ROW8(taps, row.s7));
-        const float16 w0 = TAP_COLUMN(0), w1 = TAP_COLUMN(1), w2 = TAP_COLUMN(2), w3 = TAP_COLUMN(3),
-                      w4 = TAP_COLUMN(4), w5 = TAP_COLUMN(5), w6 = TAP_COLUMN(6), w7 = TAP_COLUMN(7);
+        const float8 t0 = LOAD_F8(taps + 8 * row.s0), t1 = LOAD_F8(taps + 8 * row.s1), t2 = LOAD_F8(taps + 8 * row.s2),
+                     t3 = LOAD_F8(taps + 8 * row.s3), t4 = LOAD_F8(taps + 8 * row.s4), t5 = LOAD_F8(taps + 8 * row.s5),
+                     t6 = LOAD_F8(taps + 8 * row.s6), t7 = LOAD_F8(taps + 8 * row.s7);
+        TRANSPOSE_TAPS(t0, t1, t2, t3, t4, t5, t6, t7);
         const size_t step = 2 * (size_t)n_r;
         __global const float *p = col + base * step;
 #define WINDOW8(q) (w0 * LOAD_F16(q) + w1 * LOAD_F16((q) + step) + w2 * LOAD_F16((q) + 2 * step)                 \
@@ -444,10 +495,12 @@ inline float16 angle_half(const int8 ok, const int8 iv, const int8 row, __global
 }
 
 /* Pass 1: work-item (q, j, k) writes child k's columns i0 = 16 q .. i0 + 15 (those < n_r) read
- * down to parent row j's sines (merge.py: T_c[j, i]) to rows[starts[k] + j n_r + i]; only the
- * columns pass 2 reads (the child ranges of the row's span, the taps either side: r_c grows with
- * r_p along a row, as r_p > |a|) and only rows with a span. images holds the children at offsets,
- * frames their frames, parent the parent's frame and spans its rows' computed samples. */
+ * down to parent row j's sines (merge.py: T_c[j, i]) to rows[starts[k] + j n_r + i]: only rows
+ * and columns pass 2 reads (row_meets_child). The lanes' sines from the last lane's (double):
+ * with r the child range, s = sqrt(r^2 - a^2 (1 - v^2)) and r_p = a v + s, a lane delta from it
+ * has s' - s = delta (2 r + delta) / (s' + s) and v_c' - v_c = ((s' - s) v - v_c delta) / r'.
+ * images holds the children at offsets, frames their frames, parent the parent's frame and
+ * spans its rows' computed samples. */
 __kernel void ffbp_angle(__global const float2 *images, __global const long *offsets,
                          __global const ffbp_frame_t *frames, __global const float *taps, const ffbp_frame_t parent,
                          __global const int2 *spans, __global const long *starts, __global float2 *rows)
@@ -457,27 +510,30 @@ __kernel void ffbp_angle(__global const float2 *images, __global const long *off
     const int n_r = f.n_r;
     if (i0 >= n_r || j >= parent.n_v)  /* past the child's columns, or the launch's padding */
         return;
-    const int2 span = spans[j];
-    if (span.x >= span.y)
-        return;
     const double v = parent.v0 + j * parent.dv, a = child_offset(f, parent);
-    const double r_lo = parent.r0 + span.x * parent.dr, r_hi = parent.r0 + (span.y - 1) * parent.dr;
-    const double c_lo = (sqrt(r_lo * r_lo - 2.0 * a * v * r_lo + a * a) - f.r0) / f.dr;
-    const double c_hi = (sqrt(r_hi * r_hi - 2.0 * a * v * r_hi + a * a) - f.r0) / f.dr;
-    if (i0 + 15 < c_lo - (TAPS / 2 + 1) || i0 > c_hi + (TAPS / 2 + 1))
+    double c_lo, c_hi;
+    if (!row_meets_child(f, parent, spans[j], v, a, &c_lo, &c_hi) || i0 + 15 < c_lo || i0 > c_hi)
         return;
-    const double16 rc = f.r0 + (i0 + LANE_INDEX) * f.dr;
-    const double16 disc = rc * rc - a * a * (1.0 - v * v);
-    const double16 rp = a * v + sqrt(fmax(disc, 0.0));
-    const double16 pv = clamp(((rp * v - a) / rc - f.v0) * (1.0 / f.dv), -1.0, 1e9);
+    __global float2 *o = rows + starts[k] + (size_t)j * n_r + i0;
+    const double r15 = f.r0 + (i0 + 15) * f.dr, disc15 = r15 * r15 - a * a * (1.0 - v * v);
+    if (disc15 <= 0.0) {  /* no lane's range meets the row */
+        for (int l = 0; l < min(16, n_r - i0); ++l)
+            o[l] = (float2)(0.0f, 0.0f);
+        return;
+    }
+    const double s15 = sqrt(disc15), vc15 = ((a * v + s15) * v - a) / r15;
+    const float16 delta = (LANE_FLOAT - 15.0f) * (float)f.dr;
+    const float16 grow = delta * (2.0f * (float)r15 + delta), disc = (float)disc15 + grow;
+    const float16 ds = grow / (sqrt(fmax(disc, 0.0f)) + (float)s15);
+    const float16 step = ((float)v * ds - (float)vc15 * delta) / (((float)r15 + delta) * (float)f.dv);
+    const double16 pv = clamp((vc15 - f.v0) / f.dv + convert_double16(step), -1.0, 1e9);
     const int16 fv = convert_int16(pv), iv = fv - (TAPS / 2 - 1);  /* floor where >= 0 */
     const int16 lane = convert_int16(LANE_INDEX);
-    const int16 ok = convert_int16(disc >= 0.0 && pv >= 0.0) & (iv >= 0 && iv <= f.n_v - TAPS) & (i0 + lane < n_r);
-    const int16 row = select((int16)0, NEAREST_TAP_ROW(convert_int16, pv - convert_double16(fv)), ok);
+    const int16 ok = (disc >= 0.0f) & convert_int16(pv >= 0.0) & (iv >= 0 && iv <= f.n_v - TAPS) & (i0 + lane < n_r);
+    const int16 row = select((int16)0, NEAREST_TAP_ROW(convert_int16, convert_float16(pv - convert_double16(fv))), ok);
     __global const float *col = (__global const float *)(images + offsets[k] + i0);
     const float16 lo = angle_half(ok.lo, iv.lo, row.lo, col, n_r, taps, i0 + 8 <= n_r);
     const float16 hi = angle_half(ok.hi, iv.hi, row.hi, col + 16, n_r, taps, i0 + 16 <= n_r);
-    __global float2 *o = rows + starts[k] + (size_t)j * n_r + i0;
     if (i0 + 16 <= n_r) {
         STORE_F16(lo, (__global float *)o);
         STORE_F16(hi, (__global float *)o + 16);
@@ -494,9 +550,14 @@ __kernel void ffbp_angle(__global const float2 *images, __global const long *off
 #define ROW_WINDOW(L) (ok.s##L ? LOAD_F16(t + 2 * ir.s##L) : (float16)0.0f)
 
 /* Pass 2: work-item (q, j) writes parent samples i0 = 16 q .. i0 + 15 of row j (zero outside
- * its span) to out[out_offset + j n_r + i]: for every child k, pass 1's row read at the child
- * range r_c = sqrt(r_p^2 - 2 a r_p v + a^2) of each sample by the range taps, times
- * exp(j 2 pi cycles_per_m (r_c - r_p)), summed. */
+ * its span) to out[out_offset + j n_r + i]: for every child k that row_meets_child, pass 1's row
+ * read at the child range r_c of each sample by the range taps, times
+ * exp(j 2 pi cycles_per_m (r_c - r_p)), summed. The lanes' r_c from the first lane's (double):
+ * a lane delta further has r_c' = r_c + delta + e, e (2 r_c + 2 delta + e) = 2 delta g with
+ * g = r_p - a v - r_c (from r_c'^2 - r_c^2 = delta (2 r_p - 2 a v + delta)), e by one fixed-point
+ * step from e0 = g delta / (r_c + delta) (its error ~e0^2 / r_c); the phase moves by e alone, and
+ * the position by delta in double (a float position's rounding would pick a neighbouring tap row
+ * of the table now and then) and e in float. */
 __kernel void ffbp_range(__global const float2 *rows, __global const long *starts,
                          __global const ffbp_frame_t *frames, __global const float *taps, const ffbp_frame_t parent,
                          __global const int2 *spans, const double cycles_per_m, const int n_children,
@@ -511,16 +572,22 @@ __kernel void ffbp_range(__global const float2 *rows, __global const long *start
     const int2 span = spans[j];
     if (parent_zeros(out, first, n_valid, i0, span))
         return;
-    const double v = parent.v0 + j * parent.dv;
-    const double16 r_p = parent.r0 + (i0 + LANE_INDEX) * parent.dr;
+    const double v = parent.v0 + j * parent.dv, r0 = parent.r0 + i0 * parent.dr;
+    const float16 delta = LANE_FLOAT * (float)parent.dr;
     float16 acc_re = (float16)0.0f, acc_im = (float16)0.0f;
     for (int k = 0; k < n_children; ++k) {
         const ffbp_frame_t f = frames[k];
         const double a = child_offset(f, parent);
-        const double16 rc = sqrt(r_p * r_p - 2.0 * a * v * r_p + a * a);  /* growing with the lane */
-        if (rc.sf < f.r0 || rc.s0 > f.r0 + (f.n_r - 1.0) * f.dr)
+        double c_lo, c_hi;
+        if (!row_meets_child(f, parent, span, v, a, &c_lo, &c_hi))
             continue;
-        const double16 pr = clamp((rc - f.r0) * (1.0 / f.dr), -1.0, 1e9);
+        const double rc0 = child_range(r0, a, v), g = r0 - a * v - rc0;
+        const float16 e0 = (float)g * delta / ((float)rc0 + delta);
+        const float16 e = 2.0f * (float)g * delta / (2.0f * ((float)rc0 + delta) + e0);  /* r_c - rc0 - delta */
+        if (rc0 + delta.sf + e.sf < f.r0 || rc0 > f.r0 + (f.n_r - 1.0) * f.dr)
+            continue;
+        const double16 pr = clamp((rc0 - f.r0) / f.dr + LANE_INDEX * (parent.dr / f.dr)
+                                  + convert_double16(e * (float)(1.0 / f.dr)), -1.0, 1e9);
         const int16 fr = convert_int16(pr), ir = fr - (TAPS / 2 - 1);  /* floor where >= 0 */
         const int16 ok = convert_int16(pr >= 0.0) & (ir >= 0 && ir <= f.n_r - TAPS);
         const int8 ok8 = ok.lo | ok.hi;
@@ -528,11 +595,12 @@ __kernel void ffbp_range(__global const float2 *rows, __global const long *start
         const int2 ok2 = ok4.lo | ok4.hi;
         if (!(ok2.x | ok2.y))
             continue;
-        const int16 row_r = select((int16)0, NEAREST_TAP_ROW(convert_int16, pr - convert_double16(fr)), ok);
+        const int16 row_r = select((int16)0, NEAREST_TAP_ROW(convert_int16, convert_float16(pr - convert_double16(fr))), ok);
         __global const float *t = (__global const float *)(rows + starts[k] + (size_t)j * f.n_r);
-        const double16 cycles = cycles_per_m * (rc - r_p);
+        const double c0 = cycles_per_m * (rc0 - r0);
+        const float16 cycles = (float)(c0 - (double)(long)c0) + (float)cycles_per_m * e;
         float16 cs, sn;
-        expj_fraction16(convert_float16(cycles - convert_double16(convert_int16(cycles))), &cs, &sn);
+        expj_fraction16(cycles - convert_float16(convert_int16(cycles)), &cs, &sn);
         const float16 lo = sinc8_lanes(taps, row_r.lo, ROW_WINDOW(0), ROW_WINDOW(1), ROW_WINDOW(2), ROW_WINDOW(3),
                                        ROW_WINDOW(4), ROW_WINDOW(5), ROW_WINDOW(6), ROW_WINDOW(7));
         const float16 hi = sinc8_lanes(taps, row_r.hi, ROW_WINDOW(8), ROW_WINDOW(9), ROW_WINDOW(a), ROW_WINDOW(b),

@@ -49,6 +49,7 @@ from .polar import PolarGrid
 
 KERNEL_TAPS = (4, 8)
 SEPARABLE_TAPS = (8,)  # interpolators with the two-pass kernels (ffbp_angle, ffbp_range)
+TWO_PASS = True  # False: every merge T x T and no child widened (for comparison: bench_ffbp --passes, tests)
 CHUNK = 2**16  # output samples a reference step
 LANES = 16  # output samples a work-item of kernels/ffbp.cl
 

@@ -41,7 +41,7 @@ import dataclasses
 import numpy as np
 
 from ...model import EchoData
-from .merge import SEPARABLE_TAPS
+from . import merge
 from .polar import Scene, extents, oversampling, sample_grids, widened
 
 LEAF_SAMPLES = 16  # the default first stage: the fewest pulses whose leaf grid is at least this wide in angle
@@ -197,7 +197,7 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         top = new_top
     rho = oversampling(taps, tolerance, top + 1)  # the stages of the tree as it stands, settled or not
     grids = [grids_for(pulses[level], rho) if level <= top else [] for level in range(len(pulses))]
-    if taps in SEPARABLE_TAPS:
+    if merge.TWO_PASS and taps in merge.SEPARABLE_TAPS:
         _separable(grids, pulses, children, top, extents_of, rho, taps)
     return Tree(pulses, children, grids, top, rho, first)
 
