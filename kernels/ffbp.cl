@@ -494,28 +494,16 @@ inline float16 angle_half(const int8 ok, const int8 iv, const int8 row, __global
     return vload16(0, o);
 }
 
-/* Pass 1: work-item (q, j, k) writes child k's columns i0 = 16 q .. i0 + 15 (those < n_r) read
- * down to parent row j's sines (merge.py: T_c[j, i]) to rows[starts[k] + j n_r + i]: only rows
- * and columns pass 2 reads (row_meets_child). The lanes' sines from the last lane's (double):
- * with r the child range, s = sqrt(r^2 - a^2 (1 - v^2)) and r_p = a v + s, a lane delta from it
- * has s' - s = delta (2 r + delta) / (s' + s) and v_c' - v_c = ((s' - s) v - v_c delta) / r'.
- * images holds the children at offsets, frames their frames, parent the parent's frame and
- * spans its rows' computed samples. */
-__kernel void ffbp_angle(__global const float2 *images, __global const long *offsets,
-                         __global const ffbp_frame_t *frames, __global const float *taps, const ffbp_frame_t parent,
-                         __global const int2 *spans, __global const long *starts, __global float2 *rows)
+/* Pass 1 for one work-item's sixteen columns i0 .. i0 + 15 (those < n_r) of child f (its image
+ * img) on the parent row of sine v (a, k = a^2 (1 - v^2)), written to o (the row's column i0).
+ * The lanes' sines from the last lane's (double): with r the child range, s = sqrt(r^2 - k) and
+ * r_p = a v + s, a lane delta from it has s' - s = delta (2 r + delta) / (s' + s) and
+ * v_c' - v_c = ((s' - s) v - v_c delta) / r'. */
+inline void angle_columns(const ffbp_frame_t f, __global const float2 *img, const int i0, const double v,
+                          const double a, const double k, __global const float *taps, __global float2 *o)
 {
-    const int j = get_global_id(1), k = get_global_id(2), i0 = 16 * get_global_id(0);
-    const ffbp_frame_t f = frames[k];
     const int n_r = f.n_r;
-    if (i0 >= n_r || j >= parent.n_v)  /* past the child's columns, or the launch's padding */
-        return;
-    const double v = parent.v0 + j * parent.dv, a = child_offset(f, parent);
-    double c_lo, c_hi;
-    if (!row_meets_child(f, parent, spans[j], v, a, &c_lo, &c_hi) || i0 + 15 < c_lo || i0 > c_hi)
-        return;
-    __global float2 *o = rows + starts[k] + (size_t)j * n_r + i0;
-    const double r15 = f.r0 + (i0 + 15) * f.dr, disc15 = r15 * r15 - a * a * (1.0 - v * v);
+    const double r15 = f.r0 + (i0 + 15) * f.dr, disc15 = r15 * r15 - k;
     if (disc15 <= 0.0) {  /* no lane's range meets the row */
         for (int l = 0; l < min(16, n_r - i0); ++l)
             o[l] = (float2)(0.0f, 0.0f);
@@ -531,7 +519,7 @@ __kernel void ffbp_angle(__global const float2 *images, __global const long *off
     const int16 lane = convert_int16(LANE_INDEX);
     const int16 ok = (disc >= 0.0f) & convert_int16(pv >= 0.0) & (iv >= 0 && iv <= f.n_v - TAPS) & (i0 + lane < n_r);
     const int16 row = select((int16)0, NEAREST_TAP_ROW(convert_int16, convert_float16(pv - convert_double16(fv))), ok);
-    __global const float *col = (__global const float *)(images + offsets[k] + i0);
+    __global const float *col = (__global const float *)(img + i0);
     const float16 lo = angle_half(ok.lo, iv.lo, row.lo, col, n_r, taps, i0 + 8 <= n_r);
     const float16 hi = angle_half(ok.hi, iv.hi, row.hi, col + 16, n_r, taps, i0 + 16 <= n_r);
     if (i0 + 16 <= n_r) {
@@ -546,42 +534,60 @@ __kernel void ffbp_angle(__global const float2 *images, __global const long *off
         o[l] = (float2)(out[2 * l], out[2 * l + 1]);
 }
 
-/* One lane's eight complex samples of pass 1's row from column ir.sL on (zero if not ok.sL). */
+/* Pass 1: work-item (j, k) writes child k's columns read down to parent row j's sines (merge.py:
+ * T_c[j, i]) to rows[starts[k] + j n_r + i], sixteen columns at a time (angle_columns), only
+ * those pass 2 reads (row_meets_child: none on a row it does not reach). images holds the
+ * children at offsets, frames their frames, parent the parent's frame and spans its rows'
+ * computed samples. */
+__kernel void ffbp_angle(__global const float2 *images, __global const long *offsets,
+                         __global const ffbp_frame_t *frames, __global const float *taps, const ffbp_frame_t parent,
+                         __global const int2 *spans, __global const long *starts, __global float2 *rows)
+{
+    const int j = get_global_id(0), k = get_global_id(1);
+    if (j >= parent.n_v)  /* the launch is padded to whole work-groups */
+        return;
+    const ffbp_frame_t f = frames[k];
+    const double v = parent.v0 + j * parent.dv, a = child_offset(f, parent);
+    double c_lo, c_hi;
+    if (!row_meets_child(f, parent, spans[j], v, a, &c_lo, &c_hi))
+        return;
+    const int q_lo = max(0, (int)floor(c_lo) / 16), q_hi = min((f.n_r - 1) / 16, (int)fmin(c_hi, 1e9) / 16);
+    __global const float2 *img = images + offsets[k];
+    __global float2 *o = rows + starts[k] + (size_t)j * f.n_r;
+    for (int q = q_lo; q <= q_hi; ++q)
+        angle_columns(f, img, 16 * q, v, a, a * a * (1.0 - v * v), taps, o + 16 * q);
+}
+
+/* One lane's eight complex samples of pass 1's row t from column ir.sL on (zero if not ok.sL). */
 #define ROW_WINDOW(L) (ok.s##L ? LOAD_F16(t + 2 * ir.s##L) : (float16)0.0f)
 
-/* Pass 2: work-item (q, j) writes parent samples i0 = 16 q .. i0 + 15 of row j (zero outside
- * its span) to out[out_offset + j n_r + i]: for every child k that row_meets_child, pass 1's row
- * read at the child range r_c of each sample by the range taps, times
- * exp(j 2 pi cycles_per_m (r_c - r_p)), summed. The lanes' r_c from the first lane's (double):
- * a lane delta further has r_c' = r_c + delta + e, e (2 r_c + 2 delta + e) = 2 delta g with
- * g = r_p - a v - r_c (from r_c'^2 - r_c^2 = delta (2 r_p - 2 a v + delta)), e by one fixed-point
- * step from e0 = g delta / (r_c + delta) (its error ~e0^2 / r_c); the phase moves by e alone, and
- * the position by delta in double (a float position's rounding would pick a neighbouring tap row
- * of the table now and then) and e in float. */
-__kernel void ffbp_range(__global const float2 *rows, __global const long *starts,
-                         __global const ffbp_frame_t *frames, __global const float *taps, const ffbp_frame_t parent,
-                         __global const int2 *spans, const double cycles_per_m, const int n_children,
-                         const long out_offset, __global float2 *out)
+#define MAX_CHILDREN 16  /* ffbp's largest factor */
+
+/* Pass 2 for one work-item's sixteen parent samples i0 .. i0 + 15 of the row of sine v (its
+ * span): for every child k with meets[k] (row_meets_child; offset a[k]), pass 1's row (rows from
+ * starts[k] + row n_r) read at the child range r_c of each sample by the range taps, times
+ * exp(j 2 pi cycles_per_m (r_c - r_p)), summed, written to out[first ..]. The lanes' r_c from the
+ * first lane's (double): a lane delta further has r_c' = r_c + delta + e, e (2 r_c + 2 delta + e)
+ * = 2 delta g with g = r_p - a v - r_c (from r_c'^2 - r_c^2 = delta (2 r_p - 2 a v + delta)), e
+ * by one fixed-point step from e0 = g delta / (r_c + delta) (its error ~e0^2 / r_c); the phase
+ * moves by e alone, and the position by delta in double (a float position's rounding would pick
+ * a neighbouring tap row of the table now and then) and e in float. */
+inline void range_samples(__global const float2 *rows, __global const long *starts, __global const ffbp_frame_t *frames,
+                          __global const float *taps, const ffbp_frame_t parent, const int2 span, const int row,
+                          const double v, const double *a, const int *meets, const int n_children, const int i0,
+                          const double cycles_per_m, __global float2 *out, const size_t first)
 {
-    out += out_offset;
-    const int j = get_global_id(1), i0 = 16 * get_global_id(0);
     const int n_valid = min(16, parent.n_r - i0);
-    if (n_valid <= 0 || j >= parent.n_v)  /* the launch is padded to whole work-groups */
-        return;
-    const size_t first = (size_t)j * parent.n_r + i0;
-    const int2 span = spans[j];
     if (parent_zeros(out, first, n_valid, i0, span))
         return;
-    const double v = parent.v0 + j * parent.dv, r0 = parent.r0 + i0 * parent.dr;
+    const double r0 = parent.r0 + i0 * parent.dr;
     const float16 delta = LANE_FLOAT * (float)parent.dr;
     float16 acc_re = (float16)0.0f, acc_im = (float16)0.0f;
     for (int k = 0; k < n_children; ++k) {
-        const ffbp_frame_t f = frames[k];
-        const double a = child_offset(f, parent);
-        double c_lo, c_hi;
-        if (!row_meets_child(f, parent, span, v, a, &c_lo, &c_hi))
+        if (!meets[k])
             continue;
-        const double rc0 = child_range(r0, a, v), g = r0 - a * v - rc0;
+        const ffbp_frame_t f = frames[k];
+        const double rc0 = child_range(r0, a[k], v), g = r0 - a[k] * v - rc0;
         const float16 e0 = (float)g * delta / ((float)rc0 + delta);
         const float16 e = 2.0f * (float)g * delta / (2.0f * ((float)rc0 + delta) + e0);  /* r_c - rc0 - delta */
         if (rc0 + delta.sf + e.sf < f.r0 || rc0 > f.r0 + (f.n_r - 1.0) * f.dr)
@@ -596,7 +602,7 @@ __kernel void ffbp_range(__global const float2 *rows, __global const long *start
         if (!(ok2.x | ok2.y))
             continue;
         const int16 row_r = select((int16)0, NEAREST_TAP_ROW(convert_int16, convert_float16(pr - convert_double16(fr))), ok);
-        __global const float *t = (__global const float *)(rows + starts[k] + (size_t)j * f.n_r);
+        __global const float *t = (__global const float *)(rows + starts[k] + (size_t)row * f.n_r);
         const double c0 = cycles_per_m * (rc0 - r0);
         const float16 cycles = (float)(c0 - (double)(long)c0) + (float)cycles_per_m * e;
         float16 cs, sn;
@@ -610,5 +616,28 @@ __kernel void ffbp_range(__global const float2 *rows, __global const long *start
         acc_im += re * sn + im * cs;
     }
     store_parent(out, first, n_valid, i0, span, acc_re, acc_im);
+}
+
+/* Pass 2: work-item j writes parent row j (zero outside its span) to out[out_offset + j n_r ..],
+ * sixteen samples at a time (range_samples), each child's offset and reach of the row found once. */
+__kernel void ffbp_range(__global const float2 *rows, __global const long *starts,
+                         __global const ffbp_frame_t *frames, __global const float *taps, const ffbp_frame_t parent,
+                         __global const int2 *spans, const double cycles_per_m, const int n_children,
+                         const long out_offset, __global float2 *out)
+{
+    const int j = get_global_id(0);
+    if (j >= parent.n_v)  /* the launch is padded to whole work-groups */
+        return;
+    const int2 span = spans[j];
+    const double v = parent.v0 + j * parent.dv;
+    double a[MAX_CHILDREN], c_lo, c_hi;
+    int meets[MAX_CHILDREN];
+    for (int k = 0; k < n_children; ++k) {
+        a[k] = child_offset(frames[k], parent);
+        meets[k] = row_meets_child(frames[k], parent, span, v, a[k], &c_lo, &c_hi);
+    }
+    for (int i0 = 0; i0 < parent.n_r; i0 += 16)
+        range_samples(rows, starts, frames, taps, parent, span, j, v, a, meets, n_children, i0, cycles_per_m,
+                      out + out_offset, (size_t)j * parent.n_r + i0);
 }
 #endif

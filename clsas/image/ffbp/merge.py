@@ -263,10 +263,9 @@ def _two_pass_device(grids, images, offsets, parent, f0, c, taps, rho, out, out_
     frames, table = made(program.frames(grids)), made(_table(taps, float(rho)))
     parent_frame, spans, starts = program.frames([parent])[0], made(parent.row_spans), made(rows[:-1].astype(np.int64))
     group = opencl.WORK_GROUP
-    columns = -(-max(g.n_r for g in grids) // LANES)
-    size = ((columns, -(-parent.n_v // group) * group, len(grids)), (1, group, 1))
+    size = ((-(-parent.n_v // group) * group, len(grids)), (group, 1))
     program.kernel("ffbp_angle", taps)(rt.queue, *size, images, made(np.asarray(offsets, np.int64)), frames, table,
                                        parent_frame, spans, starts, buffer)
-    program.kernel("ffbp_range", taps)(rt.queue, *opencl.work_groups_2d(-(-parent.n_r // LANES), parent.n_v), buffer,
+    program.kernel("ffbp_range", taps)(rt.queue, *opencl.work_groups(parent.n_v), buffer,
                                        starts, frames, table, parent_frame, spans, np.float64(2 * f0 / c),
                                        np.int32(len(grids)), np.int64(out_offset), out)
