@@ -36,10 +36,6 @@ case costs about 5 minutes). ``--scan`` adds one timed run each of the wide case
 square grids of half as many pixels a side (the aperture and the image grow together), and of
 the aperture case for the same pulses on a fixed 512^2 grid.
 
-``--passes`` times ``clsas.ffbp`` with the two-pass merge off as well (``ffbp_one_pass``:
-clsas.image.ffbp.merge.TWO_PASS False, every merge T x T and no child's range band widened),
-a third run in the interleaving: the two-pass merge's own gain, side by side.
-
 ``--stages`` adds one more ffbp call a case, after the timed ones, with the device's queue
 finished around each stage, and reports the process CPU seconds of each (``stages_cpu``: the tree's
 planning, the leaves (of which ``leaf_bp_tile``, back-projection's kernel itself), the merges, the
@@ -73,7 +69,6 @@ from clsas.model import Grid
 from clsas.image.backprojection import TileKernel, backproject
 from clsas.image.ffbp import ffbp
 from clsas.image.ffbp import _SCENES  # each Grid's Scene, kept between calls (cleared for ffbp_new_grid)
-from clsas.image.ffbp import merge as merge_module
 from clsas.image.ffbp.leaves import FirstStage
 from clsas.image.ffbp.store import DeviceStore
 
@@ -162,15 +157,6 @@ def _stage_clock(totals: dict):
             setattr(owner, attr, saved[name])
 
 
-def one_pass(run):
-    """``run()`` with the two-pass merge off (merge.TWO_PASS False: every merge T x T)."""
-    saved, merge_module.TWO_PASS = merge_module.TWO_PASS, False
-    try:
-        return run()
-    finally:
-        merge_module.TWO_PASS = saved
-
-
 def stages(run) -> dict:
     """Process CPU seconds of each stage of one call ``run()`` (:func:`_stage_clock`) and ``rest``
     (the call's CPU time outside them: checks, the walk, the result's copy)."""
@@ -186,7 +172,7 @@ def stages(run) -> dict:
 
 
 def main() -> None:
-    flags = {flag: flag in sys.argv for flag in ("--scan", "--big", "--factors", "--stages", "--passes")}
+    flags = {flag: flag in sys.argv for flag in ("--scan", "--big", "--factors", "--stages")}
     sys.argv = [a for a in sys.argv if a not in flags]
     scan, big = flags["--scan"], flags["--big"]
     args = arguments(__doc__.splitlines()[0])
@@ -213,8 +199,6 @@ def main() -> None:
                 "ffbp_new_grid": lambda: (_SCENES.clear(), ffbp(echo, grid, interp="linear", **kw, **options))[1]}
         if flags["--factors"]:
             runs["ffbp_factor2"] = lambda: ffbp(echo, grid, interp="linear", factor=2, **kw, **options)
-        if flags["--passes"]:
-            runs["ffbp_one_pass"] = lambda: one_pass(lambda: ffbp(echo, grid, interp="linear", **kw, **options))
         times, cpu, images = interleaved(runs, reps)
         ref = images["direct"].data
         work = grid.size * pulses
@@ -234,8 +218,8 @@ def main() -> None:
                              factor=made.provenance["factor"], levels=made.provenance["levels"],
                              first=made.provenance["first"], oversampling=made.provenance["oversampling"],
                              polar_samples=made.provenance["polar_samples"])
-                if flags["--stages"] and name in ("ffbp", "ffbp_one_pass"):
-                    extra["stages_cpu"] = stages(runs[name])
+                if flags["--stages"] and name == "ffbp":
+                    extra["stages_cpu"] = stages(runs["ffbp"])
             report(args, "ffbp", "opencl", {"pixels": grid.size, "pulses": pulses, "receivers": 1},
                    work / medians[name], "BP/s", medians[name], **extra)
 

@@ -195,50 +195,6 @@ __kernel void ffbp_leaf(__global const double2 *image, __global const int *slots
     }
 }
 
-/* A parent row's work-item (sixteen samples i0 .. i0 + 15 of row j, the first at out[first]):
- * wholly outside the row's span [span.x, span.y), it writes its n_valid zeros and returns 1. */
-inline int parent_zeros(__global float2 *out, const size_t first, const int n_valid, const int i0, const int2 span)
-{
-    if (i0 < span.y && i0 + 16 > span.x)
-        return 0;
-    for (int l = 0; l < n_valid; ++l)
-        out[first + l] = (float2)(0.0f, 0.0f);
-    return 1;
-}
-
-/* Sixteen complex values (acc_re, acc_im) as two float16, re and im interleaved. */
-inline float16 interleave_lo(const float16 re, const float16 im)
-{
-    return (float16)(re.s0, im.s0, re.s1, im.s1, re.s2, im.s2, re.s3, im.s3, re.s4, im.s4, re.s5, im.s5, re.s6, im.s6,
-                     re.s7, im.s7);
-}
-
-inline float16 interleave_hi(const float16 re, const float16 im)
-{
-    return (float16)(re.s8, im.s8, re.s9, im.s9, re.sa, im.sa, re.sb, im.sb, re.sc, im.sc, re.sd, im.sd, re.se, im.se,
-                     re.sf, im.sf);
-}
-
-/* A parent row's work-item's results written: the n_valid samples from out[first] on, zero
- * outside the row's span; a work-item wholly inside it in two stores. */
-inline void store_parent(__global float2 *out, const size_t first, const int n_valid, const int i0, const int2 span,
-                         const float16 acc_re, const float16 acc_im)
-{
-    if (n_valid == 16 && i0 >= span.x && i0 + 16 <= span.y) {
-        __global float *o = (__global float *)(out + first);
-        STORE_F16(interleave_lo(acc_re, acc_im), o);
-        STORE_F16(interleave_hi(acc_re, acc_im), o + 16);
-        return;
-    }
-    float re_out[16], im_out[16];
-    vstore16(acc_re, 0, re_out);
-    vstore16(acc_im, 0, im_out);
-    for (int l = 0; l < n_valid; ++l) {
-        const int in = i0 + l >= span.x && i0 + l < span.y;
-        out[first + l] = in ? (float2)(re_out[l], im_out[l]) : (float2)(0.0f, 0.0f);
-    }
-}
-
 __kernel void ffbp_merge(__global const float2 *images, __global const long *offsets,
                          __global const ffbp_frame_t *frames, __global const float *taps,
                          __global const double *points, const ffbp_frame_t parent, __global const int2 *spans,
@@ -257,8 +213,11 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
         return;
     first = (size_t)j * parent.n_r + i0;
     const int2 span = spans[j];  /* the row's computed samples [span.x, span.y): zero elsewhere */
-    if (parent_zeros(out, first, n_valid, i0, span))
+    if (i0 >= span.y || i0 + 16 <= span.x) {
+        for (int l = 0; l < n_valid; ++l)
+            out[first + l] = (float2)(0.0f, 0.0f);
         return;
+    }
     r_p = polar_points16(parent, plane, j, i0 + LANE_INDEX, &x, &y, &z);
 #else
     const int i0 = 16 * get_global_id(0);
@@ -344,16 +303,24 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
         acc_im += re * sn + im * cs;
     }
 #ifdef PARENT_GRID
-    store_parent(out, first, n_valid, i0, span, acc_re, acc_im);
+    const int whole = n_valid == 16 && i0 >= span.x && i0 + 16 <= span.y;  /* every lane stored, none zeroed */
 #else
-    if (n_valid == 16) {  /* the sixteen complex results interleaved in registers, two stores */
+    const int whole = n_valid == 16;
+#endif
+    if (whole) {  /* the sixteen complex results interleaved in registers, two stores */
         __global float *o = (__global float *)(out + first);
-#ifdef POINTS_STORE
-        STORE_F16(interleave_lo(acc_re, acc_im), o);
-        STORE_F16(interleave_hi(acc_re, acc_im), o + 16);
+        const float16 lo = (float16)(acc_re.s0, acc_im.s0, acc_re.s1, acc_im.s1, acc_re.s2, acc_im.s2, acc_re.s3,
+                                     acc_im.s3, acc_re.s4, acc_im.s4, acc_re.s5, acc_im.s5, acc_re.s6, acc_im.s6,
+                                     acc_re.s7, acc_im.s7);
+        const float16 hi = (float16)(acc_re.s8, acc_im.s8, acc_re.s9, acc_im.s9, acc_re.sa, acc_im.sa, acc_re.sb,
+                                     acc_im.sb, acc_re.sc, acc_im.sc, acc_re.sd, acc_im.sd, acc_re.se, acc_im.se,
+                                     acc_re.sf, acc_im.sf);
+#if defined(PARENT_GRID) || defined(POINTS_STORE)
+        STORE_F16(lo, o);
+        STORE_F16(hi, o + 16);
 #else
-        STORE_F16(LOAD_F16(o) + interleave_lo(acc_re, acc_im), o);
-        STORE_F16(LOAD_F16(o + 16) + interleave_hi(acc_re, acc_im), o + 16);
+        STORE_F16(LOAD_F16(o) + lo, o);
+        STORE_F16(LOAD_F16(o + 16) + hi, o + 16);
 #endif
         return;
     }
@@ -361,283 +328,13 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
     vstore16(acc_re, 0, re_out);
     vstore16(acc_im, 0, im_out);
     for (int l = 0; l < n_valid; ++l) {
-#ifdef POINTS_STORE
+#if defined(PARENT_GRID)
+        const int in = i0 + l >= span.x && i0 + l < span.y;
+        out[first + l] = in ? (float2)(re_out[l], im_out[l]) : (float2)(0.0f, 0.0f);
+#elif defined(POINTS_STORE)
         out[first + l] = (float2)(re_out[l], im_out[l]);
 #else
         out[first + l] += (float2)(re_out[l], im_out[l]);
 #endif
     }
-#endif
 }
-
-#if TAPS == 8
-/* The two-pass merge (clsas/image/ffbp/merge.py, _two_pass and its docstring; children on the
- * parent's axis, sampled for it). Geometry: a row's and a child's scalars (a, the child ranges of
- * the row's span, one lane's position) in double; the other lanes' offsets from that lane in
- * float (an offset of at most sixteen samples, so its float rounding is ~1e-7 of a sample), added
- * to it in double. */
-#define LANE_FLOAT ((float16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))
-
-/* a = u . (C_c - C_p), the child's centre along the parent's axis. */
-inline double child_offset(const ffbp_frame_t f, const ffbp_frame_t parent)
-{
-    return dot(vload3(0, parent.axis), vload3(0, f.centre) - vload3(0, parent.centre));
-}
-
-/* The child range of parent range r on the row of sine v (r_c^2 = r^2 - 2 a v r + a^2). */
-inline double child_range(const double r, const double a, const double v)
-{
-    return sqrt(r * r - 2.0 * a * v * r + a * a);
-}
-
-/* Whether pass 1 can give a parent row (sine v, computed samples span) anything of child f: the
- * child columns pass 2 reads there ([*lo, *hi] from the child ranges of the span's ends, taps / 2
- * + 1 either side: r_c grows with r_p along a row, as r_p > |a|) meet child rows at sines (v_c
- * monotonic along the row) with a whole window of taps, within a sample's slack. Both passes
- * decide alike from the same numbers (pass 1 writes nothing, pass 2 reads nothing, where not). */
-inline int row_meets_child(const ffbp_frame_t f, const ffbp_frame_t parent, const int2 span, const double v,
-                           const double a, double *lo, double *hi)
-{
-    if (span.x >= span.y)
-        return 0;
-    *lo = (child_range(parent.r0 + span.x * parent.dr, a, v) - f.r0) / f.dr - (TAPS / 2 + 1);
-    *hi = (child_range(parent.r0 + (span.y - 1) * parent.dr, a, v) - f.r0) / f.dr + (TAPS / 2 + 1);
-    const double k = a * a * (1.0 - v * v), r_a = f.r0 + *lo * f.dr, r_b = f.r0 + *hi * f.dr;
-    if (r_a * r_a <= k)
-        return 1;  /* the row meets a range so near only on its far side: not decided here */
-    const double v_a = ((a * v + sqrt(r_a * r_a - k)) * v - a) / r_a, v_b = ((a * v + sqrt(r_b * r_b - k)) * v - a) / r_b;
-    const double p_lo = (fmin(v_a, v_b) - f.v0) / f.dv, p_hi = (fmax(v_a, v_b) - f.v0) / f.dv;
-    return p_hi >= TAPS / 2 - 2 && p_lo < f.n_v - TAPS / 2 + 1;
-}
-
-#define SPREAD_MAX 3  /* window starts of one half's eight columns at most this far apart: the vector path */
-
-/* The taps of eight lanes (t_L, eight taps each) transposed: w_A holds tap A of the eight lanes,
- * each twice (re, im interleaved), three rounds of two-source permutes. */
-#define TRANSPOSE_TAPS(t0, t1, t2, t3, t4, t5, t6, t7)                                                     \
-    const float8 u0 = (float8)(t0.s0, t1.s0, t0.s2, t1.s2, t0.s4, t1.s4, t0.s6, t1.s6),                    \
-                 u1 = (float8)(t0.s1, t1.s1, t0.s3, t1.s3, t0.s5, t1.s5, t0.s7, t1.s7),                    \
-                 u2 = (float8)(t2.s0, t3.s0, t2.s2, t3.s2, t2.s4, t3.s4, t2.s6, t3.s6),                    \
-                 u3 = (float8)(t2.s1, t3.s1, t2.s3, t3.s3, t2.s5, t3.s5, t2.s7, t3.s7),                    \
-                 u4 = (float8)(t4.s0, t5.s0, t4.s2, t5.s2, t4.s4, t5.s4, t4.s6, t5.s6),                    \
-                 u5 = (float8)(t4.s1, t5.s1, t4.s3, t5.s3, t4.s5, t5.s5, t4.s7, t5.s7),                    \
-                 u6 = (float8)(t6.s0, t7.s0, t6.s2, t7.s2, t6.s4, t7.s4, t6.s6, t7.s6),                    \
-                 u7 = (float8)(t6.s1, t7.s1, t6.s3, t7.s3, t6.s5, t7.s5, t6.s7, t7.s7);                    \
-    const float8 y0 = (float8)(u0.s01, u2.s01, u0.s45, u2.s45), y2 = (float8)(u0.s23, u2.s23, u0.s67, u2.s67), \
-                 y1 = (float8)(u1.s01, u3.s01, u1.s45, u3.s45), y3 = (float8)(u1.s23, u3.s23, u1.s67, u3.s67), \
-                 y4 = (float8)(u4.s01, u6.s01, u4.s45, u6.s45), y6 = (float8)(u4.s23, u6.s23, u4.s67, u6.s67), \
-                 y5 = (float8)(u5.s01, u7.s01, u5.s45, u7.s45), y7 = (float8)(u5.s23, u7.s23, u5.s67, u7.s67); \
-    const float16 w0 = ((float16)(y0.lo, y4.lo, y0.lo, y4.lo)).s08192a3b4c5d6e7f,                           \
-                  w4 = ((float16)(y0.hi, y4.hi, y0.hi, y4.hi)).s08192a3b4c5d6e7f,                           \
-                  w2 = ((float16)(y2.lo, y6.lo, y2.lo, y6.lo)).s08192a3b4c5d6e7f,                           \
-                  w6 = ((float16)(y2.hi, y6.hi, y2.hi, y6.hi)).s08192a3b4c5d6e7f,                           \
-                  w1 = ((float16)(y1.lo, y5.lo, y1.lo, y5.lo)).s08192a3b4c5d6e7f,                           \
-                  w5 = ((float16)(y1.hi, y5.hi, y1.hi, y5.hi)).s08192a3b4c5d6e7f,                           \
-                  w3 = ((float16)(y3.lo, y7.lo, y3.lo, y7.lo)).s08192a3b4c5d6e7f,                           \
-                  w7 = ((float16)(y3.hi, y7.hi, y3.hi, y7.hi)).s08192a3b4c5d6e7f
-
-/* Pass 1 for eight consecutive columns (col: the first's sample of row 0; rows n_r complex
- * samples apart) of one child: lane L read down its column at rows iv.sL .. iv.sL + 7 with the
- * taps of table row row.sL (ok.sL: every tap exists, else 0), re/im interleaved. Where the lanes'
- * first rows lie within SPREAD_MAX of each other and all eight columns exist (whole), the rows
- * are read whole (eight contiguous complex samples each, for every lane at once) and weighted by
- * the lanes' own taps (transposed in registers), once for each first row among the lanes (each
- * lane keeps the sum from its own); otherwise lane by lane. */
-inline float16 angle_half(const int8 ok, const int8 iv, const int8 row, __global const float *col, const int n_r,
-                          __global const float *taps, const int whole)
-{
-    const int8 first = select((int8)INT_MAX, iv, ok), last = select((int8)INT_MIN, iv, ok);
-    const int4 f4 = min(first.lo, first.hi), l4 = max(last.lo, last.hi);
-    const int2 f2 = min(f4.lo, f4.hi), l2 = max(l4.lo, l4.hi);
-    const int base = min(f2.x, f2.y);
-    if (base == INT_MAX)  /* no lane reads */
-        return (float16)0.0f;
-    const int spread = max(l2.x, l2.y) - base;
-    const int16 ok2 = ((int16)(ok, ok)).s08192a3b4c5d6e7f;  /* each lane twice: re and im */
-    if (whole && spread <= SPREAD_MAX) {
-        const float8 t0 = LOAD_F8(taps + 8 * row.s0), t1 = LOAD_F8(taps + 8 * row.s1), t2 = LOAD_F8(taps + 8 * row.s2),
-                     t3 = LOAD_F8(taps + 8 * row.s3), t4 = LOAD_F8(taps + 8 * row.s4), t5 = LOAD_F8(taps + 8 * row.s5),
-                     t6 = LOAD_F8(taps + 8 * row.s6), t7 = LOAD_F8(taps + 8 * row.s7);
-        TRANSPOSE_TAPS(t0, t1, t2, t3, t4, t5, t6, t7);
-        const size_t step = 2 * (size_t)n_r;
-        __global const float *p = col + base * step;
-#define WINDOW8(q) (w0 * LOAD_F16(q) + w1 * LOAD_F16((q) + step) + w2 * LOAD_F16((q) + 2 * step)                 \
-                    + w3 * LOAD_F16((q) + 3 * step) + w4 * LOAD_F16((q) + 4 * step) + w5 * LOAD_F16((q) + 5 * step) \
-                    + w6 * LOAD_F16((q) + 6 * step) + w7 * LOAD_F16((q) + 7 * step))
-        float16 acc = WINDOW8(p);
-        if (spread > 0) {  /* the lanes whose window starts d rows lower take the window from there */
-            const int16 shift = ((int16)(iv, iv)).s08192a3b4c5d6e7f - base;
-            for (int d = 1; d <= spread; ++d)
-                acc = select(acc, WINDOW8(p + d * step), shift == d);
-        }
-#undef WINDOW8
-        return select((float16)0.0f, acc, ok2);
-    }
-    int ivs[8], rows[8], oks[8];
-    vstore8(iv, 0, ivs);
-    vstore8(row, 0, rows);
-    vstore8(ok, 0, oks);
-    float o[16];
-    for (int l = 0; l < 8; ++l) {
-        float re = 0.0f, im = 0.0f;
-        if (oks[l]) {
-            __global const float *p = col + 2 * ((size_t)ivs[l] * n_r + l);
-            for (int a = 0; a < 8; ++a) {
-                const float t = taps[8 * rows[l] + a];
-                re += t * p[2 * (size_t)a * n_r];
-                im += t * p[2 * (size_t)a * n_r + 1];
-            }
-        }
-        o[2 * l] = re;
-        o[2 * l + 1] = im;
-    }
-    return vload16(0, o);
-}
-
-/* Pass 1 for one work-item's sixteen columns i0 .. i0 + 15 (those < n_r) of child f (its image
- * img) on the parent row of sine v (a, k = a^2 (1 - v^2)), written to o (the row's column i0).
- * The lanes' sines from the last lane's (double): with r the child range, s = sqrt(r^2 - k) and
- * r_p = a v + s, a lane delta from it has s' - s = delta (2 r + delta) / (s' + s) and
- * v_c' - v_c = ((s' - s) v - v_c delta) / r'. */
-inline void angle_columns(const ffbp_frame_t f, __global const float2 *img, const int i0, const double v,
-                          const double a, const double k, __global const float *taps, __global float2 *o)
-{
-    const int n_r = f.n_r;
-    const double r15 = f.r0 + (i0 + 15) * f.dr, disc15 = r15 * r15 - k;
-    if (disc15 <= 0.0) {  /* no lane's range meets the row */
-        for (int l = 0; l < min(16, n_r - i0); ++l)
-            o[l] = (float2)(0.0f, 0.0f);
-        return;
-    }
-    const double s15 = sqrt(disc15), vc15 = ((a * v + s15) * v - a) / r15;
-    const float16 delta = (LANE_FLOAT - 15.0f) * (float)f.dr;
-    const float16 grow = delta * (2.0f * (float)r15 + delta), disc = (float)disc15 + grow;
-    const float16 ds = grow / (sqrt(fmax(disc, 0.0f)) + (float)s15);
-    const float16 step = ((float)v * ds - (float)vc15 * delta) / (((float)r15 + delta) * (float)f.dv);
-    const double16 pv = clamp((vc15 - f.v0) / f.dv + convert_double16(step), -1.0, 1e9);
-    const int16 fv = convert_int16(pv), iv = fv - (TAPS / 2 - 1);  /* floor where >= 0 */
-    const int16 lane = convert_int16(LANE_INDEX);
-    const int16 ok = (disc >= 0.0f) & convert_int16(pv >= 0.0) & (iv >= 0 && iv <= f.n_v - TAPS) & (i0 + lane < n_r);
-    const int16 row = select((int16)0, NEAREST_TAP_ROW(convert_int16, convert_float16(pv - convert_double16(fv))), ok);
-    __global const float *col = (__global const float *)(img + i0);
-    const float16 lo = angle_half(ok.lo, iv.lo, row.lo, col, n_r, taps, i0 + 8 <= n_r);
-    const float16 hi = angle_half(ok.hi, iv.hi, row.hi, col + 16, n_r, taps, i0 + 16 <= n_r);
-    if (i0 + 16 <= n_r) {
-        STORE_F16(lo, (__global float *)o);
-        STORE_F16(hi, (__global float *)o + 16);
-        return;
-    }
-    float out[32];
-    vstore16(lo, 0, out);
-    vstore16(hi, 1, out);
-    for (int l = 0; l < n_r - i0; ++l)
-        o[l] = (float2)(out[2 * l], out[2 * l + 1]);
-}
-
-/* Pass 1: work-item (j, k) writes child k's columns read down to parent row j's sines (merge.py:
- * T_c[j, i]) to rows[starts[k] + j n_r + i], sixteen columns at a time (angle_columns), only
- * those pass 2 reads (row_meets_child: none on a row it does not reach). images holds the
- * children at offsets, frames their frames, parent the parent's frame and spans its rows'
- * computed samples. */
-__kernel void ffbp_angle(__global const float2 *images, __global const long *offsets,
-                         __global const ffbp_frame_t *frames, __global const float *taps, const ffbp_frame_t parent,
-                         __global const int2 *spans, __global const long *starts, __global float2 *rows)
-{
-    const int j = get_global_id(0), k = get_global_id(1);
-    if (j >= parent.n_v)  /* the launch is padded to whole work-groups */
-        return;
-    const ffbp_frame_t f = frames[k];
-    const double v = parent.v0 + j * parent.dv, a = child_offset(f, parent);
-    double c_lo, c_hi;
-    if (!row_meets_child(f, parent, spans[j], v, a, &c_lo, &c_hi))
-        return;
-    const int q_lo = max(0, (int)floor(c_lo) / 16), q_hi = min((f.n_r - 1) / 16, (int)fmin(c_hi, 1e9) / 16);
-    __global const float2 *img = images + offsets[k];
-    __global float2 *o = rows + starts[k] + (size_t)j * f.n_r;
-    for (int q = q_lo; q <= q_hi; ++q)
-        angle_columns(f, img, 16 * q, v, a, a * a * (1.0 - v * v), taps, o + 16 * q);
-}
-
-/* One lane's eight complex samples of pass 1's row t from column ir.sL on (zero if not ok.sL). */
-#define ROW_WINDOW(L) (ok.s##L ? LOAD_F16(t + 2 * ir.s##L) : (float16)0.0f)
-
-#define MAX_CHILDREN 16  /* ffbp's largest factor */
-
-/* Pass 2 for one work-item's sixteen parent samples i0 .. i0 + 15 of the row of sine v (its
- * span): for every child k with meets[k] (row_meets_child; offset a[k]), pass 1's row (rows from
- * starts[k] + row n_r) read at the child range r_c of each sample by the range taps, times
- * exp(j 2 pi cycles_per_m (r_c - r_p)), summed, written to out[first ..]. The lanes' r_c from the
- * first lane's (double): a lane delta further has r_c' = r_c + delta + e, e (2 r_c + 2 delta + e)
- * = 2 delta g with g = r_p - a v - r_c (from r_c'^2 - r_c^2 = delta (2 r_p - 2 a v + delta)), e
- * by one fixed-point step from e0 = g delta / (r_c + delta) (its error ~e0^2 / r_c); the phase
- * moves by e alone, and the position by delta in double (a float position's rounding would pick
- * a neighbouring tap row of the table now and then) and e in float. */
-inline void range_samples(__global const float2 *rows, __global const long *starts, __global const ffbp_frame_t *frames,
-                          __global const float *taps, const ffbp_frame_t parent, const int2 span, const int row,
-                          const double v, const double *a, const int *meets, const int n_children, const int i0,
-                          const double cycles_per_m, __global float2 *out, const size_t first)
-{
-    const int n_valid = min(16, parent.n_r - i0);
-    if (parent_zeros(out, first, n_valid, i0, span))
-        return;
-    const double r0 = parent.r0 + i0 * parent.dr;
-    const float16 delta = LANE_FLOAT * (float)parent.dr;
-    float16 acc_re = (float16)0.0f, acc_im = (float16)0.0f;
-    for (int k = 0; k < n_children; ++k) {
-        if (!meets[k])
-            continue;
-        const ffbp_frame_t f = frames[k];
-        const double rc0 = child_range(r0, a[k], v), g = r0 - a[k] * v - rc0;
-        const float16 e0 = (float)g * delta / ((float)rc0 + delta);
-        const float16 e = 2.0f * (float)g * delta / (2.0f * ((float)rc0 + delta) + e0);  /* r_c - rc0 - delta */
-        if (rc0 + delta.sf + e.sf < f.r0 || rc0 > f.r0 + (f.n_r - 1.0) * f.dr)
-            continue;
-        const double16 pr = clamp((rc0 - f.r0) / f.dr + LANE_INDEX * (parent.dr / f.dr)
-                                  + convert_double16(e * (float)(1.0 / f.dr)), -1.0, 1e9);
-        const int16 fr = convert_int16(pr), ir = fr - (TAPS / 2 - 1);  /* floor where >= 0 */
-        const int16 ok = convert_int16(pr >= 0.0) & (ir >= 0 && ir <= f.n_r - TAPS);
-        const int8 ok8 = ok.lo | ok.hi;
-        const int4 ok4 = ok8.lo | ok8.hi;
-        const int2 ok2 = ok4.lo | ok4.hi;
-        if (!(ok2.x | ok2.y))
-            continue;
-        const int16 row_r = select((int16)0, NEAREST_TAP_ROW(convert_int16, convert_float16(pr - convert_double16(fr))), ok);
-        __global const float *t = (__global const float *)(rows + starts[k] + (size_t)row * f.n_r);
-        const double c0 = cycles_per_m * (rc0 - r0);
-        const float16 cycles = (float)(c0 - (double)(long)c0) + (float)cycles_per_m * e;
-        float16 cs, sn;
-        expj_fraction16(cycles - convert_float16(convert_int16(cycles)), &cs, &sn);
-        const float16 lo = sinc8_lanes(taps, row_r.lo, ROW_WINDOW(0), ROW_WINDOW(1), ROW_WINDOW(2), ROW_WINDOW(3),
-                                       ROW_WINDOW(4), ROW_WINDOW(5), ROW_WINDOW(6), ROW_WINDOW(7));
-        const float16 hi = sinc8_lanes(taps, row_r.hi, ROW_WINDOW(8), ROW_WINDOW(9), ROW_WINDOW(a), ROW_WINDOW(b),
-                                       ROW_WINDOW(c), ROW_WINDOW(d), ROW_WINDOW(e), ROW_WINDOW(f));
-        const float16 re = (float16)(lo.even, hi.even), im = (float16)(lo.odd, hi.odd);
-        acc_re += re * cs - im * sn;
-        acc_im += re * sn + im * cs;
-    }
-    store_parent(out, first, n_valid, i0, span, acc_re, acc_im);
-}
-
-/* Pass 2: work-item j writes parent row j (zero outside its span) to out[out_offset + j n_r ..],
- * sixteen samples at a time (range_samples), each child's offset and reach of the row found once. */
-__kernel void ffbp_range(__global const float2 *rows, __global const long *starts,
-                         __global const ffbp_frame_t *frames, __global const float *taps, const ffbp_frame_t parent,
-                         __global const int2 *spans, const double cycles_per_m, const int n_children,
-                         const long out_offset, __global float2 *out)
-{
-    const int j = get_global_id(0);
-    if (j >= parent.n_v)  /* the launch is padded to whole work-groups */
-        return;
-    const int2 span = spans[j];
-    const double v = parent.v0 + j * parent.dv;
-    double a[MAX_CHILDREN], c_lo, c_hi;
-    int meets[MAX_CHILDREN];
-    for (int k = 0; k < n_children; ++k) {
-        a[k] = child_offset(frames[k], parent);
-        meets[k] = row_meets_child(frames[k], parent, span, v, a[k], &c_lo, &c_hi);
-    }
-    for (int i0 = 0; i0 < parent.n_r; i0 += 16)
-        range_samples(rows, starts, frames, taps, parent, span, j, v, a, meets, n_children, i0, cycles_per_m,
-                      out + out_offset, (size_t)j * parent.n_r + i0);
-}
-#endif

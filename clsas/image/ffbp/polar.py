@@ -57,31 +57,6 @@ the edge of the scene (the band edge is the component from the scene's edge). Th
 the errors linearly: a band-edge component's interpolation error has the same sign at every
 stage (an amplitude loss), so they do not add in power (an rss rule lets a deep tree's error
 exceed its tolerance).
-
-Two-pass merge (the band it needs). A separable T x T read at a point interpolates T columns of
-the child's image at one sine and then across them in range: along a line of constant v, whose
-band is W_r. The two-pass merge (:mod:`.merge`) instead reads each child column i at the sine
-v_c(r_i) where the parent's row j meets it (pass 1, T taps in angle), and then interpolates those
-values along the row in range (pass 2, T taps): T + T reads instead of T x T, each from
-contiguous samples. Along the row the child's image J_c(r, v_c(r)) has the local frequency
-f_r + f_v dv_c/dr, so its band in range is W_r + |dv_c/dr| W_v, not W_r. For a child whose centre
-lies on the parent's axis, C_c = C_p + a u (the same axis; a straight track), the row of sine v
-meets the child's range r at
-
-    r_p = a v + sqrt(r^2 - a^2 (1 - v^2)),    v_c = (r_p v - a) / r,
-
-(from r^2 = r_p^2 - 2 a r_p v + a^2, exact on any plane: both frames share the axis), and
-
-    dv_c/dr = a r_p (1 - v^2) / (r^2 (r_p - a v)),    |dv_c/dr| <= |a| / (R_c^2 (1 - |a| / R_p)),
-
-for parent ranges r_p >= R_p > |a| and child ranges r >= R_c (r_p (1 - v^2) / (r_p - a v) <=
-r_p / (r_p - |a|)). :func:`widened` takes R_p and R_c below every sample the merge can touch
-(the grids' nearest ranges less their padding and the taps' reach, at the unwidened steps, which
-are the coarsest) and samples such a child's range with the band W_r + |a| W_v / (R_c^2 (1 -
-|a| / R_p)): every interpolation then sees its band oversampled by rho, as the error model
-above requires, and a stage still makes two interpolation errors. A child off the parent's axis
-(sway, yaw, a curved track: |C_c - C_p - a u| > COLLINEAR_M or its axis turned by more than
-COLLINEAR_SINE) or too near (|a| >= R_p / 2) keeps its band and its parent the T x T merge.
 """
 
 from __future__ import annotations
@@ -130,29 +105,6 @@ def oversampling(taps: int, tolerance: float, stages: int) -> float:
                      f"{RHO_STEPS[-1]}); use {advice}")
 
 
-COLLINEAR_M = 1e-9  # a child centre this far off its parent's axis (m) still counts as on it (2e-7 cycles at 150 kHz)
-COLLINEAR_SINE = 1e-12  # ... and an axis turned by this much (the sines move by as much)
-
-
-def widened(child: "Extent", parent: "Extent", rho: float, taps: int) -> "Extent | None":
-    """The child's extent with its range band widened for the two-pass merge into ``parent``
-    (the module docstring's "Two-pass merge"), or None where that merge does not apply (the child
-    off the parent's axis, or nearer than twice its offset along it)."""
-    d = child.centre - parent.centre
-    a = float(parent.axis @ d)
-    if (np.linalg.norm(d - a * parent.axis) > COLLINEAR_M
-            or np.linalg.norm(child.axis - parent.axis) > COLLINEAR_SINE):
-        return None
-    pad = taps // 2 + 2
-    reach = (pad + taps) * max(1 / (2 * child.w_r * rho), 1 / (2 * parent.w_r * rho))  # unwidened: the coarsest
-    r_p = parent.r_lo - reach
-    r_c = min(child.r_lo, r_p - abs(a)) - reach
-    if r_c <= 0 or abs(a) >= 0.5 * r_p:
-        return None
-    slope = abs(a) / (r_c * r_c * (1 - abs(a) / r_p))  # the largest |dv_c/dr|
-    return dataclasses.replace(child, w_r=child.w_r + slope * child.w_v)
-
-
 @dataclasses.dataclass(frozen=True)
 class Plane:
     """The reference plane m . X = offset (m unit normal) and the scene's centroid (m)."""
@@ -188,9 +140,7 @@ class PolarGrid:
     """A sub-aperture's local polar grid: frame (centre, axis, e1, e2), reference plane, and the
     samples r0 + i dr (i < n_r), v0 + j dv (j < n_v). Images on it are (n_v, n_r), range fastest.
     ``spans`` (n_v, 2) int32: row j's samples lo <= i < hi are computed and the others are zero
-    (the ragged wedge of the module docstring; None: every sample of every row). ``separable``:
-    sampled in range for the two-pass merge into its parent (its range band widened, the module
-    docstring's "Two-pass merge"; :func:`widened`)."""
+    (the ragged wedge of the module docstring; None: every sample of every row)."""
 
     centre: np.ndarray
     axis: np.ndarray
@@ -204,7 +154,6 @@ class PolarGrid:
     dv: float
     n_v: int
     spans: np.ndarray | None = dataclasses.field(default=None, compare=False)
-    separable: bool = dataclasses.field(default=False, compare=False)
 
     @property
     def size(self) -> int:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import opencl
-from .merge import DevicePoints, Scratch, merge_device, merge_reference
+from .merge import DevicePoints, merge_device, merge_reference
 
 
 class HostStore:
@@ -60,7 +60,6 @@ class DeviceStore:
                                    pixels.shape[0])
         self.flat = cl.Buffer(self.rt.context, mf.READ_WRITE, 8 * pixels.shape[0])
         self.written = False  # the first final stage writes the image (no zero fill), later ones add
-        self.scratch = Scratch()  # the two-pass merges' intermediate rows
 
     def group(self, size: int):
         return self.cl.Buffer(self.rt.context, self.cl.mem_flags.READ_WRITE, 8 * max(size, 1))
@@ -69,7 +68,7 @@ class DeviceStore:
         self.stage1.image_into(node, grid, grids, group, offset)
 
     def merge(self, grids: list, group, offsets: list, parent, out, offset: int) -> None:
-        merge_device(grids, group, offsets, parent, *self.args, out, offset, scratch=self.scratch)
+        merge_device(grids, group, offsets, parent, *self.args, out, offset)
 
     def final(self, grids: list, group, offsets: list) -> None:
         merge_device(grids, group, offsets, self.pixels, *self.args, self.flat, store=not self.written)

@@ -41,8 +41,7 @@ import dataclasses
 import numpy as np
 
 from ...model import EchoData
-from . import merge
-from .polar import Scene, extents, oversampling, sample_grids, widened
+from .polar import Scene, extents, oversampling, sample_grids
 
 LEAF_SAMPLES = 16  # the default first stage: the fewest pulses whose leaf grid is at least this wide in angle
 MAX_LEAVES = 64  # ... and no more leaves than this (a leaf's launches and host work cost alike however short it is)
@@ -197,25 +196,4 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         top = new_top
     rho = oversampling(taps, tolerance, top + 1)  # the stages of the tree as it stands, settled or not
     grids = [grids_for(pulses[level], rho) if level <= top else [] for level in range(len(pulses))]
-    if merge.TWO_PASS and taps in merge.SEPARABLE_TAPS:
-        _separable(grids, pulses, children, top, extents_of, rho, taps)
     return Tree(pulses, children, grids, top, rho, first)
-
-
-def _separable(grids: list, pulses: list, children: list, top: int, extents_of: dict, rho: float, taps: int) -> None:
-    """Resample, in place, every group of children below the top whose parent can merge them in
-    two passes (polar.widened: all of them on its axis) with their range band widened for it,
-    marked ``separable``; the other groups keep their grids (and the T x T merge)."""
-    found, where = [], []
-    for level in range(top):
-        for node, kids in enumerate(children[level + 1]):
-            parent = extents_of[pulses[level + 1][node]]
-            kids = [k for k in kids if grids[level][k] is not None]
-            if parent is None or not kids:
-                continue
-            wide = [widened(extents_of[pulses[level][k]], parent, rho, taps) for k in kids]
-            if all(w is not None for w in wide):
-                found += wide
-                where += [(level, k) for k in kids]
-    for (level, k), g in zip(where, sample_grids(found, rho, taps)):
-        grids[level][k] = dataclasses.replace(g, separable=True)
