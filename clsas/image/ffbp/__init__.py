@@ -279,13 +279,16 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
     top = tree.top
     with stage(f"ffbp ({name})", f"{pixels.shape[0]} pixels x {leaves[-1][1] - leaves[0][0]} pulses x "
                f"{len(chosen)} receivers, {top + 1} levels, {tree.samples()} polar samples"), bar:
-        for nodes in _top_groups(tree.grids[top], pixels.shape[0]):
-            kids, offsets = _slots(tree.grids[top], nodes)
-            group = store.group(offsets[-1])
-            made = [k for k, o in zip(kids, offsets) if build(top, k, group, o)]
-            if made:
-                store.final([tree.grids[top][k] for k in made], group, [offsets[kids.index(k)] for k in made])
-        flat = store.result()
+        try:
+            for nodes in _top_groups(tree.grids[top], pixels.shape[0]):
+                kids, offsets = _slots(tree.grids[top], nodes)
+                group = store.group(offsets[-1])
+                made = [k for k, o in zip(kids, offsets) if build(top, k, group, o)]
+                if made:
+                    store.final([tree.grids[top][k] for k in made], group, [offsets[kids.index(k)] for k in made])
+            flat = store.result()
+        finally:  # the first stage's last batch's kernels read host memory it holds
+            stage1.settle()
     return Image(data=flat.reshape(grid.shape), dims=grid.dims, axes=grid.axes, positions=grid.positions,
                  provenance={"algorithm": "ffbp", "backend": name, "factor": int(factor), "tolerance": float(tolerance),
                              "taps": int(taps), "first": tree.first, "levels": top + 1,
