@@ -302,8 +302,11 @@ def _pulse_loop(asm: str) -> list[str]:
             found.append((int(m.group(1), 16), m.group(2), re.sub(r"\s*#.*$", "", m.group(3))))
     loops = [(a - int(t.group(1), 16), int(t.group(1), 16), a) for a, op, arg in found if op.startswith("j")
              for t in [re.match(r"([0-9a-f]+) <", arg)] if t and int(t.group(1), 16) < a]
-    _, start, end = max(span for span in loops if not any(
-        op.startswith(("vsqrt", "vdiv")) for a, op, _ in found if span[1] <= a <= span[2]))
+    plain = [span for span in loops if not any(op.startswith(("vsqrt", "vdiv", "sqrt", "div"))
+                                               for a, op, _ in found if span[1] <= a <= span[2])]
+    if not plain:
+        return []
+    _, start, end = max(plain)
     return [f"{op} {re.sub(r'<[^>]*>', '', arg)}" for a, op, arg in found if start <= a <= end and not op.startswith("j")]
 
 
@@ -333,6 +336,10 @@ def loop(args) -> None:
                        - before, key=os.path.getmtime)
         asm = subprocess.run([tools[1], "-d", "--no-show-raw-insn", built[-1]], capture_output=True, text=True).stdout
         body = _pulse_loop(asm)
+        if not body:
+            report(args, "backprojection-loop", "opencl", size, float("nan"), "cycles/pixel-pulse", float("nan"),
+                   case=case, note="no pulse loop without a square root found in the compiled bp_tile")
+            continue
         out = subprocess.run([tools[0], f"-mcpu={args.mcpu}", "-iterations=200"], input="\n".join(body) + "\n",
                              capture_output=True, text=True).stdout
         cycles = float(re.search(r"Total Cycles:\s+(\d+)", out).group(1)) / 200
@@ -366,9 +373,15 @@ def main() -> None:
                      extra=[("--mcpu", dict(default="icelake-server", help="llvm-mca's CPU model (--only loop)"))])
     if args.only == "loop":  # before the device starts (nothing has touched OpenCL yet): a fresh kernel cache
         _LOOP_CACHE = os.environ["POCL_CACHE_DIR"] = tempfile.mkdtemp(prefix="clsas-bp-loop-")
-    for name, part in PARTS.items():
-        if args.only == name or (args.only is None and name != "loop"):
-            part(args)
+    try:
+        for name, part in PARTS.items():
+            if args.only == name or (args.only is None and name != "loop"):
+                part(args)
+    finally:
+        if _LOOP_CACHE is not None:
+            import shutil
+
+            shutil.rmtree(_LOOP_CACHE, ignore_errors=True)
 
 
 if __name__ == "__main__":
