@@ -29,10 +29,12 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 
-def arguments(description: str, parts=None) -> argparse.Namespace:
+def arguments(description: str, parts=None, extra=()) -> argparse.Namespace:
     """The benches' options; ``parts`` (names of a bench's parts) adds ``--only NAME`` (``args.only``,
-    None when not given: every part)."""
+    None when not given: every part); ``extra``: a bench's own options, (flag, add_argument keywords) pairs."""
     parser = argparse.ArgumentParser(description=description)
+    for flag, options in extra:
+        parser.add_argument(flag, **options)
     parser.add_argument("--quick", action="store_true", help="a size that finishes in under 30 s on 2 cores")
     parser.add_argument("--json", action="store_true", help="one JSON object per line on stdout")
     parser.add_argument("--repeats", type=int, default=None, help="timed runs (median is reported)")

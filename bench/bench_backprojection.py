@@ -67,7 +67,19 @@ upsample 1) on ``GridPlan(grid, rows=r)`` for r = 4, 6 (the default) and 8, inte
 ``over_rows4`` (median wall and CPU time over those of 4 rows): bp_tile's work-item holds r rows of
 16 pixels.
 
-``--only torchbp|fixed-cost|rates|rows`` runs one part.
+The compiled loop (``bench: "backprojection-loop"``, only with ``--only loop``, which sets
+PoCL's kernel cache to a fresh directory before the device starts): bp_tile for the issue's scene
+(linear, upsample 1; stop-and-go and exact delays) built by PoCL, its pulse loop on the leg
+polynomial's arm (the longest backward jump of the work-group function without a square root)
+disassembled by ``objdump`` and analysed by ``llvm-mca`` for the CPU model given by ``--mcpu``
+(default icelake-server): instructions and uops an iteration, llvm-mca's cycles an iteration and
+per pixel-pulse (an iteration is ROWS rows of 16 pixels and one pulse), the pressure on ports 0
+and 5 (the two 512-bit vector ports) and on the load ports, beside the measured single-thread CPU
+time per pixel-pulse of the whole call (POCL_MAX_PTHREAD_COUNT=1 is not set here: the process's
+CPU time over all threads, divided by pixel-pulses). Wall times move with the load; these counts
+do not.
+
+``--only torchbp|fixed-cost|rates|rows|loop`` runs one part.
 """
 
 from __future__ import annotations
@@ -273,14 +285,103 @@ def rows(args) -> None:
                over_rows4_cpu=statistics.median(cpu[r]) / statistics.median(cpu[4]), runs=len(seconds[r]))
 
 
-PARTS = {"torchbp": versus_torchbp, "fixed-cost": fixed_cost, "rates": rates, "rows": rows}
+def _pulse_loop(asm: str) -> list[str]:
+    """The instructions (AT&T, no branches) of bp_tile's pulse loop on the leg polynomial's arm in
+    its work-group function of ``objdump -d`` output ``asm``: the longest backward jump whose span
+    holds no square root or division (the stable root's arm lies outside it)."""
+    import re
+
+    func, found = None, []
+    for line in asm.splitlines():
+        head = re.match(r"^[0-9a-f]+ <(.*)>:", line)
+        if head:
+            func = head.group(1)
+            continue
+        m = re.match(r"^\s+([0-9a-f]+):\s+(\S+)\s*(.*)$", line)
+        if m and func and func.endswith("bp_tile_workgroup_fast"):
+            found.append((int(m.group(1), 16), m.group(2), re.sub(r"\s*#.*$", "", m.group(3))))
+    loops = [(a - int(t.group(1), 16), int(t.group(1), 16), a) for a, op, arg in found if op.startswith("j")
+             for t in [re.match(r"([0-9a-f]+) <", arg)] if t and int(t.group(1), 16) < a]
+    plain = [span for span in loops if not any(op.startswith(("vsqrt", "vdiv", "sqrt", "div"))
+                                               for a, op, _ in found if span[1] <= a <= span[2])]
+    if not plain:
+        return []
+    _, start, end = max(plain)
+    return [f"{op} {re.sub(r'<[^>]*>', '', arg)}" for a, op, arg in found if start <= a <= end and not op.startswith("j")]
+
+
+def loop(args) -> None:
+    """The ``backprojection-loop`` rows (module docstring)."""
+    import glob
+    import os
+    import re
+    import shutil
+    import subprocess
+
+    tools = shutil.which("llvm-mca-15") or shutil.which("llvm-mca"), shutil.which("objdump")
+    size = {"pixels": 256 * 256, "pulses": 256, "receivers": 1, "samples": 4096}
+    if None in tools or _LOOP_CACHE is None or os.environ.get("POCL_CACHE_DIR") != _LOOP_CACHE:
+        report(args, "backprojection-loop", "opencl", size, float("nan"), "cycles/pixel-pulse", float("nan"),
+               case="not run", note="needs llvm-mca and objdump, and --only loop (a fresh PoCL cache)")
+        return
+    echo, grid = scene(256, 4096, 256)
+    plan = GridPlan(grid)
+    for case, stop_and_go in (("stop-and-go", True), ("default", False)):
+        before = set(glob.glob(os.path.join(os.environ["POCL_CACHE_DIR"], "**", "bp_tile.so"), recursive=True))
+
+        def run():
+            return backproject(echo, plan, interp="linear", upsample=1, stop_and_go=stop_and_go, progress=False)
+        run()
+        built = sorted(set(glob.glob(os.path.join(os.environ["POCL_CACHE_DIR"], "**", "bp_tile.so"), recursive=True))
+                       - before, key=os.path.getmtime)
+        asm = subprocess.run([tools[1], "-d", "--no-show-raw-insn", built[-1]], capture_output=True, text=True).stdout
+        body = _pulse_loop(asm)
+        if not body:
+            report(args, "backprojection-loop", "opencl", size, float("nan"), "cycles/pixel-pulse", float("nan"),
+                   case=case, note="no pulse loop without a square root found in the compiled bp_tile")
+            continue
+        out = subprocess.run([tools[0], f"-mcpu={args.mcpu}", "-iterations=200"], input="\n".join(body) + "\n",
+                             capture_output=True, text=True).stdout
+        cycles = float(re.search(r"Total Cycles:\s+(\d+)", out).group(1)) / 200
+        uops = float(re.search(r"Total uOps:\s+(\d+)", out).group(1)) / 200
+        lines = out.splitlines()
+        at = next(k for k, line in enumerate(lines) if line.startswith("Resource pressure per iteration"))
+        names = dict(re.findall(r"\[(\d+)\]\s+-\s+\w+?(Port\d+)", out))
+        pressure = dict(zip(re.findall(r"\[(\d+)\]", lines[at + 1]), lines[at + 2].split()))
+        port = {names[k]: float(v) for k, v in pressure.items() if k in names and v != "-"}
+        per_iteration = plan.tiling(echo.waveform.f0, echo.medium.sound_speed).rows * 16
+        cpu = [timed(run)[2] for _ in range(args.repeats or 3)]
+        work = grid.size * echo.n_pulses
+        report(args, "backprojection-loop", "opencl", size, cycles / per_iteration, "cycles/pixel-pulse",
+               statistics.median(cpu), case=case, mcpu=args.mcpu, instructions=len(body), uops=uops,
+               cycles_per_iteration=cycles, pixel_pulses_per_iteration=per_iteration,
+               vector_uops_per_pixel_pulse=(port.get("Port0", 0.0) + port.get("Port5", 0.0)) / per_iteration,
+               port0=port.get("Port0"), port5=port.get("Port5"), loads=port.get("Port2", 0.0) + port.get("Port3", 0.0),
+               cpu_ns_per_pixel_pulse=1e9 * min(cpu) / work)
+
+
+PARTS = {"torchbp": versus_torchbp, "fixed-cost": fixed_cost, "rates": rates, "rows": rows, "loop": loop}
+_LOOP_CACHE = None  # the fresh PoCL kernel cache of ``--only loop``
 
 
 def main() -> None:
-    args = arguments(__doc__.splitlines()[0], parts=PARTS)
-    for name, part in PARTS.items():
-        if args.only in (None, name):
-            part(args)
+    global _LOOP_CACHE
+    import os
+    import tempfile
+
+    args = arguments(__doc__.splitlines()[0], parts=PARTS,
+                     extra=[("--mcpu", dict(default="icelake-server", help="llvm-mca's CPU model (--only loop)"))])
+    if args.only == "loop":  # before the device starts (nothing has touched OpenCL yet): a fresh kernel cache
+        _LOOP_CACHE = os.environ["POCL_CACHE_DIR"] = tempfile.mkdtemp(prefix="clsas-bp-loop-")
+    try:
+        for name, part in PARTS.items():
+            if args.only == name or (args.only is None and name != "loop"):
+                part(args)
+    finally:
+        if _LOOP_CACHE is not None:
+            import shutil
+
+            shutil.rmtree(_LOOP_CACHE, ignore_errors=True)
 
 
 if __name__ == "__main__":
