@@ -303,10 +303,14 @@ def inside_swath(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
       patterns and the estimator's correction, read no such zone; and a plain least-squares
       slope of the corrected couples' phases at t-lag 0 reads the same block yaws as the
       estimator, so its beams, t-lags and parabolas play no part (issue #30's session-6
-      report). It lives in how the speckle's realisation near a range edge turns into phase
-      slope across the couples, yet it does not shrink with a longer block (a 256-sample
-      block reads the mean of its 64-sample parts), nor with a Hamming range window or a
-      shorter chirp. Not derived.
+      report). On the same seafloors, the correlations' diagonal alone (each scatterer with
+      its own reflectivity, exact paths, no interference between scatterers) reads no zone
+      while the estimator does, and the two agree elsewhere: the zone is in the interference
+      terms between scatterers. Their expectation is zero for independent reflectivities, so
+      it must come through the estimator's non-linearity (the phase of a ratio), yet it does
+      not shrink with a longer block as such a term would (a 256-sample block reads the mean
+      of its 64-sample parts), nor with a Hamming range window or a shorter chirp. Not
+      derived.
 
     So the ``guard`` (the estimator gives a block's length) stays a measured rule. A deeper
     guard overcorrects the 4x seafloor (paired on the same seafloors, its mean moves by more
