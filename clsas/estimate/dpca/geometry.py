@@ -298,19 +298,20 @@ def inside_swath(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
       (rho / r) sin(acos(x_0 / rho)), through the main lobe and the first sidelobe within a
       few metres of it; that cut is in :func:`look_moments`, which a Monte Carlo over the
       rectangle reproduces.)
-    - It is not in the expected correlations: the couples' correlations summed over the
-      scatterers of a uniform seafloor, with the simulation's exact two-way paths and element
-      patterns and the estimator's correction, read no such zone; and a plain least-squares
-      slope of the corrected couples' phases at t-lag 0 reads the same block yaws as the
-      estimator, so its beams, t-lags and parabolas play no part (issue #30's session-6
-      report). On the same seafloors, the correlations' diagonal alone (each scatterer with
-      its own reflectivity, exact paths, no interference between scatterers) reads no zone
-      while the estimator does, and the two agree elsewhere: the zone is in the interference
-      terms between scatterers. Their expectation is zero for independent reflectivities, so
-      it must come through the estimator's non-linearity (the phase of a ratio), yet it does
-      not shrink with a longer block as such a term would (a 256-sample block reads the mean
-      of its 64-sample parts), nor with a Hamming range window or a shorter chirp. Not
-      derived.
+    - It is in the records' correlations themselves, not in the estimator's processing: a
+      plain least-squares slope of the corrected couples' phases at t-lag 0 reads the same
+      block yaws as the estimator (its beams, t-lags and parabolas play no part), and the
+      slope of the couples' correlations summed over many seafloors and pairs reads the same
+      as the mean of the yaws (no non-linearity). Yet a model of the correlations' diagonal
+      (each scatterer of the same seafloors with its own reflectivity, the simulation's exact
+      two-way paths and element patterns, the estimator's correction, no interference between
+      scatterers; it tracks the estimator seafloor by seafloor) reads no zone. What in the
+      records near a range edge makes the difference is not found: the compressed pulse's
+      tails reach about 2 m and, corrected at the wrong range, would bias the block holding
+      the edge by a few urad but not the next one; the zone does not shrink with a longer
+      block (a 256-sample block reads the mean of its 64-sample parts), nor with a Hamming
+      range window (which leaves the tails' far part) or a shorter chirp (too noisy to say).
+      Not derived (issue #30's session-6 report has the figures).
 
     So the ``guard`` (the estimator gives a block's length) stays a measured rule. A deeper
     guard overcorrects the 4x seafloor (paired on the same seafloors, its mean moves by more
