@@ -77,15 +77,25 @@ def _block_extent(scenario: Scenario, backend, stop_and_go: bool, multipath) -> 
 
 
 def _extents(scenario: Scenario, client, pulses_per_task: int, backend, stop_and_go: bool, multipath="auto"):
-    """Earliest and latest echo centre per receiver over the whole run, s (whole samples)."""
+    """Earliest and latest echo centre per receiver over the whole run, s (whole samples), and
+    which pulse blocks (:func:`_blocks`) hear anything (a block whose beam reaches none of the
+    seafloor and that has no target hears nothing: its echo is zeros)."""
     from .synthesis import SynthesisOptions
 
     multipath = SynthesisOptions(multipath=multipath).multipath  # checked here, before any task
     futures = [client.submit(_block_extent, pulse_block(scenario, a, b), backend, stop_and_go, multipath, pure=False)
                for a, b in _blocks(scenario.eta.size, pulses_per_task)]
     extents = _gather(client, futures)
+    hears = [bool(np.any(np.isfinite(e[0]))) for e in extents]
+    if not any(hears):
+        if scenario.seafloor is not None:
+            raise ValueError(f"Scenario.seafloor (extent {list(scenario.seafloor.extent)} m) lies outside the "
+                             f"transmitter's beam at every pulse and Scenario.targets is empty: nothing to simulate; "
+                             f"move the seafloor or the track")
+        raise ValueError("Scenario.targets is empty and there is no seafloor: add PointTargets, a mesh target or a "
+                         "Seafloor to simulate echoes")
     fs = scenario.waveform.fs
-    return np.min([e[0] for e in extents], axis=0) / fs, np.max([e[1] for e in extents], axis=0) / fs
+    return np.min([e[0] for e in extents], axis=0) / fs, np.max([e[1] for e in extents], axis=0) / fs, hears
 
 
 def _window_of(scenario: Scenario, lo: np.ndarray, hi: np.ndarray) -> Recording:
@@ -103,7 +113,7 @@ def recording_window(scenario: Scenario, client, pulses_per_task: int = 64, back
     surface and the seabed too), in whole samples (the delays computed on the workers, a pulse
     block a task)."""
     _check_client(client)
-    return _window_of(scenario, *_extents(scenario, client, pulses_per_task, backend, stop_and_go, multipath))
+    return _window_of(scenario, *_extents(scenario, client, pulses_per_task, backend, stop_and_go, multipath)[:2])
 
 
 def _geometry(scenario: Scenario, hi: np.ndarray):
@@ -134,6 +144,20 @@ def _simulate_block(scenario: Scenario, kwargs: dict, store: str | None, first: 
     return None, power, echo.provenance
 
 
+def _silent_block(scenario: Scenario, first: int, stop: int, n_valid: np.ndarray, store: str | None) -> tuple:
+    """A pulse block that hears nothing (:func:`_extents`), as :func:`_simulate_block` returns one:
+    zeros in the window (with ``store``, written into the store's region: every chunk must be
+    written), zero signal power, no provenance of its own."""
+    n_rx, n_p = scenario.n_receivers, stop - first
+    data = np.zeros((n_rx, n_p, int(np.max(n_valid))), np.complex64)
+    if store is not None:
+        from .io.files.write import zarr_array
+
+        zarr_array(Path(store), "echo")[:, first:stop] = data
+        data = None
+    return data, (np.zeros((n_rx, n_p)), np.zeros((n_rx, n_p), np.int64)), None
+
+
 def simulate(scenario: Scenario, client, pulses_per_task: int = 64, snr_db: float | None = None, seed=None,
              out=None, gather: bool = True, **kwargs):
     """:func:`clsas.simulate` over blocks of ``pulses_per_task`` pulses on the Dask ``client``.
@@ -156,7 +180,8 @@ def simulate(scenario: Scenario, client, pulses_per_task: int = 64, snr_db: floa
     with _temporary(store) as tmp:
         with stage("distributed echo synthesis", f"{scenario.n_receivers} receivers x {scenario.eta.size} pulses in "
                    f"{len(blocks)} tasks" + (f", written by the workers to {store}" if store else "")):
-            lo, hi = _extents(scenario, client, pulses_per_task, backend, stop_and_go, kwargs.get("multipath", "auto"))
+            lo, hi, hears = _extents(scenario, client, pulses_per_task, backend, stop_and_go,
+                                     kwargs.get("multipath", "auto"))
             if scenario.recording is None:
                 scenario = scenario.replace(recording=_window_of(scenario, lo, hi))
             rx_tau, rx_pos, node_error = _geometry(scenario, hi)
@@ -170,10 +195,13 @@ def simulate(scenario: Scenario, client, pulses_per_task: int = 64, snr_db: floa
                                 receivers=scenario.receiver_names, scenario=given)
                 _zarr_template(head, tmp, "echo", (1, int(pulses_per_task)))
             futures = [client.submit(_simulate_block, pulse_block(scenario, a, b), kwargs,
-                                     None if tmp is None else str(tmp), a, n_valid, pure=False) for a, b in blocks]
-            parts = _gather(client, futures)
+                                     None if tmp is None else str(tmp), a, n_valid, pure=False)
+                       for (a, b), heard in zip(blocks, hears) if heard]
+            heard_parts = iter(_gather(client, futures))
+            parts = [next(heard_parts) if heard else _silent_block(scenario, a, b, n_valid, None if tmp is None else str(tmp))
+                     for (a, b), heard in zip(blocks, hears)]
         power = (np.concatenate([p[1][0] for p in parts], axis=1), np.concatenate([p[1][1] for p in parts], axis=1))
-        provenance = dict(parts[0][2], snr_db=snr_db,
+        provenance = dict(next(p[2] for p in parts if p[2] is not None), snr_db=snr_db,
                           seed=seed if seed is None or isinstance(seed, int) else str(seed),
                           distributed={"tasks": len(blocks), "pulses_per_task": int(pulses_per_task),
                                        "written_by": "workers" if store else "client"},
@@ -190,10 +218,10 @@ def simulate(scenario: Scenario, client, pulses_per_task: int = 64, snr_db: floa
         from .io import load
 
         return load(store)
-    data = np.concatenate([p[0].data for p in parts], axis=1)
+    data = np.concatenate([p[0] if isinstance(p[0], np.ndarray) else p[0].data for p in parts], axis=1)
     if snr_db is not None:
         add_noise(data, float(snr_db), seed, n_valid, power=power)
-    echo = parts[0][0].replace(data=data, eta=scenario.eta, tx_pos=scenario.tx_position(scenario.eta), rx_pos=rx_pos,
+    echo = next(p[0] for p in parts if not isinstance(p[0], np.ndarray)).replace(data=data, eta=scenario.eta, tx_pos=scenario.tx_position(scenario.eta), rx_pos=rx_pos,
                                rx_tau=rx_tau, provenance=provenance, scenario=given)
     if out is not None:
         from .io import save

@@ -249,11 +249,16 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             const float16 w0 = (float16)(W(0), W(1), W(2), W(3)), w1 = (float16)(W(4), W(5), W(6), W(7));
             const float16 w2 = (float16)(W(8), W(9), W(a), W(b)), w3 = (float16)(W(c), W(d), W(e), W(f));
 #undef W
-            const float16 a_re = (float16)(w0.s048c, w1.s048c, w2.s048c, w3.s048c);
-            const float16 a_im = (float16)(w0.s159d, w1.s159d, w2.s159d, w3.s159d);
-            const float16 b_re = (float16)(w0.s26ae, w1.s26ae, w2.s26ae, w3.s26ae);
-            const float16 b_im = (float16)(w0.s37bf, w1.s37bf, w2.s37bf, w3.s37bf);
-            const float16 dr = fma(b_re - a_re, frac[r], a_re), di = fma(b_im - a_im, frac[r], a_im);
+            /* two stages of two-source permutes (8, not 12): lanes 0-7 (w0, w1) and 8-15 (w2, w3) of
+             * each part, then the halves joined */
+            const float16 a01 = (float16)(w0.s048c, w1.s048c, w0.s159d, w1.s159d);
+            const float16 b01 = (float16)(w0.s26ae, w1.s26ae, w0.s37bf, w1.s37bf);
+            const float16 a23 = (float16)(w2.s048c, w3.s048c, w2.s159d, w3.s159d);
+            const float16 b23 = (float16)(w2.s26ae, w3.s26ae, w2.s37bf, w3.s37bf);
+            const float16 a_re = (float16)(a01.lo, a23.lo), a_im = (float16)(a01.hi, a23.hi);
+            const float16 b_re = (float16)(b01.lo, b23.lo), b_im = (float16)(b01.hi, b23.hi);
+            const float16 dr = select((float16)0.0f, fma(b_re - a_re, frac[r], a_re), keep[r]);
+            const float16 di = select((float16)0.0f, fma(b_im - a_im, frac[r], a_im), keep[r]);
 #else
             /* samples i - 3 .. i + 4 of each lane, the taps of the nearest fractional-offset row */
             const int16 row = NEAREST_TAP_ROW(convert_int16, frac[r]);
@@ -261,10 +266,12 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             const float16 lo = sinc8_lanes(taps, row.lo, W(0), W(1), W(2), W(3), W(4), W(5), W(6), W(7));
             const float16 hi = sinc8_lanes(taps, row.hi, W(8), W(9), W(a), W(b), W(c), W(d), W(e), W(f));
 #undef W
-            const float16 dr = (float16)(lo.even, hi.even), di = (float16)(lo.odd, hi.odd);
+            const float16 dr = select((float16)0.0f, (float16)(lo.even, hi.even), keep[r]);
+            const float16 di = select((float16)0.0f, (float16)(lo.odd, hi.odd), keep[r]);
 #endif
-            acc_re[r] = select(acc_re[r], acc_re[r] + dr * cs[r] - di * sn[r], keep[r]);
-            acc_im[r] = select(acc_im[r], acc_im[r] + dr * sn[r] + di * cs[r], keep[r]);
+            /* a lane not kept adds zeros (its sample zeroed where it is made: no blend of the sums) */
+            acc_re[r] = acc_re[r] + dr * cs[r] - di * sn[r];
+            acc_im[r] = acc_im[r] + dr * sn[r] + di * cs[r];
         }
     }
     for (int r = 0; r < ROWS; ++r) {
@@ -324,9 +331,11 @@ __kernel void bp_fields(__global const double *positions, __global const int *in
  * motion) or with stop-and-go: the closed forms of clsas/geometry.py's legs (meet_time), then the
  * record's fields as TileKernel.references (its NumPy twin) makes them. Work-item i: tile
  * t = i / n_pulses, pulse p = i % n_pulses of the job; ref[i] its reference.
- * pulse[p] (bp_ref_pulse_t): tx, eta, rx0 = the receiver at emission, v_rx = its velocity;
- * centres[t]: the tile's reference point at t = 0; params (bp_ref_params_t): c, f0, fs, t0 (the
- * receiver's window start), velocity v, half_extent, rho_max, offset and bias (samples). */
+ * pulse[p] (bp_ref_pulse_t): tx, eta, rx0 = the receiver at emission, v_rx = its velocity, t0 =
+ * its window start and offset = the first sample of its records (samples at fs from t0): the
+ * pulses of several receivers in one launch (clsas/image/backprojection/launcher.py: receiver
+ * after receiver, each over the same pulses); centres[t]: the tile's reference point at t = 0;
+ * params (bp_ref_params_t): c, f0, fs, velocity v, half_extent, rho_max and bias (samples). */
 inline double meet_time(const double3 d, const double3 w, const double c)
 {
     const double a = c * c - dot(w, w), b = dot(d, w);
@@ -353,7 +362,7 @@ __kernel void bp_refs(__global const double *centres, __global const bp_ref_puls
     const double t2 = meet_time(r_scatter - q, v_r, c);
     const double3 r = r_scatter + v_r * t2, v_k = v;
 #endif
-    const double big_t = t1 + t2, k = (big_t - params.t0) * params.fs, cycles = params.f0 * big_t;
+    const double big_t = t1 + t2, k = (big_t - pl.t0) * params.fs, cycles = params.f0 * big_t;
     const double k_int = clamp(floor(k), -1073741824.0, 1073741824.0);
     const double3 b = q - tx;
     const double b1 = c * c * t1 - dot(b, v_k), a1 = c * c - dot(v_k, v_k);
@@ -367,7 +376,7 @@ __kernel void bp_refs(__global const double *centres, __global const bp_ref_puls
 #else
     o.poly = params.half_extent <= params.rho_max * c * t1;
 #endif
-    o.k_ref = (int)k_int - params.offset - params.bias;
+    o.k_ref = (int)k_int - pl.offset - params.bias;
     o.k_frac = (float)(fmin(k - k_int, 0.99999994) + params.bias);
     o.cycles = (float)(cycles - rint(cycles));
     o.range1 = (float)(c * t1);

@@ -102,8 +102,10 @@ inline void meet_derivatives(vec8 r, double8 t, vec8 a, vec8 w, double c, double
  * fsoa[field * n_floor + j - split], forder likewise; fields SCAT_P0 (3), SCAT_VEL (3), SCAT_REFL
  * (re, im), SCAT_ON_FLOOR (1: on the seabed)). Work-item g computes the 8 positions from
  * 8 g (8 g + jump from split on: the facets a pulse block's beam can reach, a contiguous range);
- * a facet outside active[p] (positions [x, y): pulse p's reach) gets no echo: start UNHEARD,
- * amplitude 0;
+ * a facet outside active[p] (positions [x, y): the whole bands pulse p's beam can reach) or
+ * outside the beam's reach itself (beam[p] = the real transmitter's position (x, y, z) and
+ * tan(psi) in w, w < 0: every facet; Facets.in_reach: |y - t_y| <= tan(psi) hypot(x - t_x,
+ * z - t_z)) gets no echo: start UNHEARD, amplitude 0;
  * pulse[p]: the (image) transmitter at emission, its velocity, the emission time and its element
  * axis; nodes[(h P + p) N_NODES + k]: receiver h's (image) position and element axis at fast
  * time k dtau; rx[h]: t0_h fs (window start in samples) and the element length; legs: the path
@@ -116,7 +118,7 @@ __kernel void echo_paths(__global const double *tsoa, __global const double *fso
                          __global const int *torder, __global const int *forder, __global const float *weights,
                          __global const double2 *bottom, const echo_params_t params, const echo_legs_t legs,
                          const int n_scat, const int split, const int n_floor, const int jump,
-                         __global const int2 *active, const int n_pulses, const int w_rx, const int stride,
+                         __global const int2 *active, __global const double4 *beam, const int n_pulses, const int w_rx, const int stride,
                          const int offset, const int n_items, __global echo_path_t *paths)
 {
     const int g = get_global_id(0), p = get_global_id(1), h = get_global_id(2);
@@ -133,6 +135,11 @@ __kernel void echo_paths(__global const double *tsoa, __global const double *fso
     const vec8 vel = v8(vload8(0, f + (SCAT_VEL + 0) * n_pad), vload8(0, f + (SCAT_VEL + 1) * n_pad),
                         vload8(0, f + (SCAT_VEL + 2) * n_pad));
     const double8 refl_re = vload8(0, f + SCAT_REFL * n_pad), refl_im = vload8(0, f + (SCAT_REFL + 1) * n_pad);
+    const int2 act = active[p];
+    const double4 bm = beam[p];
+    long in_beam[8];  /* -1: lane l's facet is in pulse p's reach (targets: always) */
+    vstore8(bm.w < 0.0 ? (long8)(-1) : (fabs(p0.y - bm.y) <= bm.w * hypot(p0.x - bm.x, p0.z - bm.z)), 0,
+            in_beam);
     const echo_pulse_t pl = pulse[p];
     const vec8 tx = v8_splat(vload3(0, pl.tx));
     const vec8 q_emit = v8_add(p0, v8_scale(vel, (double8)pl.eta));
@@ -165,9 +172,8 @@ __kernel void echo_paths(__global const double *tsoa, __global const double *fso
         vstore8(u - convert_double8(fl), 0, x_fr);
         vstore8(fl, 0, x_fl);
         __global echo_path_t *o = paths + ((size_t)h * n_pulses + p) * stride + offset + j0;
-        const int2 act = active[p];
         for (int l = 0; l < 8; ++l) {
-            const int heard = !facets || (pos0 + l >= act.x && pos0 + l < act.y);
+            const int heard = !facets || (pos0 + l >= act.x && pos0 + l < act.y && in_beam[l]);
             o[l].start = heard ? (int)x_fl[l] : UNHEARD;
             o[l].frac = (real_t)x_fr[l];
         }
@@ -291,9 +297,8 @@ __kernel void echo_paths(__global const double *tsoa, __global const double *fso
     vstore8(hi, 0, x_hi);
 #endif
     __global echo_path_t *o = paths + ((size_t)h * n_pulses + p) * stride + offset + j0;
-    const int2 act = active[p];
     for (int l = 0; l < 8; ++l) {
-        const int heard = !facets || (pos0 + l >= act.x && pos0 + l < act.y);
+        const int heard = !facets || (pos0 + l >= act.x && pos0 + l < act.y && in_beam[l]);
         if (!heard) {
             x_fl[l] = UNHEARD;
             x_re[l] = x_im[l] = 0.0;

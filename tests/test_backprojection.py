@@ -512,13 +512,52 @@ def test_references_on_the_device_match_the_host(opencl_device, kiang_echo, opti
                                         2.5, offset=17)
         got = np.empty_like(host)
         cl.enqueue_copy(opencl_device.queue, got, dev)
-        for name in host.dtype.names:
-            a, b = got[name].astype(np.float64), host[name].astype(np.float64)
-            if name in ("k_ref", "poly"):
-                assert np.array_equal(a, b), (h, name)
-            else:
-                scale = np.max(np.abs(b), axis=-1, keepdims=True) if b.ndim == 3 else np.abs(b)
-                assert np.all(np.abs(a - b) <= 2e-7 * np.maximum(scale, 1e-30) + 1e-30), (h, name)
+        _same_references(got, host, h)
+    # receivers B and C (the same legs) in one launch, each with its own records' offset: (T, 2, P)
+    tile = TileKernel("linear", **options).for_receiver(kiang_echo, 1)
+    dev = tile.references_on_device(opencl_device.queue, kiang_echo, [1, 2], pulses, buf, len(centres),
+                                    kiang_echo.fs, 2.5, offset=np.array([17, 5]))
+    got = np.empty((len(centres), 2, pulses.size), tile.reference_dtype)
+    cl.enqueue_copy(opencl_device.queue, got, dev)
+    for j, (h, offset) in enumerate(((1, 17), (2, 5))):
+        host, _ = tile.references(kiang_echo, h, pulses, centres, kiang_echo.fs, 2.5, offset=offset)
+        _same_references(got[:, j], host, h)
+
+
+def _same_references(got, host, h):
+    for name in host.dtype.names:
+        a, b = got[name].astype(np.float64), host[name].astype(np.float64)
+        if name in ("k_ref", "poly"):
+            assert np.array_equal(a, b), (h, name)
+        else:
+            scale = np.max(np.abs(b), axis=-1, keepdims=True) if b.ndim == 3 else np.abs(b)
+            assert np.all(np.abs(a - b) <= 2e-7 * np.maximum(scale, 1e-30) + 1e-30), (h, name)
+
+
+@pytest.mark.parametrize("case", ["kiang", "kiang-stop-and-go", "kiang-aperture", "huang"])
+def test_references_of_several_receivers_at_once_give_the_identical_image(opencl_device, kiang_echo, monkeypatch,
+                                                                          case):
+    """A call computes consecutive receivers' references (same legs) in one bp_refs launch and each
+    receiver's bp_tile launch reads its slice: the image is bit-identical to one bp_refs launch a
+    receiver (REF_BYTES 0), for receivers of mixed legs (Kiang: A alone, B and C together), with an
+    aperture (each receiver's pulse spans from its slice) and for Huang's 32 receivers."""
+    from clsas.image.backprojection import launcher
+
+    if case == "huang":
+        echo = compressed(presets.point_scene("huang2022", n_pulses=16))
+        grid = Grid.plane(np.linspace(40.0, 80.0, 40), np.linspace(-4.0, 4.0, 24), 0.0)
+    else:
+        echo, grid = kiang_echo, around((30.0, 1.0, -43.0), 0.1, 0.1, 10, 10)
+    kw = dict(stop_and_go=case == "kiang-stop-and-go", aperture=0.3 if case == "kiang-aperture" else None,
+              progress=False)
+    groups = []
+    monkeypatch.setattr(launcher, "_groups", lambda *a, _f=launcher._groups: groups.append(_f(*a)) or groups[-1])
+    together = backproject(echo, grid, **kw).data
+    assert [len(g) for g in groups[-1]] == ([32] if case == "huang" else [1, 2])
+    monkeypatch.setattr(launcher, "REF_BYTES", 0)
+    alone = backproject(echo, grid, **kw).data
+    assert all(len(g) == 1 for g in groups[-1])
+    assert np.array_equal(together, alone)
 
 
 def test_one_leg_for_a_monostatic_receiver(opencl_device, kiang_echo):
@@ -576,3 +615,22 @@ def test_numpy_reference_keeps_its_working_set_within_the_budget():
                 tracemalloc.stop()
         assert peak < limit, (limit, peak)
     np.testing.assert_allclose(images[0], images[1], rtol=0, atol=1e-9 * np.abs(images[1]).max())
+
+
+@pytest.mark.parametrize("nodes", [[0.0], [0.0, 0.2], [-0.05, 0.05, 0.1, 0.3], [0.01, 0.2, 0.4]])
+def test_receivers_at_emission_for_the_references(nodes, rng):
+    """bp_refs' receiver positions at emission, all receivers at once (tile_kernel._at_emission),
+    are EchoData.rx_position(h, 0)'s to the last bit, for one node, two, several from before the
+    emission and several all after it (extrapolated)."""
+    from clsas import EchoData, Medium, Waveform
+    from clsas.image.backprojection.tile_kernel import _at_emission
+
+    n_rx, n_pulses, tau = 3, 6, np.asarray(nodes)
+    echo = EchoData(data=np.zeros((n_rx, n_pulses, 16), np.complex64), eta=np.arange(n_pulses) / 10.0,
+                    t0=np.full(n_rx, 0.1), fs=40e3, tx_pos=rng.normal(size=(n_pulses, 3)),
+                    rx_pos=rng.normal(size=(n_rx, n_pulses, tau.size, 3)), rx_tau=np.tile(tau, (n_rx, 1)),
+                    waveform=Waveform(f0=150e3, bandwidth=20e3, duration=1e-3, fs=40e3), medium=Medium(1500.0),
+                    receivers=("A", "B", "C"), compressed=True)
+    pulses = np.arange(1, 5)
+    want = np.stack([echo.rx_position(h, np.zeros(pulses.size), pulses=pulses) for h in (2, 0)])
+    assert np.array_equal(_at_emission(echo, np.array([2, 0]), pulses), want)

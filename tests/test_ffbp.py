@@ -175,6 +175,39 @@ def test_records_prepared_a_batch_at_a_time_give_the_same_image(opencl_device, m
     assert rel_l2(batched.data, once.data) < 1e-6
 
 
+def test_batches_left_running_and_levels_sharing_a_buffer_change_nothing(opencl_device, monkeypatch):
+    """The first stage leaves a batch's kernels running (no queue finish: the next batch or the end
+    settles them), each with its own records (RECORD_BYTES of a byte: a batch's records go with
+    it) and one batch per leaf (BATCH_POINTS of a sample), and DeviceStore writes all groups of a
+    level into one buffer: the image is bit for bit the one with a finish after every batch and a
+    fresh buffer for every group."""
+    from clsas.image.ffbp import leaves, store
+
+    echo = echo_of("motion", "speckle")
+    monkeypatch.setattr(leaves, "RECORD_BYTES", 1)
+    monkeypatch.setattr(leaves, "BATCH_POINTS", 1)
+    tree = plan(echo, list(range(echo.n_rx)), Scene.of(GRID.positions), 4, 0.1, 8, None, None)
+    assert tree.top >= 1 and len(tree.children[1]) > 1  # a level with several groups
+    shared = ffbp(echo, GRID, backend="opencl", progress=False).data
+    launch = leaves.FirstStage._launch
+    finished = []
+
+    def finishing(self, *args):
+        out = launch(self, *args)
+        clsas.opencl.runtime().queue.finish()
+        finished.append(self.pending is not None)
+        return out
+
+    def fresh(self, level, size):
+        return self.cl.Buffer(self.rt.context, self.cl.mem_flags.READ_WRITE, 8 * max(size, 1))
+
+    monkeypatch.setattr(leaves.FirstStage, "_launch", finishing)
+    monkeypatch.setattr(store.DeviceStore, "group", fresh)
+    alone = ffbp(echo, GRID, backend="opencl", progress=False).data
+    assert len(finished) > 1 and all(finished)  # several batches, each left pending
+    assert np.array_equal(shared, alone)
+
+
 def test_leaf_references_on_the_device_match_the_hosts(opencl_device, monkeypatch):
     """The leaves' tile references computed on the device (bp_refs, a launch a leaf) where every
     receiver moves uniformly (two position nodes: the straight track), or on the host: the same

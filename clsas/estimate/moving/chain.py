@@ -69,9 +69,9 @@ from ...kernelmath import unit_phasor
 from . import filters, trace, track
 from .centroid import bent, doppler_centroid_radon, doppler_centroid_walking, doppler_centroid_whitened, rcmc
 from .doppler import Doppler
-from .extent import Extent, extent
+from .extent import Extent, extent, peak_db
 from .records import UPSAMPLE, Records, records, without_wrapped_band
-from .sharpen import polynomial_phase, residual_phase
+from .sharpen import aperture_time, fm_rate_correction, polynomial_phase, residual_phase
 from .sowvd import RateSearch, rate_search, rfrt
 
 log = logging.getLogger("clsas")
@@ -215,7 +215,17 @@ SHARPEN_ALIGNMENTS = 3
 def sharpened_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: slice,
                    higher_order: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`focus_bins` with the target's residual phase found by sharpness and removed
-    (:mod:`.sharpen`): (image, eta axis, (p2, p3, p4) cycles at the aperture's ends).
+    (:mod:`.sharpen`): (image, eta axis, (p2, p3, p4) cycles at the aperture's ends); see
+    :func:`sharpened_window`."""
+    image, eta_axis, total, _ = sharpened_window(rec, fm_rate, doppler_centroid, bins, higher_order)
+    return image, eta_axis, total
+
+
+def sharpened_window(rec: Records, fm_rate: float, doppler_centroid: float, bins: slice,
+                     higher_order: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(image, eta axis, (p2, p3, p4) cycles at the aperture's ends, the aligned window
+    (n_pulses, n_bins) that was compressed with ``fm_rate`` into the image): :func:`focus_bins`
+    with the target's residual phase found by sharpness and removed (:mod:`.sharpen`).
 
     The residual is a delay error: its polynomial part phi / f0 (from the sharpness search) and
     its linear part, which the search leaves to move the image (the centroid's error df: the
@@ -259,9 +269,10 @@ def sharpened_bins(rec: Records, fm_rate: float, doppler_centroid: float, bins: 
         moved = float(np.max(np.abs(step))) + abs(new_walk - walk) * half
         delay, walk = delay + step, new_walk
         if moved * rec.bandwidth <= 0.1:
-            return image, eta_axis, total
-    image, eta_axis = compress(rec, window(), fm_rate)
-    return image, eta_axis, total
+            return image, eta_axis, total, win
+    win = window()
+    image, eta_axis = compress(rec, win, fm_rate)
+    return image, eta_axis, total, win
 
 
 def _finite(value) -> bool:
@@ -312,9 +323,19 @@ def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHO
     if not est.extent.peak_db >= focus_db:
         raise EstimationError(f"{weak}, and focused with its best candidate K = {search.fm_rate:.4g} Hz/s the record "
                               f"holds no target: image peak {est.extent.peak_db:.1f} dB over its median < {focus_db:g} dB")
+    # the SoWVD's rate near its floor is a few focus steps off (its bin is ~16 of them over 25.6 s):
+    # the rate the focus itself is sharpest at (:func:`focused_rate`) replaces it when they differ
+    k = focused_rate(rec, est)
+    if abs(k - est.fm_rate) > 4.0 / est.aperture**2:
+        log.info("receiver %s: the SoWVD's K = %.5g Hz/s focuses sharpest at %.5g Hz/s (%.1f focus steps off)",
+                 rec.name, est.fm_rate, k, (k - est.fm_rate) * est.aperture**2 / 4.0)
+        try:
+            est = with_rate(rec, search, k, refine=False)
+        except EstimationError as err:
+            raise EstimationError(f"{weak}, and its best candidate's focused K = {k:.4g} Hz/s fails: {err}") from None
     at, detuned = sharpness(rec, est)
     if not at - max(detuned) >= SHARP_DB:
-        raise EstimationError(f"{weak}, and focused with its best candidate K = {search.fm_rate:.4g} Hz/s the record's "
+        raise EstimationError(f"{weak}, and focused with its best candidate K = {est.fm_rate:.4g} Hz/s the record's "
                               f"peak ({at:.1f} dB over its median) is not sharper there than at K -+ {SHARP_STEPS:g} "
                               f"focus steps ({detuned[0]:.1f}, {detuned[1]:.1f} dB): something bright, not a target "
                               f"focused by that K")
@@ -324,26 +345,50 @@ def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHO
     return est
 
 
+def focused_rate(rec: Records, est: ReceiverEstimate) -> float:
+    """The azimuth FM rate (Hz/s) at which ``rec``'s window about est's target focuses sharpest:
+    est's K plus the rate correction of the sharpening's quadratic (:func:`sharpened_window`; its
+    Legendre P2 part p2 + 6/7 p4 cycles at the aperture's ends, :func:`.sharpen.fm_rate_correction`),
+    which :mod:`.sharpen` searches over +-3 % of K with the cubic and quartic terms beside it."""
+    rec, bins = _window(rec, est)
+    _, _, (p2, _, p4), _ = sharpened_window(rec, est.fm_rate, est.doppler_centroid, bins)
+    return est.fm_rate + fm_rate_correction(rec.eta, p2 + 6.0 / 7.0 * p4)
+
+
 def sharpness(rec: Records, est: ReceiverEstimate) -> tuple[float, tuple[float, float]]:
-    """(peak over median of ``rec`` focused with est's K and f_dc, dB; the same focused with K
-    -+ :data:`SHARP_STEPS` focus steps 4 / T_a^2), all with the quadratic focus. A focus step is
-    the rate error that leaves one cycle of quadratic phase at the aperture's ends (pi dK
-    (T_a / 2)^2 = pi): a focused target's peak falls well below its own three steps away, while
-    a bright feature that the rate does not focus (clutter, a stationary highlight, the noise's
-    largest value) stays as bright (review M6: the image's peak over its median alone confirms
-    brightness, not focus)."""
+    """(peak over median of ``rec`` focused with est's K and f_dc, dB; the same window compressed
+    with K -+ :data:`SHARP_STEPS` focus steps 4 / T_a^2). A focus step is the rate error that
+    leaves one cycle of quadratic phase at the aperture's ends (pi dK (T_a / 2)^2 = pi): a
+    focused target's peak falls well below its own three steps away, while a bright feature
+    that the rate does not focus (clutter, a stationary highlight, the noise's largest value)
+    stays as bright (review M6: the image's peak over its median alone confirms brightness,
+    not focus).
+
+    The window is the sharpened one (:func:`sharpened_window`) with the sharpening's own rate
+    correction taken out again: on the Legendre basis of :mod:`.sharpen` its P3 and P4 parts
+    (the delay's cubic and quartic terms) stay removed, its P2 part is undone, so the check is of
+    est's K (which, like the SoWVD's, is the aperture's average rate), and only the compression
+    rate is detuned. With the quadratic focus alone the check could not tell focus over long
+    apertures: the cubic and quartic terms blur a point more than three focus steps do, and a
+    right K read as "not sharp" (tests/test_moving_noise.py::test_sharpness_holds_the_higher_order_terms
+    has the figures)."""
+    rec, bins = _window(rec, est)
+    _, _, (p2, _, p4), win = sharpened_window(rec, est.fm_rate, est.doppler_centroid, bins)
+    # the sharpening's own rate correction (its Legendre P2 part, p2 + 6/7 p4 in u^2) put back:
+    # the check is of est's K, not of the rate the sharpening would have chosen
+    win = win * unit_phasor(-2 * np.pi * (p2 + 6.0 / 7.0 * p4) * aperture_time(rec.eta, rec.eta_ref) ** 2)[:, None]
     step = SHARP_STEPS * 4.0 / est.aperture**2
-    peaks = [locate(rec, est, reference=Doppler(fm_rate=k, doppler_centroid=est.doppler_centroid)).extent.peak_db
-             for k in (est.fm_rate, est.fm_rate - step, est.fm_rate + step)]
-    return peaks[0], (peaks[1], peaks[2])
+    at, below, above = (peak_db(compress(rec, win, est.fm_rate + s)[0]) for s in (0.0, -step, step))
+    return at, (below, above)
 
 
-def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None) -> ReceiverEstimate:
+def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None, refine: bool = True) -> ReceiverEstimate:
     """Steps 3-5 on ``rec`` with the azimuth FM rate ``fm_rate`` (Hz/s): the rate search's own
     (default), or another of its candidates (:func:`.motion.estimate` re-picks a receiver whose
-    rate disagrees with the others'), refined (:meth:`.sowvd.RateSearch.refine`). The candidates
-    are kept, the one used first."""
-    k = search.fm_rate if fm_rate is None else search.refine(fm_rate)
+    rate disagrees with the others'), refined (:meth:`.sowvd.RateSearch.refine`) unless
+    ``refine`` is False (a rate found by the focus, :func:`focused_rate`, is finer than the
+    SoWVD's bin). The candidates are kept, the one used first."""
+    k = search.fm_rate if fm_rate is None else search.refine(fm_rate) if refine else float(fm_rate)
     candidates = tuple(tuple(map(float, c)) for c in search.candidates)
     peak_to_background, p0, margin_db = search.peak_to_background, search.p0[0], search.margin_db
     aligned = rcmc(rec, k)
@@ -439,16 +484,8 @@ def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None 
     if not est.focusable:
         raise EstimationError(f"receiver {rec.name}: cannot locate a target that does not focus "
                               f"(|K_a,eq| T_a^2 = {abs(est.fm_rate) * est.aperture**2:.3g} < {MIN_TIME_BANDWIDTH})")
-    k0 = (est.tau_c - rec.t0) * rec.fs
-    half = EXTENT_WINDOW * rec.fs
-    n = rec.x.shape[1]
-    if not (np.isfinite(k0) and -half < k0 < n + half):
-        raise EstimationError(f"receiver {rec.name}: the target's trace lies outside the record (tau_c = "
-                              f"{est.tau_c:.6g} s; K_a,eq = {est.fm_rate:.4g} Hz/s may be wrong)")
-    lo = int(np.clip(np.floor(k0 - half), 0, n - 2))
-    bins = slice(lo, int(np.clip(np.ceil(k0 + half) + 1, lo + 2, n)))
     ref = est if reference is None else reference
-    rec = without_wrapped_band(rec, ref.doppler_centroid, ref.fm_rate)
+    rec, bins = _window(rec, est, ref)
     if sharpen:
         image, eta_axis, _ = sharpened_bins(rec, ref.fm_rate, ref.doppler_centroid, bins, higher_order)
     else:
@@ -459,3 +496,19 @@ def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None 
     eta_c = rec.eta_ref + (est.doppler_centroid - ref.doppler_centroid
                            + ref.fm_rate * (ext.eta_mid - rec.eta_ref)) / est.fm_rate
     return dataclasses.replace(est, tau_c=ext.tau_mid, eta_c=eta_c, extent=ext)
+
+
+def _window(rec: Records, est: ReceiverEstimate, reference: Doppler | None = None) -> tuple[Records, slice]:
+    """(``rec`` without the band that wraps round at the reference's f_dc and K
+    (:func:`.records.without_wrapped_band`; ``reference`` defaults to ``est``), the range bins
+    within :data:`EXTENT_WINDOW` of est.tau_c); EstimationError when they lie outside the record."""
+    k0 = (est.tau_c - rec.t0) * rec.fs
+    half = EXTENT_WINDOW * rec.fs
+    n = rec.x.shape[1]
+    if not (np.isfinite(k0) and -half < k0 < n + half):
+        raise EstimationError(f"receiver {rec.name}: the target's trace lies outside the record (tau_c = "
+                              f"{est.tau_c:.6g} s; K_a,eq = {est.fm_rate:.4g} Hz/s may be wrong)")
+    lo = int(np.clip(np.floor(k0 - half), 0, n - 2))
+    bins = slice(lo, int(np.clip(np.ceil(k0 + half) + 1, lo + 2, n)))
+    ref = est if reference is None else reference
+    return without_wrapped_band(rec, ref.doppler_centroid, ref.fm_rate), bins

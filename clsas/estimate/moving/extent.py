@@ -153,10 +153,14 @@ def extent(image: np.ndarray, eta: np.ndarray, tau: np.ndarray, eta_cell: float,
     cut = float(tau_profile[k]) * 10.0 ** (-level_db / 10.0)
     near = np.flatnonzero((tau_profile >= cut) & (weighted_z[rows].max(axis=0) >= detect_sigmas))
     first, last = (int(near[0]), int(near[-1])) if near.size else (k, k)
-    power = np.abs(image).astype(np.float32) ** 2
-    peak_db = 10 * np.log10(max(float(power.max()), 1e-30) / max(float(np.median(power)), 1e-30))
     return Extent(eta=_ends(eta_profile, eta, rows[0], rows[-1], level), tau=_ends(tau_profile, tau, first, last, cut),
-                  peak_db=float(peak_db))
+                  peak_db=peak_db(image))
+
+
+def peak_db(image: np.ndarray) -> float:
+    """The image's peak power over its median power, dB (:attr:`Extent.peak_db`)."""
+    power = np.abs(image).astype(np.float32) ** 2
+    return float(10 * np.log10(max(float(power.max()), 1e-30) / max(float(np.median(power)), 1e-30)))
 
 
 #: The noise's spread is kept above this fraction of the image's maximum (a noise-free image).

@@ -114,6 +114,9 @@ KEEP_RECORDS_BYTES = 256 << 20
 #: Passes of :func:`estimate` that refocus every receiver with the delay's higher-order terms at
 #: the previous pass's solution and solve again (module docstring).
 REFOCUS_PASSES = 2
+#: A confidence below this flags the estimate (issue #26's contract: a velocity off by more than
+#: 3 % has confidence below it, or raises); :attr:`MotionEstimate.problems` then names why.
+UNSURE = 0.5
 
 
 @dataclass(frozen=True)
@@ -159,13 +162,36 @@ class MotionEstimate:
     repicked: tuple = ()
     given_position: np.ndarray | None = None
     position_problem: str = ""
+    ambiguity: int = 1
 
     @property
     def problems(self) -> tuple:
-        """One sentence per receiver that disagrees with the solution, naming it and why, and
-        one about the position when it may be off (:attr:`position_problem`)."""
+        """One sentence per receiver that disagrees with the solution, naming it and why, one
+        about the position when it may be off (:attr:`position_problem`), and, when the
+        confidence is below :data:`UNSURE` and no receiver disagrees, one saying why
+        (:attr:`uncertainty_problem`): a flagged estimate always names its reason."""
         found = tuple(self.consistency.problems.values()) if self.consistency is not None else ()
-        return found + ((self.position_problem,) if self.position_problem else ())
+        unsure = () if found or not self.uncertainty_problem else (self.uncertainty_problem,)
+        return found + unsure + ((self.position_problem,) if self.position_problem else ())
+
+    @property
+    def uncertainty_problem(self) -> str:
+        """"" unless the confidence is below :data:`UNSURE`; then why, when no receiver's FM
+        rate disagrees with the solution: other velocities fit the centroids as well (the
+        ambiguity), or the velocity's own 1-sigma, propagated from the centroids' and rates'
+        errors through the closed forms, is too wide against the paper's 3 % bound."""
+        if not self.confidence < UNSURE:
+            return ""
+        speed = max(self.speed, 1e-12)
+        if self.ambiguity > 1:
+            return (f"velocity: {self.ambiguity} velocities fit the receivers' centroids equally well (confidence "
+                    f"{self.confidence:.2f} < {UNSURE:g}); this one may not be the target's")
+        worst = int(np.argmax(self.sigma))
+        return (f"velocity: its 1-sigma ({', '.join(f'{s:.3g}' for s in self.sigma)}) m/s, "
+                f"{100 * float(np.linalg.norm(self.sigma)) / speed:.2g} % of the speed {speed:.3g} m/s and widest in "
+                f"{'xyz'[worst]}, leaves a probability of {self.confidence:.2f} < {UNSURE:g} that the error lies "
+                f"within the paper's 3 %: the receivers' geometry or the centroids' errors do not pin that "
+                f"component down")
 
     @property
     def speed(self) -> float:
@@ -296,7 +322,7 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
                          position_sigma=sol.position_sigma * check.birge, position_estimated=sol.position_estimated,
                          centroids=centroids, cannot_focus=blind, range_residual=range_residual, layout=layout,
                          centroid_sigmas=sigmas, consistency=check, given_position=position,
-                         position_problem=position_problem)
+                         position_problem=position_problem, ambiguity=int(sol.ambiguity))
     if not quiet:
         announce(est)
     return est

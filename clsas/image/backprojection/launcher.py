@@ -9,7 +9,9 @@ written as whole vectors), which the host puts in the grid's order once the chun
 finished; the records a block
 of at most ``records.UPLOAD_BYTES`` at a time (at most two blocks in flight: the host waits for
 the kernels of the block before last), the per-(tile, pulse) references REF_PULSES pulses at a
-time. Records prepared with :func:`.records.prepare` are held whole instead, and a
+time, for consecutive receivers of the same legs at once (one bp_refs launch; a group's references
+for every pulse of the call within ``REF_BYTES``, each kept until its last receiver's bp_tile
+launch: :func:`_groups`). Records prepared with :func:`.records.prepare` are held whole instead, and a
 :class:`.tiles.GridPlan` keeps the grid's tiling.
 """
 
@@ -26,6 +28,7 @@ from .tiles import GridPlan
 
 PIXEL_CHUNK = 2**22  # slots on the device at once
 REF_PULSES = 64  # pulses whose tile references are computed at once
+REF_BYTES = 16 * 2**20  # a group of receivers' references (every pulse of the call) held at once (_groups)
 
 
 class _Chunk:
@@ -92,6 +95,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     upload = records.upload_pulses()
     jobs = [(first, i, np.arange(s, min(s + upload, span[1]))) for first in range(0, tiles.order.size, chunk)
             for i in range(len(records.receivers)) for s in range(span[0], span[1], upload)]
+    group_of = {i: g for g in _groups(records, kernels, tile, tiles, span) for i in g}
+    shared = {}  # (chunk, group, first pulse of the sub-block): the group's references, until its last member's
     fallbacks, chunk_state, in_flight, work, kernel_seconds = 0, None, [], [], 0.0
     bar = Progress(pixels.shape[0] * len(records.receivers) * (span[1] - span[0]), "pixel-pulses",
                    "back-projection (opencl)", progress)
@@ -128,8 +133,18 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                       for p0 in range(s, min(s + REF_PULSES, pulses.size), tile.PULSE_BLOCK)]
             if not double:
                 part, kernel = pulses[s:s + REF_PULSES], kernels[h]
-                ref_buf = kernel.references_on_device(queue, echo, h, part, chunk_state.centres, chunk_state.tiles.size,
-                                                      fs, tiles.half_extent, offset)
+                group = group_of[i]
+                ref_stride, ref_first = part.size * len(group), skip + s - part.size * group.index(i)
+                if len(group) > 1:  # every member's references from one bp_refs launch, (T, members, P)
+                    key = (first, group, int(part[0]))
+                    if key not in shared:
+                        shared[key] = kernel.references_on_device(
+                            queue, echo, [records.receivers[m] for m in group], part, chunk_state.centres,
+                            chunk_state.tiles.size, fs, tiles.half_extent, records.offset[list(group)])
+                    ref_buf = shared[key] if i != group[-1] else shared.pop(key)
+                else:
+                    ref_buf = kernel.references_on_device(queue, echo, h, part, chunk_state.centres,
+                                                          chunk_state.tiles.size, fs, tiles.half_extent, offset)
                 if ref_buf is None:  # a receiver followed between several nodes: on the host
                     ref, linear = kernel.references(echo, h, part, tiles.centres[chunk_state.tiles], fs,
                                                     tiles.half_extent, offset)
@@ -138,14 +153,15 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                     spans = None
                     if tile.pulse_span:
                         ref, _ = cl.enqueue_map_buffer(queue, ref_buf, cl.map_flags.READ, 0,
-                                                       (chunk_state.tiles.size, part.size), kernel.reference_dtype)
+                                                       (chunk_state.tiles.size, ref_stride), kernel.reference_dtype)
+                        mine = ref[:, skip + s - ref_first:][:, :part.size]  # this receiver's (T, P)
                         spans = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
-                                          hostbuf=tile.spans(ref, tiles.half_extent, c, skip + s))
+                                          hostbuf=tile.spans(mine, tiles.half_extent, c, skip + s))
                         ref.base.release()
                     for p0, count in blocks:
                         events.append(kernel.launch(
                             queue, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
-                            ref_stride=part.size, ref_first=skip + s, records=records_buf, n_samples=n_samples,
+                            ref_stride=ref_stride, ref_first=ref_first, records=records_buf, n_samples=n_samples,
                             taps=taps, params=params, p_first=skip + p0, p_count=count, image=chunk_state.sums,
                             spans=spans))
                     continue
@@ -164,3 +180,27 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
         chunk_state.add_into(queue, image)
     bar.close()
     return image, fallbacks, kernel_seconds
+
+
+def _groups(records: PreparedRecords, kernels: dict, tile: TileKernel, tiles, span: tuple[int, int]) -> list[tuple]:
+    """The receivers (indices into ``records.receivers``, in their order) whose references one
+    bp_refs launch computes (a launch a pulse sub-block and chunk instead of one a receiver):
+    consecutive receivers with the same legs whose references bp_refs computes (:meth:`.tile_kernel.TileKernel.on_device`),
+    as many as keep their references for every pulse of the call within REF_BYTES. bp_tile still
+    runs a receiver a launch: all of its work-items then read the same receiver's records, which
+    stay in cache (several receivers a launch, each work-item sweeping their records in turn, was
+    slower: the commit d486032 gives the figures)."""
+    echo = records.echo
+    per_receiver = tiles.centres.shape[0] * (span[1] - span[0]) * tile.reference_dtype.itemsize
+    limit = max(1, int(REF_BYTES // max(per_receiver, 1)))
+    groups: list[list] = []
+    joins_last = False
+    for i, h in enumerate(records.receivers):
+        joins = limit > 1 and kernels[h].on_device(echo, h)
+        if (joins and joins_last and len(groups[-1]) < limit
+                and kernels[records.receivers[groups[-1][0]]].legs == kernels[h].legs):
+            groups[-1].append(i)
+        else:
+            groups.append([i])
+        joins_last = joins
+    return [tuple(g) for g in groups]

@@ -104,15 +104,29 @@ TILE_REFS = {"same": record_dtype(_REF),
              "two": record_dtype(_REF + [("leg2", "f4", 3), ("b2", "f4"), ("v_rx", "f4", 3), ("a2", "f4")])}
 TILE_PARAMS = record_dtype([("a1", "f4"), ("fs", "f4"), ("f0", "f4"), ("velocity", "f4", 3), ("half_sin", "f4"),
                             ("c", "f4")])
-# bp_refs' records (the references computed on the device): a pulse (transmitter, emission time,
-# the receiver at emission and its velocity) and the launch's parameters
-REF_PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("rx0", "f8", 3), ("v_rx", "f8", 3)])
-REF_PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("t0", "f8"), ("velocity", "f8", 3),
-                           ("half_extent", "f8"), ("rho_max", "f8"), ("offset", "i4"), ("bias", "i4")])
+# bp_refs' records (the references computed on the device): a pulse of a receiver (transmitter,
+# emission time, the receiver at emission and its velocity, its window start t0 and its records'
+# first sample) and the launch's parameters
+REF_PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("rx0", "f8", 3), ("v_rx", "f8", 3), ("t0", "f8"),
+                          ("offset", "i4")])
+REF_PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("velocity", "f8", 3), ("half_extent", "f8"),
+                           ("rho_max", "f8"), ("bias", "i4")])
 _OFFSETS = [("dx", "f4", LANES), ("dy", "f4", LANES), ("dz", "f4", LANES), ("dd", "f4", LANES)]
 PIXELS = record_dtype(_OFFSETS)
 MOVING_PIXELS = record_dtype(_OFFSETS + [("dv", "f4", LANES)])
 LEG_DEFINES = {"same": "SAME_LEGS", "mono": "MONO", "two": None}
+
+
+def _at_emission(echo, hs: np.ndarray, pulses: np.ndarray) -> np.ndarray:
+    """(len(hs), len(pulses), 3) m: receivers ``hs`` at fast time 0 of each pulse, as
+    ``echo.rx_position(h, 0)`` gives them (the same arithmetic), every receiver at once."""
+    nodes, pos = echo.rx_tau[hs], echo.rx_pos[hs[:, None], pulses]  # (G, N), (G, P, N, 3)
+    if nodes.shape[1] == 1:
+        return pos[:, :, 0].copy()
+    g = np.arange(hs.size)
+    seg = np.clip(np.sum(nodes < 0.0, axis=1) - 1, 0, nodes.shape[1] - 2)  # searchsorted(nodes, 0) - 1
+    w = ((0.0 - nodes[g, seg]) / (nodes[g, seg + 1] - nodes[g, seg]))[:, None, None]
+    return pos[g, :, seg] * (1 - w) + pos[g, :, seg + 1] * w
 
 
 class TileKernel:
@@ -268,33 +282,43 @@ class TileKernel:
         that k_frac + s fs is positive and the kernel's truncation is the floor."""
         return int(np.ceil(SPAN_FACTOR * half_extent * fs / c)) + 1
 
-    def references_on_device(self, queue, echo, h: int, pulses: np.ndarray, centres, n_tiles: int, fs: float,
-                             half_extent: float, offset: int = 0):
+    def on_device(self, echo, h: int) -> bool:
+        """Whether bp_refs computes receiver h's references (:meth:`references_on_device`): not for a
+        receiver followed between more than two position nodes with exact delays."""
+        return self.stop_and_go or echo.rx_tau[h].size <= 2
+
+    def references_on_device(self, queue, echo, h, pulses: np.ndarray, centres, n_tiles: int, fs: float,
+                             half_extent: float, offset=0):
         """Enqueue bp_refs: the references of :meth:`references` (its NumPy twin) for the
         ``n_tiles`` tile ``centres`` (a device buffer of (T, 3) doubles) computed on the device, a
         buffer of (T, P) :attr:`reference_dtype` records; None where the host must compute them
-        (a receiver with more than two position nodes and exact delays: :meth:`references`
-        follows its track and checks its linearity)."""
+        (a receiver with more than two position nodes and exact delays, :meth:`on_device`:
+        :meth:`references` follows its track and checks its linearity). ``h`` and ``offset`` may
+        be sequences (G receivers and their records' first samples, all with this object's legs):
+        then the buffer holds (T, G, P) records, receiver after receiver for each tile."""
         import pyopencl as cl
 
-        if not self.stop_and_go and echo.rx_tau[h].size > 2:
+        hs, offsets = np.atleast_1d(h), np.broadcast_to(offset, np.shape(np.atleast_1d(h)))
+        if not all(self.on_device(echo, int(k)) for k in hs):
             return None
         rt = opencl.runtime()
-        pulse = np.zeros(pulses.size, REF_PULSE)
+        pulse = np.zeros((hs.size, pulses.size), REF_PULSE)
         pulse["tx"], pulse["eta"] = echo.tx_pos[pulses], echo.eta[pulses]
-        pulse["rx0"] = echo.rx_position(h, np.zeros(pulses.size), pulses=pulses)
-        if not self.stop_and_go and echo.rx_tau[h].size == 2:
-            pulse["v_rx"] = two_node_velocity(echo, h, pulses)
+        pulse["rx0"] = _at_emission(echo, hs, pulses)
+        if not self.stop_and_go and echo.rx_tau.shape[-1] == 2:
+            pulse["v_rx"] = (echo.rx_pos[hs[:, None], pulses, 1] - echo.rx_pos[hs[:, None], pulses, 0]) / np.diff(
+                echo.rx_tau[hs], axis=-1)[:, :, None]  # two_node_velocity of every receiver
+        pulse["t0"], pulse["offset"] = np.asarray(echo.t0)[hs][:, None], np.asarray(offsets)[:, None]
         c = echo.medium.sound_speed
         params = np.zeros((), REF_PARAMS)
-        params["c"], params["f0"], params["fs"], params["t0"] = c, echo.waveform.f0, fs, echo.t0[h]
+        params["c"], params["f0"], params["fs"] = c, echo.waveform.f0, fs
         params["velocity"], params["half_extent"], params["rho_max"] = self.velocity, half_extent, RHO_MAX
-        params["offset"], params["bias"] = offset, self.bias(half_extent, c, fs)
-        n_refs = n_tiles * pulses.size
+        params["bias"] = self.bias(half_extent, c, fs)
+        n_refs = n_tiles * pulse.size
         out = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, self.reference_dtype.itemsize * max(n_refs, 1))
         pulse_buf = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=pulse)
         opencl.kernel("backprojection", "bp_refs", preamble=self.ref_preamble, defines=self.ref_defines)(
-            queue, *opencl.work_groups(n_refs), centres, pulse_buf, params[()], np.int32(pulses.size),
+            queue, *opencl.work_groups(n_refs), centres, pulse_buf, params[()], np.int32(pulse.size),
             np.int32(n_refs), out)
         return out
 

@@ -208,6 +208,15 @@ def _top_groups(grids: list, n_pixels: int) -> list:
     return groups + ([group] if group else [])
 
 
+def _group_sizes(tree: Tree, n_pixels: int) -> list:
+    """The largest group of each level up to the top: a parent's children's samples (one after
+    another) below the top, a group of top nodes (_top_groups) at it."""
+    sizes = [max([_slots(tree.grids[level], kids)[1][-1] for kids in tree.children[level + 1]] + [0])
+             for level in range(tree.top)]
+    return sizes + [max(_slots(tree.grids[tree.top], nodes)[1][-1] for nodes in _top_groups(tree.grids[tree.top],
+                                                                                          n_pixels))]
+
+
 def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance: float = DEFAULT_TOLERANCE,
          taps: int = 8, first: int | None = None, interp: str = "linear", upsample: int = 8, receivers=None,
          aperture: float | None = None, stop_and_go: bool = False, backend: str | None = None,
@@ -254,7 +263,8 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
     leaves = tree.pulses[0]
     bar = Progress(leaves[-1][1] - leaves[0][0], "pulse", "ffbp", progress)  # pulses through the first stage
     stage1 = FirstStage(echo, tree.pulses[0], name, chosen, interp, upsample, aperture, stop_and_go)
-    store = (HostStore if name == "numpy" else DeviceStore)(stage1, pixels, f0, c, taps, tree.rho)
+    store = (HostStore if name == "numpy" else DeviceStore)(stage1, pixels, f0, c, taps, tree.rho,
+                                                           _group_sizes(tree, pixels.shape[0]))
 
     def build(level: int, node: int, group, offset: int) -> bool:
         """Node ``node`` of ``level``'s image into ``group`` from ``offset`` on; False when it has none."""
@@ -267,7 +277,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
             bar.done(leaves[node][1] - leaves[node][0])
             return True
         kids, offsets = _slots(tree.grids[level - 1], tree.children[level][node])
-        below = store.group(offsets[-1])
+        below = store.group(level - 1, offsets[-1])
         made = [k for k, o in zip(kids, offsets) if build(level - 1, k, below, o)]
         if not made:
             return False
@@ -279,13 +289,16 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
     top = tree.top
     with stage(f"ffbp ({name})", f"{pixels.shape[0]} pixels x {leaves[-1][1] - leaves[0][0]} pulses x "
                f"{len(chosen)} receivers, {top + 1} levels, {tree.samples()} polar samples"), bar:
-        for nodes in _top_groups(tree.grids[top], pixels.shape[0]):
-            kids, offsets = _slots(tree.grids[top], nodes)
-            group = store.group(offsets[-1])
-            made = [k for k, o in zip(kids, offsets) if build(top, k, group, o)]
-            if made:
-                store.final([tree.grids[top][k] for k in made], group, [offsets[kids.index(k)] for k in made])
-        flat = store.result()
+        try:
+            for nodes in _top_groups(tree.grids[top], pixels.shape[0]):
+                kids, offsets = _slots(tree.grids[top], nodes)
+                group = store.group(top, offsets[-1])
+                made = [k for k, o in zip(kids, offsets) if build(top, k, group, o)]
+                if made:
+                    store.final([tree.grids[top][k] for k in made], group, [offsets[kids.index(k)] for k in made])
+            flat = store.result()
+        finally:  # the first stage's last batch's kernels read host memory it holds
+            stage1.settle()
     return Image(data=flat.reshape(grid.shape), dims=grid.dims, axes=grid.axes, positions=grid.positions,
                  provenance={"algorithm": "ffbp", "backend": name, "factor": int(factor), "tolerance": float(tolerance),
                              "taps": int(taps), "first": tree.first, "levels": top + 1,

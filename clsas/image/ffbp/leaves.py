@@ -138,6 +138,7 @@ class FirstStage:
         self.demodulate = 2 * echo.waveform.f0 / echo.medium.sound_speed
         self.ready = {}
         self.records = None  # every pulse's prepared records, when they fit RECORD_BYTES
+        self.pending = None  # what the last batch's queued kernels read from host memory (settle)
 
     def image(self, node: int, grid: PolarGrid, grids: list) -> np.ndarray:
         """Leaf ``node``'s image on its polar grid ``grid``, demodulated: (n_v, n_r) (complex64 on
@@ -178,7 +179,17 @@ class FirstStage:
         """The leaf's image demodulated by its ranges, zero outside its rows' spans."""
         return image * expj_cycles(-self.demodulate * grid.ranges)[None, :] * grid.inside()
 
+    def settle(self) -> None:
+        """Wait for the last batch's kernels, then let go of the host memory they read (its
+        records, its pixel fields): the walk enqueues its leaves' merges meanwhile, and the
+        next batch settles the last one before it allocates its own (so one batch's are held at a
+        time, as the memory plan counts). :func:`clsas.image.ffbp.ffbp` settles at its end."""
+        if self.pending is not None:
+            opencl.runtime().queue.finish()
+            self.pending = None
+
     def _batch(self, node: int, grids: list) -> None:
+        self.settle()
         batch, points, last = [], 0, node
         for k in range(node, len(self.leaves)):
             if grids[k] is None:
@@ -345,7 +356,7 @@ class FirstStage:
         spans = np.concatenate([g.row_spans for g in leaves])
         span_first = np.cumsum([0] + [g.n_v for g in leaves])
         slots_buf, spans_buf = made(slots), made(spans)
-        rt.queue.finish()  # the records' buffers may use host memory that the caller drops
+        self.pending = (records, fields, pix)  # read in place by the queued kernels until settle()
         for j, k in enumerate(batch):  # the leaf's slots and spans from slot_first[j] and span_first[j] on
             self.ready[k] = (image, slots_buf, int(slot_first[j]), spans_buf, int(span_first[j]))
         return []

@@ -19,6 +19,15 @@ phase, giving back-projection's image). Phases in cycles,
 
 The kernel computes X, r_c, v_c, the positions and the phase in double, the interpolation and
 the sum in float; the reference does everything in float64.
+
+Why one T x T read and not two passes (angle down the child's columns to the parent's rows,
+then range along them: T + T reads from contiguous samples, the child's range band widened by
+|dv_c/dr| W_v to keep the error model): built and held to its reference (commits 2c6580e ..
+27a3d0e), it was slower on PoCL 3.1 / AVX-512, its helpers inlined or not (the same merges
+both ways, interleaved):
+the eight row reads are only about half of this kernel's cost; the rest (geometry, phase, the
+lanes' own tap rows and their cross-lane sums) two passes pay once each over as many (sample,
+child) pairs.
 """
 
 from __future__ import annotations

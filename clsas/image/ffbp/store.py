@@ -3,9 +3,9 @@
 The walk (:func:`clsas.image.ffbp.ffbp`) gives every node a slot in a *group*: the images of a
 parent's children, one after another, so that the parent's merge reads them where its children
 wrote them. :class:`HostStore` holds groups in NumPy arrays and merges with the float64 reference
-(the NumPy backend); :class:`DeviceStore` holds them in OpenCL buffers and only enqueues (the leaves'
-demodulation, the merges and the final stage run on the device one after another, and the image
-comes back once, at the end).
+(the NumPy backend); :class:`DeviceStore` holds them in OpenCL buffers, one a level, and only
+enqueues (the leaves' demodulation, the merges and the final stage run on the device one after
+another, and the image comes back once, at the end).
 """
 
 from __future__ import annotations
@@ -19,11 +19,11 @@ from .merge import DevicePoints, merge_device, merge_reference
 class HostStore:
     """Groups in complex128 arrays; leaves, merges and the final stage by the NumPy reference."""
 
-    def __init__(self, stage1, pixels: np.ndarray, f0: float, c: float, taps: int, rho: float):
+    def __init__(self, stage1, pixels: np.ndarray, f0: float, c: float, taps: int, rho: float, sizes: list):
         self.stage1, self.pixels, self.args = stage1, pixels, (f0, c, taps, rho)
         self.flat = np.zeros(pixels.shape[0], np.complex128)
 
-    def group(self, size: int) -> np.ndarray:
+    def group(self, level: int, size: int) -> np.ndarray:
         return np.empty(size, np.complex128)
 
     def leaf(self, node: int, grid, grids: list, group: np.ndarray, offset: int) -> None:
@@ -47,9 +47,15 @@ class DeviceStore:
     """Groups in complex64 OpenCL buffers; the leaves' images by
     :meth:`clsas.image.ffbp.leaves.FirstStage.image_into`, merges and the final stage by
     :func:`clsas.image.ffbp.merge.merge_device`, all enqueued; the image is read back by
-    :meth:`result`. The pixels' positions are read in place (the grid outlives the call)."""
+    :meth:`result`. The pixels' positions are read in place (the grid outlives the call).
 
-    def __init__(self, stage1, pixels: np.ndarray, f0: float, c: float, taps: int, rho: float):
+    One buffer a level serves all its groups, one after another (``sizes``: the largest group of
+    each level, as the memory plan counts): the walk is depth first, so a level holds one group
+    at a time, and the queue runs in order, so a group's merge has read it before the next group
+    of its level is written there. (A buffer a group cost page faults for every group's fresh
+    memory.)"""
+
+    def __init__(self, stage1, pixels: np.ndarray, f0: float, c: float, taps: int, rho: float, sizes: list):
         import pyopencl as cl
 
         self.cl, self.rt = cl, opencl.runtime()
@@ -60,9 +66,13 @@ class DeviceStore:
                                    pixels.shape[0])
         self.flat = cl.Buffer(self.rt.context, mf.READ_WRITE, 8 * pixels.shape[0])
         self.written = False  # the first final stage writes the image (no zero fill), later ones add
+        self.sizes, self.levels = sizes, {}
 
-    def group(self, size: int):
-        return self.cl.Buffer(self.rt.context, self.cl.mem_flags.READ_WRITE, 8 * max(size, 1))
+    def group(self, level: int, size: int):
+        if level not in self.levels or self.levels[level].size < 8 * size:
+            self.levels[level] = self.cl.Buffer(self.rt.context, self.cl.mem_flags.READ_WRITE,
+                                                8 * max(self.sizes[level], size, 1))
+        return self.levels[level]
 
     def leaf(self, node: int, grid, grids: list, group, offset: int) -> None:
         self.stage1.image_into(node, grid, grids, group, offset)

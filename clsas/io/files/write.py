@@ -142,6 +142,6 @@ def zarr_array(store: Path, name: str):
     :func:`clsas.load` must have all its chunks)."""
     import zarr
 
-    if int(zarr.__version__.split(".")[0]) >= 3:
-        return zarr.open_array(store=str(store), path=name, mode="r+", config={"write_empty_chunks": True})
+    if int(zarr.__version__.split(".")[0]) >= 3:  # open_array's config= is not kept (zarr 3.1.6): with_config
+        return zarr.open_array(store=str(store), path=name, mode="r+").with_config({"write_empty_chunks": True})
     return zarr.open_array(str(store), path=name, mode="r+", write_empty_chunks=True)

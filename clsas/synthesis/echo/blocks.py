@@ -31,7 +31,8 @@ class BlockSynth:
         """int64 (P, 2): per pulse of the block, the seafloor facets [first, stop) (indices among
         the facets) that its beam can reach (:meth:`clsas.scene.seafloor.Facets.reach_span`; every
         facet unless ``cull``); None without a seafloor. The facets outside carry no echo at that
-        pulse (their path weights are 0): both backends leave them out of the recording window."""
+        pulse (their path weights are 0): both backends leave them out of the recording window
+        (exactly those in reach count there: :meth:`heard`)."""
         if self.facets is None:
             return None
         eta = self.eta[pulses]
@@ -39,15 +40,30 @@ class BlockSynth:
             return np.tile(np.array([0, self.facets.count], np.int64), (eta.size, 1))
         return self.facets.reach_spans(self.scenario.tx_position(eta), self.across)
 
+    def beam(self, pulses: slice, cull: bool = True) -> np.ndarray:
+        """float64 (P, 4): per pulse of the block, the transmitter's position (m) and tan(psi) of
+        its beam's reach (:meth:`clsas.scene.seafloor.Facets.in_reach`), or -1 where every facet
+        counts (not ``cull``, no seafloor, an omnidirectional transmitter)."""
+        eta = self.eta[pulses]
+        out = np.full((eta.size, 4), -1.0)
+        out[:, :3] = self.scenario.tx_position(eta)
+        if cull and self.facets is not None and np.isfinite(self.facets.reach):
+            out[:, 3] = self.facets.reach
+        return out
+
     def heard(self, pulses: slice) -> np.ndarray:
-        """bool (P, N): the scatterers that can carry an echo at each pulse of the block (every
-        target; the facets within :meth:`reach`)."""
+        """bool (P, N): the scatterers that can carry an echo at each pulse of the block: every
+        target, and the facets in the beam's reach then (:meth:`Facets.in_reach`, searched within
+        :meth:`reach`). Exactly these, not the whole bands :meth:`reach` gives, so that the
+        recording window does not depend on which facets a pulse block drew (a block of a
+        distributed run draws those its own pulses can reach)."""
         n_p = len(range(*pulses.indices(self.eta.size)))
         out = np.ones((n_p, self.scat.count), dtype=bool)
         spans = self.reach(pulses)
         if spans is not None:
-            k = np.arange(self.scat.count - self.floor_first)
-            out[:, self.floor_first:] = (k >= spans[:, :1]) & (k < spans[:, 1:])
+            out[:, self.floor_first:] = False
+            for p, ((a, b), tx) in enumerate(zip(spans, self.beam(pulses)[:, :3])):
+                out[p, self.floor_first + a:self.floor_first + b] = self.facets.in_reach(tx, a, b)
         return out
 
     def weights(self, pulses: slice):

@@ -248,8 +248,9 @@ class OpenCLSynth(BlockSynth):
         w = self.weights(pulses) if weighted else None
         w_rx = 0 if w is None or w.shape[0] == 1 else pc
         w = np.ones(1, np.float32) if w is None else np.ascontiguousarray(w, dtype=np.float32)
-        w_buf, rx_buf, active_buf = (cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
-                                     for a in (w, rx, active))
+        w_buf, rx_buf, active_buf, beam_buf = (
+            cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
+            for a in (w, rx, active, self.beam(pulses, cull)))
         paths_buf = cl.Buffer(ctx, mf.READ_WRITE, self.path_dtype.itemsize * h * pc * stride)
         kernel = self.k_paths_delays if delays_only else self.k_paths if weighted else self.k_paths_plain
         for slot, k in enumerate(kinds):
@@ -265,7 +266,7 @@ class OpenCLSynth(BlockSynth):
             kernel(q, *groups(n_act // 8, pc, h), self.tsoa_buf, self.fsoa_buf, pulse_buf, node_buf, rx_buf,
                    self.torder_buf, self.forder_buf, w_buf, self.bottom_buf, self.params[()], self.legs[k][()],
                    np.int32(self.scat.count), np.int32(self.split), np.int32(self.n_floor), np.int32(jump),
-                   active_buf, np.int32(pc), np.int32(w_rx), np.int32(stride), np.int32(slot * n_act),
+                   active_buf, beam_buf, np.int32(pc), np.int32(w_rx), np.int32(stride), np.int32(slot * n_act),
                    np.int32(n_act // 8), paths_buf)
         return paths_buf, pc, (jump, n_act, stride)
 

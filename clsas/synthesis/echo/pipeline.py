@@ -84,6 +84,10 @@ def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_oc
 def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion, prune: bool = True):
     """The backend's synthesizer and the pulse blocks that keep its working memory under ``opts.chunk_bytes``."""
     scat = scene_scatterers(scenario)
+    if scat.count == 0 and scenario.seafloor is not None:
+        raise ValueError(f"Scenario.seafloor (extent {list(scenario.seafloor.extent)} m) lies outside the "
+                         f"transmitter's beam at every pulse (eta {scenario.eta[0]:.6g} .. {scenario.eta[-1]:.6g} s) "
+                         f"and Scenario.targets is empty: nothing to simulate; move the seafloor or the track")
     if scat.count == 0:
         raise ValueError("Scenario.targets is empty and there is no seafloor: add PointTargets, a mesh target or a "
                          "Seafloor to simulate echoes")
@@ -145,6 +149,8 @@ def window_extents(scenario: Scenario, options: SynthesisOptions | None = None) 
     opts = SynthesisOptions() if options is None else options
     if not isinstance(opts, SynthesisOptions):
         raise TypeError(f"options must be a SynthesisOptions, got {type(opts).__name__}")
+    if scenario.seafloor is not None and scene_scatterers(scenario).count == 0:  # the beam reaches no facet
+        return np.full(scenario.n_receivers, np.inf), np.full(scenario.n_receivers, -np.inf)
     synth, blocks = _make_synth(scenario, opts, None)
     lo = np.full((scenario.n_receivers, synth.scat.count), np.inf)
     hi = np.full((scenario.n_receivers, synth.scat.count), -np.inf)
