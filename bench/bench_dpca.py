@@ -29,14 +29,13 @@ that edge, rounded to 0.25 m; negative outside), the mean over SEEDS seafloors o
 (PingPairs.block_yaw), its standard error and the fraction of pairs whose yaw took the block
 (PingPairs.block_inside).
 
-``--edge-cut SEEDS`` tells the two readings of the near-edge zone apart (no timing): each
-seafloor of :func:`motionless_scene` is estimated as drawn and again reaching NEARER m nearer
-the track (the same scatterers from ACROSS[0] on, more in front of them). The records of the
-blocks a few metres inside ACROSS[0] hold the same echoes in both up to the ring arcs at look
-angles wider than where ACROSS[0] cuts them; what moves is where the seafloor's near edge cuts
-their rings. Per block within 8 m of ACROSS[0]: its range, the near edge, the direction cosine
-at which that edge cuts the block's middle ring (cut_sin, and over the main lobe's half-width
-cut_over_lobe), and the mean block yaw over SEEDS seafloors with its standard error.
+``--edge-cut SEEDS`` asks what sets the near-edge zone (no timing), on the 1x transmitter
+over three seafloors per seed: the 4x seafloor of :func:`motionless_scene` ("rectangle"), the
+same scatterers and more in front of them, its near edge NEARER m nearer the track ("nearer":
+the zone's blocks then hold the old cut's wider look angles too), and a half annulus
+(:func:`annulus_scene`, "annulus": range edges that cut no ring, estimated with extent=None).
+Per seafloor and block depth inside its near edge (0: the block that holds it, 1, 2, 3 blocks
+in), the mean block yaw over SEEDS seafloors and its standard error.
 """
 
 from __future__ import annotations
@@ -66,9 +65,8 @@ R0 = 37.0                  # m, the range at which their footprint is measured
 DENSITY = 20.0
 # the --edges cases: (transmitter factor, seafloor extent, block length in samples); --quick: the first
 EDGE_CASES = ((1.0, 1.0, 128), (1.0, 1.0, 64), (2.0, 1.0, 128), (1.0, 4.0, 128))
-# the --edge-cut cases: (transmitter factor, seafloor extent); --quick: the first. Each seafloor
-# is also drawn NEARER m nearer the track (three 128-sample blocks: the blocks stay on the same ranges)
-EDGE_CUT_CASES = ((1.0, 1.0), (1.0, 4.0))
+# --edge-cut: the 4x seafloor drawn again reaching this much nearer the track, m (three 128-sample
+# blocks: its blocks stay on the same ranges)
 NEARER = 5.76
 
 
@@ -302,28 +300,49 @@ def edge_profile(args, seeds: int, pings: int) -> None:
                    kept=float(np.mean(values[:, 1])), load=[round(x, 2) for x in os.getloadavg()])
 
 
+def annulus_scene(tx_factor: float, pings: int, seed: int):
+    """(scene, range-compressed echo): :func:`bias_sonar` over a speckle seafloor that fills the
+    half annulus ACROSS[0] < |S - (0, y_m)| < ACROSS[1] around the track's middle y_m, out to
+    +-4 footprints along the track (DENSITY / 4 a square metre): its edges are range edges only,
+    its rings whole at every look angle (for --edge-cut; estimate it with extent=None)."""
+    scene = bias_sonar(tx_factor, pings)
+    middle = scene.platform.speed * float(np.mean(scene.eta))
+    half = 4 * footprint(scene) / 2
+    rng = np.random.default_rng(seed)
+    n = int(DENSITY / 4 * ACROSS[1] * 2 * half)
+    x, y = rng.uniform(0, ACROSS[1], n), rng.uniform(-half, half, n)
+    keep = (np.hypot(x, y) > ACROSS[0]) & (np.hypot(x, y) < ACROSS[1])
+    m = int(keep.sum())
+    pos = np.stack([x[keep], y[keep] + middle, np.zeros(m)], -1)
+    reflectivity = (rng.normal(size=m) + 1j * rng.normal(size=m)) / np.sqrt(2)
+    scene = scene.replace(targets=(PointTargets(pos, reflectivity=reflectivity),))
+    return scene, clsas.range_compress(clsas.simulate(scene, progress=False), upsample=2)
+
+
 def edge_cut(args, seeds: int, pings: int) -> None:
     """The --edge-cut rows (see the module docstring): seeds 1000 .. 1000 + seeds - 1."""
-    for tx_factor, extent in EDGE_CUT_CASES[:1] if args.quick else EDGE_CUT_CASES:
-        yaws, start = {}, time.perf_counter()
-        for seed in range(1000, 1000 + seeds):
-            for nearer in (0.0, NEARER):
-                scene, floor, echo = motionless_scene(tx_factor, extent, pings, seed, nearer)
-                pairs = dpca.estimate(echo, scene.array, scene.platform.speed)
-                for r, column in zip(pairs.block_range, pairs.block_yaw.T):
-                    if np.any(np.isfinite(column)):
-                        yaws.setdefault((round(float(r), 2), nearer, floor.x[0]), []).append(float(np.nanmean(column)))
-        seconds = time.perf_counter() - start
-        for (r, nearer, near_edge), values in sorted(yaws.items()):
-            if len(values) < 2 or r > ACROSS[0] + 8:
-                continue
-            # where the near edge cuts the block's middle ring: its along-track direction cosine
-            cut = float(np.sqrt(max(0.0, 1 - (near_edge / r) ** 2)))
-            report(args, "dpca-yaw-edge-cut", "numpy", {"tx_factor": tx_factor, "extent": extent, "seeds": seeds,
-                                                        "pings": pings, "nearer_m": nearer, "range_m": r},
-                   len(values) / seconds, "block means/s (with simulation)", seconds, near_edge_m=near_edge,
-                   cut_sin=round(cut, 3), cut_over_lobe=round(cut / dpca.geometry.main_lobe(scene.array, scene.waveform.f0,
-                                                                                             scene.medium.sound_speed), 2),
+    variants = ("rectangle", "nearer", "annulus")
+    yaws, start = {}, time.perf_counter()
+    for seed in range(1000, 1000 + seeds):
+        for variant in variants:
+            if variant == "annulus":
+                scene, echo = annulus_scene(1.0, pings, seed)
+                pairs, near = dpca.estimate(echo, scene.array, scene.platform.speed, extent=None), ACROSS[0]
+            else:
+                scene, floor, echo = motionless_scene(1.0, 4.0, pings, seed, NEARER if variant == "nearer" else 0.0)
+                pairs, near = dpca.estimate(echo, scene.array, scene.platform.speed), floor.x[0]
+            span = np.diff(pairs.block_range)[0]
+            for r, column in zip(pairs.block_range, pairs.block_yaw.T):
+                # the depth of the block's middle inside the near edge, in block lengths
+                depth = int(np.floor((r - near) / span))
+                if np.any(np.isfinite(column)) and 0 <= depth <= 3:
+                    yaws.setdefault((variant, depth), []).append(float(np.nanmean(column)))
+    seconds = time.perf_counter() - start
+    for (variant, depth), values in sorted(yaws.items()):
+        if len(values) > 1:
+            report(args, "dpca-yaw-edge-cut", "numpy", {"tx_factor": 1.0, "seafloor": variant, "seeds": seeds,
+                                                        "pings": pings, "depth_blocks": depth},
+                   len(values) / seconds, "block means/s (with simulation)", seconds,
                    yaw_mean_urad=1e6 * float(np.mean(values)),
                    yaw_error_urad=1e6 * float(np.std(values, ddof=1) / np.sqrt(len(values))),
                    load=[round(x, 2) for x in os.getloadavg()])

@@ -289,42 +289,34 @@ def inside_swath(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
     (bench/bench_dpca.py --edges; PingPairs.block_yaw shows it on any data). What is known of
     it (issue #30's reports):
 
-    - It is the cut of the rings, not the records' edge. A flat seafloor's near edge x_0
-      (ground, across track) cuts the ring of slant range r at the along-track direction cosine
-      s_c = (rho / r) sin(acos(x_0 / rho)), rho the ground range: s_c grows from 0 at the edge
-      as sqrt(2 (r - x_0) / r) for a track in the floor's plane, so the edge sweeps through the
-      main lobe within (lambda / L)^2 r / 2 of it (1.3 m for tests/test_dpca_bias.py's sonar at
-      27 m) and through the first sidelobe within about 2 (lambda / L)^2 r (5-7 m). bench_dpca.py --edge-cut draws each seafloor again
-      with the same scatterers and more in front of them, the edge moved nearer: the blocks'
-      records change only by ring arcs at look angles wider than the old cut, yet the blocks
-      just inside the old edge lose their bias, and the blocks the same distance inside the new
-      edge take it on. The biased blocks are those whose rings the edge cuts inside the two-way
-      pattern's first sidelobe (s_c from lambda / L to about 1.6 lambda / L for equal elements);
-      where it cuts beyond that they read no bias. The zone was measured deeper for a seafloor
-      that fills the sidelobes along the track (4x the footprint) than for one whose
-      along-track ends already cut the rings inside the first sidelobe, as this reading expects.
-    - The correction knows the cut: :func:`look_moments` takes <sin^2> over the arcs the
-      rectangle leaves, and the bias tests' control variate (bench_dpca.PhaseCentreControl:
-      the phase-centre residual of the seafloor's own scatterers in the same cut rings) has
-      zero mean. So the block does not read the yaw its scatterers' phase-centre residuals
-      average to: near a sidelobe cut it reads as if the cut lay at a wider look angle (as if
-      <sin^2> were the ring's some metres further out). Why the estimator weighs the
-      scatterers next to a sidelobe cut differently from the two-way power pattern is not
-      derived. Ruled out: the pattern's change over the band (it moves <sin^2> by about the
-      same fraction in every block, cut or not), the records' range registration (the seafloor's
-      edges sit where the extent says), a blur or shift of the records in range (that would
-      bias the near and far edges the same way round; they are biased opposite ways), range
-      sidelobes and the block length (as measured before).
-    - At the far edge, rings inside the swath are whole (x <= r < x_max); the positive bias of
-      the far blocks of a seafloor about one footprint long (bench_dpca.py --edges) comes where
-      its along-track ends cut the rings inside the main lobe for the later pairs; a seafloor
-      4x the footprint, whose ends cut nothing there, has none a couple of blocks inside.
+    - It is a range edge, not the cut of the rings. A half annulus of seafloor around the track
+      has range edges that cut no ring (every ring between them is whole at every look angle);
+      its blocks just inside the near edge read a negative yaw and those just inside the far
+      edge a positive one, as the rectangles' do, and a rectangle drawn again reaching nearer
+      the track takes its zone along (bench_dpca.py --edge-cut). (The near edge of a
+      rectangle parallel to the track also cuts the rings, at the along-track direction cosine
+      (rho / r) sin(acos(x_0 / rho)), through the main lobe and the first sidelobe within a
+      few metres of it; that cut is in :func:`look_moments`, which a Monte Carlo over the
+      rectangle reproduces.)
+    - It is in the records' correlations themselves, not in the estimator's processing: a
+      plain least-squares slope of the corrected couples' phases at t-lag 0 reads the same
+      block yaws as the estimator (its beams, t-lags and parabolas play no part), and the
+      slope of the couples' correlations summed over many seafloors and pairs reads the same
+      as the mean of the yaws (no non-linearity). Yet a model of the correlations' diagonal
+      (each scatterer of the same seafloors with its own reflectivity, the simulation's exact
+      two-way paths and element patterns, the estimator's correction, no interference between
+      scatterers; it tracks the estimator seafloor by seafloor) reads no zone. What in the
+      records near a range edge makes the difference is not found: the compressed pulse's
+      tails reach about 2 m and, corrected at the wrong range, would bias the block holding
+      the edge by a few urad but not the next one; the zone does not shrink with a longer
+      block (a 256-sample block reads the mean of its 64-sample parts), nor with a Hamming
+      range window (which leaves the tails' far part) or a shorter chirp (too noisy to say).
+      Not derived (issue #30's session-6 report has the figures).
 
-    So the ``guard`` (the estimator gives a block's length) stays a measured rule. A guard that
-    drops the sidelobe-cut blocks as well overcorrects the 4x seafloor (paired on the same
-    seafloors, its mean moves by more than its bias: issue #30's session-6 report), so it is
-    not applied: a rule that holds for any seafloor extent needs the weighting near a cut
-    derived first.
+    So the ``guard`` (the estimator gives a block's length) stays a measured rule. A deeper
+    guard overcorrects the 4x seafloor (paired on the same seafloors, its mean moves by more
+    than its bias: issue #30's session-6 report), so it is not applied: a rule that holds for
+    any seafloor extent needs the zone derived first.
     ``content``: the blocks' content from :func:`look_moments` if already computed (same arguments)."""
     if extent is None:
         shape = (np.asarray(centre).shape[0], np.asarray(r).size)
