@@ -21,7 +21,7 @@ from _harness import arguments, measure, report
 
 import clsas
 from clsas.model import Grid
-from clsas.estimate.moving import centroid, chain, closed_forms, receiver_focus, higher_order_delay, layout_of, mapping, solve_motion, solve_velocity
+from clsas.estimate.moving import azimuth, centroid, chain, closed_forms, receiver_focus, higher_order_delay, layout_of, mapping, solve_motion, solve_velocity
 from clsas.estimate.moving.closedforms import delay_terms
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets
@@ -52,7 +52,7 @@ def main() -> None:
     steps["RCMC"] = measure(lambda: centroid.rcmc(rec, k), repeats=repeats)
     steps["Radon (f_dc)"] = measure(lambda: centroid.doppler_centroid_radon(rec, rcmc), repeats=repeats)
     steps["RWC + azimuth compression"] = measure(
-        lambda: chain.focus_bins(rec, k, f_dc, slice(0, rec.x.shape[1])), repeats=repeats)
+        lambda: azimuth.focus_bins(rec, k, f_dc, slice(0, rec.x.shape[1])), repeats=repeats)
     steps["estimate_receiver (A, whole)"] = measure(lambda: chain.estimate_receiver(echo, "A"), repeats=repeats)
 
     steps["sharpened locate (A, first pass)"] = measure(lambda: chain.locate(rec, est, sharpen=True),
@@ -65,9 +65,9 @@ def main() -> None:
     bins = slice(int(k_c) - 80, int(k_c) + 81)  # +-2 ms around the target, as focus_moving(tau_span=0.004)
     _, f_model, k_model = delay_terms(lay, "A", CENTRE, v)  # the model's history, as focus_moving
     steps["focus, model history (A, 4 ms)"] = measure(
-        lambda: chain.focus_bins(rec, k_model, f_model, bins, higher), repeats=repeats)
+        lambda: azimuth.focus_bins(rec, k_model, f_model, bins, higher), repeats=repeats)
     steps["focus + sharpness search (A, 4 ms)"] = measure(
-        lambda: chain.sharpened_bins(rec, k_model, f_model, bins, higher), repeats=repeats)
+        lambda: azimuth.sharpened_bins(rec, k_model, f_model, bins, higher), repeats=repeats)
     truth = closed_forms(lay, CENTRE, v)
     centroids = {n: d.doppler_centroid for n, d in truth.items()}
     steps["velocity solve"] = measure(lambda: solve_velocity(lay, CENTRE, centroids), repeats=repeats)

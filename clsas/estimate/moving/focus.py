@@ -27,7 +27,7 @@ Autofocus (``sharpen``). A velocity error of 0.1 % leaves tens of radians of pha
 depends on the position only through the range, a relative change of size / range). So the
 residual phase (p2, p3, p4, cycles at the aperture's ends) is found by sharpness on the
 reference point's own range cells (:data:`AUTOFOCUS_CELLS` each side of its delay at eta_ref,
-after aligning the record with the model: :func:`.chain.sharpened_bins`), where every scatterer
+after aligning the record with the model: :func:`.azimuth.sharpened_bins`), where every scatterer
 has the reference point's range and so its FM rate; across the whole target the rate varies as
 1 / range (1 m of range at 2 km changes a quadratic phase of 25 rad by 0.3 %, which a hull's
 extent in range would put into a common estimate). The record is then advanced by that delay
@@ -53,7 +53,7 @@ from ... import budget, validate
 from ...image.backprojection import backproject
 from ...model import EchoData, Grid, Image
 from . import filters
-from .chain import sharpened_bins
+from .azimuth import sharpened_bins
 from .records import compressed_receiver, records_of, without_wrapped_band
 from .receiver_focus import focus_receiver
 from .closedforms import Predicted, delay_history, delay_terms, higher_order_delay

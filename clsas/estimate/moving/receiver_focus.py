@@ -8,7 +8,8 @@ import numpy as np
 from ... import validate
 from ...errors import EstimationError
 from ...model import EchoData, Image
-from .chain import MIN_TIME_BANDWIDTH, ReceiverEstimate, focus_bins, sharpened_bins
+from .azimuth import focus_bins, sharpened_bins
+from .chain import MIN_TIME_BANDWIDTH, ReceiverEstimate
 from .records import UPSAMPLE, records, without_wrapped_band
 from .doppler import Doppler
 from .sharpen import fm_rate_correction

@@ -52,7 +52,7 @@ Spans (derived from the error budget above): p2 over +-``rate_span`` |K| (T_a / 
 it: a velocity error of a few %).
 
 The residual is also a delay error, and its range walk (the linear part, which the centroid's
-error leaves) is compensated in range by :func:`.chain.sharpened_bins`, which runs this search.
+error leaves) is compensated in range by :func:`.azimuth.sharpened_bins`, which runs this search.
 """
 
 from __future__ import annotations

@@ -30,7 +30,8 @@ from ... import validate
 from ...errors import EstimationError
 from ...model import EchoData
 from . import filters
-from .chain import FOCUS_DB, P0, THRESHOLD_DB, ReceiverEstimate, compress, estimate_records
+from .azimuth import compress
+from .chain import FOCUS_DB, P0, THRESHOLD_DB, ReceiverEstimate, estimate_records
 from .records import Records, records
 from .layout import layout_of
 from .motion import MotionEstimate, _check_position, _refocus, _repick, announce, check_echo, motion_from_receivers
