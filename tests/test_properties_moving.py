@@ -12,7 +12,7 @@ import warnings
 
 import numpy as np
 import pytest
-from _properties import choices, fixed, parameter_properties, reals
+from _properties import Domain, choices, fixed, parameter_properties, reals
 from hypothesis import strategies as st
 
 import clsas
@@ -156,11 +156,17 @@ def test_focus_moving_image_refused_by_the_budget():
         clsas.focus_moving(small_echo(), small_motion(), half_size=1e4, spacing=0.01)
 
 
+def pair_or_real(domain: Domain) -> Domain:
+    """``domain`` for a parameter that also takes a (range, along-track) pair: a 2-list of the
+    wrong kinds is no TypeError there (its values are judged), a list of another length is."""
+    return Domain(domain.valid, domain.bad.filter(lambda case: not (isinstance(case[0], list) and len(case[0]) == 2)))
+
+
 # every image drawn (and the default here) is millions of pixels: refused before allocating
 test_focus_moving_budget_bad, _, test_focus_moving_budget = parameter_properties(
     lambda **kw: clsas.focus_moving(small_echo(), small_motion(), **{"half_size": 1e3, "spacing": 0.01, **kw}),
     prefix="focus_moving", setup=small_motion, budget=16 << 20, examples=6, may_refuse=True,
-    domains={"half_size": reals(0.0, 1e4, low_open=True, none=True, valid=st.floats(1e2, 1e4)),
+    domains={"half_size": pair_or_real(reals(0.0, 1e4, low_open=True, none=True, valid=st.floats(1e2, 1e4))),
              "spacing": reals(0.0, 100.0, low_open=True, valid=st.floats(0.01, 0.1))})
 
 
@@ -182,3 +188,13 @@ def test_delay_history_refuses_what_would_overflow_by_name():
         moving.delay_history(lay, "A", (1e300, 0.0, 0.0), v, [0.0])
     with pytest.raises(ValueError, match="^delay_history velocity: must be within"):
         moving.delay_history(lay, "A", p, (1500.0, 0.0, 0.0), [0.0])
+
+
+def test_focus_moving_half_size_of_another_length_is_a_type_error():
+    """half_size takes a number or a (range, along-track) pair: [0, 0, 0] was a ValueError while
+    the property suite's wrong kinds (lists for a real) are TypeErrors (it failed when hypothesis
+    drew one); a pair with a zero is a ValueError on its value."""
+    with pytest.raises(TypeError, match=r"focus_moving half_size: must be a number or \(range, along-track\)"):
+        clsas.focus_moving(small_echo(), small_motion(), half_size=[0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match=r"focus_moving half_size: must be in \(0, 10000\] m, got 0"):
+        clsas.focus_moving(small_echo(), small_motion(), half_size=[0.0, 0.0])

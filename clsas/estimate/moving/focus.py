@@ -147,7 +147,7 @@ def _axes(est: MotionEstimate, half_size, spacing, tau_span):
     else:
         values = np.atleast_1d(np.asarray(half_size, dtype=object))
         if values.size not in (1, 2):
-            raise ValueError(f"focus_moving half_size: must be a number or (range, along-track) in m, got {half_size!r}")
+            raise TypeError(f"focus_moving half_size: must be a number or (range, along-track) in m, got {half_size!r}")
         half_r = validate.positive("focus_moving half_size", values[0], high=1e4, unit="m")
         half_y = validate.positive("focus_moving half_size", values[-1], high=1e4, unit="m")
     if tau_span is not None:
