@@ -88,12 +88,9 @@ def _extents(scenario: Scenario, client, pulses_per_task: int, backend, stop_and
     extents = _gather(client, futures)
     hears = [bool(np.any(np.isfinite(e[0]))) for e in extents]
     if not any(hears):
-        if scenario.seafloor is not None:
-            raise ValueError(f"Scenario.seafloor (extent {list(scenario.seafloor.extent)} m) lies outside the "
-                             f"transmitter's beam at every pulse and Scenario.targets is empty: nothing to simulate; "
-                             f"move the seafloor or the track")
-        raise ValueError("Scenario.targets is empty and there is no seafloor: add PointTargets, a mesh target or a "
-                         "Seafloor to simulate echoes")
+        from .synthesis.echo.pipeline import nothing_heard
+
+        raise nothing_heard(scenario)
     fs = scenario.waveform.fs
     return np.min([e[0] for e in extents], axis=0) / fs, np.max([e[1] for e in extents], axis=0) / fs, hears
 

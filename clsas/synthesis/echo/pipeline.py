@@ -81,16 +81,22 @@ def _with_mesh_weights(scenario: Scenario, occlusion, stop_and_go: bool, hull_oc
     return lambda pulses: mesh(pulses) * occlusion[:, pulses]
 
 
+def nothing_heard(scenario: Scenario) -> ValueError:
+    """The error for a scenario none of whose pulses hears a scatterer (no target, and no seafloor
+    or one outside the transmitter's beam at every pulse)."""
+    if scenario.seafloor is not None:
+        return ValueError(f"Scenario.seafloor (extent {list(scenario.seafloor.extent)} m) lies outside the "
+                          f"transmitter's beam at every pulse (eta {scenario.eta[0]:.6g} .. {scenario.eta[-1]:.6g} s) "
+                          f"and Scenario.targets is empty: nothing to simulate; move the seafloor or the track")
+    return ValueError("Scenario.targets is empty and there is no seafloor: add PointTargets, a mesh target or a "
+                      "Seafloor to simulate echoes")
+
+
 def _make_synth(scenario: Scenario, opts: SynthesisOptions, occlusion, prune: bool = True):
     """The backend's synthesizer and the pulse blocks that keep its working memory under ``opts.chunk_bytes``."""
     scat = scene_scatterers(scenario)
-    if scat.count == 0 and scenario.seafloor is not None:
-        raise ValueError(f"Scenario.seafloor (extent {list(scenario.seafloor.extent)} m) lies outside the "
-                         f"transmitter's beam at every pulse (eta {scenario.eta[0]:.6g} .. {scenario.eta[-1]:.6g} s) "
-                         f"and Scenario.targets is empty: nothing to simulate; move the seafloor or the track")
     if scat.count == 0:
-        raise ValueError("Scenario.targets is empty and there is no seafloor: add PointTargets, a mesh target or a "
-                         "Seafloor to simulate echoes")
+        raise nothing_heard(scenario)
     n_rx, n_pulses = scenario.n_receivers, scenario.eta.size
     if occlusion is not None and not callable(occlusion):
         occlusion = np.asarray(occlusion, dtype=np.float64)
