@@ -29,7 +29,7 @@
  * accumulation in float (double with CLSAS_DOUBLE) over the launch's pulses, added once into
  * the double image at the end (blocked sum).
  *
- * Defines: BP_TILE (with ROWS, PULSES, MOVING when the pixels move, SAME_LEGS, ROW_SHIFT, PULSE_SPAN), or
+ * Defines: BP_TILE (with ROWS, PULSES, MOVING when the pixels move, SAME_LEGS, ROW_SHIFT, PULSE_SPAN, BP_STORE), or
  * N_NODES and SEGMENT_PASSES (geometry.h) and STOP_AND_GO for bp_block; INTERP_LINEAR or
  * INTERP_SINC8 (with TAP_ROWS); APERTURE (keep |sin theta| off broadside <= sin(aperture / 2),
  * theta measured from the x-z plane); CLSAS_DOUBLE (bp_block's data, phases and sums in double:
@@ -96,7 +96,8 @@ typedef float16 realv16_t;
  *   MONO: alpha, w;
  * params (tile_params_t): a1, fs (of the data), f0, velocity v, half_sin = sin(aperture / 2), c;
  * data[p n + i]: the receiver's range-compressed record of pulse p; taps: the 8-tap table (interp.h);
- * image[m] += the sum over pulses p_first .. p_first + p_count - 1.
+ * image[m] += the sum over pulses p_first .. p_first + p_count - 1 (BP_STORE, without SCATTER:
+ *   image[m] = that sum, for a launch whose sums start the image).
  * ROW_SHIFT (ffbp's first stage, clsas/image/ffbp/leaves.py: many sub-apertures a launch): pulse p
  *   of tile t reads record row p + row_shift[t] (its reference stays ref[t * ref_stride + p - ref_first]). */
 #ifdef ROW_SHIFT
@@ -286,13 +287,20 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
         }
 #else
         /* the row's 16 slots are contiguous: four vectors of 4 (re, im) pairs, the same double
-         * additions as slot by slot */
+         * additions as slot by slot (BP_STORE: stored, the launch's sums starting the image; the
+         * same values as added to zeros, since a float sum from +0 is never -0) */
         const float16 re = acc_re[r], im = acc_im[r];
         __global double *o = (__global double *)(image + m);
-        STORE_D8(LOAD_D8(o) + convert_double8((float8)(re.s0, im.s0, re.s1, im.s1, re.s2, im.s2, re.s3, im.s3)), o);
-        STORE_D8(LOAD_D8(o + 8) + convert_double8((float8)(re.s4, im.s4, re.s5, im.s5, re.s6, im.s6, re.s7, im.s7)), o + 8);
-        STORE_D8(LOAD_D8(o + 16) + convert_double8((float8)(re.s8, im.s8, re.s9, im.s9, re.sa, im.sa, re.sb, im.sb)), o + 16);
-        STORE_D8(LOAD_D8(o + 24) + convert_double8((float8)(re.sc, im.sc, re.sd, im.sd, re.se, im.se, re.sf, im.sf)), o + 24);
+#ifdef BP_STORE
+#define SUM_INTO(at, v) STORE_D8((v), (at))
+#else
+#define SUM_INTO(at, v) STORE_D8(LOAD_D8(at) + (v), (at))
+#endif
+        SUM_INTO(o, convert_double8((float8)(re.s0, im.s0, re.s1, im.s1, re.s2, im.s2, re.s3, im.s3)));
+        SUM_INTO(o + 8, convert_double8((float8)(re.s4, im.s4, re.s5, im.s5, re.s6, im.s6, re.s7, im.s7)));
+        SUM_INTO(o + 16, convert_double8((float8)(re.s8, im.s8, re.s9, im.s9, re.sa, im.sa, re.sb, im.sb)));
+        SUM_INTO(o + 24, convert_double8((float8)(re.sc, im.sc, re.sd, im.sd, re.se, im.se, re.sf, im.sf)));
+#undef SUM_INTO
 #endif
     }
 }

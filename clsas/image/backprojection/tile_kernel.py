@@ -345,18 +345,23 @@ class TileKernel:
         return fields
 
     def launch(self, queue, *, pixels, tile_of, refs, ref_stride: int, ref_first: int, records, n_samples: int, taps,
-               params, p_first: int, p_count: int, image, index=None, row_shift=None, spans=None):
+               params, p_first: int, p_count: int, image, index=None, row_shift=None, spans=None,
+               store: bool = False):
         """Enqueue bp_tile over the work-items of ``tile_of`` (a device buffer of one int32 a
         work-item; ``pixels`` ROWS records a work-item): add pulses p_first .. p_first + p_count
         - 1 of the ``records`` (rows of ``n_samples`` samples) into the double ``image``: at each
         slot's pixel ``index`` (device int32 a slot, -1 for padding) when given, else at the slot;
         ``refs`` holds tile t's reference of pulse p at t * ref_stride + p - ref_first.
         ``row_shift`` (with row_shift=True) and ``spans`` (with an aperture) as in the kernel's
-        comment. Returns the event."""
+        comment. ``store`` (without ``index``): the launch's sums are stored into the slots instead
+        of added (BP_STORE: the image need not be zeroed first; the same values as adding them to
+        zeros). Returns the event."""
+        if store and index is not None:
+            raise ValueError("bp_tile store=True: only without index (a scattered image is added into)")
         extra = (row_shift,) if "ROW_SHIFT" in self.defines else ()
         extra += (spans,) if self.pulse_span else ()
         n_items = tile_of.size // 4
-        defines = {**self.defines, **({"SCATTER": 1} if index is not None else {})}
+        defines = {**self.defines, **({"SCATTER": 1} if index is not None else {}), **({"BP_STORE": 1} if store else {})}
         kern = opencl.kernel("backprojection", "bp_tile", preamble=self.preamble, defines=defines)
         return kern(queue, *opencl.work_groups(n_items), pixels, tile_of, refs, np.int32(ref_stride),
                     np.int32(ref_first), records, taps, params, np.int32(p_first), np.int32(p_count),
