@@ -343,6 +343,8 @@ __kernel void bp_fields(__global const double *positions, __global const int *in
  * its window start and offset = the first sample of its records (samples at fs from t0): the
  * pulses of several receivers in one launch (clsas/image/backprojection/launcher.py: receiver
  * after receiver, each over the same pulses); centres[t]: the tile's reference point at t = 0;
+ * TILE_FIRST (ffbp's first stage: many sub-apertures a launch): tile t's references are of
+ * pulses pulse[tile_first[t] + j], j < n_pulses (one receiver), work-item i = t n_pulses + j;
  * params (bp_ref_params_t): c, f0, fs, velocity v, half_extent, rho_max and bias (samples). */
 inline double meet_time(const double3 d, const double3 w, const double c)
 {
@@ -350,13 +352,21 @@ inline double meet_time(const double3 d, const double3 w, const double c)
     return (b + sqrt(b * b + a * dot(d, d))) / a;
 }
 
+#ifdef TILE_FIRST
+#define TILE_FIRST_PARAM , __global const int *tile_first
+#define PULSE_OF(i) (tile_first[(i) / n_pulses] + (i) % n_pulses)
+#else
+#define TILE_FIRST_PARAM
+#define PULSE_OF(i) ((i) % n_pulses)
+#endif
+
 __kernel void bp_refs(__global const double *centres, __global const bp_ref_pulse_t *pulse, const bp_ref_params_t params,
-                      const int n_pulses, const int n_refs, __global tile_ref_t *ref)
+                      const int n_pulses, const int n_refs, __global tile_ref_t *ref TILE_FIRST_PARAM)
 {
     const int i = get_global_id(0);
     if (i >= n_refs)  /* the launch is padded to whole work-groups */
         return;
-    const bp_ref_pulse_t pl = pulse[i % n_pulses];
+    const bp_ref_pulse_t pl = pulse[PULSE_OF(i)];
     const double c = params.c;
     const double3 v = vload3(0, params.velocity), tx = vload3(0, pl.tx), rx0 = vload3(0, pl.rx0);
     const double3 v_r = vload3(0, pl.v_rx), q_emit = vload3(i / n_pulses, centres) + v * pl.eta;

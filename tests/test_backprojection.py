@@ -558,6 +558,38 @@ def test_references_on_the_device_match_the_host(opencl_device, kiang_echo, opti
         _same_references(got[:, j], host, h)
 
 
+@pytest.mark.parametrize("options", [dict(), dict(stop_and_go=True)])
+def test_references_from_a_first_pulse_per_tile(opencl_device, kiang_echo, options):
+    """bp_refs with a first pulse per tile (TILE_FIRST: ffbp's sub-apertures in one launch): each
+    tile's row equals a call on that tile's own pulses, bit for bit; firsts that do not fit, or
+    several receivers, are refused."""
+    import pyopencl as cl
+
+    ctx, queue = opencl_device.context, opencl_device.queue
+    centres = np.array([[30.0, 1.0, -43.0], [1989.0, 0.0, -350.0], [31.5, -2.0, -41.0]])
+    pulses, first = np.arange(2, 24), np.array([0, 5, 11])
+    per_tile = pulses.size - first.max()
+
+    def buffer(a):
+        return cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
+
+    tile = TileKernel("linear", **options).for_receiver(kiang_echo, 0)
+    dev = tile.references_on_device(queue, kiang_echo, 0, pulses, buffer(centres), 3, kiang_echo.fs, 2.5, offset=17,
+                                    tile_first=first)
+    got = np.empty((3, per_tile), tile.reference_dtype)
+    cl.enqueue_copy(queue, got, dev)
+    for t in range(3):
+        own = tile.references_on_device(queue, kiang_echo, 0, pulses[first[t]:first[t] + per_tile],
+                                        buffer(centres[t:t + 1]), 1, kiang_echo.fs, 2.5, offset=17)
+        expected = np.empty((1, per_tile), tile.reference_dtype)
+        cl.enqueue_copy(queue, expected, own)
+        assert got[t].tobytes() == expected[0].tobytes()
+    for bad, h in (([0, 5], 0), ([0, 5, 22], 0), ([-1, 0, 0], 0), ([0, 0, 0], [0, 1])):
+        with pytest.raises(ValueError, match="tile_first"):
+            tile.references_on_device(queue, kiang_echo, h, pulses, buffer(centres), 3, kiang_echo.fs, 2.5,
+                                      tile_first=np.array(bad))
+
+
 def _same_references(got, host, h):
     for name in host.dtype.names:
         a, b = got[name].astype(np.float64), host[name].astype(np.float64)

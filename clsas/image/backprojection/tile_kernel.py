@@ -288,17 +288,27 @@ class TileKernel:
         return self.stop_and_go or echo.rx_tau[h].size <= 2
 
     def references_on_device(self, queue, echo, h, pulses: np.ndarray, centres, n_tiles: int, fs: float,
-                             half_extent: float, offset=0):
+                             half_extent: float, offset=0, tile_first=None):
         """Enqueue bp_refs: the references of :meth:`references` (its NumPy twin) for the
         ``n_tiles`` tile ``centres`` (a device buffer of (T, 3) doubles) computed on the device, a
         buffer of (T, P) :attr:`reference_dtype` records; None where the host must compute them
         (a receiver with more than two position nodes and exact delays, :meth:`on_device`:
         :meth:`references` follows its track and checks its linearity). ``h`` and ``offset`` may
         be sequences (G receivers and their records' first samples, all with this object's legs):
-        then the buffer holds (T, G, P) records, receiver after receiver for each tile."""
+        then the buffer holds (T, G, P) records, receiver after receiver for each tile.
+        ``tile_first`` (T,) ints (one receiver ``h``; ffbp's first stage, many sub-apertures in one
+        launch): tile t's references are of pulses ``pulses[tile_first[t] + j]`` for j < P, P =
+        ``len(pulses) - max(tile_first)``: a (T, P) buffer, each tile's row what a call on its
+        own pulses gives, bit for bit."""
         import pyopencl as cl
 
         hs, offsets = np.atleast_1d(h), np.broadcast_to(offset, np.shape(np.atleast_1d(h)))
+        if tile_first is not None:
+            tile_first = np.ascontiguousarray(tile_first, np.int32)
+            if (hs.size != 1 or tile_first.shape != (n_tiles,) or tile_first.min(initial=0) < 0
+                    or tile_first.max(initial=0) >= pulses.size):
+                raise ValueError(f"references_on_device tile_first: needs one receiver and {n_tiles} first pulses "
+                                 f"in [0, {pulses.size}), got {hs.size} receivers and {tile_first}")
         if not all(self.on_device(echo, int(k)) for k in hs):
             return None
         rt = opencl.runtime()
@@ -314,12 +324,17 @@ class TileKernel:
         params["c"], params["f0"], params["fs"] = c, echo.waveform.f0, fs
         params["velocity"], params["half_extent"], params["rho_max"] = self.velocity, half_extent, RHO_MAX
         params["bias"] = self.bias(half_extent, c, fs)
-        n_refs = n_tiles * pulse.size
+        per_tile = pulse.size if tile_first is None else pulses.size - int(tile_first.max(initial=0))
+        n_refs = n_tiles * per_tile
         out = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, self.reference_dtype.itemsize * max(n_refs, 1))
         pulse_buf = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=pulse)
-        opencl.kernel("backprojection", "bp_refs", preamble=self.ref_preamble, defines=self.ref_defines)(
-            queue, *opencl.work_groups(n_refs), centres, pulse_buf, params[()], np.int32(pulse.size),
-            np.int32(n_refs), out)
+        extra, defines = (), self.ref_defines
+        if tile_first is not None:
+            extra = (cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=tile_first),)
+            defines = {**defines, "TILE_FIRST": 1}
+        opencl.kernel("backprojection", "bp_refs", preamble=self.ref_preamble, defines=defines)(
+            queue, *opencl.work_groups(n_refs), centres, pulse_buf, params[()], np.int32(per_tile),
+            np.int32(n_refs), out, *extra)
         return out
 
     def spans(self, ref: np.ndarray, half_extent: float, c: float, first: int) -> np.ndarray:
