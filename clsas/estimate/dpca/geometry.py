@@ -298,25 +298,43 @@ def inside_swath(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
       (rho / r) sin(acos(x_0 / rho)), through the main lobe and the first sidelobe within a
       few metres of it; that cut is in :func:`look_moments`, which a Monte Carlo over the
       rectangle reproduces.)
-    - It is in the records' correlations themselves, not in the estimator's processing: a
-      plain least-squares slope of the corrected couples' phases at t-lag 0 reads the same
-      block yaws as the estimator (its beams, t-lags and parabolas play no part), and the
-      slope of the couples' correlations summed over many seafloors and pairs reads the same
-      as the mean of the yaws (no non-linearity). Yet a model of the correlations' diagonal
-      (each scatterer of the same seafloors with its own reflectivity, the simulation's exact
-      two-way paths and element patterns, the estimator's correction, no interference between
-      scatterers; it tracks the estimator seafloor by seafloor) reads no zone. What in the
-      records near a range edge makes the difference is not found: the compressed pulse's
-      tails reach about 2 m and, corrected at the wrong range, would bias the block holding
-      the edge by a few urad but not the next one; the zone does not shrink with a longer
-      block (a 256-sample block reads the mean of its 64-sample parts), nor with a Hamming
-      range window (which leaves the tails' far part) or a shorter chirp (too noisy to say).
-      Not derived (issue #30's session-6 report has the figures).
+    - It is in each scatterer's own contribution, not in the interference between scatterers:
+      simulated one scatterer at a time (nothing to interfere; 4096 Sobol points over the 1x
+      seafloor, bench_dpca.py --self-terms) and summed through the estimator's processing, the
+      blocks read what the estimator reads on whole seafloors.
+    - What makes it is the compressed pulse's range sidelobes, which reach half a pulse length
+      c T / 2 from a scatterer (the matched filter's support). A block's correlation holds,
+      besides its own scatterers, the sidelobes of scatterers up to c T / 2 away, and those
+      carry a yaw error odd in the offset D = r - r_k of the sample from its scatterer: (1)
+      the carrier part of :func:`pca_delay` is taken at the sample's range r, right for a
+      scatterer's main lobe and wrong by dt_n(r_k) - dt_n(r) ~ -dt_n'(r) D in its sidelobes, a
+      phase linear along the couples (about D / r times the uncorrected phase-centre yaw per
+      sidelobe sample); (2) a chirp sampled barely above its band folds its spectral skirt into a
+      pedestal about -43 dB a sample flat out to +-c T / 2, at frequencies the carrier and
+      envelope corrections do not assume. Measured on single scatterers: sidelobes from 2-6 m
+      away read hundreds to two thousand urad of yaw, of opposite sign before and after. Where
+      the seafloor's energy is even in range, the sidelobes from nearer and farther scatterers
+      cancel; within c T / 2 of a range edge they come from one side only: at 1 m and 3 m inside
+      the near edge they carry 0.8 % and 2 % of the block's energy and -5.4 and -2.3 urad of
+      yaw (the block's own scatterers read as the diagonal model does). The two parts are about
+      equal: with the correction at each scatterer's own range half the zone is left, sampled at
+      2 B (no fold) the second block's zone goes (bench_dpca.py --self-terms has the figures).
 
-    So the ``guard`` (the estimator gives a block's length) stays a measured rule. A deeper
-    guard overcorrects the 4x seafloor (paired on the same seafloors, its mean moves by more
-    than its bias: issue #30's session-6 report), so it is not applied: a rule that holds for
-    any seafloor extent needs the zone derived first.
+    What removes it, measured and not applied: a Hamming taper of the records' range spectrum
+    (sidelobes two orders lower beyond a metre) takes the second block's zone to its noise, but
+    widens the pulse: 25-40 % more yaw noise a pair on the seed-004 scene, whose image test then
+    fails (tapering only the blocks within c T / 2 of an edge keeps most of that cost there and
+    moves the 4x mean by +0.06 +- 0.08 only). A first-order correction of the sidelobes' phase,
+    g exp(j psi) -> (g - j psi' h) exp(j psi) with psi the per-sample correction, psi' its time
+    derivative and h the records filtered by Q / P (P the compressed pulse's spectrum, Q that of
+    x p(x): each sample's sidelobe offsets), removes about two thirds of the zone on the
+    single-scatterer sums (the folded skirt's part stays). A guard of c T / 2 leaves the zone
+    out, and the 4x seafloors' mean then reads +0.3..+0.6 urad: not a bias of the blocks
+    further in but of the yaw's OUTLIER-MAD trim, a selection that moves the 4x seafloors' mean
+    by +0.51 +- 0.10 urad (trimmed minus plain mean of the same blocks, 24 seafloors paired: their
+    block yaws are skewed negative) and so offset part of the zone; the plain mean of the blocks
+    c T / 2 clear of the edges reads -0.23 +- 0.26 (issue #30's session-7 report). So the
+    ``guard`` (the estimator gives a block's length) stays a measured rule for now.
     ``content``: the blocks' content from :func:`look_moments` if already computed (same arguments)."""
     if extent is None:
         shape = (np.asarray(centre).shape[0], np.asarray(r).size)
