@@ -59,19 +59,21 @@ LANES, ROWS = TileKernel.LANES, TileKernel.ROWS  # bp_tile's work-item: ROWS row
 def polar_tiles(grids: list, bv: int, br: int):
     """bp_tile's tiles of polar grids (module docstring), blocks of bv rows x br range samples
     (those at a grid's edge cut to it): their items (I,) :data:`program.ITEM` (leaf, row, the
-    first of LANES consecutive range samples of that row, tile; grid by grid, tile by tile, row by
-    row; ROWS items make a work-item), the tiles' reference points (T, 3) m (each block's middle
+    first of LANES consecutive range samples of that row, tile; grid by grid, tile by tile, group of
+    LANES range samples by group, row by row; ROWS items, ROWS rows of one group, make a work-item), the tiles' reference points (T, 3) m (each block's middle
     sample) and the number of tiles of each grid (L,)."""
     tv_of = np.array([-(-g.n_v // bv) for g in grids])
     tr_of = np.array([-(-g.n_r // br) for g in grids])
     tv, tr = int(tv_of.max()), int(tr_of.max())
     real = (np.arange(tv)[None, :, None] < tv_of[:, None, None]) & (np.arange(tr)[None, None, :] < tr_of[:, None, None])
     tile = np.cumsum(real.reshape(-1)).reshape(real.shape) - 1  # grid by grid, row-major within a grid
-    # work-items tile by tile, within a tile row by row, LANES samples each
-    # a tile at the grid's edge keeps only its rows inside the grid (rounded up to whole work-items
-    # of ROWS rows) and its sixteen-sample groups that start inside it
-    shape = (len(grids), tv, tr, bv, br // LANES)
-    l, a, b, j, q = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij", sparse=True)
+    # items tile by tile, within a tile group by group of LANES range samples, within a group row
+    # by row: a work-item is ROWS rows of the same LANES ranges (a short sub-aperture's delay
+    # hardly depends on the angle, so its rows read the same records' samples); a tile at the
+    # grid's edge keeps only its rows inside the grid (rounded up to whole work-items of ROWS rows)
+    # and its sixteen-sample groups that start inside it
+    shape = (len(grids), tv, tr, br // LANES, bv)
+    l, a, b, q, j = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij", sparse=True)
     n_v = np.array([g.n_v for g in grids])[:, None, None, None, None]
     n_r = np.array([g.n_r for g in grids])[:, None, None, None, None]
     # a group of LANES samples is kept where it meets the span of its block of ROWS rows (the union
