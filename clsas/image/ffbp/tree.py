@@ -173,7 +173,9 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         first = wide[0] if wide else echo.n_pulses
     pulses, children = _levels(echo.n_pulses, first, factor)
     find_extents([node for level in pulses for node in level])
-    top = len(pulses) - 1
+    # the first round's guess: one merge level (two stages), where most trees stop; the stop rule
+    # merges at least as far at a lower oversampling, so a deeper tree settles in the second round
+    top = min(1, len(pulses) - 1)
     for _ in range(2):
         rho = oversampling(taps, tolerance, top + 1)
         grids = [grids_for(pulses[0], rho)] + [[None] * len(level) for level in pulses[1:]]
