@@ -353,6 +353,11 @@ class Extent:
         """The angle rows n_v of :meth:`sample`'s grid (without sampling it)."""
         return self._sampling(rho, taps)[5]
 
+    def size(self, rho: float, taps: int) -> int:
+        """The samples n_v x n_r of :meth:`sample`'s grid's (r, v) box (without sampling it)."""
+        _, _, n_r, _, _, n_v, _ = self._sampling(rho, taps)
+        return n_r * n_v
+
     def sample(self, rho: float, taps: int) -> PolarGrid:
         """The polar grid at oversampling ``rho``, padded by ``taps // 2 + 2`` samples on every side
         for the interpolator, with its rows' spans (:func:`sample_grids`) when :data:`RAGGED`."""
