@@ -56,6 +56,14 @@ REF_CHUNK = 2**18  # (pulse, tile) pairs whose references are computed at once (
 LANES, ROWS = TileKernel.LANES, TileKernel.ROWS  # bp_tile's work-item: ROWS rows of LANES samples
 
 
+def cl_buffer(array: np.ndarray):
+    """A read-only device buffer holding a copy of ``array``."""
+    import pyopencl as cl
+
+    return cl.Buffer(opencl.runtime().context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                     hostbuf=np.ascontiguousarray(array))
+
+
 def polar_tiles(grids: list, bv: int, br: int):
     """bp_tile's tiles of polar grids (module docstring), blocks of bv rows x br range samples
     (those at a grid's edge cut to it): their items (I,) :data:`program.ITEM` (leaf, row, the
@@ -141,6 +149,7 @@ class FirstStage:
         self.ready = {}
         self.records = None  # every pulse's prepared records, when they fit RECORD_BYTES
         self.pending = None  # what the last batch's queued kernels read from host memory (settle)
+        self.queued = []  # leaves whose demodulation waits for flush(): (made, grid, out, offset)
 
     def image(self, node: int, grid: PolarGrid, grids: list) -> np.ndarray:
         """Leaf ``node``'s image on its polar grid ``grid``, demodulated: (n_v, n_r) (complex64 on
@@ -152,6 +161,7 @@ class FirstStage:
             rt = opencl.runtime()
             out = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, 8 * grid.size)
             self.image_into(node, grid, grids, out, 0)
+            self.flush()
             image = np.empty((grid.n_v, grid.n_r), np.complex64)
             cl.enqueue_copy(rt.queue, image, out)
             return image
@@ -160,22 +170,39 @@ class FirstStage:
         return self._demodulated(self.ready.pop(node), grid).astype(np.complex128)
 
     def image_into(self, node: int, grid: PolarGrid, grids: list, out, offset: int) -> None:
-        """OpenCL: enqueue leaf ``node``'s demodulated complex64 image (as :meth:`image`) into the
-        device buffer ``out`` from element ``offset`` on."""
+        """OpenCL: leaf ``node``'s demodulated complex64 image (as :meth:`image`) into the device
+        buffer ``out`` from element ``offset`` on, enqueued by the next :meth:`flush` (the leaves
+        of a merge's group in one ffbp_leaf launch; a leaf made by clsas.backproject at once)."""
         import pyopencl as cl
 
         if node not in self.ready:
             self._batch(node, grids)
         made = self.ready.pop(node)
-        rt = opencl.runtime()
         if isinstance(made, np.ndarray):  # a leaf made by clsas.backproject
-            cl.enqueue_copy(rt.queue, out, np.ascontiguousarray(self._demodulated(made, grid), np.complex64),
-                            dst_offset=8 * offset)
+            cl.enqueue_copy(opencl.runtime().queue, out, np.ascontiguousarray(self._demodulated(made, grid),
+                                                                              np.complex64), dst_offset=8 * offset)
             return
-        image, slots, slot_first, spans, span_first = made
-        program.kernel("ffbp_leaf")(rt.queue, *opencl.work_groups_2d(-(-grid.n_r // LANES), grid.n_v), image, slots,
-                                    np.int64(slot_first), spans, np.int64(span_first), program.frames([grid])[0],
-                                    np.float64(self.demodulate), np.int64(offset), out)
+        self.queued.append((made, grid, out, offset))
+
+    def flush(self) -> None:
+        """Enqueue the demodulation of the leaves :meth:`image_into` took since the last flush: one
+        ffbp_leaf launch for those of one batch going to one buffer (a merge's group)."""
+        runs = {}
+        for made, grid, out, offset in self.queued:
+            runs.setdefault((id(made[0]), id(out)), []).append((made, grid, out, offset))
+        self.queued = []
+        for run in runs.values():
+            (image, slots, _, spans, _), _, out, _ = run[0]
+            grids = [grid for _, grid, _, _ in run]
+
+            def made(values):
+                return cl_buffer(np.array(values, np.int64))
+
+            rows = -(-max(g.n_v for g in grids) // opencl.WORK_GROUP) * opencl.WORK_GROUP
+            program.kernel("ffbp_leaf")(opencl.runtime().queue, (max(-(-g.n_r // LANES) for g in grids), rows, len(run)),
+                                        (1, opencl.WORK_GROUP, 1), image, slots, made([m[2] for m, *_ in run]), spans,
+                                        made([m[4] for m, *_ in run]), cl_buffer(program.frames(grids)),
+                                        np.float64(self.demodulate), made([o for *_, o in run]), out)
 
     def _demodulated(self, image: np.ndarray, grid: PolarGrid) -> np.ndarray:
         """The leaf's image demodulated by its ranges, zero outside its rows' spans."""

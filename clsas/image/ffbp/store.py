@@ -29,6 +29,9 @@ class HostStore:
     def leaf(self, node: int, grid, grids: list, group: np.ndarray, offset: int) -> None:
         group[offset:offset + grid.size] = self.stage1.image(node, grid, grids).reshape(-1)
 
+    def flush(self) -> None:
+        """Nothing: the reference makes each leaf's image when it is taken."""
+
     def merge(self, grids: list, group: np.ndarray, offsets: list, parent, out: np.ndarray, offset: int) -> None:
         out[offset:offset + parent.size] = merge_reference(_views(grids, group, offsets), parent, *self.args).reshape(-1)
 
@@ -79,6 +82,11 @@ class DeviceStore:
 
     def leaf(self, node: int, grid, grids: list, group, offset: int) -> None:
         self.stage1.image_into(node, grid, grids, group, offset)
+
+    def flush(self) -> None:
+        """Enqueue the leaves' images taken since the last flush (before a merge or the final stage
+        reads them)."""
+        self.stage1.flush()
 
     def merge(self, grids: list, group, offsets: list, parent, out, offset: int) -> None:
         merge_device(grids, group, offsets, parent, *self.args, out, offset)
