@@ -40,7 +40,8 @@ whole record's range) and ``patch`` (6 m x 6 m around the target at 60 m). Four 
 interleaved (A B C D, A B C D, ...), warm (one untimed round first):
 
 - ``plain``: ``backproject(echo, grid)``, a first call on the echo (it upsamples the span the
-  grid reaches, plans the grid's tiles);
+  grid reaches; the grid's tile plan is made by its first call, the untimed warm-up, and kept
+  while the Grid object lives, as a GridPlan would be);
 - ``prepared``: ``backproject(records, plan)`` on records from ``prepare(echo)`` (every sample,
   made once) and a ``GridPlan`` of the grid: a further call on prepared records;
 - ``whole-records``: ``backproject(prepare(echo), grid)``: every record upsampled in every call,
@@ -77,7 +78,8 @@ per pixel-pulse (an iteration is ROWS rows of 16 pixels and one pulse), the pres
 and 5 (the two 512-bit vector ports) and on the load ports, beside the measured single-thread CPU
 time per pixel-pulse of the whole call (POCL_MAX_PTHREAD_COUNT=1 is not set here: the process's
 CPU time over all threads, divided by pixel-pulses). Wall times move with the load; these counts
-do not.
+do not, but neither are they the loop's bound on the machine docs/design.md describes (its
+data-dependent sample reads are: removing a fifth of the vector uops left the time unchanged).
 
 ``--only torchbp|fixed-cost|rates|rows|loop`` runs one part.
 """

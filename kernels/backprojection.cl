@@ -29,7 +29,7 @@
  * accumulation in float (double with CLSAS_DOUBLE) over the launch's pulses, added once into
  * the double image at the end (blocked sum).
  *
- * Defines: BP_TILE (with ROWS, PULSES, MOVING when the pixels move, SAME_LEGS, ROW_SHIFT, PULSE_SPAN), or
+ * Defines: BP_TILE (with ROWS, PULSES, MOVING when the pixels move, SAME_LEGS, ROW_SHIFT, PULSE_SPAN, BP_STORE), or
  * N_NODES and SEGMENT_PASSES (geometry.h) and STOP_AND_GO for bp_block; INTERP_LINEAR or
  * INTERP_SINC8 (with TAP_ROWS); APERTURE (keep |sin theta| off broadside <= sin(aperture / 2),
  * theta measured from the x-z plane); CLSAS_DOUBLE (bp_block's data, phases and sums in double:
@@ -96,7 +96,8 @@ typedef float16 realv16_t;
  *   MONO: alpha, w;
  * params (tile_params_t): a1, fs (of the data), f0, velocity v, half_sin = sin(aperture / 2), c;
  * data[p n + i]: the receiver's range-compressed record of pulse p; taps: the 8-tap table (interp.h);
- * image[m] += the sum over pulses p_first .. p_first + p_count - 1.
+ * image[m] += the sum over pulses p_first .. p_first + p_count - 1 (BP_STORE, without SCATTER:
+ *   image[m] = that sum, for a launch whose sums start the image).
  * ROW_SHIFT (ffbp's first stage, clsas/image/ffbp/leaves.py: many sub-apertures a launch): pulse p
  *   of tile t reads record row p + row_shift[t] (its reference stays ref[t * ref_stride + p - ref_first]). */
 #ifdef ROW_SHIFT
@@ -286,13 +287,20 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
         }
 #else
         /* the row's 16 slots are contiguous: four vectors of 4 (re, im) pairs, the same double
-         * additions as slot by slot */
+         * additions as slot by slot (BP_STORE: stored, the launch's sums starting the image; the
+         * same values as added to zeros, since a float sum from +0 is never -0) */
         const float16 re = acc_re[r], im = acc_im[r];
         __global double *o = (__global double *)(image + m);
-        STORE_D8(LOAD_D8(o) + convert_double8((float8)(re.s0, im.s0, re.s1, im.s1, re.s2, im.s2, re.s3, im.s3)), o);
-        STORE_D8(LOAD_D8(o + 8) + convert_double8((float8)(re.s4, im.s4, re.s5, im.s5, re.s6, im.s6, re.s7, im.s7)), o + 8);
-        STORE_D8(LOAD_D8(o + 16) + convert_double8((float8)(re.s8, im.s8, re.s9, im.s9, re.sa, im.sa, re.sb, im.sb)), o + 16);
-        STORE_D8(LOAD_D8(o + 24) + convert_double8((float8)(re.sc, im.sc, re.sd, im.sd, re.se, im.se, re.sf, im.sf)), o + 24);
+#ifdef BP_STORE
+#define SUM_INTO(at, v) STORE_D8((v), (at))
+#else
+#define SUM_INTO(at, v) STORE_D8(LOAD_D8(at) + (v), (at))
+#endif
+        SUM_INTO(o, convert_double8((float8)(re.s0, im.s0, re.s1, im.s1, re.s2, im.s2, re.s3, im.s3)));
+        SUM_INTO(o + 8, convert_double8((float8)(re.s4, im.s4, re.s5, im.s5, re.s6, im.s6, re.s7, im.s7)));
+        SUM_INTO(o + 16, convert_double8((float8)(re.s8, im.s8, re.s9, im.s9, re.sa, im.sa, re.sb, im.sb)));
+        SUM_INTO(o + 24, convert_double8((float8)(re.sc, im.sc, re.sd, im.sd, re.se, im.se, re.sf, im.sf)));
+#undef SUM_INTO
 #endif
     }
 }
@@ -335,6 +343,8 @@ __kernel void bp_fields(__global const double *positions, __global const int *in
  * its window start and offset = the first sample of its records (samples at fs from t0): the
  * pulses of several receivers in one launch (clsas/image/backprojection/launcher.py: receiver
  * after receiver, each over the same pulses); centres[t]: the tile's reference point at t = 0;
+ * TILE_FIRST (ffbp's first stage: many sub-apertures a launch): tile t's references are of
+ * pulses pulse[tile_first[t] + j], j < n_pulses (one receiver), work-item i = t n_pulses + j;
  * params (bp_ref_params_t): c, f0, fs, velocity v, half_extent, rho_max and bias (samples). */
 inline double meet_time(const double3 d, const double3 w, const double c)
 {
@@ -342,13 +352,21 @@ inline double meet_time(const double3 d, const double3 w, const double c)
     return (b + sqrt(b * b + a * dot(d, d))) / a;
 }
 
+#ifdef TILE_FIRST
+#define TILE_FIRST_PARAM , __global const int *tile_first
+#define PULSE_OF(i) (tile_first[(i) / n_pulses] + (i) % n_pulses)
+#else
+#define TILE_FIRST_PARAM
+#define PULSE_OF(i) ((i) % n_pulses)
+#endif
+
 __kernel void bp_refs(__global const double *centres, __global const bp_ref_pulse_t *pulse, const bp_ref_params_t params,
-                      const int n_pulses, const int n_refs, __global tile_ref_t *ref)
+                      const int n_pulses, const int n_refs, __global tile_ref_t *ref TILE_FIRST_PARAM)
 {
     const int i = get_global_id(0);
     if (i >= n_refs)  /* the launch is padded to whole work-groups */
         return;
-    const bp_ref_pulse_t pl = pulse[i % n_pulses];
+    const bp_ref_pulse_t pl = pulse[PULSE_OF(i)];
     const double c = params.c;
     const double3 v = vload3(0, params.velocity), tx = vload3(0, pl.tx), rx0 = vload3(0, pl.rx0);
     const double3 v_r = vload3(0, pl.v_rx), q_emit = vload3(i / n_pulses, centres) + v * pl.eta;

@@ -108,6 +108,40 @@ def test_aperture_sums_only_the_pulses_that_see_a_tile(opencl_device):
     assert rel_l2(got.data, ref_img.data) < 5e-5  # measured 4.8e-6
 
 
+@pytest.mark.parametrize("stop_and_go", [True, False])
+def test_bp_tile_store_starts_the_image(opencl_device, kiang_echo, monkeypatch, stop_and_go):
+    """bp_tile with store=True (BP_STORE: ffbp's first stage) stores a launch's sums instead of
+    adding them: a call whose image buffers start as NaN and whose first launch into each stores
+    gives the plain call's image (zeroed buffers, every launch adding) bit for bit; store with a
+    scatter index is refused."""
+    import pyopencl as cl
+
+    from clsas.image.backprojection import tile_kernel
+
+    grid = around((1989.0, 0.0, -350.0), 0.02, 0.05, 40, 40)
+    kw = dict(backend="opencl", stop_and_go=stop_and_go, progress=False)
+    expected = backproject(kiang_echo, grid, **kw).data
+    fill, launch, started = cl.enqueue_fill_buffer, tile_kernel.TileKernel.launch, []
+
+    def nan_fill(queue, buf, pattern, offset, size, **options):
+        return fill(queue, buf, np.full(1, np.nan, np.complex128), offset, size, **options)
+
+    def storing(self, queue, **args):
+        first = args["image"].int_ptr not in started
+        started.append(args["image"].int_ptr)
+        return launch(self, queue, store=first, **args)
+
+    monkeypatch.setattr(cl, "enqueue_fill_buffer", nan_fill)
+    monkeypatch.setattr(tile_kernel.TileKernel, "launch", storing)
+    got = backproject(kiang_echo, grid, **kw).data
+    assert len(started) > len(set(started))  # later launches added into what the first stored
+    assert np.array_equal(got, expected)
+    with pytest.raises(ValueError, match="store=True"):
+        launch(TileKernel("linear"), opencl_device.queue, pixels=None, tile_of=None, refs=None, ref_stride=0,
+               ref_first=0, records=None, n_samples=0, taps=None, params=None, p_first=0, p_count=0, image=None,
+               index=object(), store=True)
+
+
 def test_records_in_place_and_copied_give_the_same_image(opencl_device, kiang_echo):
     """The kernel reads a C-contiguous complex64 echo in place (no copy) and any other layout from
     a copy: both give the same image."""
@@ -522,6 +556,38 @@ def test_references_on_the_device_match_the_host(opencl_device, kiang_echo, opti
     for j, (h, offset) in enumerate(((1, 17), (2, 5))):
         host, _ = tile.references(kiang_echo, h, pulses, centres, kiang_echo.fs, 2.5, offset=offset)
         _same_references(got[:, j], host, h)
+
+
+@pytest.mark.parametrize("options", [dict(), dict(stop_and_go=True)])
+def test_references_from_a_first_pulse_per_tile(opencl_device, kiang_echo, options):
+    """bp_refs with a first pulse per tile (TILE_FIRST: ffbp's sub-apertures in one launch): each
+    tile's row equals a call on that tile's own pulses, bit for bit; firsts that do not fit, or
+    several receivers, are refused."""
+    import pyopencl as cl
+
+    ctx, queue = opencl_device.context, opencl_device.queue
+    centres = np.array([[30.0, 1.0, -43.0], [1989.0, 0.0, -350.0], [31.5, -2.0, -41.0]])
+    pulses, first = np.arange(2, 24), np.array([0, 5, 11])
+    per_tile = pulses.size - first.max()
+
+    def buffer(a):
+        return cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(a))
+
+    tile = TileKernel("linear", **options).for_receiver(kiang_echo, 0)
+    dev = tile.references_on_device(queue, kiang_echo, 0, pulses, buffer(centres), 3, kiang_echo.fs, 2.5, offset=17,
+                                    tile_first=first)
+    got = np.empty((3, per_tile), tile.reference_dtype)
+    cl.enqueue_copy(queue, got, dev)
+    for t in range(3):
+        own = tile.references_on_device(queue, kiang_echo, 0, pulses[first[t]:first[t] + per_tile],
+                                        buffer(centres[t:t + 1]), 1, kiang_echo.fs, 2.5, offset=17)
+        expected = np.empty((1, per_tile), tile.reference_dtype)
+        cl.enqueue_copy(queue, expected, own)
+        assert got[t].tobytes() == expected[0].tobytes()
+    for bad, h in (([0, 5], 0), ([0, 5, 22], 0), ([-1, 0, 0], 0), ([0, 0, 0], [0, 1])):
+        with pytest.raises(ValueError, match="tile_first"):
+            tile.references_on_device(queue, kiang_echo, h, pulses, buffer(centres), 3, kiang_echo.fs, 2.5,
+                                      tile_first=np.array(bad))
 
 
 def _same_references(got, host, h):

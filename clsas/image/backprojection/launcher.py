@@ -60,15 +60,22 @@ class _Chunk:
         self.pixels = tile.fields(queue, positions=positions, index=self.index, tile_of=self.tile_of,
                                   centres=self.centres, n_slots=self.n)
 
-    def add_into(self, queue, image: np.ndarray) -> None:
+    def add_into(self, queue, image: np.ndarray, tiling) -> None:
         """Add the slots' sums into ``image`` (M,) complex128 at their pixels (after the chunk's
-        kernels: the read waits for them on the in-order queue)."""
+        kernels: the blocking map waits for them on the in-order queue). A chunk of the whole
+        ``tiling`` reads them in the grid's order by one take (:attr:`.tiles.Tiling.slot_of`); a
+        part of it scatters its real slots."""
         import pyopencl as cl
 
-        sums = np.empty(self.n, np.complex128)
-        cl.enqueue_copy(queue, sums, self.sums)
-        real = self.slots >= 0
-        image[self.slots[real]] += sums[real]
+        sums, _ = cl.enqueue_map_buffer(queue, self.sums, cl.map_flags.READ, 0, (self.n,), np.complex128)
+        try:
+            if self.first == 0 and self.n == tiling.order.size:
+                image += sums[tiling.slot_of]
+            else:
+                real = self.slots >= 0
+                image[self.slots[real]] += sums[real]
+        finally:
+            sums.base.release()
 
 
 def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,
@@ -121,7 +128,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
         if chunk_state is None or chunk_state.first != first:
             if chunk_state is not None:
                 kernel_seconds += retire(0)
-                chunk_state.add_into(queue, image)
+                chunk_state.add_into(queue, image, tiles)
             chunk_state = _Chunk(ctx, queue, tiles, tile, positions, first, min(first + chunk, tiles.order.size))
         skip = int(pulses[0] - base)  # the job's first pulse in the buffer (which may hold earlier pulses)
         in_flight.append(events := [])
@@ -177,7 +184,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                                            p_first=skip + p0, p_count=count, image=chunk_state.sums))
     kernel_seconds += retire(0)
     if chunk_state is not None:
-        chunk_state.add_into(queue, image)
+        chunk_state.add_into(queue, image, tiles)
     bar.close()
     return image, fallbacks, kernel_seconds
 

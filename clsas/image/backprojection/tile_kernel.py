@@ -288,17 +288,27 @@ class TileKernel:
         return self.stop_and_go or echo.rx_tau[h].size <= 2
 
     def references_on_device(self, queue, echo, h, pulses: np.ndarray, centres, n_tiles: int, fs: float,
-                             half_extent: float, offset=0):
+                             half_extent: float, offset=0, tile_first=None):
         """Enqueue bp_refs: the references of :meth:`references` (its NumPy twin) for the
         ``n_tiles`` tile ``centres`` (a device buffer of (T, 3) doubles) computed on the device, a
         buffer of (T, P) :attr:`reference_dtype` records; None where the host must compute them
         (a receiver with more than two position nodes and exact delays, :meth:`on_device`:
         :meth:`references` follows its track and checks its linearity). ``h`` and ``offset`` may
         be sequences (G receivers and their records' first samples, all with this object's legs):
-        then the buffer holds (T, G, P) records, receiver after receiver for each tile."""
+        then the buffer holds (T, G, P) records, receiver after receiver for each tile.
+        ``tile_first`` (T,) ints (one receiver ``h``; ffbp's first stage, many sub-apertures in one
+        launch): tile t's references are of pulses ``pulses[tile_first[t] + j]`` for j < P, P =
+        ``len(pulses) - max(tile_first)``: a (T, P) buffer, each tile's row what a call on its
+        own pulses gives, bit for bit."""
         import pyopencl as cl
 
         hs, offsets = np.atleast_1d(h), np.broadcast_to(offset, np.shape(np.atleast_1d(h)))
+        if tile_first is not None:
+            tile_first = np.ascontiguousarray(tile_first, np.int32)
+            if (hs.size != 1 or tile_first.shape != (n_tiles,) or tile_first.min(initial=0) < 0
+                    or tile_first.max(initial=0) >= pulses.size):
+                raise ValueError(f"references_on_device tile_first: needs one receiver and {n_tiles} first pulses "
+                                 f"in [0, {pulses.size}), got {hs.size} receivers and {tile_first}")
         if not all(self.on_device(echo, int(k)) for k in hs):
             return None
         rt = opencl.runtime()
@@ -314,12 +324,17 @@ class TileKernel:
         params["c"], params["f0"], params["fs"] = c, echo.waveform.f0, fs
         params["velocity"], params["half_extent"], params["rho_max"] = self.velocity, half_extent, RHO_MAX
         params["bias"] = self.bias(half_extent, c, fs)
-        n_refs = n_tiles * pulse.size
+        per_tile = pulse.size if tile_first is None else pulses.size - int(tile_first.max(initial=0))
+        n_refs = n_tiles * per_tile
         out = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, self.reference_dtype.itemsize * max(n_refs, 1))
         pulse_buf = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=pulse)
-        opencl.kernel("backprojection", "bp_refs", preamble=self.ref_preamble, defines=self.ref_defines)(
-            queue, *opencl.work_groups(n_refs), centres, pulse_buf, params[()], np.int32(pulse.size),
-            np.int32(n_refs), out)
+        extra, defines = (), self.ref_defines
+        if tile_first is not None:
+            extra = (cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=tile_first),)
+            defines = {**defines, "TILE_FIRST": 1}
+        opencl.kernel("backprojection", "bp_refs", preamble=self.ref_preamble, defines=defines)(
+            queue, *opencl.work_groups(n_refs), centres, pulse_buf, params[()], np.int32(per_tile),
+            np.int32(n_refs), out, *extra)
         return out
 
     def spans(self, ref: np.ndarray, half_extent: float, c: float, first: int) -> np.ndarray:
@@ -345,18 +360,23 @@ class TileKernel:
         return fields
 
     def launch(self, queue, *, pixels, tile_of, refs, ref_stride: int, ref_first: int, records, n_samples: int, taps,
-               params, p_first: int, p_count: int, image, index=None, row_shift=None, spans=None):
+               params, p_first: int, p_count: int, image, index=None, row_shift=None, spans=None,
+               store: bool = False):
         """Enqueue bp_tile over the work-items of ``tile_of`` (a device buffer of one int32 a
         work-item; ``pixels`` ROWS records a work-item): add pulses p_first .. p_first + p_count
         - 1 of the ``records`` (rows of ``n_samples`` samples) into the double ``image``: at each
         slot's pixel ``index`` (device int32 a slot, -1 for padding) when given, else at the slot;
         ``refs`` holds tile t's reference of pulse p at t * ref_stride + p - ref_first.
         ``row_shift`` (with row_shift=True) and ``spans`` (with an aperture) as in the kernel's
-        comment. Returns the event."""
+        comment. ``store`` (without ``index``): the launch's sums are stored into the slots instead
+        of added (BP_STORE: the image need not be zeroed first; the same values as adding them to
+        zeros). Returns the event."""
+        if store and index is not None:
+            raise ValueError("bp_tile store=True: only without index (a scattered image is added into)")
         extra = (row_shift,) if "ROW_SHIFT" in self.defines else ()
         extra += (spans,) if self.pulse_span else ()
         n_items = tile_of.size // 4
-        defines = {**self.defines, **({"SCATTER": 1} if index is not None else {})}
+        defines = {**self.defines, **({"SCATTER": 1} if index is not None else {}), **({"BP_STORE": 1} if store else {})}
         kern = opencl.kernel("backprojection", "bp_tile", preamble=self.preamble, defines=defines)
         return kern(queue, *opencl.work_groups(n_items), pixels, tile_of, refs, np.int32(ref_stride),
                     np.int32(ref_first), records, taps, params, np.int32(p_first), np.int32(p_count),

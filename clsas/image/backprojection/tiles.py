@@ -14,6 +14,7 @@ an integration angle.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -59,6 +60,15 @@ class Tiling:
     def real(self) -> np.ndarray:
         """(M_pad,) bool: the slot holds a pixel (not padding)."""
         return self.order >= 0
+
+    @functools.cached_property
+    def slot_of(self) -> np.ndarray:
+        """(M,) int64: each pixel's slot (the inverse of ``order`` on its real slots), made on first
+        use and kept (8 bytes a pixel): a launch's slot sums read into the grid's order by one take."""
+        real = np.flatnonzero(self.order >= 0)
+        slot = np.empty(real.size, np.int64)
+        slot[self.order[real]] = real
+        return slot
 
 
 def _padded_order(parts: list, rows: int) -> tuple[np.ndarray, np.ndarray]:
