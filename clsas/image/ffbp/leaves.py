@@ -261,26 +261,20 @@ class FirstStage:
     def _device_references(self, tile: TileKernel, records, batch: list, centres: np.ndarray, first_tile: np.ndarray,
                            b0: int, half_extent: float) -> list | None:
         """The references of :meth:`_references` computed on the device (TileKernel's bp_refs, its
-        twin), a buffer a receiver of (T, first) records: leaf by leaf, its tiles for its pulses;
+        twin), a buffer a receiver of (T, first) records: the batch's tiles leaf by leaf, each for
+        its leaf's pulses, in one launch a receiver (each tile's first pulse within the batch's);
         None when a receiver needs the host's (exact delays on a track of more than two nodes:
         the host checks its linearity)."""
-        import pyopencl as cl
-
-        rt = opencl.runtime()
         echo, out = records.echo, []
+        starts = np.array([self.leaves[k][0] - b0 for k in batch])
+        pulses = np.arange(starts.min(), starts.max() + self.first)
+        firsts = np.repeat(starts - starts.min(), np.diff(first_tile))  # each tile's leaf's first pulse among them
         for i, h in enumerate(records.receivers):
-            kern = tile.for_receiver(echo, h)
-            size = kern.reference_dtype.itemsize * self.first
-            refs = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, size * int(first_tile[-1]))
-            for j, k in enumerate(batch):
-                t0, t1 = int(first_tile[j]), int(first_tile[j + 1])
-                mine = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                                 hostbuf=np.ascontiguousarray(centres[t0:t1]))
-                part = kern.references_on_device(rt.queue, echo, h, self.leaves[k][0] - b0 + np.arange(self.first), mine,
-                                                 t1 - t0, records.fs, half_extent, int(records.offset[i]))
-                if part is None:
-                    return None
-                cl.enqueue_copy(rt.queue, refs, part, dst_offset=size * t0, byte_count=size * (t1 - t0))
+            refs = tile.for_receiver(echo, h).references_on_device(
+                opencl.runtime().queue, echo, h, pulses, cl_buffer(centres), centres.shape[0], records.fs,
+                half_extent, int(records.offset[i]), tile_first=firsts)
+            if refs is None:
+                return None
             out.append(refs)
         return out
 
@@ -371,8 +365,7 @@ class FirstStage:
         row_shift = made(np.repeat(np.array([self.leaves[k][0] - b0 for k in batch], np.int32), n_tiles))
         tile_of = made(np.ascontiguousarray(items["tile"][::ROWS]))
         params, taps = tile.params(c, f0, records.fs), tile.taps(ctx)
-        image = cl.Buffer(ctx, mf.READ_WRITE, 16 * LANES * items.size)
-        cl.enqueue_fill_buffer(queue, image, np.zeros(1, np.complex128), 0, 16 * LANES * items.size)
+        image = cl.Buffer(ctx, mf.READ_WRITE, 16 * LANES * items.size)  # the first launch stores, later ones add
         for i, h in enumerate(records.receivers):
             data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
             ref_buf = refs[i] if isinstance(refs[i], cl.Buffer) else made(refs[i])
@@ -380,7 +373,8 @@ class FirstStage:
             for s in range(0, self.first, tile.PULSE_BLOCK):
                 kern.launch(queue, pixels=pix, tile_of=tile_of, refs=ref_buf, ref_stride=self.first, ref_first=0,
                             records=data, n_samples=n_samples, taps=taps, params=params, p_first=s,
-                            p_count=min(tile.PULSE_BLOCK, self.first - s), image=image, row_shift=row_shift)
+                            p_count=min(tile.PULSE_BLOCK, self.first - s), image=image, row_shift=row_shift,
+                            store=i == 0 and s == 0)
         slots, slot_first = _slots(leaves, items)
         spans = np.concatenate([g.row_spans for g in leaves])
         span_first = np.cumsum([0] + [g.n_v for g in leaves])
