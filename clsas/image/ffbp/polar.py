@@ -481,11 +481,13 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
     ok = b >= 0
     ok &= b < ENVELOPE_BINS
     b += (np.arange(len(centres)) * ENVELOPE_BINS)[:, None]  # the bin's index among all the grids' bins
-    flat = b[ok].astype(np.int64)
+    every = bool(ok.all())  # (no integration angle: every point in its grid's bins) no masked copies
+    flat = (b.reshape(-1) if every else b[ok]).astype(np.int64)
+    ranges = r.reshape(-1) if every else r[ok]
     near = np.full(len(centres) * ENVELOPE_BINS, np.inf)
     far = np.full(len(centres) * ENVELOPE_BINS, -np.inf)
-    np.minimum.at(near, flat, r[ok])
-    np.maximum.at(far, flat, r[ok])
+    np.minimum.at(near, flat, ranges)
+    np.maximum.at(far, flat, ranges)
     envelope = np.stack([near, far], axis=1).reshape(len(centres), ENVELOPE_BINS, 2)
     found = []
     e1s, e2s = frame_axes(axes[alive], centres[alive], scene.plane)
