@@ -38,8 +38,8 @@ the aperture case for the same pulses on a fixed 512^2 grid.
 
 ``--stages`` adds one more ffbp call a case, after the timed ones, with the device's queue
 finished around each stage, and reports the process CPU seconds of each (``stages_cpu``: the tree's
-planning, the leaves (of which ``leaf_bp_tile``, back-projection's kernel itself), the merges, the
-final stage, and the rest), the cost breakdown that says where a case's time goes.
+planning, the leaves (their batches and demodulation; of which ``leaf_bp_tile``, back-projection's
+kernel itself), the merges, the final stage, and the rest), the cost breakdown that says where a case's time goes.
 
 Every run is timed twice: wall time and the process's CPU time (``time.process_time``: PoCL's
 worker threads run in this process, so it is the CPU-seconds the call used). On a loaded machine the
@@ -132,10 +132,10 @@ def _stage_clock(totals: dict):
     """Within the block, ffbp's stages add their process CPU seconds to ``totals`` (the device's
     queue finished before and after each, so that its work is counted where it was enqueued)."""
     queue = opencl.runtime().queue
-    targets = {"plan": (ffbp_package, "plan"), "leaves": (FirstStage, "image_into"),
-               "leaf_bp_tile": (TileKernel, "launch"), "merges": (DeviceStore, "merge"),
-               "final": (DeviceStore, "final")}
-    saved = {name: getattr(owner, attr) for name, (owner, attr) in targets.items()}
+    targets = [("plan", ffbp_package, "plan"), ("leaves", FirstStage, "image_into"), ("leaves", DeviceStore, "flush"),
+               ("leaf_bp_tile", TileKernel, "launch"), ("merges", DeviceStore, "merge"),
+               ("final", DeviceStore, "final")]
+    saved = [getattr(owner, attr) for _, owner, attr in targets]
 
     def clocked(name, original):
         def run(*args, **kwargs):
@@ -148,13 +148,13 @@ def _stage_clock(totals: dict):
                 totals[name] = totals.get(name, 0.0) + time.process_time() - start
         return run
 
-    for name, (owner, attr) in targets.items():
-        setattr(owner, attr, clocked(name, saved[name]))
+    for (name, owner, attr), original in zip(targets, saved):
+        setattr(owner, attr, clocked(name, original))
     try:
         yield totals
     finally:
-        for name, (owner, attr) in targets.items():
-            setattr(owner, attr, saved[name])
+        for (_, owner, attr), original in zip(targets, saved):
+            setattr(owner, attr, original)
 
 
 def stages(run) -> dict:

@@ -142,16 +142,21 @@ __kernel void ffbp_fields(__global const ffbp_item_t *items, __global const ffbp
     STORE_F16(convert_float16(dx * dx + dy * dy + dz * dz), o->dd);
 }
 
-/* The first stage's demodulated leaf image from bp_tile's slots (clsas/image/ffbp/leaves.py):
- * work-item (q, j) writes the sixteen range samples 16 q .. 16 q + 15 (those < n_r) of row j of
- * the leaf's grid (frame) to out[out_offset + j * n_r + i]: bp_tile's slots 16 g .. 16 g + 15 of
- * image, g = slots[slot_first + j * ceil(n_r / 16) + q] (-1: a group no tile computed), times
+/* The first stage's demodulated leaf images from bp_tile's slots (clsas/image/ffbp/leaves.py),
+ * leaf k = get_global_id(2) of a launch: work-item (q, j, k) writes the sixteen range samples
+ * 16 q .. 16 q + 15 (those < n_r) of row j of the leaf's grid (frames[k]) to
+ * out[out_offsets[k] + j * n_r + i]: bp_tile's slots 16 g .. 16 g + 15 of image,
+ * g = slots[slot_firsts[k] + j * ceil(n_r / 16) + q] (-1: a group no tile computed), times
  * exp(-j 2 pi cycles_per_m r) (the demodulation by its range r), complex64; zero where g = -1 and
- * outside the row's span spans[span_first + j] (the samples lo <= i < hi computed). */
-__kernel void ffbp_leaf(__global const double2 *image, __global const int *slots, const long slot_first,
-                        __global const int2 *spans, const long span_first, const ffbp_frame_t frame,
-                        const double cycles_per_m, const long out_offset, __global float2 *out)
+ * outside the row's span spans[span_firsts[k] + j] (the samples lo <= i < hi computed). */
+__kernel void ffbp_leaf(__global const double2 *image, __global const int *slots, __global const long *slot_firsts,
+                        __global const int2 *spans, __global const long *span_firsts,
+                        __global const ffbp_frame_t *frames, const double cycles_per_m,
+                        __global const long *out_offsets, __global float2 *out)
 {
+    const int k = get_global_id(2);
+    const ffbp_frame_t frame = frames[k];
+    const long slot_first = slot_firsts[k], span_first = span_firsts[k], out_offset = out_offsets[k];
     const int q = get_global_id(0), j = get_global_id(1), n_r = frame.n_r;
     const int groups = (n_r + 15) / 16, i0 = 16 * q;
     if (q >= groups || j >= frame.n_v)  /* the launch is padded to whole work-groups */

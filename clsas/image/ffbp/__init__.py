@@ -281,6 +281,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
         made = [k for k, o in zip(kids, offsets) if build(level - 1, k, below, o)]
         if not made:
             return False
+        store.flush()
         store.merge([tree.grids[level - 1][k] for k in made], below, [offsets[kids.index(k)] for k in made], grid_,
                     group, offset)
         return True
@@ -295,6 +296,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
                 group = store.group(top, offsets[-1])
                 made = [k for k, o in zip(kids, offsets) if build(top, k, group, o)]
                 if made:
+                    store.flush()
                     store.final([tree.grids[top][k] for k in made], group, [offsets[kids.index(k)] for k in made])
             flat = store.result()
         finally:  # the first stage's last batch's kernels read host memory it holds

@@ -56,22 +56,32 @@ REF_CHUNK = 2**18  # (pulse, tile) pairs whose references are computed at once (
 LANES, ROWS = TileKernel.LANES, TileKernel.ROWS  # bp_tile's work-item: ROWS rows of LANES samples
 
 
+def cl_buffer(array: np.ndarray):
+    """A read-only device buffer holding a copy of ``array``."""
+    import pyopencl as cl
+
+    return cl.Buffer(opencl.runtime().context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                     hostbuf=np.ascontiguousarray(array))
+
+
 def polar_tiles(grids: list, bv: int, br: int):
     """bp_tile's tiles of polar grids (module docstring), blocks of bv rows x br range samples
     (those at a grid's edge cut to it): their items (I,) :data:`program.ITEM` (leaf, row, the
-    first of LANES consecutive range samples of that row, tile; grid by grid, tile by tile, row by
-    row; ROWS items make a work-item), the tiles' reference points (T, 3) m (each block's middle
+    first of LANES consecutive range samples of that row, tile; grid by grid, tile by tile, group of
+    LANES range samples by group, row by row; ROWS items, ROWS rows of one group, make a work-item), the tiles' reference points (T, 3) m (each block's middle
     sample) and the number of tiles of each grid (L,)."""
     tv_of = np.array([-(-g.n_v // bv) for g in grids])
     tr_of = np.array([-(-g.n_r // br) for g in grids])
     tv, tr = int(tv_of.max()), int(tr_of.max())
     real = (np.arange(tv)[None, :, None] < tv_of[:, None, None]) & (np.arange(tr)[None, None, :] < tr_of[:, None, None])
     tile = np.cumsum(real.reshape(-1)).reshape(real.shape) - 1  # grid by grid, row-major within a grid
-    # work-items tile by tile, within a tile row by row, LANES samples each
-    # a tile at the grid's edge keeps only its rows inside the grid (rounded up to whole work-items
-    # of ROWS rows) and its sixteen-sample groups that start inside it
-    shape = (len(grids), tv, tr, bv, br // LANES)
-    l, a, b, j, q = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij", sparse=True)
+    # items tile by tile, within a tile group by group of LANES range samples, within a group row
+    # by row: a work-item is ROWS rows of the same LANES ranges (a short sub-aperture's delay
+    # hardly depends on the angle, so its rows read the same records' samples); a tile at the
+    # grid's edge keeps only its rows inside the grid (rounded up to whole work-items of ROWS rows)
+    # and its sixteen-sample groups that start inside it
+    shape = (len(grids), tv, tr, br // LANES, bv)
+    l, a, b, q, j = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij", sparse=True)
     n_v = np.array([g.n_v for g in grids])[:, None, None, None, None]
     n_r = np.array([g.n_r for g in grids])[:, None, None, None, None]
     # a group of LANES samples is kept where it meets the span of its block of ROWS rows (the union
@@ -139,6 +149,7 @@ class FirstStage:
         self.ready = {}
         self.records = None  # every pulse's prepared records, when they fit RECORD_BYTES
         self.pending = None  # what the last batch's queued kernels read from host memory (settle)
+        self.queued = []  # leaves whose demodulation waits for flush(): (made, grid, out, offset)
 
     def image(self, node: int, grid: PolarGrid, grids: list) -> np.ndarray:
         """Leaf ``node``'s image on its polar grid ``grid``, demodulated: (n_v, n_r) (complex64 on
@@ -150,6 +161,7 @@ class FirstStage:
             rt = opencl.runtime()
             out = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, 8 * grid.size)
             self.image_into(node, grid, grids, out, 0)
+            self.flush()
             image = np.empty((grid.n_v, grid.n_r), np.complex64)
             cl.enqueue_copy(rt.queue, image, out)
             return image
@@ -158,22 +170,39 @@ class FirstStage:
         return self._demodulated(self.ready.pop(node), grid).astype(np.complex128)
 
     def image_into(self, node: int, grid: PolarGrid, grids: list, out, offset: int) -> None:
-        """OpenCL: enqueue leaf ``node``'s demodulated complex64 image (as :meth:`image`) into the
-        device buffer ``out`` from element ``offset`` on."""
+        """OpenCL: leaf ``node``'s demodulated complex64 image (as :meth:`image`) into the device
+        buffer ``out`` from element ``offset`` on, enqueued by the next :meth:`flush` (the leaves
+        of a merge's group in one ffbp_leaf launch; a leaf made by clsas.backproject at once)."""
         import pyopencl as cl
 
         if node not in self.ready:
             self._batch(node, grids)
         made = self.ready.pop(node)
-        rt = opencl.runtime()
         if isinstance(made, np.ndarray):  # a leaf made by clsas.backproject
-            cl.enqueue_copy(rt.queue, out, np.ascontiguousarray(self._demodulated(made, grid), np.complex64),
-                            dst_offset=8 * offset)
+            cl.enqueue_copy(opencl.runtime().queue, out, np.ascontiguousarray(self._demodulated(made, grid),
+                                                                              np.complex64), dst_offset=8 * offset)
             return
-        image, slots, slot_first, spans, span_first = made
-        program.kernel("ffbp_leaf")(rt.queue, *opencl.work_groups_2d(-(-grid.n_r // LANES), grid.n_v), image, slots,
-                                    np.int64(slot_first), spans, np.int64(span_first), program.frames([grid])[0],
-                                    np.float64(self.demodulate), np.int64(offset), out)
+        self.queued.append((made, grid, out, offset))
+
+    def flush(self) -> None:
+        """Enqueue the demodulation of the leaves :meth:`image_into` took since the last flush: one
+        ffbp_leaf launch for those of one batch going to one buffer (a merge's group)."""
+        runs = {}
+        for made, grid, out, offset in self.queued:
+            runs.setdefault((id(made[0]), id(out)), []).append((made, grid, out, offset))
+        self.queued = []
+        for run in runs.values():
+            (image, slots, _, spans, _), _, out, _ = run[0]
+            grids = [grid for _, grid, _, _ in run]
+
+            def made(values):
+                return cl_buffer(np.array(values, np.int64))
+
+            rows = -(-max(g.n_v for g in grids) // opencl.WORK_GROUP) * opencl.WORK_GROUP
+            program.kernel("ffbp_leaf")(opencl.runtime().queue, (max(-(-g.n_r // LANES) for g in grids), rows, len(run)),
+                                        (1, opencl.WORK_GROUP, 1), image, slots, made([m[2] for m, *_ in run]), spans,
+                                        made([m[4] for m, *_ in run]), cl_buffer(program.frames(grids)),
+                                        np.float64(self.demodulate), made([o for *_, o in run]), out)
 
     def _demodulated(self, image: np.ndarray, grid: PolarGrid) -> np.ndarray:
         """The leaf's image demodulated by its ranges, zero outside its rows' spans."""
@@ -232,26 +261,20 @@ class FirstStage:
     def _device_references(self, tile: TileKernel, records, batch: list, centres: np.ndarray, first_tile: np.ndarray,
                            b0: int, half_extent: float) -> list | None:
         """The references of :meth:`_references` computed on the device (TileKernel's bp_refs, its
-        twin), a buffer a receiver of (T, first) records: leaf by leaf, its tiles for its pulses;
+        twin), a buffer a receiver of (T, first) records: the batch's tiles leaf by leaf, each for
+        its leaf's pulses, in one launch a receiver (each tile's first pulse within the batch's);
         None when a receiver needs the host's (exact delays on a track of more than two nodes:
         the host checks its linearity)."""
-        import pyopencl as cl
-
-        rt = opencl.runtime()
         echo, out = records.echo, []
+        starts = np.array([self.leaves[k][0] - b0 for k in batch])
+        pulses = np.arange(starts.min(), starts.max() + self.first)
+        firsts = np.repeat(starts - starts.min(), np.diff(first_tile))  # each tile's leaf's first pulse among them
         for i, h in enumerate(records.receivers):
-            kern = tile.for_receiver(echo, h)
-            size = kern.reference_dtype.itemsize * self.first
-            refs = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, size * int(first_tile[-1]))
-            for j, k in enumerate(batch):
-                t0, t1 = int(first_tile[j]), int(first_tile[j + 1])
-                mine = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                                 hostbuf=np.ascontiguousarray(centres[t0:t1]))
-                part = kern.references_on_device(rt.queue, echo, h, self.leaves[k][0] - b0 + np.arange(self.first), mine,
-                                                 t1 - t0, records.fs, half_extent, int(records.offset[i]))
-                if part is None:
-                    return None
-                cl.enqueue_copy(rt.queue, refs, part, dst_offset=size * t0, byte_count=size * (t1 - t0))
+            refs = tile.for_receiver(echo, h).references_on_device(
+                opencl.runtime().queue, echo, h, pulses, cl_buffer(centres), centres.shape[0], records.fs,
+                half_extent, int(records.offset[i]), tile_first=firsts)
+            if refs is None:
+                return None
             out.append(refs)
         return out
 
@@ -342,8 +365,7 @@ class FirstStage:
         row_shift = made(np.repeat(np.array([self.leaves[k][0] - b0 for k in batch], np.int32), n_tiles))
         tile_of = made(np.ascontiguousarray(items["tile"][::ROWS]))
         params, taps = tile.params(c, f0, records.fs), tile.taps(ctx)
-        image = cl.Buffer(ctx, mf.READ_WRITE, 16 * LANES * items.size)
-        cl.enqueue_fill_buffer(queue, image, np.zeros(1, np.complex128), 0, 16 * LANES * items.size)
+        image = cl.Buffer(ctx, mf.READ_WRITE, 16 * LANES * items.size)  # the first launch stores, later ones add
         for i, h in enumerate(records.receivers):
             data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
             ref_buf = refs[i] if isinstance(refs[i], cl.Buffer) else made(refs[i])
@@ -351,7 +373,8 @@ class FirstStage:
             for s in range(0, self.first, tile.PULSE_BLOCK):
                 kern.launch(queue, pixels=pix, tile_of=tile_of, refs=ref_buf, ref_stride=self.first, ref_first=0,
                             records=data, n_samples=n_samples, taps=taps, params=params, p_first=s,
-                            p_count=min(tile.PULSE_BLOCK, self.first - s), image=image, row_shift=row_shift)
+                            p_count=min(tile.PULSE_BLOCK, self.first - s), image=image, row_shift=row_shift,
+                            store=i == 0 and s == 0)
         slots, slot_first = _slots(leaves, items)
         spans = np.concatenate([g.row_spans for g in leaves])
         span_first = np.cumsum([0] + [g.n_v for g in leaves])

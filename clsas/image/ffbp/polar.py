@@ -353,6 +353,11 @@ class Extent:
         """The angle rows n_v of :meth:`sample`'s grid (without sampling it)."""
         return self._sampling(rho, taps)[5]
 
+    def size(self, rho: float, taps: int) -> int:
+        """The samples n_v x n_r of :meth:`sample`'s grid's (r, v) box (without sampling it)."""
+        _, _, n_r, _, _, n_v, _ = self._sampling(rho, taps)
+        return n_r * n_v
+
     def sample(self, rho: float, taps: int) -> PolarGrid:
         """The polar grid at oversampling ``rho``, padded by ``taps // 2 + 2`` samples on every side
         for the interpolator, with its rows' spans (:func:`sample_grids`) when :data:`RAGGED`."""
@@ -433,9 +438,13 @@ def extents(centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray, sce
 
 
 def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine_limits) -> list:
-    r, along = scene.offsets(centres, axes)
-    v = along / np.where(r > 0, r, np.inf)
-    r_lo = np.maximum(r.min(axis=1) - scene.margin, windows[:, 0])
+    r, v = scene.offsets(centres, axes)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v /= r  # the sines, in place (a point at a centre, r = 0, has none: 0)
+    if not r.all():
+        v[r == 0] = 0.0
+    r_nearest = r.min(axis=1)
+    r_lo = np.maximum(r_nearest - scene.margin, windows[:, 0])
     v_margin = scene.margin / np.where(r_lo > 0, r_lo, 1.0)
     v_lo = np.maximum(v.min(axis=1) - v_margin, -1.0)
     v_hi = np.minimum(v.max(axis=1) + v_margin, 1.0)
@@ -447,7 +456,7 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
         r_min, r_max = np.where(seen, r, np.inf).min(axis=1), np.where(seen, r, -np.inf).max(axis=1)
         reach = ((v >= v_lo[:, None]) & (v <= v_hi[:, None])).mean(axis=1)
     else:
-        r_min, r_max = r.min(axis=1), r.max(axis=1)
+        r_min, r_max = r_nearest, r.max(axis=1)
         reach = np.ones(len(centres))
     with np.errstate(invalid="ignore"):
         r_lo = np.maximum(r_min - scene.margin, windows[:, 0])
@@ -465,14 +474,20 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
     v_margin = scene.margin / np.where(alive, r_lo, 1.0)
     start = np.where(alive, v_lo - v_margin, 0.0)
     width = np.where(alive, np.maximum(v_hi + v_margin - start, 1e-12), 1.0) / ENVELOPE_BINS
+    b = v - start[:, None]
     with np.errstate(invalid="ignore"):
-        b = np.floor((v - start[:, None]) / width[:, None])
-    ok = (b >= 0) & (b < ENVELOPE_BINS)
-    flat = (np.arange(len(centres))[:, None] * ENVELOPE_BINS + np.where(ok, b, 0).astype(np.int64))[ok]
+        b /= width[:, None]
+    np.floor(b, out=b)
+    ok = b >= 0
+    ok &= b < ENVELOPE_BINS
+    b += (np.arange(len(centres)) * ENVELOPE_BINS)[:, None]  # the bin's index among all the grids' bins
+    every = bool(ok.all())  # (no integration angle: every point in its grid's bins) no masked copies
+    flat = (b.reshape(-1) if every else b[ok]).astype(np.int64)
+    ranges = r.reshape(-1) if every else r[ok]
     near = np.full(len(centres) * ENVELOPE_BINS, np.inf)
     far = np.full(len(centres) * ENVELOPE_BINS, -np.inf)
-    np.minimum.at(near, flat, r[ok])
-    np.maximum.at(far, flat, r[ok])
+    np.minimum.at(near, flat, ranges)
+    np.maximum.at(far, flat, ranges)
     envelope = np.stack([near, far], axis=1).reshape(len(centres), ENVELOPE_BINS, 2)
     found = []
     e1s, e2s = frame_axes(axes[alive], centres[alive], scene.plane)

@@ -29,6 +29,9 @@ class HostStore:
     def leaf(self, node: int, grid, grids: list, group: np.ndarray, offset: int) -> None:
         group[offset:offset + grid.size] = self.stage1.image(node, grid, grids).reshape(-1)
 
+    def flush(self) -> None:
+        """Nothing: the reference makes each leaf's image when it is taken."""
+
     def merge(self, grids: list, group: np.ndarray, offsets: list, parent, out: np.ndarray, offset: int) -> None:
         out[offset:offset + parent.size] = merge_reference(_views(grids, group, offsets), parent, *self.args).reshape(-1)
 
@@ -53,7 +56,10 @@ class DeviceStore:
     each level, as the memory plan counts): the walk is depth first, so a level holds one group
     at a time, and the queue runs in order, so a group's merge has read it before the next group
     of its level is written there. (A buffer a group cost page faults for every group's fresh
-    memory.)"""
+    memory.) Nothing is kept between calls: keeping the levels', the image's and the first stage's
+    buffers for the next call of the same size was measured to save no CPU time (the allocator
+    hands a call the memory the last one freed; the fresh pages a call touches are mostly those of
+    the image it returns, which must be its own)."""
 
     def __init__(self, stage1, pixels: np.ndarray, f0: float, c: float, taps: int, rho: float, sizes: list):
         import pyopencl as cl
@@ -76,6 +82,11 @@ class DeviceStore:
 
     def leaf(self, node: int, grid, grids: list, group, offset: int) -> None:
         self.stage1.image_into(node, grid, grids, group, offset)
+
+    def flush(self) -> None:
+        """Enqueue the leaves' images taken since the last flush (before a merge or the final stage
+        reads them)."""
+        self.stage1.flush()
 
     def merge(self, grids: list, group, offsets: list, parent, out, offset: int) -> None:
         merge_device(grids, group, offsets, parent, *self.args, out, offset)

@@ -29,9 +29,10 @@ interpolations and saves, at the final stage, the pixels' reads of level l's nod
 level l + 1's (a node is read at the pixels its grid covers, about its extent's ``reach`` x the
 pixels: with an ``aperture`` a node sees only a sector of a long scene); the tree merges while
 that pays. The oversampling rho depends on the number of stages
-(:func:`clsas.image.ffbp.polar.oversampling`), which depends on where the tree stops: two
-rounds settle both, and the oversampling is that of the tree's final number of stages in any case
-(the rule of the error model holds even where the rounds did not settle).
+(:func:`clsas.image.ffbp.polar.oversampling`), which depends on where the tree stops: a first
+guess settled by the rule on the grids' (r, v) boxes (unsampled, so cheap) and two rounds on the
+sampled grids settle both, and the oversampling is that of the tree's final number of stages in
+any case (the rule of the error model holds even where the rounds did not settle).
 """
 
 from __future__ import annotations
@@ -173,24 +174,41 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         first = wide[0] if wide else echo.n_pulses
     pulses, children = _levels(echo.n_pulses, first, factor)
     find_extents([node for level in pulses for node in level])
-    top = len(pulses) - 1
-    for _ in range(2):
-        rho = oversampling(taps, tolerance, top + 1)
-        grids = [grids_for(pulses[0], rho)] + [[None] * len(level) for level in pulses[1:]]
-        if all(g is None for g in grids[0]):
-            angle = "" if aperture is None else f" and within the integration angle ffbp aperture={aperture!r} rad"
-            raise ValueError(f"grid: no pixel lies within the recorded range window{angle} of any sub-aperture: the "
-                             "sonar never sees this grid")
+
+    def stop(rho: float, samples) -> int:
+        """The top level where merging stops paying at oversampling rho (the module docstring's
+        rule), a level's merge costing factor x ``samples(nodes, rho)`` interpolations."""
         new_top = 0
         while new_top + 1 < len(pulses):
             level = new_top + 1
-            level_grids = grids_for(pulses[level], rho)
-            cost = factor * sum(g.computed for g in level_grids if g is not None)
-            saving = n_pixels * (reach(pulses[new_top]) - reach(pulses[level]))
-            if cost > saving:
+            if factor * samples(pulses[level], rho) > n_pixels * (reach(pulses[new_top]) - reach(pulses[level])):
                 break
-            grids[level] = level_grids
             new_top = level
+        return new_top
+
+    def boxes(nodes, rho) -> int:
+        """The samples of the nodes' polar boxes at rho (the grids unsampled: at least those computed)."""
+        return sum(extents_of[node].size(rho, taps) for node in nodes if extents_of[node] is not None)
+
+    def computed(nodes, rho) -> int:
+        return sum(g.computed for g in grids_for(nodes, rho) if g is not None)
+
+    # a first guess settled on the boxes (no grid sampled; from one merge level, where most trees
+    # stop), then the rule on the sampled grids: two rounds settle both (a lower oversampling
+    # merges at least as far), and a right guess saves sampling the grids at a wrong one
+    top = min(1, len(pulses) - 1)
+    for _ in range(3):
+        guess = stop(oversampling(taps, tolerance, top + 1), boxes)
+        if guess == top:
+            break
+        top = guess
+    for _ in range(2):
+        rho = oversampling(taps, tolerance, top + 1)
+        if all(g is None for g in grids_for(pulses[0], rho)):
+            angle = "" if aperture is None else f" and within the integration angle ffbp aperture={aperture!r} rad"
+            raise ValueError(f"grid: no pixel lies within the recorded range window{angle} of any sub-aperture: the "
+                             "sonar never sees this grid")
+        new_top = stop(rho, computed)
         if new_top == top:
             break
         top = new_top
