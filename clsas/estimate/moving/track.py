@@ -102,6 +102,20 @@ def _sheared(power: np.ndarray, centre: np.ndarray, half: int) -> tuple[np.ndarr
     return window.astype(np.float32), idx, inside
 
 
+def _excess(sums: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """The mean of a sheared window's columns (:func:`_sheared`; ``sums`` of its cells that lie
+    in the record, ``counts`` of them, each (n_columns,)) less the median of those means, and 0
+    where no cell of a column lies in the record. The noise's mean taken off: correlated, it
+    would pull every block to lag 0; and the columns beyond the record's ends (a fast-walking
+    trace's window leaves the record near its ends) add nothing: as the noise's mean less a
+    median they were a step at the record's edge that every block and the profile shared."""
+    live = counts > 0
+    mean = np.where(live, sums / np.maximum(counts, 1), 0.0)
+    if np.any(live):
+        mean[live] -= np.median(mean[live])
+    return mean
+
+
 def _refined(power: np.ndarray, stretch: slice, centre: np.ndarray, lag_half: int, degree: int
              ) -> tuple[np.ndarray, float, np.ndarray] | None:
     """One pass of step 2 over the pulses ``stretch`` about ``centre`` (n_pulses,) samples: the
@@ -115,14 +129,16 @@ def _refined(power: np.ndarray, stretch: slice, centre: np.ndarray, lag_half: in
     middles = starts + 0.5 * (BLOCK - 1)
     x = (middles - 0.5 * (n_pulses - 1)) / n_pulses
     window, _, inside = _sheared(power[lo:hi], centre[lo:hi], HALF_WIDTH // 2 + lag_half)
-    counts = np.maximum(inside.sum(axis=0), 1)
-    profile = window.sum(axis=0) / counts
-    profile -= np.median(profile)  # the noise's mean: correlated, it would pull every block to lag 0
+    sums, counts = window.sum(axis=0), inside.sum(axis=0)
     lags = np.arange(-lag_half, lag_half + 1)
     offsets, heights = np.empty(starts.size), np.empty(starts.size)
     for b, s in enumerate(starts - lo):
-        block = window[s:s + BLOCK].mean(axis=0)
-        block -= np.median(block)
+        block_sums, block_counts = window[s:s + BLOCK].sum(axis=0), inside[s:s + BLOCK].sum(axis=0)
+        block = _excess(block_sums, block_counts)
+        # the profile of the other pulses: with the block's own, the block's noise correlated with
+        # itself at lag 0 and outweighed a trace that had walked off the line (a fast-walking
+        # trace's straight seed line: every block kept lag 0)
+        profile = _excess(sums - block_sums, counts - block_counts)
         corr = np.correlate(block, profile, mode="full")[profile.size - 1 + lags]
         j = int(np.argmax(corr))
         offsets[b], heights[b] = lags[j], max(float(corr[j]), 0.0)
@@ -184,9 +200,9 @@ def centre_line(power: np.ndarray) -> np.ndarray | None:
 @dataclass(frozen=True)
 class FollowedTrace:
     """:func:`bright_gate`'s result: gate bool (n_pulses, n_samples), the bright scatterers'
-    cells along the followed trace; slope (samples a pulse) and sample of the trace's centre line
-    at the middle pulse (its tangent there: the delay's linear term f_dc / f0, chain module
-    docstring)."""
+    cells along the followed trace; slope (samples a pulse) of the trace's centre line at the
+    middle pulse and sample of its brightest cell there (its tangent: the delay's linear term
+    f_dc / f0, chain module docstring)."""
 
     gate: np.ndarray
     slope: float
@@ -222,4 +238,8 @@ def bright_gate(records: np.ndarray, upsample: int = 1) -> FollowedTrace | None:
     below, above = int(np.floor(middle)), int(np.ceil(middle))
     ends = slice(max(below - 1, 0), above + 2)  # the centre line is a low-order polynomial
     slope = float(np.mean(np.diff(centre[ends])))
-    return FollowedTrace(gate=gate, slope=slope, sample=float(np.interp(middle, np.arange(centre.size), centre)))
+    # the centre line is followed up to a constant (the blocks' lags are relative to the profile):
+    # the brightest cell of the profile is where the trace is
+    brightest = int(np.argmax(np.where(bright, excess, -np.inf))) - HALF_WIDTH
+    return FollowedTrace(gate=gate, slope=slope,
+                         sample=float(np.interp(middle, np.arange(centre.size), centre)) + brightest)
