@@ -152,8 +152,9 @@ def sowvd(rec: Records, p0: float, threshold_db: float = THRESHOLD_DB) -> RateSe
     lag offsets from ``p0`` whose agreement gives K_a,eq (:func:`.sowvd.rate_search`). The gate
     is :mod:`.trace`'s cells that stand out of the noise; when its maps score below
     ``threshold_db`` (or it covers too few pulses) the RFRT gated on the bright scatterers of
-    the trace followed over the whole record (:func:`.track.bright_gate`) is tried too and the
-    better-scoring search kept. EstimationError when the echo stands out of the noise in too
+    the trace followed over the whole record (:func:`.track.bright_gate`, from its seed stretch and,
+    when that scores below ``threshold_db`` too, from the shorter one) is tried too and the
+    best-scoring search kept. EstimationError when the echo stands out of the noise in too
     few pulses and the followed trace holds no target either."""
     gate = trace.support(rec.x, UPSAMPLE)
     coverage = float(np.mean(gate.any(axis=1)))
@@ -162,9 +163,16 @@ def sowvd(rec: Records, p0: float, threshold_db: float = THRESHOLD_DB) -> RateSe
         search = rate_search(rfrt(rec.x, trace.band(rec.x, gate, UPSAMPLE)), rec.prf, p0)
         if search.score_db >= threshold_db:
             return search
-    bright = track.bright_gate(rec.x, UPSAMPLE)
-    followed = None if bright is None else dataclasses.replace(rate_search(rfrt(rec.x, bright.gate), rec.prf, p0),
-                                                               trace_line=(bright.slope, bright.sample))
+    followed = None
+    # the shorter seed when the first does not hold a target (a trace that walks fast: :data:`.track.SHORT_SEED`)
+    for seed in (track.SEED, track.SHORT_SEED)[:2 if rec.x.shape[0] > track.SHORT_SEED else 1]:
+        if followed is not None and followed.score_db >= threshold_db:
+            break
+        bright = track.bright_gate(rec.x, UPSAMPLE, seed)
+        again = None if bright is None else dataclasses.replace(rate_search(rfrt(rec.x, bright.gate), rec.prf, p0),
+                                                                trace_line=(bright.slope, bright.sample))
+        if again is not None and (followed is None or again.score_db > followed.score_db):
+            followed = again
     if search is None and (followed is None or followed.score_db < threshold_db):
         raise EstimationError(f"receiver {rec.name}: the echo stands out of the noise in {100 * coverage:.0f} % of "
                               f"the pulses < {100 * MIN_COVERAGE:.0f} %"

@@ -15,7 +15,7 @@ Here the trace is followed over the whole record instead:
 1. the power whitened per range cell (over its noise floor, :func:`.trace.floor`), less each
    cell's mean over the pulses (what a target that keeps its range cell leaves is
    :mod:`.trace`'s), its strongest straight trace (:func:`.radon.line_slope`) over the middle
-   :data:`SEED` pulses (the whole record when shorter: the power of every pulse adds; over longer
+   :data:`SEED` pulses (or :data:`SHORT_SEED`; the whole record when shorter: the power of every pulse adds; over longer
    records the trace bends away from any straight line: ~1000 samples over Table I's 6400
    pulses at receiver A, Table II case 1, where a straight line over the whole record found
    something else and the EstimationError of tests/test_moving_noise.py's 6400-pulse test
@@ -64,6 +64,12 @@ REJECT = 4.0
 #: Pulses in the middle of the record on which the trace is first found as a straight line (step
 #: 1): over them the trace bends little (it bends as the square of the stretch's length).
 SEED = 2048
+#: A shorter seed stretch, tried (:func:`.chain.sowvd`) when the trace followed from :data:`SEED`
+#: does not hold the target: a trace that walks fast bends away from the whole record's straight
+#: line by more than the blocks search (Table II case 6 at A, 2048 pulses: 1.7 samples a pulse,
+#: 130-340 samples off the line at the ends against +-100; from the middle 512 pulses' line the
+#: stretches grow onto it to within a sample).
+SHORT_SEED = 512
 #: Each further stretch is this many times longer than the last (step 3).
 GROW = 2.0
 #: A longer stretch's blocks search offsets this many standard deviations of the extrapolated
@@ -161,15 +167,16 @@ def _extrapolation_sigma(x_fit: np.ndarray, spread: float, degree: int, x_new: n
     return float(np.sqrt(np.max(np.einsum("ij,jk,ik->i", at, cov, at))))
 
 
-def centre_line(power: np.ndarray) -> np.ndarray | None:
+def centre_line(power: np.ndarray, seed: int = SEED) -> np.ndarray | None:
     """The trace's centre, samples (n_pulses,), in a whitened power map (steps 1-2 of the
-    module docstring), or None when the record is too short for blocks."""
+    module docstring; the first straight line over the middle ``seed`` pulses), or None when the
+    record is too short for blocks."""
     n_pulses = power.shape[0]
     if n_pulses < 2 * BLOCK:
         return None
     n = np.arange(n_pulses, dtype=np.float64)
     x_all = (n - 0.5 * (n_pulses - 1)) / n_pulses
-    length = min(n_pulses, SEED)
+    length = min(n_pulses, seed)
     stretch = slice((n_pulses - length) // 2, (n_pulses - length) // 2 + length)
     # each cell's mean over the pulses taken off: its fluctuations (the floor's estimate) would
     # make a line of slope 0 stronger than the trace. The mean over the whole record: over the
@@ -209,15 +216,15 @@ class FollowedTrace:
     sample: float
 
 
-def bright_gate(records: np.ndarray, upsample: int = 1) -> FollowedTrace | None:
+def bright_gate(records: np.ndarray, upsample: int = 1, seed: int = SEED) -> FollowedTrace | None:
     """The cells of the target's bright scatterers along its trace in ``records``
-    (range-compressed, ``upsample`` x the bandwidth; module docstring) and the trace's tangent at
-    the middle pulse, or None when no cell of the profile stands out (no trace, or a noise-free
-    record)."""
+    (range-compressed, ``upsample`` x the bandwidth; module docstring; the trace first found
+    over the middle ``seed`` pulses) and the trace's tangent at the middle pulse, or None when
+    no cell of the profile stands out (no trace, or a noise-free record)."""
     power = _whitened(records)
     if power is None:
         return None
-    centre = centre_line(power)
+    centre = centre_line(power, seed)
     if centre is None:
         return None
     window, idx, inside = _sheared(power, centre, HALF_WIDTH)
