@@ -80,6 +80,8 @@ MAX_LAG = 1000
 #: The polynomial followed beyond the seed's stretch: over long records the delay's cubic term
 #: shows (its higher-order terms: :func:`.closedforms.higher_order_delay`).
 GROWN_DEGREE = 3
+#: Blocks a stretch needs for a parabola (fewer: a line) in its first refinements.
+MIN_PARABOLA_BLOCKS = 7
 #: Refinements at each longer stretch.
 GROWN_PASSES = 2
 #: A gated cell's profile stands this many standard deviations of the average over the noise.
@@ -184,7 +186,10 @@ def centre_line(power: np.ndarray, seed: int = SEED) -> np.ndarray | None:
     # cells there for much of the seed, but not of the record)
     slope, k_mid = radon.line_slope(power[stretch] - power.mean(axis=0))
     centre = k_mid + slope * (n - 0.5 * (n_pulses - 1))
-    lag_half, degree, passes = HALF_WIDTH // 2, 2, PASSES
+    # a parabola needs blocks to spare for its rejections: a short seed (:data:`SHORT_SEED`, three
+    # blocks) takes a line, and over it the trace bends by a few samples
+    degree = 2 if (length - BLOCK) // (BLOCK // 2) + 1 >= MIN_PARABOLA_BLOCKS else 1
+    lag_half, passes = HALF_WIDTH // 2, PASSES
     while True:
         for _ in range(passes):
             fit = _refined(power, stretch, centre, lag_half, degree)
@@ -198,7 +203,9 @@ def centre_line(power: np.ndarray, seed: int = SEED) -> np.ndarray | None:
         # blocks search as far as it may be off there
         length = min(n_pulses, int(GROW * length))
         stretch = slice((n_pulses - length) // 2, (n_pulses - length) // 2 + length)
-        degree, passes = GROWN_DEGREE, GROWN_PASSES
+        # the cubic only beyond :data:`SEED` pulses: from a short seed, over up to SEED pulses, it
+        # extrapolated a few blocks' noise thousands of samples off
+        degree, passes = (GROWN_DEGREE if length > SEED else 2), GROWN_PASSES
         ends = x_all[[stretch.start, stretch.stop - 1]]
         lag_half = max(HALF_WIDTH // 2, int(np.ceil(LAG_SIGMAS * _extrapolation_sigma(x_fit, spread, degree, ends))))
         lag_half = min(lag_half, MAX_LAG)
