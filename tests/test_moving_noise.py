@@ -35,6 +35,7 @@ import pytest
 import clsas
 from clsas import PointTargets
 from clsas.errors import EstimationError
+from clsas.estimate.moving import track
 from clsas.estimate.moving.extent import extent
 from clsas.scene import presets
 from clsas.synthesis.echo.noise import add_noise, signal_power, snr_offset_db
@@ -235,30 +236,52 @@ def test_chain_over_seeds(chain_echo, snr_db):
 
 @pytest.mark.slow
 def test_points_at_the_papers_floor_at_other_velocities(opencl_device):
-    """"echo" SNR -17 dB on a point at Table II case 6's velocity and (2, -6, 1) m/s (1024 pulses,
-    the verifier's seeds 21 and 22; issue 26 item 3 asks < 3 % there). Case 6, seed 21: receiver
-    A's SoWVD (19.5 dB, below its threshold) put K 1 % off, ~3 focus steps, and the focus check
-    refused it; chain.estimate_records now takes the rate its sharpened focus is sharpest at
-    (chain.focused_rate) and checks that: measured 0.105 % (confidence 1.00, |err| / sigma
-    <= 0.32). The other three refuse, naming the receiver: there the SoWVD's candidates are all
-    noise (14.8-15.3 dB, focused image 13.9-18.4 dB < 20): the target walks ~1.5 upsampled
-    samples a pulse and the RFRT gate (trace.support, each range cell over 9 pulses) does not
-    hold its trace (open). Asserted: case 6 seed 21 estimates within 2 %, confident, within 3
-    sigma; every run estimates so or raises an EstimationError naming a receiver."""
+    """"echo" SNR -17 dB on a point at Table II case 6's velocity and (2, -6, 1) m/s, 2048 pulses,
+    seeds 41-43 (neither the other tests' nor the verifier's 31-36); issue 26 item 3 asks < 3 %.
+    These echoes walk ~1.7 upsampled samples a pulse at A: the RFRT's cell gate (trace.support,
+    each range cell over 9 pulses) smears them, and the SoWVD needs the trace followed over the
+    record (track.bright_gate: its blocks correlated with the other pulses' profile, from the
+    middle 512 pulses when the whole record's line is too far off), the centroid its tangent, and
+    below the SoWVD threshold the focus's rate taken again from each new rate. Seeds 31-36
+    measured this session: every one estimates, velocity error <= ~0.1 %, confidence 1.00.
+    Asserted: every run estimates (no refusal) within max_error, confident, the error within 3
+    sigma."""
+    max_error = 0.008  # ~10x the largest error measured on these velocities' seeds 31-36
     for velocity in (presets.KIANG_CASES[6], (2.0, -6.0, 1.0)):
         v = np.array(velocity)
-        echo = clsas.simulate(presets.kiang2022(n_pulses=1024).replace(targets=(PointTargets(CENTRE, velocity=v),)),
+        echo = clsas.simulate(presets.kiang2022(n_pulses=2048).replace(targets=(PointTargets(CENTRE, velocity=v),)),
                               backend="opencl", progress=False)
-        for seed in (21, 22):
-            try:
-                est = clsas.estimate_motion(noisy(echo, -17.0, seed), position=CENTRE)
-            except EstimationError as error:
-                assert (tuple(velocity), seed) != (presets.KIANG_CASES[6], 21), error
-                assert str(error).startswith("receiver "), (velocity, seed, error)
-                continue
+        for seed in (41, 42, 43):
+            est = clsas.estimate_motion(noisy(echo, -17.0, seed), position=CENTRE)
             err = float(np.linalg.norm(est.velocity - v) / np.linalg.norm(v))
-            assert err < 0.02 and est.confidence > 0.9, (velocity, seed, err, est.confidence, est.problems)
+            assert err < max_error and est.confidence > 0.9, (velocity, seed, err, est.confidence, est.problems)
             assert np.all(np.abs(est.velocity - v) <= 3 * est.sigma), (velocity, seed, est.velocity - v, est.sigma)
+
+
+@pytest.mark.parametrize("seed_pulses", [track.SEED, track.SHORT_SEED])
+def test_the_followed_trace_holds_a_fast_walker(seed_pulses):
+    """track.centre_line on a whitened map (exponential noise, mean 1) holding a point's trace
+    that walks like Table II case 6's at A over 2048 pulses (1.71 upsampled samples a pulse,
+    bending 110 samples off its straight line at the ends) and stands 2.6x the noise's mean over
+    it in two cells (the -17 dB echo). Each block of the line used to be correlated with a
+    profile holding its own noise, which peaked at lag 0 for every block: the line stayed near
+    the first straight one, here 36 samples off the trace (median) and 180 at most. The line is
+    followed up to a constant (the blocks' lags are relative to the profile); about that
+    constant it holds the trace to 0.14 / 0.06 samples (median; seed SEED / SHORT_SEED), 0.6
+    at most."""
+    rng = np.random.default_rng(7)
+    n_pulses, n_samples = 2048, 3830
+    u = np.arange(n_pulses) - 0.5 * (n_pulses - 1)
+    truth = 1742.0 + 1.708 * u + 165.0 / 1024**2 * (u**2 - 1024**2 / 3.0)
+    power = rng.exponential(1.0, (n_pulses, n_samples)).astype(np.float32)
+    cells = np.round(truth).astype(int)
+    for d in (0, 1):
+        power[np.arange(n_pulses), cells + d] += 2.6
+    centre = track.centre_line(power, seed_pulses)
+    off = centre - truth
+    off -= np.median(off)
+    assert np.max(np.abs(off)) < 6.0, np.max(np.abs(off))
+    assert np.median(np.abs(off)) < 1.5, np.median(np.abs(off))
 
 
 def test_simulate_takes_either_reading():

@@ -95,6 +95,8 @@ FOCUS_DB = 20.0
 SHARP_DB = 3.0
 #: Focus steps (4 / T_a^2 each) off the candidate K at which :func:`sharpness` refocuses.
 SHARP_STEPS = 3.0
+#: Passes of :func:`focused_rate` at most below the SoWVD's threshold (each from the last one's rate).
+FOCUS_PASSES = 3
 #: Fraction of the pulses in which the echo must stand out of the noise (:mod:`.trace`); at
 #: -25 dB SNR it does in ~10 % of Table I's pulses, at -15 dB in all of them.
 MIN_COVERAGE = 0.25
@@ -150,8 +152,9 @@ def sowvd(rec: Records, p0: float, threshold_db: float = THRESHOLD_DB) -> RateSe
     lag offsets from ``p0`` whose agreement gives K_a,eq (:func:`.sowvd.rate_search`). The gate
     is :mod:`.trace`'s cells that stand out of the noise; when its maps score below
     ``threshold_db`` (or it covers too few pulses) the RFRT gated on the bright scatterers of
-    the trace followed over the whole record (:func:`.track.bright_gate`) is tried too and the
-    better-scoring search kept. EstimationError when the echo stands out of the noise in too
+    the trace followed over the whole record (:func:`.track.bright_gate`, from its seed stretch and,
+    when that scores below ``threshold_db`` too, from the shorter one) is tried too and the
+    best-scoring search kept. EstimationError when the echo stands out of the noise in too
     few pulses and the followed trace holds no target either."""
     gate = trace.support(rec.x, UPSAMPLE)
     coverage = float(np.mean(gate.any(axis=1)))
@@ -160,9 +163,16 @@ def sowvd(rec: Records, p0: float, threshold_db: float = THRESHOLD_DB) -> RateSe
         search = rate_search(rfrt(rec.x, trace.band(rec.x, gate, UPSAMPLE)), rec.prf, p0)
         if search.score_db >= threshold_db:
             return search
-    bright = track.bright_gate(rec.x, UPSAMPLE)
-    followed = None if bright is None else dataclasses.replace(rate_search(rfrt(rec.x, bright.gate), rec.prf, p0),
-                                                               trace_line=(bright.slope, bright.sample))
+    followed = None
+    # the shorter seed when the first does not hold a target (a trace that walks fast: :data:`.track.SHORT_SEED`)
+    for seed in (track.SEED, track.SHORT_SEED)[:2 if rec.x.shape[0] > track.SHORT_SEED else 1]:
+        if followed is not None and followed.score_db >= threshold_db:
+            break
+        bright = track.bright_gate(rec.x, UPSAMPLE, seed)
+        again = None if bright is None else dataclasses.replace(rate_search(rfrt(rec.x, bright.gate), rec.prf, p0),
+                                                                trace_line=(bright.slope, bright.sample))
+        if again is not None and (followed is None or again.score_db > followed.score_db):
+            followed = again
     if search is None and (followed is None or followed.score_db < threshold_db):
         raise EstimationError(f"receiver {rec.name}: the echo stands out of the noise in {100 * coverage:.0f} % of "
                               f"the pulses < {100 * MIN_COVERAGE:.0f} %"
@@ -225,8 +235,15 @@ def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHO
                               f"holds no target: image peak {est.extent.peak_db:.1f} dB over its median < {focus_db:g} dB")
     # the SoWVD's rate near its floor is a few focus steps off (its bin is ~16 of them over 25.6 s):
     # the rate the focus itself is sharpest at (:func:`focused_rate`) replaces it when they differ
-    k = focused_rate(rec, est)
-    if abs(k - est.fm_rate) > 4.0 / est.aperture**2:
+    # from a rate several steps off, the sharpening's search (+-3 % of K, with the cubic and quartic
+    # terms) may settle beside the target's own terms and its rate correction point the wrong way;
+    # from the rate it gives, it finds them (Table II case 6 at B, -17 dB: the SoWVD's 7.725 Hz/s ->
+    # 7.791 with the cubic term missed -> 7.695 with it, the noise-free rate): so again from each
+    # new rate until it moves by less than a focus step
+    for _ in range(FOCUS_PASSES):
+        k = focused_rate(rec, est)
+        if not abs(k - est.fm_rate) > 4.0 / est.aperture**2:
+            break
         log.info("receiver %s: the SoWVD's K = %.5g Hz/s focuses sharpest at %.5g Hz/s (%.1f focus steps off)",
                  rec.name, est.fm_rate, k, (k - est.fm_rate) * est.aperture**2 / 4.0)
         try:
@@ -296,9 +313,12 @@ def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None, re
     del aligned
     if bent(rec, k):
         found.append(doppler_centroid_whitened(rec, k))
-        if search.trace_line is not None:  # the followed trace's tangent at eta_ref (:mod:`.track`)
-            slope, sample = search.trace_line
-            found.append((slope * rec.f0 * rec.prf / rec.fs, rec.t0 + sample / rec.fs, False))
+    if search.trace_line is not None:
+        # the followed trace's tangent at eta_ref (:mod:`.track`): where the SoWVD needed the
+        # followed trace, the Radon line of the whole RCMC'd record may find the noise's (a fast
+        # walker at -17 dB, Table II case 6 at A: -83 Hz where the trace's tangent reads 512 Hz)
+        slope, sample = search.trace_line
+        found.append((slope * rec.f0 * rec.prf / rec.fs, rec.t0 + sample / rec.fs, False))
     # the lines agree (within two samples of walk over the aperture) unless noise, a still trace
     # or a long aperture's bent noise floor fooled one of them: then the one whose focus stands
     # higher is kept

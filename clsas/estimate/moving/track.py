@@ -15,7 +15,7 @@ Here the trace is followed over the whole record instead:
 1. the power whitened per range cell (over its noise floor, :func:`.trace.floor`), less each
    cell's mean over the pulses (what a target that keeps its range cell leaves is
    :mod:`.trace`'s), its strongest straight trace (:func:`.radon.line_slope`) over the middle
-   :data:`SEED` pulses (the whole record when shorter: the power of every pulse adds; over longer
+   :data:`SEED` pulses (or :data:`SHORT_SEED`; the whole record when shorter: the power of every pulse adds; over longer
    records the trace bends away from any straight line: ~1000 samples over Table I's 6400
    pulses at receiver A, Table II case 1, where a straight line over the whole record found
    something else and the EstimationError of tests/test_moving_noise.py's 6400-pulse test
@@ -64,6 +64,12 @@ REJECT = 4.0
 #: Pulses in the middle of the record on which the trace is first found as a straight line (step
 #: 1): over them the trace bends little (it bends as the square of the stretch's length).
 SEED = 2048
+#: A shorter seed stretch, tried (:func:`.chain.sowvd`) when the trace followed from :data:`SEED`
+#: does not hold the target: a trace that walks fast bends away from the whole record's straight
+#: line by more than the blocks search (Table II case 6 at A, 2048 pulses: 1.7 samples a pulse,
+#: 130-340 samples off the line at the ends against +-100; from the middle 512 pulses' line the
+#: stretches grow onto it to within a sample).
+SHORT_SEED = 512
 #: Each further stretch is this many times longer than the last (step 3).
 GROW = 2.0
 #: A longer stretch's blocks search offsets this many standard deviations of the extrapolated
@@ -74,6 +80,8 @@ MAX_LAG = 1000
 #: The polynomial followed beyond the seed's stretch: over long records the delay's cubic term
 #: shows (its higher-order terms: :func:`.closedforms.higher_order_delay`).
 GROWN_DEGREE = 3
+#: Blocks a stretch needs for a parabola (fewer: a line) in its first refinements.
+MIN_PARABOLA_BLOCKS = 7
 #: Refinements at each longer stretch.
 GROWN_PASSES = 2
 #: A gated cell's profile stands this many standard deviations of the average over the noise.
@@ -102,6 +110,20 @@ def _sheared(power: np.ndarray, centre: np.ndarray, half: int) -> tuple[np.ndarr
     return window.astype(np.float32), idx, inside
 
 
+def _excess(sums: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """The mean of a sheared window's columns (:func:`_sheared`; ``sums`` of its cells that lie
+    in the record, ``counts`` of them, each (n_columns,)) less the median of those means, and 0
+    where no cell of a column lies in the record. The noise's mean taken off: correlated, it
+    would pull every block to lag 0; and the columns beyond the record's ends (a fast-walking
+    trace's window leaves the record near its ends) add nothing: as the noise's mean less a
+    median they were a step at the record's edge that every block and the profile shared."""
+    live = counts > 0
+    mean = np.where(live, sums / np.maximum(counts, 1), 0.0)
+    if np.any(live):
+        mean[live] -= np.median(mean[live])
+    return mean
+
+
 def _refined(power: np.ndarray, stretch: slice, centre: np.ndarray, lag_half: int, degree: int
              ) -> tuple[np.ndarray, float, np.ndarray] | None:
     """One pass of step 2 over the pulses ``stretch`` about ``centre`` (n_pulses,) samples: the
@@ -115,14 +137,16 @@ def _refined(power: np.ndarray, stretch: slice, centre: np.ndarray, lag_half: in
     middles = starts + 0.5 * (BLOCK - 1)
     x = (middles - 0.5 * (n_pulses - 1)) / n_pulses
     window, _, inside = _sheared(power[lo:hi], centre[lo:hi], HALF_WIDTH // 2 + lag_half)
-    counts = np.maximum(inside.sum(axis=0), 1)
-    profile = window.sum(axis=0) / counts
-    profile -= np.median(profile)  # the noise's mean: correlated, it would pull every block to lag 0
+    sums, counts = window.sum(axis=0), inside.sum(axis=0)
     lags = np.arange(-lag_half, lag_half + 1)
     offsets, heights = np.empty(starts.size), np.empty(starts.size)
     for b, s in enumerate(starts - lo):
-        block = window[s:s + BLOCK].mean(axis=0)
-        block -= np.median(block)
+        block_sums, block_counts = window[s:s + BLOCK].sum(axis=0), inside[s:s + BLOCK].sum(axis=0)
+        block = _excess(block_sums, block_counts)
+        # the profile of the other pulses: with the block's own, the block's noise correlated with
+        # itself at lag 0 and outweighed a trace that had walked off the line (a fast-walking
+        # trace's straight seed line: every block kept lag 0)
+        profile = _excess(sums - block_sums, counts - block_counts)
         corr = np.correlate(block, profile, mode="full")[profile.size - 1 + lags]
         j = int(np.argmax(corr))
         offsets[b], heights[b] = lags[j], max(float(corr[j]), 0.0)
@@ -145,15 +169,16 @@ def _extrapolation_sigma(x_fit: np.ndarray, spread: float, degree: int, x_new: n
     return float(np.sqrt(np.max(np.einsum("ij,jk,ik->i", at, cov, at))))
 
 
-def centre_line(power: np.ndarray) -> np.ndarray | None:
+def centre_line(power: np.ndarray, seed: int = SEED) -> np.ndarray | None:
     """The trace's centre, samples (n_pulses,), in a whitened power map (steps 1-2 of the
-    module docstring), or None when the record is too short for blocks."""
+    module docstring; the first straight line over the middle ``seed`` pulses), or None when the
+    record is too short for blocks."""
     n_pulses = power.shape[0]
     if n_pulses < 2 * BLOCK:
         return None
     n = np.arange(n_pulses, dtype=np.float64)
     x_all = (n - 0.5 * (n_pulses - 1)) / n_pulses
-    length = min(n_pulses, SEED)
+    length = min(n_pulses, seed)
     stretch = slice((n_pulses - length) // 2, (n_pulses - length) // 2 + length)
     # each cell's mean over the pulses taken off: its fluctuations (the floor's estimate) would
     # make a line of slope 0 stronger than the trace. The mean over the whole record: over the
@@ -161,7 +186,10 @@ def centre_line(power: np.ndarray) -> np.ndarray | None:
     # cells there for much of the seed, but not of the record)
     slope, k_mid = radon.line_slope(power[stretch] - power.mean(axis=0))
     centre = k_mid + slope * (n - 0.5 * (n_pulses - 1))
-    lag_half, degree, passes = HALF_WIDTH // 2, 2, PASSES
+    # a parabola needs blocks to spare for its rejections: a short seed (:data:`SHORT_SEED`, three
+    # blocks) takes a line, and over it the trace bends by a few samples
+    degree = 2 if (length - BLOCK) // (BLOCK // 2) + 1 >= MIN_PARABOLA_BLOCKS else 1
+    lag_half, passes = HALF_WIDTH // 2, PASSES
     while True:
         for _ in range(passes):
             fit = _refined(power, stretch, centre, lag_half, degree)
@@ -175,7 +203,9 @@ def centre_line(power: np.ndarray) -> np.ndarray | None:
         # blocks search as far as it may be off there
         length = min(n_pulses, int(GROW * length))
         stretch = slice((n_pulses - length) // 2, (n_pulses - length) // 2 + length)
-        degree, passes = GROWN_DEGREE, GROWN_PASSES
+        # the cubic only beyond :data:`SEED` pulses: from a short seed, over up to SEED pulses, it
+        # extrapolated a few blocks' noise thousands of samples off
+        degree, passes = (GROWN_DEGREE if length > SEED else 2), GROWN_PASSES
         ends = x_all[[stretch.start, stretch.stop - 1]]
         lag_half = max(HALF_WIDTH // 2, int(np.ceil(LAG_SIGMAS * _extrapolation_sigma(x_fit, spread, degree, ends))))
         lag_half = min(lag_half, MAX_LAG)
@@ -184,24 +214,24 @@ def centre_line(power: np.ndarray) -> np.ndarray | None:
 @dataclass(frozen=True)
 class FollowedTrace:
     """:func:`bright_gate`'s result: gate bool (n_pulses, n_samples), the bright scatterers'
-    cells along the followed trace; slope (samples a pulse) and sample of the trace's centre line
-    at the middle pulse (its tangent there: the delay's linear term f_dc / f0, chain module
-    docstring)."""
+    cells along the followed trace; slope (samples a pulse) of the trace's centre line at the
+    middle pulse and sample of its brightest cell there (its tangent: the delay's linear term
+    f_dc / f0, chain module docstring)."""
 
     gate: np.ndarray
     slope: float
     sample: float
 
 
-def bright_gate(records: np.ndarray, upsample: int = 1) -> FollowedTrace | None:
+def bright_gate(records: np.ndarray, upsample: int = 1, seed: int = SEED) -> FollowedTrace | None:
     """The cells of the target's bright scatterers along its trace in ``records``
-    (range-compressed, ``upsample`` x the bandwidth; module docstring) and the trace's tangent at
-    the middle pulse, or None when no cell of the profile stands out (no trace, or a noise-free
-    record)."""
+    (range-compressed, ``upsample`` x the bandwidth; module docstring; the trace first found
+    over the middle ``seed`` pulses) and the trace's tangent at the middle pulse, or None when
+    no cell of the profile stands out (no trace, or a noise-free record)."""
     power = _whitened(records)
     if power is None:
         return None
-    centre = centre_line(power)
+    centre = centre_line(power, seed)
     if centre is None:
         return None
     window, idx, inside = _sheared(power, centre, HALF_WIDTH)
@@ -222,4 +252,8 @@ def bright_gate(records: np.ndarray, upsample: int = 1) -> FollowedTrace | None:
     below, above = int(np.floor(middle)), int(np.ceil(middle))
     ends = slice(max(below - 1, 0), above + 2)  # the centre line is a low-order polynomial
     slope = float(np.mean(np.diff(centre[ends])))
-    return FollowedTrace(gate=gate, slope=slope, sample=float(np.interp(middle, np.arange(centre.size), centre)))
+    # the centre line is followed up to a constant (the blocks' lags are relative to the profile):
+    # the brightest cell of the profile is where the trace is
+    brightest = int(np.argmax(np.where(bright, excess, -np.inf))) - HALF_WIDTH
+    return FollowedTrace(gate=gate, slope=slope,
+                         sample=float(np.interp(middle, np.arange(centre.size), centre)) + brightest)
