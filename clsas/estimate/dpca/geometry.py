@@ -331,10 +331,12 @@ def inside_swath(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
     single-scatterer sums (the folded skirt's part stays). A guard of c T / 2 leaves the zone
     out, and the 4x seafloors' mean then reads +0.3..+0.6 urad: not a bias of the blocks
     further in but of the yaw's OUTLIER-MAD trim, a selection that moves the 4x seafloors' mean
-    by +0.51 +- 0.10 urad (trimmed minus plain mean of the same blocks, 24 seafloors paired: their
-    block yaws are skewed negative) and so offset part of the zone; the plain mean of the blocks
-    c T / 2 clear of the edges reads -0.23 +- 0.26 (issue #30's session-7 report). So the
-    ``guard`` (the estimator gives a block's length) stays a measured rule for now.
+    by about +0.33 urad (trimmed minus plain mean of the same blocks, paired: +0.33 +- 0.06 on
+    72 seafloors of the 1x transmitter, +0.33 +- 0.09 on 40 of the 2x; their block yaws are
+    skewed negative) and so offsets part of the zone, which moves the plain mean by +0.40 +- 0.07
+    / +0.34 +- 0.15 when the c T / 2 guard leaves it out; the plain mean of the blocks c T / 2
+    clear of the edges reads -0.13 +- 0.12 / -0.12 +- 0.23 (issue #30's session-7 report). So
+    the ``guard`` (the estimator gives a block's length) stays a measured rule for now.
     ``content``: the blocks' content from :func:`look_moments` if already computed (same arguments)."""
     if extent is None:
         shape = (np.asarray(centre).shape[0], np.asarray(r).size)
