@@ -249,7 +249,7 @@ def test_points_at_the_papers_floor_at_other_velocities(opencl_device):
     record (track.bright_gate: its blocks correlated with the other pulses' profile, from the
     middle 512 pulses when the whole record's line is too far off), the centroid its tangent, and
     below the SoWVD threshold the focus's rate taken again from each new rate. Measured on other
-    seeds (31-36 of case 6, 31-33 of (2, -6, 1)): every one estimates, 0.015-0.073 % and
+    seeds (31-36 of case 6 and of (2, -6, 1)): every one estimates, 0.015-0.073 % and
     0.044-0.132 %, confidence 1.00, |error| / sigma <= 0.71 (they were refused before).
     Asserted: every run estimates (no refusal) within max_error, confident, the error within 3
     sigma."""
