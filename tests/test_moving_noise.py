@@ -158,12 +158,18 @@ def test_chain_at_the_papers_floor_echo_reading(chain_echo):
 
 
 def test_chain_below_its_floor_says_which_receiver_and_why(chain_echo):
-    """"echo" SNR -18 dB, seed 1: B's SoWVD has no peak (14.9 dB against 26) and its record
-    focused with the best candidate holds no target (14.2 dB over the median against 20);
-    -20 dB: the echo stands out of the noise in too few of A's pulses."""
-    with pytest.raises(EstimationError, match=r"receiver B: no SoWVD peak stands out of the background.* holds no "
-                                              r"target: image peak"):
-        clsas.estimate_motion(noisy(chain_echo, -18.0, 1), position=CENTRE)
+    """"echo" SNR, seed 1. -18 dB was below the chain's floor (B's SoWVD 14.9 dB against 26, its
+    best candidate's focus 14.2 dB over the median against 20); since the trace followed over
+    the record holds B's walking echo it estimates there: measured 0.159 %, confidence 1.00.
+    -19 dB: B's echo stands out of the noise in too few pulses and the SoWVD on its followed
+    trace scores the noise's level (15.8 dB); -20 dB: A's echo stands out in too few pulses.
+    (The "no SoWVD peak ... holds no target" refusal: test_moving_chain.py.)"""
+    est = clsas.estimate_motion(noisy(chain_echo, -18.0, 1), position=CENTRE)
+    err = float(np.linalg.norm(est.velocity - np.array(CASE1)) / np.linalg.norm(CASE1))
+    assert err < 0.016 and est.confidence > 0.9, (err, est.confidence, est.problems)
+    with pytest.raises(EstimationError, match=r"receiver B: the echo stands out of the noise in \d+ % of the pulses "
+                                              r"< 25 %, and the SoWVD on its followed trace scores"):
+        clsas.estimate_motion(noisy(chain_echo, -19.0, 1), position=CENTRE)
     with pytest.raises(EstimationError, match=r"receiver A: the echo stands out of the noise in \d+ % of the pulses"):
         clsas.estimate_motion(noisy(chain_echo, -20.0, 1), position=CENTRE)
 
@@ -242,11 +248,12 @@ def test_points_at_the_papers_floor_at_other_velocities(opencl_device):
     each range cell over 9 pulses) smears them, and the SoWVD needs the trace followed over the
     record (track.bright_gate: its blocks correlated with the other pulses' profile, from the
     middle 512 pulses when the whole record's line is too far off), the centroid its tangent, and
-    below the SoWVD threshold the focus's rate taken again from each new rate. Seeds 31-36
-    measured this session: every one estimates, velocity error <= ~0.1 %, confidence 1.00.
+    below the SoWVD threshold the focus's rate taken again from each new rate. Measured on other
+    seeds (31-36 of case 6 and of (2, -6, 1)): every one estimates, 0.015-0.073 % and
+    0.044-0.132 %, confidence 1.00, |error| / sigma <= 0.71 (they were refused before).
     Asserted: every run estimates (no refusal) within max_error, confident, the error within 3
     sigma."""
-    max_error = 0.008  # ~10x the largest error measured on these velocities' seeds 31-36
+    max_error = 0.008  # 6-10x the largest errors measured on these velocities (0.132 %, 0.073 %)
     for velocity in (presets.KIANG_CASES[6], (2.0, -6.0, 1.0)):
         v = np.array(velocity)
         echo = clsas.simulate(presets.kiang2022(n_pulses=2048).replace(targets=(PointTargets(CENTRE, velocity=v),)),
