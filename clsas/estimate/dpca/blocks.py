@@ -49,14 +49,15 @@ over the blocks, not over any subset chosen by rho). Hence:
   transmitter against the unweighted mean of the same blocks). estimate's yaw_rule
   "low-noise" takes them anyway, with the one-block guard, for short tracks;
 - outliers (a block dominated by a lone bright echo, off-beam returns) are rejected by a cut
-  scaled to each block's own predicted spread, |yaw - median| > YAW_CUT kappa s, which takes
+  scaled to each block's own predicted spread, |yaw - median| > YAW_CUT kappa s' (s'^2 = s^2
+  plus the median's, pi / 2 sum s^2 / n^2 over the pair's n blocks), which takes
   the same fraction of every rho's blocks. A cut of one width for every block of a pair (the
   3-MAD trim used before) takes mostly the wide-spread, low-rho blocks, i.e. the negative
   ones: on the 4x seafloors that selection moved the mean by +0.33 urad.
 
-kappa: first robustly, 1.4826 x the median of |yaw - median| / s over every block of the echo
-(the cut's scale), then, from the kept blocks, kappa^2 = sum ((yaw - pair mean) / s)^2 /
-sum (n_pair - 1) (each pair's n_pair blocks lose one degree of freedom to its mean). A pair's
+kappa: first robustly, 1.4826 x the median of |yaw - median| / s' over every block of the echo
+(the cut's scale), then, from the kept blocks, kappa^2 = sum ((yaw - pair mean) / s)^2 over its expectation
+(n_pair - 1 a pair for equal s: _kappa has the general one). A pair's
 standard error is kappa sqrt(sum s^2) / n_pair: the model's, from every block of the echo,
 rather than the scatter of the pair's few blocks (a handful on a narrow swath).
 """
@@ -128,14 +129,17 @@ def weighted_median(x: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 def _kappa(yaw: np.ndarray, blocks: np.ndarray, s: np.ndarray) -> float | None:
-    """kappa^2 = sum ((yaw - pair mean) / s)^2 / sum (n_pair - 1) over ``blocks`` (bool, (pair,
-    block)); None when no pair has two blocks."""
+    """kappa from the residuals of ``blocks`` (bool, (pair, block)) from their pair's unweighted
+    mean: E (yaw_b - mean)^2 = kappa^2 (s_b^2 (1 - 2 / n) + sum s^2 / n^2), so
+    E sum_b ((yaw_b - mean) / s_b)^2 = kappa^2 (n - 2 + sum s^2 sum s^-2 / n^2) a pair (n - 1 for
+    equal s); None when no pair has two blocks."""
     n = blocks.sum(axis=1)
-    dof = int(np.sum(np.maximum(n - 1, 0)))
-    if dof == 0:
+    inv = np.sum(np.where(blocks, 1 / s**2, 0.0), axis=1)
+    dof = np.where(n >= 2, n - 2 + np.sum(np.where(blocks, s**2, 0.0), axis=1) * inv / np.maximum(n, 1) ** 2, 0.0)
+    if not np.any(n >= 2):
         return None
     mean = np.sum(np.where(blocks, yaw, 0.0), axis=1) / np.maximum(n, 1)
-    return float(np.sqrt(np.sum(np.where(blocks, ((yaw - mean[:, None]) / s) ** 2, 0.0)) / dof))
+    return float(np.sqrt(np.sum(np.where(blocks, ((yaw - mean[:, None]) / s) ** 2, 0.0)) / np.sum(dof)))
 
 
 def yaw_mean(yaw: np.ndarray, use: np.ndarray, rho: np.ndarray, spare: np.ndarray,
@@ -143,7 +147,7 @@ def yaw_mean(yaw: np.ndarray, use: np.ndarray, rho: np.ndarray, spare: np.ndarra
     """(mean, standard error, kept) per ping pair: the unweighted mean (``weighted``: weights
     1 / s^2, the predicted inverse variances: less noise, biased, see the module docstring) of the blocks' ``yaw``
     (rad, (pair, block)) over ``use`` (bool, (pair, block), at least one a pair), blocks further
-    than YAW_CUT kappa s from the pair's median left out (s = sqrt(1 - rho^2) / rho from the
+    than YAW_CUT kappa s' from the pair's median left out (s = sqrt(1 - rho^2) / rho from the
     blocks' coherence ``rho`` in (0, 1)); see the module docstring for the derivation. kappa is
     measured on the kept blocks, or, where no pair kept two (a swath of one block clear of its
     range edges), on the ``spare`` blocks (bool, (pair, block): the pairs' other usable blocks,
@@ -152,7 +156,12 @@ def yaw_mean(yaw: np.ndarray, use: np.ndarray, rho: np.ndarray, spare: np.ndarra
     rho = np.clip(rho, 1e-9, 1 - 1e-9)
     s = np.sqrt(1 - rho**2) / rho
     centre = weighted_median(yaw, use.astype(float))[:, None]
-    z = np.abs(yaw - centre) / s
+    # a block's distance from the median spreads by its own s and the median's: pi / 2 times the
+    # variance of the pair's mean, sum s^2 / n^2 (a block far more coherent than its pair's others
+    # would otherwise be cut for the median's error)
+    n = np.maximum(use.sum(axis=1, keepdims=True), 1)
+    spread = np.sqrt(s**2 + np.pi / 2 * np.sum(np.where(use, s**2, 0.0), axis=1, keepdims=True) / n**2)
+    z = np.abs(yaw - centre) / spread
     scale = 1.4826 * float(np.median(z[use]))
     # a scale of 0: every pair's median is its only block (or a tie of two); nothing to cut by
     kept = use & (z <= YAW_CUT * scale) if scale > 0 else use
