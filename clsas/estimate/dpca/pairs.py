@@ -28,14 +28,15 @@ class PingPairs:
 
     surge, sway : m (along-track advance beyond v PRT; cross-track displacement towards +x)
     yaw : rad (rotation about +z between the two pings)
-    surge_std, sway_std, yaw_std : their standard errors (m, m, rad)
+    surge_std, sway_std, yaw_std : their standard errors (m, m, rad; yaw_std the model's of
+        blocks.yaw_mean, NaN where the blocks cannot measure it)
     coherence : the best beam's normalised correlation magnitude (0..1), median over blocks
     blocks : how many range blocks entered each estimate
     lags : the x-lags tested were -lags..lags (the couples used follow from it)
     two_way : s, the median two-way travel time of the range blocks used
     yaw_from_edges : bool (n_pulses - 1,), True where no range block of the pair kept clear of
-        the seafloor's range edges (geometry.inside_swath: a swath narrower than three or four
-        blocks), so that its yaw comes from blocks that hold an edge and may be
+        the seafloor's range edges (geometry.inside_swath, blocks.clear_of_range_edges: a swath
+        narrower than a block and c T), so that its yaw comes from blocks that hold an edge and may be
         biased by several urad the way the edge reads (near edges negative, far edges
         positive); None when not known (built by hand)
     yaw_bias : rad (n_pulses - 1,), how far the yaw may be biased a pair, the same way every pair,
@@ -44,11 +45,11 @@ class PingPairs:
         fills the whole beam and one that fills only its main lobe (a narrower one biases it
         more: give ``extent``); 0 with the extent; None when not known (built by hand)
     block_yaw : rad (n_pulses - 1, block), each range block's own yaw (pass 2), NaN where the
-        block entered no estimate (weak, incoherent, beyond the seafloor); ``yaw`` is the robust
-        mean of the blocks clear of the seafloor's range edges (``block_inside``): for seeing
+        block entered no estimate (weak, incoherent, beyond the seafloor); ``yaw`` is the mean
+        of the blocks ``block_inside`` (blocks.yaw_mean): for seeing
         how the yaw depends on range (bench/bench_dpca.py --edges); None when built by hand
-    block_inside : bool (n_pulses - 1, block), the blocks ``yaw`` was taken from (before the
-        outlier trim); None when built by hand
+    block_inside : bool (n_pulses - 1, block), the blocks ``yaw`` was taken from (clear of the
+        seafloor's range edges, outliers cut); None when built by hand
     block_range : m (block,), the blocks' centre slant ranges; None when built by hand
     """
 
