@@ -67,21 +67,25 @@ def cl_buffer(array: np.ndarray):
 def polar_tiles(grids: list, bv: int, br: int):
     """bp_tile's tiles of polar grids (module docstring), blocks of bv rows x br range samples
     (those at a grid's edge cut to it): their items (I,) :data:`program.ITEM` (leaf, row, the
-    first of LANES consecutive range samples of that row, tile; grid by grid, tile by tile, group of
-    LANES range samples by group, row by row; ROWS items, ROWS rows of one group, make a work-item), the tiles' reference points (T, 3) m (each block's middle
-    sample) and the number of tiles of each grid (L,)."""
+    first of LANES consecutive range samples of that row, tile; grid by grid, then column of
+    tiles by column (their range samples), group of LANES range samples by group, and down all the
+    grid's rows of that group, tile after tile; ROWS items, ROWS rows of one group and one tile,
+    make a work-item), the tiles' reference points (T, 3) m (each block's middle sample) and the
+    number of tiles of each grid (L,)."""
     tv_of = np.array([-(-g.n_v // bv) for g in grids])
     tr_of = np.array([-(-g.n_r // br) for g in grids])
     tv, tr = int(tv_of.max()), int(tr_of.max())
     real = (np.arange(tv)[None, :, None] < tv_of[:, None, None]) & (np.arange(tr)[None, None, :] < tr_of[:, None, None])
     tile = np.cumsum(real.reshape(-1)).reshape(real.shape) - 1  # grid by grid, row-major within a grid
-    # items tile by tile, within a tile group by group of LANES range samples, within a group row
-    # by row: a work-item is ROWS rows of the same LANES ranges (a short sub-aperture's delay
-    # hardly depends on the angle, so its rows read the same records' samples); a tile at the
-    # grid's edge keeps only its rows inside the grid (rounded up to whole work-items of ROWS rows)
-    # and its sixteen-sample groups that start inside it
-    shape = (len(grids), tv, tr, br // LANES, bv)
-    l, a, b, q, j = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij", sparse=True)
+    # items group by group of LANES range samples, within a group row by row down the whole grid
+    # (its tiles of that column one after another): a work-item is ROWS rows of the same LANES
+    # ranges, and the work-items after it the next rows of them (a short sub-aperture's delay
+    # hardly depends on the angle, so they read the same records' samples, still in cache: bp_tile
+    # is bound by those reads; tile by tile, the rows of a group came back only after the tile's
+    # other groups); a tile at the grid's edge keeps only its rows inside the grid (rounded up to
+    # whole work-items of ROWS rows) and its sixteen-sample groups that start inside it
+    shape = (len(grids), tr, br // LANES, tv, bv)
+    l, b, q, a, j = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij", sparse=True)
     n_v = np.array([g.n_v for g in grids])[:, None, None, None, None]
     n_r = np.array([g.n_r for g in grids])[:, None, None, None, None]
     # a group of LANES samples is kept where it meets the span of its block of ROWS rows (the union
@@ -98,10 +102,11 @@ def polar_tiles(grids: list, bv: int, br: int):
     hi = hi.reshape(len(grids), blocks, ROWS).max(axis=2)
     block = (a * bv + j) // ROWS
     start = b * br + q * LANES
-    keep = (real[:, :, :, None, None] & (j < -(-(n_v - a * bv) // ROWS) * ROWS) & (start < n_r)
+    real, tile = (x.transpose(0, 2, 1)[:, :, None, :, None] for x in (real, tile))  # as (l, b, q, a, j)
+    keep = (real & (j < -(-(n_v - a * bv) // ROWS) * ROWS) & (start < n_r)
             & (start + LANES > lo[l, block]) & (start < hi[l, block]))
     items = np.zeros(int(np.count_nonzero(np.broadcast_to(keep, shape))), program.ITEM)
-    for name, x in zip(program.ITEM.names, (l, a * bv + j, b * br + q * LANES, tile[:, :, :, None, None])):
+    for name, x in zip(program.ITEM.names, (l, a * bv + j, b * br + q * LANES, tile)):
         items[name] = np.broadcast_to(x, shape)[np.broadcast_to(keep, shape)]
     centres = []
     for g in grids:
