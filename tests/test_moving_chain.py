@@ -19,12 +19,16 @@ Reduced scenes (CI): the Table I sonar, target at (1989, 0, -350) m, with
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from clsas import PointTargets
 from clsas.errors import EstimationError
-from clsas.estimate.moving.chain import P0, THRESHOLD_DB, estimate_receiver
+from clsas.estimate.moving.chain import P0, THRESHOLD_DB, estimate_receiver, sowvd, with_rate
+from clsas.estimate.moving.closedforms import closed_forms
+from clsas.estimate.moving.records import records
 from clsas.estimate.moving.targets import estimate_receivers
 from clsas.estimate.moving.receiver_focus import focus_receiver
 from clsas.estimate.moving import filters
@@ -191,6 +195,28 @@ def test_two_targets_strongest_first():
         assert est.fm_rate == pytest.approx(k, rel=K_RTOL)
         assert est.doppler_centroid == pytest.approx(f_dc, abs=FDC_ATOL)
         assert abs(est.tau_c - tau0) < 0.5 / echo.fs
+
+
+def test_a_bright_trace_off_the_followed_one_does_not_take_the_centroid():
+    """Where the SoWVD ran on the followed trace (its tangent in the search's ``trace_line``),
+    a Radon line whose focus window does not hold that trace is another trace's: Table II case
+    6's point and a still scatterer 40 m beyond it, 10x brighter, noise-free, receiver A. The
+    Radon line of the record finds the still scatterer (f_dc ~0 Hz) and its focus stands 31 dB
+    above the target's (measured 106.5 against 75.8 dB), so when it competed the centroid
+    went to 0 Hz (the 6400-pulse hull's 102.7 m/s, tests/test_moving_noise.py); the tangent
+    kept, f_dc and tau_c are the target's."""
+    velocity = presets.KIANG_CASES[6]
+    alone = scene(velocity, 1024, 80.0)
+    target = PointTargets(TARGET, velocity=velocity)
+    rock = PointTargets(np.add(TARGET, (40.0, 0.0, 0.0)), reflectivity=10.0)
+    with_rock = scene(velocity, 1024, 80.0, targets=(target, rock))
+    truth = closed_forms(alone, TARGET, velocity)["A"]
+    rec = records(simulate(alone, backend="opencl", progress=False, **MODEL), "A")
+    slope = truth.doppler_centroid * rec.fs / (rec.f0 * rec.prf)  # the trace's tangent at eta_ref
+    search = dataclasses.replace(sowvd(rec, P0), trace_line=(slope, (truth.tau_c - rec.t0) * rec.fs))
+    est = with_rate(records(simulate(with_rock, backend="opencl", progress=False, **MODEL), "A"), search)
+    assert est.doppler_centroid == pytest.approx(truth.doppler_centroid, abs=FDC_ATOL)  # the still one: 512 Hz off
+    assert est.tau_c == pytest.approx(truth.tau_c, abs=0.05 / rec.fs)  # measured 0.0013 samples; the still one 1930
 
 
 def test_bad_input():

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import clsas
+from clsas.errors import EstimationError
 from clsas.estimate.moving import chain, closed_forms, layout_of, motion_from_receivers
 from clsas.estimate.moving.sowvd import modified_sowvd, rfrt
 from clsas.estimate.moving import trace
@@ -109,6 +110,25 @@ def test_a_receiver_on_a_cross_term_is_named_and_the_confidence_falls(axis_point
     assert "C" in fixed.repicked and fixed.problems == ()
     assert estimates["C"].fm_rate == pytest.approx(rx.fm_rate, rel=0.01)
     assert fixed.confidence > 0.5
+
+
+@pytest.mark.parametrize("case", [1, 6])
+@pytest.mark.parametrize("name", ["A", "B", "C"])
+@pytest.mark.parametrize("shift", [-1500.0, 1500.0])
+def test_an_unphysical_speed_is_refused_naming_the_receiver(case, name, shift):
+    """No echo: Table II case 1's or 6's true per-receiver values with one receiver's centroid
+    moved by +-1500 Hz (a Radon line on noise): the centroids solve to 119-318 m/s (case 6),
+    beyond validate.MAX_SPEED, where the delay model's own ValueError escaped estimate_motion
+    (tests/test_moving_noise.py's 6400-pulse hull, case 6, on da5b311). The estimate refuses
+    with an EstimationError that names the moved receiver (the one without which the others
+    agree) and the speed."""
+    sc = presets.kiang2022(n_pulses=512)
+    truth = closed_forms(sc, CENTRE, presets.KIANG_CASES[case])
+    wrong = dict(truth)
+    wrong[name] = dataclasses.replace(truth[name], doppler_centroid=truth[name].doppler_centroid + shift)
+    with pytest.raises(EstimationError, match=rf"^receiver {name}: the receivers' FM rates and Doppler centroids "
+                                              r"solve to a speed of \d+\.\d m/s, beyond the 100 m/s"):
+        motion_from_receivers(layout_of(sc), wrong, position=CENTRE)
 
 
 def test_inconsistent_closed_forms_lower_the_confidence():

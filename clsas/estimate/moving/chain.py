@@ -147,6 +147,17 @@ class ReceiverEstimate(Doppler):
         return abs(self.fm_rate) * self.aperture**2 >= MIN_TIME_BANDWIDTH
 
 
+def _followed_search(rec: Records, p0: float, seed: int) -> RateSearch | None:
+    """The rate search on the RFRT gated on the bright cells of the trace followed from the middle
+    ``seed`` pulses of ``rec`` (:func:`.track.bright_gate`), carrying the trace's tangent; None
+    when no cell of the followed trace stands out."""
+    bright = track.bright_gate(rec.x, UPSAMPLE, seed)
+    if bright is None:
+        return None
+    return dataclasses.replace(rate_search(rfrt(rec.x, bright.gate), rec.prf, p0),
+                               trace_line=(bright.slope, bright.sample))
+
+
 def sowvd(rec: Records, p0: float, threshold_db: float = THRESHOLD_DB) -> RateSearch:
     """Step 2: the gated RFRT (eqs. 10-11) of ``rec`` and the modified SoWVD maps (eqs. 12-14) at
     lag offsets from ``p0`` whose agreement gives K_a,eq (:func:`.sowvd.rate_search`). The gate
@@ -163,16 +174,12 @@ def sowvd(rec: Records, p0: float, threshold_db: float = THRESHOLD_DB) -> RateSe
         search = rate_search(rfrt(rec.x, trace.band(rec.x, gate, UPSAMPLE)), rec.prf, p0)
         if search.score_db >= threshold_db:
             return search
-    followed = None
+    followed = _followed_search(rec, p0, track.SEED)
     # the shorter seed when the first does not hold a target (a trace that walks fast: :data:`.track.SHORT_SEED`)
-    for seed in (track.SEED, track.SHORT_SEED)[:2 if rec.x.shape[0] > track.SHORT_SEED else 1]:
-        if followed is not None and followed.score_db >= threshold_db:
-            break
-        bright = track.bright_gate(rec.x, UPSAMPLE, seed)
-        again = None if bright is None else dataclasses.replace(rate_search(rfrt(rec.x, bright.gate), rec.prf, p0),
-                                                                trace_line=(bright.slope, bright.sample))
-        if again is not None and (followed is None or again.score_db > followed.score_db):
-            followed = again
+    if (followed is None or followed.score_db < threshold_db) and rec.x.shape[0] > track.SHORT_SEED:
+        shorter = _followed_search(rec, p0, track.SHORT_SEED)
+        if shorter is not None and (followed is None or shorter.score_db > followed.score_db):
+            followed = shorter
     if search is None and (followed is None or followed.score_db < threshold_db):
         raise EstimationError(f"receiver {rec.name}: the echo stands out of the noise in {100 * coverage:.0f} % of "
                               f"the pulses < {100 * MIN_COVERAGE:.0f} %"
@@ -318,7 +325,13 @@ def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None, re
         # followed trace, the Radon line of the whole RCMC'd record may find the noise's (a fast
         # walker at -17 dB, Table II case 6 at A: -83 Hz where the trace's tangent reads 512 Hz)
         slope, sample = search.trace_line
-        found.append((slope * rec.f0 * rec.prf / rec.fs, rec.t0 + sample / rec.fs, False))
+        tangent = (slope * rec.f0 * rec.prf / rec.fs, rec.t0 + sample / rec.fs, False)
+        # and a line whose focus window (:data:`EXTENT_WINDOW` about its delay at eta_ref) does not
+        # hold the followed trace there follows something else: over a long record the trace's
+        # own far end (Table II case 6 at A, 6400 pulses, -17 dB: a Radon line of slope 0 at
+        # 173 ms from the trace focused part of its end 1.9 dB above the tangent's focus, and
+        # the velocity went to 102.7 m/s)
+        found = [line for line in found if abs(line[1] - tangent[1]) <= EXTENT_WINDOW] + [tangent]
     # the lines agree (within two samples of walk over the aperture) unless noise, a still trace
     # or a long aperture's bent noise floor fooled one of them: then the one whose focus stands
     # higher is kept

@@ -38,6 +38,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import chi2 as chi2_distribution
 
+from ... import validate
 from .chain import P0
 from .closedforms import aperture_fm_rate, delay_terms
 from .layout import Layout
@@ -140,7 +141,10 @@ def predict_without(layout: Layout, receivers: dict, centroids: dict, centroid_s
     names = [n for n in receivers if n != exclude]
     eta = record_times(layout)
     p0 = np.asarray(position, dtype=np.float64)
-    v0 = np.asarray(velocity, dtype=np.float64)
+    # the velocity kept within the delay model's speeds (+-MAX_SPEED): the others may fix it
+    # poorly, and their fit must not leave the model's domain (:func:`culprit` asks it about a
+    # solution beyond it)
+    v0 = np.clip(np.asarray(velocity, dtype=np.float64), -0.9 * validate.MAX_SPEED, 0.9 * validate.MAX_SPEED)
     # the Taylor rates scaled to the aperture's average at the start (the ratio barely moves)
     ratio = {}
     for n in names:
@@ -164,9 +168,30 @@ def predict_without(layout: Layout, receivers: dict, centroids: dict, centroid_s
         return np.concatenate(out)
 
     start = np.concatenate([p0, v0]) if joint else v0
-    fit = least_squares(residual, start, x_scale=np.array([10.0] * 3 + [1.0] * 3) if joint else 1.0)
+    bound = np.concatenate([np.full(3, np.inf), np.full(3, validate.MAX_SPEED)]) if joint else validate.MAX_SPEED
+    fit = least_squares(residual, start, x_scale=np.array([10.0] * 3 + [1.0] * 3) if joint else 1.0,
+                        bounds=(-bound, bound))
     p, v = (fit.x[:3], fit.x[3:]) if joint else (p0, fit.x)
     dof = fit.fun.size - fit.x.size
     per_dof = float(np.sum(fit.fun ** 2) / dof) if dof > 0 else np.inf
     k_pred = aperture_fm_rate(layout, exclude, p, v, eta)
     return k_pred, float(delay_terms(layout, exclude, p, v)[1]), per_dof
+
+
+def culprit(layout: Layout, receivers: dict, centroids: dict, centroid_sigmas: dict, position, velocity,
+            delays: dict | None = None) -> tuple[str, float, float, float]:
+    """The receiver whose (K, f_dc) sits furthest from the others' consensus: the one without
+    which the other receivers agree best (their fit's chi2 per degree of freedom in
+    :func:`predict_without`, from ``velocity`` and ``position``: with one velocity fitted to all,
+    dropping the receiver that lowers the misfit most). Returns its name, the distance
+    z = sqrt(z_K^2 + z_f^2) of its K and f_dc from what the others predict (sigma_K
+    :func:`rate_sigma`, sigma_f its centroid's) and that prediction (K Hz/s, f_dc Hz)."""
+    best = None
+    for name, rx in receivers.items():
+        k_pred, f_pred, per_dof = predict_without(layout, receivers, centroids, centroid_sigmas, name, position,
+                                                  velocity, delays)
+        if best is None or per_dof < best[0]:
+            z = float(np.hypot((float(rx.fm_rate) - k_pred) / rate_sigma(k_pred, layout, _p0(rx)),
+                               (centroids[name] - f_pred) / centroid_sigmas[name]))
+            best = (per_dof, name, z, k_pred, f_pred)
+    return best[1:]

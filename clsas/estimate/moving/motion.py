@@ -268,6 +268,24 @@ def pulse_delays(layout: Layout, receivers: dict, centroids: dict) -> dict:
     return {n: float(rx.tau_c) - layout.range_doppler * centroids[n] for n, rx in receivers.items()}
 
 
+def _refuse_unphysical(layout: Layout, receivers: dict, centroids: dict, sigmas: dict, position, velocity,
+                       delays: dict | None = None) -> None:
+    """EstimationError when the receivers' (K, f_dc) solve to a speed beyond
+    :data:`clsas.validate.MAX_SPEED` (no target this model describes moves so fast: some
+    receiver's measurements are not its target's), naming the receiver furthest from the others'
+    consensus (:func:`.consistency.culprit`)."""
+    speed = float(np.linalg.norm(velocity))
+    if speed <= validate.MAX_SPEED:
+        return
+    name, z, k_pred, f_pred = consistency.culprit(layout, receivers, centroids, sigmas, position, velocity, delays)
+    rx = receivers[name]
+    raise EstimationError(f"receiver {name}: the receivers' FM rates and Doppler centroids solve to a speed of "
+                          f"{speed:.1f} m/s, beyond the {validate.MAX_SPEED:g} m/s of any target; receiver {name}'s "
+                          f"K = {float(rx.fm_rate):.4g} Hz/s and f_dc = {centroids[name]:.4g} Hz sit {z:.0f} sigma from "
+                          f"the K = {k_pred:.4g} Hz/s and f_dc = {f_pred:.4g} Hz the other receivers predict (its "
+                          "SoWVD or Radon line may have followed noise or a cross-term)")
+
+
 def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine: bool = True,
                           aperture: float | None = None, quiet: bool = False) -> MotionEstimate:
     """Solve a :class:`MotionEstimate` from per-receiver estimates (anything with fm_rate,
@@ -276,6 +294,9 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
 
     ``aperture`` (s) decides which receivers cannot focus (default: the layout's T_a). ``quiet``
     logs the solution and its problems at DEBUG (trial solutions) instead of INFO and WARNING.
+
+    Raises :class:`clsas.errors.EstimationError` naming a receiver when the estimates solve to a
+    speed beyond :data:`clsas.validate.MAX_SPEED` (:func:`_refuse_unphysical`).
     """
     position = _check_position(position)
     if not isinstance(receivers, dict) or len(receivers) < 3:
@@ -289,6 +310,7 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
     position_problem = ""
     if position is None:
         sol = solve_motion(layout, delays, centroids, rates, sigmas)
+        _refuse_unphysical(layout, receivers, centroids, sigmas, sol.position, sol.velocity, delays)
         check = consistency.check(layout, receivers, sol.position, sol.velocity, sol.fit_chi2, sol.fit_dof)
         size, _ = target_extent(layout, receivers, sol.position, sol.velocity, POINT_ETA_SPANS, POINT_TAU_SPAN_CELLS)
         if size > EXTENDED_CELLS * layout.sound_speed / (2 * layout.bandwidth):
@@ -302,6 +324,7 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
                                     f"(1-sigma {spread:.2f} m per component); give the position if it is known")
     else:
         sol = solve_velocity(layout, position, centroids, sigmas, rates)
+        _refuse_unphysical(layout, receivers, centroids, sigmas, position, sol.velocity)
         size, across = target_extent(layout, receivers, position, sol.velocity)
         if size > EXTENDED_CELLS * layout.sound_speed / (2 * layout.bandwidth):
             # an extended target: its middle, whose centroids these are, within its size of the given point
@@ -309,6 +332,7 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
                                delay_sigma=(0.1 + 2 * MIDDLE_FRACTION * across * layout.bandwidth / layout.sound_speed)
                                / layout.bandwidth, prior=position, prior_sigma=MIDDLE_FRACTION * size,
                                start_velocity=sol.velocity)
+        _refuse_unphysical(layout, receivers, centroids, sigmas, sol.position, sol.velocity)
         check = consistency.check(layout, receivers, sol.position, sol.velocity)
     cov = sol.covariance * check.birge**2
     conf = confidence(sol.velocity, cov, sol.ambiguity) * check.factor
@@ -422,7 +446,8 @@ def estimate(echo: EchoData, position=None, receivers=None, **chain_options) -> 
     chain_options : passed to :func:`.chain.estimate_receiver` (p0, threshold_db, focus_db).
 
     Raises :class:`clsas.errors.EstimationError` naming the receiver when its SoWVD shows no
-    peak. When the receivers disagree (a receiver's FM rate far from what the solution
+    peak, or when the receivers solve to a speed beyond :data:`clsas.validate.MAX_SPEED` (the
+    receiver furthest from the others' consensus). When the receivers disagree (a receiver's FM rate far from what the solution
     predicts), the estimate says so: ``problems`` names the receiver and why, ``confidence``
     falls and ``sigma`` widens (:mod:`.consistency`).
     """
