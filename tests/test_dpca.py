@@ -225,10 +225,7 @@ def test_dpca_track_focuses_other_seafloors(seed):
     moving = _moving(scene, **motion)
     echo = clsas.range_compress(clsas.simulate(moving, progress=False), upsample=4)
     speed = scene.platform.speed
-    # a 24-ping track on a 24 m swath, c T / 2 = 7.5 m: the yaw's noise outweighs its bias, so
-    # yaw_rule "low-noise" (the default "unbiased" leaves 6 blocks a pair of 17 and weighs them
-    # equally: yaw error RMS 7.5 urad a pair on seed 7, PSLR 1.56 dB off)
-    pairs = dpca.estimate(echo, scene.array, speed, yaw_rule="low-noise")
+    pairs = dpca.estimate(echo, scene.array, speed)
     track = dpca.integrate(pairs, echo.eta, speed, scene.array, heading0=motion["yaw"](echo.eta[0] + pairs.two_way))
     d = scene.array.rx_length[0]
     rres = scene.medium.sound_speed / (2 * scene.waveform.bandwidth)

@@ -41,8 +41,7 @@ def test_estimate_checks_the_budget_first():
 
 
 @CHECKS
-@given(st.sampled_from(["speed", "min_coherence", "lags", "t_lags", "block", "n_angles", "extent", "yaw_rule"]),
-       st.data())
+@given(st.sampled_from(["speed", "min_coherence", "lags", "t_lags", "block", "n_angles", "extent"]), st.data())
 def test_estimate_refuses_nonsense_by_name(name, data):
     echo, array, speed, _ = small()
     if name in ("speed",):
@@ -52,9 +51,6 @@ def test_estimate_refuses_nonsense_by_name(name, data):
     elif name == "extent":
         value, error = data.draw(st.sampled_from([("x", ValueError), ("beam", ValueError), ((0, 1), TypeError),
                                                   (1.0, TypeError)]))
-    elif name == "yaw_rule":    # a choice, judged by value (validate.choice)
-        value, error = data.draw(st.tuples(st.sampled_from(["", "low_noise", "Unbiased", None, 1.0]),
-                                           st.just(ValueError)))
     else:
         value, error = data.draw(st.one_of(st.tuples(st.integers(max_value=0), st.just(ValueError)),
                                            st.tuples(st.sampled_from([2.0, "3", None, True]), st.just(TypeError))))

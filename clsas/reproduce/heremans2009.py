@@ -154,9 +154,7 @@ def run(args: argparse.Namespace) -> int:
         # of half a million facets would double the synthesis
         *clean, echo = [range_compress(simulate(s, progress=False, multipath=0), upsample=4) for s in scenes]
     with rep.stage("DPCA over the ping pairs", estimate_s=0.1 * args.pings):
-        # a track of tens of pings on a 24 m swath, c T / 2 = 7.5 m: the yaw's noise outweighs
-        # its bias, so the estimator's short-track rule (17 blocks a pair where "unbiased" keeps 8)
-        pairs = dpca.estimate(echo, scene.array, speed, yaw_rule="low-noise")
+        pairs = dpca.estimate(echo, scene.array, speed)
     # DPCA measures changes of heading; the first ping's heading (at its reception, see
     # Trajectory.heading_times) comes from the vehicle's compass: here from the truth.
     first_reception = echo.eta[0] + pairs.two_way

@@ -74,18 +74,15 @@ the whole beam's mean is a yaw bias a pair that integrates into a heading drift,
 Range blocks and uncertainty: the fast-time axis is cut into blocks; each block gives its own
 estimate of the three quantities. Blocks whose beam peak is below ``min_coherence``, whose
 energy is below pairs.WEAK_BLOCK of the pair's main-lobe level (beyond the seafloor's swath) are
-left out. The surge and sway are the mean of the remaining blocks within pairs.OUTLIER scaled
-median absolute deviations of their median (energy-weighted: off-beam blocks count for little),
-the sway's weighted by rho^2 / (1 - rho^2) (rho the block's pass-2 beam peak: the phase variance
-of a correlation at coherence rho), with that mean's standard error. The yaw leaves out, besides,
-the blocks that hold the seafloor's near or far edge (geometry.inside_swath, with an extent) and
-those within c T / 2 of an edge where the records show one (blocks.clear_of_range_edges: the
-compressed pulse's range sidelobes, one-sided there, bias the yaw); a pair left with none takes
-the edge blocks and is flagged (PingPairs.yaw_from_edges). Its value is the unweighted mean of its
-blocks with a cut at blocks.YAW_CUT of each block's predicted spread kappa sqrt(1 - rho^2) / rho
-(blocks.yaw_mean: a block's coherence is correlated with its yaw error, so weights, or a cut of
-one width for all blocks, biased it), its uncertainty that model's standard error. ``yaw_rule``
-"low-noise" trades that for less noise on short tracks (a one-block guard, weights 1 / s^2).
+left out, and of the yaw also those that hold the seafloor's near or far edge or lie next to
+it (geometry.inside_swath, with an extent: such blocks read a yaw bias of either sign, whatever
+the beam, that does not cancel; a pair left with none takes the edge blocks and is flagged,
+PingPairs.yaw_from_edges); the reported value is the mean of the remaining blocks within
+pairs.OUTLIER scaled median absolute deviations of their median (energy-weighted: off-beam
+blocks count for little), the sway's weighted by
+rho^2 / (1 - rho^2) (rho the block's pass-2 beam peak: the phase variance of a correlation at
+coherence rho), the yaw's unweighted (a block's coherence is correlated with its yaw error: the
+weights biased the yaw), and its uncertainty that mean's standard error.
 
 Errors and the track (eqs. 71-73): sway errors integrate into the track as a random walk, yaw
 errors as an integrated random walk; what defocuses is the part of the resulting cross-track

@@ -272,15 +272,15 @@ RANGE_EDGE = 0.02
 
 def inside_swath(array: Array, f0: float, c: float, r: np.ndarray, centre: np.ndarray,
                  extent: SeafloorExtent | None, span: float = 0.0, ahead: float = 0.0,
-                 content: np.ndarray | None = None) -> np.ndarray:
+                 content: np.ndarray | None = None, guard: float = 0.0) -> np.ndarray:
     """(pair, block) bool: True where the seafloor's near and far edges (``extent.x``) leave a
     range block's rings whole over the beam, i.e. its :func:`look_moments` content is within
     RANGE_EDGE of the content of the same seafloor open in range (its near edge moved to the
-    track, its far edge to infinity), and where the block's span (``r`` +- ``span`` / 2, m) lies
-    between both edges (the slant ranges of x_min and x_max from the track at the extent's
-    depth); all True without an extent. A block that holds no seafloor at all (before the
-    nearest return, beyond the swath) reads False by the edges (:func:`look_moments`' content
-    says whether a block holds any).
+    track, its far edge to infinity), and where the block's span (``r`` +- ``span`` / 2, m) keeps
+    ``guard`` m of slant range from both edges (the slant ranges of x_min and x_max from the
+    track at the extent's depth); all True without an extent. A block that holds no seafloor
+    at all (before the nearest return, beyond the swath) has no edge in it and reads True
+    unless the guard takes it out: :func:`look_moments`' content says whether it holds any.
 
     A block that holds a range edge of the seafloor holds it unevenly: at the near edge only
     the look angles near broadside reach it at its nearest ranges, at the far edge the wide
@@ -320,9 +320,7 @@ def inside_swath(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
       equal: with the correction at each scatterer's own range half the zone is left, sampled at
       2 B (no fold) the second block's zone goes (bench_dpca.py --self-terms has the figures).
 
-    What removes it: leaving out the blocks within c T / 2 of a range edge, where the records show
-    it (blocks.clear_of_range_edges, which the estimator applies besides this function's rule).
-    Measured and not applied: a Hamming taper of the records' range spectrum
+    What removes it, measured and not applied: a Hamming taper of the records' range spectrum
     (sidelobes two orders lower beyond a metre) takes the second block's zone to its noise, but
     widens the pulse: 25-40 % more yaw noise a pair on the seed-004 scene, whose image test then
     fails (tapering only the blocks within c T / 2 of an edge keeps most of that cost there and
@@ -330,9 +328,15 @@ def inside_swath(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
     g exp(j psi) -> (g - j psi' h) exp(j psi) with psi the per-sample correction, psi' its time
     derivative and h the records filtered by Q / P (P the compressed pulse's spectrum, Q that of
     x p(x): each sample's sidelobe offsets), removes about two thirds of the zone on the
-    single-scatterer sums (the folded skirt's part stays). With the c T / 2 guard the yaw's old
-    3-MAD trim read +0.3..+0.6 urad on the 4x seafloors: a selection (blocks.yaw_mean's
-    docstring), replaced by a cut scaled to each block's predicted spread.
+    single-scatterer sums (the folded skirt's part stays). A guard of c T / 2 leaves the zone
+    out, and the 4x seafloors' mean then reads +0.3..+0.6 urad: not a bias of the blocks
+    further in but of the yaw's OUTLIER-MAD trim, a selection that moves the 4x seafloors' mean
+    by about +0.33 urad (trimmed minus plain mean of the same blocks, paired: +0.33 +- 0.06 on
+    72 seafloors of the 1x transmitter, +0.33 +- 0.09 on 40 of the 2x; their block yaws are
+    skewed negative) and so offsets part of the zone, which moves the plain mean by +0.40 +- 0.07
+    / +0.34 +- 0.15 when the c T / 2 guard leaves it out; the plain mean of the blocks c T / 2
+    clear of the edges reads -0.13 +- 0.12 / -0.12 +- 0.23 (issue #30's session-7 report). So
+    the ``guard`` (the estimator gives a block's length) stays a measured rule for now.
     ``content``: the blocks' content from :func:`look_moments` if already computed (same arguments)."""
     if extent is None:
         shape = (np.asarray(centre).shape[0], np.asarray(r).size)
@@ -345,7 +349,7 @@ def inside_swath(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
     height = float(np.median(np.asarray(centre)[:, 2])) - extent.z
     near = np.hypot(max(extent.x[0] - track_x, 0.0), height)
     far = np.hypot(extent.x[1] - track_x, height)
-    clear = (np.asarray(r) - span / 2 >= near) & (np.asarray(r) + span / 2 <= far)
+    clear = (np.asarray(r) - span / 2 >= near + guard) & (np.asarray(r) + span / 2 <= far - guard)
     return (content >= (1 - RANGE_EDGE) * whole) & clear[None, :]
 
 

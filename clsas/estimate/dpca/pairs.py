@@ -14,7 +14,6 @@ from ...errors import EstimationError
 from ...model import EchoData
 from ...scene.scenario import Array
 from ...kernelmath import unit_phasor
-from .blocks import clear_of_range_edges, weighted_median, yaw_mean
 from .correlate import aligned, correlations, parabola, peak_ratio
 from .geometry import (ANGLES, SUB_RANGES, SeafloorExtent, beam_sin2, inside_swath, look_moments, main_lobe_sin2,
                        pairing, pca_delay, scenario_extent, xlag_offset)
@@ -28,15 +27,14 @@ class PingPairs:
 
     surge, sway : m (along-track advance beyond v PRT; cross-track displacement towards +x)
     yaw : rad (rotation about +z between the two pings)
-    surge_std, sway_std, yaw_std : their standard errors (m, m, rad; yaw_std the model's of
-        blocks.yaw_mean, NaN where the blocks cannot measure it)
+    surge_std, sway_std, yaw_std : their standard errors (m, m, rad)
     coherence : the best beam's normalised correlation magnitude (0..1), median over blocks
     blocks : how many range blocks entered each estimate
     lags : the x-lags tested were -lags..lags (the couples used follow from it)
     two_way : s, the median two-way travel time of the range blocks used
     yaw_from_edges : bool (n_pulses - 1,), True where no range block of the pair kept clear of
-        the seafloor's range edges (geometry.inside_swath, blocks.clear_of_range_edges: a swath
-        narrower than a block and c T), so that its yaw comes from blocks that hold an edge and may be
+        the seafloor's range edges (geometry.inside_swath: a swath narrower than three or four
+        blocks), so that its yaw comes from blocks that hold an edge and may be
         biased by several urad the way the edge reads (near edges negative, far edges
         positive); None when not known (built by hand)
     yaw_bias : rad (n_pulses - 1,), how far the yaw may be biased a pair, the same way every pair,
@@ -45,11 +43,11 @@ class PingPairs:
         fills the whole beam and one that fills only its main lobe (a narrower one biases it
         more: give ``extent``); 0 with the extent; None when not known (built by hand)
     block_yaw : rad (n_pulses - 1, block), each range block's own yaw (pass 2), NaN where the
-        block entered no estimate (weak, incoherent, beyond the seafloor); ``yaw`` is the mean
-        of the blocks ``block_inside`` (blocks.yaw_mean): for seeing
+        block entered no estimate (weak, incoherent, beyond the seafloor); ``yaw`` is the robust
+        mean of the blocks clear of the seafloor's range edges (``block_inside``): for seeing
         how the yaw depends on range (bench/bench_dpca.py --edges); None when built by hand
-    block_inside : bool (n_pulses - 1, block), the blocks ``yaw`` was taken from (clear of the
-        seafloor's range edges, outliers cut); None when built by hand
+    block_inside : bool (n_pulses - 1, block), the blocks ``yaw`` was taken from (before the
+        outlier trim); None when built by hand
     block_range : m (block,), the blocks' centre slant ranges; None when built by hand
     """
 
@@ -86,13 +84,31 @@ MAIN_LOBE = 0.5
 # Blocks further than this many scaled median absolute deviations from a pair's median are left
 # out of its mean (see estimate).
 OUTLIER = 3.0
-# yaw_rule's choices (see estimate)
-YAW_RULES = ("unbiased", "low-noise")
 # t-lags of the second pass, after each pair's delay is taken out of the envelope.
 FINE_T_LAGS = 2
 
 
-def _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles, extent, yaw_rule) -> None:
+def _weighted_median(x: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Per row of ``x`` (pair, block): the weighted median, the midpoint of the lowest value
+    below which half the row's weight ``w`` (>= 0, 0 for blocks left out) lies and the highest
+    value above which half lies (the two differ where the cumulative weight meets exactly one
+    half, e.g. an even count of equal weights: taking the lower one biased a trim around it
+    towards the upper tail); NaN for a row without weight."""
+    def lower(values):
+        values = np.where(w > 0, values, np.inf)
+        order = np.argsort(values, axis=1)
+        xs, ws = np.take_along_axis(values, order, axis=1), np.take_along_axis(np.where(w > 0, w, 0.0), order, axis=1)
+        cw = np.cumsum(ws, axis=1)
+        k = np.argmax(cw >= 0.5 * cw[:, -1:], axis=1)
+        return xs[np.arange(x.shape[0]), k]
+
+    total = np.sum(np.where(w > 0, w, 0.0), axis=1)
+    with np.errstate(invalid="ignore"):
+        middle = 0.5 * (lower(x) - lower(-x))
+    return np.where(total > 0, middle, np.nan)
+
+
+def _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles, extent) -> None:
     if not isinstance(echo, EchoData):
         raise TypeError(f"dpca.estimate echo: must be EchoData, got {type(echo).__name__}")
     validate.compression("dpca.estimate echo", echo, advice="call clsas.range_compress(echo) first, so that the "
@@ -114,7 +130,6 @@ def _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles, ext
     elif extent is not None and not isinstance(extent, SeafloorExtent):
         raise TypeError(f"dpca.estimate extent: must be a dpca.SeafloorExtent, \"auto\" or None, got "
                         f"{type(extent).__name__}")
-    validate.choice("dpca.estimate yaw_rule", yaw_rule, YAW_RULES)
     if echo.n_pulses < 2:
         raise ValueError(f"dpca.estimate echo: needs at least 2 pings, the echo has {echo.n_pulses}")
 
@@ -217,7 +232,7 @@ def _scan(setup: _Setup, prev: np.ndarray, nxt: np.ndarray, offset: np.ndarray, 
 
 def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lags: int = 8, block: int = 128,
              n_angles: int = 65, min_coherence: float = 0.5,
-             extent: SeafloorExtent | str | None = "auto", yaw_rule: str = "unbiased") -> PingPairs:
+             extent: SeafloorExtent | str | None = "auto") -> PingPairs:
     """Surge, sway and yaw between every pair of consecutive pings (see the package docstring, clsas.estimate.dpca).
 
     Parameters
@@ -242,20 +257,8 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
         D (<sin^2>_patch - <sin^2>_beam) / r a pair (PingPairs.yaw_bias bounds it then). With
         an extent, blocks holding less than half their seafloor's weight in the main lobe are
         left out.
-    yaw_rule : which range blocks enter the yaw and how they are weighted (blocks.py has the
-        derivations). "unbiased" (default): blocks c T / 2 (T the pulse length) clear of the
-        seafloor's range edges where the records show them (the compressed pulse's range
-        sidelobes reach that far and bias the yaw where they are one-sided), equally weighted:
-        no yaw bias a pair to 0.2 urad on a motionless platform (tests/test_dpca_bias.py).
-        "low-noise": blocks one block length clear of the edges, weighted by their predicted
-        inverse variance rho^2 / (1 - rho^2): more blocks on a swath only a few c T / 2 wide (on
-        Heremans' 24 m swath with a 10 ms pulse, 17 a pair instead of 6) and the coherent ones
-        counting most, so less yaw noise a pair, at the cost of a bias the same way every pair
-        (the edge zones' and the weights': a block's coherence is correlated with its yaw
-        error), of order a urad a pair: for short tracks, where the noise's random walk
-        outweighs the bias's drift.
     """
-    _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles, extent, yaw_rule)
+    _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles, extent)
     if isinstance(extent, str):
         extent = scenario_extent(echo.scenario)
         log.info("dpca.estimate: the seafloor %s", "fills the beam (no simulated seafloor in echo.scenario)"
@@ -283,9 +286,10 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     centre[:, 1] += ahead
     block_span = c / 2 * block / echo.fs
     sin2, main_fraction, content = look_moments(array, f0, c, r_blocks, centre, extent, block_span, ahead)
+    # blocks that hold the seafloor's near or far edge are left out of the yaw (see below)
+    # and those next to them (a block's length from them: the bias reaches that far, inside_swath)
+    whole = inside_swath(array, f0, c, r_blocks, centre, extent, block_span, ahead, content, guard=block_span)
     data = records[..., :n_blocks * block].reshape(h, echo.n_pulses, n_blocks, block)
-    # blocks the extent's range edges leave whole (geometry.inside_swath)
-    whole = inside_swath(array, f0, c, r_blocks, centre, extent, block_span, ahead, content)
     step = pc[1] - pc[0]
     span = n_couples * step
     theta_max = np.arcsin(min(1.0, c / (f0 * span)))
@@ -340,8 +344,8 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
         block); the mean weighted by ``weight`` (pair, block)
         if given, the standard error then over the effective number of blocks."""
         votes = np.where(use, np.minimum(energy, typical), 0.0)
-        med = weighted_median(x, votes)[:, None]
-        mad = 1.4826 * weighted_median(np.abs(x - med), votes)[:, None]
+        med = _weighted_median(x, votes)[:, None]
+        mad = 1.4826 * _weighted_median(np.abs(x - med), votes)[:, None]
         kept = use & (np.abs(x - med) <= OUTLIER * mad)
         w = np.where(kept, 1.0 if weight is None else weight, 0.0)
         x = np.where(kept, x, 0.0)
@@ -366,25 +370,19 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     # (bench/bench_dpca.py --bias).
     rho = np.clip(fine[nearest, pp, bb], 0.0, 1 - 1e-9)
     weight = rho**2 / (1 - rho**2)
-    # The yaw from the blocks clear of the seafloor's range edges, unless a pair has none left
-    # (a swath narrower than a block and c T of range: flagged in PingPairs.yaw_from_edges); the
-    # sway and surge keep the edge blocks (the bias measured there is the yaw's). Its mean is
-    # blocks.yaw_mean's: outliers cut at YAW_CUT of each block's predicted spread, unweighted
-    # ("unbiased") or weighted by the inverse of that spread squared ("low-noise").
-    # ... and that the records show the seafloor reaching c T / 2 ("unbiased") or a block beyond
-    # on both sides
-    # (blocks.py: the compressed pulse's range sidelobes reach c T / 2 and bias the yaw where they
-    # are one-sided)
-    width = block if yaw_rule == "low-noise" else max(1, int(np.ceil(echo.waveform.duration * echo.fs)))
-    inside = good & whole & clear_of_range_edges(data, width, typical)
+    # The yaw from the blocks clear of the seafloor's range edges (geometry.inside_swath), unless a
+    # pair has none left (a swath narrower than three or four blocks: flagged in
+    # PingPairs.yaw_from_edges); the sway and surge keep the edge blocks (the bias measured there
+    # is the yaw's).
+    inside = good & whole
     lacking = ~inside.any(axis=1)
     if np.any(lacking):
         log.warning("dpca.estimate: %d ping pairs have no usable range block clear of the seafloor's range edges "
-                    "by c T / 2 (its swath is narrower than a block and a pulse length): their yaw comes from "
-                    "the edge blocks and may be biased (PingPairs.yaw_from_edges)", int(lacking.sum()))
+                    "(its swath is narrower than three or four blocks): their yaw comes from the edge "
+                    "blocks and may be biased (PingPairs.yaw_from_edges)", int(lacking.sum()))
         inside[lacking] = good[lacking]
-    (su, su_e), (sw, sw_e) = robust_mean(surge, seafloor), robust_mean(sway, good, weight)
-    yw, yw_e, inside = yaw_mean(yaw, inside, rho, good, weighted=yaw_rule == "low-noise")
+    (su, su_e), (sw, sw_e), (yw, yw_e) = robust_mean(surge, seafloor), robust_mean(sway, good, weight), \
+        robust_mean(yaw, inside)
     coh = np.nanmedian(np.where(good, coherence, np.nan), axis=1)
     log.info("dpca: %d ping pairs, %d couples, %d range blocks; median coherence %.2f", echo.n_pulses - 1,
              n_couples, n_blocks, float(np.median(coh)))
