@@ -346,7 +346,11 @@ def test_hull_at_the_papers_noise_over_6400_pulses(opencl_device, case):
     -15 dB 0.61 % (|sigma| / |v| 1.4 %, confidence 0.96); case 1 -17 dB EstimationError naming
     receiver A (SoWVD 16.3 dB, its best candidate K = -54.6 Hz/s does not focus: open, issue
     #26 item 3); case 5 -15 dB 0.16 % (0.41 %, confidence 1.00); case 6 -15 dB 3.1 %, flagged (confidence 0.02: receiver C's Radon slope at its
-    search's edge). Asserted: case 1 at -15 dB within 2 %, confident, within 3 sigma; every other
+    search's edge). Case 6 at -17 dB (session 8, by script, load 5-7): 0.17 %, confidence 0.98
+    (|sigma| / |v| 1.2 %); on da5b311 it raised delay_history's ValueError (a joint velocity of
+    102.7 m/s: receiver A's centroid from a Radon line 173 ms off its followed trace), now
+    refused by name should it recur (test_moving_confidence.py::
+    test_an_unphysical_speed_is_refused_naming_the_receiver). Asserted: case 1 at -15 dB within 2 %, confident, within 3 sigma; every other
     run within 2 % and confident, or flagged (confidence < 0.5 with a problem naming a
     receiver), or an EstimationError naming the receiver."""
     echo = hull_echo(case, 6400)
