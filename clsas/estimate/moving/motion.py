@@ -332,7 +332,7 @@ def motion_from_receivers(layout: Layout, receivers: dict, position=None, refine
                                delay_sigma=(0.1 + 2 * MIDDLE_FRACTION * across * layout.bandwidth / layout.sound_speed)
                                / layout.bandwidth, prior=position, prior_sigma=MIDDLE_FRACTION * size,
                                start_velocity=sol.velocity)
-        _refuse_unphysical(layout, receivers, centroids, sigmas, sol.position, sol.velocity)
+            _refuse_unphysical(layout, receivers, centroids, sigmas, sol.position, sol.velocity)
         check = consistency.check(layout, receivers, sol.position, sol.velocity)
     cov = sol.covariance * check.birge**2
     conf = confidence(sol.velocity, cov, sol.ambiguity) * check.factor
