@@ -26,8 +26,10 @@ each, min and median, with the relative L2 difference of the two images:
   more coarsely than its resolution along track, which limits how far merging pays).
 
 ``ffbp_new_grid`` times ``clsas.ffbp`` as a first call on its grid: ffbp keeps a Grid's scene
-(its skeleton and margin, a pass over every pixel) for later calls on the same Grid, which
-``ffbp`` (a later call, as when many echoes are imaged onto one grid) reuses.
+(its skeleton and margin, a pass over every pixel), its last tree and that tree's first-stage
+layouts (clsas/image/ffbp/reuse.py) for later calls on the same Grid and an echo of the same
+geometry, which ``ffbp`` (a later call, as when many echoes of one geometry are imaged onto one
+grid) reuses; ``ffbp_new_grid`` plans and lays out everything anew, as for a new geometry.
 
 ``--factors`` times ``clsas.ffbp`` with factor=2 as well (a third run in the interleaving; the
 default merges 4 children at a time). ``--big`` adds the issue's large case, the wide sonar at 2048^2 pixels x 4096 pulses (2 timed

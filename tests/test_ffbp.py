@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib
 
 import numpy as np
 import pytest
@@ -23,7 +24,7 @@ from clsas.image.backprojection import backproject, prepare
 from clsas.image.ffbp import ffbp, memory_plan
 from clsas.image.ffbp.leaves import FirstStage
 from clsas.image.ffbp.merge import merge_opencl, merge_reference
-from clsas.image.ffbp import polar
+from clsas.image.ffbp import polar, reuse
 from clsas.image.ffbp.polar import Scene, interpolation_error, oversampling
 from clsas.image.ffbp.tree import _Frames, plan
 from clsas.scene import presets
@@ -35,6 +36,14 @@ POINTS = np.array([[x, y, DEPTH] for x in (42.5, 43.25, 44.0, 44.75, 45.5) for y
 GRID = Grid.plane(np.arange(42.0, 46.0, 0.015), np.arange(-2.0, 2.0, 0.02), DEPTH)
 RANGE_CELL = 1500.0 / (2 * 20e3)
 N_PULSES = 20
+
+
+@pytest.fixture(autouse=True)
+def plan_afresh(monkeypatch):
+    """Every call plans its tree and lays out its first stage anew (nothing kept between calls,
+    reuse.KEEP_PLANS off), so that what a test patches takes effect on its second call;
+    test_a_tree_is_used_again_only_for_its_geometry tests what is kept."""
+    monkeypatch.setattr(reuse, "KEEP_PLANS", False)
 
 
 def sonar(n_pulses: int = N_PULSES, **platform):
@@ -258,6 +267,49 @@ def test_a_grid_scene_is_kept_only_while_nothing_can_change_it():
     again = ffbp_package._scene(own)
     assert np.allclose(again.plane.centroid[2], kept.plane.centroid[2] + 1.0)
     assert ffbp_package._scene(own) is again
+
+
+def test_a_tree_is_used_again_only_for_its_geometry(opencl_device, monkeypatch):
+    """ffbp keeps a grid's last tree and its first stage's layouts (.reuse) for echoes of the
+    same geometry and options: a second call plans and lays out nothing and gives the same image
+    bit for bit, and twice the echo's samples give twice the image (the same geometry, other
+    data); an echo moved 1 mm across track, or another tolerance, is planned anew and gives the
+    image of a call that keeps nothing."""
+    from clsas.image.ffbp import leaves
+
+    ffbp_package = importlib.import_module("clsas.image.ffbp")  # the package (clsas.image.ffbp is also the function)
+    monkeypatch.setattr(reuse, "KEEP_PLANS", True)
+    counts = {"plan": 0, "layout": 0}
+    planning, laying_out = ffbp_package.plan, leaves.FirstStage._layout
+
+    def plan_counted(*args):
+        counts["plan"] += 1
+        return planning(*args)
+
+    def layout_counted(self, *args):
+        counts["layout"] += 1
+        return laying_out(self, *args)
+
+    monkeypatch.setattr(ffbp_package, "plan", plan_counted)
+    monkeypatch.setattr(leaves.FirstStage, "_layout", layout_counted)
+    grid = Grid.plane(np.arange(42.0, 46.0, 0.015), np.arange(-2.0, 2.0, 0.02), DEPTH)  # nothing kept for it yet
+    echo = echo_of("straight", "speckle")
+    first = ffbp(echo, grid, backend="opencl", progress=False).data
+    made = dict(counts)
+    assert made["plan"] == 1 and made["layout"] >= 1
+    assert np.array_equal(ffbp(echo, grid, backend="opencl", progress=False).data, first)
+    assert np.array_equal(ffbp(echo.replace(data=2 * echo.data), grid, backend="opencl", progress=False).data,
+                          2 * first)
+    assert counts == made
+    moved = echo.replace(tx_pos=echo.tx_pos + [1e-3, 0.0, 0.0], rx_pos=echo.rx_pos + [1e-3, 0.0, 0.0])
+    kept_moved = ffbp(moved, grid, backend="opencl", progress=False).data
+    assert counts == {"plan": 2, "layout": 2 * made["layout"]}
+    kept_tight = ffbp(moved, grid, backend="opencl", tolerance=0.05, progress=False).data
+    assert counts["plan"] == 3
+    monkeypatch.setattr(reuse, "KEEP_PLANS", False)
+    assert np.array_equal(ffbp(moved, grid, backend="opencl", progress=False).data, kept_moved)
+    assert np.array_equal(ffbp(moved, grid, backend="opencl", tolerance=0.05, progress=False).data, kept_tight)
+    assert not np.array_equal(kept_moved, first)
 
 
 def test_leaves_no_tile_can_hold_go_through_backproject(opencl_device, monkeypatch):

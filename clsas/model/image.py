@@ -76,6 +76,23 @@ class Image:
         object.__setattr__(self, "axes", axes)
         object.__setattr__(self, "provenance", validate.mapping("Image.provenance", self.provenance))
 
+    @classmethod
+    def on_grid(cls, data: np.ndarray, grid, provenance: dict) -> "Image":
+        """An imager's result on ``grid``'s pixels (a :class:`clsas.model.Grid`): ``data``
+        complex64 of the grid's shape, the grid's dims, axes and positions as the Grid holds them
+        (checked when it was made, so not again: a pass over every pixel's position) and
+        ``provenance`` (checked)."""
+        data = np.asarray(data)
+        if data.dtype != np.complex64 or data.shape != grid.shape:
+            raise ValueError(f"Image.on_grid data: must be complex64 of the grid's shape {grid.shape}, got "
+                             f"{data.dtype} {data.shape}")
+        image = object.__new__(cls)
+        for name, value in (("data", data), ("dims", tuple(grid.dims)), ("axes", dict(grid.axes)),
+                            ("positions", grid.positions),
+                            ("provenance", validate.mapping("Image.provenance", provenance))):
+            object.__setattr__(image, name, value)
+        return image
+
     @property
     def shape(self) -> tuple:
         return self.data.shape

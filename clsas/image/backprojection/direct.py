@@ -159,12 +159,12 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
         warnings.warn("backproject: the image is all zeros: no pixel of the grid lies within the recorded fast-time "
                       "windows of the selected receivers (the swath); move the grid", validate.CoverageWarning,
                       stacklevel=2)
-    return Image(data=flat.reshape(g.shape), dims=g.dims, axes=g.axes, positions=g.positions,
-                 provenance={"algorithm": "backprojection", "backend": name, "precision": precision,
-                             "interp": records.interp, "upsample": records.upsample,
-                             "receivers": [source.receivers[h] for h in records.receivers],
-                             "aperture": aperture, "target_velocity": velocity.tolist(),
-                             "stop_and_go": bool(stop_and_go), "exact_fallback_blocks": fallbacks,
-                             "prepared_records": records.materialised, "kernel_seconds": kernel_seconds,
-                             "pulses": list(span),
-                             "echo": dict(source.provenance)})
+    return Image.on_grid(flat.reshape(g.shape), g,
+                         {"algorithm": "backprojection", "backend": name, "precision": precision,
+                          "interp": records.interp, "upsample": records.upsample,
+                          "receivers": [source.receivers[h] for h in records.receivers],
+                          "aperture": aperture, "target_velocity": velocity.tolist(),
+                          "stop_and_go": bool(stop_and_go), "exact_fallback_blocks": fallbacks,
+                          "prepared_records": records.materialised, "kernel_seconds": kernel_seconds,
+                          "pulses": list(span),
+                          "echo": dict(source.provenance)})

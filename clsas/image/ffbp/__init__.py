@@ -27,6 +27,12 @@ image comes back once), so it holds one group of ``factor`` children's images a 
 of top nodes of about the image's size waiting for the final stage, besides the image, one batch
 of leaves and its records: :func:`memory_plan` bounds the total from the tree.
 
+Many echoes onto one grid (:mod:`.reuse`): the grid's Scene, its last tree and that tree's
+first-stage layouts (tiles, pixel fields and references on the device, at most
+reuse.LAYOUT_BYTES, one tree's at a time) are kept between calls, and an echo of the same
+geometry with the same options uses them again (the same image, bit for bit: the same tree,
+tiles and references), so such a call's host work is its records and its launches.
+
 Geometry: any track (sway, yaw, surge, circles: each sub-aperture's frame follows its own
 chord) and any grid on a plane (planes, slant planes, points on a plane) are exact up to the
 interpolation error; points off the grid's fitted plane are read rotated about each
@@ -39,8 +45,6 @@ not demodulate their echoes; leave them out with ``receivers=`` and image them w
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 
 from ... import backend as _backend
@@ -52,6 +56,7 @@ from ..backprojection.records import FFT_BATCH_BYTES, check_options
 from .leaves import BATCH_POINTS, RECORD_BYTES, FirstStage
 from .merge import CHUNK, KERNEL_TAPS
 from .polar import CHUNK_NODES, Scene
+from .reuse import _SCENES, kept, planned  # noqa: F401 (_SCENES: bench_ffbp's ffbp_new_grid)
 from .store import DeviceStore, HostStore
 from .tree import Tree, plan
 
@@ -116,6 +121,9 @@ def memory_plan(tree: Tree, n_pixels: int, factor: int, echo_bytes: float = floa
     - ``tables``: the tap tables built and kept (the merge's, and the first stage's for sinc8);
     - ``planning``: not held with the others (the plan is made first), so counted as 0 here
       (:func:`ffbp` checks it with the fixed parts before planning).
+
+    Not counted: what is kept between calls (:mod:`.reuse`: the first-stage layouts of the last
+    tree that made them, at most reuse.LAYOUT_BYTES of the ``first_stage`` part above).
     """
     largest = [max((g.size for g in level if g is not None), default=0) for level in tree.grids[:tree.top + 1]]
     leaf_batch = min(BATCH_POINTS, sum(g.size for g in tree.grids[0] if g is not None))
@@ -166,26 +174,10 @@ def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsamp
     return chosen
 
 
-_SCENES = weakref.WeakKeyDictionary()  # Grid -> (its Scene, a sample of its positions), for many echoes onto one grid
-FINGERPRINT = 4096  # pixels compared on every later call (every n-th one): a grid changed since is planned anew
-
-
 def _scene(grid: Grid) -> Scene:
-    """The grid's :class:`Scene` (its skeleton, margin and plane: a pass over every pixel), kept
-    for later calls on the same Grid while it lives; only when its positions are read-only and
-    their own memory (a Grid's own positions: nothing else can change them), and checked on every
-    later call: still read-only, and FINGERPRINT of its pixels unchanged (NumPy lets an owner make
-    them writeable again; a change to other pixels after that is not seen)."""
-    positions = grid.positions
-    if positions.flags.writeable or not positions.flags.owndata:
-        _SCENES.pop(grid, None)
-        return Scene.of(positions)
-    flat = positions.reshape(-1, 3)
-    sample = flat[::max(1, flat.shape[0] // FINGERPRINT)]
-    kept = _SCENES.get(grid)
-    if kept is None or not np.array_equal(kept[1], sample):
-        kept = _SCENES[grid] = (Scene.of(positions), sample.copy())
-    return kept[0]
+    """The grid's :class:`Scene`, kept for later calls on the same Grid while nothing can change its
+    positions (:func:`.reuse.kept`)."""
+    return kept(grid)[0]
 
 
 def _slots(grids: list, nodes: list) -> tuple[list, list]:
@@ -248,13 +240,16 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
     """
     chosen = _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsample, aperture, stop_and_go)
     name = _backend.resolve(backend)
-    scene = _scene(grid)
+    scene, entry = kept(grid)
     echo_bytes = 8.0 * (upsample if interp == "linear" else 1) * echo.n_samples * echo.n_pulses * len(chosen)
     budget.check_bytes(f"ffbp of {echo.n_pulses} pulses onto {grid.size} pixels (its image, records, tables and "
                        "plan)", sum(_fixed_parts(grid.size, scene.skeleton.shape[0], taps, interp, name,
                                                  echo_bytes).values()),
                        "image fewer pixels at a time (tiles of the grid)")
-    tree = plan(echo, chosen, scene, int(factor), float(tolerance), taps, first, aperture)
+    options = (int(factor), float(tolerance), int(taps), first, aperture, interp, int(upsample), bool(stop_and_go))
+    made = planned(entry, echo, chosen, options,  # the tree kept for this geometry onto this grid, or a new one
+                   lambda: plan(echo, chosen, scene, int(factor), float(tolerance), taps, first, aperture))
+    tree = made.tree
     memory = memory_plan(tree, grid.size, int(factor), echo_bytes, taps=taps, interp=interp, backend=name)["total"]
     budget.check_bytes(f"ffbp of {echo.n_pulses} pulses onto {grid.size} pixels ({tree.top + 1} levels)", memory,
                        "image fewer pixels at a time (tiles of the grid), or give a larger tolerance")
@@ -262,7 +257,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
     pixels = grid.positions.reshape(-1, 3)
     leaves = tree.pulses[0]
     bar = Progress(leaves[-1][1] - leaves[0][0], "pulse", "ffbp", progress)  # pulses through the first stage
-    stage1 = FirstStage(echo, tree.pulses[0], name, chosen, interp, upsample, aperture, stop_and_go)
+    stage1 = FirstStage(echo, tree.pulses[0], name, chosen, interp, upsample, aperture, stop_and_go, made.layouts)
     store = (HostStore if name == "numpy" else DeviceStore)(stage1, pixels, f0, c, taps, tree.rho,
                                                            _group_sizes(tree, pixels.shape[0]))
 
@@ -301,11 +296,11 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
             flat = store.result()
         finally:  # the first stage's last batch's kernels read host memory it holds
             stage1.settle()
-    return Image(data=flat.reshape(grid.shape), dims=grid.dims, axes=grid.axes, positions=grid.positions,
-                 provenance={"algorithm": "ffbp", "backend": name, "factor": int(factor), "tolerance": float(tolerance),
-                             "taps": int(taps), "first": tree.first, "levels": top + 1,
-                             "oversampling": tree.rho, "polar_samples": tree.samples(),
-                             "memory_bytes": memory,
-                             "interp": interp, "upsample": int(upsample),
-                             "receivers": [echo.receivers[h] for h in chosen], "aperture": aperture,
-                             "stop_and_go": bool(stop_and_go), "echo": dict(echo.provenance)})
+    return Image.on_grid(flat.astype(np.complex64, copy=False).reshape(grid.shape), grid,
+                         {"algorithm": "ffbp", "backend": name, "factor": int(factor), "tolerance": float(tolerance),
+                          "taps": int(taps), "first": tree.first, "levels": top + 1,
+                          "oversampling": tree.rho, "polar_samples": tree.samples(),
+                          "memory_bytes": memory,
+                          "interp": interp, "upsample": int(upsample),
+                          "receivers": [echo.receivers[h] for h in chosen], "aperture": aperture,
+                          "stop_and_go": bool(stop_and_go), "echo": dict(echo.provenance)})

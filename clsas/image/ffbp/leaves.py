@@ -9,6 +9,9 @@ fit RECORD_BYTES, else once a batch; on OpenCL the whole batch is one bp_tile la
 pulses (kernels/backprojection.cl built with ROW_SHIFT: a tile's pulse j reads record row
 j + row_shift[tile], the first pulse of its leaf), so a leaf costs its kernel work and no call of
 its own (a :func:`clsas.backproject` call a leaf costs many times the leaf's kernel time in host work).
+A batch's *layout* (its tiles, work-items, pixel fields and slots, :class:`_Layout`) and its
+references depend only on the tree and the echo's geometry: a call on a kept tree (:mod:`.reuse`)
+takes them from the last call's, so its first stage is the bp_tile launches alone.
 
 Tiles. bp_tile (:class:`clsas.image.backprojection.TileKernel`, which this stage uses for its
 options, records, references, parameters and launch) computes in float32 relative to a
@@ -36,6 +39,8 @@ budget (back-projection tiles those points its own way). The NumPy backend alway
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 
@@ -138,13 +143,43 @@ def _row_step(grid: PolarGrid) -> float:
     return (grid.r0 + (grid.n_r - 1) * grid.dr) * grid.dv / np.sqrt(max(1.0 - sine * sine, 1e-6))
 
 
+@dataclasses.dataclass(eq=False)
+class _Layout:
+    """What a batch's bp_tile launch needs besides its records and references, the same for every
+    echo of one geometry (:meth:`FirstStage._layout`; kept between calls by :mod:`.reuse`): its
+    work-items' count, the tiles' reference points (T, 3) m and each leaf's first tile (L + 1,),
+    the tiles' largest half-extent (m), the pixel fields (host array and the device buffer using
+    it), each tile's first pulse (int32, from the echo's first), the work-items' tiles, the
+    images' slots and each leaf's first slot, the rows' spans and each leaf's first row; and its
+    references by records (``refs``: a device buffer a receiver, filled by :meth:`FirstStage._launch`)."""
+
+    n_items: int
+    centres: np.ndarray
+    first_tile: np.ndarray
+    extent: float
+    fields: np.ndarray
+    pix: object
+    row_shift: np.ndarray
+    tile_of: object
+    slots: object
+    slot_first: np.ndarray
+    spans: object
+    span_first: np.ndarray
+    refs: dict = dataclasses.field(default_factory=dict)
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.fields.nbytes + self.tile_of.size + self.slots.size + self.spans.size)
+
+
 class FirstStage:
     """The leaves' demodulated polar images, made a batch at a time on first request
     (:meth:`image`; module docstring)."""
 
     def __init__(self, echo, pulses: list, backend: str, chosen, interp: str, upsample: int, aperture,
-                 stop_and_go: bool):
+                 stop_and_go: bool, layouts=None):
         self.echo, self.leaves, self.backend = echo, pulses, backend
+        self.layouts = layouts  # the tree's batches' layouts kept between calls (.reuse.Layouts), or None
         self.first = max(p1 - p0 for p0, p1 in pulses)
         self.options = dict(receivers=chosen, interp=interp, upsample=upsample)
         self.aperture, self.stop_and_go = aperture, stop_and_go
@@ -313,19 +348,14 @@ class FirstStage:
             refs.append(np.concatenate(parts))
         return refs
 
-    def _launch(self, records, batch: list, grids: list, b0: int) -> list:
-        """The images of the leaves ``batch`` (all ``first`` pulses long) by bp_tile launches into
-        self.ready; returns the leaves it left to :func:`clsas.backproject` (a receiver's motion not
-        linear over a tile, or polar samples so far apart that even a tile of ROWS x LANES of them
-        spans more than bp_tile's float32 geometry allows)."""
+    def _layout(self, tile: TileKernel, batch: list, grids: list, budget: float) -> _Layout | None:
+        """The batch's tiles (the largest whose samples all lie within ``budget`` of their
+        references), their pixel fields on the device and the images' slots; None when even a
+        tile of ROWS x LANES samples spans more than the budget."""
         import pyopencl as cl
 
         rt = opencl.runtime()
         ctx, queue, mf = rt.context, rt.queue, cl.mem_flags
-        echo = records.echo
-        f0, c = echo.waveform.f0, echo.medium.sound_speed
-        tile = TileKernel(records.interp, self.aperture, stop_and_go=self.stop_and_go, row_shift=True)
-        budget = tile.half_extent(f0, c)
 
         def made(a, flags=mf.READ_ONLY):
             return cl.Buffer(ctx, flags | mf.COPY_HOST_PTR, hostbuf=a)
@@ -359,32 +389,65 @@ class FirstStage:
             if extent <= budget:
                 break
             if br == LANES and bv == ROWS:  # samples too far apart for any tile (a short leaf's coarse angles)
-                return batch
+                return None
             bv, br = halved(bv, br)
         first_tile = np.cumsum(np.r_[0, n_tiles])
-        refs = self._device_references(tile, records, batch, centres, first_tile, b0, extent)
-        if refs is None:
-            refs = self._references(tile, records, batch, centres, first_tile, b0, extent)
-        if refs is None:
-            return batch
-        row_shift = made(np.repeat(np.array([self.leaves[k][0] - b0 for k in batch], np.int32), n_tiles))
-        tile_of = made(np.ascontiguousarray(items["tile"][::ROWS]))
-        params, taps = tile.params(c, f0, records.fs), tile.taps(ctx)
-        image = cl.Buffer(ctx, mf.READ_WRITE, 16 * LANES * items.size)  # the first launch stores, later ones add
-        for i, h in enumerate(records.receivers):
-            data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
-            ref_buf = refs[i] if isinstance(refs[i], cl.Buffer) else made(refs[i])
-            kern = tile.for_receiver(echo, h)  # the receiver's legs (TileKernel.legs_for)
-            for s in range(0, self.first, tile.PULSE_BLOCK):
-                kern.launch(queue, pixels=pix, tile_of=tile_of, refs=ref_buf, ref_stride=self.first, ref_first=0,
-                            records=data, n_samples=n_samples, taps=taps, params=params, p_first=s,
-                            p_count=min(tile.PULSE_BLOCK, self.first - s), image=image, row_shift=row_shift,
-                            store=i == 0 and s == 0)
+        row_shift = np.repeat(np.array([self.leaves[k][0] for k in batch], np.int32), n_tiles)  # less b0 at launch
         slots, slot_first = _slots(leaves, items)
         spans = np.concatenate([g.row_spans for g in leaves])
-        span_first = np.cumsum([0] + [g.n_v for g in leaves])
-        slots_buf, spans_buf = made(slots), made(spans)
-        self.pending = (records, fields, pix)  # read in place by the queued kernels until settle()
+        return _Layout(items.size, centres, first_tile, extent, fields, pix, row_shift,
+                       made(np.ascontiguousarray(items["tile"][::ROWS])), made(slots), slot_first, made(spans),
+                       np.cumsum([0] + [g.n_v for g in leaves]))
+
+    def _launch(self, records, batch: list, grids: list, b0: int) -> list:
+        """The images of the leaves ``batch`` (all ``first`` pulses long) by bp_tile launches into
+        self.ready; returns the leaves it left to :func:`clsas.backproject` (a receiver's motion not
+        linear over a tile, or polar samples so far apart that even a tile of ROWS x LANES of them
+        spans more than bp_tile's float32 geometry allows). The batch's layout and references come
+        from :attr:`layouts` when a call on the same tree made them (:mod:`.reuse`)."""
+        import pyopencl as cl
+
+        rt = opencl.runtime()
+        ctx, queue, mf = rt.context, rt.queue, cl.mem_flags
+        echo = records.echo
+        f0, c = echo.waveform.f0, echo.medium.sound_speed
+        tile = TileKernel(records.interp, self.aperture, stop_and_go=self.stop_and_go, row_shift=True)
+        budget = tile.half_extent(f0, c)
+
+        def made(a, flags=mf.READ_ONLY):
+            return cl.Buffer(ctx, flags | mf.COPY_HOST_PTR, hostbuf=a)
+
+        key = (ctx.int_ptr, tuple(batch), budget, TILE_ROWS, TILE_SAMPLES, TILE_SLACK)
+        layout = self.layouts.get(key) if self.layouts is not None else None
+        if layout is None:
+            layout = self._layout(tile, batch, grids, budget)
+            if layout is None:
+                return batch
+            if self.layouts is not None:
+                self.layouts.put(key, layout, layout.nbytes)
+        refs_key = (b0, records.fs, tuple(int(o) for o in records.offset), tuple(records.receivers))
+        refs = layout.refs.get(refs_key)
+        if refs is None:
+            refs = self._device_references(tile, records, batch, layout.centres, layout.first_tile, b0, layout.extent)
+            if refs is None:
+                refs = self._references(tile, records, batch, layout.centres, layout.first_tile, b0, layout.extent)
+            if refs is None:
+                return batch
+            refs = [r if isinstance(r, cl.Buffer) else made(r) for r in refs]
+            if self.layouts is not None and self.layouts.get(key) is layout and self.layouts.add(sum(r.size for r in refs)):
+                layout.refs[refs_key] = refs
+        row_shift = made(layout.row_shift - np.int32(b0))
+        params, taps = tile.params(c, f0, records.fs), tile.taps(ctx)
+        image = cl.Buffer(ctx, mf.READ_WRITE, 16 * LANES * layout.n_items)  # the first launch stores, later ones add
+        for i, h in enumerate(records.receivers):
+            data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
+            kern = tile.for_receiver(echo, h)  # the receiver's legs (TileKernel.legs_for)
+            for s in range(0, self.first, tile.PULSE_BLOCK):
+                kern.launch(queue, pixels=layout.pix, tile_of=layout.tile_of, refs=refs[i], ref_stride=self.first,
+                            ref_first=0, records=data, n_samples=n_samples, taps=taps, params=params, p_first=s,
+                            p_count=min(tile.PULSE_BLOCK, self.first - s), image=image, row_shift=row_shift,
+                            store=i == 0 and s == 0)
+        self.pending = (records, layout)  # read in place by the queued kernels until settle()
         for j, k in enumerate(batch):  # the leaf's slots and spans from slot_first[j] and span_first[j] on
-            self.ready[k] = (image, slots_buf, int(slot_first[j]), spans_buf, int(span_first[j]))
+            self.ready[k] = (image, layout.slots, int(layout.slot_first[j]), layout.spans, int(layout.span_first[j]))
         return []
