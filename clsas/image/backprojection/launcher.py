@@ -7,8 +7,10 @@ whose fields bp_fields computes there (64 bytes a slot, 80 with a target velocit
 add into a double image of the chunk's slots (16 bytes a slot: a work-item's rows are contiguous,
 written as whole vectors), which the host puts in the grid's order once the chunk's kernels have
 finished; the records a block
-of at most ``records.UPLOAD_BYTES`` at a time (at most two blocks in flight: the host waits for
-the kernels of the block before last), the per-(tile, pulse) references REF_PULSES pulses at a
+of at most ``records.UPLOAD_BYTES`` at a time (jobs of a receiver's block in flight up to
+IN_FLIGHT_BYTES of records, at least two and at most MAX_IN_FLIGHT: the host waits for the
+kernels of the job that many before; small jobs, a small grid's, then queue up far enough that
+the device does not wait for the host between them), the per-(tile, pulse) references REF_PULSES pulses at a
 time, for consecutive receivers of the same legs at once (one bp_refs launch; a group's references
 for every pulse of the call within ``REF_BYTES``, each kept until its last receiver's bp_tile
 launch: :func:`_groups`). Records prepared with :func:`.records.prepare` are held whole instead, and a
@@ -22,13 +24,15 @@ import numpy as np
 from ... import opencl
 from ...progress import Progress
 from .exact_kernel import ExactKernel
-from .records import PreparedRecords
+from .records import UPLOAD_BYTES, PreparedRecords
 from .tile_kernel import TileKernel
 from .tiles import GridPlan
 
 PIXEL_CHUNK = 2**22  # slots on the device at once
 REF_PULSES = 64  # pulses whose tile references are computed at once
 REF_BYTES = 16 * 2**20  # a group of receivers' references (every pulse of the call) held at once (_groups)
+IN_FLIGHT_BYTES = 2 * UPLOAD_BYTES  # records (records.upload_pulses' bytes a pulse) of the jobs in flight at once
+MAX_IN_FLIGHT = 8  # jobs in flight at most
 
 
 class _Chunk:
@@ -100,6 +104,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     params = tile.params(c, f0, fs)
     chunk = PIXEL_CHUNK // (tile.LANES * tile.rows) * (tile.LANES * tile.rows)
     upload = records.upload_pulses()
+    job_bytes = 16 * max(1, int(np.max(records.length))) * min(upload, span[1] - span[0])  # as upload_pulses counts
+    keep = int(min(MAX_IN_FLIGHT, max(2, IN_FLIGHT_BYTES // job_bytes))) - 1  # jobs left in flight by retire
     jobs = [(first, i, np.arange(s, min(s + upload, span[1]))) for first in range(0, tiles.order.size, chunk)
             for i in range(len(records.receivers)) for s in range(span[0], span[1], upload)]
     group_of = {i: g for g in _groups(records, kernels, tile, tiles, span) for i in g}
@@ -123,7 +129,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
 
     for first, i, pulses in jobs:
         h, offset = records.receivers[i], int(records.offset[i])
-        kernel_seconds += retire(1)
+        kernel_seconds += retire(keep)
         records_buf, n_samples, base = records.buffer(ctx, i, pulses, double)
         if chunk_state is None or chunk_state.first != first:
             if chunk_state is not None:
