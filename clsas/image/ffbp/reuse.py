@@ -80,12 +80,13 @@ def _hold(layouts: Layouts) -> None:
 
 @dataclasses.dataclass(eq=False)
 class Planned:
-    """A tree planned for an echo's geometry and options (``key`` scalars, ``arrays`` copies)."""
+    """A tree planned for an echo's geometry and options (``key`` scalars, ``arrays`` copies) and
+    its first-stage layouts (None for a tree that is not kept)."""
 
     key: tuple
     arrays: tuple
     tree: Tree
-    layouts: Layouts = dataclasses.field(default_factory=Layouts)
+    layouts: Layouts | None = dataclasses.field(default_factory=Layouts)
 
     def matches(self, key: tuple, arrays: tuple) -> bool:
         return self.key == key and all(a.shape == b.shape and np.array_equal(a, b) for a, b in zip(self.arrays, arrays))
@@ -134,10 +135,10 @@ def geometry(echo: EchoData, chosen: list, options: tuple) -> tuple[tuple, tuple
 def planned(entry: Kept | None, echo: EchoData, chosen: list, options: tuple, make) -> Planned:
     """The tree kept for this geometry and these options (:func:`geometry`) on the grid of
     ``entry``, or a new one from ``make()`` (kept in its place when the grid may keep one)."""
+    if not KEEP_PLANS or entry is None:
+        return Planned((), (), make(), None)  # nothing kept: no copies, no layouts
     scalars, arrays = geometry(echo, chosen, options)
-    if KEEP_PLANS and entry is not None and entry.planned is not None and entry.planned.matches(scalars, arrays):
+    if entry.planned is not None and entry.planned.matches(scalars, arrays):
         return entry.planned
-    made = Planned(scalars, tuple(np.array(a, copy=True) for a in arrays), make())
-    if KEEP_PLANS and entry is not None:
-        entry.planned = made
-    return made
+    entry.planned = Planned(scalars, tuple(np.array(a, copy=True) for a in arrays), make())
+    return entry.planned
