@@ -25,6 +25,8 @@ from clsas.scene.targets import PointTargets
 
 CENTRE = np.array([1989.0, 0.0, -350.0])
 BOUND = 0.03  # the paper's velocity error bound
+#: Of test_random_targets_at_the_papers_noise's 8 targets at -15 dB, estimated at least (measured 8).
+MIN_ESTIMATED = 6
 
 
 def random_target(seed: int):
@@ -196,6 +198,34 @@ def test_sigma_is_calibrated_over_random_targets(opencl_device):
         confident += est.confidence >= 0.5
     assert within >= 0.9 * n
     assert confident >= 0.75 * n
+
+
+@pytest.mark.slow
+def test_random_targets_at_the_papers_noise(opencl_device):
+    """Issue 26 items 1 and 3 together: seeded random groups (4001-4008, 4-20 points, 2048 pulses,
+    the paper's) at "echo" SNR -15 dB (noise seed 1). Each within 3 % or flagged (confidence <
+    0.5), or an EstimationError naming the receiver; at least MIN_ESTIMATED estimated. Before the
+    followed trace's curvature was a candidate rate (chain.estimate_records, track.trace_rate)
+    5 of the 8 were refused (receiver A or B: the SoWVD of many scatterers peaked on the noise,
+    15.4-16.0 dB against 26, and its best candidate focused nothing, 13.7-14.6 dB against 20);
+    with it, measured: all 8 estimate, 0.04-1.44 % (1.44 %: 4003, 5 points), confidence
+    0.85-1.00, the error within 3 sigma in all 8 (load 5-9)."""
+    from clsas.synthesis.echo.noise import add_noise
+
+    estimated = 0
+    for seed in range(4001, 4009):
+        positions, amplitudes, velocity = random_target(seed)
+        _, echo = _echo(positions, amplitudes, velocity, 2048)
+        echo = echo.replace(data=add_noise(echo.data.copy(), -15.0, 1, echo.provenance["n_valid"]))
+        try:
+            est = clsas.estimate_motion(echo, position=CENTRE)
+        except EstimationError as error:
+            assert str(error).startswith("receiver "), (seed, error)
+            continue
+        estimated += 1
+        assert _error(est, velocity) < BOUND or est.confidence < 0.5, (seed, est.velocity, velocity, est.confidence)
+        assert est.confidence >= 0.5 or est.problems, (seed, est.confidence, est.sigma)
+    assert estimated >= MIN_ESTIMATED, estimated
 
 
 # --------------------------------------------------------------------------- intra-pulse Doppler

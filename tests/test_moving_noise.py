@@ -265,6 +265,23 @@ def test_points_at_the_papers_floor_at_other_velocities(opencl_device):
             assert np.all(np.abs(est.velocity - v) <= 3 * est.sigma), (velocity, seed, est.velocity - v, est.sigma)
 
 
+def fast_walker(seed: int = 7):
+    """(whitened power map (2048, 3830) float32, the trace's sample at each pulse): exponential
+    noise of mean 1 and a trace walking like Table II case 6's at A over 2048 pulses (1.708
+    upsampled samples a pulse, quadratic term 165 (u / 1024)^2 samples, u the pulse from the
+    middle: 2 x 165 / 1024^2 samples a pulse^2), 2.6x the noise's mean in two cells (the -17 dB
+    echo)."""
+    rng = np.random.default_rng(seed)
+    n_pulses, n_samples = 2048, 3830
+    u = np.arange(n_pulses) - 0.5 * (n_pulses - 1)
+    truth = 1742.0 + 1.708 * u + 165.0 / 1024**2 * (u**2 - 1024**2 / 3.0)
+    power = rng.exponential(1.0, (n_pulses, n_samples)).astype(np.float32)
+    cells = np.round(truth).astype(int)
+    for d in (0, 1):
+        power[np.arange(n_pulses), cells + d] += 2.6
+    return power, truth
+
+
 @pytest.mark.parametrize("seed_pulses", [track.SEED, track.SHORT_SEED])
 def test_the_followed_trace_holds_a_fast_walker(seed_pulses):
     """track.centre_line on a whitened map (exponential noise, mean 1) holding a point's trace
@@ -276,19 +293,27 @@ def test_the_followed_trace_holds_a_fast_walker(seed_pulses):
     followed up to a constant (the blocks' lags are relative to the profile); about that
     constant it holds the trace to 0.14 / 0.06 samples (median; seed SEED / SHORT_SEED), 0.6
     at most."""
-    rng = np.random.default_rng(7)
-    n_pulses, n_samples = 2048, 3830
-    u = np.arange(n_pulses) - 0.5 * (n_pulses - 1)
-    truth = 1742.0 + 1.708 * u + 165.0 / 1024**2 * (u**2 - 1024**2 / 3.0)
-    power = rng.exponential(1.0, (n_pulses, n_samples)).astype(np.float32)
-    cells = np.round(truth).astype(int)
-    for d in (0, 1):
-        power[np.arange(n_pulses), cells + d] += 2.6
+    power, truth = fast_walker()
     centre = track.centre_line(power, seed_pulses)
     off = centre - truth
     off -= np.median(off)
     assert np.max(np.abs(off)) < 6.0, np.max(np.abs(off))
     assert np.median(np.abs(off)) < 1.5, np.median(np.abs(off))
+
+
+@pytest.mark.parametrize("seed_pulses", [track.SEED, track.SHORT_SEED])
+def test_the_followed_traces_curvature_is_the_delays_second_derivative(seed_pulses):
+    """track.bright_gate's curvature on the fast walker above (the same map, its |x| = sqrt of the
+    power): the trace's second derivative, 2 x 165 / 1024^2 samples a pulse^2, measured within
+    0.14 % / 0.33 % (seed SEED / SHORT_SEED; over map seeds 7-9: 0.01-2.4 % / 0.23-0.33 %), and
+    track.trace_rate turns it into K = f0 prf^2 / fs d^2k/dn^2 (Kiang & Kiang 2022 eqs. 1-2,
+    15-16: d^2 tau / d eta^2 = K_a,eq / f0)."""
+    power, _ = fast_walker()
+    followed = track.bright_gate(np.sqrt(power), 1, seed_pulses)
+    assert followed.curvature == pytest.approx(2 * 165.0 / 1024**2, rel=0.03)
+    # Table I: f0 150 kHz, 80 Hz PRF, 40 kHz upsampled: 24 Hz/s a 1e-3 sample a pulse^2
+    assert track.trace_rate(1e-3, 150e3, 80.0, 40e3) == pytest.approx(24.0)
+    assert track.trace_rate(-1e-3, 150e3, 80.0, 40e3) == pytest.approx(-24.0)
 
 
 def test_simulate_takes_either_reading():

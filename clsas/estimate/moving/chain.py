@@ -10,13 +10,17 @@ target (eqs. 1-2, 21, the R'' of C; f_dc = f_dc,eq, K = K_a,eq):
    stages see a well-sampled |s|),
 2. RFRT (eqs. 10-11) gated to where the echo stands out of the noise, modified SoWVD
    (eqs. 12-14) at several lag offsets and the K at which they agree (:func:`.sowvd.rate_search`:
-   on a target of several scatterers the strongest peak of one map can be a cross-term);
-   :class:`clsas.errors.EstimationError` is raised (section VII-C) when the echo stands out of
-   the noise in too few pulses, or when no SoWVD peak stands out of the maps' background
-   (:data:`THRESHOLD_DB`) and the record focused with the best candidate holds no target
-   either, or holds something bright that this K does not focus (:data:`FOCUS_DB`,
+   on a target of several scatterers the strongest peak of one map can be a cross-term; the
+   gates: :mod:`.gated`); :class:`clsas.errors.EstimationError` is raised (section VII-C) when
+   the echo stands out of the noise in too few pulses, or when no SoWVD peak stands out of the
+   maps' background (:data:`THRESHOLD_DB`) and the record focused with the best candidate holds
+   no target either, or holds something bright that this K does not focus (:data:`FOCUS_DB`,
    :func:`sharpness`: the SoWVD, a fourth-order product of the record, loses to the noise
-   well before the coherent focus does: tests/test_moving_noise.py has the scores),
+   well before the coherent focus does: tests/test_moving_noise.py has the scores), and the
+   same holds for the rate the followed trace's curvature gives (:func:`.track.trace_rate`,
+   the delay's second derivative K / f0: on a many-scatterer target at the paper's floor the
+   SoWVD's best candidate can be noise while the trace still bends as the target's K; tried
+   after it, through the same checks),
 3. RCMC (eq. 17, :mod:`.filters`), Radon transform of |s_rcmc| -> slope -> f_dc (:mod:`.radon`),
 4. range-walk compensation and azimuth compression (eqs. 18-20; :func:`.filters.compress`) of
    the target's neighbourhood (:data:`EXTENT_WINDOW` around the Radon intercept, the trace's delay
@@ -66,24 +70,20 @@ from ... import validate
 from ...model import EchoData
 from ...errors import EstimationError
 from ...kernelmath import unit_phasor
-from . import trace, track
 from .azimuth import compress, focus_bins, sharpened_bins, sharpened_window
 from .centroid import bent, doppler_centroid_radon, doppler_centroid_walking, doppler_centroid_whitened, rcmc
 from .doppler import Doppler
 from .extent import Extent, extent, peak_db
 from .records import UPSAMPLE, Records, records, without_wrapped_band
 from .sharpen import aperture_time, fm_rate_correction
-from .sowvd import RateSearch, rate_search, rfrt
+from .gated import MIN_COVERAGE, THRESHOLD_DB, sowvd  # noqa: F401 (re-exported: the chain's step 2)
+from .sowvd import RateSearch
 
 log = logging.getLogger("clsas")
 
 #: Default lag offset p0 (s): Kiang & Kiang 2022 Fig. 5(b) reads f_eta = 1.934 Hz for
 #: K = 4.834 Hz/s, i.e. 4 p0 = 0.4 s.
 P0 = 0.1
-#: Default SoWVD peak-to-background threshold: the score of :func:`.sowvd.rate_search` (20 log10
-#: of each map's peak over its median, averaged over the maps), dB; noise-only maps score below
-#: it (tests/test_moving_chain.py).
-THRESHOLD_DB = 26.0
 #: Below :data:`THRESHOLD_DB` the rate search's best candidate is still taken when the record
 #: focused with it holds a target: its image's peak this far over the image's median, dB (step 2
 #: of the module docstring). Focused noise peaks ~13 dB over its median on a 10^6-pixel image
@@ -97,9 +97,10 @@ SHARP_DB = 3.0
 SHARP_STEPS = 3.0
 #: Passes of :func:`focused_rate` at most below the SoWVD's threshold (each from the last one's rate).
 FOCUS_PASSES = 3
-#: Fraction of the pulses in which the echo must stand out of the noise (:mod:`.trace`); at
-#: -25 dB SNR it does in ~10 % of Table I's pulses, at -15 dB in all of them.
-MIN_COVERAGE = 0.25
+#: Below the SoWVD's threshold, a confirmed K within this fraction (or :data:`SHARP_STEPS` focus
+#: steps) of a followed trace's curvature rate (:func:`.track.trace_rate`, within a few % of the
+#: target's) agrees with it; else that rate is tried too and the brighter focus kept.
+TRACE_AGREES = 0.1
 #: An azimuth chirp with time-bandwidth product |K| T_a^2 below this has nothing to compress
 #: (the target keeps its range to the receiver: Table II case 7 at A and B).
 MIN_TIME_BANDWIDTH = 4.0
@@ -147,51 +148,6 @@ class ReceiverEstimate(Doppler):
         return abs(self.fm_rate) * self.aperture**2 >= MIN_TIME_BANDWIDTH
 
 
-def _followed_search(rec: Records, p0: float, seed: int) -> RateSearch | None:
-    """The rate search on the RFRT gated on the bright cells of the trace followed from the middle
-    ``seed`` pulses of ``rec`` (:func:`.track.bright_gate`), carrying the trace's tangent; None
-    when no cell of the followed trace stands out."""
-    bright = track.bright_gate(rec.x, UPSAMPLE, seed)
-    if bright is None:
-        return None
-    return dataclasses.replace(rate_search(rfrt(rec.x, bright.gate), rec.prf, p0),
-                               trace_line=(bright.slope, bright.sample))
-
-
-def sowvd(rec: Records, p0: float, threshold_db: float = THRESHOLD_DB) -> RateSearch:
-    """Step 2: the gated RFRT (eqs. 10-11) of ``rec`` and the modified SoWVD maps (eqs. 12-14) at
-    lag offsets from ``p0`` whose agreement gives K_a,eq (:func:`.sowvd.rate_search`). The gate
-    is :mod:`.trace`'s cells that stand out of the noise; when its maps score below
-    ``threshold_db`` (or it covers too few pulses) the RFRT gated on the bright scatterers of
-    the trace followed over the whole record (:func:`.track.bright_gate`, from its seed stretch and,
-    when that scores below ``threshold_db`` too, from the shorter one) is tried too and the
-    best-scoring search kept. EstimationError when the echo stands out of the noise in too
-    few pulses and the followed trace holds no target either."""
-    gate = trace.support(rec.x, UPSAMPLE)
-    coverage = float(np.mean(gate.any(axis=1)))
-    search = None
-    if coverage >= MIN_COVERAGE:
-        search = rate_search(rfrt(rec.x, trace.band(rec.x, gate, UPSAMPLE)), rec.prf, p0)
-        if search.score_db >= threshold_db:
-            return search
-    followed = _followed_search(rec, p0, track.SEED)
-    # the shorter seed when the first does not hold a target (a trace that walks fast: :data:`.track.SHORT_SEED`)
-    if (followed is None or followed.score_db < threshold_db) and rec.x.shape[0] > track.SHORT_SEED:
-        shorter = _followed_search(rec, p0, track.SHORT_SEED)
-        if shorter is not None and (followed is None or shorter.score_db > followed.score_db):
-            followed = shorter
-    if search is None and (followed is None or followed.score_db < threshold_db):
-        raise EstimationError(f"receiver {rec.name}: the echo stands out of the noise in {100 * coverage:.0f} % of "
-                              f"the pulses < {100 * MIN_COVERAGE:.0f} %"
-                              + ("" if followed is None else f", and the SoWVD on its followed trace scores "
-                                 f"{followed.score_db:.1f} dB < {threshold_db:.1f} dB"))
-    if followed is not None and (search is None or followed.score_db > search.score_db):
-        log.info("receiver %s: SoWVD on the followed trace's bright cells: %.1f dB (cell gate: %s)", rec.name,
-                 followed.score_db, "-" if search is None else f"{search.score_db:.1f} dB")
-        return followed
-    return search
-
-
 def _finite(value) -> bool:
     """Whether the real number ``value`` is finite as a float (an int past float's range is not;
     np.isfinite raised an unnamed TypeError on ints past int64)."""
@@ -227,19 +183,72 @@ def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHO
     if focus_db is None:
         raise EstimationError(f"receiver {rec.name}: no SoWVD peak stands out of the background: peak-to-background "
                               f"{ratio_db:.1f} dB < threshold {threshold_db:.1f} dB")
-    # below the threshold: the best candidate, when the record focused with it holds a target
+    # below the threshold: the best candidate, when the record focused with it holds a target, and
+    # else the rates the followed traces' curvatures read (:func:`.track.trace_rate`: where the
+    # SoWVD of a many-scatterer target at the noise floor peaks on noise, the trace still bends as
+    # the target's K), each through the same checks
     weak = (f"receiver {rec.name}: no SoWVD peak stands out of the background: peak-to-background "
             f"{ratio_db:.1f} dB < threshold {threshold_db:.1f} dB")
+    step = None
+    failures, tried, confirmed = [], [], []
+    for k, what in [(None, "its best candidate")] + [(r, "the followed trace's curvature") for r in search.trace_rates]:
+        if k is not None and step is not None and any(abs(k - t) <= SHARP_STEPS * step for t in tried):
+            continue  # focus_rate from there would end where that one did
+        try:
+            est, margin = _confirmed(rec, search, k, what, focus_db)
+        except _Unconfirmed as err:
+            failures.append(str(err))
+            tried.extend(err.rates)
+            step = err.step if step is None else step
+            continue
+        confirmed.append((est, margin, what))
+        step = 4.0 / est.aperture**2
+        tried.extend([est.fm_rate] + ([] if k is None else [k]))
+        # a confirmed K that one of the traces' agrees with is kept; else the traces' rates are tried
+        # too (a cross-term's K that focuses something sharply) and the brightest focus kept
+        if any(abs(r - est.fm_rate) <= max(TRACE_AGREES * abs(est.fm_rate), SHARP_STEPS * step)
+               for r in search.trace_rates) or k is not None:
+            break
+    if not confirmed:
+        raise EstimationError(f"{weak}, and " + "; and ".join(failures))
+    est, margin, what = max(confirmed, key=lambda c: c[0].extent.peak_db)
+    if failures or len(confirmed) > 1:
+        log.info("receiver %s: %s; %s K = %.5g Hz/s kept (of %s Hz/s confirmed)", rec.name, "; ".join(failures) or "-",
+                 what, est.fm_rate, ", ".join(f"{c[0].fm_rate:.5g}" for c in confirmed))
+    log.info("receiver %s: SoWVD score %.1f dB below the threshold %.1f dB; K = %.5g Hz/s confirmed by the focus "
+             "(image peak %.1f dB over its median, %.1f dB over the record focused %g focus steps off)", rec.name,
+             ratio_db, threshold_db, est.fm_rate, est.extent.peak_db, margin, SHARP_STEPS)
+    return est
+
+
+class _Unconfirmed(Exception):
+    """A weak candidate rate that its focus does not confirm (:func:`_confirmed`): the message,
+    the rates tried (Hz/s), the focus step 4 / T_a^2 (Hz/s; None when the record was not focused)."""
+
+    def __init__(self, message: str, rates: list, step: float | None):
+        super().__init__(message)
+        self.rates, self.step = rates, step
+
+
+def _confirmed(rec: Records, search: RateSearch, k: float | None, what: str,
+               focus_db: float) -> tuple[ReceiverEstimate, float]:
+    """(the estimate with the candidate rate ``k`` (Hz/s; None: the rate search's own) refined by
+    the focus, its sharpness margin dB) when the record focused with it holds a target
+    (:data:`FOCUS_DB`) that it focuses sharply (:data:`SHARP_DB`); else :class:`_Unconfirmed`
+    saying why, ``what`` naming the candidate."""
+    k0 = search.fm_rate if k is None else float(k)
+    tried = [k0]
     try:
-        est = with_rate(rec, search)
+        est = with_rate(rec, search) if k is None else with_rate(rec, search, k0, refine=False)
     except EstimationError as err:
-        raise EstimationError(f"{weak}, and its best candidate K = {search.fm_rate:.4g} Hz/s fails: {err}") from None
+        raise _Unconfirmed(f"{what} K = {k0:.4g} Hz/s fails: {err}", tried, None) from None
     if est.extent is None:
-        raise EstimationError(f"{weak}, and its best candidate K = {search.fm_rate:.4g} Hz/s does not focus "
-                              f"(|K| T_a^2 < {MIN_TIME_BANDWIDTH}) to confirm it")
+        raise _Unconfirmed(f"{what} K = {k0:.4g} Hz/s does not focus (|K| T_a^2 < {MIN_TIME_BANDWIDTH}) to "
+                           f"confirm it", tried, None)
+    step = 4.0 / est.aperture**2
     if not est.extent.peak_db >= focus_db:
-        raise EstimationError(f"{weak}, and focused with its best candidate K = {search.fm_rate:.4g} Hz/s the record "
-                              f"holds no target: image peak {est.extent.peak_db:.1f} dB over its median < {focus_db:g} dB")
+        raise _Unconfirmed(f"focused with {what} K = {k0:.4g} Hz/s the record holds no target: image peak "
+                           f"{est.extent.peak_db:.1f} dB over its median < {focus_db:g} dB", tried, step)
     # the SoWVD's rate near its floor is a few focus steps off (its bin is ~16 of them over 25.6 s):
     # the rate the focus itself is sharpest at (:func:`focused_rate`) replaces it when they differ
     # from a rate several steps off, the sharpening's search (+-3 % of K, with the cubic and quartic
@@ -249,24 +258,22 @@ def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHO
     # new rate until it moves by less than a focus step
     for _ in range(FOCUS_PASSES):
         k = focused_rate(rec, est)
-        if not abs(k - est.fm_rate) > 4.0 / est.aperture**2:
+        if not abs(k - est.fm_rate) > step:
             break
-        log.info("receiver %s: the SoWVD's K = %.5g Hz/s focuses sharpest at %.5g Hz/s (%.1f focus steps off)",
-                 rec.name, est.fm_rate, k, (k - est.fm_rate) * est.aperture**2 / 4.0)
+        log.info("receiver %s: %s K = %.5g Hz/s focuses sharpest at %.5g Hz/s (%.1f focus steps off)",
+                 rec.name, what, est.fm_rate, k, (k - est.fm_rate) / step)
+        tried.append(k)
         try:
             est = with_rate(rec, search, k, refine=False)
         except EstimationError as err:
-            raise EstimationError(f"{weak}, and its best candidate's focused K = {k:.4g} Hz/s fails: {err}") from None
+            raise _Unconfirmed(f"{what}'s focused K = {k:.4g} Hz/s fails: {err}", tried, step) from None
     at, detuned = sharpness(rec, est)
     if not at - max(detuned) >= SHARP_DB:
-        raise EstimationError(f"{weak}, and focused with its best candidate K = {est.fm_rate:.4g} Hz/s the record's "
-                              f"peak ({at:.1f} dB over its median) is not sharper there than at K -+ {SHARP_STEPS:g} "
-                              f"focus steps ({detuned[0]:.1f}, {detuned[1]:.1f} dB): something bright, not a target "
-                              f"focused by that K")
-    log.info("receiver %s: SoWVD score %.1f dB below the threshold %.1f dB; K = %.5g Hz/s confirmed by the focus "
-             "(image peak %.1f dB over its median, %.1f dB over the record focused %g focus steps off)", rec.name,
-             ratio_db, threshold_db, est.fm_rate, est.extent.peak_db, at - max(detuned), SHARP_STEPS)
-    return est
+        raise _Unconfirmed(f"focused with {what} K = {est.fm_rate:.4g} Hz/s the record's peak ({at:.1f} dB over "
+                           f"its median) is not sharper there than at K -+ {SHARP_STEPS:g} focus steps "
+                           f"({detuned[0]:.1f}, {detuned[1]:.1f} dB): something bright, not a target focused by "
+                           f"that K", tried, step)
+    return est, at - max(detuned)
 
 
 def focused_rate(rec: Records, est: ReceiverEstimate) -> float:

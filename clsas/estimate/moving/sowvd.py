@@ -230,7 +230,9 @@ class RateSearch:
     line, prf, maps, n_lags: what :meth:`refine` needs (the RFRT line; per map its lag offset in
     pulses, f_p and f_eta axes and strongest f_p row per f_eta column). trace_line : (slope in
     samples a pulse, sample) at the middle pulse of the trace the RFRT's gate followed
-    (:func:`.track.bright_gate`), or None when its gate was not a followed trace.
+    (:func:`.track.bright_gate`), or None when its gate was not a followed trace. trace_rates :
+    (K Hz/s, ...) read from the curvature of the traces followed while searching
+    (:func:`.track.trace_rate`; :func:`.gated.sowvd` fills it), () when none was followed.
     """
 
     fm_rate: float
@@ -244,6 +246,7 @@ class RateSearch:
     maps: tuple = field(default=(), repr=False)
     n_lags: int = 0
     trace_line: tuple | None = None
+    trace_rates: tuple = ()
 
     def refine(self, k: float) -> float:
         """A candidate K (Hz/s) refined below one bin in every map, the median over them."""

@@ -36,7 +36,9 @@ Here the trace is followed over the whole record instead:
    :data:`BRIGHT` of the brightest are the target's bright scatterers; the gate is those cells
    (and one resolution cell each side) on every pulse. The centre line's tangent at the middle
    pulse is a Doppler centroid measured on the trace itself (:func:`.chain.with_rate` tries it
-   beside the Radon lines of the RCMC'd record).
+   beside the Radon lines of the RCMC'd record), and its curvature an azimuth FM rate
+   (:func:`trace_rate`; :func:`.chain.estimate_records` tries it when the SoWVD's best candidate
+   is not confirmed by its focus).
 
 Why only the bright cells: the RFRT sums x_k^2 over the gate; the scatterers of a hull add there
 with unrelated phases, while every noisy cell adds a term of the noise's power, so cells with
@@ -64,7 +66,7 @@ REJECT = 4.0
 #: Pulses in the middle of the record on which the trace is first found as a straight line (step
 #: 1): over them the trace bends little (it bends as the square of the stretch's length).
 SEED = 2048
-#: A shorter seed stretch, tried (:func:`.chain.sowvd`) when the trace followed from :data:`SEED`
+#: A shorter seed stretch, tried (:func:`.gated.sowvd`) when the trace followed from :data:`SEED`
 #: does not hold the target: a trace that walks fast bends away from the whole record's straight
 #: line by more than the blocks search (Table II case 6 at A, 2048 pulses: 1.7 samples a pulse,
 #: 130-340 samples off the line at the ends against +-100; from the middle 512 pulses' line the
@@ -211,16 +213,54 @@ def centre_line(power: np.ndarray, seed: int = SEED) -> np.ndarray | None:
         lag_half = min(lag_half, MAX_LAG)
 
 
+def trace_rate(curvature: float, f0: float, prf: float, fs: float) -> float:
+    """K_a,eq (Hz/s) from the curvature of a followed trace, ``curvature`` samples a pulse^2 of
+    a record sampled at ``fs`` Hz (the upsampled rate) with pulses at ``prf`` Hz, carrier ``f0`` Hz.
+
+    The derivation (Kiang & Kiang 2022). The scatterer's forward and backward ranges are
+    quadratic in the slow time eta, eqs. (1)-(2) at transceiver A:
+    R'(eta) = R'_10 + c_s f'_dc1 / (2 f0) eta + c_s K'_a1 / (4 f0) eta^2, and R'' alike (receiver
+    B: R''_2n of eq. (21) with eqs. (23), (25); sonobuoy C: R''_3n with eq. (32)). The echo of
+    eq. (7) lies at the two-way delay tau(eta) = (R' + R'') / c_s, so
+    tau(eta) = tau_0 + (f'_dc + f''_dc) / (2 f0) eta + (K'_a + K''_a) / (4 f0) eta^2
+    = tau_0 + (f_dc,eq / f0) eta + (K_a,eq / (2 f0)) eta^2 with eqs. (15)-(16) (B: eq. (28) and
+    K_a2,eq = (K'_a1 + K''_a2) / 2 after eq. (26)), and d^2 tau / d eta^2 = K_a,eq / f0. In the
+    range-compressed spectrum that is the phase exp{-j pi (f0 + f_tau) K_a,eq eta^2 / f0} of eq.
+    (26) (eq. (9) at A), whose f_tau-linear part the RCMC filter H_rcmc removes: the compressed
+    envelope's peak lies at tau(eta) (before RCMC; eq. (27)'s sinc after it). The trace's sample
+    index at pulse n is k(n) = (tau(n / prf) - t0) fs, so
+    d^2 k / dn^2 = fs / prf^2 d^2 tau / d eta^2 and K_a,eq = f0 prf^2 / fs d^2 k / dn^2 (the
+    linear term likewise gives f_dc,eq = f0 prf / fs dk / dn, :func:`.chain.with_rate`'s tangent).
+
+    Its precision: over T_a the quadratic term walks K T_a^2 / (8 f0) s at the record's ends
+    (Table I, 25.6 s: 240 upsampled samples at K = 11 Hz/s, 7 at 0.33 Hz/s), and the followed
+    line holds the trace to a sample or so
+    (tests/test_moving_noise.py::test_the_followed_trace_holds_a_fast_walker): a sample of error
+    at the ends is 8 f0 / (fs T_a^2) = 0.046 Hz/s, ~8 focus steps 4 / T_a^2, less than the
+    SoWVD's bin, and :func:`.chain.focused_rate` refines it. With the delay's higher-order terms
+    (:func:`.closedforms.higher_order_delay`) the least-squares parabola's coefficient is the
+    aperture's P2 part, the rate the focus reads (:func:`.chain.focused_rate`). In heavy noise
+    the followed line can follow something else and the rate be anything: it is a candidate,
+    confirmed or refused by the focus like the SoWVD's (:func:`.chain.estimate_records`).
+    The range-Doppler coupling of intra-pulse Doppler shifts the peak by f_dc(eta) / K_r, linear
+    in eta (f_dc(eta) = f_dc,eq + K_a,eq eta): it tilts the trace, not its curvature."""
+    return float(f0 * prf**2 / fs * curvature)
+
+
 @dataclass(frozen=True)
 class FollowedTrace:
     """:func:`bright_gate`'s result: gate bool (n_pulses, n_samples), the bright scatterers'
     cells along the followed trace; slope (samples a pulse) of the trace's centre line at the
     middle pulse and sample of its brightest cell there (its tangent: the delay's linear term
-    f_dc / f0, chain module docstring)."""
+    f_dc / f0, chain module docstring); curvature (samples a pulse^2): twice the x^2 coefficient of
+    the least-squares parabola through the centre line over every pulse (its Legendre P2 part: the
+    delay's second derivative K / f0 averaged as :func:`.chain.focused_rate` reads a rate;
+    :func:`.curvature.trace_rate` turns it into K_a,eq)."""
 
     gate: np.ndarray
     slope: float
     sample: float
+    curvature: float = float("nan")
 
 
 def bright_gate(records: np.ndarray, upsample: int = 1, seed: int = SEED) -> FollowedTrace | None:
@@ -255,5 +295,8 @@ def bright_gate(records: np.ndarray, upsample: int = 1, seed: int = SEED) -> Fol
     # the centre line is followed up to a constant (the blocks' lags are relative to the profile):
     # the brightest cell of the profile is where the trace is
     brightest = int(np.argmax(np.where(bright, excess, -np.inf))) - HALF_WIDTH
+    u = (np.arange(centre.size) - middle) / max(middle, 1.0)  # in [-1, 1]: a well-conditioned fit
+    curvature = 2.0 * float(np.polyfit(u, centre, 2)[0]) / max(middle, 1.0) ** 2
     return FollowedTrace(gate=gate, slope=slope,
-                         sample=float(np.interp(middle, np.arange(centre.size), centre)) + brightest)
+                         sample=float(np.interp(middle, np.arange(centre.size), centre)) + brightest,
+                         curvature=curvature)
