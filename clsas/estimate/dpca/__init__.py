@@ -108,12 +108,13 @@ W_b, the blocks' yaws pool into sum N_b / sum W_b, the ratio over all the pair's
 whose bias is B times smaller for B blocks. W_b is the magnitude of the block's unnormalised
 correlations at the beam peak: rho_b E_b, E_b the block's energy over the two pings' records (a
 block holding a bright echo, over pairs.BRIGHT_BLOCK typical blocks' energy, counts as one
-typical block: its yaw is that echo's own look-angle term, not the seafloor's). Outliers (point sidelobes, edges) are cut on
-the deviations from the weighted median scaled by sqrt(W_b / median W), the ratio's spread
-going as 1 / sqrt(W_b): so scaled they are nearly symmetric and the cut leaves the mean where
-it was (tests/test_dpca_bias.py and bench/bench_dpca.py --ratio have the figures). A real
-seafloor, many scatterers a resolution cell, has n_b large; a simulated one of random points,
-or a real one of a few strong scatterers (rocks, shells), does not.
+typical block: its yaw is that echo's own look-angle term, not the seafloor's). Outliers
+(point sidelobes, edges) are cut on the deviations from the weighted median scaled by
+sqrt(W_b / median W), the ratio's spread going as 1 / sqrt(W_b): so scaled they are nearly
+symmetric and the cut moves the mean little (tests/test_dpca_bias.py and
+bench/bench_dpca.py --ratio have the figures). A real seafloor, many scatterers a resolution
+cell, has n_b large; a simulated one of random points, or a real one of a few strong scatterers
+(rocks, shells), does not.
 
 Errors and the track (eqs. 71-73): sway errors integrate into the track as a random walk, yaw
 errors as an integrated random walk; what defocuses is the part of the resulting cross-track
