@@ -50,6 +50,11 @@ sidelobes). Variants of the processing (SELF_TERM_VARIANTS): as the estimator do
 phase-centre correction at each scatterer's own range instead of each sample's ("own-range");
 the pulse sampled at 2.5 B instead of 1.25 B (its skirt not folded: "unfolded"); a Hamming range
 window ("hamming").
+
+``--ratio SEEDS`` measures the ratio bias of a range block's yaw in the diagonal model (no
+simulation; bench/_dpca_ratio.py): per case and seafloor density (1/4, 1 and 4 times
+:func:`motionless_scene`'s), the mean over SEEDS seafloors of the blocks' unweighted mean yaw, of
+their pooled (power-weighted) mean, and the first-order bias of one block.
 """
 
 from __future__ import annotations
@@ -463,6 +468,7 @@ def main() -> None:
     extra.add_argument("--edges", type=int, default=0, metavar="SEEDS")
     extra.add_argument("--edge-cut", type=int, default=0, metavar="SEEDS")
     extra.add_argument("--self-terms", type=int, default=0, metavar="POINTS")
+    extra.add_argument("--ratio", type=int, default=0, metavar="SEEDS")
     extra.add_argument("--pings", type=int, default=30)
     own, sys.argv[1:] = extra.parse_known_args()
     args = arguments(__doc__.splitlines()[0])
@@ -474,6 +480,10 @@ def main() -> None:
         return
     if own.edge_cut:
         edge_cut(args, own.edge_cut, own.pings)
+        return
+    if own.ratio:
+        from _dpca_ratio import ratio_bias
+        ratio_bias(args, report, bias_sonar, footprint, seafloor_points, ACROSS, own.ratio)
         return
     if own.self_terms:
         self_terms(args, own.self_terms)

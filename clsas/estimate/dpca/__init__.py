@@ -77,12 +77,44 @@ energy is below pairs.WEAK_BLOCK of the pair's main-lobe level (beyond the seafl
 left out, and of the yaw also those that hold the seafloor's near or far edge or lie next to
 it (geometry.inside_swath, with an extent: such blocks read a yaw bias of either sign, whatever
 the beam, that does not cancel; a pair left with none takes the edge blocks and is flagged,
-PingPairs.yaw_from_edges); the reported value is the mean of the remaining blocks within
+PingPairs.yaw_from_edges). The surge and sway are the means of their blocks within
 pairs.OUTLIER scaled median absolute deviations of their median (energy-weighted: off-beam
-blocks count for little), the sway's weighted by
-rho^2 / (1 - rho^2) (rho the block's pass-2 beam peak: the phase variance of a correlation at
-coherence rho), the yaw's unweighted (a block's coherence is correlated with its yaw error: the
-weights biased the yaw), and its uncertainty that mean's standard error.
+blocks count for little), the sway's weighted by rho^2 / (1 - rho^2) (rho the block's pass-2
+beam peak: the phase variance of a correlation at coherence rho); the yaw is pooled over the
+blocks (below, pairs.pooled_mean); each with its standard error.
+
+Pooling the blocks' yaws
+------------------------
+After the phase-centre correction with a block's <sin^2 theta> = m (eqs. 48-49, look_moments),
+a scatterer k of the block (reflectivity a_k, along-track direction cosine s_k, two-way power
+pattern P) leaves a phase linear along the couples, the yaw e_k = -D (s_k^2 - m) / r. The
+beam of eq. (64) sums the scatterers' contributions with their powers w_k = |a_k|^2 P(s_k),
+and to first order in their phases (small inside the main lobe) it peaks (eqs. 67, 70) at
+
+    xi_b = N_b / W_b,    N_b = sum_k w_k e_k,    W_b = sum_k w_k,
+
+a ratio. m is the geometric ratio of expectations, E[sum w s^2] / E[sum w], so E[N_b] = 0; but
+the expectation of a ratio is not the ratio of expectations: for n_b independent scatterers,
+E[N / W] ~ -cov(N, W) / E[W]^2 = (D / r) (E|a|^4 / E|a|^2^2) E[P^2 (s^2 - m)] / (n_b E[P]^2),
+negative (P^2 is narrower than P, so E[P^2 (s^2 - m)] < 0) and of order 1 / n_b: a seafloor's
+discreteness. The same makes a block's yaw depend on its coherence: a block whose broadside
+scatterers happen to be weak (W small) reads its wide-angle ones' negative yaw and decorrelates
+more (the wide angles' residual phases differ along the couples), one with a strong broadside
+scatterer reads positive and stays coherent; the blocks' yaws are skewed negative. So an
+unweighted mean of the blocks keeps the whole 1 / n_b bias, weights rising with coherence
+(rho^2 / (1 - rho^2)) over-weight the positive blocks, and a symmetric outlier cut of the skewed
+yaws takes their negative tail (each a bias of the same order, of either sign). Weighted by
+W_b, the blocks' yaws pool into sum N_b / sum W_b, the ratio over all the pair's scatterers,
+whose bias is B times smaller for B blocks. W_b is the magnitude of the block's unnormalised
+correlations at the beam peak: rho_b E_b, E_b the block's energy over the two pings' records (a
+block holding a bright echo, over pairs.BRIGHT_BLOCK typical blocks' energy, counts as one
+typical block: its yaw is that echo's own look-angle term, not the seafloor's). Outliers
+(point sidelobes, edges) are cut on the deviations from the weighted median scaled by
+sqrt(W_b / median W), the ratio's spread going as 1 / sqrt(W_b): so scaled they are nearly
+symmetric and the cut moves the mean little (tests/test_dpca_bias.py and
+bench/bench_dpca.py --ratio have the figures). A real seafloor, many scatterers a resolution
+cell, has n_b large; a simulated one of random points, or a real one of a few strong scatterers
+(rocks, shells), does not.
 
 Errors and the track (eqs. 71-73): sway errors integrate into the track as a random walk, yaw
 errors as an integrated random walk; what defocuses is the part of the resulting cross-track

@@ -43,12 +43,17 @@ class PingPairs:
         fills the whole beam and one that fills only its main lobe (a narrower one biases it
         more: give ``extent``); 0 with the extent; None when not known (built by hand)
     block_yaw : rad (n_pulses - 1, block), each range block's own yaw (pass 2), NaN where the
-        block entered no estimate (weak, incoherent, beyond the seafloor); ``yaw`` is the robust
-        mean of the blocks clear of the seafloor's range edges (``block_inside``): for seeing
-        how the yaw depends on range (bench/bench_dpca.py --edges); None when built by hand
+        block entered no estimate (weak, incoherent, beyond the seafloor); ``yaw`` is their mean
+        over the blocks clear of the seafloor's range edges (``block_inside``) weighted by
+        ``block_weight``: for seeing how the yaw depends on range (bench/bench_dpca.py --edges);
+        None when built by hand
     block_inside : bool (n_pulses - 1, block), the blocks ``yaw`` was taken from (before the
-        outlier trim); None when built by hand
+        outlier cut, pooled_mean); None when built by hand
     block_range : m (block,), the blocks' centre slant ranges; None when built by hand
+    block_weight : (n_pulses - 1, block), each block's weight in ``yaw`` (its coherent energy,
+        pass 2's beam peak times its energy over the two pings' records; 0 where it is not in
+        ``block_inside`` or was cut as an outlier): ``yaw`` is the weighted mean of
+        ``block_yaw``; None when built by hand
     """
 
     surge: np.ndarray
@@ -66,6 +71,7 @@ class PingPairs:
     block_yaw: np.ndarray | None = None
     block_inside: np.ndarray | None = None
     block_range: np.ndarray | None = None
+    block_weight: np.ndarray | None = None
 
 
 # Range blocks holding less than this fraction of a ping pair's main-lobe level (its third
@@ -106,6 +112,33 @@ def _weighted_median(x: np.ndarray, w: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore"):
         middle = 0.5 * (lower(x) - lower(-x))
     return np.where(total > 0, middle, np.nan)
+
+
+def pooled_mean(x: np.ndarray, use: np.ndarray, weight: np.ndarray,
+                cut: float = OUTLIER) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per row (ping pair) of the blocks' values ``x`` (pair, block): their mean weighted by
+    ``weight`` (pair, block; > 0, a block's coherent energy), its standard error, and which
+    blocks entered it (``use`` and not cut). The cut: a block whose deviation from the
+    ``weight``-weighted median, scaled by sqrt(weight / the row's median weight), lies beyond
+    ``cut`` scaled median absolute deviations of the row's scaled deviations. A block's yaw is a
+    ratio whose spread goes as 1 / sqrt(weight): scaled so, the deviations are nearly symmetric,
+    where the plain ones are skewed (see the package docstring) and a cut on them moves the mean.
+    The standard error is over the effective number of blocks, sum(w)^2 / sum(w^2)."""
+    w = np.where(use, weight, 0.0)
+    x = np.where(use, x, 0.0)
+    med = _weighted_median(x, w)[:, None]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        typical = np.nanmedian(np.where(use, w, np.nan), axis=1, keepdims=True)
+        z = (x - med) * np.sqrt(w / typical)
+    ones = use.astype(float)
+    centre = _weighted_median(z, ones)[:, None]
+    mad = 1.4826 * _weighted_median(np.abs(z - centre), ones)[:, None]
+    kept = use & (np.abs(z - centre) <= cut * mad)
+    w = np.where(kept, w, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.sum(w * x, axis=1) / np.sum(w, axis=1)
+        var = np.sum(w * (x - mean[:, None]) ** 2, axis=1) / np.sum(w, axis=1)
+        return mean, np.sqrt(var * np.sum(w**2, axis=1)) / np.sum(w, axis=1), kept
 
 
 def _check(echo, array, speed, lags, t_lags, block, min_coherence, n_angles, extent) -> None:
@@ -381,8 +414,12 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
                     "(its swath is narrower than three or four blocks): their yaw comes from the edge "
                     "blocks and may be biased (PingPairs.yaw_from_edges)", int(lacking.sum()))
         inside[lacking] = good[lacking]
-    (su, su_e), (sw, sw_e), (yw, yw_e) = robust_mean(surge, seafloor), robust_mean(sway, good, weight), \
-        robust_mean(yaw, inside)
+    # The yaw: the blocks' yaws pooled, weighted by their coherent energy (why: the package
+    # docstring, "Pooling the blocks' yaws"); a block holding a bright echo (over BRIGHT_BLOCK
+    # typical blocks' energy) counts as one typical block, as in the medians' votes.
+    coherent = rho * np.where(energy > BRIGHT_BLOCK * typical, typical, energy)
+    (su, su_e), (sw, sw_e) = robust_mean(surge, seafloor), robust_mean(sway, good, weight)
+    yw, yw_e, kept = pooled_mean(yaw, inside, coherent)
     coh = np.nanmedian(np.where(good, coherence, np.nan), axis=1)
     log.info("dpca: %d ping pairs, %d couples, %d range blocks; median coherence %.2f", echo.n_pulses - 1,
              n_couples, n_blocks, float(np.median(coh)))
@@ -392,4 +429,4 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     return PingPairs(surge=su, sway=sw, yaw=yw, surge_std=su_e, sway_std=sw_e, yaw_std=yw_e, coherence=coh,
                      blocks=counts, lags=lags, two_way=two_way, yaw_bias=np.full(su.shape, abs(bias)),
                      yaw_from_edges=lacking, block_yaw=np.where(good, yaw, np.nan), block_inside=inside,
-                     block_range=r_blocks)
+                     block_range=r_blocks, block_weight=np.where(kept, coherent, 0.0))
