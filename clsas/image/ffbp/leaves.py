@@ -150,8 +150,9 @@ class _Layout:
     work-items' count, the tiles' reference points (T, 3) m and each leaf's first tile (L + 1,),
     the tiles' largest half-extent (m), the pixel fields (host array and the device buffer using
     it), each tile's first pulse (int32, from the echo's first), the work-items' tiles, the
-    images' slots and each leaf's first slot, the rows' spans and each leaf's first row; and its
-    references by records (``refs``: a device buffer a receiver, filled by :meth:`FirstStage._launch`)."""
+    images' slots and each leaf's first slot, the rows' spans and each leaf's first row (made by
+    :meth:`slot` once bp_tile is launched); and its references by records (``refs``: a device
+    buffer a receiver, filled by :meth:`FirstStage._launch`)."""
 
     n_items: int
     centres: np.ndarray
@@ -161,11 +162,20 @@ class _Layout:
     pix: object
     row_shift: np.ndarray
     tile_of: object
-    slots: object
-    slot_first: np.ndarray
-    spans: object
-    span_first: np.ndarray
+    slots: object = None
+    slot_first: np.ndarray | None = None
+    spans: object = None
+    span_first: np.ndarray | None = None
     refs: dict = dataclasses.field(default_factory=dict)
+    unslotted: tuple | None = None  # (the leaves' grids, the items) until :meth:`slot`
+
+    def slot(self, made) -> None:
+        """The images' slots and the rows' spans (device buffers by ``made``) from the items."""
+        leaves, items = self.unslotted
+        slots, self.slot_first = _slots(leaves, items)
+        self.slots, self.spans = made(slots), made(np.concatenate([g.row_spans for g in leaves]))
+        self.span_first = np.cumsum([0] + [g.n_v for g in leaves])
+        self.unslotted = None
 
     @property
     def nbytes(self) -> int:
@@ -393,11 +403,8 @@ class FirstStage:
             bv, br = halved(bv, br)
         first_tile = np.cumsum(np.r_[0, n_tiles])
         row_shift = np.repeat(np.array([self.leaves[k][0] for k in batch], np.int32), n_tiles)  # less b0 at launch
-        slots, slot_first = _slots(leaves, items)
-        spans = np.concatenate([g.row_spans for g in leaves])
         return _Layout(items.size, centres, first_tile, extent, fields, pix, row_shift,
-                       made(np.ascontiguousarray(items["tile"][::ROWS])), made(slots), slot_first, made(spans),
-                       np.cumsum([0] + [g.n_v for g in leaves]))
+                       made(np.ascontiguousarray(items["tile"][::ROWS])), unslotted=(leaves, items))
 
     def _launch(self, records, batch: list, grids: list, b0: int) -> list:
         """The images of the leaves ``batch`` (all ``first`` pulses long) by bp_tile launches into
@@ -419,12 +426,11 @@ class FirstStage:
 
         key = (ctx.int_ptr, tuple(batch), budget, TILE_ROWS, TILE_SAMPLES, TILE_SLACK)
         layout = self.layouts.get(key) if self.layouts is not None else None
-        if layout is None:
+        new = layout is None
+        if new:
             layout = self._layout(tile, batch, grids, budget)
             if layout is None:
                 return batch
-            if self.layouts is not None:
-                self.layouts.put(key, layout, layout.nbytes)
         refs_key = (b0, records.fs, tuple(int(o) for o in records.offset), tuple(records.receivers))
         refs = layout.refs.get(refs_key)
         if refs is None:
@@ -434,8 +440,6 @@ class FirstStage:
             if refs is None:
                 return batch
             refs = [r if isinstance(r, cl.Buffer) else made(r) for r in refs]
-            if self.layouts is not None and self.layouts.get(key) is layout and self.layouts.add(sum(r.size for r in refs)):
-                layout.refs[refs_key] = refs
         row_shift = made(layout.row_shift - np.int32(b0))
         params, taps = tile.params(c, f0, records.fs), tile.taps(ctx)
         image = cl.Buffer(ctx, mf.READ_WRITE, 16 * LANES * layout.n_items)  # the first launch stores, later ones add
@@ -447,6 +451,13 @@ class FirstStage:
                             ref_first=0, records=data, n_samples=n_samples, taps=taps, params=params, p_first=s,
                             p_count=min(tile.PULSE_BLOCK, self.first - s), image=image, row_shift=row_shift,
                             store=i == 0 and s == 0)
+        if new:  # its slots made while bp_tile runs, then kept with its references (.reuse)
+            layout.slot(made)
+            if self.layouts is not None:
+                self.layouts.put(key, layout, layout.nbytes)
+        kept = self.layouts is not None and self.layouts.get(key) is layout
+        if kept and refs_key not in layout.refs and self.layouts.add(sum(r.size for r in refs)):
+            layout.refs[refs_key] = refs
         self.pending = (records, layout)  # read in place by the queued kernels until settle()
         for j, k in enumerate(batch):  # the leaf's slots and spans from slot_first[j] and span_first[j] on
             self.ready[k] = (image, layout.slots, int(layout.slot_first[j]), layout.spans, int(layout.span_first[j]))
