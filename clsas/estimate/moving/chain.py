@@ -409,8 +409,8 @@ def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None 
     (:func:`.closedforms.higher_order_delay` of a first velocity estimate: they blur and skew
     the image over long apertures), and with ``reference``'s K_a,eq and f_dc,eq instead of est's
     when given (the model's Taylor coefficients that go with ``higher_order``: over 80 s the
-    SoWVD's rate is the aperture's average, 4-6 % above them, and would count the quartic
-    twice). K_a,eq and f_dc,eq are kept; eta_c is where the target focuses with them,
+    SoWVD reads 4-7 % above them, its line's band spread by the higher-order terms
+    (:mod:`.sowvd`), and would count them twice). K_a,eq and f_dc,eq are kept; eta_c is where the target focuses with them,
     f~ - K~ eta_c being its centroid.
 
     ``sharpen``: the image is :func:`.azimuth.sharpened_bins`' (the residual phase and its range

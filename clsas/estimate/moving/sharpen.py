@@ -7,8 +7,8 @@ quadratic phase left at the ends of an aperture T_a is pi dK (T_a / 2)^2 with
 dK / K ~ 2 |dv| / |v - V_h| (K = 2 f0 |w|^2 / (c R), w the relative velocity). Over 80 s,
 a velocity error of 0.1 % (Table II case 6 at C: K = 5.19 Hz/s, dK = 5.4e-3 Hz/s) leaves ~27 rad
 and widens the point's azimuth response five times (11 ms against 2.1 ms); a radian needs
-|dv| / |v| ~ 4e-5, which neither the centroids nor the SoWVD's rate give (its rate is the
-aperture's average, 4-6 % above the Taylor K over 80 s). The data do: the record, once aligned
+|dv| / |v| ~ 4e-5, which neither the centroids nor the SoWVD's rate give (4-7 % above the
+Taylor K over 80 s: :mod:`.sowvd`, "Long apertures"). The data do: the record, once aligned
 in range with the model, carries the residual phase of the target, and the compressed image is
 sharpest when that phase is removed.
 

@@ -32,9 +32,19 @@ phase is the exact combination above whatever the azimuth chirp's bandwidth agai
 (Table I: K T_a ~ 390 Hz, doubled to ~780 Hz by the RFRT, against 80 Hz): the RFRT and the
 SoWVD are not affected by azimuth aliasing. The only ambiguity is that of the peak itself:
 f_eta = 4 p0 K is read modulo the PRF, so |K| < PRF / (8 p0) (100 Hz/s for p0 = 0.1 s at
-80 Hz; 25 Hz/s at 20 Hz). K is an average over the aperture: on a hyperbolic range history
-K(eta) falls off away from the closest approach (the paper's own 4.834 against 4.879 Hz/s in
-case 1).
+80 Hz; 25 Hz/s at 20 Hz).
+
+Long apertures. The delay's cubic and quartic terms make the line's instantaneous rate
+f0 tau''(eta) vary over the aperture, so its f_eta spreads over a band rather than one bin, and
+the band's largest value (what the search reads) need not be its average: on Table II case 6
+(a point) the instantaneous rate runs from +11 % to -17 % of the Taylor K at A over 80 s (its
+average -1.0 %, its Legendre P2 part, the rate the focus uses, -0.4 %), and the rate search
+reads +7.4, +4.9, +6.7 % at A, B, C noise-free (+7.1, +4.2, +6.4 % at -15 dB; the followed
+trace's curvature there, :func:`.track.trace_rate`, -0.42, -0.49, -0.34 %: the P2 part to
+0.02 %). Over 25.6 s the band is +4 % to -5 % wide, a few bins, and the peak lies within ~1 %
+(the paper's own 4.834 against 4.879 Hz/s in case 1). The chain's focus passes
+(:func:`.chain.focused_rate`) and the refocus with the model's higher-order terms
+(:func:`.motion.estimate`'s refocus passes) correct the first rate.
 
 Cross-terms (not in the paper; derived here). A target of several scatterers gives an RFRT line
 s = sum_i a_i exp(j phi_i), phi_i(eta) = -2 pi (2 f_i eta + K eta^2): every scatterer of a rigid
