@@ -70,7 +70,7 @@ from clsas import Array, Medium, Platform, PointTargets, PulseSchedule, Scenario
 from clsas.model import Grid
 from clsas.image.backprojection import TileKernel, backproject
 from clsas.image.ffbp import ffbp
-from clsas.image.ffbp import _SCENES  # each Grid's Scene, kept between calls (cleared for ffbp_new_grid)
+from clsas.image.ffbp.reuse import _SCENES  # each Grid's Scene, kept between calls (cleared for ffbp_new_grid)
 from clsas.image.ffbp.leaves import FirstStage
 from clsas.image.ffbp.store import DeviceStore
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -31,6 +31,10 @@ class Grid:
     positions: np.ndarray
     dims: tuple
     axes: dict
+    #: positions built by :meth:`plane`, :meth:`slant` or :meth:`points` (or converted here): no other
+    #: array shares their memory, so only their owner (this Grid) can change them; positions given
+    #: as an array the caller holds may still change through the caller's views of it (clsas.image.ffbp.reuse)
+    _owned: bool = field(default=False, init=False, repr=False)
 
     def __post_init__(self):
         if not (isinstance(self.positions, np.ndarray) and self.positions.dtype == np.float64):
@@ -53,6 +57,8 @@ class Grid:
             axes[name] = validate.array(f"Grid.axes[{name!r}]", given.get(name, np.arange(n)), (n,),
                                         bound=validate.MAX_COORDINATE)
         pos.flags.writeable = False
+        if pos is not self.positions and pos.base is None:  # converted: a copy only this Grid holds
+            object.__setattr__(self, "_owned", True)
         object.__setattr__(self, "positions", pos)
         object.__setattr__(self, "dims", dims)
         object.__setattr__(self, "axes", axes)
@@ -76,7 +82,7 @@ class Grid:
         budget.check_bytes(f"Grid.plane of {y.size} x {x.size} pixels", GRID_BYTES_PER_PIXEL * x.size * y.size,
                            "fewer pixels (image in tiles)")
         yy, xx = np.meshgrid(y, x, indexing="ij")
-        return cls(np.stack([xx, yy, np.full_like(xx, z)], axis=-1), ("y", "x"), {"y": y, "x": x})
+        return cls._built(np.stack([xx, yy, np.full_like(xx, z)], axis=-1), ("y", "x"), {"y": y, "x": x})
 
     @classmethod
     def slant(cls, origin, u_direction, v_direction, u, v, dims=("v", "u")) -> "Grid":
@@ -91,7 +97,7 @@ class Grid:
         budget.check_bytes(f"Grid.slant of {w.size} x {u.size} pixels", GRID_BYTES_PER_PIXEL * u.size * w.size,
                            "fewer pixels (image in tiles)")
         pos = origin + w[:, None, None] * dv + u[None, :, None] * du
-        return cls(pos, tuple(dims), {dims[0]: w, dims[1]: u})
+        return cls._built(pos, tuple(dims), {dims[0]: w, dims[1]: u})
 
     @classmethod
     def points(cls, positions, dims=None) -> "Grid":
@@ -104,7 +110,14 @@ class Grid:
         if pos.shape[-1] != 3:
             raise ValueError(f"Grid.points positions: must have shape (..., 3) (x, y, z in m), got {pos.shape}")
         dims = tuple(dims) if dims is not None else tuple(f"i{k}" for k in range(pos.ndim - 1))
-        return cls(pos, dims, {})
+        return cls._built(pos, dims, {})
+
+    @classmethod
+    def _built(cls, positions: np.ndarray, dims, axes) -> "Grid":
+        """A Grid of positions just built here (nothing else holds them): marked as its own."""
+        grid = cls(positions, dims, axes)
+        object.__setattr__(grid, "_owned", True)
+        return grid
 
 
 def _axis(name: str, value) -> np.ndarray:

@@ -86,11 +86,20 @@ class Image:
         if data.dtype != np.complex64 or data.shape != grid.shape:
             raise ValueError(f"Image.on_grid data: must be complex64 of the grid's shape {grid.shape}, got "
                              f"{data.dtype} {data.shape}")
+        return cls._checked(data=data, dims=tuple(grid.dims), axes=dict(grid.axes), positions=grid.positions,
+                            provenance=validate.mapping("Image.provenance", provenance))
+
+    @classmethod
+    def _checked(cls, **values) -> "Image":
+        """An Image of values checked already, as :meth:`__post_init__` would leave them: every field
+        must be given (a TypeError naming those missing or unknown, so a field added to Image
+        later cannot be left unset on this path)."""
+        names = [f.name for f in dataclasses.fields(cls)]
+        if sorted(values) != sorted(names):
+            raise TypeError(f"Image._checked: needs exactly the fields {names}, got {sorted(values)}")
         image = object.__new__(cls)
-        for name, value in (("data", data), ("dims", tuple(grid.dims)), ("axes", dict(grid.axes)),
-                            ("positions", grid.positions),
-                            ("provenance", validate.mapping("Image.provenance", provenance))):
-            object.__setattr__(image, name, value)
+        for name in names:
+            object.__setattr__(image, name, values[name])
         return image
 
     @property

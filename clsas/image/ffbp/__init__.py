@@ -28,10 +28,11 @@ of top nodes of about the image's size waiting for the final stage, besides the 
 of leaves and its records: :func:`memory_plan` bounds the total from the tree.
 
 Many echoes onto one grid (:mod:`.reuse`): the grid's Scene, its last tree and that tree's
-first-stage layouts (tiles, pixel fields and references on the device, at most
-reuse.LAYOUT_BYTES, one tree's at a time) are kept between calls, and an echo of the same
-geometry with the same options uses them again (the same image, bit for bit: the same tree,
-tiles and references), so such a call's host work is its records and its launches.
+first-stage layouts (tiles, pixel fields and references on the device, one tree's at a time, at
+most reuse.limit() and what the memory budget leaves beside a call's own plan) are kept between
+calls, and an echo of the same geometry with the same options uses them again (the same image,
+bit for bit: the same tree, tiles and references), so such a call's host work is its records and
+its launches. :func:`release` lets go of all of it.
 
 Geometry: any track (sway, yaw, surge, circles: each sub-aperture's frame follows its own
 chord) and any grid on a plane (planes, slant planes, points on a plane) are exact up to the
@@ -48,22 +49,23 @@ from __future__ import annotations
 import numpy as np
 
 from ... import backend as _backend
-from ... import budget, validate
+from ... import budget, opencl, validate
 from ...interp import INTERPOLATORS, TAP_ROWS
 from ...model import EchoData, Grid, Image
 from ...progress import Progress, stage
 from ..backprojection.records import FFT_BATCH_BYTES, check_options
 from .leaves import BATCH_POINTS, RECORD_BYTES, FirstStage
 from .merge import CHUNK, KERNEL_TAPS
-from .polar import CHUNK_NODES, Scene
-from .reuse import _SCENES, kept, planned  # noqa: F401 (_SCENES: bench_ffbp's ffbp_new_grid)
+from .polar import CHUNK_NODES
+from . import reuse
+from .reuse import kept, planned, release
 from .store import DeviceStore, HostStore
 from .tree import Tree, plan
 
 DEFAULT_TOLERANCE = 0.1
 DEFAULT_FACTOR = 4  # children a merge (bench_ffbp --factors compares 2)
 
-__all__ = ["DEFAULT_FACTOR", "DEFAULT_TOLERANCE", "ffbp", "memory_plan"]
+__all__ = ["DEFAULT_FACTOR", "DEFAULT_TOLERANCE", "ffbp", "memory_plan", "release"]
 
 SAMPLE_BYTES = {"opencl": 8, "numpy": 16}  # a polar or image sample (complex64 on the device, complex128 on NumPy)
 LEAF_BATCH_BYTES = 40  # held a polar sample of a first-stage batch (leaves.py: device image 16, fields 16, work-items)
@@ -122,8 +124,8 @@ def memory_plan(tree: Tree, n_pixels: int, factor: int, echo_bytes: float = floa
     - ``planning``: not held with the others (the plan is made first), so counted as 0 here
       (:func:`ffbp` checks it with the fixed parts before planning).
 
-    Not counted: what is kept between calls (:mod:`.reuse`: the first-stage layouts of the last
-    tree that made them, at most reuse.LAYOUT_BYTES of the ``first_stage`` part above).
+    Not counted here: the first-stage layouts kept between calls (:mod:`.reuse`); :func:`ffbp`
+    lets them take only what the budget leaves beside this total (:func:`.reuse.make_room`).
     """
     largest = [max((g.size for g in level if g is not None), default=0) for level in tree.grids[:tree.top + 1]]
     leaf_batch = min(BATCH_POINTS, sum(g.size for g in tree.grids[0] if g is not None))
@@ -172,12 +174,6 @@ def _check(echo, grid, factor, tolerance, taps, first, receivers, interp, upsamp
                              "transmitter); ffbp's polar grids follow "
                              "the platform, so leave it out with receivers=... and image it with clsas.backproject")
     return chosen
-
-
-def _scene(grid: Grid) -> Scene:
-    """The grid's :class:`Scene`, kept for later calls on the same Grid while nothing can change its
-    positions (:func:`.reuse.kept`)."""
-    return kept(grid)[0]
 
 
 def _slots(grids: list, nodes: list) -> tuple[list, list]:
@@ -253,6 +249,9 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
     memory = memory_plan(tree, grid.size, int(factor), echo_bytes, taps=taps, interp=interp, backend=name)["total"]
     budget.check_bytes(f"ffbp of {echo.n_pulses} pulses onto {grid.size} pixels ({tree.top + 1} levels)", memory,
                        "image fewer pixels at a time (tiles of the grid), or give a larger tolerance")
+    # what is kept between calls takes only what the budget leaves beside this call (held before: let go)
+    device = float(opencl.runtime().device.global_mem_size) if name == "opencl" else float("inf")
+    reuse.make_room(made, min(reuse.limit(device), budget.memory_budget() - memory))
     f0, c = echo.waveform.f0, echo.medium.sound_speed
     pixels = grid.positions.reshape(-1, 3)
     leaves = tree.pulses[0]

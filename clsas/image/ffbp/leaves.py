@@ -169,11 +169,11 @@ class _Layout:
     refs: dict = dataclasses.field(default_factory=dict)
     unslotted: tuple | None = None  # (the leaves' grids, the items) until :meth:`slot`
 
-    def slot(self, made) -> None:
-        """The images' slots and the rows' spans (device buffers by ``made``) from the items."""
+    def slot(self) -> None:
+        """The images' slots and the rows' spans (device buffers) from the items."""
         leaves, items = self.unslotted
         slots, self.slot_first = _slots(leaves, items)
-        self.slots, self.spans = made(slots), made(np.concatenate([g.row_spans for g in leaves]))
+        self.slots, self.spans = cl_buffer(slots), cl_buffer(np.concatenate([g.row_spans for g in leaves]))
         self.span_first = np.cumsum([0] + [g.n_v for g in leaves])
         self.unslotted = None
 
@@ -367,11 +367,8 @@ class FirstStage:
         rt = opencl.runtime()
         ctx, queue, mf = rt.context, rt.queue, cl.mem_flags
 
-        def made(a, flags=mf.READ_ONLY):
-            return cl.Buffer(ctx, flags | mf.COPY_HOST_PTR, hostbuf=a)
-
         plane = program.plane(grids[batch[0]].plane)
-        frames = made(program.frames([grids[k] for k in batch]))
+        frames = cl_buffer(program.frames([grids[k] for k in batch]))
         leaves = [grids[k] for k in batch]
         step_r, step_v = max(g.dr for g in leaves), max(_row_step(g) for g in leaves)
 
@@ -390,9 +387,9 @@ class FirstStage:
             items, centres, n_tiles = polar_tiles(leaves, bv, br)
             fields = np.empty(items.size, tile.pixels)  # one record a item: LANES samples
             pix = cl.Buffer(ctx, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=fields)
-            items_buf = made(items)
+            items_buf = cl_buffer(items)
             program.kernel("ffbp_fields")(queue, *opencl.work_groups(items.size), items_buf, frames, plane,
-                                          made(centres), np.int32(items.size), pix)
+                                          cl_buffer(centres), np.int32(items.size), pix)
             mapped, _ = cl.enqueue_map_buffer(queue, pix, cl.map_flags.READ, 0, fields.shape, fields.dtype)
             extent = float(np.sqrt(mapped["dd"].max()))
             mapped.base.release()
@@ -404,7 +401,7 @@ class FirstStage:
         first_tile = np.cumsum(np.r_[0, n_tiles])
         row_shift = np.repeat(np.array([self.leaves[k][0] for k in batch], np.int32), n_tiles)  # less b0 at launch
         return _Layout(items.size, centres, first_tile, extent, fields, pix, row_shift,
-                       made(np.ascontiguousarray(items["tile"][::ROWS])), unslotted=(leaves, items))
+                       cl_buffer(items["tile"][::ROWS]), unslotted=(leaves, items))
 
     def _launch(self, records, batch: list, grids: list, b0: int) -> list:
         """The images of the leaves ``batch`` (all ``first`` pulses long) by bp_tile launches into
@@ -421,9 +418,6 @@ class FirstStage:
         tile = TileKernel(records.interp, self.aperture, stop_and_go=self.stop_and_go, row_shift=True)
         budget = tile.half_extent(f0, c)
 
-        def made(a, flags=mf.READ_ONLY):
-            return cl.Buffer(ctx, flags | mf.COPY_HOST_PTR, hostbuf=a)
-
         key = (ctx.int_ptr, tuple(batch), budget, TILE_ROWS, TILE_SAMPLES, TILE_SLACK)
         layout = self.layouts.get(key) if self.layouts is not None else None
         new = layout is None
@@ -439,8 +433,8 @@ class FirstStage:
                 refs = self._references(tile, records, batch, layout.centres, layout.first_tile, b0, layout.extent)
             if refs is None:
                 return batch
-            refs = [r if isinstance(r, cl.Buffer) else made(r) for r in refs]
-        row_shift = made(layout.row_shift - np.int32(b0))
+            refs = [r if isinstance(r, cl.Buffer) else cl_buffer(r) for r in refs]
+        row_shift = cl_buffer(layout.row_shift - np.int32(b0))
         params, taps = tile.params(c, f0, records.fs), tile.taps(ctx)
         image = cl.Buffer(ctx, mf.READ_WRITE, 16 * LANES * layout.n_items)  # the first launch stores, later ones add
         for i, h in enumerate(records.receivers):
@@ -452,7 +446,7 @@ class FirstStage:
                             p_count=min(tile.PULSE_BLOCK, self.first - s), image=image, row_shift=row_shift,
                             store=i == 0 and s == 0)
         if new:  # its slots made while bp_tile runs, then kept with its references (.reuse)
-            layout.slot(made)
+            layout.slot()
             if self.layouts is not None:
                 self.layouts.put(key, layout, layout.nbytes)
         kept = self.layouts is not None and self.layouts.get(key) is layout

@@ -10,15 +10,23 @@ depends only on the grid and on the echo's geometry, not on its samples:
   pixel fields and slots on the device, and its tiles' references for each receiver).
 
 They are kept for a Grid (weakly: they go with it) only while nothing can change its positions:
-read-only and their own memory, with FINGERPRINT of its pixels compared on every call (NumPy lets
-an owner make them writeable again; a change to other pixels after that is not seen). A tree is
-used again only for an echo of the same geometry and the same options (:func:`geometry`: the
-transmitter's positions and emission times, the selected receivers' positions, nodes and windows,
-the sampling, the sound speed and the waveform, compared exactly with kept copies, not by a hash);
-anything else plans anew and replaces it (one tree a grid). The layouts hold device memory (the
-pixel fields, 16 bytes a leaf sample, and the references), so they are kept for one tree at a time
-(the last that made them, dropped when another tree makes its own) and only up to LAYOUT_BYTES;
-every call still prepares its own records and allocates its own images.
+positions the Grid built or copied itself (``Grid._owned``: :meth:`~clsas.model.Grid.plane`,
+``slant``, ``points``; a Grid made on the caller's own float64 array keeps nothing, since views of
+that array made before may still write it), read-only, with FINGERPRINT of its pixels compared on
+every call (NumPy lets an owner make them writeable again; a change to other pixels after that is
+not seen). A tree is used again only for an echo of the same geometry and the same options
+(:func:`geometry`: the transmitter's positions and emission times, the selected receivers'
+positions, nodes and windows, the sampling, the sound speed and the waveform, compared exactly with
+kept copies, not by a hash); anything else plans anew and replaces it (one tree a grid).
+
+Memory. The layouts hold device memory (the pixel fields, 16 bytes a leaf sample, and the
+references) after the call returns, so they are kept for one tree at a time and only up to
+:func:`limit`: LAYOUT_BYTES, at most 1/SHARE of the memory budget (:mod:`clsas.budget`) and of the
+device's memory, and never more than the call's budget leaves beside its own plan
+(:func:`make_room`, before the call allocates: a call of another tree, or one that needs the room,
+lets go of the layouts held before it starts). The Scenes and trees (host memory, not counted)
+stay with their Grid. ``from clsas.image.ffbp import release; release()`` lets go of all of it
+(every grid's Scene, tree and layouts); dropping the Grid lets go of its own.
 """
 
 from __future__ import annotations
@@ -28,6 +36,7 @@ import weakref
 
 import numpy as np
 
+from ... import budget
 from ...model import EchoData, Grid
 from .polar import Scene
 from .tree import Tree
@@ -35,6 +44,7 @@ from .tree import Tree
 KEEP_PLANS = True  # trees and layouts kept between calls (tests/test_ffbp.py turns it off: each call plans afresh)
 FINGERPRINT = 4096  # pixels compared on every later call (every n-th one): a grid changed since is planned anew
 LAYOUT_BYTES = 256 * 2**20  # device memory of the first-stage layouts kept between calls (one tree's)
+SHARE = 8  # the layouts kept take at most 1/SHARE of the memory budget and of the device's memory
 
 
 class Layouts:
@@ -43,16 +53,17 @@ class Layouts:
 
     def __init__(self):
         self.items, self.nbytes = {}, 0
+        self.room = 0  # bytes they may hold (set by make_room before each call)
 
     def get(self, key):
-        return self.items.get(key) if KEEP_PLANS else None
+        return self.items.get(key)
 
     def put(self, key, value, nbytes: int) -> None:
-        """Keep ``value`` (of ``nbytes`` device bytes) under ``key`` if it fits LAYOUT_BYTES; the
+        """Keep ``value`` (of ``nbytes`` device bytes) under ``key`` if it fits :attr:`room`; the
         layouts of the tree held before are let go."""
-        if not KEEP_PLANS or self.nbytes + nbytes > LAYOUT_BYTES:
+        if self.nbytes + nbytes > self.room:
             return
-        held = _HELD() if _HELD is not None else None
+        held = _held()
         if held is not None and held is not self:
             held.clear()
         _hold(self)
@@ -60,8 +71,8 @@ class Layouts:
         self.nbytes += nbytes
 
     def add(self, nbytes: int) -> bool:
-        """Whether ``nbytes`` more (a layout's references) fit LAYOUT_BYTES (then counted)."""
-        if self.nbytes + nbytes > LAYOUT_BYTES:
+        """Whether ``nbytes`` more (a layout's references) fit :attr:`room` (then counted)."""
+        if self.nbytes + nbytes > self.room:
             return False
         self.nbytes += nbytes
         return True
@@ -76,6 +87,43 @@ _HELD = None  # a weak reference to the Layouts holding device memory
 def _hold(layouts: Layouts) -> None:
     global _HELD
     _HELD = weakref.ref(layouts)
+
+
+def _held() -> Layouts | None:
+    return _HELD() if _HELD is not None else None
+
+
+def held_bytes() -> int:
+    """Bytes of the first-stage layouts kept now (one tree's)."""
+    held = _held()
+    return 0 if held is None else held.nbytes
+
+
+def limit(device_bytes: float = float("inf")) -> float:
+    """The most the layouts may keep: LAYOUT_BYTES, 1/SHARE of the memory budget and of
+    ``device_bytes`` (the device's global memory)."""
+    return min(LAYOUT_BYTES, budget.memory_budget() / SHARE, device_bytes / SHARE)
+
+
+def make_room(made: "Planned", room: float) -> None:
+    """Before a call on ``made``'s tree that leaves ``room`` bytes of its budget beside its own
+    plan: the layouts held for another tree are let go (this call makes its own, or keeps none),
+    and this tree's too when they exceed ``room`` (then made again); this call may keep up to
+    ``room`` (at most :func:`limit`, which the caller passes in)."""
+    held = _held()
+    if held is not None and ((made.layouts is not None and held is not made.layouts) or held.nbytes > room):
+        held.clear()
+    if made.layouts is not None:
+        made.layouts.room = max(0.0, room)
+
+
+def release() -> None:
+    """Let go of everything ffbp keeps between calls: every grid's Scene and tree and the held
+    first-stage layouts (their device memory)."""
+    held = _held()
+    if held is not None:
+        held.clear()
+    _SCENES.clear()
 
 
 @dataclasses.dataclass(eq=False)
@@ -105,11 +153,11 @@ _SCENES = weakref.WeakKeyDictionary()  # Grid -> Kept
 
 
 def kept(grid: Grid) -> tuple[Scene, Kept | None]:
-    """The grid's :class:`Scene` and what is kept for it (None when nothing may be: its positions
-    writeable, or a view of another array); the Scene is made anew when the grid's fingerprint
-    changed (and what was kept for it dropped)."""
+    """The grid's :class:`Scene` and what is kept for it (None when nothing may be: positions the
+    Grid does not own (``Grid._owned``), or made writeable again); the Scene is made anew when the
+    grid's fingerprint changed (and what was kept for it dropped)."""
     positions = grid.positions
-    if positions.flags.writeable or not positions.flags.owndata:
+    if positions.flags.writeable or not getattr(grid, "_owned", False):
         _SCENES.pop(grid, None)
         return Scene.of(positions), None
     flat = positions.reshape(-1, 3)
