@@ -368,9 +368,10 @@ def test_hull_at_the_papers_noise_over_6400_pulses(opencl_device, case):
     upsampled samples over the record and the followed trace started from one straight line over
     all of it (clsas.estimate.moving.track, now grown from the middle 2048 pulses). Measured
     (load 2-9, position given, each run once by script, not yet through this test): case 1
-    -15 dB 0.61 % (|sigma| / |v| 1.4 %, confidence 0.96); case 1 -17 dB EstimationError naming
-    receiver A (SoWVD 16.3 dB, its best candidate K = -54.6 Hz/s does not focus: open, issue
-    #26 item 3); case 5 -15 dB 0.16 % (0.41 %, confidence 1.00); case 6 -15 dB 3.1 %, flagged (confidence 0.02: receiver C's Radon slope at its
+    -15 dB 0.61 % (|sigma| / |v| 1.4 %, confidence 0.96); case 1 -17 dB was an EstimationError
+    naming receiver A (SoWVD 16.3 dB, its best candidate K = -54.6 Hz/s does not focus); session 9
+    (a617938, by script, load 2-9): 0.52 %, confidence 0.97, A's SoWVD on the followed trace's
+    bright cells 41.5 dB (its cell gate 16.3 dB); case 5 -15 dB 0.16 % (0.41 %, confidence 1.00); case 6 -15 dB 3.1 %, flagged (confidence 0.02: receiver C's Radon slope at its
     search's edge). Case 6 at -17 dB (session 8, by script, load 5-7): 0.17 %, confidence 0.98
     (|sigma| / |v| 1.2 %); on da5b311 it raised delay_history's ValueError (a joint velocity of
     102.7 m/s: receiver A's centroid from a Radon line 173 ms off its followed trace), now
