@@ -65,6 +65,21 @@ class DiagonalBlocks:
             S[p] = np.bincount(b[p, k], (w[p] * sin_t[p] ** 2)[k], minlength=self.r.size)
         return W, S
 
+    def seafloor_yaws(self, seed: int, n: int, across: tuple, half: float) -> tuple[float, float]:
+        """(unweighted, pooled) mean yaw (rad) over the pairs of one seafloor of ``n`` random
+        scatterers (Rayleigh amplitudes, ``across`` (m) by +-``half`` (m) along track, rng
+        ``seed``): the blocks' yaws -D / r (S / W - m) averaged alike, and pooled by their power W
+        (sum N / sum W) over the blocks inside the swath."""
+        rng = np.random.default_rng(seed)
+        pos = np.stack([rng.uniform(*across, n), rng.uniform(-half, half, n), np.zeros(n)], -1)
+        power = np.abs((rng.normal(size=n) + 1j * rng.normal(size=n)) / np.sqrt(2)) ** 2
+        W, S = self.sums(pos, power)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            yaw = -self.D / self.r[None] * (S / W - self.m)
+        W = np.where(self.inside, W, 0.0)
+        unweighted = float(np.nanmean(np.where(self.inside, yaw, np.nan)))
+        return unweighted, float(np.mean(np.nansum(W * np.nan_to_num(yaw), axis=1) / W.sum(axis=1)))
+
     def first_order(self, nodes: int = 4001) -> float:
         """The first-order bias of a block, averaged over the middle pair's blocks, rad."""
         p = self.yc.size // 2
@@ -98,15 +113,9 @@ def ratio_bias(args, report, scene_of, footprint, points_of, across, seeds: int)
                 start = time.perf_counter()
                 unweighted, pooled = [], []
                 for seed in range(1000, 1000 + seeds):
-                    rng = np.random.default_rng(seed)
-                    pos = np.stack([rng.uniform(*across, n), rng.uniform(-half, half, n), np.zeros(n)], -1)
-                    power = np.abs((rng.normal(size=n) + 1j * rng.normal(size=n)) / np.sqrt(2)) ** 2
-                    W, S = model.sums(pos, power)
-                    with np.errstate(invalid="ignore", divide="ignore"):
-                        yaw = -model.D / model.r[None] * (S / W - model.m)
-                    W = np.where(model.inside, W, 0.0)
-                    unweighted.append(np.nanmean(np.where(model.inside, yaw, np.nan)))
-                    pooled.append(np.mean(np.nansum(W * np.nan_to_num(yaw), axis=1) / W.sum(axis=1)))
+                    u, p = model.seafloor_yaws(seed, n, across, half)
+                    unweighted.append(u)
+                    pooled.append(p)
                 seconds = time.perf_counter() - start
                 report(args, "dpca-yaw-ratio", "numpy", {"tx_factor": tx_factor, "extent": extent,
                                                          "density_factor": factor, "points": n, "seeds": seeds},
