@@ -25,11 +25,23 @@ each, min and median, with the relative L2 difference of the two images:
 - ``full``: the narrow sonar over every pulse and angle (the pixels then sample the image far
   more coarsely than its resolution along track, which limits how far merging pays).
 
-``ffbp_new_grid`` times ``clsas.ffbp`` as a first call on its grid: ffbp keeps a Grid's scene
-(its skeleton and margin, a pass over every pixel), its last tree and that tree's first-stage
-layouts (clsas/image/ffbp/reuse.py) for later calls on the same Grid and an echo of the same
-geometry, which ``ffbp`` (a later call, as when many echoes of one geometry are imaged onto one
-grid) reuses; ``ffbp_new_grid`` plans and lays out everything anew, as for a new geometry.
+Fairness (what each imager keeps between calls). ``clsas.backproject`` keeps, per Grid, only its
+tile plan (the tiling's slot order, which depends on the grid, the carrier and the sound speed, not
+on the echo's geometry); its records and its per-(tile, pulse) references are made in every call,
+so a call on a new geometry costs what a call on the same one does. ``clsas.ffbp`` keeps, per Grid,
+its Scene (skeleton and margin: the grid's alone, as the tile plan) and, per geometry, its last
+tree and that tree's first-stage layouts (clsas/image/ffbp/reuse.py), which only an echo of the
+same geometry can use. So every timed round gets a new geometry: the track (transmitter and
+receivers) moved SHIFT across track from the round before (the records unchanged), and
+
+- ``direct``: ``clsas.backproject`` on the round's echo (its grid's tile plan kept, as always);
+- ``ffbp`` (cold, the headline ratio): ``clsas.ffbp`` on the round's echo, the first call on
+  this geometry: same grid (its Scene kept), the tree planned and the first stage laid out anew;
+- ``ffbp_warm``: ``clsas.ffbp`` on the same echo again: its tree and layouts kept (imaging many
+  echoes of one geometry onto one grid).
+
+Both ratios, cold and warm, are against the same direct runs, and are printed side by side at
+the end of each case (wall and CPU, min and median).
 
 ``--factors`` times ``clsas.ffbp`` with factor=2 as well (a third run in the interleaving; the
 default merges 4 children at a time). ``--big`` adds the issue's large case, the wide sonar at 2048^2 pixels x 4096 pulses (2 timed
@@ -38,10 +50,11 @@ case costs about 5 minutes). ``--scan`` adds one timed run each of the wide case
 square grids of half as many pixels a side (the aperture and the image grow together), and of
 the aperture case for the same pulses on a fixed 512^2 grid.
 
-``--stages`` adds one more ffbp call a case, after the timed ones, with the device's queue
-finished around each stage, and reports the process CPU seconds of each (``stages_cpu``: the tree's
-planning, the leaves (their batches and demodulation; of which ``leaf_bp_tile``, back-projection's
-kernel itself), the merges, the final stage, and the rest), the cost breakdown that says where a case's time goes.
+``--stages`` adds two more ffbp calls a case, after the timed ones (a new geometry: cold, then
+warm), with the device's queue finished around each stage, and reports the process CPU seconds of
+each (``stages_cpu``: the tree's planning, the leaves (their batches and demodulation; of which
+``leaf_bp_tile``, back-projection's kernel itself), the merges, the final stage, and the rest),
+the cost breakdown that says where a case's time goes.
 
 Every run is timed twice: wall time and the process's CPU time (``time.process_time``: PoCL's
 worker threads run in this process, so it is the CPU-seconds the call used). On a loaded machine the
@@ -56,6 +69,7 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import os
 import pathlib
 import statistics
 import subprocess
@@ -70,7 +84,6 @@ from clsas import Array, Medium, Platform, PointTargets, PulseSchedule, Scenario
 from clsas.model import Grid
 from clsas.image.backprojection import TileKernel, backproject
 from clsas.image.ffbp import ffbp
-from clsas.image.ffbp.reuse import _SCENES  # each Grid's Scene, kept between calls (cleared for ffbp_new_grid)
 from clsas.image.ffbp.leaves import FirstStage
 from clsas.image.ffbp.store import DeviceStore
 
@@ -79,6 +92,7 @@ ffbp_package = importlib.import_module("clsas.image.ffbp")  # the package (clsas
 F0, B, FS, UP, DEPTH = 150e3, 20e3, 25e3, 8, -5.0
 # the two sonars: element length D (m; pulses every D / 4) and the image's ranges (m)
 SONARS = {"narrow": {"element": 0.1, "ranges": (40.0, 60.0)}, "wide": {"element": 0.02, "ranges": (20.0, 40.0)}}
+SHIFT = 0.002  # m: the track moves this far across track (x) a round: a new geometry for every timed round
 
 
 def _commit() -> str:
@@ -115,18 +129,44 @@ def scene(n_pulses: int, n_pixels: int, sonar: str = "narrow"):
     return echo, grid
 
 
-def interleaved(runs: dict, repeats: int) -> tuple[dict, dict, dict]:
-    """Wall times and process CPU times of each run, interleaved (A B A B ...), after one warm-up
-    run each, and the warm-up's results."""
-    results = {name: run() for name, run in runs.items()}
-    times, cpu = {name: [] for name in runs}, {name: [] for name in runs}
-    for _ in range(repeats):
+def moved(echo, k: int):
+    """``echo`` with its track (transmitter and receivers) moved k x SHIFT across track: a new
+    geometry (the records unchanged; the image is defocused a little, alike for both imagers)."""
+    if k == 0:
+        return echo
+    d = np.array([k * SHIFT, 0.0, 0.0])
+    return echo.replace(tx_pos=echo.tx_pos + d, rx_pos=echo.rx_pos + d)
+
+
+def interleaved(runs: dict, repeats: int, echo) -> tuple[dict, dict, dict]:
+    """Wall times and process CPU times of each run ``run(e)``, interleaved (A B A B ...) after one
+    warm-up round, and the warm-up's results. Round k gives every run the echo moved k x SHIFT
+    (:func:`moved`, made before the round and not timed): a new geometry a round."""
+    times, cpu, results = {name: [] for name in runs}, {name: [] for name in runs}, {}
+    for k in range(repeats + 1):
+        e = moved(echo, k)
         for name, run in runs.items():
             start, start_cpu = time.perf_counter(), time.process_time()
-            run()
+            out = run(e)
+            if k == 0:
+                results[name] = out
+                continue
             times[name].append(time.perf_counter() - start)
             cpu[name].append(time.process_time() - start_cpu)
     return times, cpu, results
+
+
+def summary(case: str, times: dict, cpu: dict) -> str:
+    """One line: ffbp's cold and warm ratios to direct, wall and CPU, min (best against best) and median."""
+    parts = []
+    for name, label in (("ffbp", "cold"), ("ffbp_warm", "warm")):
+        if name in times:
+            wall = (min(times["direct"]) / min(times[name]),
+                    statistics.median(times["direct"]) / statistics.median(times[name]))
+            proc = (min(cpu["direct"]) / min(cpu[name]), statistics.median(cpu["direct"]) / statistics.median(cpu[name]))
+            parts.append(f"{label}: wall {wall[0]:.2f}x / {wall[1]:.2f}x, CPU {proc[0]:.2f}x / {proc[1]:.2f}x")
+    load = " ".join(f"{x:.2f}" for x in os.getloadavg())
+    return f"ffbp {case} ratios to direct (min / median): " + "; ".join(parts) + f"  [load {load}]"
 
 
 @contextlib.contextmanager
@@ -196,12 +236,12 @@ def main() -> None:
             echoes = {(pulses, pix, sonar): scene(pulses, pix, sonar)}
         echo, grid = echoes[(pulses, pix, sonar)]
         kw = dict(backend="opencl", upsample=1, progress=False)
-        runs = {"direct": lambda: backproject(echo, grid, interp="linear", **kw, **options),
-                "ffbp": lambda: ffbp(echo, grid, interp="linear", **kw, **options),
-                "ffbp_new_grid": lambda: (_SCENES.clear(), ffbp(echo, grid, interp="linear", **kw, **options))[1]}
+        runs = {"direct": lambda e: backproject(e, grid, interp="linear", **kw, **options),
+                "ffbp": lambda e: ffbp(e, grid, interp="linear", **kw, **options),
+                "ffbp_warm": lambda e: ffbp(e, grid, interp="linear", **kw, **options)}
         if flags["--factors"]:
-            runs["ffbp_factor2"] = lambda: ffbp(echo, grid, interp="linear", factor=2, **kw, **options)
-        times, cpu, images = interleaved(runs, reps)
+            runs["ffbp_factor2"] = lambda e: ffbp(e, grid, interp="linear", factor=2, **kw, **options)
+        times, cpu, images = interleaved(runs, reps, echo)
         ref = images["direct"].data
         work = grid.size * pulses
         medians = {name: statistics.median(t) for name, t in times.items()}
@@ -220,10 +260,12 @@ def main() -> None:
                              factor=made.provenance["factor"], levels=made.provenance["levels"],
                              first=made.provenance["first"], oversampling=made.provenance["oversampling"],
                              polar_samples=made.provenance["polar_samples"])
-                if flags["--stages"] and name == "ffbp":
-                    extra["stages_cpu"] = stages(runs["ffbp"])
+                if flags["--stages"] and name in ("ffbp", "ffbp_warm"):  # a geometry not seen yet: cold, then warm
+                    e = moved(echo, reps + 1)
+                    extra["stages_cpu"] = stages(lambda: runs[name](e))
             report(args, "ffbp", "opencl", {"pixels": grid.size, "pulses": pulses, "receivers": 1},
                    work / medians[name], "BP/s", medians[name], **extra)
+        print(summary(case, times, cpu), file=sys.stderr if args.json else sys.stdout, flush=True)
 
 
 if __name__ == "__main__":
