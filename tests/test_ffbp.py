@@ -394,6 +394,66 @@ def test_kept_layouts_count_against_the_memory_budget(opencl_device, monkeypatch
     assert reuse.held_bytes() == 0 and grid not in reuse._SCENES
 
 
+def test_kept_scenes_and_trees_count_against_the_memory_budget(opencl_device, monkeypatch):
+    """The Scenes and trees kept (host memory, review 9) count: Kept.nbytes bounds the arrays they
+    hold; every grid's together stay within reuse.host_limit(), a call letting go of other grids'
+    trees, then their Scenes, then its own tree (used once more, not kept) until they fit; a
+    geometry whose copies alone exceed the limit is not kept; the images are unchanged throughout."""
+    ffbp_package = importlib.import_module("clsas.image.ffbp")
+    monkeypatch.setattr(reuse, "KEEP_PLANS", True)
+    reuse.release()
+    plans, planning = [], ffbp_package.plan
+    monkeypatch.setattr(ffbp_package, "plan", lambda *a: plans.append(1) or planning(*a))
+    echo = echo_of("straight")
+    a = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(-2.0, 0.0, 0.04), DEPTH)
+    b = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(0.0, 2.0, 0.04), DEPTH)
+    image_a = ffbp(echo, a, backend="opencl", progress=False).data
+    image_b = ffbp(echo, b, backend="opencl", progress=False).data
+    entry_a, entry_b = reuse.kept(a)[1], reuse.kept(b)[1]
+    for entry in (entry_a, entry_b):
+        tree = entry.planned.tree
+        held = (entry.scene.skeleton.nbytes + entry.sample.nbytes + sum(x.nbytes for x in entry.planned.arrays)
+                + sum(g.spans.nbytes for level in tree.grids for g in level if g is not None))
+        assert entry.nbytes >= held and entry.planned.arrays[2].nbytes == echo.rx_pos.nbytes
+    assert reuse.host_bytes() == entry_a.nbytes + entry_b.nbytes
+    # room for b's alone: a call on b (its tree used again) lets go of a's tree, then of a's Scene
+    monkeypatch.setattr(reuse, "HOST_BYTES", entry_b.nbytes + entry_a.nbytes - entry_a.planned.nbytes // 2)
+    assert np.array_equal(ffbp(echo, b, backend="opencl", progress=False).data, image_b) and len(plans) == 2
+    assert entry_a.planned is None and a in reuse._SCENES and reuse.host_bytes() <= reuse.HOST_BYTES
+    monkeypatch.setattr(reuse, "HOST_BYTES", entry_b.nbytes)
+    assert np.array_equal(ffbp(echo, b, backend="opencl", progress=False).data, image_b) and len(plans) == 2
+    assert a not in reuse._SCENES and reuse.host_bytes() == entry_b.nbytes
+    # less than b's own: its tree serves this call and is let go (with its layouts), then planned anew
+    monkeypatch.setattr(reuse, "HOST_BYTES", entry_b.nbytes - 1)
+    assert np.array_equal(ffbp(echo, b, backend="opencl", progress=False).data, image_b) and len(plans) == 2
+    assert reuse.kept(b)[1].planned is None and reuse.held_bytes() == 0
+    assert np.array_equal(ffbp(echo, b, backend="opencl", progress=False).data, image_b) and len(plans) == 3
+    # a geometry whose copies exceed the limit is not copied, nor kept
+    monkeypatch.setattr(reuse, "HOST_BYTES", echo.rx_pos.nbytes)
+    assert np.array_equal(ffbp(echo, a, backend="opencl", progress=False).data, image_a)
+    assert reuse.kept(a)[1].planned is None
+    # the limit is 1/SHARE of the budget where that is less than HOST_BYTES
+    monkeypatch.setattr(reuse, "HOST_BYTES", 64 * 2**20)
+    with clsas.use_memory_budget(reuse.SHARE * 2**20):
+        assert reuse.host_limit() == 2**20
+    reuse.release()
+    assert reuse.host_bytes() == 0
+
+
+def test_an_overflowing_image_raises(opencl_device):
+    """Finite records near complex64's largest value sum past it: ffbp raises on both backends, as
+    backproject does (review 9 R7), instead of returning inf."""
+    echo = echo_of("straight")
+    grid = Grid.plane(np.arange(43.7, 44.3, 0.015), np.arange(-0.3, 0.3, 0.02), DEPTH)  # around a point
+    peak = np.abs(ffbp(echo, grid, backend="opencl", progress=False).data).max()
+    # the image's peak 1.5 times complex64's largest value (a leaf's image, 8 of the 20 pulses, below
+    # it: the NumPy backend's leaves go through backproject, which would raise first)
+    huge = echo.replace(data=(echo.data * (1.5 * float(np.finfo(np.float32).max) / float(peak))).astype(np.complex64))
+    for backend in ("numpy", "opencl"):
+        with pytest.raises(ValueError, match="ffbp: the image overflows complex64"):
+            ffbp(huge, grid, backend=backend, progress=False)
+
+
 def test_an_image_on_a_grid_equals_the_one_its_constructor_makes():
     """Image.on_grid (the imagers' path, no second pass over the positions) sets every field as the
     constructor does, and the private path it takes refuses a set of fields that is not complete."""

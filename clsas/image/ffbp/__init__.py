@@ -124,8 +124,9 @@ def memory_plan(tree: Tree, n_pixels: int, factor: int, echo_bytes: float = floa
     - ``planning``: not held with the others (the plan is made first), so counted as 0 here
       (:func:`ffbp` checks it with the fixed parts before planning).
 
-    Not counted here: the first-stage layouts kept between calls (:mod:`.reuse`); :func:`ffbp`
-    lets them take only what the budget leaves beside this total (:func:`.reuse.make_room`).
+    Not counted here: what is kept between calls (:mod:`.reuse`: the first-stage layouts, the
+    grids' Scenes and trees); :func:`ffbp` lets it take only what the budget leaves beside this
+    total (:func:`.reuse.make_room`).
     """
     largest = [max((g.size for g in level if g is not None), default=0) for level in tree.grids[:tree.top + 1]]
     leaf_batch = min(BATCH_POINTS, sum(g.size for g in tree.grids[0] if g is not None))
@@ -251,7 +252,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
                        "image fewer pixels at a time (tiles of the grid), or give a larger tolerance")
     # what is kept between calls takes only what the budget leaves beside this call (held before: let go)
     device = float(opencl.runtime().device.global_mem_size) if name == "opencl" else float("inf")
-    reuse.make_room(made, min(reuse.limit(device), budget.memory_budget() - memory))
+    reuse.make_room(grid, entry, made, budget.memory_budget() - memory, device)
     f0, c = echo.waveform.f0, echo.medium.sound_speed
     pixels = grid.positions.reshape(-1, 3)
     leaves = tree.pulses[0]
@@ -295,7 +296,10 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
             flat = store.result()
         finally:  # the first stage's last batch's kernels read host memory it holds
             stage1.settle()
-    return Image.on_grid(flat.astype(np.complex64, copy=False).reshape(grid.shape), grid,
+    with np.errstate(over="ignore"):  # a sum past complex64's range becomes inf: finite_result names the overflow
+        flat = flat.astype(np.complex64, copy=False)
+    validate.finite_result("ffbp: the image", flat, "scale echo.data down", np.complex64)
+    return Image.on_grid(flat.reshape(grid.shape), grid,
                          {"algorithm": "ffbp", "backend": name, "factor": int(factor), "tolerance": float(tolerance),
                           "taps": int(taps), "first": tree.first, "levels": top + 1,
                           "oversampling": tree.rho, "polar_samples": tree.samples(),

@@ -22,11 +22,17 @@ kept copies, not by a hash); anything else plans anew and replaces it (one tree 
 Memory. The layouts hold device memory (the pixel fields, 16 bytes a leaf sample, and the
 references) after the call returns, so they are kept for one tree at a time and only up to
 :func:`limit`: LAYOUT_BYTES, at most 1/SHARE of the memory budget (:mod:`clsas.budget`) and of the
-device's memory, and never more than the call's budget leaves beside its own plan
-(:func:`make_room`, before the call allocates: a call of another tree, or one that needs the room,
-lets go of the layouts held before it starts). The Scenes and trees (host memory, not counted)
-stay with their Grid. ``from clsas.image.ffbp import release; release()`` lets go of all of it
-(every grid's Scene, tree and layouts); dropping the Grid lets go of its own.
+device's memory, and never more than the call's budget leaves beside its own plan and the host
+state kept (:func:`make_room`, before the call allocates: a call of another tree, or one that needs
+the room, lets go of the layouts held before it starts). The Scenes and trees kept (host memory:
+:meth:`Kept.nbytes`, the skeletons with their search trees, the fingerprints, the trees' rows'
+spans and the copies of the echoes' geometry) count against the budget too: all grids' together
+at most :func:`host_limit` (HOST_BYTES, 1/SHARE of the budget) and what a call's budget leaves
+beside its own plan; a call lets go of other grids' trees, then their Scenes, oldest first, then
+of its own tree (used once more, not kept) until they fit, and a geometry whose copies alone
+exceed the limit is not kept at all (:func:`planned`). ``from clsas.image.ffbp import release;
+release()`` lets go of all of it (every grid's Scene, tree and layouts); dropping the Grid lets go
+of its own.
 """
 
 from __future__ import annotations
@@ -45,6 +51,9 @@ KEEP_PLANS = True  # trees and layouts kept between calls (tests/test_ffbp.py tu
 FINGERPRINT = 4096  # pixels compared on every later call (every n-th one): a grid changed since is planned anew
 LAYOUT_BYTES = 256 * 2**20  # device memory of the first-stage layouts kept between calls (one tree's)
 SHARE = 8  # the layouts kept take at most 1/SHARE of the memory budget and of the device's memory
+HOST_BYTES = 64 * 2**20  # host memory of the Scenes and trees kept (every grid's), at most 1/SHARE of the budget too
+SCENE_COPIES = 4  # a kept Scene's skeleton bytes, times: itself, its centred copy, its k-d tree's copy and index/nodes
+GRID_BYTES = 1024  # a kept polar grid besides its rows' spans (its frame's arrays and the objects)
 
 
 class Layouts:
@@ -105,11 +114,56 @@ def limit(device_bytes: float = float("inf")) -> float:
     return min(LAYOUT_BYTES, budget.memory_budget() / SHARE, device_bytes / SHARE)
 
 
-def make_room(made: "Planned", room: float) -> None:
-    """Before a call on ``made``'s tree that leaves ``room`` bytes of its budget beside its own
-    plan: the layouts held for another tree are let go (this call makes its own, or keeps none),
-    and this tree's too when they exceed ``room`` (then made again); this call may keep up to
-    ``room`` (at most :func:`limit`, which the caller passes in)."""
+def host_limit() -> float:
+    """The most the Scenes and trees kept (every grid's) may hold: HOST_BYTES, 1/SHARE of the
+    memory budget."""
+    return min(HOST_BYTES, budget.memory_budget() / SHARE)
+
+
+def host_bytes() -> int:
+    """Host bytes of the Scenes and trees kept now (every grid's, :meth:`Kept.nbytes`)."""
+    return sum(entry.nbytes for entry in list(_SCENES.values()))
+
+
+def _fit_host(grid: Grid, entry: "Kept | None", made: "Planned", room: float) -> int:
+    """Let go of kept host state until it fits ``room``: other grids' trees, then their Scenes
+    (oldest first), then this call's tree (``made``: used by this call, not kept; nor its
+    layouts), then this grid's Scene (made anew next time). Returns the bytes still kept."""
+    total = host_bytes()
+    others = [(g, e) for g, e in list(_SCENES.items()) if e is not entry]
+    for _, other in others:
+        if total <= room:
+            return total
+        if other.planned is not None:
+            total -= other.planned.nbytes
+            other.planned = None
+    for g, other in others:
+        if total <= room:
+            return total
+        total -= other.nbytes
+        _SCENES.pop(g, None)
+    if total > room and entry is not None and entry.planned is not None:
+        total -= entry.planned.nbytes
+        entry.planned = None
+        if made.layouts is not None and _held() is made.layouts:
+            made.layouts.clear()
+        made.layouts = None  # the tree is used by this call and kept by none
+    if total > room and entry is not None:
+        total -= entry.nbytes
+        _SCENES.pop(grid, None)
+    return total
+
+
+def make_room(grid: Grid, entry: "Kept | None", made: "Planned", room: float,
+              device_bytes: float = float("inf")) -> None:
+    """Before a call on ``grid`` (what is kept for it: ``entry``) with ``made``'s tree that leaves
+    ``room`` bytes of its budget beside its own plan: the host state kept is let go until it fits
+    min(:func:`host_limit`, room) (:func:`_fit_host`); the layouts held for another tree are let
+    go (this call makes its own, or keeps none), and this tree's too when they exceed what is left
+    (then made again); this call may keep up to that, at most :func:`limit` (``device_bytes``:
+    the device's global memory)."""
+    host = _fit_host(grid, entry, made, min(host_limit(), room))
+    room = min(limit(device_bytes), room - host)
     held = _held()
     if held is not None and ((made.layouts is not None and held is not made.layouts) or held.nbytes > room):
         held.clear()
@@ -136,6 +190,13 @@ class Planned:
     tree: Tree
     layouts: Layouts | None = dataclasses.field(default_factory=Layouts)
 
+    @property
+    def nbytes(self) -> int:
+        """Host bytes kept with it: the geometry's copies and the tree's grids (their rows' spans)."""
+        grids = [g for level in self.tree.grids for g in level if g is not None]
+        return (sum(a.nbytes for a in self.arrays) + sum(g.row_spans.nbytes if g.spans is not None else 0 for g in grids)
+                + GRID_BYTES * len(grids))
+
     def matches(self, key: tuple, arrays: tuple) -> bool:
         return self.key == key and all(a.shape == b.shape and np.array_equal(a, b) for a, b in zip(self.arrays, arrays))
 
@@ -147,6 +208,13 @@ class Kept:
     scene: Scene
     sample: np.ndarray
     planned: Planned | None = None
+
+    @property
+    def nbytes(self) -> int:
+        """Host bytes kept for the grid: the Scene (SCENE_COPIES x its skeleton), the fingerprint
+        and the tree (:attr:`Planned.nbytes`)."""
+        return (SCENE_COPIES * self.scene.skeleton.nbytes + self.sample.nbytes
+                + (0 if self.planned is None else self.planned.nbytes))
 
 
 _SCENES = weakref.WeakKeyDictionary()  # Grid -> Kept
@@ -182,11 +250,15 @@ def geometry(echo: EchoData, chosen: list, options: tuple) -> tuple[tuple, tuple
 
 def planned(entry: Kept | None, echo: EchoData, chosen: list, options: tuple, make) -> Planned:
     """The tree kept for this geometry and these options (:func:`geometry`) on the grid of
-    ``entry``, or a new one from ``make()`` (kept in its place when the grid may keep one)."""
+    ``entry``, or a new one from ``make()`` (kept in its place when the grid may keep one and the
+    geometry's copies fit :func:`host_limit`)."""
     if not KEEP_PLANS or entry is None:
         return Planned((), (), make(), None)  # nothing kept: no copies, no layouts
     scalars, arrays = geometry(echo, chosen, options)
     if entry.planned is not None and entry.planned.matches(scalars, arrays):
         return entry.planned
+    entry.planned = None  # the last tree is let go before the new one is planned
+    if sum(a.nbytes for a in arrays) > host_limit():
+        return Planned((), (), make(), None)  # a geometry too large to keep a copy of
     entry.planned = Planned(scalars, tuple(np.array(a, copy=True) for a in arrays), make())
     return entry.planned
