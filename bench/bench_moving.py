@@ -21,7 +21,7 @@ from _harness import arguments, measure, report
 
 import clsas
 from clsas.model import Grid
-from clsas.estimate.moving import azimuth, centroid, chain, closed_forms, receiver_focus, higher_order_delay, layout_of, mapping, solve_motion, solve_velocity
+from clsas.estimate.moving import azimuth, centroid, chain, closed_forms, located, receiver_focus, higher_order_delay, layout_of, mapping, solve_motion, solve_velocity
 from clsas.estimate.moving.closedforms import delay_terms
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets
@@ -55,12 +55,12 @@ def main() -> None:
         lambda: azimuth.focus_bins(rec, k, f_dc, slice(0, rec.x.shape[1])), repeats=repeats)
     steps["estimate_receiver (A, whole)"] = measure(lambda: chain.estimate_receiver(echo, "A"), repeats=repeats)
 
-    steps["sharpened locate (A, first pass)"] = measure(lambda: chain.locate(rec, est, sharpen=True),
+    steps["sharpened locate (A, first pass)"] = measure(lambda: located.locate(rec, est, sharpen=True),
                                                         repeats=repeats)
 
     lay = layout_of(echo)
     higher = higher_order_delay(lay, "A", CENTRE, v, rec.eta)
-    steps["refocus + extent (A, higher order)"] = measure(lambda: chain.locate(rec, est, higher), repeats=repeats)
+    steps["refocus + extent (A, higher order)"] = measure(lambda: located.locate(rec, est, higher), repeats=repeats)
     k_c = (est.tau_c - rec.t0) * rec.fs
     bins = slice(int(k_c) - 80, int(k_c) + 81)  # +-2 ms around the target, as focus_moving(tau_span=0.004)
     _, f_model, k_model = delay_terms(lay, "A", CENTRE, v)  # the model's history, as focus_moving

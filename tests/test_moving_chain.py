@@ -76,6 +76,7 @@ def test_case1_each_receiver(case1, receiver):
     est = estimate_receiver(echo, receiver)
     k, f_dc, tau0 = true[receiver]
     assert est.receiver == receiver
+    assert est.fm_rate_source == "sowvd" and est.fm_rate_rivals == () and est.rate_problem == ""
     assert est.fm_rate == pytest.approx(k, rel=K_RTOL)
     assert est.doppler_centroid == pytest.approx(f_dc, abs=FDC_ATOL)
     # eq. (20): the trace sits at the two-way delay at eta = 0 (measured within 1/40 of a
@@ -160,6 +161,106 @@ def test_noise_minus_25_db_raises(unaliased):
     echo = simulate(sc, backend="numpy", progress=False, snr_db=-25.0, seed=3, **MODEL)
     with pytest.raises(EstimationError, match=r"receiver A: the echo stands out of the noise in \d+ % .* < 25 %"):
         estimate_receiver(echo, "A")
+
+
+# ------------------------------------------------- below the SoWVD's threshold: which rate is kept
+# chain.estimate_records with its rate search and its focus checks replaced (chain.sowvd,
+# chain._confirmed), over 2048 pulses at 80 Hz: a focus step 4 / T_a^2 = 0.0061 Hz/s.
+
+SOWVD_K = 5.0
+
+
+def weak_loop(monkeypatch, trace_rates, outcomes):
+    """(chain.estimate_records' estimate, or its EstimationError; the candidate rates it had
+    checked, in order: None for the rate search's best, SOWVD_K) with the SoWVD below its
+    threshold and ``trace_rates`` the followed traces' rates. ``outcomes`` {candidate: (the
+    confirmed K after the focus's refinement, its image peak dB), or None: not confirmed}."""
+    from types import SimpleNamespace
+
+    from clsas.estimate.moving import chain
+    from clsas.estimate.moving.records import Records
+    from clsas.estimate.moving.sowvd import RateSearch
+
+    n, prf = 2048, 80.0
+    rec = Records(x=np.zeros((n, 8), np.complex64), eta=np.arange(n) / prf, t0=0.0, fs=40e3, f0=150e3,
+                  bandwidth=20e3, name="A")
+    search = RateSearch(fm_rate=SOWVD_K, candidates=np.array([[SOWVD_K, 18.0]]), score_db=18.0, margin_db=1.0,
+                        p0=(P0,), trace_rates=tuple(trace_rates))
+    monkeypatch.setattr(chain, "sowvd", lambda rec, p0, threshold_db: search)
+    checked = []
+
+    def confirmed(rec, search, k, source, focus_db):
+        checked.append(k)
+        if outcomes[k] is None:
+            raise chain._Unconfirmed(f"candidate {k} not confirmed", [search.fm_rate if k is None else k])
+        fm_rate, peak_db = outcomes[k]
+        return chain.ReceiverEstimate(fm_rate=fm_rate, doppler_centroid=0.0, receiver="A", tau_c=0.0, eta_c=0.0,
+                                      peak_to_background=1.0, p0=P0, aperture=n / prf,
+                                      extent=SimpleNamespace(peak_db=peak_db), fm_rate_source=source)
+
+    monkeypatch.setattr(chain, "_confirmed", confirmed)
+    try:
+        return chain.estimate_records(rec), checked
+    except EstimationError as err:
+        return err, checked
+
+
+def test_a_confirmed_candidate_a_trace_agrees_with_is_kept(monkeypatch):
+    """The SoWVD's best candidate confirmed (refined to 5.01 Hz/s), a trace's rate 4 % away:
+    they agree (chain.TRACE_AGREES), the trace's rate is not checked, nothing is flagged."""
+    est, checked = weak_loop(monkeypatch, [5.2], {None: (5.01, 30.0)})
+    assert checked == [None]
+    assert (est.fm_rate, est.fm_rate_source, est.fm_rate_rivals, est.rate_problem) == (5.01, "focus", (), "")
+
+
+@pytest.mark.parametrize("brighter", ["focus", "trace"])
+def test_two_confirmed_rates_that_disagree_are_flagged(monkeypatch, brighter):
+    """Review R2: the SoWVD's candidate confirmed at 5.0 Hz/s, the trace's 8.0 confirmed at 7.9
+    (58 % and ~480 focus steps apart: two objects). The brighter focus is kept, the other named
+    in fm_rate_rivals and in rate_problem (:func:`clsas.estimate.moving.consistency.check` then
+    lists it and halves the confidence: test_moving_confidence.py)."""
+    peaks = {"focus": 30.0, "trace": 25.0} if brighter == "focus" else {"focus": 25.0, "trace": 30.0}
+    est, checked = weak_loop(monkeypatch, [8.0], {None: (5.0, peaks["focus"]), 8.0: (7.9, peaks["trace"])})
+    assert checked == [None, 8.0]
+    kept, other = ((5.0, "focus"), (7.9, "trace")) if brighter == "focus" else ((7.9, "trace"), (5.0, "focus"))
+    assert (est.fm_rate, est.fm_rate_source) == kept
+    assert est.fm_rate_rivals == (other + (25.0,),)
+    assert f"K = {kept[0]:.4g} Hz/s ({kept[1]}, kept" in est.rate_problem
+    assert f"K = {other[0]:.4g} Hz/s ({other[1]}, image peak 25.0 dB)" in est.rate_problem
+
+
+def test_two_confirmed_rates_that_agree_are_one_object(monkeypatch):
+    """The trace's 8.0 Hz/s refined by the focus onto the SoWVD's candidate (5.05 against 5.0,
+    1 %): one object, the first kept, no flag."""
+    est, checked = weak_loop(monkeypatch, [8.0], {None: (5.0, 30.0), 8.0: (5.05, 31.0)})
+    assert checked == [None, 8.0]
+    assert (est.fm_rate, est.fm_rate_source, est.fm_rate_rivals) == (5.0, "focus", ())
+
+
+def test_a_disagreeing_trace_rate_that_is_not_confirmed_leaves_the_candidate(monkeypatch):
+    est, checked = weak_loop(monkeypatch, [8.0], {None: (5.0, 30.0), 8.0: None})
+    assert checked == [None, 8.0]
+    assert (est.fm_rate, est.fm_rate_source, est.fm_rate_rivals) == (5.0, "focus", ())
+
+
+def test_an_unconfirmed_candidate_passes_to_the_next_trace_rate(monkeypatch):
+    """The SoWVD's candidate and the first trace rate are not confirmed; the second trace rate,
+    0.005 Hz/s from the first (under 3 focus steps), would end where it did and is skipped; the
+    third is confirmed (refined to 0.49) and kept, from the trace, unflagged."""
+    est, checked = weak_loop(monkeypatch, [0.33, 0.335, 0.5], {None: None, 0.33: None, 0.5: (0.49, 28.0)})
+    assert checked == [None, 0.33, 0.5]
+    assert (est.fm_rate, est.fm_rate_source, est.fm_rate_rivals) == (0.49, "trace", ())
+
+
+def test_a_trace_rate_that_equals_a_failed_candidate_is_not_checked_again(monkeypatch):
+    """Review style 5: the focus step is the record's (4 / T_a^2), known before any candidate is
+    focused; it was carried from the first focus, so a trace rate equal to a candidate that
+    failed before its focus was checked again. The refusal names each candidate checked, once."""
+    err, checked = weak_loop(monkeypatch, [SOWVD_K, 0.4], {None: None, 0.4: None})
+    assert checked == [None, 0.4]
+    assert isinstance(err, EstimationError)
+    assert str(err) == ("receiver A: no SoWVD peak stands out of the background: peak-to-background 18.0 dB < "
+                        "threshold 26.0 dB, and candidate None not confirmed; and candidate 0.4 not confirmed")
 
 
 def test_sowvd_peak_to_background_test(case1):
@@ -311,7 +412,7 @@ def test_table1_full_aperture_at_the_papers_prf():
     and on the hyperbolic range history K(eta) falls ~1 % by the aperture's ends (the paper:
     4.834 and 4.803 against 4.879 and 4.863); f_dc within 0.05 Hz; ~40 s and 1.3 GB a receiver.
     tau_c within 0.003 of a sample, eta_c K within 0.03 Hz: the extent is measured in the
-    sharpened image (chain.locate). With the quadratic focus alone B's image was smeared in
+    sharpened image (located.locate). With the quadratic focus alone B's image was smeared in
     range to one side by the delay's cubic term (the trace -1.2 / +7.8 samples at the ends):
     tau_c 3.26 samples off, eta_c K 1.3 Hz."""
     sc = scene((0.0, -4.0, 0.0), 6400, 80.0)

@@ -20,6 +20,7 @@ from clsas.errors import EstimationError
 from clsas.estimate.moving import chain, closed_forms, layout_of, motion_from_receivers
 from clsas.estimate.moving.sowvd import modified_sowvd, rfrt
 from clsas.estimate.moving import trace
+from clsas.estimate.moving.records import UPSAMPLE
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets
 
@@ -71,7 +72,7 @@ def test_one_sowvd_map_locks_on_a_cross_term_the_rate_search_does_not(axis_point
     truth = closed_forms(sc, CENTRE, v)
     for name in "ABC":
         rec = chain.records(echo, name)
-        line = rfrt(rec.x, trace.support(rec.x, chain.UPSAMPLE))
+        line = rfrt(rec.x, trace.support(rec.x, UPSAMPLE))
         single = modified_sowvd(line, rec.prf, chain.P0)
         assert abs(single.fm_rate - truth[name].fm_rate) > 5.0, name  # a cross-term, far off
         search = chain.sowvd(rec, chain.P0)
@@ -151,6 +152,29 @@ def test_inconsistent_closed_forms_lower_the_confidence():
     assert bad.consistency.outliers[0] == "C" and "receiver C" in bad.problems[0]
 
 
+def test_a_receiver_that_focused_two_objects_is_named_and_the_confidence_halves():
+    """Review R2 through the consistency check: the true per-receiver values of case 1, then C
+    as a chain estimate whose focus also confirmed a rate 30 % off (chain.ReceiverEstimate's
+    fm_rate_rivals, kept the brighter). C's kept K agrees with the solution, so it is no
+    outlier (no re-pick), but the estimate names C and both rates, and its confidence is
+    halved (one of two equally confirmed objects)."""
+    sc = presets.kiang2022(n_pulses=512)
+    truth = closed_forms(sc, CENTRE, np.array(presets.KIANG_CASES[1]))
+    good = motion_from_receivers(layout_of(sc), truth, position=CENTRE)
+    c = truth["C"]
+    two = dict(truth)
+    two["C"] = chain.ReceiverEstimate(fm_rate=c.fm_rate, doppler_centroid=c.doppler_centroid, receiver="C",
+                                      tau_c=c.tau_c, eta_c=c.eta_c, peak_to_background=1.0, p0=chain.P0,
+                                      aperture=layout_of(sc).aperture, fm_rate_source="focus",
+                                      fm_rate_rivals=((1.3 * c.fm_rate, "trace", 24.0),))
+    flagged = motion_from_receivers(layout_of(sc), two, position=CENTRE)
+    np.testing.assert_allclose(flagged.velocity, good.velocity, rtol=1e-9)
+    assert flagged.consistency.outliers == () and flagged.consistency.rate_ambiguity == 2
+    assert flagged.confidence == pytest.approx(good.confidence / 2, rel=1e-9)
+    assert len(flagged.problems) == 1 and flagged.problems[0].startswith("receiver C: its record focuses sharply")
+    assert f"{1.3 * c.fm_rate:.4g} Hz/s (trace" in flagged.problems[0]
+
+
 def test_a_flagged_estimate_names_why_even_when_every_receiver_agrees():
     """The verifier's case (a random group, 8 m/s, v_z -0.7 m/s: error 0.03 %, confidence 0.27,
     ``problems == ()``): whenever the confidence is below 0.5 ``problems`` says why. Here the
@@ -220,6 +244,7 @@ def test_the_followed_traces_curvature_gives_the_rate_the_sowvd_misses(opencl_de
     assert search.trace_rates and abs(search.trace_rates[0] / truth.fm_rate - 1) < 0.3, search.trace_rates
     assert est.fm_rate == pytest.approx(truth.fm_rate, rel=0.005)
     assert est.doppler_centroid == pytest.approx(truth.doppler_centroid, abs=0.5)
+    assert est.fm_rate_source == "trace" and est.fm_rate_rivals == ()
 
 
 @pytest.mark.slow

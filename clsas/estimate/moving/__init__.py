@@ -9,7 +9,7 @@
 - :func:`estimate_receiver` / :func:`focus_receiver` (:mod:`.chain`): one receiver's chain
   (RFRT, modified SoWVD, RCMC, Radon, RWC, azimuth compression; sections III-IV), also step by
   step (``records.records``, ``sowvd``, :mod:`.centroid`'s ``rcmc`` and
-  ``doppler_centroid_radon``, :mod:`.azimuth`'s ``focus_bins``, ``locate``); :mod:`.extent`: where an extended target's centre lies in its focused image;
+  ``doppler_centroid_radon``, :mod:`.azimuth`'s ``focus_bins``, :mod:`.located`'s ``locate``); :mod:`.extent`: where an extended target's centre lies in its focused image;
 - :func:`delay_history` / :func:`higher_order_delay`: the exact delay of the model over the
   aperture, and its terms beyond the quadratic that the chain's focus leaves;
 - :mod:`.sharpen`: the residual phase of a focused target by image sharpness (what the velocity

@@ -15,16 +15,17 @@ target (eqs. 1-2, 21, the R'' of C; f_dc = f_dc,eq, K = K_a,eq):
    the echo stands out of the noise in too few pulses, or when no SoWVD peak stands out of the
    maps' background (:data:`THRESHOLD_DB`) and the record focused with the best candidate holds
    no target either, or holds something bright that this K does not focus (:data:`FOCUS_DB`,
-   :func:`sharpness`: the SoWVD, a fourth-order product of the record, loses to the noise
+   :func:`.located.sharpness`: the SoWVD, a fourth-order product of the record, loses to the noise
    well before the coherent focus does: tests/test_moving_noise.py has the scores), and the
    same holds for the rate the followed trace's curvature gives (:func:`.track.trace_rate`,
    the delay's second derivative K / f0: on a many-scatterer target at the paper's floor the
    SoWVD's best candidate can be noise while the trace still bends as the target's K; tried
-   after it, through the same checks),
+   after it, through the same checks; two confirmed rates that disagree are two objects, and the
+   receiver says so: :func:`_weak_rate`, :attr:`ReceiverEstimate.fm_rate_source`),
 3. RCMC (eq. 17, :mod:`.filters`), Radon transform of |s_rcmc| -> slope -> f_dc (:mod:`.radon`),
 4. range-walk compensation and azimuth compression (eqs. 18-20; :func:`.filters.compress`) of
-   the target's neighbourhood (:data:`EXTENT_WINDOW` around the Radon intercept, the trace's delay
-   at eta_ref; eq. 20: (R'_10 + R''_10) / c_s), sharpened (:func:`locate`: the residual phase
+   the target's neighbourhood (:data:`.located.EXTENT_WINDOW` around the Radon intercept, the trace's delay
+   at eta_ref; eq. 20: (R'_10 + R''_10) / c_s), sharpened (:func:`.located.locate`: the residual phase
    and range migration the quadratic focus leaves over long apertures), and the target's extent
    in that image (:mod:`.extent`): tau_c and eta_c are the middle of the extent, where the
    target's centre focuses (for a point target its peak: eta_c = eta_ref - (f_dc,true - f_dc) / K, ~eta_ref; on a
@@ -49,7 +50,7 @@ window, and sink below the sidelobes once F_r exceeds B by a quarter. The chain 
 unweighted matched filter (its range resolution feeds tau_c). With intra-pulse Doppler the echo's band is
 shifted by -f_dc and, at F_r = B, its far edge wraps round: that copy carries a slow-time Doppler
 f_dc F_r / f0 away from the target's, so it focuses seconds away in eta as well, and
-:func:`locate` zeroes that band first (:func:`.records.wrapped_band`).
+:func:`.located.locate` zeroes that band first (:func:`.records.wrapped_band`).
 
 Several targets (section VII-B): :func:`.targets.estimate_receivers` takes the strongest SoWVD peak,
 focuses it, windows its image, undoes the chain on the window (inverse azimuth compression,
@@ -69,14 +70,12 @@ import numpy as np
 from ... import validate
 from ...model import EchoData
 from ...errors import EstimationError
-from ...kernelmath import unit_phasor
-from .azimuth import compress, focus_bins, sharpened_bins, sharpened_window
 from .centroid import bent, doppler_centroid_radon, doppler_centroid_walking, doppler_centroid_whitened, rcmc
 from .doppler import Doppler
-from .extent import Extent, extent, peak_db
-from .records import UPSAMPLE, Records, records, without_wrapped_band
-from .sharpen import aperture_time, fm_rate_correction
-from .gated import MIN_COVERAGE, THRESHOLD_DB, sowvd  # noqa: F401 (re-exported: the chain's step 2)
+from .extent import Extent
+from .located import EXTENT_WINDOW, MIN_TIME_BANDWIDTH, SHARP_STEPS, focused_rate, locate, sharpness
+from .records import Records, records
+from .gated import THRESHOLD_DB, sowvd
 from .sowvd import RateSearch
 
 log = logging.getLogger("clsas")
@@ -91,22 +90,20 @@ P0 = 0.1
 #: the paper's floor stands well over it (tests/test_moving_noise.py).
 FOCUS_DB = 20.0
 #: A candidate confirmed by the focus (:data:`FOCUS_DB`) must also be sharp: its image's peak
-#: this far above the record's focused :data:`SHARP_STEPS` focus steps off in K (:func:`sharpness`), dB.
+#: this far above the record's focused :data:`SHARP_STEPS` focus steps off in K (:func:`.located.sharpness`), dB.
 SHARP_DB = 3.0
-#: Focus steps (4 / T_a^2 each) off the candidate K at which :func:`sharpness` refocuses.
-SHARP_STEPS = 3.0
-#: Passes of :func:`focused_rate` at most below the SoWVD's threshold (each from the last one's rate).
+#: Passes of :func:`.located.focused_rate` at most below the SoWVD's threshold (each from the last one's rate).
 FOCUS_PASSES = 3
-#: Below the SoWVD's threshold, a confirmed K within this fraction (or :data:`SHARP_STEPS` focus
+#: Below the SoWVD's threshold, a confirmed K within this fraction (or :data:`.located.SHARP_STEPS` focus
 #: steps) of a followed trace's curvature rate (:func:`.track.trace_rate`, within a few % of the
-#: target's) agrees with it; else that rate is tried too and the brighter focus kept.
+#: target's) agrees with it; else that rate is tried too, and two confirmed Ks further apart than
+#: this are two objects (:func:`estimate_records`: the brighter kept, the receiver flagged).
 TRACE_AGREES = 0.1
-#: An azimuth chirp with time-bandwidth product |K| T_a^2 below this has nothing to compress
-#: (the target keeps its range to the receiver: Table II case 7 at A and B).
-MIN_TIME_BANDWIDTH = 4.0
-#: Half-width of the focused window searched for the target's extent, s of two-way delay
-#: (+-12 m of range at 1500 m/s: the scaled Albacore is 10.35 m long).
-EXTENT_WINDOW = 0.016
+#: Where a receiver's K_a,eq came from (:attr:`ReceiverEstimate.fm_rate_source`): the rate search's
+#: (its peak over the threshold, or a candidate :func:`.motion.estimate` re-picked); below the
+#: threshold, its best candidate confirmed (and refined) by the focus; a followed trace's curvature
+#: rate confirmed (and refined) by the focus.
+FM_RATE_SOURCES = ("sowvd", "focus", "trace")
 
 
 @dataclass(frozen=True)
@@ -126,7 +123,10 @@ class ReceiverEstimate(Doppler):
     fm_rate_candidates : ((K Hz/s, score dB), ...) the rate search's candidates, the one used
     first; slope_limited : the Radon slope sits at the edge of its search (no straight trace
     after RCMC: K is wrong or there is no target). search : the :class:`.sowvd.RateSearch`
-    without its map (to refine another candidate), or None.
+    without its map (to refine another candidate), or None. fm_rate_source : where fm_rate came
+    from, one of :data:`FM_RATE_SOURCES`. fm_rate_rivals : ((K Hz/s, source, image peak dB over
+    its median), ...) other rates that the focus also confirmed and that disagree with fm_rate
+    (:func:`estimate_records`; then :attr:`rate_problem` says so), () when none did.
     """
 
     receiver: str
@@ -140,10 +140,25 @@ class ReceiverEstimate(Doppler):
     fm_rate_candidates: tuple = ()
     slope_limited: bool = False
     search: RateSearch | None = dataclasses.field(default=None, repr=False, compare=False)
+    fm_rate_source: str = "sowvd"
+    fm_rate_rivals: tuple = ()
+
+    @property
+    def rate_problem(self) -> str:
+        """"" unless the focus confirmed another rate that disagrees with fm_rate
+        (:attr:`fm_rate_rivals`); then a sentence naming both rates (:func:`.consistency.check`
+        lists it under the receiver's name and lowers the confidence)."""
+        if not self.fm_rate_rivals:
+            return ""
+        peak = f", image peak {self.extent.peak_db:.1f} dB" if self.extent is not None else ""
+        others = "; ".join(f"K = {k:.4g} Hz/s ({source}, image peak {db:.1f} dB)" for k, source, db in self.fm_rate_rivals)
+        return (f"its record focuses sharply at K = {self.fm_rate:.4g} Hz/s ({self.fm_rate_source}, kept{peak}) "
+                f"and at {others}, more than {100 * TRACE_AGREES:g} % apart: they focus different objects, and the "
+                f"brighter one kept may not be the target the other receivers see")
 
     @property
     def focusable(self) -> bool:
-        """False when |K| T_a^2 < :data:`MIN_TIME_BANDWIDTH`: the azimuth chirp has no
+        """False when |K| T_a^2 < :data:`.located.MIN_TIME_BANDWIDTH`: the azimuth chirp has no
         bandwidth to compress (the target moves with the receiver)."""
         return abs(self.fm_rate) * self.aperture**2 >= MIN_TIME_BANDWIDTH
 
@@ -180,77 +195,117 @@ def estimate_records(rec: Records, p0: float = P0, threshold_db: float = THRESHO
     ratio_db = search.score_db
     if ratio_db >= threshold_db:
         return with_rate(rec, search)
-    if focus_db is None:
-        raise EstimationError(f"receiver {rec.name}: no SoWVD peak stands out of the background: peak-to-background "
-                              f"{ratio_db:.1f} dB < threshold {threshold_db:.1f} dB")
-    # below the threshold: the best candidate, when the record focused with it holds a target, and
-    # else the rates the followed traces' curvatures read (:func:`.track.trace_rate`: where the
-    # SoWVD of a many-scatterer target at the noise floor peaks on noise, the trace still bends as
-    # the target's K), each through the same checks
     weak = (f"receiver {rec.name}: no SoWVD peak stands out of the background: peak-to-background "
             f"{ratio_db:.1f} dB < threshold {threshold_db:.1f} dB")
-    step = None
+    if focus_db is None:
+        raise EstimationError(weak)
+    est = _weak_rate(rec, search, focus_db, weak)
+    log.info("receiver %s: SoWVD score %.1f dB below the threshold %.1f dB; K = %.5g Hz/s (%s) confirmed by the focus "
+             "(image peak %.1f dB over its median)", rec.name, ratio_db, threshold_db, est.fm_rate, est.fm_rate_source,
+             est.extent.peak_db)
+    return est
+
+
+def focus_step(rec: Records) -> float:
+    """``rec``'s focus step 4 / T_a^2, Hz/s (T_a its aperture, as :attr:`ReceiverEstimate.aperture`):
+    the rate error that leaves one cycle of quadratic phase at the aperture's ends (:func:`.located.sharpness`)."""
+    return 4.0 / _aperture(rec) ** 2
+
+
+def _aperture(rec: Records) -> float:
+    """``rec``'s slow-time span T_a, s: its pulses' span and one pulse interval."""
+    return float(np.ptp(rec.eta) + 1.0 / rec.prf)
+
+
+def _agree(k: float, other: float, step: float) -> bool:
+    """Whether the rate ``other`` lies within :data:`TRACE_AGREES` of ``k`` (Hz/s), or within
+    :data:`.located.SHARP_STEPS` focus steps ``step`` of it."""
+    return abs(other - k) <= max(TRACE_AGREES * abs(k), SHARP_STEPS * step)
+
+
+#: How :func:`_confirmed`'s messages name a candidate of each :data:`FM_RATE_SOURCES` below the threshold.
+_NAMED = {"focus": "its best candidate", "trace": "the followed trace's curvature"}
+
+
+def _weak_rate(rec: Records, search: RateSearch, focus_db: float, weak: str) -> ReceiverEstimate:
+    """Below the SoWVD's threshold (``weak`` says so): the estimate with the rate search's best
+    candidate when the record focused with it holds a target it focuses sharply
+    (:func:`_confirmed`), else with the first rate a followed trace's curvature reads
+    (:func:`.track.trace_rate`: where the SoWVD of a many-scatterer target at the noise floor
+    peaks on noise, the trace still bends as the target's K) that passes the same checks;
+    EstimationError naming every candidate and why when none does.
+
+    A confirmed best candidate that no trace rate agrees with (:func:`_agree`) may be something
+    else's (a cross-term's), so the trace rates are then tried too, and two confirmed rates can
+    disagree. They cannot both be the target's: a confirmed K focuses its object sharply, its
+    peak at least :data:`SHARP_DB` above the same window compressed :data:`.located.SHARP_STEPS` focus steps
+    4 / T_a^2 either side, so one object's focus falls off within a few steps of its K, and two
+    rates more than :data:`TRACE_AGREES` apart (and more than SHARP_STEPS steps: 10 % of a K of
+    5 Hz/s over 25.6 s is ~80 steps) focus two objects (two targets, clutter, or a trace that
+    followed another object). The record alone does not say which one the other receivers see:
+    the brighter focus is kept (the chain's strongest target), the other named in
+    :attr:`ReceiverEstimate.fm_rate_rivals`, and the receiver flagged
+    (:attr:`ReceiverEstimate.rate_problem`, a WARNING; :func:`.consistency.check` lists it and
+    halves the confidence: one of two equally confirmed objects). Two confirmed rates that
+    agree are one object's: the first is kept."""
+    step = focus_step(rec)
     failures, tried, confirmed = [], [], []
-    for k, what in [(None, "its best candidate")] + [(r, "the followed trace's curvature") for r in search.trace_rates]:
-        if k is not None and step is not None and any(abs(k - t) <= SHARP_STEPS * step for t in tried):
-            continue  # focus_rate from there would end where that one did
+    for k, source in [(None, "focus")] + [(r, "trace") for r in search.trace_rates]:
+        if k is not None and any(abs(k - t) <= SHARP_STEPS * step for t in tried):
+            continue  # focused_rate from there would end where that one did
         try:
-            est, margin = _confirmed(rec, search, k, what, focus_db)
+            est = _confirmed(rec, search, k, source, focus_db)
         except _Unconfirmed as err:
             failures.append(str(err))
             tried.extend(err.rates)
-            step = err.step if step is None else step
             continue
-        confirmed.append((est, margin, what))
-        step = 4.0 / est.aperture**2
+        confirmed.append(est)
         tried.extend([est.fm_rate] + ([] if k is None else [k]))
-        # a confirmed K that one of the traces' agrees with is kept; else the traces' rates are tried
-        # too (a cross-term's K that focuses something sharply) and the brightest focus kept
-        if any(abs(r - est.fm_rate) <= max(TRACE_AGREES * abs(est.fm_rate), SHARP_STEPS * step)
-               for r in search.trace_rates) or k is not None:
+        # a trace's own rate, or a candidate a trace's curvature agrees with, ends the search
+        if k is not None or any(_agree(est.fm_rate, r, step) for r in search.trace_rates):
             break
     if not confirmed:
         raise EstimationError(f"{weak}, and " + "; and ".join(failures))
-    est, margin, what = max(confirmed, key=lambda c: c[0].extent.peak_db)
-    if failures or len(confirmed) > 1:
-        log.info("receiver %s: %s; %s K = %.5g Hz/s kept (of %s Hz/s confirmed)", rec.name, "; ".join(failures) or "-",
-                 what, est.fm_rate, ", ".join(f"{c[0].fm_rate:.5g}" for c in confirmed))
-    log.info("receiver %s: SoWVD score %.1f dB below the threshold %.1f dB; K = %.5g Hz/s confirmed by the focus "
-             "(image peak %.1f dB over its median, %.1f dB over the record focused %g focus steps off)", rec.name,
-             ratio_db, threshold_db, est.fm_rate, est.extent.peak_db, margin, SHARP_STEPS)
+    if failures:
+        log.info("receiver %s: %s", rec.name, "; ".join(failures))
+    est = confirmed[0]
+    if len(confirmed) > 1 and not _agree(est.fm_rate, confirmed[1].fm_rate, step):
+        est, other = sorted(confirmed, key=lambda c: -c.extent.peak_db)
+        est = dataclasses.replace(est, fm_rate_rivals=((other.fm_rate, other.fm_rate_source, other.extent.peak_db),))
+        log.warning("receiver %s: %s", rec.name, est.rate_problem)
     return est
 
 
 class _Unconfirmed(Exception):
-    """A weak candidate rate that its focus does not confirm (:func:`_confirmed`): the message,
-    the rates tried (Hz/s), the focus step 4 / T_a^2 (Hz/s; None when the record was not focused)."""
+    """A weak candidate rate that its focus does not confirm (:func:`_confirmed`): the message and
+    the rates tried (Hz/s)."""
 
-    def __init__(self, message: str, rates: list, step: float | None):
+    def __init__(self, message: str, rates: list):
         super().__init__(message)
-        self.rates, self.step = rates, step
+        self.rates = rates
 
 
-def _confirmed(rec: Records, search: RateSearch, k: float | None, what: str,
-               focus_db: float) -> tuple[ReceiverEstimate, float]:
-    """(the estimate with the candidate rate ``k`` (Hz/s; None: the rate search's own) refined by
-    the focus, its sharpness margin dB) when the record focused with it holds a target
-    (:data:`FOCUS_DB`) that it focuses sharply (:data:`SHARP_DB`); else :class:`_Unconfirmed`
-    saying why, ``what`` naming the candidate."""
+def _confirmed(rec: Records, search: RateSearch, k: float | None, source: str, focus_db: float) -> ReceiverEstimate:
+    """The estimate with the candidate rate ``k`` (Hz/s; None: the rate search's own) refined by
+    the focus, its :attr:`~ReceiverEstimate.fm_rate_source` ``source`` ("focus" or "trace"), when
+    the record focused with it holds a target (:data:`FOCUS_DB`) that it focuses sharply
+    (:data:`SHARP_DB`); else :class:`_Unconfirmed` saying why."""
+    what = _NAMED[source]
     k0 = search.fm_rate if k is None else float(k)
     tried = [k0]
     try:
         est = with_rate(rec, search) if k is None else with_rate(rec, search, k0, refine=False)
     except EstimationError as err:
-        raise _Unconfirmed(f"{what} K = {k0:.4g} Hz/s fails: {err}", tried, None) from None
+        raise _Unconfirmed(f"{what} K = {k0:.4g} Hz/s fails: {err}", tried) from None
     if est.extent is None:
         raise _Unconfirmed(f"{what} K = {k0:.4g} Hz/s does not focus (|K| T_a^2 < {MIN_TIME_BANDWIDTH}) to "
-                           f"confirm it", tried, None)
-    step = 4.0 / est.aperture**2
+                           f"confirm it", tried)
+    step = focus_step(rec)
     if not est.extent.peak_db >= focus_db:
         raise _Unconfirmed(f"focused with {what} K = {k0:.4g} Hz/s the record holds no target: image peak "
-                           f"{est.extent.peak_db:.1f} dB over its median < {focus_db:g} dB", tried, step)
+                           f"{est.extent.peak_db:.1f} dB over its median < {focus_db:g} dB", tried)
     # the SoWVD's rate near its floor is a few focus steps off (its bin is ~16 of them over 25.6 s):
-    # the rate the focus itself is sharpest at (:func:`focused_rate`) replaces it when they differ
+    # the rate the focus itself is sharpest at (:func:`.located.focused_rate`) replaces it when they differ
     # from a rate several steps off, the sharpening's search (+-3 % of K, with the cubic and quartic
     # terms) may settle beside the target's own terms and its rate correction point the wrong way;
     # from the rate it gives, it finds them (Table II case 6 at B, -17 dB: the SoWVD's 7.725 Hz/s ->
@@ -266,58 +321,23 @@ def _confirmed(rec: Records, search: RateSearch, k: float | None, what: str,
         try:
             est = with_rate(rec, search, k, refine=False)
         except EstimationError as err:
-            raise _Unconfirmed(f"{what}'s focused K = {k:.4g} Hz/s fails: {err}", tried, step) from None
+            raise _Unconfirmed(f"{what}'s focused K = {k:.4g} Hz/s fails: {err}", tried) from None
     at, detuned = sharpness(rec, est)
     if not at - max(detuned) >= SHARP_DB:
         raise _Unconfirmed(f"focused with {what} K = {est.fm_rate:.4g} Hz/s the record's peak ({at:.1f} dB over "
                            f"its median) is not sharper there than at K -+ {SHARP_STEPS:g} focus steps "
                            f"({detuned[0]:.1f}, {detuned[1]:.1f} dB): something bright, not a target focused by "
-                           f"that K", tried, step)
-    return est, at - max(detuned)
-
-
-def focused_rate(rec: Records, est: ReceiverEstimate) -> float:
-    """The azimuth FM rate (Hz/s) at which ``rec``'s window about est's target focuses sharpest:
-    est's K plus the rate correction of the sharpening's quadratic (:func:`.azimuth.sharpened_window`; its
-    Legendre P2 part p2 + 6/7 p4 cycles at the aperture's ends, :func:`.sharpen.fm_rate_correction`),
-    which :mod:`.sharpen` searches over +-3 % of K with the cubic and quartic terms beside it."""
-    rec, bins = _window(rec, est)
-    _, _, (p2, _, p4), _ = sharpened_window(rec, est.fm_rate, est.doppler_centroid, bins)
-    return est.fm_rate + fm_rate_correction(rec.eta, p2 + 6.0 / 7.0 * p4)
-
-
-def sharpness(rec: Records, est: ReceiverEstimate) -> tuple[float, tuple[float, float]]:
-    """(peak over median of ``rec`` focused with est's K and f_dc, dB; the same window compressed
-    with K -+ :data:`SHARP_STEPS` focus steps 4 / T_a^2). A focus step is the rate error that
-    leaves one cycle of quadratic phase at the aperture's ends (pi dK (T_a / 2)^2 = pi): a
-    focused target's peak falls well below its own three steps away, while a bright feature
-    that the rate does not focus (clutter, a stationary highlight, the noise's largest value)
-    stays as bright (review M6: the image's peak over its median alone confirms brightness,
-    not focus).
-
-    The window is the sharpened one (:func:`.azimuth.sharpened_window`) with the sharpening's own rate
-    correction taken out again: on the Legendre basis of :mod:`.sharpen` its P3 and P4 parts
-    (the delay's cubic and quartic terms) stay removed, its P2 part is undone, so the check is of
-    est's K (which, like the SoWVD's, is the aperture's average rate), and only the compression
-    rate is detuned. With the quadratic focus alone the check could not tell focus over long
-    apertures: the cubic and quartic terms blur a point more than three focus steps do, and a
-    right K read as "not sharp" (tests/test_moving_noise.py::test_sharpness_holds_the_higher_order_terms
-    has the figures)."""
-    rec, bins = _window(rec, est)
-    _, _, (p2, _, p4), win = sharpened_window(rec, est.fm_rate, est.doppler_centroid, bins)
-    # the sharpening's own rate correction (its Legendre P2 part, p2 + 6/7 p4 in u^2) put back:
-    # the check is of est's K, not of the rate the sharpening would have chosen
-    win = win * unit_phasor(-2 * np.pi * (p2 + 6.0 / 7.0 * p4) * aperture_time(rec.eta, rec.eta_ref) ** 2)[:, None]
-    step = SHARP_STEPS * 4.0 / est.aperture**2
-    at, below, above = (peak_db(compress(rec, win, est.fm_rate + s)[0]) for s in (0.0, -step, step))
-    return at, (below, above)
+                           f"that K", tried)
+    log.info("receiver %s: %s K = %.5g Hz/s focuses a target: image peak %.1f dB over its median, %.1f dB over the "
+             "record focused %g focus steps off", rec.name, what, est.fm_rate, at, at - max(detuned), SHARP_STEPS)
+    return dataclasses.replace(est, fm_rate_source=source)
 
 
 def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None, refine: bool = True) -> ReceiverEstimate:
     """Steps 3-5 on ``rec`` with the azimuth FM rate ``fm_rate`` (Hz/s): the rate search's own
     (default), or another of its candidates (:func:`.motion.estimate` re-picks a receiver whose
     rate disagrees with the others'), refined (:meth:`.sowvd.RateSearch.refine`) unless
-    ``refine`` is False (a rate found by the focus, :func:`focused_rate`, is finer than the
+    ``refine`` is False (a rate found by the focus, :func:`.located.focused_rate`, is finer than the
     SoWVD's bin). The candidates are kept, the one used first."""
     k = search.fm_rate if fm_rate is None else search.refine(fm_rate) if refine else float(fm_rate)
     candidates = tuple(tuple(map(float, c)) for c in search.candidates)
@@ -333,7 +353,7 @@ def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None, re
         # walker at -17 dB, Table II case 6 at A: -83 Hz where the trace's tangent reads 512 Hz)
         slope, sample = search.trace_line
         tangent = (slope * rec.f0 * rec.prf / rec.fs, rec.t0 + sample / rec.fs, False)
-        # and a line whose focus window (:data:`EXTENT_WINDOW` about its delay at eta_ref) does not
+        # and a line whose focus window (:data:`.located.EXTENT_WINDOW` about its delay at eta_ref) does not
         # hold the followed trace there follows something else: over a long record the trace's
         # own far end (Table II case 6 at A, 6400 pulses, -17 dB: a Radon line of slope 0 at
         # 173 ms from the trace focused part of its end 1.9 dB above the tangent's focus, and
@@ -346,7 +366,7 @@ def with_rate(rec: Records, search: RateSearch, fm_rate: float | None = None, re
     for line in found:
         if all(abs(line[0] - kept[0]) * rec.fs / rec.f0 * float(np.ptp(rec.eta)) > 2.0 for kept in lines):
             lines.append(line)
-    aperture = float(np.ptp(rec.eta) + 1.0 / rec.prf)
+    aperture = _aperture(rec)
     if candidates:
         used = int(np.argmin([abs(c[0] - k) for c in candidates]))
         candidates = (candidates[used],) + tuple(candidates[:used]) + tuple(candidates[used + 1:])
@@ -399,56 +419,3 @@ def estimate_receiver(echo: EchoData, receiver: str, *, p0: float = P0,
         the figures.
     """
     return estimate_records(records(echo, receiver), p0, threshold_db, focus_db)
-
-
-def locate(rec: Records, est: ReceiverEstimate, higher_order: np.ndarray | None = None,
-           reference: Doppler | None = None, sharpen: bool = False) -> ReceiverEstimate:
-    """``est`` with tau_c, eta_c and extent measured in the focused image of ``rec`` within
-    :data:`EXTENT_WINDOW` of est.tau_c (:mod:`.extent`): focused with est's K_a,eq and f_dc,eq, and
-    with ``higher_order`` (n_pulses,) s, the delay's terms beyond the quadratic, when given
-    (:func:`.closedforms.higher_order_delay` of a first velocity estimate: they blur and skew
-    the image over long apertures), and with ``reference``'s K_a,eq and f_dc,eq instead of est's
-    when given (the model's Taylor coefficients that go with ``higher_order``: over 80 s the
-    SoWVD reads 4-7 % above them, its line's band spread by the higher-order terms
-    (:mod:`.sowvd`), and would count them twice). K_a,eq and f_dc,eq are kept; eta_c is where the target focuses with them,
-    f~ - K~ eta_c being its centroid.
-
-    ``sharpen``: the image is :func:`.azimuth.sharpened_bins`' (the residual phase and its range
-    migration found by sharpness and removed; both vanish at eta_ref, so the target stays at its
-    delay there). :func:`estimate_records` sharpens: its focus is quadratic only, and over long
-    apertures the delay's cubic and quartic terms, which the SoWVD's aperture-averaged K~ does
-    not hold, leave the focused target smeared in range to one side, which moves the middle of
-    its extent (over Table I's 80 s at receiver B: tau_c several samples and eta_c tenths of a
-    second off with the quadratic focus, not with the sharpened one). The refocus passes of
-    :func:`.motion.estimate` give the model's higher-order terms instead."""
-    if not est.focusable:
-        raise EstimationError(f"receiver {rec.name}: cannot locate a target that does not focus "
-                              f"(|K_a,eq| T_a^2 = {abs(est.fm_rate) * est.aperture**2:.3g} < {MIN_TIME_BANDWIDTH})")
-    ref = est if reference is None else reference
-    rec, bins = _window(rec, est, ref)
-    if sharpen:
-        image, eta_axis, _ = sharpened_bins(rec, ref.fm_rate, ref.doppler_centroid, bins, higher_order)
-    else:
-        image, eta_axis = focus_bins(rec, ref.fm_rate, ref.doppler_centroid, bins, higher_order)
-    tau_axis = rec.t0 + np.arange(bins.start, bins.stop) / rec.fs
-    ext = extent(image, eta_axis, tau_axis, 1.0 / (abs(ref.fm_rate) * est.aperture), 1.0 / rec.bandwidth)
-    # the centre's centroid f_ref - K_ref (eta_mid - eta_ref), as the eta_c of est's f~ and K~
-    eta_c = rec.eta_ref + (est.doppler_centroid - ref.doppler_centroid
-                           + ref.fm_rate * (ext.eta_mid - rec.eta_ref)) / est.fm_rate
-    return dataclasses.replace(est, tau_c=ext.tau_mid, eta_c=eta_c, extent=ext)
-
-
-def _window(rec: Records, est: ReceiverEstimate, reference: Doppler | None = None) -> tuple[Records, slice]:
-    """(``rec`` without the band that wraps round at the reference's f_dc and K
-    (:func:`.records.without_wrapped_band`; ``reference`` defaults to ``est``), the range bins
-    within :data:`EXTENT_WINDOW` of est.tau_c); EstimationError when they lie outside the record."""
-    k0 = (est.tau_c - rec.t0) * rec.fs
-    half = EXTENT_WINDOW * rec.fs
-    n = rec.x.shape[1]
-    if not (np.isfinite(k0) and -half < k0 < n + half):
-        raise EstimationError(f"receiver {rec.name}: the target's trace lies outside the record (tau_c = "
-                              f"{est.tau_c:.6g} s; K_a,eq = {est.fm_rate:.4g} Hz/s may be wrong)")
-    lo = int(np.clip(np.floor(k0 - half), 0, n - 2))
-    bins = slice(lo, int(np.clip(np.ceil(k0 + half) + 1, lo + 2, n)))
-    ref = est if reference is None else reference
-    return without_wrapped_band(rec, ref.doppler_centroid, ref.fm_rate), bins

@@ -27,7 +27,12 @@ What follows from it (:func:`check`):
   min(1, p / :data:`P_FLOOR`), p the chi2 probability of so large a misfit: a consistent
   estimate (p above 1 %, which 99 % of correct ones reach) keeps its confidence, a clearly
   inconsistent one falls towards 0. The problems are listed by receiver and why
-  (:attr:`.motion.MotionEstimate.problems`).
+  (:attr:`.motion.MotionEstimate.problems`);
+- a receiver whose record the focus confirmed at two rates that disagree
+  (:attr:`.chain.ReceiverEstimate.rate_problem`: two objects, the brighter kept) is listed too,
+  and the confidence divided by the number of rates it confirmed (:attr:`Consistency.rate_ambiguity`:
+  one of two equally confirmed objects is the target's, as :func:`.velocity.confidence` divides by
+  the number of velocities that fit equally well).
 """
 
 from __future__ import annotations
@@ -81,7 +86,9 @@ class Consistency:
     chi2, dof : their sum of squares and its degrees of freedom (or the joint fit's); p_value :
     the chi2 probability of a misfit at least this large; outliers : names with |z| >
     :data:`OUTLIER_SIGMAS` or a Radon slope at its search's edge, worst first; problems :
-    {name: why} for each outlier.
+    {name: why} for each outlier and each receiver whose focus confirmed two rates;
+    rate_ambiguity : the product over the receivers of the number of rates each confirmed (1
+    when none confirmed more than one).
     """
 
     model_rates: dict
@@ -91,6 +98,7 @@ class Consistency:
     p_value: float
     outliers: tuple
     problems: dict
+    rate_ambiguity: int = 1
 
     @property
     def birge(self) -> float:
@@ -99,8 +107,8 @@ class Consistency:
 
     @property
     def factor(self) -> float:
-        """min(1, p / :data:`P_FLOOR`): what the confidence is multiplied by."""
-        return float(min(1.0, self.p_value / P_FLOOR))
+        """min(1, p / :data:`P_FLOOR`) / :attr:`rate_ambiguity`: what the confidence is multiplied by."""
+        return float(min(1.0, self.p_value / P_FLOOR)) / self.rate_ambiguity
 
 
 def check(layout: Layout, receivers: dict, position, velocity, fit_chi2: float | None = None,
@@ -109,13 +117,14 @@ def check(layout: Layout, receivers: dict, position, velocity, fit_chi2: float |
     slope_limited) with ``velocity`` at ``position``. ``fit_chi2``, ``fit_dof``: a joint fit's own
     misfit (position estimated, the rates in the fit), used in place of the rates' chi2."""
     eta = record_times(layout)
-    model, z, problems = {}, {}, {}
+    model, z, problems, ambiguity = {}, {}, {}, 1
     for name, rx in receivers.items():
         model[name] = aperture_fm_rate(layout, name, position, velocity, eta)
         z[name] = (float(rx.fm_rate) - model[name]) / rate_sigma(model[name], layout, _p0(rx))
     chi2 = float(sum(v * v for v in z.values())) if fit_chi2 is None else float(fit_chi2)
     dof = len(z) if fit_dof is None else int(fit_dof)
     p = float(chi2_distribution.sf(chi2, dof)) if dof > 0 else 1.0
+    outliers = []
     for name in sorted(z, key=lambda n: -abs(z[n])):
         rx = receivers[name]
         why = []
@@ -125,10 +134,16 @@ def check(layout: Layout, receivers: dict, position, velocity, fit_chi2: float |
                        "of several scatterers)")
         if getattr(rx, "slope_limited", False):
             why.append("its Radon slope ran to the edge of its search (no straight trace after RCMC)")
+        outlier = bool(why)
+        if getattr(rx, "rate_problem", ""):
+            why.append(rx.rate_problem)
+            ambiguity *= 1 + len(rx.fm_rate_rivals)
         if why:
             problems[name] = f"receiver {name}: " + "; ".join(why)
-    return Consistency(model_rates=model, z=z, chi2=chi2, dof=dof, p_value=p, outliers=tuple(problems),
-                       problems=problems)
+        if outlier:
+            outliers.append(name)
+    return Consistency(model_rates=model, z=z, chi2=chi2, dof=dof, p_value=p, outliers=tuple(outliers),
+                       problems=problems, rate_ambiguity=ambiguity)
 
 
 def predict_without(layout: Layout, receivers: dict, centroids: dict, centroid_sigmas: dict, exclude: str,

@@ -41,6 +41,7 @@ def _followed_search(rec: Records, p0: float, seed: int) -> RateSearch | None:
     bright = track.bright_gate(rec.x, UPSAMPLE, seed)
     if bright is None:
         return None
+    # nan when the trace was followed as a straight line only (:attr:`.track.FollowedTrace.curvature`)
     rate = track.trace_rate(bright.curvature, rec.f0, rec.prf, rec.fs)
     return dataclasses.replace(rate_search(rfrt(rec.x, bright.gate), rec.prf, p0),
                                trace_line=(bright.slope, bright.sample), trace_rates=(rate,) if math.isfinite(rate) else ())

@@ -51,7 +51,7 @@ higher-order terms (cubic and beyond: carrier cycles at the ends of Table II cas
 smear the image to one side, which moves the middle of its extent. So the solution is used
 :data:`REFOCUS_PASSES` times to predict those terms (:func:`.closedforms.higher_order_delay`, at
 the solved position and velocity: they change little with a velocity error of a few %), every
-focusable receiver is refocused with them and its extent measured again (:func:`.chain.locate`;
+focusable receiver is refocused with them and its extent measured again (:func:`.located.locate`;
 K~ and f~ stay the chain's), and the velocity solved again. The refocus compresses with the
 model's own Taylor K and f_dc at the solution, not the chain's K~ and f~: over long apertures
 the SoWVD's K~ is the aperture's average rate, above the Taylor K (the quartic term's share), and
@@ -74,12 +74,13 @@ from ... import validate
 from ...errors import EstimationError
 from ...model import EchoData
 from . import consistency
-from .chain import MIN_TIME_BANDWIDTH, estimate_records, locate, with_rate
+from .chain import estimate_records, with_rate
 from .records import UPSAMPLE, check_pulse_times, records
 from .closedforms import delay_terms, higher_order_delay
 from .doppler import Doppler
 from .extent import SMOOTH_CELLS
 from .layout import Layout, layout_of
+from .located import MIN_TIME_BANDWIDTH, locate
 from .mapping import along_track_speed
 from .velocity import centroid_sigma, confidence, solve_motion, solve_velocity
 

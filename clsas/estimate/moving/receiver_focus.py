@@ -9,7 +9,8 @@ from ... import validate
 from ...errors import EstimationError
 from ...model import EchoData, Image
 from .azimuth import focus_bins, sharpened_bins
-from .chain import MIN_TIME_BANDWIDTH, ReceiverEstimate
+from .chain import ReceiverEstimate
+from .located import MIN_TIME_BANDWIDTH
 from .records import UPSAMPLE, records, without_wrapped_band
 from .doppler import Doppler
 from .sharpen import fm_rate_correction

@@ -43,7 +43,7 @@ reads +7.4, +4.9, +6.7 % at A, B, C noise-free (+7.1, +4.2, +6.4 % at -15 dB; th
 trace's curvature there, :func:`.track.trace_rate`, -0.42, -0.49, -0.34 %: the P2 part to
 0.02 %). Over 25.6 s the band is +4 % to -5 % wide, a few bins, and the peak lies within ~1 %
 (the paper's own 4.834 against 4.879 Hz/s in case 1). The chain's focus passes
-(:func:`.chain.focused_rate`) and the refocus with the model's higher-order terms
+(:func:`.located.focused_rate`) and the refocus with the model's higher-order terms
 (:func:`.motion.estimate`'s refocus passes) correct the first rate.
 
 Cross-terms (not in the paper; derived here). A target of several scatterers gives an RFRT line
@@ -242,7 +242,8 @@ class RateSearch:
     samples a pulse, sample) at the middle pulse of the trace the RFRT's gate followed
     (:func:`.track.bright_gate`), or None when its gate was not a followed trace. trace_rates :
     (K Hz/s, ...) read from the curvature of the traces followed while searching
-    (:func:`.track.trace_rate`; :func:`.gated.sowvd` fills it), () when none was followed.
+    (:func:`.track.trace_rate`; :func:`.gated.sowvd` fills it), () when none was followed or
+    each was followed as a straight line only (no curvature).
     """
 
     fm_rate: float

@@ -171,9 +171,11 @@ def _extrapolation_sigma(x_fit: np.ndarray, spread: float, degree: int, x_new: n
     return float(np.sqrt(np.max(np.einsum("ij,jk,ik->i", at, cov, at))))
 
 
-def centre_line(power: np.ndarray, seed: int = SEED) -> np.ndarray | None:
-    """The trace's centre, samples (n_pulses,), in a whitened power map (steps 1-2 of the
-    module docstring; the first straight line over the middle ``seed`` pulses), or None when the
+def centre_line(power: np.ndarray, seed: int = SEED) -> tuple[np.ndarray, int] | None:
+    """(the trace's centre, samples (n_pulses,), in a whitened power map (steps 1-2 of the
+    module docstring; the first straight line over the middle ``seed`` pulses); the degree of the
+    polynomial it is: 1 when no block correlated with the profile beyond the first straight line or
+    a line's fit, 2 or :data:`GROWN_DEGREE` after a parabola's or a cubic's), or None when the
     record is too short for blocks."""
     n_pulses = power.shape[0]
     if n_pulses < 2 * BLOCK:
@@ -191,16 +193,16 @@ def centre_line(power: np.ndarray, seed: int = SEED) -> np.ndarray | None:
     # a parabola needs blocks to spare for its rejections: a short seed (:data:`SHORT_SEED`, three
     # blocks) takes a line, and over it the trace bends by a few samples
     degree = 2 if (length - BLOCK) // (BLOCK // 2) + 1 >= MIN_PARABOLA_BLOCKS else 1
-    lag_half, passes = HALF_WIDTH // 2, PASSES
+    lag_half, passes, fitted = HALF_WIDTH // 2, PASSES, 1
     while True:
         for _ in range(passes):
             fit = _refined(power, stretch, centre, lag_half, degree)
             if fit is None:
-                return centre
+                return centre, fitted
             coef, spread, x_fit = fit
-            centre = np.polyval(coef, x_all)
+            centre, fitted = np.polyval(coef, x_all), degree
         if length == n_pulses:
-            return centre
+            return centre, fitted
         # step 3: a longer stretch about the middle; where the line is extrapolated into it the
         # blocks search as far as it may be off there
         length = min(n_pulses, int(GROW * length))
@@ -237,9 +239,9 @@ def trace_rate(curvature: float, f0: float, prf: float, fs: float) -> float:
     line holds the trace to a sample or so
     (tests/test_moving_noise.py::test_the_followed_trace_holds_a_fast_walker): a sample of error
     at the ends is 8 f0 / (fs T_a^2) = 0.046 Hz/s, ~8 focus steps 4 / T_a^2, less than the
-    SoWVD's bin, and :func:`.chain.focused_rate` refines it. With the delay's higher-order terms
+    SoWVD's bin, and :func:`.located.focused_rate` refines it. With the delay's higher-order terms
     (:func:`.closedforms.higher_order_delay`) the least-squares parabola's coefficient is the
-    aperture's P2 part, the rate the focus reads (:func:`.chain.focused_rate`). In heavy noise
+    aperture's P2 part, the rate the focus reads (:func:`.located.focused_rate`). In heavy noise
     the followed line can follow something else and the rate be anything: it is a candidate,
     confirmed or refused by the focus like the SoWVD's (:func:`.chain.estimate_records`).
     The range-Doppler coupling of intra-pulse Doppler shifts the peak by f_dc(eta) / K_r, linear
@@ -254,13 +256,15 @@ class FollowedTrace:
     middle pulse and sample of its brightest cell there (its tangent: the delay's linear term
     f_dc / f0, chain module docstring); curvature (samples a pulse^2): twice the x^2 coefficient of
     the least-squares parabola through the centre line over every pulse (its Legendre P2 part: the
-    delay's second derivative K / f0 averaged as :func:`.chain.focused_rate` reads a rate;
-    :func:`.curvature.trace_rate` turns it into K_a,eq)."""
+    delay's second derivative K / f0 averaged as :func:`.located.focused_rate` reads a rate;
+    :func:`trace_rate` turns it into K_a,eq), nan when the centre line is a straight line
+    (:func:`centre_line`'s degree below 2: its parabola's coefficient would be rounding, ~1e-16,
+    not a curvature the trace was followed to)."""
 
     gate: np.ndarray
     slope: float
     sample: float
-    curvature: float = float("nan")
+    curvature: float
 
 
 def bright_gate(records: np.ndarray, upsample: int = 1, seed: int = SEED) -> FollowedTrace | None:
@@ -271,9 +275,10 @@ def bright_gate(records: np.ndarray, upsample: int = 1, seed: int = SEED) -> Fol
     power = _whitened(records)
     if power is None:
         return None
-    centre = centre_line(power, seed)
-    if centre is None:
+    line = centre_line(power, seed)
+    if line is None:
         return None
+    centre, degree = line
     window, idx, inside = _sheared(power, centre, HALF_WIDTH)
     counts = inside.sum(axis=0)
     profile = window.sum(axis=0) / np.maximum(counts, 1)
@@ -296,7 +301,8 @@ def bright_gate(records: np.ndarray, upsample: int = 1, seed: int = SEED) -> Fol
     # the brightest cell of the profile is where the trace is
     brightest = int(np.argmax(np.where(bright, excess, -np.inf))) - HALF_WIDTH
     u = (np.arange(centre.size) - middle) / max(middle, 1.0)  # in [-1, 1]: a well-conditioned fit
-    curvature = 2.0 * float(np.polyfit(u, centre, 2)[0]) / max(middle, 1.0) ** 2
+    # a straight centre line bends nowhere: its parabola's x^2 coefficient is rounding, no candidate rate
+    curvature = float("nan") if degree < 2 else 2.0 * float(np.polyfit(u, centre, 2)[0]) / max(middle, 1.0) ** 2
     return FollowedTrace(gate=gate, slope=slope,
                          sample=float(np.interp(middle, np.arange(centre.size), centre)) + brightest,
                          curvature=curvature)
