@@ -14,7 +14,10 @@ the device does not wait for the host between them), the per-(tile, pulse) refer
 time, for consecutive receivers of the same legs at once (one bp_refs launch; a group's references
 for every pulse of the call within ``REF_BYTES``, each kept until its last receiver's bp_tile
 launch: :func:`_groups`). Records prepared with :func:`.records.prepare` are held whole instead, and a
-:class:`.tiles.GridPlan` keeps the grid's tiling.
+:class:`.tiles.GridPlan` keeps the grid's tiling. A block of PULSE_BLOCK pulses whose records exceed
+``records.LAUNCH_RECORD_BYTES`` is summed over several bp_tile launches that carry its float sums
+(:func:`.records.launch_pulses`; the same image bit for bit), and records the FIR upsamples on the
+device are then upsampled a launch's pulses at a time: each launch reads records that fit in cache.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ import numpy as np
 from ... import opencl
 from ...progress import Progress
 from .exact_kernel import ExactKernel
-from .records import UPLOAD_BYTES, PreparedRecords
+from .records import UPLOAD_BYTES, PreparedRecords, launch_pulses
 from .tile_kernel import TileKernel
 from .tiles import GridPlan
 
@@ -63,6 +66,17 @@ class _Chunk:
         self.centres = made(tiling.centres[self.tiles])
         self.pixels = tile.fields(queue, positions=positions, index=self.index, tile_of=self.tile_of,
                                   centres=self.centres, n_slots=self.n)
+        self._carry = None
+        self._ctx = ctx
+
+    @property
+    def carry(self):
+        """bp_tile's CARRY buffer of the chunk's slots (float sums, 8 bytes a slot), made on first use."""
+        if self._carry is None:
+            import pyopencl as cl
+
+            self._carry = cl.Buffer(self._ctx, cl.mem_flags.READ_WRITE, 8 * self.n)
+        return self._carry
 
     def add_into(self, queue, image: np.ndarray, tiling) -> None:
         """Add the slots' sums into ``image`` (M,) complex128 at their pixels (after the chunk's
@@ -104,6 +118,12 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     params = tile.params(c, f0, fs)
     chunk = PIXEL_CHUNK // (tile.LANES * tile.rows) * (tile.LANES * tile.rows)
     upload = records.upload_pulses()
+    if (not double and not records.materialised and records.fir_on_device
+            and all(kernels[h].on_device(echo, h) for h in records.receivers)):
+        # records upsampled on the device a job at a time: jobs of one launch's pulses, so that a
+        # launch reads the records the FIR has just written, in cache (bp_tile carries its sums
+        # over the jobs of a block; the exact kernel, which does not, never runs here)
+        upload = min(upload, launch_pulses(int(np.max(records.length)), tile.PULSE_BLOCK))
     job_bytes = 16 * max(1, int(np.max(records.length))) * min(upload, span[1] - span[0])  # as upload_pulses counts
     keep = int(min(MAX_IN_FLIGHT, max(2, IN_FLIGHT_BYTES // job_bytes))) - 1  # jobs left in flight by retire
     jobs = [(first, i, np.arange(s, min(s + upload, span[1]))) for first in range(0, tiles.order.size, chunk)
@@ -171,12 +191,21 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                         spans = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                                           hostbuf=tile.spans(mine, tiles.half_extent, c, skip + s))
                         ref.base.release()
-                    for p0, count in blocks:
+                    # blocks of PULSE_BLOCK pulses from the span's start (as one launch each would sum
+                    # them), over launches of sub pulses that carry the float sums within a block
+                    sub, q0 = launch_pulses(n_samples, tile.PULSE_BLOCK), s
+                    while q0 < min(s + REF_PULSES, pulses.size):
+                        at = int(pulses[q0])
+                        b0 = span[0] + (at - span[0]) // tile.PULSE_BLOCK * tile.PULSE_BLOCK
+                        b1 = min(b0 + tile.PULSE_BLOCK, span[1])
+                        n_q = min(sub, s + REF_PULSES - q0, pulses.size - q0, b1 - at)
                         events.append(kernel.launch(
                             queue, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
                             ref_stride=ref_stride, ref_first=ref_first, records=records_buf, n_samples=n_samples,
-                            taps=taps, params=params, p_first=skip + p0, p_count=count, image=chunk_state.sums,
-                            spans=spans))
+                            taps=taps, params=params, p_first=skip + q0, p_count=n_q, image=chunk_state.sums,
+                            spans=spans, carry=None if b1 - b0 <= sub else chunk_state.carry,
+                            carry_mode=(at > b0) | 2 * (at + n_q < b1)))
+                        q0 += n_q
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)
