@@ -629,10 +629,10 @@ def test_references_of_several_receivers_at_once_give_the_identical_image(opencl
 @pytest.mark.parametrize("case", ["plain", "prepared", "aperture", "pulses", "kiang-stop-and-go"])
 def test_a_block_over_several_launches_gives_the_identical_image(opencl_device, kiang_echo, monkeypatch, case):
     """Records whose block of PULSE_BLOCK pulses exceeds LAUNCH_RECORD_BYTES are summed over several
-    bp_tile launches carrying their float sums (CARRY; a plain call on records upsampled on the
-    device also upsamples them a launch's pulses at a time): the image is bit-identical to one launch
-    a block, with blocks cut short by the span's end, an aperture, a pulse range starting inside a
-    block, prepared records, and the one-leg kernel."""
+    bp_tile launches carrying their float sums (CARRY): the image is bit-identical to one launch a
+    block, with blocks cut short by the span's end, an aperture, a pulse range starting inside a
+    block, prepared records, and the one-leg kernel; the launches' int arguments are typed (plain
+    ints, packed by the invoker) and a carry with store is refused."""
     from clsas.image.backprojection import launcher, records, tile_kernel
 
     if case == "kiang-stop-and-go":

@@ -16,8 +16,9 @@ for every pulse of the call within ``REF_BYTES``, each kept until its last recei
 launch: :func:`_groups`). Records prepared with :func:`.records.prepare` are held whole instead, and a
 :class:`.tiles.GridPlan` keeps the grid's tiling. A block of PULSE_BLOCK pulses whose records exceed
 ``records.LAUNCH_RECORD_BYTES`` is summed over several bp_tile launches that carry its float sums
-(:func:`.records.launch_pulses`; the same image bit for bit), and records the FIR upsamples on the
-device are then upsampled a launch's pulses at a time: each launch reads records that fit in cache.
+(:func:`.records.launch_pulses`; the same image bit for bit): each launch reads records that fit in
+cache (jobs of fewer pulses, so that the FIR's output would also stay in cache, were no faster: a
+job's host work, its FIR launch among it, costs what the cache saves).
 """
 
 from __future__ import annotations
@@ -118,12 +119,6 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     params = tile.params(c, f0, fs)
     chunk = PIXEL_CHUNK // (tile.LANES * tile.rows) * (tile.LANES * tile.rows)
     upload = records.upload_pulses()
-    if (not double and not records.materialised and records.fir_on_device
-            and all(kernels[h].on_device(echo, h) for h in records.receivers)):
-        # records upsampled on the device a job at a time: jobs of one launch's pulses, so that a
-        # launch reads the records the FIR has just written, in cache (bp_tile carries its sums
-        # over the jobs of a block; the exact kernel, which does not, never runs here)
-        upload = min(upload, launch_pulses(int(np.max(records.length)), tile.PULSE_BLOCK))
     job_bytes = 16 * max(1, int(np.max(records.length))) * min(upload, span[1] - span[0])  # as upload_pulses counts
     keep = int(min(MAX_IN_FLIGHT, max(2, IN_FLIGHT_BYTES // job_bytes))) - 1  # jobs left in flight by retire
     jobs = [(first, i, np.arange(s, min(s + upload, span[1]))) for first in range(0, tiles.order.size, chunk)

@@ -314,7 +314,7 @@ class PreparedRecords:
         in_order = not queue.properties & cl.command_queue_properties.OUT_OF_ORDER_EXEC_MODE_ENABLE
         key = int(ctx.int_ptr)
         if not in_order or key not in self._scratch or self._scratch[key].size < size:
-            size_all = 8 * pulses.size * int(np.max(self.length))  # a call's first job is its longest
+            size_all = 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))
             self._scratch[key] = cl.Buffer(ctx, mf.READ_WRITE, size=max(size, size_all))
         dst = self._scratch[key]
         fir.enqueue(queue, src_buf, src.shape[1], src.shape[0], first, stop, self.factor, dst)
