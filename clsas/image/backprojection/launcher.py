@@ -5,8 +5,9 @@ receivers whose motion is not linear over a tile, bp_block (:class:`.exact_kerne
 Memory: the pixels are processed in chunks of at most ``PIXEL_CHUNK`` (2^22) slots on the device,
 whose fields bp_fields computes there (64 bytes a slot, 80 with a target velocity); the kernels
 add into a double image of the chunk's slots (16 bytes a slot: a work-item's rows are contiguous,
-written as whole vectors), which the host puts in the grid's order once the chunk's kernels have
-finished; the records a block
+written as whole vectors; with records longer than ``records.LAUNCH_RECORD_BYTES`` a block, also its
+float sums carried between launches, 8 bytes a slot), which the host puts in the grid's order once
+the chunk's kernels have finished; the records a block
 of at most ``records.UPLOAD_BYTES`` at a time (jobs of a receiver's block in flight up to
 IN_FLIGHT_BYTES of records, at least two and at most MAX_IN_FLIGHT: the host waits for the
 kernels of the job that many before; small jobs, a small grid's, then queue up far enough that
