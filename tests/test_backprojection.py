@@ -626,12 +626,12 @@ def test_references_of_several_receivers_at_once_give_the_identical_image(opencl
     assert np.array_equal(together, alone)
 
 
-@pytest.mark.parametrize("case", ["plain", "prepared", "aperture", "pulses", "kiang-stop-and-go"])
+@pytest.mark.parametrize("case", ["plain", "prepared", "aperture", "pulses", "sinc8", "kiang-stop-and-go"])
 def test_a_block_over_several_launches_gives_the_identical_image(opencl_device, kiang_echo, monkeypatch, case):
     """Records whose block of PULSE_BLOCK pulses exceeds LAUNCH_RECORD_BYTES are summed over several
     bp_tile launches carrying their float sums (CARRY): the image is bit-identical to one launch a
     block, with blocks cut short by the span's end, an aperture, a pulse range starting inside a
-    block, prepared records, and the one-leg kernel; the launches' int arguments are typed (plain
+    block, prepared records, sinc8 and the one-leg kernel; the launches' int arguments are typed (plain
     ints, packed by the invoker) and a carry with store is refused."""
     from clsas.image.backprojection import launcher, records, tile_kernel
 
@@ -640,7 +640,7 @@ def test_a_block_over_several_launches_gives_the_identical_image(opencl_device, 
     else:
         echo = compressed(presets.point_scene("huang2022", n_pulses=150))
         grid = Grid.plane(np.linspace(40.0, 80.0, 40), np.linspace(-4.0, 4.0, 24), 0.0)
-        kw = {"aperture": dict(aperture=0.3), "pulses": dict(pulses=(7, 131))}.get(case, {})
+        kw = {"aperture": dict(aperture=0.3), "pulses": dict(pulses=(7, 131)), "sinc8": dict(interp="sinc8")}.get(case, {})
     source = prepare(echo) if case == "prepared" else echo
     launches = []
     monkeypatch.setattr(tile_kernel.TileKernel, "launch",
