@@ -3,7 +3,7 @@ in launches of bp_tile (:class:`.tile_kernel.TileKernel`) or, for ``precision="d
 receivers whose motion is not linear over a tile, bp_block (:class:`.exact_kernel.ExactKernel`).
 
 Memory: the pixels are processed in chunks of at most ``PIXEL_CHUNK`` (2^22) slots on the device,
-whose fields bp_fields computes there (64 bytes a slot, 80 with a target velocity); the kernels
+whose fields bp_fields computes there (16 bytes a slot, 20 with a target velocity: TileKernel.PIXELS); the kernels
 add into a double image of the chunk's slots (16 bytes a slot: a work-item's rows are contiguous,
 written as whole vectors; with records longer than ``records.LAUNCH_RECORD_BYTES`` a block, also its
 float sums carried between launches, 8 bytes a slot), which the host puts in the grid's order once
