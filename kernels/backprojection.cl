@@ -29,7 +29,8 @@
  * accumulation in float (double with CLSAS_DOUBLE) over the launch's pulses, added once into
  * the double image at the end (blocked sum).
  *
- * Defines: BP_TILE (with ROWS, PULSES, MOVING when the pixels move, SAME_LEGS, ROW_SHIFT, PULSE_SPAN, BP_STORE), or
+ * Defines: BP_TILE (with ROWS, PULSES, MOVING when the pixels move, SAME_LEGS, ROW_SHIFT, PULSE_SPAN, BP_STORE,
+ * CARRY), or
  * N_NODES and SEGMENT_PASSES (geometry.h) and STOP_AND_GO for bp_block; INTERP_LINEAR or
  * INTERP_SINC8 (with TAP_ROWS); APERTURE (keep |sin theta| off broadside <= sin(aperture / 2),
  * theta measured from the x-z plane); CLSAS_DOUBLE (bp_block's data, phases and sums in double:
@@ -99,7 +100,13 @@ typedef float16 realv16_t;
  * image[m] += the sum over pulses p_first .. p_first + p_count - 1 (BP_STORE, without SCATTER:
  *   image[m] = that sum, for a launch whose sums start the image).
  * ROW_SHIFT (ffbp's first stage, clsas/image/ffbp/leaves.py: many sub-apertures a launch): pulse p
- *   of tile t reads record row p + row_shift[t] (its reference stays ref[t * ref_stride + p - ref_first]). */
+ *   of tile t reads record row p + row_shift[t] (its reference stays ref[t * ref_stride + p - ref_first]).
+ * CARRY (direct back-projection, clsas/image/backprojection/launcher.py: a block of pulses summed in
+ *   float over several launches, each reading fewer records, which then stay in cache): carry[32 (ROWS g
+ *   + r) + lane] and [... + 16 + lane] hold row r's float sums (re, im) between launches; carry_mode
+ *   bit 1: the sums start from carry (else from zero), bit 2: they are stored into carry (else added
+ *   into the image as without CARRY). The same float operations in the same order as one launch over
+ *   the whole block: the image is bit-identical. */
 #ifdef ROW_SHIFT
 #define ROW_SHIFT_PARAM , __global const int *row_shift
 #define TILE_ROW_SHIFT row_shift[tile_of[g]]
@@ -110,6 +117,11 @@ typedef float16 realv16_t;
 /* PULSE_SPAN (back-projection with an aperture, clsas/image/backprojection/tiles.py): span[t] = the
  * pulses [x, y) tile t can see within it (a conservative bound from its references); the tile
  * sums only those of p_first .. p_first + p_count - 1, and the aperture mask decides per pixel. */
+#ifdef CARRY
+#define CARRY_PARAM , __global float *carry, const int carry_mode
+#else
+#define CARRY_PARAM
+#endif
 #ifdef PULSE_SPAN
 #define PULSE_SPAN_PARAM , __global const int2 *span
 #define TILE_BEGIN max(p_first, span[tile_of[g]].x)
@@ -157,7 +169,7 @@ typedef float16 realv16_t;
 __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_of, __global const tile_ref_t *ref,
                       const int ref_stride, const int ref_first, __global const sample_t *data, __global const float *taps,
                       const tile_params_t params, const int p_first, const int p_count, const int n,
-                      const int n_items, __global double2 *image SCATTER_PARAM ROW_SHIFT_PARAM PULSE_SPAN_PARAM)
+                      const int n_items, __global double2 *image SCATTER_PARAM ROW_SHIFT_PARAM PULSE_SPAN_PARAM CARRY_PARAM)
 {
     const int g = get_global_id(0);
     if (g >= n_items)  /* the launch is padded to whole work-groups */
@@ -177,6 +189,15 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
         acc_re[r] = (float16)0.0f;
         acc_im[r] = (float16)0.0f;
     }
+#ifdef CARRY
+    __global float *held = carry + 32 * ROWS * g;
+    if (carry_mode & 1) {
+        FOR_ROWS {
+            acc_re[r] = LOAD_F16(held + 32 * r);
+            acc_im[r] = LOAD_F16(held + 32 * r + 16);
+        }
+    }
+#endif
     const int p_end = TILE_END;
     for (int p = TILE_BEGIN; p < p_end; ++p) {
         /* each step for all ROWS rows before the next: ROWS independent dependency chains side by
@@ -275,6 +296,15 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             acc_im[r] = acc_im[r] + dr * sn[r] + di * cs[r];
         }
     }
+#ifdef CARRY
+    if (carry_mode & 2) {
+        FOR_ROWS {
+            STORE_F16(acc_re[r], held + 32 * r);
+            STORE_F16(acc_im[r], held + 32 * r + 16);
+        }
+        return;
+    }
+#endif
     for (int r = 0; r < ROWS; ++r) {
         const int m = 16 * (ROWS * g + r);
 #ifdef SCATTER

@@ -626,6 +626,40 @@ def test_references_of_several_receivers_at_once_give_the_identical_image(opencl
     assert np.array_equal(together, alone)
 
 
+@pytest.mark.parametrize("case", ["plain", "prepared", "aperture", "pulses", "sinc8", "kiang-stop-and-go"])
+def test_a_block_over_several_launches_gives_the_identical_image(opencl_device, kiang_echo, monkeypatch, case):
+    """Records whose block of PULSE_BLOCK pulses exceeds LAUNCH_RECORD_BYTES are summed over several
+    bp_tile launches carrying their float sums (CARRY): the image is bit-identical to one launch a
+    block, with blocks cut short by the span's end, an aperture, a pulse range starting inside a
+    block, prepared records, sinc8 and the one-leg kernel; the launches' int arguments are typed (plain
+    ints, packed by the invoker) and a carry with store is refused."""
+    from clsas.image.backprojection import launcher, records, tile_kernel
+
+    if case == "kiang-stop-and-go":
+        echo, grid, kw = kiang_echo, around((30.0, 1.0, -43.0), 0.1, 0.1, 10, 10), dict(stop_and_go=True)
+    else:
+        echo = compressed(presets.point_scene("huang2022", n_pulses=150))
+        grid = Grid.plane(np.linspace(40.0, 80.0, 40), np.linspace(-4.0, 4.0, 24), 0.0)
+        kw = {"aperture": dict(aperture=0.3), "pulses": dict(pulses=(7, 131)), "sinc8": dict(interp="sinc8")}.get(case, {})
+    source = prepare(echo) if case == "prepared" else echo
+    launches = []
+    monkeypatch.setattr(tile_kernel.TileKernel, "launch",
+                        lambda self, queue, _f=tile_kernel.TileKernel.launch, **a: launches.append(a) or _f(self, queue, **a))
+    monkeypatch.setattr(records, "LAUNCH_RECORD_BYTES", 2**40)
+    whole = backproject(source, grid, progress=False, **kw).data
+    assert all(a["carry"] is None for a in launches)
+    launches.clear()
+    monkeypatch.setattr(records, "LAUNCH_RECORD_BYTES", 1)  # the fewest pulses a launch: 4
+    assert records.launch_pulses(100, 64) == 4
+    carried = backproject(source, grid, progress=False, **kw).data
+    assert max(a["p_count"] for a in launches) == 4 and any(a["carry_mode"] == 3 for a in launches)
+    assert np.array_equal(carried, whole)
+    with pytest.raises(ValueError, match="carry"):
+        launcher.TileKernel("linear").launch(opencl_device.queue, pixels=None, tile_of=None, refs=None, ref_stride=0,
+                                             ref_first=0, records=None, n_samples=0, taps=None, params=None, p_first=0,
+                                             p_count=0, image=None, store=True, carry=object())
+
+
 def test_one_leg_for_a_monostatic_receiver(opencl_device, kiang_echo):
     """bp_tile computes one leg for receiver A (at the transmitter): t2 = t1 with stop-and-go
     (SAME_LEGS), the closed form of the return leg with exact delays for pixels at rest (MONO);

@@ -64,7 +64,9 @@ from .tiles import GridPlan
 
 __all__ = ["backproject"]
 
-BYTES_PER_PIXEL = 80  # what a call adds a pixel (tests/test_backprojection.py measures it)
+# what a call adds a pixel (tests/test_backprojection.py measures under 80 where no block is carried), and 8
+# more for bp_tile's carry (one chunk's float sums, for records longer than records.LAUNCH_RECORD_BYTES a block)
+BYTES_PER_PIXEL = 88
 # a Grid's tile plan, kept while the grid lives (16 bytes a pixel: the tiling's slot order and its
 # inverse), so that calls on the same Grid tile it once, as a GridPlan passed in would
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

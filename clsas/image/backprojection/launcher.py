@@ -3,10 +3,11 @@ in launches of bp_tile (:class:`.tile_kernel.TileKernel`) or, for ``precision="d
 receivers whose motion is not linear over a tile, bp_block (:class:`.exact_kernel.ExactKernel`).
 
 Memory: the pixels are processed in chunks of at most ``PIXEL_CHUNK`` (2^22) slots on the device,
-whose fields bp_fields computes there (64 bytes a slot, 80 with a target velocity); the kernels
+whose fields bp_fields computes there (16 bytes a slot, 20 with a target velocity: TileKernel.PIXELS); the kernels
 add into a double image of the chunk's slots (16 bytes a slot: a work-item's rows are contiguous,
-written as whole vectors), which the host puts in the grid's order once the chunk's kernels have
-finished; the records a block
+written as whole vectors; with records longer than ``records.LAUNCH_RECORD_BYTES`` a block, also its
+float sums carried between launches, 8 bytes a slot), which the host puts in the grid's order once
+the chunk's kernels have finished; the records a block
 of at most ``records.UPLOAD_BYTES`` at a time (jobs of a receiver's block in flight up to
 IN_FLIGHT_BYTES of records, at least two and at most MAX_IN_FLIGHT: the host waits for the
 kernels of the job that many before; small jobs, a small grid's, then queue up far enough that
@@ -14,7 +15,11 @@ the device does not wait for the host between them), the per-(tile, pulse) refer
 time, for consecutive receivers of the same legs at once (one bp_refs launch; a group's references
 for every pulse of the call within ``REF_BYTES``, each kept until its last receiver's bp_tile
 launch: :func:`_groups`). Records prepared with :func:`.records.prepare` are held whole instead, and a
-:class:`.tiles.GridPlan` keeps the grid's tiling.
+:class:`.tiles.GridPlan` keeps the grid's tiling. A block of PULSE_BLOCK pulses whose records exceed
+``records.LAUNCH_RECORD_BYTES`` is summed over several bp_tile launches that carry its float sums
+(:func:`.records.launch_pulses`; the same image bit for bit): each launch reads records that fit in
+cache (jobs of fewer pulses, so that the FIR's output would also stay in cache, were no faster: a
+job's host work, its FIR launch among it, costs what the cache saves).
 """
 
 from __future__ import annotations
@@ -24,7 +29,7 @@ import numpy as np
 from ... import opencl
 from ...progress import Progress
 from .exact_kernel import ExactKernel
-from .records import UPLOAD_BYTES, PreparedRecords
+from .records import UPLOAD_BYTES, PreparedRecords, launch_pulses
 from .tile_kernel import TileKernel
 from .tiles import GridPlan
 
@@ -63,6 +68,17 @@ class _Chunk:
         self.centres = made(tiling.centres[self.tiles])
         self.pixels = tile.fields(queue, positions=positions, index=self.index, tile_of=self.tile_of,
                                   centres=self.centres, n_slots=self.n)
+        self._carry = None
+        self._ctx = ctx
+
+    @property
+    def carry(self):
+        """bp_tile's CARRY buffer of the chunk's slots (float sums, 8 bytes a slot), made on first use."""
+        if self._carry is None:
+            import pyopencl as cl
+
+            self._carry = cl.Buffer(self._ctx, cl.mem_flags.READ_WRITE, 8 * self.n)
+        return self._carry
 
     def add_into(self, queue, image: np.ndarray, tiling) -> None:
         """Add the slots' sums into ``image`` (M,) complex128 at their pixels (after the chunk's
@@ -171,12 +187,21 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                         spans = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                                           hostbuf=tile.spans(mine, tiles.half_extent, c, skip + s))
                         ref.base.release()
-                    for p0, count in blocks:
+                    # blocks of PULSE_BLOCK pulses from the span's start (as one launch each would sum
+                    # them), over launches of sub pulses that carry the float sums within a block
+                    sub, q0 = launch_pulses(n_samples, tile.PULSE_BLOCK), s
+                    while q0 < min(s + REF_PULSES, pulses.size):
+                        at = int(pulses[q0])
+                        b0 = span[0] + (at - span[0]) // tile.PULSE_BLOCK * tile.PULSE_BLOCK
+                        b1 = min(b0 + tile.PULSE_BLOCK, span[1])
+                        n_q = min(sub, s + REF_PULSES - q0, pulses.size - q0, b1 - at)
                         events.append(kernel.launch(
                             queue, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
                             ref_stride=ref_stride, ref_first=ref_first, records=records_buf, n_samples=n_samples,
-                            taps=taps, params=params, p_first=skip + p0, p_count=count, image=chunk_state.sums,
-                            spans=spans))
+                            taps=taps, params=params, p_first=skip + q0, p_count=n_q, image=chunk_state.sums,
+                            spans=spans, carry=None if b1 - b0 <= sub else chunk_state.carry,
+                            carry_mode=(at > b0) | 2 * (at + n_q < b1)))
+                        q0 += n_q
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)

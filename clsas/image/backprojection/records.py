@@ -56,6 +56,24 @@ INTERPOLATORS = ("linear", "sinc8")
 INTERP_REACH = {"linear": (0, 1), "sinc8": (3, 4)}
 UPLOAD_BYTES = 64 * 2**20  # records prepared and uploaded at once when a call prepares its own
 MIN_SAMPLES = 8  # samples of the shortest prepared record (sinc8 loads eight at once)
+# records one bp_tile launch reads at most (about a core's L2): a block of pulses whose records are
+# longer is summed over several launches of fewer pulses (:func:`launch_pulses`), whose records then
+# stay in cache while the launch's work-items read them (long upsampled records on a small grid:
+# 6.9 MB a block of 64 pulses x8 otherwise come from L3 for every work-group)
+LAUNCH_RECORD_BYTES = 2 * 2**20
+
+
+def launch_pulses(n_samples: int, block: int) -> int:
+    """Pulses a bp_tile launch sums: ``block``, or for records of ``n_samples`` complex64 samples
+    whose block exceeds LAUNCH_RECORD_BYTES the largest power of two (at least 4, below ``block``)
+    whose records fit in it."""
+    per_pulse = 8 * max(int(n_samples), 1)
+    if per_pulse * block <= LAUNCH_RECORD_BYTES:
+        return block
+    sub = 4
+    while 2 * sub * per_pulse <= LAUNCH_RECORD_BYTES and 2 * sub < block:
+        sub *= 2
+    return sub
 
 
 def check_options(echo, receivers, interp, upsample, target_velocity, who: str = "backproject"):

@@ -115,6 +115,7 @@ _OFFSETS = [("dx", "f4", LANES), ("dy", "f4", LANES), ("dz", "f4", LANES), ("dd"
 PIXELS = record_dtype(_OFFSETS)
 MOVING_PIXELS = record_dtype(_OFFSETS + [("dv", "f4", LANES)])
 LEG_DEFINES = {"same": "SAME_LEGS", "mono": "MONO", "two": None}
+_TYPED: dict = {}  # the bp_tile kernels (opencl.kernel's) given their int arguments' types, by id (held: ids stay theirs)
 
 
 def _at_emission(echo, hs: np.ndarray, pulses: np.ndarray) -> np.ndarray:
@@ -361,7 +362,7 @@ class TileKernel:
 
     def launch(self, queue, *, pixels, tile_of, refs, ref_stride: int, ref_first: int, records, n_samples: int, taps,
                params, p_first: int, p_count: int, image, index=None, row_shift=None, spans=None,
-               store: bool = False):
+               store: bool = False, carry=None, carry_mode: int = 0):
         """Enqueue bp_tile over the work-items of ``tile_of`` (a device buffer of one int32 a
         work-item; ``pixels`` ROWS records a work-item): add pulses p_first .. p_first + p_count
         - 1 of the ``records`` (rows of ``n_samples`` samples) into the double ``image``: at each
@@ -370,15 +371,28 @@ class TileKernel:
         ``row_shift`` (with row_shift=True) and ``spans`` (with an aperture) as in the kernel's
         comment. ``store`` (without ``index``): the launch's sums are stored into the slots instead
         of added (BP_STORE: the image need not be zeroed first; the same values as adding them to
-        zeros). Returns the event."""
+        zeros). ``carry`` (a device buffer of 8 bytes a slot) and ``carry_mode`` (bits 1: start from
+        it, 2: end in it; without ``store`` or ``index``): the launch's float sums continue those an
+        earlier launch left in ``carry`` and/or are left there for the next instead of being added
+        into ``image`` (CARRY: a block of pulses over several launches, bit-identical to one).
+        Returns the event."""
         if store and index is not None:
             raise ValueError("bp_tile store=True: only without index (a scattered image is added into)")
+        if carry is not None and (store or index is not None):
+            raise ValueError("bp_tile carry: only without store and index")
         extra = (row_shift,) if "ROW_SHIFT" in self.defines else ()
         extra += (spans,) if self.pulse_span else ()
+        extra += (carry, int(carry_mode)) if carry is not None else ()
         n_items = tile_of.size // 4
-        defines = {**self.defines, **({"SCATTER": 1} if index is not None else {}), **({"BP_STORE": 1} if store else {})}
+        defines = {**self.defines, **({"SCATTER": 1} if index is not None else {}), **({"BP_STORE": 1} if store else {}),
+                   **({"CARRY": 1} if carry is not None else {})}
         kern = opencl.kernel("backprojection", "bp_tile", preamble=self.preamble, defines=defines)
-        return kern(queue, *opencl.work_groups(n_items), pixels, tile_of, refs, np.int32(ref_stride),
-                    np.int32(ref_first), records, taps, params, np.int32(p_first), np.int32(p_count),
-                    np.int32(n_samples), np.int32(n_items), image, *((index,) if index is not None else ()), *extra)
+        if id(kern) not in _TYPED:  # the int arguments packed by the invoker (a NumPy scalar each costs a set_arg)
+            ints = [3, 4, 8, 9, 10, 11] + ([14 + (index is not None) + len(extra) - 2] if carry is not None else [])
+            kern.set_scalar_arg_dtypes([np.int32 if k in ints else None
+                                        for k in range(13 + (index is not None) + len(extra))])
+            _TYPED[id(kern)] = kern
+        return kern(queue, *opencl.work_groups(n_items), pixels, tile_of, refs, int(ref_stride), int(ref_first), records,
+                    taps, params, int(p_first), int(p_count), int(n_samples), int(n_items), image,
+                    *((index,) if index is not None else ()), *extra)
 
