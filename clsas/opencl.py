@@ -27,6 +27,8 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
+
 INSTALL_HINT = (
     "Install an OpenCL driver for the CPU: on Debian/Ubuntu `sudo apt-get install "
     "pocl-opencl-icd` (or run `make setup`, which does it), then `clinfo -l` should list a "
@@ -54,8 +56,8 @@ class Runtime:
 _runtimes: dict[str, Runtime] = {}
 _runtime_by_spec: dict[str | None, Runtime] = {}  # the resolved device spec -> its Runtime, so a call costs a lookup
 _programs: dict[tuple, object] = {}
-_kernels: dict[tuple, object] = {}  # (id(program), kernel name, thread) -> Kernel
-_kernel_calls: dict[tuple, object] = {}  # kernel()'s arguments, runtime and thread -> Kernel (no hashing a call)
+_kernels: dict[tuple, "TypedKernel"] = {}  # (id(program), kernel name, thread) -> its TypedKernel
+_kernel_calls: dict[tuple, "TypedKernel"] = {}  # kernel()'s arguments, runtime and thread -> TypedKernel (no hashing a call)
 _sources: dict[str, tuple[str, str]] = {}  # kernels/NAME.cl -> (text, digest), read once per process
 
 
@@ -256,7 +258,8 @@ def kernel(name: str, kernel_name: str, defines: dict | None = None, device: str
     """The pyopencl.Kernel ``kernel_name`` from ``kernels/NAME.cl`` (see :func:`program`), one per
     (program, name, thread): a fresh Kernel looks its argument invoker up in pyopencl's on-disk
     cache (milliseconds a call), which calls launching many small kernels (ffbp's leaves and
-    merges) paid every time. Launch it as ``kern(queue, ...)`` (arguments set and enqueued at once)."""
+    merges) paid every time. Launch it as ``kern(queue, ...)`` (arguments set and enqueued at once;
+    scalar arguments typed on the first launch, :class:`TypedKernel`)."""
     call = (name, kernel_name, id(runtime(device)), double, preamble, tuple(sorted((defines or {}).items())),
             threading.get_ident())
     kern = _kernel_calls.get(call)
@@ -267,9 +270,34 @@ def kernel(name: str, kernel_name: str, defines: dict | None = None, device: str
     key = (id(prg), kernel_name, threading.get_ident())
     kern = _kernels.get(key)
     if kern is None:
-        kern = _kernels[key] = cl.Kernel(prg, kernel_name)
+        kern = _kernels[key] = TypedKernel(cl.Kernel(prg, kernel_name))
     _kernel_calls[call] = kern
     return kern
+
+
+class TypedKernel:
+    """A pyopencl.Kernel whose scalar arguments are typed on its first launch.
+
+    pyopencl sets an untyped NumPy scalar argument through its generic ``set_arg`` (~40 us a
+    launch for a few ints on this project's machines, thread CPU), while typed ones are packed by
+    its generated invoker (~7 us for the whole launch). The first launch's arguments say the types:
+    a NumPy scalar's dtype (not a structured one) for its slot, None (set as given) for buffers,
+    local memory and structured scalars. Later launches must pass the same kinds in each slot (as
+    a kernel's signature requires anyway); a Python int or float is then accepted for a typed slot.
+    """
+
+    __slots__ = ("kernel", "_typed")
+
+    def __init__(self, kernel):
+        self.kernel = kernel
+        self._typed = False
+
+    def __call__(self, queue, global_size, local_size, *args, **kwargs):
+        if not self._typed:
+            self.kernel.set_scalar_arg_dtypes([a.dtype if isinstance(a, np.generic) and a.dtype.fields is None
+                                               else None for a in args])
+            self._typed = True
+        return self.kernel(queue, global_size, local_size, *args, **kwargs)
 
 
 #: Work-items a work-group of the kernels launched through :func:`work_groups`.

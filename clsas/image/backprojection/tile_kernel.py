@@ -115,7 +115,6 @@ _OFFSETS = [("dx", "f4", LANES), ("dy", "f4", LANES), ("dz", "f4", LANES), ("dd"
 PIXELS = record_dtype(_OFFSETS)
 MOVING_PIXELS = record_dtype(_OFFSETS + [("dv", "f4", LANES)])
 LEG_DEFINES = {"same": "SAME_LEGS", "mono": "MONO", "two": None}
-_TYPED: dict = {}  # the bp_tile kernels (opencl.kernel's) given their int arguments' types, by id (held: ids stay theirs)
 
 
 def _at_emission(echo, hs: np.ndarray, pulses: np.ndarray) -> np.ndarray:
@@ -382,17 +381,13 @@ class TileKernel:
             raise ValueError("bp_tile carry: only without store and index")
         extra = (row_shift,) if "ROW_SHIFT" in self.defines else ()
         extra += (spans,) if self.pulse_span else ()
-        extra += (carry, int(carry_mode)) if carry is not None else ()
+        extra += (carry, np.int32(carry_mode)) if carry is not None else ()
         n_items = tile_of.size // 4
         defines = {**self.defines, **({"SCATTER": 1} if index is not None else {}), **({"BP_STORE": 1} if store else {}),
                    **({"CARRY": 1} if carry is not None else {})}
         kern = opencl.kernel("backprojection", "bp_tile", preamble=self.preamble, defines=defines)
-        if id(kern) not in _TYPED:  # the int arguments packed by the invoker (a NumPy scalar each costs a set_arg)
-            ints = [3, 4, 8, 9, 10, 11] + ([14 + (index is not None) + len(extra) - 2] if carry is not None else [])
-            kern.set_scalar_arg_dtypes([np.int32 if k in ints else None
-                                        for k in range(13 + (index is not None) + len(extra))])
-            _TYPED[id(kern)] = kern
-        return kern(queue, *opencl.work_groups(n_items), pixels, tile_of, refs, int(ref_stride), int(ref_first), records,
-                    taps, params, int(p_first), int(p_count), int(n_samples), int(n_items), image,
+        return kern(queue, *opencl.work_groups(n_items), pixels, tile_of, refs, np.int32(ref_stride),
+                    np.int32(ref_first), records, taps, params, np.int32(p_first), np.int32(p_count),
+                    np.int32(n_samples), np.int32(n_items), image,
                     *((index,) if index is not None else ()), *extra)
 
