@@ -252,6 +252,16 @@ def test_an_unconfirmed_candidate_passes_to_the_next_trace_rate(monkeypatch):
     assert (est.fm_rate, est.fm_rate_source, est.fm_rate_rivals) == (0.49, "trace", ())
 
 
+def test_a_trace_rate_too_small_to_focus_is_not_checked(monkeypatch):
+    """A followed trace that stayed on its straight seed line reads a rate of rounding (random
+    target 4002 at B, -15 dB: 5.4e-14 Hz/s); |K| T_a^2 < MIN_TIME_BANDWIDTH leaves nothing to
+    compress, so the focus could not confirm it: it is not checked (it cost a with_rate, RCMC and
+    Radon lines, and stood in the refusal). 0.16 Hz/s (|K| T_a^2 = 105) is."""
+    err, checked = weak_loop(monkeypatch, [5.4e-14, 0.16], {None: None, 0.16: None})
+    assert checked == [None, 0.16]
+    assert "e-14" not in str(err)
+
+
 def test_a_trace_rate_that_equals_a_failed_candidate_is_not_checked_again(monkeypatch):
     """Review style 5: the focus step is the record's (4 / T_a^2), known before any candidate is
     focused; it was carried from the first focus, so a trace rate equal to a candidate that

@@ -120,8 +120,8 @@ class ReceiverEstimate(Doppler):
     median (linear; :attr:`.sowvd.RateSearch.peak_to_background`). p0 : the first lag offset
     used, s. aperture : the record's slow-time span T_a, s. extent : the target's
     :class:`~.extent.Extent` in the focused image (None when it cannot be focused).
-    fm_rate_candidates : ((K Hz/s, score dB), ...) the rate search's candidates, the one used
-    first; slope_limited : the Radon slope sits at the edge of its search (no straight trace
+    fm_rate_candidates : ((K Hz/s, score dB), ...) the rate search's candidates, the one nearest
+    fm_rate first (a rate from the focus or a trace is none of them); slope_limited : the Radon slope sits at the edge of its search (no straight trace
     after RCMC: K is wrong or there is no target). search : the :class:`.sowvd.RateSearch`
     without its map (to refine another candidate), or None. fm_rate_source : where fm_rate came
     from, one of :data:`FM_RATE_SOURCES`. fm_rate_rivals : ((K Hz/s, source, image peak dB over
@@ -233,7 +233,12 @@ def _weak_rate(rec: Records, search: RateSearch, focus_db: float, weak: str) -> 
     (:func:`_confirmed`), else with the first rate a followed trace's curvature reads
     (:func:`.track.trace_rate`: where the SoWVD of a many-scatterer target at the noise floor
     peaks on noise, the trace still bends as the target's K) that passes the same checks;
-    EstimationError naming every candidate and why when none does.
+    EstimationError naming every candidate and why when none does. A trace rate with
+    |K| T_a^2 < :data:`.located.MIN_TIME_BANDWIDTH` is not tried: the focus cannot confirm a
+    rate that leaves nothing to compress. Such a rate bends the trace by less than
+    MIN_TIME_BANDWIDTH fs / (8 f0) = 0.13 upsampled samples at the record's ends (Table I), and it
+    is what a trace that keeps to its straight seed line within the blocks' whole-sample lags
+    reads: a parabola of rounding (random target 4002 at B, -15 dB: 5.4e-14 Hz/s).
 
     A confirmed best candidate that no trace rate agrees with (:func:`_agree`) may be something
     else's (a cross-term's), so the trace rates are then tried too, and two confirmed rates can
@@ -249,8 +254,9 @@ def _weak_rate(rec: Records, search: RateSearch, focus_db: float, weak: str) -> 
     halves the confidence: one of two equally confirmed objects). Two confirmed rates that
     agree are one object's: the first is kept."""
     step = focus_step(rec)
+    rates = [r for r in search.trace_rates if abs(r) * _aperture(rec) ** 2 >= MIN_TIME_BANDWIDTH]
     failures, tried, confirmed = [], [], []
-    for k, source in [(None, "focus")] + [(r, "trace") for r in search.trace_rates]:
+    for k, source in [(None, "focus")] + [(r, "trace") for r in rates]:
         if k is not None and any(abs(k - t) <= SHARP_STEPS * step for t in tried):
             continue  # focused_rate from there would end where that one did
         try:
@@ -262,7 +268,7 @@ def _weak_rate(rec: Records, search: RateSearch, focus_db: float, weak: str) -> 
         confirmed.append(est)
         tried.extend([est.fm_rate] + ([] if k is None else [k]))
         # a trace's own rate, or a candidate a trace's curvature agrees with, ends the search
-        if k is not None or any(_agree(est.fm_rate, r, step) for r in search.trace_rates):
+        if k is not None or any(_agree(est.fm_rate, r, step) for r in rates):
             break
     if not confirmed:
         raise EstimationError(f"{weak}, and " + "; and ".join(failures))
@@ -328,8 +334,9 @@ def _confirmed(rec: Records, search: RateSearch, k: float | None, source: str, f
                            f"its median) is not sharper there than at K -+ {SHARP_STEPS:g} focus steps "
                            f"({detuned[0]:.1f}, {detuned[1]:.1f} dB): something bright, not a target focused by "
                            f"that K", tried)
-    log.info("receiver %s: %s K = %.5g Hz/s focuses a target: image peak %.1f dB over its median, %.1f dB over the "
-             "record focused %g focus steps off", rec.name, what, est.fm_rate, at, at - max(detuned), SHARP_STEPS)
+    log.info("receiver %s: %s K = %.5g Hz/s focuses a target sharply: its window's peak %.1f dB over its median, "
+             "%.1f dB over the window focused %g focus steps off", rec.name, what, est.fm_rate, at, at - max(detuned),
+             SHARP_STEPS)
     return dataclasses.replace(est, fm_rate_source=source)
 
 
