@@ -552,33 +552,6 @@ def test_tile_shapes_passed_over_by_their_estimate_would_have_failed(opencl_devi
     assert np.array_equal(skipping, checked)
 
 
-@pytest.mark.parametrize("aperture", [None, 0.3])
-def test_extents_on_two_threads_are_those_of_one(monkeypatch, aperture):
-    """polar.extents splits its sub-apertures into chunks, every other one computed by a worker
-    thread: the extents (frames, ranges, sines, bands, reach, envelopes) are those of one thread's
-    chunks of CHUNK_NODES, bit for bit, for 1, 3, 7 and 43 sub-apertures, with and without an
-    integration angle."""
-    echo = echo_of("motion")
-    scene = Scene.of(GRID.positions)
-    frames = _Frames(echo, list(range(echo.n_rx)), scene)
-    for n in (1, 3, 7, 43):
-        nodes = [(p, min(p + 1 + p % 5, echo.n_pulses)) for p in np.linspace(0, echo.n_pulses - 1, n).astype(int)]
-        centres, axes, halves, bases = frames.frames(nodes)
-        windows = np.stack([np.full(n, 30.0) - halves, np.full(n, 60.0) + halves], axis=1)
-        limits = None if aperture is None else np.full(n, np.sin(aperture / 2))
-        found = {}
-        for threads in (1, 2):
-            monkeypatch.setattr(polar, "THREADS", threads)
-            found[threads] = polar.extents(centres, axes, halves, scene, windows, 20e3, 150e3, 1500.0, limits)
-        assert len(found[1]) == len(found[2]) == n
-        for one, two in zip(found[1], found[2]):
-            assert (one is None) == (two is None)
-            if one is not None:
-                for field in dataclasses.fields(one):
-                    a, b = getattr(one, field.name), getattr(two, field.name)
-                    assert np.array_equal(a, b) if isinstance(a, np.ndarray) else a == b, field.name
-
-
 def test_rows_spans_are_the_envelope_over_each_rows_window():
     """The rows' spans of every grid of a tree (sampled together, by sparse tables of the extents'
     envelopes) against each row's window of envelope bins read directly (polar.sample_grids'

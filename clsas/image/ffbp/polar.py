@@ -61,7 +61,6 @@ exceed its tolerance).
 
 from __future__ import annotations
 
-import concurrent.futures
 import dataclasses
 import functools
 
@@ -71,8 +70,7 @@ from ...interp import tap_table
 
 RHO_STEPS = np.round(np.arange(1.2, 6.01, 0.05), 2)  # oversamplings tried by the sampling rule
 SKELETON = 8192  # at most about this many pixels stand for the grid when extents are computed
-CHUNK_NODES = 32  # sub-apertures whose extents are in flight at once (32 x ~8k skeleton points x 6 doubles)
-THREADS = 2  # extents(): 2, this thread and a worker, every other chunk each; 1, this thread alone
+CHUNK_NODES = 32  # sub-apertures whose extents are computed at once (32 x ~8k skeleton points x 3 doubles)
 ENVELOPE_BINS = 512  # sine bins of a sub-aperture's range envelope of the scene (the ragged rows)
 OFFSET_ROWS = 4  # origins whose distances to the skeleton are computed at once (Scene.offsets: in cache)
 RAGGED = True  # polar grids computed only within their rows' spans (False: whole rectangles, for comparison)
@@ -422,15 +420,6 @@ def _spans(found: list, shapes: list) -> list:
     return np.split(spans, np.cumsum(n_v)[:-1])
 
 
-_WORKER = []  # extents' second thread, made on first use (a ThreadPoolExecutor of one)
-
-
-def _worker() -> concurrent.futures.ThreadPoolExecutor:
-    if not _WORKER:
-        _WORKER.append(concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="clsas-ffbp-extents"))
-    return _WORKER[0]
-
-
 def extents(centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray, scene: Scene, windows: np.ndarray,
             bandwidth: float, f0: float, c: float, sine_limits: np.ndarray | None = None) -> list:
     """The extents of the polar grids of sub-apertures with frames (centres (n, 3) m, unit axes
@@ -438,33 +427,14 @@ def extents(centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray, sce
     ``windows`` (n, 2) m (min, max) and, with ``sine_limits`` (n,), the sines |v| <= its limit
     (the integration angle); a range span is that of the pixels within its sines (a sector of a
     long scene is nearer than the scene's far corners). A list of Extent, None where the scene
-    lies wholly outside the window or the angular limit. Vectorised over chunks of at most
-    CHUNK_NODES / THREADS sub-apertures (the skeleton's ranges and sines of each), a multiple of
-    THREADS of them, as nearly equal as can be; with THREADS = 2 this thread takes every other
-    chunk and a worker thread the others. Each sub-aperture's extent comes from its own rows
-    alone, so the chunks change nothing; NumPy lets go of the GIL in the passes over the
-    skeleton, so a planning that runs while the device has nothing to do yet uses both cores, and
-    smaller chunks keep their (chunk, skeleton) arrays nearer the cache."""
-    n = len(centres)
-    if n == 0:
-        return []
-    count = -(-n // max(1, CHUNK_NODES // THREADS))
-    count += -count % THREADS if n >= THREADS else 0
-    size = -(-n // max(count, 1))
-    chunks = [slice(s, min(s + size, n)) for s in range(0, n, size)]
-
-    def run(part: slice) -> list:
-        return _extents(centres[part], axes[part], half_lengths[part], scene, windows[part], bandwidth, f0, c,
-                        None if sine_limits is None else sine_limits[part])
-
-    if THREADS == 1 or len(chunks) < 2:
-        return [e for part in chunks for e in run(part)]
-    _ = scene._centred  # the skeleton's centred copy made here, not by both threads
-    theirs = [_worker().submit(run, part) for part in chunks[1::2]]
-    ours = [run(part) for part in chunks[0::2]]
-    found = [None] * len(chunks)
-    found[0::2], found[1::2] = ours, [f.result() for f in theirs]
-    return [e for part in found for e in part]
+    lies wholly outside the window or the angular limit. Vectorised over CHUNK_NODES
+    sub-apertures at a time (the skeleton's ranges and sines of each)."""
+    found = []
+    for s in range(0, len(centres), CHUNK_NODES):
+        found += _extents(centres[s:s + CHUNK_NODES], axes[s:s + CHUNK_NODES], half_lengths[s:s + CHUNK_NODES],
+                          scene, windows[s:s + CHUNK_NODES], bandwidth, f0, c,
+                          None if sine_limits is None else sine_limits[s:s + CHUNK_NODES])
+    return found
 
 
 def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine_limits) -> list:
