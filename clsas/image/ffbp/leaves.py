@@ -49,7 +49,7 @@ from ...kernelmath import expj_cycles
 from ...model import Grid
 from ..backprojection import GridPlan, TileKernel, backproject, prepare
 from . import program
-from .polar import PolarGrid
+from .polar import PolarGrid, points_of
 
 BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~40 bytes each held)
 RECORD_BYTES = 256 * 2**20  # prepared records held at once
@@ -113,13 +113,10 @@ def polar_tiles(grids: list, bv: int, br: int):
     items = np.zeros(int(np.count_nonzero(np.broadcast_to(keep, shape))), program.ITEM)
     for name, x in zip(program.ITEM.names, (l, a * bv + j, b * br + q * LANES, tile)):
         items[name] = np.broadcast_to(x, shape)[np.broadcast_to(keep, shape)]
-    centres = []
-    for g in grids:
-        j0, i0 = np.arange(0, g.n_v, bv), np.arange(0, g.n_r, br)
-        middle_v = (j0 + np.minimum(j0 + bv, g.n_v) - 1) // 2
-        middle_r = (i0 + np.minimum(i0 + br, g.n_r) - 1) // 2
-        centres.append(g.points(rows=middle_v, cols=middle_r).reshape(-1, 3))
-    return items, np.concatenate(centres), tv_of * tr_of
+    middles = [[(j0 + np.minimum(j0 + step, n) - 1) // 2 for j0, step, n in ((np.arange(0, g.n_v, bv), bv, g.n_v),
+                                                                          (np.arange(0, g.n_r, br), br, g.n_r))]
+               for g in grids]
+    return items, points_of(grids, [v for v, _ in middles], [r for _, r in middles]), tv_of * tr_of
 
 
 def _slots(grids: list, items: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -129,9 +126,9 @@ def _slots(grids: list, items: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     groups = np.array([-(-g.n_r // LANES) for g in grids])
     first = np.cumsum(np.r_[0, groups * np.array([g.n_v for g in grids])])
     slots = np.full(int(first[-1]), -1, np.int32)
-    leaf, row = items["leaf"], items["row"]
+    leaf, row, sample = (items[name].astype(np.int64) for name in ("leaf", "row", "sample"))  # contiguous copies
     inside = row < np.array([g.n_v for g in grids])[leaf]  # rows past a grid's edge (whole work-items) dropped
-    at = first[leaf] + row * groups[leaf] + items["sample"] // LANES
+    at = first[leaf] + row * groups[leaf] + sample // LANES
     slots[at[inside]] = np.flatnonzero(inside)
     return slots, first
 
@@ -305,7 +302,8 @@ class FirstStage:
         leaves' polar grids reach (prepare's reach of their boundary: the first and last range at
         every angle row bound a sector's box up to an arc's sagitta between rows, r dv^2 / 8,
         micrometres, inside the sample prepare adds for rounding)."""
-        edges = np.concatenate([grids[k].points(cols=[0, grids[k].n_r - 1]).reshape(-1, 3) for k in leaves])
+        edges = points_of([grids[k] for k in leaves], [np.arange(grids[k].n_v) for k in leaves],
+                          [[0, grids[k].n_r - 1] for k in leaves])
         return prepare(echo, **self.options, grid=Grid.points(edges))
 
     def _device_references(self, tile: TileKernel, records, batch: list, centres: np.ndarray, first_tile: np.ndarray,

@@ -70,7 +70,7 @@ from ...interp import tap_table
 
 RHO_STEPS = np.round(np.arange(1.2, 6.01, 0.05), 2)  # oversamplings tried by the sampling rule
 SKELETON = 8192  # at most about this many pixels stand for the grid when extents are computed
-CHUNK_NODES = 32  # sub-apertures whose extents are computed at once (32 x ~8k skeleton points x 3 doubles)
+CHUNK_NODES = 8  # sub-apertures whose extents are computed at once (8 x ~8k skeleton points: 0.5 MB arrays, in cache)
 ENVELOPE_BINS = 512  # sine bins of a sub-aperture's range envelope of the scene (the ragged rows)
 OFFSET_ROWS = 4  # origins whose distances to the skeleton are computed at once (Scene.offsets: in cache)
 RAGGED = True  # polar grids computed only within their rows' spans (False: whole rectangles, for comparison)
@@ -189,23 +189,45 @@ class PolarGrid:
     def points(self, rows=slice(None), cols=slice(None)) -> np.ndarray:
         """The 3-D points X(r, v) of the samples (n_v, n_r, 3) (or of the v rows ``rows`` and the
         range samples ``cols``, slices or index arrays), m, float64."""
-        r = self.ranges[cols][None, :]
-        v = self.sines[rows][:, None]
-        m, c = self.plane.normal, self.centre
-        rho = r * np.sqrt(np.clip(1 - v * v, 0.0, None))
-        m_perp = float(m @ self.e2)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            sin_phi = np.clip((self.plane.offset - m @ c - r * v * (m @ self.axis)) / (rho * m_perp), -1.0, 1.0)
-        sin_phi = np.where(rho > 0, sin_phi, 0.0)
-        cos_phi = np.sqrt(1 - sin_phi * sin_phi)
-        return (c + (r * v)[..., None] * self.axis + (rho * cos_phi)[..., None] * self.e1
-                + (rho * sin_phi)[..., None] * self.e2)
+        return _on_plane(self.ranges[cols][None, :], self.sines[rows][:, None], *_frame_terms([self]))
 
     def coordinates(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(r, v) of points x (..., 3) in this frame, float64."""
         d = x - self.centre
         r = np.linalg.norm(d, axis=-1)
         return r, (d @ self.axis) / np.where(r > 0, r, 1.0)
+
+
+def _frame_terms(grids: list) -> tuple:
+    """Frames of polar grids on one plane (normal m) as :func:`_on_plane` takes them, a row a grid:
+    centre, axis, e1, e2 (n, 3), offset - m . centre, m . axis and m . e2 (n,)."""
+    m, offset = grids[0].plane.normal, grids[0].plane.offset
+    return tuple(np.array(x, np.float64) for x in zip(*[(g.centre, g.axis, g.e1, g.e2, offset - m @ g.centre,
+                                                          m @ g.axis, float(m @ g.e2)) for g in grids]))
+
+
+def _on_plane(r, v, centre, axis, e1, e2, offset, along, across) -> np.ndarray:
+    """X(r, v) (..., 3) on the reference plane (module docstring) of ranges r and sines v (broadcast
+    together, shape ...) in frames (:func:`_frame_terms`, broadcast with them, or one frame's), element
+    by element: a sample gets the same point however many are computed at once."""
+    if centre.shape[0] == 1:  # one frame for every sample
+        centre, axis, e1, e2, offset, along, across = (x[0] for x in (centre, axis, e1, e2, offset, along, across))
+    rho = r * np.sqrt(np.clip(1 - v * v, 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sin_phi = np.clip((offset - r * v * along) / (rho * across), -1.0, 1.0)
+    sin_phi = np.where(rho > 0, sin_phi, 0.0)
+    cos_phi = np.sqrt(1 - sin_phi * sin_phi)
+    return centre + (r * v)[..., None] * axis + (rho * cos_phi)[..., None] * e1 + (rho * sin_phi)[..., None] * e2
+
+
+def points_of(grids: list, rows: list, cols: list) -> np.ndarray:
+    """:meth:`PolarGrid.points` of the samples rows[k] x cols[k] (index arrays) of grids k (on one
+    plane), all at once: (sum of their counts, 3) m, grid by grid, row-major (the same values)."""
+    which = np.repeat(np.arange(len(grids)), [len(a) * len(b) for a, b in zip(rows, cols)])
+    row = np.concatenate([np.repeat(np.asarray(a, np.int64), len(b)) for a, b in zip(rows, cols)])
+    col = np.concatenate([np.tile(np.asarray(b, np.int64), len(a)) for a, b in zip(rows, cols)])
+    r0, dr, v0, dv = (np.array([getattr(g, k) for g in grids], np.float64) for k in ("r0", "dr", "v0", "dv"))
+    return _on_plane(r0[which] + dr[which] * col, v0[which] + dv[which] * row, *(x[which] for x in _frame_terms(grids)))
 
 
 def _largest_step(positions: np.ndarray, axis: int) -> float:
