@@ -20,6 +20,8 @@ import os
 import time
 
 import numpy as np
+from _dpca_scenes import ACROSS, bias_sonar, footprint, seafloor_points
+from _harness import report
 
 from clsas.estimate import dpca
 from clsas.estimate.dpca.geometry import _pattern, inside_swath, look_moments, pairing
@@ -58,12 +60,11 @@ class DiagonalBlocks:
         sin_t = (positions[:, 1][None] - self.yc[:, None]) / rng
         w = power[None] * self.pattern(sin_t)
         b = np.floor((rng - (self.r[0] - self.span / 2)) / self.span).astype(int)
-        W, S = np.zeros((self.yc.size, self.r.size)), np.zeros((self.yc.size, self.r.size))
-        for p in range(self.yc.size):
-            k = (b[p] >= 0) & (b[p] < self.r.size)
-            W[p] = np.bincount(b[p, k], w[p, k], minlength=self.r.size)
-            S[p] = np.bincount(b[p, k], (w[p] * sin_t[p] ** 2)[k], minlength=self.r.size)
-        return W, S
+        k = (b >= 0) & (b < self.r.size)
+        cell = (np.arange(self.yc.size)[:, None] * self.r.size + b)[k]       # (pair, block) flattened
+        size, shape = self.yc.size * self.r.size, (self.yc.size, self.r.size)
+        return (np.bincount(cell, w[k], minlength=size).reshape(shape),
+                np.bincount(cell, (w * sin_t**2)[k], minlength=size).reshape(shape))
 
     def seafloor_yaws(self, seed: int, n: int, across: tuple, half: float) -> tuple[float, float]:
         """(unweighted, pooled) mean yaw (rad) over the pairs of one seafloor of ``n`` random
@@ -100,20 +101,20 @@ class DiagonalBlocks:
         return float(np.mean(values))
 
 
-def ratio_bias(args, report, scene_of, footprint, points_of, across, seeds: int) -> None:
+def ratio_bias(args, seeds: int) -> None:
     """The --ratio rows: per case and density factor (1/4, 1, 4 times the bias scenes'), over
     ``seeds`` seafloors (seeds 1000..)."""
     for tx_factor in (1.0, 2.0):
         for extent in (0.5, 1.0, 4.0):
             for factor in ((1.0,) if args.quick else (0.25, 1.0, 4.0)):
-                scene = scene_of(tx_factor, 30)
+                scene = bias_sonar(tx_factor, 30)
                 half = extent * footprint(scene) / 2
-                n = int(points_of(extent, half) * factor)
-                model = DiagonalBlocks(scene, half, across, n / ((across[1] - across[0]) * 2 * half))
+                n = int(seafloor_points(extent, half) * factor)
+                model = DiagonalBlocks(scene, half, ACROSS, n / ((ACROSS[1] - ACROSS[0]) * 2 * half))
                 start = time.perf_counter()
                 unweighted, pooled = [], []
                 for seed in range(1000, 1000 + seeds):
-                    u, p = model.seafloor_yaws(seed, n, across, half)
+                    u, p = model.seafloor_yaws(seed, n, ACROSS, half)
                     unweighted.append(u)
                     pooled.append(p)
                 seconds = time.perf_counter() - start

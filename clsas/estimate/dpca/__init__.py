@@ -112,9 +112,14 @@ typical block: its yaw is that echo's own look-angle term, not the seafloor's). 
 (point sidelobes, edges) are cut on the deviations from the weighted median scaled by
 sqrt(W_b / median W), the ratio's spread going as 1 / sqrt(W_b): so scaled they are nearly
 symmetric and the cut moves the mean little (tests/test_dpca_bias.py and
-bench/bench_dpca.py --ratio have the figures). A real seafloor, many scatterers a resolution
-cell, has n_b large; a simulated one of random points, or a real one of a few strong scatterers
-(rocks, shells), does not.
+bench/bench_dpca.py --ratio have the figures). Their tails are still heavier than a Gaussian's
+and belong to the seafloor, so the cut is wide (pairs.YAW_OUTLIER scaled MADs): at three it took
+blocks that carry the yaw, heavy ones most (the scaling enlarges their deviations; their yaws lean
+positive), and the yaw leaned negative and was noisier. Within pairs.SIDELOBE_BLOCKS of a bright
+block, whose range sidelobes are what a weak seafloor's blocks there hold, the cut is pairs.OUTLIER
+(bench/bench_dpca.py --pooling compares the rules).
+A real seafloor, many scatterers a resolution cell, has n_b large; a simulated one of random
+points, or a real one of a few strong scatterers (rocks, shells), does not.
 
 Errors and the track (eqs. 71-73): sway errors integrate into the track as a random walk, yaw
 errors as an integrated random walk; what defocuses is the part of the resulting cross-track

@@ -90,6 +90,16 @@ MAIN_LOBE = 0.5
 # Blocks further than this many scaled median absolute deviations from a pair's median are left
 # out of its mean (see estimate).
 OUTLIER = 3.0
+# A block whose yaw's scaled deviation (pooled_mean) lies beyond this many scaled median absolute
+# deviations of the pair's is left out of its yaw, OUTLIER of them within SIDELOBE_BLOCKS of a
+# bright block. The scaled deviations' tails are heavier than a Gaussian's and carry the yaw: cut
+# everywhere at OUTLIER, the cut took some 4 % of a speckle seafloor's blocks, heavy ones most
+# (the scaling enlarges their deviations; their yaws lean positive, so the pair's leaned negative)
+# and the yaw's noise rose. Next to a bright echo its range sidelobes are what a block holds, whose
+# yaws (that echo's look-angle term through the sidelobes' phase) are outliers the narrow cut takes
+# (bench/bench_dpca.py --pooling, tests/test_dpca.py's focus tests).
+YAW_OUTLIER = 5.0
+SIDELOBE_BLOCKS = 2
 # t-lags of the second pass, after each pair's delay is taken out of the envelope.
 FINE_T_LAGS = 2
 
@@ -115,12 +125,13 @@ def _weighted_median(x: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 def pooled_mean(x: np.ndarray, use: np.ndarray, weight: np.ndarray,
-                cut: float = OUTLIER) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                cut: float | np.ndarray = YAW_OUTLIER) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per row (ping pair) of the blocks' values ``x`` (pair, block): their mean weighted by
     ``weight`` (pair, block; > 0, a block's coherent energy), its standard error, and which
     blocks entered it (``use`` and not cut). The cut: a block whose deviation from the
     ``weight``-weighted median, scaled by sqrt(weight / the row's median weight), lies beyond
-    ``cut`` scaled median absolute deviations of the row's scaled deviations. A block's yaw is a
+    ``cut`` (a number, or one per block: shape of ``x``) scaled median absolute deviations of the
+    row's scaled deviations. A block's yaw is a
     ratio whose spread goes as 1 / sqrt(weight): scaled so, the deviations are nearly symmetric,
     where the plain ones are skewed (see the package docstring) and a cut on them moves the mean.
     The standard error is over the effective number of blocks, sum(w)^2 / sum(w^2)."""
@@ -417,9 +428,15 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     # The yaw: the blocks' yaws pooled, weighted by their coherent energy (why: the package
     # docstring, "Pooling the blocks' yaws"); a block holding a bright echo (over BRIGHT_BLOCK
     # typical blocks' energy) counts as one typical block, as in the medians' votes.
-    coherent = rho * np.where(energy > BRIGHT_BLOCK * typical, typical, energy)
+    bright = energy > BRIGHT_BLOCK * typical
+    coherent = rho * np.where(bright, typical, energy)
+    # the narrow cut within SIDELOBE_BLOCKS of a bright block (its range sidelobes), the wide one elsewhere
+    near = np.zeros_like(bright)
+    for k in range(1, SIDELOBE_BLOCKS + 1):
+        near[:, k:] |= bright[:, :-k]
+        near[:, :-k] |= bright[:, k:]
     (su, su_e), (sw, sw_e) = robust_mean(surge, seafloor), robust_mean(sway, good, weight)
-    yw, yw_e, kept = pooled_mean(yaw, inside, coherent)
+    yw, yw_e, kept = pooled_mean(yaw, inside, coherent, cut=np.where(near & ~bright, OUTLIER, YAW_OUTLIER))
     coh = np.nanmedian(np.where(good, coherence, np.nan), axis=1)
     log.info("dpca: %d ping pairs, %d couples, %d range blocks; median coherence %.2f", echo.n_pulses - 1,
              n_couples, n_blocks, float(np.median(coh)))
