@@ -255,11 +255,11 @@ def program(name: str, defines: dict | None = None, device: str | None = None, d
 
 def kernel(name: str, kernel_name: str, defines: dict | None = None, device: str | None = None,
            double: bool = False, preamble: str = ""):
-    """The pyopencl.Kernel ``kernel_name`` from ``kernels/NAME.cl`` (see :func:`program`), one per
+    """The :class:`TypedKernel` of ``kernel_name`` from ``kernels/NAME.cl`` (see :func:`program`), one per
     (program, name, thread): a fresh Kernel looks its argument invoker up in pyopencl's on-disk
     cache (milliseconds a call), which calls launching many small kernels (ffbp's leaves and
     merges) paid every time. Launch it as ``kern(queue, ...)`` (arguments set and enqueued at once;
-    scalar arguments typed on the first launch, :class:`TypedKernel`)."""
+    scalar arguments typed on the first launch)."""
     call = (name, kernel_name, id(runtime(device)), double, preamble, tuple(sorted((defines or {}).items())),
             threading.get_ident())
     kern = _kernel_calls.get(call)
@@ -276,27 +276,40 @@ def kernel(name: str, kernel_name: str, defines: dict | None = None, device: str
 
 
 class TypedKernel:
-    """A pyopencl.Kernel whose scalar arguments are typed on its first launch.
+    """A kernel from :func:`kernel` (a pyopencl.Kernel, ``.kernel``) launched as ``kern(queue,
+    global_size, local_size, *args)``, its scalar arguments typed on its first launch.
 
     pyopencl sets an untyped NumPy scalar argument through its generic ``set_arg`` (~40 us a
     launch for a few ints on this project's machines, thread CPU), while typed ones are packed by
     its generated invoker (~7 us for the whole launch). The first launch's arguments say the types:
     a NumPy scalar's dtype (not a structured one) for its slot, None (set as given) for buffers,
-    local memory and structured scalars. Later launches must pass the same kinds in each slot (as
-    a kernel's signature requires anyway); a Python int or float is then accepted for a typed slot.
+    local memory and structured scalars. A first launch that fails leaves the kernel untyped (the
+    next launch types it again). Every later launch must pass a NumPy scalar of exactly that dtype
+    in a typed slot (as pyopencl's untyped path required its width): anything else is a TypeError
+    naming the slot, never a silent narrowing.
     """
 
-    __slots__ = ("kernel", "_typed")
+    __slots__ = ("kernel", "_scalars")
 
     def __init__(self, kernel):
         self.kernel = kernel
-        self._typed = False
+        self._scalars = None  # ((slot, NumPy scalar type), ...) once typed
 
     def __call__(self, queue, global_size, local_size, *args, **kwargs):
-        if not self._typed:
-            self.kernel.set_scalar_arg_dtypes([a.dtype if isinstance(a, np.generic) and a.dtype.fields is None
-                                               else None for a in args])
-            self._typed = True
+        if self._scalars is None:
+            dtypes = [a.dtype if isinstance(a, np.generic) and a.dtype.fields is None else None for a in args]
+            self.kernel.set_scalar_arg_dtypes(dtypes)
+            try:
+                event = self.kernel(queue, global_size, local_size, *args, **kwargs)
+            except Exception:
+                self.kernel.set_scalar_arg_dtypes([None] * len(args))
+                raise
+            self._scalars = tuple((k, d.type) for k, d in enumerate(dtypes) if d is not None)
+            return event
+        for k, kind in self._scalars:
+            if type(args[k]) is not kind:
+                raise TypeError(f"kernel {self.kernel.function_name}: argument {k} must be a {kind.__name__} "
+                                f"(its type at the first launch), not {type(args[k]).__name__} {args[k]!r}")
         return self.kernel(queue, global_size, local_size, *args, **kwargs)
 
 

@@ -216,3 +216,39 @@ def test_unknown_kernel_source_lists_known(opencl_device):
 def test_bad_precision():
     with pytest.raises(ValueError, match="precision"):
         backend.check_precision("half")
+
+
+def _typed_kernel(rt):
+    import pyopencl as cl
+
+    prg = cl.Program(rt.context, "__kernel void k(__global float *o, const float a, const int b)"
+                                 "{ o[0] = a; o[1] = (float)b; }").build()
+    return opencl.TypedKernel(cl.Kernel(prg, "k")), cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, 8)
+
+
+def _launch(rt, kern, buf, a, b):
+    import pyopencl as cl
+
+    out = np.zeros(2, np.float32)
+    kern(rt.queue, (1,), None, buf, a, b)
+    cl.enqueue_copy(rt.queue, out, buf)
+    return out.tolist()
+
+
+def test_a_typed_kernel_packs_its_scalars_and_refuses_another_width(opencl_device):
+    kern, buf = _typed_kernel(opencl_device)
+    assert _launch(opencl_device, kern, buf, np.float32(1.5), np.int32(2)) == [1.5, 2.0]
+    assert _launch(opencl_device, kern, buf, np.float32(-3.25), np.int32(7)) == [-3.25, 7.0]
+    with pytest.raises(TypeError, match=r"argument 1 must be a float32 .*not float64"):
+        _launch(opencl_device, kern, buf, np.float64(2.5), np.int32(3))  # never narrowed silently
+    with pytest.raises(TypeError, match=r"argument 2 must be a int32 .*not int"):
+        _launch(opencl_device, kern, buf, np.float32(2.5), 3)
+
+
+def test_a_failed_first_launch_leaves_a_typed_kernel_usable(opencl_device):
+    import pyopencl as cl
+
+    kern, buf = _typed_kernel(opencl_device)
+    with pytest.raises(cl.LogicError):  # a double in a float slot: pyopencl refuses its width
+        _launch(opencl_device, kern, buf, np.float64(1.5), np.int32(2))
+    assert _launch(opencl_device, kern, buf, np.float32(1.5), np.int32(2)) == [1.5, 2.0]
