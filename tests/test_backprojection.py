@@ -631,8 +631,7 @@ def test_a_block_over_several_launches_gives_the_identical_image(opencl_device, 
     """Records whose block of PULSE_BLOCK pulses exceeds LAUNCH_RECORD_BYTES are summed over several
     bp_tile launches carrying their float sums (CARRY): the image is bit-identical to one launch a
     block, with blocks cut short by the span's end, an aperture, a pulse range starting inside a
-    block, prepared records, sinc8 and the one-leg kernel; the launches' int arguments are typed (plain
-    ints, packed by the invoker) and a carry with store is refused."""
+    block, prepared records, sinc8 and the one-leg kernel; a carry with store is refused."""
     from clsas.image.backprojection import launcher, records, tile_kernel
 
     if case == "kiang-stop-and-go":
