@@ -77,7 +77,7 @@ REFERENCE_SAMPLE_BYTES = 400  # ... and a leaf sample (its points, their Grid, i
 MERGE_SAMPLE_BYTES = 320  # merge_reference: an output sample of its chunk (merge.CHUNK)
 # planning (tree.plan), a skeleton point (polar.Scene): the track's ranges (up to 2 x 66 rows; a bound
 # kept since tree._Frames takes the nearest range from the skeleton's k-d tree, polar.Scene.nearest,
-# ~40 bytes a point) and CHUNK_NODES sub-apertures' ranges, sines and bins (polar._extents), float64
+# ~40 bytes a point) and CHUNK_NODES sub-apertures' ranges, sines and bins (polar.sampling._extents), float64
 PLAN_BYTES = 8 * (2 * 66 + 6 * CHUNK_NODES)
 TABLE_COPIES = {"knab": 8, "kaiser": 16}  # float64 temporaries of building a tap table (interp.tap_table)
 

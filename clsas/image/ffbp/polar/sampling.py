@@ -1,0 +1,200 @@
+"""What each sub-aperture's polar grid covers (ranges, sines, bands, reach) and its sampling, with
+the ragged rows' spans (the package docstring has the rule)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from .grids import PolarGrid, oversampling
+from .scene import Scene, frame_axes
+
+CHUNK_NODES = 8  # sub-apertures whose extents are computed at once (8 x ~8k skeleton points: 0.5 MB arrays, in cache)
+ENVELOPE_BINS = 512  # sine bins of a sub-aperture's range envelope of the scene (the ragged rows)
+RAGGED = True  # polar grids computed only within their rows' spans (False: whole rectangles, for comparison)
+
+
+@dataclasses.dataclass(frozen=True)
+class Extent:
+    """What a sub-aperture's polar grid covers, before sampling: its frame, the ranges
+    [r_lo, r_hi] (m) and sines [v_lo, v_hi] of the scene it sees, its bands W_r (cycles per m)
+    and W_v (cycles per unit v) (the module docstring's rule) and ``reach``, the fraction of the
+    scene's skeleton (so about the fraction of its pixels) within those ranges and sines."""
+
+    centre: np.ndarray
+    axis: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    plane: Plane
+    r_lo: float
+    r_hi: float
+    v_lo: float
+    v_hi: float
+    w_r: float
+    w_v: float
+    reach: float = 1.0
+    margin: float = 0.0
+    envelope: np.ndarray | None = dataclasses.field(default=None, compare=False)
+    bins: tuple = (0.0, 1.0)
+
+    def _sampling(self, rho: float, taps: int) -> tuple:
+        """(r0, dr, n_r, v0, dv, n_v, pad) of the polar grid at oversampling ``rho`` (:meth:`sample`)."""
+        pad = taps // 2 + 2  # the interpolator reads taps / 2 samples either side; 2 more for frame shifts
+        dr = 1 / (2 * self.w_r * rho)
+        # a sub-aperture of (nearly) zero length (one pulse, monostatic) has no band in v (W_v = 0):
+        # any step samples it, so the step is capped to keep the padding within one unit of sine
+        # of the scene's (|v| <= 2: points within twice their range of the centre)
+        dv = min(1 / (2 * max(self.w_v, 1e-12) * rho), 1.0 / pad)
+        n_r = int(np.ceil((self.r_hi - self.r_lo) / dr)) + 1 + 2 * pad
+        n_v = int(np.ceil((self.v_hi - self.v_lo) / dv)) + 1 + 2 * pad
+        return self.r_lo - pad * dr, dr, n_r, self.v_lo - pad * dv, dv, n_v, pad
+
+    def rows(self, rho: float, taps: int) -> int:
+        """The angle rows n_v of :meth:`sample`'s grid (without sampling it)."""
+        return self._sampling(rho, taps)[5]
+
+    def size(self, rho: float, taps: int) -> int:
+        """The samples n_v x n_r of :meth:`sample`'s grid's (r, v) box (without sampling it)."""
+        _, _, n_r, _, _, n_v, _ = self._sampling(rho, taps)
+        return n_r * n_v
+
+    def sample(self, rho: float, taps: int) -> PolarGrid:
+        """The polar grid at oversampling ``rho``, padded by ``taps // 2 + 2`` samples on every side
+        for the interpolator, with its rows' spans (:func:`sample_grids`) when :data:`RAGGED`."""
+        return sample_grids([self], rho, taps)[0]
+
+
+def sample_grids(found: list, rho: float, taps: int) -> list:
+    """The polar grids of extents ``found`` at oversampling ``rho`` (:meth:`Extent.sample`), their
+    rows' spans computed together (:data:`RAGGED`; extents without an envelope get none).
+
+    Row j's span [lo, hi) of a grid r0 + i dr, v0 + j dv: the ranges of the scene's skeleton points
+    whose sines lie within margin / r_lo + pad dv of the row's (the rectangle's own padding in
+    sine), widened by margin + pad dr (its padding in range), so that every sample the rectangle
+    holds within that distance of the scene is kept; the rest of the rectangle (the corners of the
+    (r, v) box outside the scene's wedge) is not computed. The envelope's bins make the sines'
+    window up to one bin wider (more kept, never less). The nearest and farthest range over a
+    window of bins come from a sparse table of each envelope (extrema over 2^k bins from every
+    bin; two overlapping windows of 2^k bins cover any window), all the grids' rows at once."""
+    shapes = [e._sampling(rho, taps) for e in found]
+    ragged = [k for k, e in enumerate(found) if RAGGED and e.envelope is not None]
+    spans = dict(zip(ragged, _spans([found[k] for k in ragged], [shapes[k] for k in ragged]))) if ragged else {}
+    return [PolarGrid(e.centre, e.axis, e.e1, e.e2, e.plane, r0, dr, n_r, v0, dv, n_v, spans.get(k))
+            for k, (e, (r0, dr, n_r, v0, dv, n_v, _)) in enumerate(zip(found, shapes))]
+
+
+def _spans(found: list, shapes: list) -> list:
+    """The rows' spans (n_v, 2) int32 of each extent sampled as ``shapes`` (sample_grids)."""
+    r0, dr, n_r, v0, dv, n_v, pad = (np.array(x) for x in zip(*shapes))
+    node = np.repeat(np.arange(len(found)), n_v)  # each row's grid
+    row = np.arange(node.size) - np.repeat(np.cumsum(n_v) - n_v, n_v)
+    start, width = (np.array(x) for x in zip(*(e.bins for e in found)))
+    margin = np.array([e.margin for e in found])
+    envelopes = np.stack([e.envelope for e in found])  # (n, n_bins, 2): every extent's bins alike
+    n_bins = envelopes.shape[1]
+    reach_v = margin / np.maximum([e.r_lo for e in found], 1e-12) + pad * dv
+    v = v0[node] + dv[node] * row
+    b0 = np.clip(np.floor((v - reach_v[node] - start[node]) / width[node]), 0, n_bins).astype(np.int64)
+    b1 = np.clip(np.floor((v + reach_v[node] - start[node]) / width[node]) + 1, 0, n_bins).astype(np.int64)
+    lows, highs = [envelopes[:, :, 0]], [envelopes[:, :, 1]]
+    while 2 ** len(lows) <= n_bins:
+        half = 2 ** (len(lows) - 1)
+        lows.append(np.minimum(lows[-1][:, :-half], lows[-1][:, half:]))
+        highs.append(np.maximum(highs[-1][:, :-half], highs[-1][:, half:]))
+    length = b1 - b0
+    k = np.floor(np.log2(np.maximum(length, 1))).astype(np.int64)
+    near, far = np.full(node.size, np.inf), np.full(node.size, -np.inf)
+    for level in np.unique(k[length > 0]):
+        rows = (length > 0) & (k == level)
+        grid, first, last = node[rows], b0[rows], b1[rows] - 2 ** level
+        near[rows] = np.minimum(lows[level][grid, first], lows[level][grid, last])
+        far[rows] = np.maximum(highs[level][grid, first], highs[level][grid, last])
+    seen = near <= far
+    widen = (margin + pad * dr)[node]
+    origin, step, count = r0[node], dr[node], n_r[node]
+    with np.errstate(invalid="ignore"):
+        lo = np.floor((np.where(seen, near, origin) - widen - origin) / step)
+        hi = np.ceil((np.where(seen, far, origin) + widen - origin) / step) + 1
+    lo, hi = np.clip(lo, 0, count), np.clip(hi, 0, count)
+    spans = np.where(seen[:, None], np.stack([lo, hi], axis=1), 0).astype(np.int32)
+    return np.split(spans, np.cumsum(n_v)[:-1])
+
+
+def extents(centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray, scene: Scene, windows: np.ndarray,
+            bandwidth: float, f0: float, c: float, sine_limits: np.ndarray | None = None) -> list:
+    """The extents of the polar grids of sub-apertures with frames (centres (n, 3) m, unit axes
+    (n, 3)) and half-lengths L (n,) m, each covering the scene within its recorded range window
+    ``windows`` (n, 2) m (min, max) and, with ``sine_limits`` (n,), the sines |v| <= its limit
+    (the integration angle); a range span is that of the pixels within its sines (a sector of a
+    long scene is nearer than the scene's far corners). A list of Extent, None where the scene
+    lies wholly outside the window or the angular limit. Vectorised over CHUNK_NODES
+    sub-apertures at a time (the skeleton's ranges and sines of each)."""
+    found = []
+    for s in range(0, len(centres), CHUNK_NODES):
+        found += _extents(centres[s:s + CHUNK_NODES], axes[s:s + CHUNK_NODES], half_lengths[s:s + CHUNK_NODES],
+                          scene, windows[s:s + CHUNK_NODES], bandwidth, f0, c,
+                          None if sine_limits is None else sine_limits[s:s + CHUNK_NODES])
+    return found
+
+
+def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine_limits) -> list:
+    r, v = scene.offsets(centres, axes)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v /= r  # the sines, in place (a point at a centre, r = 0, has none: 0)
+    if not r.all():
+        v[r == 0] = 0.0
+    r_nearest = r.min(axis=1)
+    r_lo = np.maximum(r_nearest - scene.margin, windows[:, 0])
+    v_margin = scene.margin / np.where(r_lo > 0, r_lo, 1.0)
+    v_lo = np.maximum(v.min(axis=1) - v_margin, -1.0)
+    v_hi = np.minimum(v.max(axis=1) + v_margin, 1.0)
+    alive = r_lo > 0
+    if sine_limits is not None:
+        v_lo, v_hi = np.maximum(v_lo, -sine_limits), np.minimum(v_hi, sine_limits)
+        seen = (v >= (v_lo - v_margin)[:, None]) & (v <= (v_hi + v_margin)[:, None])
+        alive &= (v_hi > v_lo) & seen.any(axis=1)
+        r_min, r_max = np.where(seen, r, np.inf).min(axis=1), np.where(seen, r, -np.inf).max(axis=1)
+        reach = ((v >= v_lo[:, None]) & (v <= v_hi[:, None])).mean(axis=1)
+    else:
+        r_min, r_max = r_nearest, r.max(axis=1)
+        reach = np.ones(len(centres))
+    with np.errstate(invalid="ignore"):
+        r_lo = np.maximum(r_min - scene.margin, windows[:, 0])
+        r_hi = np.minimum(r_max + scene.margin, windows[:, 1])
+        alive &= (r_hi >= r_lo) & (r_lo > 0)  # equal for a scene at one range (a single point)
+    f_max = f0 + bandwidth / 2
+    a = np.stack([-half_lengths, half_lengths], axis=1)[:, :, None]  # (n, 2, 1)
+    vv = np.stack([v_lo, v_hi, np.zeros_like(v_lo)], axis=1)[:, None, :]  # (n, 1, 3)
+    rr = np.where(alive, r_lo, 1.0)[:, None, None]
+    dist = np.sqrt(np.maximum(rr ** 2 - 2 * rr * a * vv + a * a, 1e-30))
+    w_v = 2 * f_max * np.max(np.abs(rr * a / dist), axis=(1, 2)) / c
+    w_r = bandwidth / c + 2 * f_max * np.max(1 - (rr - a * vv) / dist, axis=(1, 2)) / c
+    # the range envelope of the skeleton in ENVELOPE_BINS sine bins over each grid's sines (with
+    # their margin): the nearest and the farthest range of the points in each bin
+    v_margin = scene.margin / np.where(alive, r_lo, 1.0)
+    start = np.where(alive, v_lo - v_margin, 0.0)
+    width = np.where(alive, np.maximum(v_hi + v_margin - start, 1e-12), 1.0) / ENVELOPE_BINS
+    b = v - start[:, None]
+    with np.errstate(invalid="ignore"):
+        b /= width[:, None]
+    np.floor(b, out=b)
+    ok = b >= 0
+    ok &= b < ENVELOPE_BINS
+    b += (np.arange(len(centres)) * ENVELOPE_BINS)[:, None]  # the bin's index among all the grids' bins
+    every = bool(ok.all())  # (no integration angle: every point in its grid's bins) no masked copies
+    flat = (b.reshape(-1) if every else b[ok]).astype(np.int64)
+    ranges = r.reshape(-1) if every else r[ok]
+    near = np.full(len(centres) * ENVELOPE_BINS, np.inf)
+    far = np.full(len(centres) * ENVELOPE_BINS, -np.inf)
+    np.minimum.at(near, flat, ranges)
+    np.maximum.at(far, flat, ranges)
+    envelope = np.stack([near, far], axis=1).reshape(len(centres), ENVELOPE_BINS, 2)
+    found = []
+    e1s, e2s = frame_axes(axes[alive], centres[alive], scene.plane)
+    for k, e1, e2 in zip(np.flatnonzero(alive), e1s, e2s):
+        found += [None] * (k - len(found))
+        found.append(Extent(centres[k], axes[k], e1, e2, scene.plane, float(r_lo[k]), float(r_hi[k]), float(v_lo[k]),
+                            float(v_hi[k]), float(w_r[k]), float(w_v[k]), float(reach[k]), scene.margin,
+                            envelope[k], (float(start[k]), float(width[k]))))
+    return found + [None] * (len(centres) - len(found))
