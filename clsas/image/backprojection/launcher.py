@@ -107,6 +107,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     rt = opencl.runtime()
     ctx, queue = rt.context, rt.queue
     mf = cl.mem_flags
+    START, END = cl.profiling_info.START, cl.profiling_info.END
     echo, fs = records.echo, records.fs
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
     pixels = np.ascontiguousarray(plan.grid.positions.reshape(-1, 3), np.float64)
@@ -138,7 +139,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
         while len(in_flight) > keep:
             for e in in_flight.pop(0):
                 e.wait()
-                seconds += 1e-9 * (e.profile.end - e.profile.start)
+                seconds += 1e-9 * (e.get_profiling_info(END) - e.get_profiling_info(START))
             bar.done(work.pop(0))  # the progress bar counts finished kernels' pixel-pulses
         return seconds
 
