@@ -343,3 +343,170 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
 #endif
     }
 }
+
+/* The planner's reductions over the scene's skeleton (clsas/image/ffbp/polar/offsets.py, whose
+ * NumPy twin is the reference: both give the same values, bit for bit): work-item n is
+ * sub-aperture n (its origin O = origins[n] and unit axis u = axes[n], about the scene's centroid;
+ * dots[n] = u . O), looping over the K skeleton points X (points: the x row, the y row, the z row
+ * of K each, about the centroid), eight at a time (double8) and the last K % 8 one by one. A
+ * point's range r = |X - O| and sine v = (u . X - u . O) / r (0 at r = 0) are formed operation by
+ * operation as polar.Scene.offsets forms them, with no contraction into fused multiply-adds (so
+ * every value is NumPy's: IEEE sums, products, square roots and quotients, correctly rounded in
+ * double); minima and maxima are exact in any order. */
+#define SKELETON_RV(T, LOAD)                                                                                  \
+    {                                                                                                         \
+        const T x = LOAD(points + i), y = LOAD(points + K + i), z = LOAD(points + 2 * K + i);                \
+        const T dx = x - o.x, dy = y - o.y, dz = z - o.z;                                                     \
+        T sq = dx * dx;                                                                                       \
+        sq = sq + dy * dy;                                                                                    \
+        sq = sq + dz * dz;                                                                                    \
+        r = sqrt(sq);                                                                                         \
+        T along = u.x * x;                                                                                    \
+        along = along + u.y * y;                                                                              \
+        along = along + u.z * z;                                                                              \
+        along = along - dot_uo;                                                                               \
+        v = along / r;                                                                                        \
+    }
+#define LOAD1(p) (*(p))
+#define LOAD8(p) vload8(0, (p))
+
+/* out[n] = (min r, max r, min v, max v) over the skeleton. */
+__kernel void ffbp_extremes(__global const double *points, const int K, __global const double *origins,
+                            __global const double *axes, __global const double *dots, const int n_nodes,
+                            __global double4 *out)
+{
+#pragma OPENCL FP_CONTRACT OFF
+    const int n = get_global_id(0);
+    if (n >= n_nodes)
+        return;
+    const double3 o = vload3(n, origins), u = vload3(n, axes);
+    const double dot_uo = dots[n];
+    double8 r8_lo = INFINITY, r8_hi = -INFINITY, v8_lo = INFINITY, v8_hi = -INFINITY;
+    int i = 0;
+    for (; i + 8 <= K; i += 8) {
+        double8 r, v;
+        SKELETON_RV(double8, LOAD8)
+        v = select(v, (double8)0.0, r == 0.0);
+        r8_lo = select(r8_lo, r, r < r8_lo);
+        r8_hi = select(r8_hi, r, r > r8_hi);
+        v8_lo = select(v8_lo, v, v < v8_lo);
+        v8_hi = select(v8_hi, v, v > v8_hi);
+    }
+    double r_lo = INFINITY, r_hi = -INFINITY, v_lo = INFINITY, v_hi = -INFINITY;
+    for (int k = 0; k < 8; ++k) {
+        r_lo = r8_lo[k] < r_lo ? r8_lo[k] : r_lo;
+        r_hi = r8_hi[k] > r_hi ? r8_hi[k] : r_hi;
+        v_lo = v8_lo[k] < v_lo ? v8_lo[k] : v_lo;
+        v_hi = v8_hi[k] > v_hi ? v8_hi[k] : v_hi;
+    }
+    for (; i < K; ++i) {
+        double r, v;
+        SKELETON_RV(double, LOAD1)
+        v = r == 0.0 ? 0.0 : v;
+        r_lo = r < r_lo ? r : r_lo;
+        r_hi = r > r_hi ? r : r_hi;
+        v_lo = v < v_lo ? v : v_lo;
+        v_hi = v > v_hi ? v : v_hi;
+    }
+    out[n] = (double4)(r_lo, r_hi, v_lo, v_hi);
+}
+
+/* Over the skeleton points whose sines lie in windows[n] = (lo, hi, a, b), lo <= v <= hi:
+ * out[n] = (min r, max r (inf, -inf: none), their count, the count of a <= v <= b). */
+__kernel void ffbp_seen(__global const double *points, const int K, __global const double *origins,
+                        __global const double *axes, __global const double *dots, const int n_nodes,
+                        __global const double4 *windows, __global double4 *out)
+{
+#pragma OPENCL FP_CONTRACT OFF
+    const int n = get_global_id(0);
+    if (n >= n_nodes)
+        return;
+    const double3 o = vload3(n, origins), u = vload3(n, axes);
+    const double dot_uo = dots[n];
+    const double4 w = windows[n];
+    double8 r8_lo = INFINITY, r8_hi = -INFINITY;
+    long8 seen8 = 0, reach8 = 0;
+    int i = 0;
+    for (; i + 8 <= K; i += 8) {
+        double8 r, v;
+        SKELETON_RV(double8, LOAD8)
+        v = select(v, (double8)0.0, r == 0.0);
+        const long8 in = v >= w.x && v <= w.y;  /* -1 where true */
+        r8_lo = select(r8_lo, r, in && r < r8_lo);
+        r8_hi = select(r8_hi, r, in && r > r8_hi);
+        seen8 -= in;
+        reach8 -= v >= w.z && v <= w.w;
+    }
+    double r_lo = INFINITY, r_hi = -INFINITY;
+    long seen = 0, reach = 0;
+    for (int k = 0; k < 8; ++k) {
+        r_lo = r8_lo[k] < r_lo ? r8_lo[k] : r_lo;
+        r_hi = r8_hi[k] > r_hi ? r8_hi[k] : r_hi;
+        seen += seen8[k];
+        reach += reach8[k];
+    }
+    for (; i < K; ++i) {
+        double r, v;
+        SKELETON_RV(double, LOAD1)
+        v = r == 0.0 ? 0.0 : v;
+        if (v >= w.x && v <= w.y) {
+            r_lo = r < r_lo ? r : r_lo;
+            r_hi = r > r_hi ? r : r_hi;
+            ++seen;
+        }
+        reach += v >= w.z && v <= w.w;
+    }
+    out[n] = (double4)(r_lo, r_hi, (double)seen, (double)reach);
+}
+
+/* The range envelope: envelope[n][b] = (min r, max r) (inf, -inf: empty) of the skeleton points
+ * in sine bin b = floor((v - start) / width) (bins[n] = (start, width)), 0 <= b < N_BINS: the
+ * quotient t = (v - start) / width lies in [0, n_bins) exactly when floor(t) does, and there
+ * floor(t) is t truncated (no floor(), which PoCL emulates slowly). */
+__kernel void ffbp_envelope(__global const double *points, const int K, __global const double *origins,
+                            __global const double *axes, __global const double *dots, const int n_nodes,
+                            __global const double2 *bins, const int n_bins, __global double2 *envelope)
+{
+#pragma OPENCL FP_CONTRACT OFF
+    const int n = get_global_id(0);
+    if (n >= n_nodes)
+        return;
+    const double3 o = vload3(n, origins), u = vload3(n, axes);
+    const double dot_uo = dots[n];
+    const double2 s = bins[n];
+    __global double2 *env = envelope + (long)n * n_bins;
+    for (int b = 0; b < n_bins; ++b)
+        env[b] = (double2)(INFINITY, -INFINITY);
+    int i = 0;
+    for (; i + 8 <= K; i += 8) {
+        double8 r, v;
+        SKELETON_RV(double8, LOAD8)
+        v = select(v, (double8)0.0, r == 0.0);
+        const double8 t = (v - s.x) / s.y;
+        const long8 ok = t >= 0.0 && t < (double)n_bins;
+        const int8 bin = convert_int8(select((double8)0.0, t, ok));
+        for (int k = 0; k < 8; ++k) {
+            if (ok[k]) {
+                __global double2 *e = env + bin[k];
+                const double rk = r[k];
+                double2 x = *e;
+                x.x = rk < x.x ? rk : x.x;
+                x.y = rk > x.y ? rk : x.y;
+                *e = x;
+            }
+        }
+    }
+    for (; i < K; ++i) {
+        double r, v;
+        SKELETON_RV(double, LOAD1)
+        v = r == 0.0 ? 0.0 : v;
+        const double t = (v - s.x) / s.y;
+        if (t >= 0.0 && t < n_bins) {
+            __global double2 *e = env + (int)t;
+            double2 x = *e;
+            x.x = r < x.x ? r : x.x;
+            x.y = r > x.y ? r : x.y;
+            *e = x;
+        }
+    }
+}

@@ -120,8 +120,10 @@ class _Frames:
 
 
 def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: float, taps: int,
-         first: int | None, aperture: float | None) -> Tree:
-    """The merge tree for ``echo``'s pulses and the scene (see the module docstring)."""
+         first: int | None, aperture: float | None, device: bool = False) -> Tree:
+    """The merge tree for ``echo``'s pulses and the scene (see the module docstring); ``device``:
+    the extents' reductions over the skeleton on the OpenCL device (the same tree, bit for bit:
+    :mod:`.polar.offsets`)."""
     frames = _Frames(echo, chosen, scene)
     if frames.r_near <= 0:
         raise ValueError("grid: a pixel lies on the sonar's track (zero range); ffbp's polar grids need every pixel "
@@ -143,7 +145,8 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         widen = halves + bases / 2
         limits = None if sine is None else np.minimum(1.0, sine + np.linalg.norm(axes - [0.0, 1.0, 0.0], axis=1)
                                                       + halves / frames.r_near)
-        found = extents(centres, axes, halves, scene, window + np.stack([-widen, widen], axis=1), bw, f0, c, limits)
+        found = extents(centres, axes, halves, scene, window + np.stack([-widen, widen], axis=1), bw, f0, c, limits,
+                        taps if device else None)
         extents_of.update(zip(nodes, found))
 
     def grids_for(nodes, rho) -> list:
