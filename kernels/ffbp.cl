@@ -121,10 +121,11 @@ inline double16 polar_points16(const ffbp_frame_t f, const ffbp_plane_t plane, c
  * (clsas/image/ffbp/leaves.py): work-item g fills fields[g], sixteen consecutive range samples of
  * one row of one tile, items[g] (leaf, row, first range sample, tile; rows and samples past the
  * grid's edge are clamped to it: the launcher drops those slots); frames[leaf], plane, centres
- * (the tiles' reference points, m). */
+ * (the tiles' reference points, m); dd_max[g] the largest of its sixteen dd (as stored, float:
+ * the launcher's tile budget check reads these, not the fields). */
 __kernel void ffbp_fields(__global const ffbp_item_t *items, __global const ffbp_frame_t *frames,
                           const ffbp_plane_t plane, __global const double *centres, const int n_items,
-                          __global bp_pixels_t *fields)
+                          __global bp_pixels_t *fields, __global float *dd_max)
 {
     const int g = get_global_id(0);
     if (g >= n_items)  /* the launch is padded to whole work-groups */
@@ -139,7 +140,12 @@ __kernel void ffbp_fields(__global const ffbp_item_t *items, __global const ffbp
     STORE_F16(convert_float16(dx), o->dx);
     STORE_F16(convert_float16(dy), o->dy);
     STORE_F16(convert_float16(dz), o->dz);
-    STORE_F16(convert_float16(dx * dx + dy * dy + dz * dz), o->dd);
+    const float16 dd = convert_float16(dx * dx + dy * dy + dz * dz);
+    STORE_F16(dd, o->dd);
+    const float8 m8 = fmax(dd.lo, dd.hi);
+    const float4 m4 = fmax(m8.lo, m8.hi);
+    const float2 m2 = fmax(m4.lo, m4.hi);
+    dd_max[g] = fmax(m2.x, m2.y);
 }
 
 /* The first stage's demodulated leaf images from bp_tile's slots (clsas/image/ffbp/leaves.py),

@@ -386,11 +386,12 @@ class FirstStage:
             fields = np.empty(items.size, tile.pixels)  # one record a item: LANES samples
             pix = cl.Buffer(ctx, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=fields)
             items_buf = cl_buffer(items)
+            largest = np.empty(items.size, np.float32)  # each item's largest dd (the fields' own, float32)
+            largest_buf = cl.Buffer(ctx, mf.WRITE_ONLY, largest.nbytes)
             program.kernel("ffbp_fields")(queue, *opencl.work_groups(items.size), items_buf, frames, plane,
-                                          cl_buffer(centres), np.int32(items.size), pix)
-            mapped, _ = cl.enqueue_map_buffer(queue, pix, cl.map_flags.READ, 0, fields.shape, fields.dtype)
-            extent = float(np.sqrt(mapped["dd"].max()))
-            mapped.base.release()
+                                          cl_buffer(centres), np.int32(items.size), pix, largest_buf)
+            cl.enqueue_copy(queue, largest, largest_buf)
+            extent = float(np.sqrt(largest.max()))
             if extent <= budget:
                 break
             if br == LANES and bv == ROWS:  # samples too far apart for any tile (a short leaf's coarse angles)
