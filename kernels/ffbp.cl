@@ -1,5 +1,7 @@
 /* Fast factorised back-projection: the merge of child polar images into a parent polar grid
  * (PARENT_GRID) or onto explicit points (the final stage onto the user's pixels).
+ * Also: the first stage's pixel fields (ffbp_fields) and demodulation (ffbp_leaf), and the
+ * planner's reductions over the scene's skeleton (ffbp_extremes, ffbp_seen, ffbp_envelope, at the end).
  *
  * NumPy twin: clsas/image/ffbp/merge.py (merge_reference); launcher merge_opencl there.
  *
@@ -353,166 +355,114 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
 /* The planner's reductions over the scene's skeleton (clsas/image/ffbp/polar/offsets.py, whose
  * NumPy twin is the reference: both give the same values, bit for bit): work-item n is
  * sub-aperture n (its origin O = origins[n] and unit axis u = axes[n], about the scene's centroid;
- * dots[n] = u . O), looping over the K skeleton points X (points: the x row, the y row, the z row
- * of K each, about the centroid), eight at a time (double8) and the last K % 8 one by one. A
- * point's range r = |X - O| and sine v = (u . X - u . O) / r (0 at r = 0) are formed operation by
- * operation as polar.Scene.offsets forms them, with no contraction into fused multiply-adds (so
- * every value is NumPy's: IEEE sums, products, square roots and quotients, correctly rounded in
- * double); minima and maxima are exact in any order. */
-#define SKELETON_RV(T, LOAD)                                                                                  \
-    {                                                                                                         \
-        const T x = LOAD(points + i), y = LOAD(points + K + i), z = LOAD(points + 2 * K + i);                \
-        const T dx = x - o.x, dy = y - o.y, dz = z - o.z;                                                     \
-        T sq = dx * dx;                                                                                       \
-        sq = sq + dy * dy;                                                                                    \
-        sq = sq + dz * dz;                                                                                    \
-        r = sqrt(sq);                                                                                         \
-        T along = u.x * x;                                                                                    \
-        along = along + u.y * y;                                                                              \
-        along = along + u.z * z;                                                                              \
-        along = along - dot_uo;                                                                               \
-        v = along / r;                                                                                        \
+ * dots[n] = u . O), looping over the K skeleton points X eight at a time (points: the x row, the
+ * y row, the z row, each of stride = K rounded up to eight, the padding repeating the last point;
+ * lanes past K are masked out). A point's range r = |X - O| and sine v = (u . X - u . O) / r (0 at
+ * r = 0) are formed operation by operation as polar.Scene.offsets forms them, with no contraction
+ * into fused multiply-adds (so every value is NumPy's: IEEE sums, products, square roots and
+ * quotients, correctly rounded in double); minima and maxima are exact in any order. */
+#define SKELETON_ARGS __global const double *points, const int K, const int stride, __global const double *origins, \
+                      __global const double *axes, __global const double *dots, const int n_nodes
+
+/* Declares r, v (double8) and valid (long8, -1 for the lanes < K) of the eight points from i on,
+ * for sub-aperture n. */
+#define SKELETON_RV8                                                                                          \
+    const double3 o = vload3(n, origins), u = vload3(n, axes);                                               \
+    const double8 x = vload8(0, points + i), y = vload8(0, points + stride + i),                             \
+                  z = vload8(0, points + 2 * stride + i);                                                     \
+    const double8 dx = x - o.x, dy = y - o.y, dz = z - o.z;                                                   \
+    double8 sq = dx * dx;                                                                                     \
+    sq = sq + dy * dy;                                                                                        \
+    sq = sq + dz * dz;                                                                                        \
+    const double8 r = sqrt(sq);                                                                               \
+    double8 along = u.x * x;                                                                                  \
+    along = along + u.y * y;                                                                                  \
+    along = along + u.z * z;                                                                                  \
+    along = along - dots[n];                                                                                  \
+    const double8 v = select(along / r, (double8)0.0, r == 0.0);                                             \
+    const long8 valid = (i + (long8)(0, 1, 2, 3, 4, 5, 6, 7)) < (long)K;
+
+/* The smallest and largest lane of a and b (double8) into lo and hi. */
+#define LANES_MIN_MAX(a, b, lo, hi)                                                                           \
+    for (int k = 0; k < 8; ++k) {                                                                             \
+        lo = a[k] < lo ? a[k] : lo;                                                                           \
+        hi = b[k] > hi ? b[k] : hi;                                                                           \
     }
-#define LOAD1(p) (*(p))
-#define LOAD8(p) vload8(0, (p))
 
 /* out[n] = (min r, max r, min v, max v) over the skeleton. */
-__kernel void ffbp_extremes(__global const double *points, const int K, __global const double *origins,
-                            __global const double *axes, __global const double *dots, const int n_nodes,
-                            __global double4 *out)
+__kernel void ffbp_extremes(SKELETON_ARGS, __global double4 *out)
 {
 #pragma OPENCL FP_CONTRACT OFF
     const int n = get_global_id(0);
     if (n >= n_nodes)
         return;
-    const double3 o = vload3(n, origins), u = vload3(n, axes);
-    const double dot_uo = dots[n];
     double8 r8_lo = INFINITY, r8_hi = -INFINITY, v8_lo = INFINITY, v8_hi = -INFINITY;
-    int i = 0;
-    for (; i + 8 <= K; i += 8) {
-        double8 r, v;
-        SKELETON_RV(double8, LOAD8)
-        v = select(v, (double8)0.0, r == 0.0);
-        r8_lo = select(r8_lo, r, r < r8_lo);
-        r8_hi = select(r8_hi, r, r > r8_hi);
-        v8_lo = select(v8_lo, v, v < v8_lo);
-        v8_hi = select(v8_hi, v, v > v8_hi);
+    for (int i = 0; i < K; i += 8) {
+        SKELETON_RV8
+        r8_lo = select(r8_lo, r, valid && r < r8_lo);
+        r8_hi = select(r8_hi, r, valid && r > r8_hi);
+        v8_lo = select(v8_lo, v, valid && v < v8_lo);
+        v8_hi = select(v8_hi, v, valid && v > v8_hi);
     }
     double r_lo = INFINITY, r_hi = -INFINITY, v_lo = INFINITY, v_hi = -INFINITY;
-    for (int k = 0; k < 8; ++k) {
-        r_lo = r8_lo[k] < r_lo ? r8_lo[k] : r_lo;
-        r_hi = r8_hi[k] > r_hi ? r8_hi[k] : r_hi;
-        v_lo = v8_lo[k] < v_lo ? v8_lo[k] : v_lo;
-        v_hi = v8_hi[k] > v_hi ? v8_hi[k] : v_hi;
-    }
-    for (; i < K; ++i) {
-        double r, v;
-        SKELETON_RV(double, LOAD1)
-        v = r == 0.0 ? 0.0 : v;
-        r_lo = r < r_lo ? r : r_lo;
-        r_hi = r > r_hi ? r : r_hi;
-        v_lo = v < v_lo ? v : v_lo;
-        v_hi = v > v_hi ? v : v_hi;
-    }
+    LANES_MIN_MAX(r8_lo, r8_hi, r_lo, r_hi)
+    LANES_MIN_MAX(v8_lo, v8_hi, v_lo, v_hi)
     out[n] = (double4)(r_lo, r_hi, v_lo, v_hi);
 }
 
 /* Over the skeleton points whose sines lie in windows[n] = (lo, hi, a, b), lo <= v <= hi:
  * out[n] = (min r, max r (inf, -inf: none), their count, the count of a <= v <= b). */
-__kernel void ffbp_seen(__global const double *points, const int K, __global const double *origins,
-                        __global const double *axes, __global const double *dots, const int n_nodes,
-                        __global const double4 *windows, __global double4 *out)
+__kernel void ffbp_seen(SKELETON_ARGS, __global const double4 *windows, __global double4 *out)
 {
 #pragma OPENCL FP_CONTRACT OFF
     const int n = get_global_id(0);
     if (n >= n_nodes)
         return;
-    const double3 o = vload3(n, origins), u = vload3(n, axes);
-    const double dot_uo = dots[n];
     const double4 w = windows[n];
     double8 r8_lo = INFINITY, r8_hi = -INFINITY;
     long8 seen8 = 0, reach8 = 0;
-    int i = 0;
-    for (; i + 8 <= K; i += 8) {
-        double8 r, v;
-        SKELETON_RV(double8, LOAD8)
-        v = select(v, (double8)0.0, r == 0.0);
-        const long8 in = v >= w.x && v <= w.y;  /* -1 where true */
+    for (int i = 0; i < K; i += 8) {
+        SKELETON_RV8
+        const long8 in = valid && v >= w.x && v <= w.y;  /* -1 where true */
         r8_lo = select(r8_lo, r, in && r < r8_lo);
         r8_hi = select(r8_hi, r, in && r > r8_hi);
         seen8 -= in;
-        reach8 -= v >= w.z && v <= w.w;
+        reach8 -= valid && v >= w.z && v <= w.w;
     }
     double r_lo = INFINITY, r_hi = -INFINITY;
-    long seen = 0, reach = 0;
-    for (int k = 0; k < 8; ++k) {
-        r_lo = r8_lo[k] < r_lo ? r8_lo[k] : r_lo;
-        r_hi = r8_hi[k] > r_hi ? r8_hi[k] : r_hi;
-        seen += seen8[k];
-        reach += reach8[k];
-    }
-    for (; i < K; ++i) {
-        double r, v;
-        SKELETON_RV(double, LOAD1)
-        v = r == 0.0 ? 0.0 : v;
-        if (v >= w.x && v <= w.y) {
-            r_lo = r < r_lo ? r : r_lo;
-            r_hi = r > r_hi ? r : r_hi;
-            ++seen;
-        }
-        reach += v >= w.z && v <= w.w;
-    }
+    LANES_MIN_MAX(r8_lo, r8_hi, r_lo, r_hi)
+    const long seen = seen8.s0 + seen8.s1 + seen8.s2 + seen8.s3 + seen8.s4 + seen8.s5 + seen8.s6 + seen8.s7;
+    const long reach = reach8.s0 + reach8.s1 + reach8.s2 + reach8.s3 + reach8.s4 + reach8.s5 + reach8.s6 + reach8.s7;
     out[n] = (double4)(r_lo, r_hi, (double)seen, (double)reach);
 }
 
 /* The range envelope: envelope[n][b] = (min r, max r) (inf, -inf: empty) of the skeleton points
- * in sine bin b = floor((v - start) / width) (bins[n] = (start, width)), 0 <= b < N_BINS: the
+ * in sine bin b = floor((v - start) / width) (bins[n] = (start, width)), 0 <= b < n_bins: the
  * quotient t = (v - start) / width lies in [0, n_bins) exactly when floor(t) does, and there
  * floor(t) is t truncated (no floor(), which PoCL emulates slowly). */
-__kernel void ffbp_envelope(__global const double *points, const int K, __global const double *origins,
-                            __global const double *axes, __global const double *dots, const int n_nodes,
-                            __global const double2 *bins, const int n_bins, __global double2 *envelope)
+__kernel void ffbp_envelope(SKELETON_ARGS, __global const double2 *bins, const int n_bins, __global double2 *envelope)
 {
 #pragma OPENCL FP_CONTRACT OFF
     const int n = get_global_id(0);
     if (n >= n_nodes)
         return;
-    const double3 o = vload3(n, origins), u = vload3(n, axes);
-    const double dot_uo = dots[n];
     const double2 s = bins[n];
     __global double2 *env = envelope + (long)n * n_bins;
     for (int b = 0; b < n_bins; ++b)
         env[b] = (double2)(INFINITY, -INFINITY);
-    int i = 0;
-    for (; i + 8 <= K; i += 8) {
-        double8 r, v;
-        SKELETON_RV(double8, LOAD8)
-        v = select(v, (double8)0.0, r == 0.0);
+    for (int i = 0; i < K; i += 8) {
+        SKELETON_RV8
         const double8 t = (v - s.x) / s.y;
-        const long8 ok = t >= 0.0 && t < (double)n_bins;
+        const long8 ok = valid && t >= 0.0 && t < (double)n_bins;
         const int8 bin = convert_int8(select((double8)0.0, t, ok));
         for (int k = 0; k < 8; ++k) {
             if (ok[k]) {
                 __global double2 *e = env + bin[k];
-                const double rk = r[k];
-                double2 x = *e;
-                x.x = rk < x.x ? rk : x.x;
-                x.y = rk > x.y ? rk : x.y;
-                *e = x;
+                double2 b = *e;
+                b.x = r[k] < b.x ? r[k] : b.x;
+                b.y = r[k] > b.y ? r[k] : b.y;
+                *e = b;
             }
-        }
-    }
-    for (; i < K; ++i) {
-        double r, v;
-        SKELETON_RV(double, LOAD1)
-        v = r == 0.0 ? 0.0 : v;
-        const double t = (v - s.x) / s.y;
-        if (t >= 0.0 && t < n_bins) {
-            __global double2 *e = env + (int)t;
-            double2 x = *e;
-            x.x = r < x.x ? r : x.x;
-            x.y = r > x.y ? r : x.y;
-            *e = x;
         }
     }
 }

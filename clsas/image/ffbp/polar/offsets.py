@@ -84,9 +84,12 @@ class DeviceOffsets:
             return cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                              hostbuf=np.ascontiguousarray(array, np.float64))
 
-        points = scene._centred  # (3, K): the x, y and z rows
-        self.common = (buffer(points), np.int32(points.shape[1]), buffer(centred), buffer(axes), buffer(dots),
-                       np.int32(self.n))
+        points = scene._centred  # (3, K): the x, y and z rows, padded to whole eights (the last point repeated)
+        k = points.shape[1]
+        padded = np.concatenate([points, np.repeat(points[:, -1:], -k % 8, axis=1)], axis=1)
+        self.count = k
+        self.common = (buffer(padded), np.int32(k), np.int32(padded.shape[1]), buffer(centred), buffer(axes),
+                       buffer(dots), np.int32(self.n))
         self.kernel = lambda name: program.kernel(name, taps)  # the call's program (built for its merges)
         self.buffer = buffer
         self.groups = opencl.work_groups(self.n, 1)  # a work-item a sub-aperture, each its own group
@@ -107,13 +110,7 @@ class DeviceOffsets:
 
     def seen(self, lo, hi, a, b) -> tuple:
         out = self._run("ffbp_seen", (self.buffer(np.stack([lo, hi, a, b], axis=1)),), np.empty((self.n, 4)))
-        k = self.r_count
-        return out[:, 0].copy(), out[:, 1].copy(), out[:, 2] > 0, out[:, 3] / k
-
-    @property
-    def r_count(self) -> int:
-        """The skeleton's points K."""
-        return int(self.common[1])
+        return out[:, 0].copy(), out[:, 1].copy(), out[:, 2] > 0, out[:, 3] / self.count  # as NumPy's mean
 
     def envelope(self, start, width, n_bins: int) -> np.ndarray:
         return self._run("ffbp_envelope", (self.buffer(np.stack([start, width], axis=1)), np.int32(n_bins)),
