@@ -627,16 +627,32 @@ def test_the_planners_reductions_on_the_device_are_numpys(opencl_device, case):
     found = [polar.extents(centres, axes, halves, scene, windows, w.bandwidth, w.f0, c, limits, device_taps=taps)
              for taps in (None, 8)]
     assert _same_extents(*found) >= (len(nodes) // 2 if case == "narrow_window" else len(nodes))
-    trees = [plan(echo, chosen, scene, 2, 0.1, 8, None, aperture, device=device) for device in (False, True)]
-    assert (trees[0].top, trees[0].rho, trees[0].first) == (trees[1].top, trees[1].rho, trees[1].first)
-    assert len(trees[0].grids) == len(trees[1].grids)
-    for level_a, level_b in zip(trees[0].grids, trees[1].grids):
-        assert len(level_a) == len(level_b)
-        for a, b in zip(level_a, level_b):
+    _same_trees(*[plan(echo, chosen, scene, 2, 0.1, 8, None, aperture, device=device) for device in (False, True)])
+
+
+def _same_trees(one, other) -> None:
+    """Assert two merge trees equal: levels, top, oversampling, leaf length and every polar grid
+    (frame, sampling, rows' spans) byte for byte."""
+    assert (one.pulses, one.children, one.top, one.rho, one.first) == (other.pulses, other.children, other.top,
+                                                                     other.rho, other.first)
+    for level_a, level_b in zip(one.grids, other.grids, strict=True):
+        for a, b in zip(level_a, level_b, strict=True):
             assert (a is None) == (b is None)
             if a is not None:
                 for field in [f.name for f in dataclasses.fields(polar.PolarGrid) if f.name != "plane"] + ["row_spans"]:
                     assert np.asarray(getattr(a, field)).tobytes() == np.asarray(getattr(b, field)).tobytes(), field
+
+
+@pytest.mark.parametrize("aperture", [None, 0.5])
+def test_a_leaf_length_guess_changes_no_tree(aperture):
+    """plan's first_guess (ffbp passes the grid's last tree's leaf length) is checked, not trusted:
+    right, too short, too long, not a length the rule tries, or none, the tree is the same."""
+    echo = _geometry_only_echo(256)  # a 6.4 m track over a 20 m x 6.4 m plane: 16-pulse leaves
+    scene = Scene.of(Grid.plane(np.linspace(40.0, 60.0, 96), np.linspace(-3.2, 3.2, 96), DEPTH).positions)
+    unguessed = plan(echo, [0], scene, 2, 0.1, 8, None, aperture)
+    assert unguessed.first == 16
+    for guess in (1, 4, 8, 16, 32, 3, echo.n_pulses, 4096):
+        _same_trees(plan(echo, [0], scene, 2, 0.1, 8, None, aperture, first_guess=guess), unguessed)
 
 
 def test_ragged_grids_skip_the_wedge_and_change_nothing(opencl_device, monkeypatch):
