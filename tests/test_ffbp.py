@@ -600,10 +600,11 @@ def _same_extents(a: list, b: list) -> int:
 
 
 @pytest.mark.parametrize("case", ["motion", "aperture", "points_off_plane", "one_point", "narrow_window"])
-def test_the_planners_reductions_on_the_device_are_numpys(opencl_device, case):
+def test_the_planners_reductions_on_the_device_are_numpys(opencl_device, monkeypatch, case):
     """polar.offsets.DeviceOffsets (kernels/ffbp.cl's ffbp_extremes, ffbp_seen, ffbp_envelope, which
     ffbp's plan uses on OpenCL) gives every extent (ranges, sines, bands, reach, envelope) and so
-    every tree the NumPy reduction gives, bit for bit (no fused multiply-add may creep in)."""
+    every tree the NumPy reduction gives, bit for bit (no fused multiply-add may creep in), in one
+    launch or in chunks of 7 sub-apertures."""
     echo, grid, aperture = echo_of("motion"), GRID, None
     if case == "aperture":
         aperture = 0.5
@@ -627,6 +628,10 @@ def test_the_planners_reductions_on_the_device_are_numpys(opencl_device, case):
     found = [polar.extents(centres, axes, halves, scene, windows, w.bandwidth, w.f0, c, limits, device_taps=taps)
              for taps in (None, 8)]
     assert _same_extents(*found) >= (len(nodes) // 2 if case == "narrow_window" else len(nodes))
+    monkeypatch.setattr(polar.sampling, "DEVICE_CHUNK_NODES", 7)
+    assert len(nodes) > 7
+    _same_extents(found[0], polar.extents(centres, axes, halves, scene, windows, w.bandwidth, w.f0, c, limits,
+                                          device_taps=8))
     _same_trees(*[plan(echo, chosen, scene, 2, 0.1, 8, None, aperture, device=device) for device in (False, True)])
 
 

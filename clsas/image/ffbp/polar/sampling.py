@@ -12,6 +12,7 @@ from .offsets import DeviceOffsets, HostOffsets
 from .scene import Scene, frame_axes
 
 CHUNK_NODES = 8  # sub-apertures whose extents are computed at once (8 x ~8k skeleton points: 0.5 MB arrays, in cache)
+DEVICE_CHUNK_NODES = 256  # ... on the device (one launch a reduction; envelopes of 256 x 8 kB on the device at most)
 ENVELOPE_BINS = 512  # sine bins of a sub-aperture's range envelope of the scene (the ragged rows)
 RAGGED = True  # polar grids computed only within their rows' spans (False: whole rectangles, for comparison)
 
@@ -132,9 +133,9 @@ def extents(centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray, sce
     long scene is nearer than the scene's far corners). A list of Extent, None where the scene
     lies wholly outside the window or the angular limit. The skeleton's ranges and sines are
     reduced (:mod:`.offsets`, the same values either way) by NumPy, CHUNK_NODES sub-apertures at a
-    time, or with ``device_taps`` on the OpenCL device, all at once (by ffbp's program built for
-    that many merge taps: the call's own, no other build)."""
-    step = CHUNK_NODES if device_taps is None else max(len(centres), 1)
+    time, or with ``device_taps`` on the OpenCL device, DEVICE_CHUNK_NODES at a time (by ffbp's
+    program built for that many merge taps: the call's own, no other build)."""
+    step = CHUNK_NODES if device_taps is None else DEVICE_CHUNK_NODES
     found = []
     for s in range(0, len(centres), step):
         part = slice(s, s + step)
