@@ -1,5 +1,7 @@
 /* Fast factorised back-projection: the merge of child polar images into a parent polar grid
  * (PARENT_GRID) or onto explicit points (the final stage onto the user's pixels).
+ * Also: the first stage's pixel fields (ffbp_fields) and demodulation (ffbp_leaf), and the
+ * planner's reductions over the scene's skeleton (ffbp_extremes, ffbp_seen, ffbp_envelope, at the end).
  *
  * NumPy twin: clsas/image/ffbp/merge.py (merge_reference); launcher merge_opencl there.
  *
@@ -121,10 +123,11 @@ inline double16 polar_points16(const ffbp_frame_t f, const ffbp_plane_t plane, c
  * (clsas/image/ffbp/leaves.py): work-item g fills fields[g], sixteen consecutive range samples of
  * one row of one tile, items[g] (leaf, row, first range sample, tile; rows and samples past the
  * grid's edge are clamped to it: the launcher drops those slots); frames[leaf], plane, centres
- * (the tiles' reference points, m). */
+ * (the tiles' reference points, m); dd_max[g] the largest of its sixteen dd (as stored, float:
+ * the launcher's tile budget check reads these, not the fields). */
 __kernel void ffbp_fields(__global const ffbp_item_t *items, __global const ffbp_frame_t *frames,
                           const ffbp_plane_t plane, __global const double *centres, const int n_items,
-                          __global bp_pixels_t *fields)
+                          __global bp_pixels_t *fields, __global float *dd_max)
 {
     const int g = get_global_id(0);
     if (g >= n_items)  /* the launch is padded to whole work-groups */
@@ -139,7 +142,12 @@ __kernel void ffbp_fields(__global const ffbp_item_t *items, __global const ffbp
     STORE_F16(convert_float16(dx), o->dx);
     STORE_F16(convert_float16(dy), o->dy);
     STORE_F16(convert_float16(dz), o->dz);
-    STORE_F16(convert_float16(dx * dx + dy * dy + dz * dz), o->dd);
+    const float16 dd = convert_float16(dx * dx + dy * dy + dz * dz);
+    STORE_F16(dd, o->dd);
+    const float8 m8 = fmax(dd.lo, dd.hi);
+    const float4 m4 = fmax(m8.lo, m8.hi);
+    const float2 m2 = fmax(m4.lo, m4.hi);
+    dd_max[g] = fmax(m2.x, m2.y);
 }
 
 /* The first stage's demodulated leaf images from bp_tile's slots (clsas/image/ffbp/leaves.py),
@@ -341,5 +349,120 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
 #else
         out[first + l] += (float2)(re_out[l], im_out[l]);
 #endif
+    }
+}
+
+/* The planner's reductions over the scene's skeleton (clsas/image/ffbp/polar/offsets.py, whose
+ * NumPy twin is the reference: both give the same values, bit for bit): work-item n is
+ * sub-aperture n (its origin O = origins[n] and unit axis u = axes[n], about the scene's centroid;
+ * dots[n] = u . O), looping over the K skeleton points X eight at a time (points: the x row, the
+ * y row, the z row, each of stride = K rounded up to eight, the padding repeating the last point;
+ * lanes past K are masked out). A point's range r = |X - O| and sine v = (u . X - u . O) / r (0 at
+ * r = 0) are formed operation by operation as polar.Scene.offsets forms them, with no contraction
+ * into fused multiply-adds (so every value is NumPy's: IEEE sums, products, square roots and
+ * quotients, correctly rounded in double); minima and maxima are exact in any order. */
+#define SKELETON_ARGS __global const double *points, const int K, const int stride, __global const double *origins, \
+                      __global const double *axes, __global const double *dots, const int n_nodes
+
+/* Declares r, v (double8) and valid (long8, -1 for the lanes < K) of the eight points from i on,
+ * for sub-aperture n. */
+#define SKELETON_RV8                                                                                          \
+    const double3 o = vload3(n, origins), u = vload3(n, axes);                                               \
+    const double8 x = vload8(0, points + i), y = vload8(0, points + stride + i),                             \
+                  z = vload8(0, points + 2 * stride + i);                                                     \
+    const double8 dx = x - o.x, dy = y - o.y, dz = z - o.z;                                                   \
+    double8 sq = dx * dx;                                                                                     \
+    sq = sq + dy * dy;                                                                                        \
+    sq = sq + dz * dz;                                                                                        \
+    const double8 r = sqrt(sq);                                                                               \
+    double8 along = u.x * x;                                                                                  \
+    along = along + u.y * y;                                                                                  \
+    along = along + u.z * z;                                                                                  \
+    along = along - dots[n];                                                                                  \
+    const double8 v = select(along / r, (double8)0.0, r == 0.0);                                             \
+    const long8 valid = (i + (long8)(0, 1, 2, 3, 4, 5, 6, 7)) < (long)K;
+
+/* The smallest and largest lane of a and b (double8) into lo and hi. */
+#define LANES_MIN_MAX(a, b, lo, hi)                                                                           \
+    for (int k = 0; k < 8; ++k) {                                                                             \
+        lo = a[k] < lo ? a[k] : lo;                                                                           \
+        hi = b[k] > hi ? b[k] : hi;                                                                           \
+    }
+
+/* out[n] = (min r, max r, min v, max v) over the skeleton. */
+__kernel void ffbp_extremes(SKELETON_ARGS, __global double4 *out)
+{
+#pragma OPENCL FP_CONTRACT OFF
+    const int n = get_global_id(0);
+    if (n >= n_nodes)
+        return;
+    double8 r8_lo = INFINITY, r8_hi = -INFINITY, v8_lo = INFINITY, v8_hi = -INFINITY;
+    for (int i = 0; i < K; i += 8) {
+        SKELETON_RV8
+        r8_lo = select(r8_lo, r, valid && r < r8_lo);
+        r8_hi = select(r8_hi, r, valid && r > r8_hi);
+        v8_lo = select(v8_lo, v, valid && v < v8_lo);
+        v8_hi = select(v8_hi, v, valid && v > v8_hi);
+    }
+    double r_lo = INFINITY, r_hi = -INFINITY, v_lo = INFINITY, v_hi = -INFINITY;
+    LANES_MIN_MAX(r8_lo, r8_hi, r_lo, r_hi)
+    LANES_MIN_MAX(v8_lo, v8_hi, v_lo, v_hi)
+    out[n] = (double4)(r_lo, r_hi, v_lo, v_hi);
+}
+
+/* Over the skeleton points whose sines lie in windows[n] = (lo, hi, a, b), lo <= v <= hi:
+ * out[n] = (min r, max r (inf, -inf: none), their count, the count of a <= v <= b). */
+__kernel void ffbp_seen(SKELETON_ARGS, __global const double4 *windows, __global double4 *out)
+{
+#pragma OPENCL FP_CONTRACT OFF
+    const int n = get_global_id(0);
+    if (n >= n_nodes)
+        return;
+    const double4 w = windows[n];
+    double8 r8_lo = INFINITY, r8_hi = -INFINITY;
+    long8 seen8 = 0, reach8 = 0;
+    for (int i = 0; i < K; i += 8) {
+        SKELETON_RV8
+        const long8 in = valid && v >= w.x && v <= w.y;  /* -1 where true */
+        r8_lo = select(r8_lo, r, in && r < r8_lo);
+        r8_hi = select(r8_hi, r, in && r > r8_hi);
+        seen8 -= in;
+        reach8 -= valid && v >= w.z && v <= w.w;
+    }
+    double r_lo = INFINITY, r_hi = -INFINITY;
+    LANES_MIN_MAX(r8_lo, r8_hi, r_lo, r_hi)
+    const long seen = seen8.s0 + seen8.s1 + seen8.s2 + seen8.s3 + seen8.s4 + seen8.s5 + seen8.s6 + seen8.s7;
+    const long reach = reach8.s0 + reach8.s1 + reach8.s2 + reach8.s3 + reach8.s4 + reach8.s5 + reach8.s6 + reach8.s7;
+    out[n] = (double4)(r_lo, r_hi, (double)seen, (double)reach);
+}
+
+/* The range envelope: envelope[n][b] = (min r, max r) (inf, -inf: empty) of the skeleton points
+ * in sine bin b = floor((v - start) / width) (bins[n] = (start, width)), 0 <= b < n_bins: the
+ * quotient t = (v - start) / width lies in [0, n_bins) exactly when floor(t) does, and there
+ * floor(t) is t truncated (no floor(), which PoCL emulates slowly). */
+__kernel void ffbp_envelope(SKELETON_ARGS, __global const double2 *bins, const int n_bins, __global double2 *envelope)
+{
+#pragma OPENCL FP_CONTRACT OFF
+    const int n = get_global_id(0);
+    if (n >= n_nodes)
+        return;
+    const double2 s = bins[n];
+    __global double2 *env = envelope + (long)n * n_bins;
+    for (int b = 0; b < n_bins; ++b)
+        env[b] = (double2)(INFINITY, -INFINITY);
+    for (int i = 0; i < K; i += 8) {
+        SKELETON_RV8
+        const double8 t = (v - s.x) / s.y;
+        const long8 ok = valid && t >= 0.0 && t < (double)n_bins;
+        const int8 bin = convert_int8(select((double8)0.0, t, ok));
+        for (int k = 0; k < 8; ++k) {
+            if (ok[k]) {
+                __global double2 *e = env + bin[k];
+                double2 b = *e;
+                b.x = r[k] < b.x ? r[k] : b.x;
+                b.y = r[k] > b.y ? r[k] : b.y;
+                *e = b;
+            }
+        }
     }
 }

@@ -587,6 +587,79 @@ def test_rows_spans_are_the_envelope_over_each_rows_window():
     assert checked > 100
 
 
+def _same_extents(a: list, b: list) -> int:
+    """Assert two lists of polar.Extent (or None) equal bit for bit, envelopes too; the count compared."""
+    assert len(a) == len(b)
+    for x, y in zip(a, b):
+        assert (x is None) == (y is None)
+        if x is not None:
+            for field in dataclasses.fields(polar.Extent):
+                u, v = getattr(x, field.name), getattr(y, field.name)
+                assert np.asarray(u).tobytes() == np.asarray(v).tobytes(), field.name
+    return sum(x is not None for x in a)
+
+
+@pytest.mark.parametrize("case", ["motion", "aperture", "points_off_plane", "one_point", "narrow_window"])
+def test_the_planners_reductions_on_the_device_are_numpys(opencl_device, monkeypatch, case):
+    """polar.offsets.DeviceOffsets (kernels/ffbp.cl's ffbp_extremes, ffbp_seen, ffbp_envelope, which
+    ffbp's plan uses on OpenCL) gives every extent (ranges, sines, bands, reach, envelope) and so
+    every tree the NumPy reduction gives, bit for bit (no fused multiply-add may creep in), in one
+    launch or in chunks of 7 sub-apertures."""
+    echo, grid, aperture = echo_of("motion"), GRID, None
+    if case == "aperture":
+        aperture = 0.5
+    elif case == "points_off_plane":
+        x, y = np.arange(43.8, 44.2, 0.015), np.arange(-0.2, 0.2, 0.02)
+        grid = Grid.points(np.stack([Grid.plane(x, y, z).positions for z in (DEPTH, DEPTH + 0.5)]),
+                           dims=("z", "y", "x"))
+    elif case == "one_point":
+        grid = Grid.points([POINTS[12]])
+    chosen = list(range(echo.n_rx))
+    scene = Scene.of(grid.positions)
+    frames = _Frames(echo, chosen, scene)
+    nodes = [(p, min(p + n, echo.n_pulses)) for n in (1, 2, 5, 20) for p in range(0, echo.n_pulses, n)]
+    centres, axes, halves, bases = frames.frames(nodes)
+    c, w = echo.medium.sound_speed, echo.waveform
+    window = np.array([c * float(echo.t0.min()) / 2, c * (float(echo.t0.max()) + echo.n_samples / echo.fs) / 2])
+    windows = np.tile(window, (len(nodes), 1))
+    if case == "narrow_window":  # every other sub-aperture's window ends before the scene: no extent
+        windows[::2] = [1.0, 2.0]
+    limits = None if aperture is None else np.full(len(nodes), np.sin(aperture / 2))
+    found = [polar.extents(centres, axes, halves, scene, windows, w.bandwidth, w.f0, c, limits, device_taps=taps)
+             for taps in (None, 8)]
+    assert _same_extents(*found) >= (len(nodes) // 2 if case == "narrow_window" else len(nodes))
+    monkeypatch.setattr(polar.sampling, "DEVICE_CHUNK_NODES", 7)
+    assert len(nodes) > 7
+    _same_extents(found[0], polar.extents(centres, axes, halves, scene, windows, w.bandwidth, w.f0, c, limits,
+                                          device_taps=8))
+    _same_trees(*[plan(echo, chosen, scene, 2, 0.1, 8, None, aperture, device=device) for device in (False, True)])
+
+
+def _same_trees(one, other) -> None:
+    """Assert two merge trees equal: levels, top, oversampling, leaf length and every polar grid
+    (frame, sampling, rows' spans) byte for byte."""
+    assert (one.pulses, one.children, one.top, one.rho, one.first) == (other.pulses, other.children, other.top,
+                                                                     other.rho, other.first)
+    for level_a, level_b in zip(one.grids, other.grids, strict=True):
+        for a, b in zip(level_a, level_b, strict=True):
+            assert (a is None) == (b is None)
+            if a is not None:
+                for field in [f.name for f in dataclasses.fields(polar.PolarGrid) if f.name != "plane"] + ["row_spans"]:
+                    assert np.asarray(getattr(a, field)).tobytes() == np.asarray(getattr(b, field)).tobytes(), field
+
+
+@pytest.mark.parametrize("aperture", [None, 0.5])
+def test_a_leaf_length_guess_changes_no_tree(aperture):
+    """plan's first_guess (ffbp passes the grid's last tree's leaf length) is checked, not trusted:
+    right, too short, too long, not a length the rule tries, or none, the tree is the same."""
+    echo = _geometry_only_echo(256)  # a 6.4 m track over a 20 m x 6.4 m plane: 16-pulse leaves
+    scene = Scene.of(Grid.plane(np.linspace(40.0, 60.0, 96), np.linspace(-3.2, 3.2, 96), DEPTH).positions)
+    unguessed = plan(echo, [0], scene, 2, 0.1, 8, None, aperture)
+    assert unguessed.first == 16
+    for guess in (1, 4, 8, 16, 32, 3, echo.n_pulses, 4096):
+        _same_trees(plan(echo, [0], scene, 2, 0.1, 8, None, aperture, first_guess=guess), unguessed)
+
+
 def test_ragged_grids_skip_the_wedge_and_change_nothing(opencl_device, monkeypatch):
     """Polar grids computed only within their rows' spans (polar.sampling.RAGGED: the (r, v) box's corners
     outside the scene's wedge skipped) give the image of whole rectangles: relative L2 measured

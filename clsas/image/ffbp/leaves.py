@@ -89,7 +89,9 @@ def polar_tiles(grids: list, bv: int, br: int):
     # is bound by those reads; tile by tile, the rows of a group came back only after the tile's
     # other groups); a tile at the grid's edge keeps only its rows inside the grid (rounded up to
     # whole work-items of ROWS rows) and its sixteen-sample groups that start inside it
-    shape = (len(grids), tr, br // LANES, tv, bv)
+    # (every item of a work-item, its ROWS rows, is kept or dropped alike: the selection is made a
+    # work-item at a time, j its group of ROWS rows within the tile, and expanded to its rows after)
+    shape = (len(grids), tr, br // LANES, tv, bv // ROWS)
     l, b, q, a, j = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij", sparse=True)
     n_v = np.array([g.n_v for g in grids])[:, None, None, None, None]
     n_r = np.array([g.n_r for g in grids])[:, None, None, None, None]
@@ -105,14 +107,16 @@ def polar_tiles(grids: list, bv: int, br: int):
         hi[k, :g.n_v] = np.where(empty, 0, spans[:, 1])
     lo = lo.reshape(len(grids), blocks, ROWS).min(axis=2)
     hi = hi.reshape(len(grids), blocks, ROWS).max(axis=2)
-    block = (a * bv + j) // ROWS
+    block = a * (bv // ROWS) + j  # the work-item's block of ROWS rows within its grid
     start = b * br + q * LANES
     real, tile = (x.transpose(0, 2, 1)[:, :, None, :, None] for x in (real, tile))  # as (l, b, q, a, j)
-    keep = (real & (j < -(-(n_v - a * bv) // ROWS) * ROWS) & (start < n_r)
-            & (start + LANES > lo[l, block]) & (start < hi[l, block]))
-    items = np.zeros(int(np.count_nonzero(np.broadcast_to(keep, shape))), program.ITEM)
-    for name, x in zip(program.ITEM.names, (l, a * bv + j, b * br + q * LANES, tile)):
-        items[name] = np.broadcast_to(x, shape)[np.broadcast_to(keep, shape)]
+    keep = np.broadcast_to(real & (j < -(-(n_v - a * bv) // ROWS)) & (start < n_r)
+                           & (start + LANES > lo[l, block]) & (start < hi[l, block]), shape)
+    kept = int(np.count_nonzero(keep))
+    items = np.zeros(kept * ROWS, program.ITEM)
+    for name, x in zip(program.ITEM.names, (l, block * ROWS, start, tile)):
+        items[name] = np.repeat(np.broadcast_to(x, shape)[keep], ROWS)
+    items["row"] += np.tile(np.arange(ROWS, dtype=np.int32), kept)  # each work-item's rows
     middles = [[(j0 + np.minimum(j0 + step, n) - 1) // 2 for j0, step, n in ((np.arange(0, g.n_v, bv), bv, g.n_v),
                                                                           (np.arange(0, g.n_r, br), br, g.n_r))]
                for g in grids]
@@ -386,11 +390,12 @@ class FirstStage:
             fields = np.empty(items.size, tile.pixels)  # one record a item: LANES samples
             pix = cl.Buffer(ctx, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=fields)
             items_buf = cl_buffer(items)
+            largest = np.empty(items.size, np.float32)  # each item's largest dd (the fields' own, float32)
+            largest_buf = cl.Buffer(ctx, mf.WRITE_ONLY, largest.nbytes)
             program.kernel("ffbp_fields")(queue, *opencl.work_groups(items.size), items_buf, frames, plane,
-                                          cl_buffer(centres), np.int32(items.size), pix)
-            mapped, _ = cl.enqueue_map_buffer(queue, pix, cl.map_flags.READ, 0, fields.shape, fields.dtype)
-            extent = float(np.sqrt(mapped["dd"].max()))
-            mapped.base.release()
+                                          cl_buffer(centres), np.int32(items.size), pix, largest_buf)
+            cl.enqueue_copy(queue, largest, largest_buf)
+            extent = float(np.sqrt(largest.max()))
             if extent <= budget:
                 break
             if br == LANES and bv == ROWS:  # samples too far apart for any tile (a short leaf's coarse angles)

@@ -250,15 +250,17 @@ def geometry(echo: EchoData, chosen: list, options: tuple) -> tuple[tuple, tuple
 
 def planned(entry: Kept | None, echo: EchoData, chosen: list, options: tuple, make) -> Planned:
     """The tree kept for this geometry and these options (:func:`geometry`) on the grid of
-    ``entry``, or a new one from ``make()`` (kept in its place when the grid may keep one and the
-    geometry's copies fit :func:`host_limit`)."""
+    ``entry``, or a new one from ``make(guess)`` (kept in its place when the grid may keep one and
+    the geometry's copies fit :func:`host_limit`); ``guess``: the leaf length of the grid's last
+    tree (a hint for the new plan, :func:`.tree.plan`'s first_guess), or None."""
     if not KEEP_PLANS or entry is None:
-        return Planned((), (), make(), None)  # nothing kept: no copies, no layouts
+        return Planned((), (), make(None), None)  # nothing kept: no copies, no layouts
     scalars, arrays = geometry(echo, chosen, options)
     if entry.planned is not None and entry.planned.matches(scalars, arrays):
         return entry.planned
+    guess = None if entry.planned is None else entry.planned.tree.first
     entry.planned = None  # the last tree is let go before the new one is planned
     if sum(a.nbytes for a in arrays) > host_limit():
-        return Planned((), (), make(), None)  # a geometry too large to keep a copy of
-    entry.planned = Planned(scalars, tuple(np.array(a, copy=True) for a in arrays), make())
+        return Planned((), (), make(guess), None)  # a geometry too large to keep a copy of
+    entry.planned = Planned(scalars, tuple(np.array(a, copy=True) for a in arrays), make(guess))
     return entry.planned

@@ -120,8 +120,12 @@ class _Frames:
 
 
 def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: float, taps: int,
-         first: int | None, aperture: float | None) -> Tree:
-    """The merge tree for ``echo``'s pulses and the scene (see the module docstring)."""
+         first: int | None, aperture: float | None, device: bool = False, first_guess: int | None = None) -> Tree:
+    """The merge tree for ``echo``'s pulses and the scene (see the module docstring); ``device``:
+    the extents' reductions over the skeleton on the OpenCL device (the same tree, bit for bit:
+    :mod:`.polar.offsets`); ``first_guess``: a likely leaf length for ``first=None`` (checked by the
+    rule, not trusted: the tree is the same whatever it is; a right one spares probing the longer
+    lengths and one round of extents)."""
     frames = _Frames(echo, chosen, scene)
     if frames.r_near <= 0:
         raise ValueError("grid: a pixel lies on the sonar's track (zero range); ffbp's polar grids need every pixel "
@@ -143,7 +147,8 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         widen = halves + bases / 2
         limits = None if sine is None else np.minimum(1.0, sine + np.linalg.norm(axes - [0.0, 1.0, 0.0], axis=1)
                                                       + halves / frames.r_near)
-        found = extents(centres, axes, halves, scene, window + np.stack([-widen, widen], axis=1), bw, f0, c, limits)
+        found = extents(centres, axes, halves, scene, window + np.stack([-widen, widen], axis=1), bw, f0, c, limits,
+                        taps if device else None)
         extents_of.update(zip(nodes, found))
 
     def grids_for(nodes, rho) -> list:
@@ -163,14 +168,27 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
 
     if first is None:
         # doubling from one, whatever the factor (a factor of 4 would jump past the best); lengths
-        # that make more than MAX_LEAVES leaves are passed over unprobed, and the rest probed at once
+        # that make more than MAX_LEAVES leaves are passed over unprobed, and the rest probed at once.
+        # With a guess (the last tree's length on this grid) only the lengths up to it are probed
+        # first, together with the guessed tree's nodes: the rule's answer is the guess when it
+        # passes and no shorter length does, else the longer lengths are probed as well (the same
+        # answer either way: each node's extent is its own, however many are found at once)
         rho0 = oversampling(taps, tolerance, 1)
         lengths = [1 << k for k in range(max(echo.n_pulses - 1, 1).bit_length())
                    if -(-echo.n_pulses // (1 << k)) <= MAX_LEAVES]
         middles = [(echo.n_pulses // 2, min(echo.n_pulses // 2 + n, echo.n_pulses)) for n in lengths]
-        find_extents(middles)
-        wide = [n for n, m in zip(lengths, middles)  # only their rows are needed, not the sampled grids
+        if first_guess in lengths:
+            known = lengths.index(first_guess) + 1
+            guessed = _levels(echo.n_pulses, first_guess, factor)[0]
+            find_extents(middles[:known] + [node for level in guessed for node in level])
+        else:
+            known = 0
+        wide = [n for n, m in zip(lengths[:known], middles[:known])
                 if extents_of[m] is not None and extents_of[m].rows(rho0, taps) - 2 * taps >= LEAF_SAMPLES]
+        if not wide:
+            find_extents(middles[known:])
+            wide = [n for n, m in zip(lengths, middles)  # only their rows are needed, not the sampled grids
+                    if extents_of[m] is not None and extents_of[m].rows(rho0, taps) - 2 * taps >= LEAF_SAMPLES]
         first = wide[0] if wide else echo.n_pulses
     pulses, children = _levels(echo.n_pulses, first, factor)
     find_extents([node for level in pulses for node in level])

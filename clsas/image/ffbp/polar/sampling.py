@@ -8,9 +8,11 @@ import dataclasses
 import numpy as np
 
 from .grids import PolarGrid, oversampling
+from .offsets import DeviceOffsets, HostOffsets
 from .scene import Scene, frame_axes
 
 CHUNK_NODES = 8  # sub-apertures whose extents are computed at once (8 x ~8k skeleton points: 0.5 MB arrays, in cache)
+DEVICE_CHUNK_NODES = 256  # ... on the device (one launch a reduction; envelopes of 256 x 8 kB on the device at most)
 ENVELOPE_BINS = 512  # sine bins of a sub-aperture's range envelope of the scene (the ragged rows)
 RAGGED = True  # polar grids computed only within their rows' spans (False: whole rectangles, for comparison)
 
@@ -122,42 +124,41 @@ def _spans(found: list, shapes: list) -> list:
 
 
 def extents(centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray, scene: Scene, windows: np.ndarray,
-            bandwidth: float, f0: float, c: float, sine_limits: np.ndarray | None = None) -> list:
+            bandwidth: float, f0: float, c: float, sine_limits: np.ndarray | None = None,
+            device_taps: int | None = None) -> list:
     """The extents of the polar grids of sub-apertures with frames (centres (n, 3) m, unit axes
     (n, 3)) and half-lengths L (n,) m, each covering the scene within its recorded range window
     ``windows`` (n, 2) m (min, max) and, with ``sine_limits`` (n,), the sines |v| <= its limit
     (the integration angle); a range span is that of the pixels within its sines (a sector of a
     long scene is nearer than the scene's far corners). A list of Extent, None where the scene
-    lies wholly outside the window or the angular limit. Vectorised over CHUNK_NODES
-    sub-apertures at a time (the skeleton's ranges and sines of each)."""
+    lies wholly outside the window or the angular limit. The skeleton's ranges and sines are
+    reduced (:mod:`.offsets`, the same values either way) by NumPy, CHUNK_NODES sub-apertures at a
+    time, or with ``device_taps`` on the OpenCL device, DEVICE_CHUNK_NODES at a time (by ffbp's
+    program built for that many merge taps: the call's own, no other build)."""
+    step = CHUNK_NODES if device_taps is None else DEVICE_CHUNK_NODES
     found = []
-    for s in range(0, len(centres), CHUNK_NODES):
-        found += _extents(centres[s:s + CHUNK_NODES], axes[s:s + CHUNK_NODES], half_lengths[s:s + CHUNK_NODES],
-                          scene, windows[s:s + CHUNK_NODES], bandwidth, f0, c,
-                          None if sine_limits is None else sine_limits[s:s + CHUNK_NODES])
+    for s in range(0, len(centres), step):
+        part = slice(s, s + step)
+        reduced = (HostOffsets(scene, centres[part], axes[part]) if device_taps is None
+                   else DeviceOffsets(scene, centres[part], axes[part], device_taps))
+        found += _extents(centres[part], axes[part], half_lengths[part], scene, windows[part], bandwidth, f0, c,
+                          None if sine_limits is None else sine_limits[part], reduced)
     return found
 
 
-def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine_limits) -> list:
-    r, v = scene.offsets(centres, axes)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        v /= r  # the sines, in place (a point at a centre, r = 0, has none: 0)
-    if not r.all():
-        v[r == 0] = 0.0
-    r_nearest = r.min(axis=1)
+def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine_limits, reduced) -> list:
+    r_nearest, r_far, v_min, v_max = reduced.extremes(far=sine_limits is None)
     r_lo = np.maximum(r_nearest - scene.margin, windows[:, 0])
     v_margin = scene.margin / np.where(r_lo > 0, r_lo, 1.0)
-    v_lo = np.maximum(v.min(axis=1) - v_margin, -1.0)
-    v_hi = np.minimum(v.max(axis=1) + v_margin, 1.0)
+    v_lo = np.maximum(v_min - v_margin, -1.0)
+    v_hi = np.minimum(v_max + v_margin, 1.0)
     alive = r_lo > 0
     if sine_limits is not None:
         v_lo, v_hi = np.maximum(v_lo, -sine_limits), np.minimum(v_hi, sine_limits)
-        seen = (v >= (v_lo - v_margin)[:, None]) & (v <= (v_hi + v_margin)[:, None])
-        alive &= (v_hi > v_lo) & seen.any(axis=1)
-        r_min, r_max = np.where(seen, r, np.inf).min(axis=1), np.where(seen, r, -np.inf).max(axis=1)
-        reach = ((v >= v_lo[:, None]) & (v <= v_hi[:, None])).mean(axis=1)
+        r_min, r_max, any_seen, reach = reduced.seen(v_lo - v_margin, v_hi + v_margin, v_lo, v_hi)
+        alive &= (v_hi > v_lo) & any_seen
     else:
-        r_min, r_max = r_nearest, r.max(axis=1)
+        r_min, r_max = r_nearest, r_far
         reach = np.ones(len(centres))
     with np.errstate(invalid="ignore"):
         r_lo = np.maximum(r_min - scene.margin, windows[:, 0])
@@ -175,21 +176,7 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
     v_margin = scene.margin / np.where(alive, r_lo, 1.0)
     start = np.where(alive, v_lo - v_margin, 0.0)
     width = np.where(alive, np.maximum(v_hi + v_margin - start, 1e-12), 1.0) / ENVELOPE_BINS
-    b = v - start[:, None]
-    with np.errstate(invalid="ignore"):
-        b /= width[:, None]
-    np.floor(b, out=b)
-    ok = b >= 0
-    ok &= b < ENVELOPE_BINS
-    b += (np.arange(len(centres)) * ENVELOPE_BINS)[:, None]  # the bin's index among all the grids' bins
-    every = bool(ok.all())  # (no integration angle: every point in its grid's bins) no masked copies
-    flat = (b.reshape(-1) if every else b[ok]).astype(np.int64)
-    ranges = r.reshape(-1) if every else r[ok]
-    near = np.full(len(centres) * ENVELOPE_BINS, np.inf)
-    far = np.full(len(centres) * ENVELOPE_BINS, -np.inf)
-    np.minimum.at(near, flat, ranges)
-    np.maximum.at(far, flat, ranges)
-    envelope = np.stack([near, far], axis=1).reshape(len(centres), ENVELOPE_BINS, 2)
+    envelope = reduced.envelope(start, width, ENVELOPE_BINS)
     found = []
     e1s, e2s = frame_axes(axes[alive], centres[alive], scene.plane)
     for k, e1, e2 in zip(np.flatnonzero(alive), e1s, e2s):
