@@ -1,4 +1,4 @@
-"""The grid route of echo synthesis (clsas/synthesis/echo/grid.py, kernels/echo.cl echo_grid):
+"""The grid route of echo synthesis (clsas/synthesis/echo/grid.py, kernels/echo_accumulate.cl echo_grid):
 fractional-delay impulses on a 4x fast-time grid and one FFT filter per record, against the
 direct route's float64 reference (the issue's bar: -40 dB), the OpenCL kernel against its NumPy
 twin, the route's choice and its refusals."""

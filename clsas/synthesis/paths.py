@@ -1,6 +1,6 @@
 """The propagation paths of a scenario: exact delays, amplitudes and in-pulse laws of every
 (receiver, pulse, scatterer) path, direct or bouncing (the float64 reference the echo kernel,
-kernels/echo.cl ``echo_paths``, is held to).
+kernels/echo_paths.cl ``echo_paths``, is held to).
 
 Delay and amplitude laws: :mod:`clsas.geometry` (docs/design.md, non-stop-and-go). A path that
 bounces is the direct path between an image transmitter and image receivers

@@ -61,7 +61,7 @@ from ..model import Medium, Waveform
 NP_PER_DB = np.log(10.0) / 20.0  # amplitude: x dB = x NP_PER_DB nepers
 MAX_FREQUENCY = 1e7  # Hz, the formula's domain checked here (it is fitted up to 1 MHz)
 FIT_POINTS = 64
-SURFACE, BOTTOM = 1, 2  # reflection laws (kernels/echo.cl BOUNCE_SURFACE / BOUNCE_BOTTOM)
+SURFACE, BOTTOM = 1, 2  # reflection laws (kernels/echo_paths.cl bounce_law: 1 surface, 2 seabed)
 
 
 def absorption_db_per_km(frequency_hz, medium: Medium | None = None) -> np.ndarray:

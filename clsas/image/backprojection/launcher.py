@@ -17,7 +17,8 @@ for every pulse of the call within ``REF_BYTES``, each kept until its last recei
 launch: :func:`_groups`). Records prepared with :func:`.records.prepare` are held whole instead, and a
 :class:`.tiles.GridPlan` keeps the grid's tiling. A block of PULSE_BLOCK pulses whose records exceed
 ``records.LAUNCH_RECORD_BYTES`` is summed over several bp_tile launches that carry its float sums
-(:func:`.records.launch_pulses`; the same image bit for bit): each launch reads records that fit in
+(:func:`.records.launch_pulses`; the same image bit for bit; a block cut by a job's or a reference
+sub-block's end is added in parts instead: :func:`_launches`): each launch reads records that fit in
 cache (jobs of fewer pulses, so that the FIR's output would also stay in cache, were no faster: a
 job's host work, its FIR launch among it, costs what the cache saves).
 """
@@ -50,6 +51,7 @@ class _Chunk:
         import pyopencl as cl
 
         mf = cl.mem_flags
+        self._new_carry = lambda: cl.Buffer(ctx, mf.READ_WRITE, 8 * self.n)
         width = tile.LANES * tile.rows
         self.first, self.n = first, stop - first
         slots = tiling.order[first:stop]
@@ -69,15 +71,12 @@ class _Chunk:
         self.pixels = tile.fields(queue, positions=positions, index=self.index, tile_of=self.tile_of,
                                   centres=self.centres, n_slots=self.n)
         self._carry = None
-        self._ctx = ctx
 
     @property
     def carry(self):
         """bp_tile's CARRY buffer of the chunk's slots (float sums, 8 bytes a slot), made on first use."""
         if self._carry is None:
-            import pyopencl as cl
-
-            self._carry = cl.Buffer(self._ctx, cl.mem_flags.READ_WRITE, 8 * self.n)
+            self._carry = self._new_carry()
         return self._carry
 
     def add_into(self, queue, image: np.ndarray, tiling) -> None:
@@ -108,6 +107,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     rt = opencl.runtime()
     ctx, queue = rt.context, rt.queue
     mf = cl.mem_flags
+    START, END = cl.profiling_info.START, cl.profiling_info.END
     echo, fs = records.echo, records.fs
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
     pixels = np.ascontiguousarray(plan.grid.positions.reshape(-1, 3), np.float64)
@@ -139,7 +139,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
         while len(in_flight) > keep:
             for e in in_flight.pop(0):
                 e.wait()
-                seconds += 1e-9 * (e.profile.end - e.profile.start)
+                seconds += 1e-9 * (e.get_profiling_info(END) - e.get_profiling_info(START))
             bar.done(work.pop(0))  # the progress bar counts finished kernels' pixel-pulses
         return seconds
 
@@ -158,8 +158,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
         exact = None
         for s in range(0, pulses.size, REF_PULSES):
             # a sub-block's references are computed while the previous sub-block's kernels run
-            blocks = [(p0, min(tile.PULSE_BLOCK, s + REF_PULSES - p0, pulses.size - p0))
-                      for p0 in range(s, min(s + REF_PULSES, pulses.size), tile.PULSE_BLOCK)]
+            end = min(s + REF_PULSES, pulses.size)  # the sub-block's pulses: s .. end - 1 of the job's
             if not double:
                 part, kernel = pulses[s:s + REF_PULSES], kernels[h]
                 group = group_of[i]
@@ -187,21 +186,14 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                         spans = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                                           hostbuf=tile.spans(mine, tiles.half_extent, c, skip + s))
                         ref.base.release()
-                    # blocks of PULSE_BLOCK pulses from the span's start (as one launch each would sum
-                    # them), over launches of sub pulses that carry the float sums within a block
-                    sub, q0 = launch_pulses(n_samples, tile.PULSE_BLOCK), s
-                    while q0 < min(s + REF_PULSES, pulses.size):
-                        at = int(pulses[q0])
-                        b0 = span[0] + (at - span[0]) // tile.PULSE_BLOCK * tile.PULSE_BLOCK
-                        b1 = min(b0 + tile.PULSE_BLOCK, span[1])
-                        n_q = min(sub, s + REF_PULSES - q0, pulses.size - q0, b1 - at)
+                    for q0, n_q, mode in _launches(int(pulses[s]), int(pulses[end - 1]) + 1, span,
+                                                   tile.PULSE_BLOCK, launch_pulses(n_samples, tile.PULSE_BLOCK)):
+                        q0 -= int(pulses[0])  # the job's pulse index
                         events.append(kernel.launch(
                             queue, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
                             ref_stride=ref_stride, ref_first=ref_first, records=records_buf, n_samples=n_samples,
                             taps=taps, params=params, p_first=skip + q0, p_count=n_q, image=chunk_state.sums,
-                            spans=spans, carry=None if b1 - b0 <= sub else chunk_state.carry,
-                            carry_mode=(at > b0) | 2 * (at + n_q < b1)))
-                        q0 += n_q
+                            spans=spans, carry=mode and chunk_state.carry, carry_mode=mode or 0))
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)
@@ -210,7 +202,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                 slot_pixels = pixels[np.maximum(chunk_state.slots, 0)]
                 exact = ExactKernel(ctx, slot_pixels, echo, h, np.arange(base, pulses[-1] + 1), fs, offset,
                                     velocity, records.interp, aperture, stop_and_go, double)
-            for p0, count in blocks:
+            for p0 in range(s, end, tile.PULSE_BLOCK):
+                count = min(tile.PULSE_BLOCK, end - p0)
                 events.append(exact.launch(queue, records=records_buf, n_samples=n_samples, taps=taps,
                                            p_first=skip + p0, p_count=count, image=chunk_state.sums))
     kernel_seconds += retire(0)
@@ -242,3 +235,24 @@ def _groups(records: PreparedRecords, kernels: dict, tile: TileKernel, tiles, sp
             groups.append([i])
         joins_last = joins
     return [tuple(g) for g in groups]
+
+
+def _launches(first: int, stop: int, span: tuple[int, int], block: int, sub: int):
+    """bp_tile's launches over pulses ``first`` .. ``stop`` - 1 (a job's sub-block of references):
+    (first pulse, count, carry_mode or None without CARRY) each. Pulses are summed in blocks of
+    ``block`` from ``span[0]`` (as one launch a block would sum them), each over launches of at
+    most ``sub`` pulses that carry the float sums (carry_mode bit 1: start from the carry, bit 2:
+    store into it instead of adding into the image). A block is carried only within
+    ``first`` .. ``stop``: one cut by them (a sub-block or job not aligned to the blocks) is added
+    into the image in parts (the same sum to float rounding, not bit for bit), so that no stored
+    sums wait for a launch that never comes (the next sub-block may run on the exact kernel) and no
+    launch starts from sums another left. With REF_PULSES and the upload jobs multiples of
+    ``block`` (as they are) no block is cut."""
+    at = first
+    while at < stop:
+        b0 = span[0] + (at - span[0]) // block * block
+        b1 = min(b0 + block, span[1])
+        lo, hi = max(b0, first), min(b1, stop)  # the part of the block carried here
+        n = min(sub, hi - at)
+        yield at, n, (int(at > lo) | 2 * int(at + n < hi)) or None  # a part in one launch: no CARRY
+        at += n

@@ -66,6 +66,7 @@ alpha = 2 c^2 / (c^2 - |v_r|^2) and w = 2 v_r / (c^2 - |v_r|^2): one leg and a d
 from __future__ import annotations
 
 import dataclasses
+import threading
 
 import numpy as np
 
@@ -175,6 +176,8 @@ class TileKernel:
                             **({"STOP_AND_GO": 1} if self.stop_and_go else {}),
                             **({LEG_DEFINES[legs]: 1} if LEG_DEFINES[legs] else {})}
         self.ref_preamble = self.preamble + declare_all({"bp_ref_pulse_t": REF_PULSE, "bp_ref_params_t": REF_PARAMS})
+        self._variants = {}  # for_receiver's other configurations, by legs
+        self._launchers = {}  # launch's kernels: (SCATTER, BP_STORE, CARRY, queue id, thread) -> (queue, kernel)
 
     def legs_for(self, echo, h: int) -> str:
         """How bp_tile computes receiver h's return leg (see the class docstring): ``"same"`` when,
@@ -195,8 +198,10 @@ class TileKernel:
         legs = self.legs_for(echo, h)
         if legs == self.legs:
             return self
-        return TileKernel(self.interp, self.aperture, self.velocity, self.stop_and_go,
-                          "ROW_SHIFT" in self.defines, legs, self.rows)
+        if legs not in self._variants:  # one object a configuration (its kernels looked up once)
+            self._variants[legs] = TileKernel(self.interp, self.aperture, self.velocity, self.stop_and_go,
+                                              "ROW_SHIFT" in self.defines, legs, self.rows)
+        return self._variants[legs]
 
     @staticmethod
     def half_extent(f0: float, c: float) -> float:
@@ -383,9 +388,15 @@ class TileKernel:
         extra += (spans,) if self.pulse_span else ()
         extra += (carry, np.int32(carry_mode)) if carry is not None else ()
         n_items = tile_of.size // 4
-        defines = {**self.defines, **({"SCATTER": 1} if index is not None else {}), **({"BP_STORE": 1} if store else {}),
-                   **({"CARRY": 1} if carry is not None else {})}
-        kern = opencl.kernel("backprojection", "bp_tile", preamble=self.preamble, defines=defines)
+        # opencl.kernel's lookup (the runtime, the options' key) once per variant, queue and thread
+        key = (index is not None, bool(store), carry is not None, id(queue), threading.get_ident())
+        held = self._launchers.get(key)
+        if held is None or held[0] is not queue:  # (the queue is held: its id is not reused)
+            defines = {**self.defines, **({"SCATTER": 1} if index is not None else {}),
+                       **({"BP_STORE": 1} if store else {}), **({"CARRY": 1} if carry is not None else {})}
+            held = self._launchers[key] = (queue, opencl.kernel("backprojection", "bp_tile", preamble=self.preamble,
+                                                                defines=defines))
+        kern = held[1]
         return kern(queue, *opencl.work_groups(n_items), pixels, tile_of, refs, np.int32(ref_stride),
                     np.int32(ref_first), records, taps, params, np.int32(p_first), np.int32(p_count),
                     np.int32(n_samples), np.int32(n_items), image,

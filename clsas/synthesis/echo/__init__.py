@@ -1,4 +1,4 @@
-"""Echo synthesis (kernels/echo.cl): :mod:`.pipeline` (simulate, synthesize, delays; the noise in :mod:`.noise`) drives
+"""Echo synthesis (kernels/echo_paths.cl, kernels/echo_accumulate.cl): :mod:`.pipeline` (simulate, synthesize, delays; the noise in :mod:`.noise`) drives
 the NumPy reference (:mod:`.reference`) and the OpenCL launcher (:mod:`.launch`), both reading a
 pulse block's reach and weights through :mod:`.blocks`, with the options of :mod:`.options`
 resolved into :mod:`.physics`, the kernel's records declared in :mod:`.records`."""

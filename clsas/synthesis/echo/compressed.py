@@ -160,7 +160,7 @@ class CompressedResponse:
 
     def accumulate(self, start, frac, amp, n_samples: int, laws: dict | None = None) -> np.ndarray:
         """The compressed records (R, n_samples) complex128 of R records of N paths (the NumPy
-        twin of kernels/echo.cl ``add_compressed_echo``): ``start``, ``frac`` (R, N) the
+        twin of kernels/echo_accumulate.cl ``add_compressed_echo``): ``start``, ``frac`` (R, N) the
         raw echo centres, ``amp`` (R, N) with the carrier phase, ``laws`` as for
         :func:`.reference.accumulate_reference`."""
         delta, coeff = self.coefficients(amp, laws)

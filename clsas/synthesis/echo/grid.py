@@ -49,7 +49,7 @@ BETA = 2.3 * TAPS  # the kernel's shape (exponential of semicircle)
 TAPER = 4  # samples the pulse is smoothed over past each edge (the tails)
 BAND = 0.3  # the filter keeps |f| < BAND RATE cycles a sample
 LANES = 8  # the kernel evaluates a path's taps, and each tail, on 8 lanes
-BLOCK = 64  # samples a work-item of kernels/echo.cl echo_grid makes; grids span whole blocks
+BLOCK = 64  # samples a work-item of kernels/echo_accumulate.cl echo_grid makes; grids span whole blocks
 ENVELOPE_BOUND = 0.2  # the largest |b| h + |g| h^2 the second-order envelope is used for (x^3 / 6 <= 1.3e-3)
 QUADRATURE = 256  # Gauss-Legendre nodes for phi's Fourier transform
 DEGREE = 7  # the taps' polynomials in the fraction (their largest error ~1.4e-6 of the peak, at phi's edge)
@@ -75,7 +75,7 @@ def tap_polynomials() -> np.ndarray:
     """(DEGREE + 1, LANES): the taps phi(l - TAPS / 2 + t), l = 0 .. LANES - 1, as polynomials in
     t in [0, 1) (coefficient k of t^k in row k; fitted at Chebyshev nodes): a path whose grid
     position is x puts phi(first + l - x) on grid point first + l, first = ceil(x - TAPS / 2),
-    t = first - x + TAPS / 2 (the Horner form kernels/echo.cl evaluates on 8 lanes)."""
+    t = first - x + TAPS / 2 (the Horner form kernels/echo_accumulate.cl evaluates on 8 lanes)."""
     t = 0.5 - 0.5 * np.cos(np.pi * (np.arange(64) + 0.5) / 64)
     out = np.zeros((DEGREE + 1, LANES))
     for lane in range(TAPS):
@@ -168,7 +168,7 @@ class GridPlan:
         return np.stack([amp, amp * b, amp * (0.5 * b * b + g)])
 
     def spread(self, start, frac, amp, n_samples: int, laws: dict | None = None):
-        """The NumPy twin of kernels/echo.cl ``echo_grid``: (grids (R, terms, RATE n_grid), tails
+        """The NumPy twin of kernels/echo_accumulate.cl ``echo_grid``: (grids (R, terms, RATE n_grid), tails
         (R, n_grid)) complex128 of R records of N paths (``start``, ``frac``, ``amp`` (R, N) as for
         :func:`.reference.accumulate_reference`); grid point m is at sample m / RATE - PAD, tail
         entry i at sample i - PAD."""

@@ -1,4 +1,4 @@
-"""The launcher of ``kernels/echo.cl`` (its NumPy twin: :mod:`.reference`): the paths kernel,
+"""The launcher of ``kernels/echo_paths.cl`` and ``kernels/echo_accumulate.cl`` (its NumPy twin: :mod:`.reference`): the paths kernel,
 the bounds and extents, and the accumulation of the raw or compressed records.
 
 Precision of the OpenCL kernel (``precision="single"``): the delays, the amplitudes and the
@@ -40,7 +40,7 @@ def groups(n_x: int, *rest: int) -> tuple[tuple, tuple]:
 
 
 class OpenCLSynth(BlockSynth):
-    """The kernels of kernels/echo.cl: paths in double, accumulation in float (or double)."""
+    """The kernels of kernels/echo_paths.cl and echo_accumulate.cl: paths in double, accumulation in float (or double)."""
 
     def __init__(self, *args, double: bool, nodes):
         super().__init__(*args)
@@ -119,19 +119,20 @@ class OpenCLSynth(BlockSynth):
             self.taps_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                                       hostbuf=np.ascontiguousarray(grid.tap_polynomials(), dtype=self.real))
         preamble = records_preamble(self.real, ph.extended)
-        prg = opencl.program("echo", defines=defines, double=double, preamble=preamble)
-        self.k_paths = cl.Kernel(prg, "echo_paths")
+        paths = opencl.program("echo_paths", defines=defines, double=double, preamble=preamble)
+        self.k_paths = cl.Kernel(paths, "echo_paths")
         # paths without weights (pass A's, kept for pass B when there are no weights) and the echo
         # centres alone (the delays and the extents when pass B computes its own paths)
         plain = {key: value for key, value in defines.items() if key != "PATH_WEIGHTS"}
         self.k_paths_plain = self.k_paths if plain == defines else \
-            cl.Kernel(opencl.program("echo", defines=plain, double=double, preamble=preamble), "echo_paths")
-        self.k_paths_delays = cl.Kernel(opencl.program("echo", defines={**plain, "DELAYS_ONLY": 1}, double=double,
-                                                       preamble=preamble), "echo_paths")
-        self.k_bounds = cl.Kernel(prg, "echo_bounds")
-        self.k_extents = cl.Kernel(prg, "echo_extents")
-        self.k_spread = cl.Kernel(prg, "echo_spread")
-        self.k_acc = cl.Kernel(prg, "echo_grid" if ph.grid is not None else "echo_accumulate")
+            cl.Kernel(opencl.program("echo_paths", defines=plain, double=double, preamble=preamble), "echo_paths")
+        self.k_paths_delays = cl.Kernel(opencl.program("echo_paths", defines={**plain, "DELAYS_ONLY": 1},
+                                                       double=double, preamble=preamble), "echo_paths")
+        self.k_extents = cl.Kernel(paths, "echo_extents")
+        self.k_spread = cl.Kernel(paths, "echo_spread")
+        accumulate = opencl.program("echo_accumulate", defines=defines, double=double, preamble=preamble)
+        self.k_bounds = cl.Kernel(accumulate, "echo_bounds")
+        self.k_acc = cl.Kernel(accumulate, "echo_grid" if ph.grid is not None else "echo_accumulate")
         wf = sc.waveform
         self.params = np.zeros((), PARAMS)
         self.params["c"], self.params["f0"], self.params["fs"] = c, wf.f0, wf.fs
@@ -288,7 +289,7 @@ class OpenCLSynth(BlockSynth):
 
     def spread(self, pulse: int) -> np.ndarray:
         """(H,) s: the spread of the direct paths' delays at ``pulse`` over the scatterers heard
-        then (kernels/echo.cl ``echo_spread``)."""
+        then (kernels/echo_paths.cl ``echo_spread``)."""
         paths_buf, _, (_, n_act, stride) = self._run_paths(slice(pulse, pulse + 1), np.zeros(self.n_rx),
                                                            weighted=False, kinds=[0], delays_only=True)
         out = self.cl.Buffer(self.rt.context, self.cl.mem_flags.WRITE_ONLY, 16 * self.n_rx)

@@ -129,7 +129,7 @@ def delays(scenario: Scenario, backend: str | None = None, stop_and_go: bool = F
     the transmitter / the receiver, e.g. "S-D", "D-B", "SB-D", "S-S" (the scenario's
     ``surface`` and ``seafloor``; :mod:`clsas.synthesis.propagation`).
     The NumPy backend iterates the fixed point of :mod:`clsas.geometry`; the OpenCL
-    kernel solves each leg in closed form (kernels/echo.cl, ``meet_time``) and returns the
+    kernel solves each leg in closed form (kernels/geometry.h, ``meet_time8``) and returns the
     delay as the sample index it hands to the accumulation (float32 fraction: ~3e-12 s at 20 kHz).
     """
     if not isinstance(scenario, Scenario):

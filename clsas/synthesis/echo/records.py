@@ -1,4 +1,4 @@
-"""The records the kernels of ``kernels/echo.cl`` read and write, declared once here
+"""The records the kernels of ``kernels/echo_paths.cl`` and ``echo_accumulate.cl`` read and write, declared once here
 (:mod:`clsas.cstruct`): a pulse, a receiver, the launch's parameters, a path kind's bounces (legs),
 a scatterer's fields (structure of arrays) and a path (echo centre, amplitude, own chirp)."""
 
@@ -14,8 +14,8 @@ CHUNK_SCATTERERS = 16  # paths per bounds chunk in the OpenCL accumulation
 ROWS = 8  # 16-sample rows per work-item of the OpenCL accumulation
 BOTTOM_TABLE = 1025  # entries of the seabed's reflection table, sin(grazing) in [0, 1]
 MAX_BOUNCES = 2  # per leg
-UNHEARD = 1 << 30  # kernels/echo.cl: the start sample of a path that carries no echo
-# the records echo_paths reads (kernels/echo.cl): a pulse, a receiver, the launch's parameters and
+UNHEARD = 1 << 30  # kernels/echo_reach.h: the start sample of a path that carries no echo
+# the records echo_paths reads (kernels/echo_paths.cl): a pulse, a receiver, the launch's parameters and
 # the path kind's bounces
 PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("tx_axis", "f8", 3), ("tx_vel", "f8", 3)])  # m, s, 1, m/s
 RECEIVER = record_dtype([("t0_fs", "f8"), ("length", "f8")])  # window start in samples, element length m

@@ -1,4 +1,4 @@
-"""The float64 NumPy reference of echo synthesis (the twin of ``kernels/echo.cl``, whose launcher
+"""The float64 NumPy reference of echo synthesis (the twin of ``kernels/echo_paths.cl`` and ``kernels/echo_accumulate.cl``, whose launcher
 is :mod:`.launch`).
 
 Signal model (docs/design.md): the baseband echo of path (receiver h, pulse p, scatterer n) is
