@@ -49,7 +49,7 @@ from ...kernelmath import expj_cycles
 from ...model import Grid
 from ..backprojection import GridPlan, TileKernel, backproject, prepare
 from . import program
-from .polar import PolarGrid, points_of
+from .polar import PolarGrid, points_at
 
 BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~40 bytes each held)
 RECORD_BYTES = 256 * 2**20  # prepared records held at once
@@ -82,6 +82,12 @@ def polar_tiles(grids: list, bv: int, br: int):
     tv, tr = int(tv_of.max()), int(tr_of.max())
     real = (np.arange(tv)[None, :, None] < tv_of[:, None, None]) & (np.arange(tr)[None, None, :] < tr_of[:, None, None])
     tile = np.cumsum(real.reshape(-1)).reshape(real.shape) - 1  # grid by grid, row-major within a grid
+    n_v = np.array([g.n_v for g in grids])
+    n_r = np.array([g.n_r for g in grids])
+    # each tile's reference point: its block's middle sample (a block at the grid's edge cut to it)
+    which, a, b = np.nonzero(real)  # the tiles in that order
+    centres = points_at(grids, which, (a * bv + np.minimum(a * bv + bv, n_v[which]) - 1) // 2,
+                        (b * br + np.minimum(b * br + br, n_r[which]) - 1) // 2)
     # items group by group of LANES range samples, within a group row by row down the whole grid
     # (its tiles of that column one after another): a work-item is ROWS rows of the same LANES
     # ranges, and the work-items after it the next rows of them (a short sub-aperture's delay
@@ -93,8 +99,7 @@ def polar_tiles(grids: list, bv: int, br: int):
     # work-item at a time, j its group of ROWS rows within the tile, and expanded to its rows after)
     shape = (len(grids), tr, br // LANES, tv, bv // ROWS)
     l, b, q, a, j = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij", sparse=True)
-    n_v = np.array([g.n_v for g in grids])[:, None, None, None, None]
-    n_r = np.array([g.n_r for g in grids])[:, None, None, None, None]
+    n_v, n_r = n_v[:, None, None, None, None], n_r[:, None, None, None, None]
     # a group of LANES samples is kept where it meets the span of its block of ROWS rows (the union
     # of the rows' spans: a work-item's ROWS items then stay in one tile)
     blocks = -(-tv * bv // ROWS)
@@ -117,10 +122,7 @@ def polar_tiles(grids: list, bv: int, br: int):
     for name, x in zip(program.ITEM.names, (l, block * ROWS, start, tile)):
         items[name] = np.repeat(np.broadcast_to(x, shape)[keep], ROWS)
     items["row"] += np.tile(np.arange(ROWS, dtype=np.int32), kept)  # each work-item's rows
-    middles = [[(j0 + np.minimum(j0 + step, n) - 1) // 2 for j0, step, n in ((np.arange(0, g.n_v, bv), bv, g.n_v),
-                                                                          (np.arange(0, g.n_r, br), br, g.n_r))]
-               for g in grids]
-    return items, points_of(grids, [v for v, _ in middles], [r for _, r in middles]), tv_of * tr_of
+    return items, centres, tv_of * tr_of
 
 
 def _slots(grids: list, items: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -306,8 +308,13 @@ class FirstStage:
         leaves' polar grids reach (prepare's reach of their boundary: the first and last range at
         every angle row bound a sector's box up to an arc's sagitta between rows, r dv^2 / 8,
         micrometres, inside the sample prepare adds for rounding)."""
-        edges = points_of([grids[k] for k in leaves], [np.arange(grids[k].n_v) for k in leaves],
-                          [[0, grids[k].n_r - 1] for k in leaves])
+        chosen = [grids[k] for k in leaves]
+        rows = np.array([g.n_v for g in chosen])
+        which = np.repeat(np.arange(len(chosen)), rows)  # each row's grid; its first and last sample
+        row = np.arange(which.size) - np.repeat(np.cumsum(rows) - rows, rows)
+        last = np.array([g.n_r - 1 for g in chosen])[which]
+        edges = points_at(chosen, np.repeat(which, 2), np.repeat(row, 2),
+                          np.stack([np.zeros_like(last), last], axis=1).reshape(-1))
         return prepare(echo, **self.options, grid=Grid.points(edges))
 
     def _device_references(self, tile: TileKernel, records, batch: list, centres: np.ndarray, first_tile: np.ndarray,

@@ -183,13 +183,18 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
             find_extents(middles[:known] + [node for level in guessed for node in level])
         else:
             known = 0
-        wide = [n for n, m in zip(lengths[:known], middles[:known])
-                if extents_of[m] is not None and extents_of[m].rows(rho0, taps) - 2 * taps >= LEAF_SAMPLES]
-        if not wide:
-            find_extents(middles[known:])
-            wide = [n for n, m in zip(lengths, middles)  # only their rows are needed, not the sampled grids
+
+        def wide(count: int) -> list:
+            """Those of the first ``count`` lengths whose middle node's grid is wide enough (only its rows are
+            needed, not the sampled grid)."""
+            return [n for n, m in zip(lengths[:count], middles[:count])
                     if extents_of[m] is not None and extents_of[m].rows(rho0, taps) - 2 * taps >= LEAF_SAMPLES]
-        first = wide[0] if wide else echo.n_pulses
+
+        passing = wide(known)
+        if not passing:
+            find_extents(middles[known:])
+            passing = wide(len(lengths))
+        first = passing[0] if passing else echo.n_pulses
     pulses, children = _levels(echo.n_pulses, first, factor)
     find_extents([node for level in pulses for node in level])
 

@@ -163,5 +163,11 @@ def points_of(grids: list, rows: list, cols: list) -> np.ndarray:
     which = np.repeat(np.arange(len(grids)), [len(a) * len(b) for a, b in zip(rows, cols)])
     row = np.concatenate([np.repeat(np.asarray(a, np.int64), len(b)) for a, b in zip(rows, cols)])
     col = np.concatenate([np.tile(np.asarray(b, np.int64), len(a)) for a, b in zip(rows, cols)])
+    return points_at(grids, which, row, col)
+
+
+def points_at(grids: list, which: np.ndarray, row: np.ndarray, col: np.ndarray) -> np.ndarray:
+    """:meth:`PolarGrid.points` of the samples (row[i], col[i]) of grids[which[i]] (on one plane;
+    int64 index arrays (n,)): (n, 3) m, the same values."""
     r0, dr, v0, dv = (np.array([getattr(g, k) for g in grids], np.float64) for k in ("r0", "dr", "v0", "dv"))
     return _on_plane(r0[which] + dr[which] * col, v0[which] + dv[which] * row, *(x[which] for x in _frame_terms(grids)))
