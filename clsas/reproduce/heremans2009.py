@@ -173,7 +173,7 @@ def run(args: argparse.Namespace) -> int:
     floor_z = scene.platform.start[2] - ALTITUDE
     grid = Grid.plane(np.arange(93.0, 107.0, rres / 2), np.arange(-8.0, 8.0, d / 4), floor_z)
     cases = {reference: clean[0] if clean else echo, "uncompensated": dpca.with_track(echo, scene),
-             "compensated (eqs. 74-75)": dpca.compensate(echo, track, scene),
+             "compensated (eqs. 74-75)": dpca.compensate(echo, track, scene, depth=floor_z),
              "along the DPCA track": dpca.with_track(echo, scene.replace(platform=track.platform(speed, surge=False)))}
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -37,6 +37,24 @@ gives the yaw xi = sin theta and the delay. The delay is taken to a fraction of 
 period from the phase of V at the best beam, resolved against the envelope's parabolic peak:
 dt = (arg V + 2 pi k) / (2 pi f0) with the integer k that lands nearest -m_peak / fs. Then
 sway gamma = -c dt / 2 (eq. 69, with clsas's sign of x) and yaw xi = sin theta (eq. 70).
+The parabola through three grid angles reads the peak short of the beam's (a beam is not a
+parabola over a grid step: 0.3-0.4 % of the yaw at Heremans' geometry, the same sign every pair,
+an error in the heading proportional to the heading's excursion); the beam is formed again at
+the vertex and a quarter step either side and the parabola through those taken (its error
+shrinks as the step squared).
+
+Eqs. (69)-(70) hold in the plane of the track. Over a seafloor h below it, a scatterer at slant
+range r, ground range rho and ground azimuth phi is seen along the line of sight l, and a
+horizontal move across the track of the phase centres (gamma, or -u xi under a yaw) changes
+the two-way path by -2 gamma (x . l), x . l = rho cos(phi) / r = sqrt(a^2 - sin^2 theta) with
+a = rho / r the depression's cosine: the delays read gamma and xi times the block's mean
+x . l (geometry.across_cosine: sqrt(a^2 - <sin^2 theta>), the same moments as the phase-centre
+correction below), and each block's sway and yaw are divided by it. At Heremans' 15 m over
+88-112 m that is 0.986-0.991: left in, the yaw read short by it and the parabola's part (a
+heading error proportional to the heading's excursion, most of the reproduction's heading error:
+bench/bench_dpca.py --pooling) and the sway short by it. Without the
+seafloor's extent (``extent=None``, recorded data) the seafloor is taken at the track's depth
+(a = 1: only the look angle's part, 1 - <sin^2 theta> / 2).
 
 Two passes. Pass 1 scans t-lags -t_lags..t_lags on the records as they are. A fractional-
 sample misalignment of f and g makes the correlation's phase at the integer t-lag depend on

@@ -265,6 +265,33 @@ def look_moments(array: Array, f0: float, c: float, r: np.ndarray, centre: np.nd
     return sin2, fraction, np.where(empty, 0.0, weight / (np.pi * SUB_RANGES * r_blocks[None, :]))
 
 
+def across_cosine(r: np.ndarray, centre: np.ndarray, extent: SeafloorExtent | None,
+                  sin2: np.ndarray) -> np.ndarray:
+    """(pair, block): the mean over a range block's seafloor of x . l, the line of sight l's
+    component along the horizontal across-track axis x, by which a horizontal displacement of the
+    phase centres across the track (a sway gamma; a yaw xi moves the couple at u by -u xi) changes
+    the two-way path: by -2 gamma (x . l), not -2 gamma (the estimator's plane geometry).
+
+    r : m (block,), the blocks' centre slant ranges; centre : m (pair, 3), the phase centres
+    (:func:`look_moments`); extent : the seafloor (its height sets the depression), None for one
+    at the track's depth; sin2 : (pair, block), the blocks' <sin^2 theta> (:func:`look_moments`,
+    NaN where a block holds no seafloor: 0 is taken). A scatterer at slant range r, ground range
+    rho = sqrt(r^2 - h^2) (h the track's height above the floor) and ground azimuth phi has
+    x . l = rho cos(phi) / r = sqrt(a^2 - sin^2 theta), a = rho / r the depression's cosine and
+    sin theta = a sin(phi) its along-track direction cosine; averaged over the block's scatterers
+    (weighted by the two-way power, as <sin^2 theta>), to first order in sin^2 theta / a^2:
+    sqrt(a^2 - <sin^2 theta>). A block's sway and yaw read from the couples' delays are the
+    horizontal ones times it (at Heremans' 15 m over 100 m: 0.989)."""
+    r = np.asarray(r, dtype=np.float64)
+    if extent is None:
+        a = np.ones_like(r)
+    else:
+        h = float(np.median(np.asarray(centre, dtype=np.float64)[:, 2])) - extent.z
+        a = np.sqrt(np.maximum(1 - (h / np.maximum(r, abs(h) + 1e-9)) ** 2, 0.0))
+    s2 = np.nan_to_num(np.asarray(sin2, dtype=np.float64), nan=0.0)
+    return np.sqrt(np.maximum(a[None, :] ** 2 - s2, 1e-6))
+
+
 # A block whose seafloor weight the extent's near or far edge cuts by more than this fraction
 # is left out of the estimate (see :func:`inside_swath`).
 RANGE_EDGE = 0.02

@@ -15,8 +15,8 @@ from ...model import EchoData
 from ...scene.scenario import Array
 from ...kernelmath import unit_phasor
 from .correlate import aligned, correlations, parabola, peak_ratio
-from .geometry import (ANGLES, SUB_RANGES, SeafloorExtent, beam_sin2, inside_swath, look_moments, main_lobe_sin2,
-                       pairing, pca_delay, scenario_extent, xlag_offset)
+from .geometry import (ANGLES, SUB_RANGES, SeafloorExtent, across_cosine, beam_sin2, inside_swath, look_moments,
+                       main_lobe_sin2, pairing, pca_delay, scenario_extent, xlag_offset)
 
 log = logging.getLogger("clsas")
 
@@ -25,8 +25,10 @@ log = logging.getLogger("clsas")
 class PingPairs:
     """Per ping pair (p, p + 1) estimates, arrays of shape (n_pulses - 1,).
 
-    surge, sway : m (along-track advance beyond v PRT; cross-track displacement towards +x)
-    yaw : rad (rotation about +z between the two pings)
+    surge, sway : m (along-track advance beyond v PRT; cross-track displacement towards +x,
+        horizontal: the blocks' delays divided by the line of sight's across-track component,
+        geometry.across_cosine, with the seafloor's depression when its extent is known)
+    yaw : rad (rotation about +z between the two pings; divided likewise)
     surge_std, sway_std, yaw_std : their standard errors (m, m, rad)
     coherence : the best beam's normalised correlation magnitude (0..1), median over blocks
     blocks : how many range blocks entered each estimate
@@ -261,11 +263,19 @@ def _scan(setup: _Setup, prev: np.ndarray, nxt: np.ndarray, offset: np.ndarray, 
         pp, bb = np.indices(a.shape)
         m_off, peak = parabola(mag[pp, bb, a, 0], mag[pp, bb, a, 1], mag[pp, bb, a, 2])
         a_off, _ = parabola(mag[pp, bb, a - 1, 1], mag[pp, bb, a, 1], mag[pp, bb, a + 1, 1])
+        # The parabola through the grid's three angles reads a peak short of the beam's (the beam
+        # is not a parabola over a grid step: 0.3-0.4 % of the yaw at Heremans' geometry): the beam
+        # formed again at the vertex and a quarter step either side, and the parabola through those
+        # (its error shrinks as the step squared).
+        ds = st.sin_theta[1] - st.sin_theta[0]
+        probe = (st.sin_theta[a] + a_off * ds)[..., None] + 0.25 * ds * np.arange(-1, 2)     # (pair, block, 3)
+        local = np.abs(np.einsum("pbkn,npb->pbk", np.exp(-1j * 4 * np.pi * st.f0 * probe[..., None] * u / st.c),
+                                 near[..., 1]))
+        fine_off, _ = parabola(local[..., 0], local[..., 1], local[..., 2])
         coarse = offset[:, None] - ((m - t_lags) + m_off) / st.fs
         phase = np.angle(beams[pp, bb, a, 1])
         cycles = np.round(coarse * st.f0 - phase / (2 * np.pi))
-        ds = st.sin_theta[1] - st.sin_theta[0]
-        yaws[li] = -np.arcsin(np.clip(st.sin_theta[a] + a_off * ds, -1, 1))
+        yaws[li] = -np.arcsin(np.clip(probe[..., 1] + 0.25 * ds * fine_off, -1, 1))
         # the delay at these couples' centre, referred to the common couples' centre: a couple
         # at u moves u xi across track (dpca.integrate), a delay -2 u xi / c
         centre_shift = st.pc[i].mean() - st.pc[:st.n_couples].mean()
@@ -332,6 +342,9 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     sin2, main_fraction, content = look_moments(array, f0, c, r_blocks, centre, extent, block_span, ahead)
     # blocks that hold the seafloor's near or far edge are left out of the yaw (see below)
     # and those next to them (a block's length from them: the bias reaches that far, inside_swath)
+    # a horizontal displacement moves the couples' paths by its product with the line of sight's
+    # across-track component (depression and look angle): the blocks' sway and yaw are divided by it
+    across = across_cosine(r_blocks, centre, extent, sin2)                    # (pair, block)
     whole = inside_swath(array, f0, c, r_blocks, centre, extent, block_span, ahead, content, guard=block_span)
     data = records[..., :n_blocks * block].reshape(h, echo.n_pulses, n_blocks, block)
     step = pc[1] - pc[0]
@@ -404,8 +417,8 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     shift, _ = robust_mean(delays[nearest, pp, bb])
     fine, delays, yaws = _scan(setup, data[:, :-1], data[:, 1:], shift, FINE_T_LAGS,
                                lags={int(k) - lags for k in np.unique(nearest[good])}, every=True)
-    sway = -c * delays[nearest, pp, bb] / 2
-    yaw = yaws[nearest, pp, bb]
+    sway = -c * delays[nearest, pp, bb] / 2 / across
+    yaw = yaws[nearest, pp, bb] / across
     # The sway's blocks weighted by their coherence rho (pass 2's beam peak): the phase of a
     # correlation over N samples at coherence rho has variance (1 - rho^2) / (2 N rho^2), the same
     # N in every block. Not the yaw's: a block's coherence and its yaw error are correlated (the
