@@ -59,7 +59,10 @@ def run_papers(papers, data: Path) -> None:
             print(f"{paper}: no --json option yet; skipped", file=sys.stderr)
             continue
         print(f"{paper}: running clsas reproduce {paper} --json ...", file=sys.stderr, flush=True)
-        done = _clsas("reproduce", paper, "--json", str(data / f"{paper}.json"), stdout=subprocess.DEVNULL)
+        # --overwrite: the run replaces the last one's table (written to a temporary name and renamed,
+        # so a failed run leaves it as it was)
+        done = _clsas("reproduce", paper, "--json", str(data / f"{paper}.json"), "--overwrite",
+                      stdout=subprocess.DEVNULL)
         if done.returncode != 0:
             print(f"{paper}: failed (exit {done.returncode})", file=sys.stderr)
 
