@@ -599,6 +599,29 @@ def _same_extents(a: list, b: list) -> int:
     return sum(x is not None for x in a)
 
 
+def test_a_frame_does_not_depend_on_the_nodes_framed_with_it():
+    """frame_axes gives each node the same (e1, e2) bit for bit whether it is framed alone or among
+    others (review 11 B1: ``axes @ normal`` went through BLAS, whose single-row path rounds otherwise,
+    so a node alone in a planning chunk, host chunks of 8 against device chunks of 256 or a first
+    guess's node lists, got another frame on a tilted plane)."""
+    rng = np.random.default_rng(11)
+    axes = rng.normal(size=(64, 3)) * [0.05, 1.0, 0.02]
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    centres = rng.normal(size=(64, 3)) * [0.1, 5.0, 0.1]
+    normal = np.array([-0.129, -0.069, 0.989])
+    normal /= np.linalg.norm(normal)
+    plane = polar.Plane(normal, float(normal @ [100.0, 0.0, -15.0]), np.array([100.0, 0.0, -15.0]))
+    e1, e2 = polar.frame_axes(axes, centres, plane)
+    for i in range(axes.shape[0]):
+        a1, a2 = polar.frame_axes(axes[i:i + 1], centres[i:i + 1], plane)
+        np.testing.assert_array_equal(a1[0], e1[i], err_msg=f"node {i}: e1")
+        np.testing.assert_array_equal(a2[0], e2[i], err_msg=f"node {i}: e2")
+    for n in (2, 9, 17):  # batches of other sizes
+        b1, b2 = polar.frame_axes(axes[:n], centres[:n], plane)
+        np.testing.assert_array_equal(b1, e1[:n])
+        np.testing.assert_array_equal(b2, e2[:n])
+
+
 @pytest.mark.parametrize("case", ["motion", "aperture", "points_off_plane", "one_point", "narrow_window"])
 def test_the_planners_reductions_on_the_device_are_numpys(opencl_device, monkeypatch, case):
     """polar.offsets.DeviceOffsets (kernels/ffbp.cl's ffbp_extremes, ffbp_seen, ffbp_envelope, which

@@ -109,7 +109,10 @@ def frame_axes(axes: np.ndarray, centres: np.ndarray, plane: Plane) -> tuple[np.
     Raises ValueError when the plane is (nearly) perpendicular to an axis (a cross-track vertical
     image plane: the polar grid would be degenerate)."""
     m = plane.normal
-    perp = m[None] - (axes @ m)[:, None] * axes
+    # m . axis lane-wise in one rounding order (``axes @ m`` goes through BLAS, whose one-row path
+    # rounds otherwise: a node's frame would depend on the nodes framed with it)
+    along = axes[:, 0] * m[0] + axes[:, 1] * m[1] + axes[:, 2] * m[2]
+    perp = m[None] - along[:, None] * axes
     norm = np.linalg.norm(perp, axis=1)
     if np.any(norm < 0.1):
         raise ValueError("grid: its plane is within 6 degrees of perpendicular to the track, so a sub-aperture's "
