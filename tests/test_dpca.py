@@ -134,6 +134,14 @@ def test_yaw_and_sway_are_horizontal_over_a_seafloor_below():
     # sway gain 0.9991; before the line of sight's component and the refined peak (main 729a13c)
     # 0.9907 and 0.9874 (seed 4: 0.9925, 0.9874)
     assert abs(yaw_gain - 1) < 0.006 and abs(sway_gain - 1) < 0.004
+    # compensate's default depth is the seafloor estimate's extent="auto" reads (review 11 R1: the
+    # horizontal sway applied as in a horizontal geometry left 1 - cos(phi) of it, ~1.1 % here)
+    track = dpca.integrate(pairs, echo.eta, scene.platform.speed, scene.array)
+    floor_z = dpca.scenario_extent(echo.scenario).z
+    assert abs(floor_z + 15.0) < 0.1
+    auto = dpca.compensate(echo, track, scene).data
+    np.testing.assert_array_equal(auto, dpca.compensate(echo, track, scene, depth=floor_z).data)
+    assert not np.array_equal(auto, dpca.compensate(echo, track, scene, depth=None).data)
 
 
 def test_compensation_focuses_the_nine_points(nine_points):
@@ -430,6 +438,8 @@ def test_bad_input(seafloor):
         dpca.compensate(echo, track, scene, depth=float("nan"))
     with pytest.raises(ValueError, match="compensate depth: the plane z = -5000 m lies .* beyond the records' mid"):
         dpca.compensate(echo, track, scene, depth=-5000.0)
+    with pytest.raises(ValueError, match=r"compensate depth: must be one of \('auto',\), got 'deep'"):
+        dpca.compensate(echo, track, scene, depth="deep")
     for bad, error in ((2**64, ValueError), (2.0, TypeError), (True, TypeError)):
         with pytest.raises(error, match="compensate_record workers"):
             dpca.compensate_record(echo, track, scene, receivers=range(4, 11), workers=bad)

@@ -147,7 +147,9 @@ def compensate_record(echo: EchoData, trajectory: Trajectory, scenario: Scenario
     if depth is not None:
         depth = validate.scalar("compensate_record depth", depth, low=-validate.MAX_COORDINATE,
                                 high=validate.MAX_COORDINATE, unit="m")
-    straight = compensate(echo, trajectory, scenario, workers=workers)
+    # the broadside delay alone (depth=None): beam_correction's 2 x (1 - n_x) over the beam holds the
+    # depression's part too, which compensate(depth=) would count a second time
+    straight = compensate(echo, trajectory, scenario, workers=workers, depth=None)
     record = pca_record(straight, receivers, backend=backend)
     u, x = displacement(trajectory, scenario, echo.eta)
     rows = record.u0 + record.du * np.arange(record.n_u)

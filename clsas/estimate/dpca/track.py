@@ -12,7 +12,7 @@ import scipy.fft
 from ... import validate
 from ...model import EchoData
 from ...scene.scenario import Array, Platform, Scenario
-from .geometry import pairing
+from .geometry import pairing, scenario_extent
 from .pairs import PingPairs
 
 log = logging.getLogger("clsas")
@@ -190,7 +190,7 @@ def delay_records(data: np.ndarray, dt: np.ndarray, f0: float, fs: float, worker
 
 
 def compensate(echo: EchoData, trajectory: Trajectory, scenario: Scenario, workers: int | None = -1,
-               depth: float | None = None) -> EchoData:
+               depth: float | str | None = "auto") -> EchoData:
     """Motion compensation of eqs. (74)-(75): each hydrophone's record delayed back by
     dt = dt_sway + dt_yaw{h} (eqs. 34, 38: dt_sway = -2 sway / c, dt_yaw{h} = -(o_h - o_tx) sin(yaw) / c,
     the receiver's cross-track move under yaw with the transmitter at the centre of rotation), by
@@ -204,17 +204,25 @@ def compensate(echo: EchoData, trajectory: Trajectory, scenario: Scenario, worke
     tests/test_dpca.py). For omega_k / range_doppler /
     chirp_scaling, :func:`clsas.estimate.dpca.compensate_record` removes that residual over the
     beam on the interleaved record; back-projecting along the track (:func:`with_track` with
-    :meth:`Trajectory.platform`) has no such residual. depth : m, z of the imaged plane (default:
-    the track's, a horizontal geometry): the track's moves across it are horizontal, and move the
-    path to a scatterer seen at depression phi by their product with cos(phi), taken at the
-    records' middle slant range (a scene 15 m below at 88-112 m: cos(phi) 0.986-0.991; the one
-    value leaves 0.3 % of the sway at the swath's edges)."""
+    :meth:`Trajectory.platform`) has no such residual. depth : m, z of the imaged plane, "auto"
+    (default) or None: the track's moves across it are horizontal (as :func:`.pairs.estimate`
+    returns them once it knows the seafloor's depth), and move the path to a scatterer seen at
+    depression phi by their product with cos(phi), taken at the records' middle slant range (a
+    scene 15 m below at 88-112 m: cos(phi) 0.986-0.991; the one value leaves 0.3 % of the sway at
+    the swath's edges; the look angle's part, cos(theta) across the beam, is the broadside residual
+    above). "auto": the z of the seafloor the echo's scenario holds, as ``estimate``'s
+    ``extent="auto"`` reads it (:func:`.geometry.scenario_extent`), else None; None: the track's
+    depth (a horizontal geometry, cos(phi) = 1)."""
     h = scenario.array.n_receivers
     if trajectory.eta.shape != echo.eta.shape:
         raise ValueError("compensate: the trajectory must have one value per ping of the echo")
     c = echo.medium.sound_speed
     lever = scenario.array.rx_offsets[:, 1] - scenario.array.tx_offset[1]
     dt = (-2 * trajectory.cross[None, :] - lever[:, None] * np.sin(trajectory.heading)[None, :]) / c  # (h, pulse)
+    if isinstance(depth, str):
+        validate.choice("compensate depth", depth, ("auto",))
+        extent = scenario_extent(echo.scenario)
+        depth = None if extent is None else extent.z
     if depth is not None:
         depth = validate.scalar("compensate depth", depth, low=-validate.MAX_COORDINATE, high=validate.MAX_COORDINATE,
                                 unit="m")
