@@ -144,6 +144,22 @@ def test_yaw_and_sway_are_horizontal_over_a_seafloor_below():
     assert not np.array_equal(auto, dpca.compensate(echo, track, scene, depth=None).data)
 
 
+def test_a_block_seen_near_nadir_is_left_out_not_blown_up():
+    """across_cosine is the line of sight's across-track component sqrt(a^2 - <sin^2 theta>), a the
+    depression's cosine: near nadir (r just past the height) or where the look angles reach a it
+    goes to 0, and such blocks are left out (pairs.MIN_ACROSS) instead of their sway and yaw being
+    divided by a floor (review 11 R2: 1e-3, a block's estimates x1000)."""
+    from clsas.estimate.dpca import geometry, pairs
+
+    extent = dpca.SeafloorExtent(x=(0.0, 200.0), y=(-20.0, 20.0), z=-15.0)
+    centre = np.zeros((1, 3))
+    r = np.array([15.01, 17.0, 100.0])
+    across = geometry.across_cosine(r, centre, extent, np.zeros((1, 3)))
+    np.testing.assert_allclose(across[0], np.sqrt(1 - (15.0 / r) ** 2), rtol=1e-12)
+    assert across[0, 0] < pairs.MIN_ACROSS < across[0, 2]
+    assert geometry.across_cosine(r[2:], centre, extent, np.ones((1, 1)))[0, 0] == 0.0
+
+
 def test_compensation_focuses_the_nine_points(nine_points):
     scene, motion, clean, echo = nine_points
     speed = scene.platform.speed

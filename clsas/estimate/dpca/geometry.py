@@ -281,7 +281,8 @@ def across_cosine(r: np.ndarray, centre: np.ndarray, extent: SeafloorExtent | No
     sin theta = a sin(phi) its along-track direction cosine; averaged over the block's scatterers
     (weighted by the two-way power, as <sin^2 theta>), to first order in sin^2 theta / a^2:
     sqrt(a^2 - <sin^2 theta>). A block's sway and yaw read from the couples' delays are the
-    horizontal ones times it (at Heremans' 15 m over 100 m: 0.989)."""
+    horizontal ones times it (at Heremans' 15 m over 100 m: 0.989). 0 where <sin^2 theta> reaches
+    a^2 (the model fails there: :data:`.pairs.MIN_ACROSS` leaves such blocks out)."""
     r = np.asarray(r, dtype=np.float64)
     if extent is None:
         a = np.ones_like(r)
@@ -289,7 +290,7 @@ def across_cosine(r: np.ndarray, centre: np.ndarray, extent: SeafloorExtent | No
         h = float(np.median(np.asarray(centre, dtype=np.float64)[:, 2])) - extent.z
         a = np.sqrt(np.maximum(1 - (h / np.maximum(r, abs(h) + 1e-9)) ** 2, 0.0))
     s2 = np.nan_to_num(np.asarray(sin2, dtype=np.float64), nan=0.0)
-    return np.sqrt(np.maximum(a[None, :] ** 2 - s2, 1e-6))
+    return np.sqrt(np.maximum(a[None, :] ** 2 - s2, 0.0))
 
 
 # A block whose seafloor weight the extent's near or far edge cuts by more than this fraction

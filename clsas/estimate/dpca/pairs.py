@@ -89,6 +89,11 @@ BRIGHT_BLOCK = 3.0
 # Blocks holding less than this fraction of their seafloor's weight (over the two-way pattern)
 # inside the main lobe are left out when the seafloor's extent is given (geometry.look_moments).
 MAIN_LOBE = 0.5
+# Blocks whose line of sight's across-track component (geometry.across_cosine) is below this are
+# left out: seen steeper than 60 deg of depression, or with look angles reaching the depression's
+# cosine (near nadir, the water column before the first bottom return), where the first-order model
+# fails and dividing by the component would blow the block's sway and yaw up.
+MIN_ACROSS = 0.5
 # Blocks further than this many scaled median absolute deviations from a pair's median are left
 # out of its mean (see estimate).
 OUTLIER = 3.0
@@ -363,7 +368,7 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     coherence = peaks.max(axis=0)
     surge = ((best - lags) + lag_off) * step
     nearest = np.argmax(peaks, axis=0)
-    good = (coherence >= min_coherence) & (content > 0) & (main_fraction >= MAIN_LOBE)
+    good = (coherence >= min_coherence) & (content > 0) & (main_fraction >= MAIN_LOBE) & (across >= MIN_ACROSS)
     energy = np.einsum("hpbk,hpbk->pb", data, np.conj(data)).real   # (pulse, block)
     energy = energy[:-1] + energy[1:]
     # The main lobe's level: the third strongest coherent block (one or two bright echoes do not
@@ -417,6 +422,7 @@ def estimate(echo: EchoData, array: Array, speed: float, *, lags: int = 2, t_lag
     shift, _ = robust_mean(delays[nearest, pp, bb])
     fine, delays, yaws = _scan(setup, data[:, :-1], data[:, 1:], shift, FINE_T_LAGS,
                                lags={int(k) - lags for k in np.unique(nearest[good])}, every=True)
+    across = np.maximum(across, MIN_ACROSS)  # the blocks below it are not good: no division by ~0
     sway = -c * delays[nearest, pp, bb] / 2 / across
     yaw = yaws[nearest, pp, bb] / across
     # The sway's blocks weighted by their coherence rho (pass 2's beam peak): the phase of a
