@@ -1,4 +1,9 @@
-"""Echo synthesis: OpenCL kernel vs NumPy reference, delay physics, amplitude, noise, bad input."""
+"""Echo synthesis: OpenCL kernels vs NumPy reference, delay physics, amplitude, noise, bad input.
+
+The kernels: kernels/echo_paths.cl (echo_paths: delays and amplitudes; echo_extents, echo_spread)
+against clsas/synthesis/paths.py and clsas/geometry.py (the delays tests), and
+kernels/echo_accumulate.cl (echo_bounds, echo_accumulate) against clsas/synthesis/echo/reference.py
+(reference_and_kernel: every sample of the same options)."""
 
 from __future__ import annotations
 
@@ -72,6 +77,7 @@ def test_stop_and_go_delays_are_geometric(backend):
 
 
 def test_kernel_delays_match_reference_with_moving_targets(opencl_device, rng):
+    """kernels/echo_paths.cl echo_paths's delays against the float64 NumPy delays."""
     n = 40
     pos = np.column_stack([rng.uniform(30, 2000, n), rng.uniform(-50, 50, n), rng.uniform(-300, 0, n)])
     sc = kiang(6).replace(targets=(PointTargets(pos, velocity=rng.uniform(-5, 5, (n, 3)) / np.sqrt(3)),))
