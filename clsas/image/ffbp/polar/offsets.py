@@ -84,7 +84,7 @@ class DeviceOffsets:
             return cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                              hostbuf=np.ascontiguousarray(array, np.float64))
 
-        points = scene._centred  # (3, K): the x, y and z rows, padded to whole eights (the last point repeated)
+        points = scene.centred_skeleton  # (3, K); padded below to whole eights (the last point repeated)
         k = points.shape[1]
         padded = np.concatenate([points, np.repeat(points[:, -1:], -k % 8, axis=1)], axis=1)
         self.count = k

@@ -41,7 +41,7 @@ class Scene:
     pixels: int
 
     @functools.cached_property
-    def _centred(self) -> np.ndarray:
+    def centred_skeleton(self) -> np.ndarray:
         """The skeleton about the plane's centroid, a coordinate a row (3, K) m."""
         return np.ascontiguousarray((self.skeleton - self.plane.centroid).T)
 
@@ -50,7 +50,7 @@ class Scene:
         (n, 3) the points' offsets along them, u . (X - origin) (n, K) m: float64 about the scene's
         centroid, a coordinate at a time and OFFSET_ROWS origins at a time (in place, in cache: no
         (n, K, 3) temporary, no matrix product's threads)."""
-        points = self._centred
+        points = self.centred_skeleton
         origins = origins - self.plane.centroid
         r = np.empty((origins.shape[0], points.shape[1]))
         along = None if axes is None else np.empty_like(r)
