@@ -141,13 +141,20 @@ def vector3(name: str, value, bound: float = MAX_COORDINATE) -> np.ndarray:
 
 
 def all_finite(data) -> bool:
-    """True when ``data`` (any numeric array) holds no NaN or inf. Float32/complex64 data are
-    summed in float64 (which cannot overflow from finite float32 terms, and carries any NaN or
-    inf), which reads the data once instead of building a boolean mask."""
+    """True when ``data`` (any numeric array) holds no NaN or inf. Reads the data once, without a
+    boolean mask: a NaN or inf term makes a sum NaN or inf, so a finite sum in the data's own type
+    proves every element finite. A sum that is not finite may instead have overflowed from
+    finite terms: float16/32 and complex64 data are then summed again in float64 (which cannot
+    overflow from such terms), float64 and complex128 data checked element by element."""
     data = np.asarray(data)
     if data.dtype.kind in "iub" or data.size == 0:
         return True
-    if data.dtype.itemsize <= 8 and data.dtype.kind in "fc":
+    if data.dtype.kind not in "fc":
+        return bool(np.all(np.isfinite(data)))
+    with np.errstate(over="ignore", invalid="ignore"):
+        if np.isfinite(data.sum()):
+            return True
+    if np.finfo(data.dtype).bits <= 32:
         return bool(np.isfinite(data.sum(dtype=np.complex128 if data.dtype.kind == "c" else np.float64)))
     return bool(np.all(np.isfinite(data)))
 

@@ -12,6 +12,7 @@ import clsas
 from clsas import Grid, Medium, Platform, PulseSchedule, Waveform
 from clsas.scene.scenario import Array, SamplingWarning, Scenario
 from clsas.scene.targets import PointTargets
+from clsas import validate
 from clsas.validate import CoverageWarning
 
 
@@ -63,6 +64,24 @@ def test_non_finite_records_are_refused():
     data[0, 1, 2] = np.nan
     with pytest.raises(ValueError, match="EchoData.data: must be finite"):
         echo.replace(data=data)
+
+
+@pytest.mark.parametrize("dtype", [np.float16, np.float32, np.float64, np.complex64, np.complex128])
+def test_all_finite_is_exact_near_each_types_largest_value(dtype):
+    """Finite values whose sum overflows their type (or float64) are finite; one NaN or inf
+    anywhere is not, in every float type: the one-pass sum must not answer for the elements."""
+    big = np.finfo(dtype).max
+    with np.errstate(over="ignore"):
+        assert validate.all_finite(np.full(7, big, dtype))
+        assert validate.all_finite(np.array([big, -big, big], dtype)[::2])  # a strided view
+    for bad in (np.nan, np.inf, -np.inf):
+        data = np.ones(1001, dtype)
+        data[517] = bad
+        assert not validate.all_finite(data)
+        if np.dtype(dtype).kind == "c":
+            data = np.ones(1001, dtype)
+            data[3] = complex(1.0, bad)
+            assert not validate.all_finite(data)
 
 
 def test_an_overflowing_image_raises(opencl_device):
