@@ -44,8 +44,11 @@ def arguments(argv=None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def _clsas(*args, **kwargs) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "clsas", "--no-progress", *args], cwd=ROOT, text=True, **kwargs)
+def _clsas(*args, cwd=ROOT, **kwargs) -> subprocess.CompletedProcess:
+    """``python -m clsas ARGS`` of this checkout (on the path whatever the working folder)."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, (str(ROOT), os.environ.get("PYTHONPATH")))))
+    return subprocess.run([sys.executable, "-m", "clsas", "--no-progress", *args], cwd=cwd, env=env, text=True,
+                          **kwargs)
 
 
 def takes_json(paper: str) -> bool:
@@ -60,9 +63,11 @@ def run_papers(papers, data: Path) -> None:
             continue
         print(f"{paper}: running clsas reproduce {paper} --json ...", file=sys.stderr, flush=True)
         # --overwrite: the run replaces the last one's table (written to a temporary name and renamed,
-        # so a failed run leaves it as it was)
-        done = _clsas("reproduce", paper, "--json", str(data / f"{paper}.json"), "--overwrite",
-                      stdout=subprocess.DEVNULL)
+        # so a failed run leaves it as it was); run in a temporary folder: the figures a reproduction
+        # draws by default (reproduce-PAPER/) are not the page's, which reads only the JSON
+        with tempfile.TemporaryDirectory(prefix=f"clsas-{paper}-") as scratch:
+            done = _clsas("reproduce", paper, "--json", str(data.resolve() / f"{paper}.json"), "--overwrite",
+                          cwd=scratch, stdout=subprocess.DEVNULL)
         if done.returncode != 0:
             print(f"{paper}: failed (exit {done.returncode})", file=sys.stderr)
 

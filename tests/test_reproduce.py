@@ -8,6 +8,7 @@ import ast
 import json
 import math
 import re
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -190,3 +191,32 @@ def test_validation_page_is_rendered_from_the_json(tmp_path):
         assert f"| {other} | not in the common format yet" in page or f"| {other} | no JSON in docs/validation/" in page \
             or f"## {other}" in page
     assert sorted(p.name for p in tmp_path.iterdir()) == ["data", "validation.md"]
+
+
+def test_validation_runs_each_reproduction_outside_the_checkout(tmp_path, monkeypatch):
+    """bench/validation.py runs ``clsas reproduce PAPER --json`` in a temporary folder, so the
+    figures a reproduction draws into its working folder by default (reproduce-PAPER/) land
+    neither in the checkout nor in the page's data; the table goes to --data by an absolute path."""
+    validation = _validation_script()
+    calls = []
+
+    def fake_clsas(*args, cwd=validation.ROOT, **kwargs):
+        calls.append((args, Path(cwd)))
+        if "--help" in args:
+            return subprocess.CompletedProcess(args, 0, stdout="--json PATH", stderr="")
+        figures = Path(cwd) / f"reproduce-{args[1]}"  # what a reproduction's default --out does
+        figures.mkdir()
+        (figures / "figure.png").write_bytes(b"png")
+        Path(args[args.index("--json") + 1]).write_text("{}")
+        return subprocess.CompletedProcess(args, 0)
+
+    monkeypatch.setattr(validation, "_clsas", fake_clsas)
+    paper = reproduce.paper_names()[0]
+    data = tmp_path / "data"
+    data.mkdir()
+    monkeypatch.chdir(tmp_path)
+    validation.run_papers([paper], Path("data"))  # a relative --data still names the same folder
+    (_, help_cwd), (args, run_cwd) = calls
+    assert args[:2] == ("reproduce", paper) and Path(args[args.index("--json") + 1]).is_absolute()
+    assert run_cwd != validation.ROOT and not run_cwd.exists()  # a temporary folder, removed afterwards
+    assert sorted(p.name for p in data.iterdir()) == [f"{paper}.json"]
