@@ -12,6 +12,15 @@ otherwise a readable line ending with the machine in brief. Every figure carries
 was measured on (:func:`machine`: CPU model, its vector extensions, cores, the OpenCL device,
 the load average when the figure was taken), so that ratios from different machines are never
 mixed: compare figures only within one machine.
+
+``--kernels avx2`` builds the OpenCL kernels as PoCL would on an AVX2 CPU (its AVX2 kernel
+library and LLVM's Haswell model: 256-bit vectors, no AVX-512) while running on an AVX-512 CPU,
+so that what an AVX2 machine's kernels do can be measured on the machine one has (the rest of
+the machine, its caches and memory, stays this one's). It sets POCL_KERNELLIB_NAME=avx2 and
+POCL_LLVM_CPU_NAME=haswell before any device is opened (PoCL ignores the second without the
+first), a PoCL kernel cache of its own and no pyopencl binary cache (whose key holds the
+device's name, which PoCL keeps, not the code model). The device then reports itself as
+"pthread-haswell-...", and every row's machine holds ``"kernels": "avx2"``.
 """
 
 from __future__ import annotations
@@ -38,9 +47,26 @@ def arguments(description: str, parts=None, extra=()) -> argparse.Namespace:
     parser.add_argument("--quick", action="store_true", help="a size that finishes in under 30 s on 2 cores")
     parser.add_argument("--json", action="store_true", help="one JSON object per line on stdout")
     parser.add_argument("--repeats", type=int, default=None, help="timed runs (median is reported)")
+    parser.add_argument("--kernels", choices=("native", "avx2"), default="native",
+                        help="the instruction set the OpenCL kernels are built for (avx2: as on an AVX2 CPU; "
+                             "module docstring)")
     if parts:
         parser.add_argument("--only", choices=sorted(parts), default=None, help="run only this part of the bench")
-    return parser.parse_args()
+    args = parser.parse_args()
+    if args.kernels == "avx2":
+        kernels_for_avx2()
+    return args
+
+
+AVX2_KERNELS = {"POCL_KERNELLIB_NAME": "avx2", "POCL_LLVM_CPU_NAME": "haswell"}
+
+
+def kernels_for_avx2() -> None:
+    """Build this process's OpenCL kernels as on an AVX2 CPU (module docstring); call it before the
+    first device is opened."""
+    cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "clsas-bench" / "pocl-avx2"
+    cache.mkdir(parents=True, exist_ok=True)
+    os.environ.update(AVX2_KERNELS, POCL_CACHE_DIR=str(cache), PYOPENCL_NO_CACHE="1")
 
 
 def measure(run, repeats: int = 5, warmup: int = 1) -> float:
@@ -89,12 +115,15 @@ def _opencl_device() -> str:
 def machine() -> dict:
     """The machine a figure is measured on, with the load average now (1, 5, 15 min)."""
     load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
-    return {**_cpu(), "opencl_device": _opencl_device(), "load_average": [round(x, 2) for x in load]}
+    kernels = "avx2" if all(os.environ.get(k) == v for k, v in AVX2_KERNELS.items()) else "native"
+    return {**_cpu(), "opencl_device": _opencl_device(), "kernels": kernels,
+            "load_average": [round(x, 2) for x in load]}
 
 
 def machine_brief(m: dict) -> str:
-    return (f"[{m['cpu']}, {'/'.join(m['vector']) or 'no AVX2'}, {m['cores']} cores, {m['opencl_device'].split(' (')[0]}, "
-            f"load {m['load_average'][0]:.2f}]")
+    kernels = ", kernels built for AVX2" if m.get("kernels") == "avx2" else ""
+    return (f"[{m['cpu']}, {'/'.join(m['vector']) or 'no AVX2'}, {m['cores']} cores, {m['opencl_device'].split(' (')[0]}"
+            f"{kernels}, load {m['load_average'][0]:.2f}]")
 
 
 def device_name(backend: str) -> str:

@@ -2,7 +2,9 @@
 row, with the machine it was measured on (bench/_harness.py), to one JSON file (``--out``,
 default bench-results.json in the current folder).
 
-    python bench/run_all.py [--quick] [--out FILE] [--only NAME ...]
+    python bench/run_all.py [--quick] [--kernels avx2] [--out FILE] [--only NAME ...]
+
+``--kernels avx2`` (passed through): the kernels built as on an AVX2 CPU (bench/_harness.py).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _harness import machine, machine_brief
+from _harness import kernels_for_avx2, machine, machine_brief
 
 HERE = Path(__file__).resolve().parent
 
@@ -26,13 +28,17 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="each bench's quick size")
     parser.add_argument("--out", default="bench-results.json", help="the JSON file of every row")
     parser.add_argument("--only", nargs="*", default=None, help="bench stems to run (e.g. backprojection ffbp)")
+    parser.add_argument("--kernels", choices=("native", "avx2"), default="native",
+                        help="the instruction set the OpenCL kernels are built for (bench/_harness.py)")
     args = parser.parse_args()
+    if args.kernels == "avx2":
+        kernels_for_avx2()  # so that the machine described at the start is the benches' one
     rows, failed = [], []
     started = machine()
     for script in sorted(HERE.glob("bench_*.py")):
         if args.only and script.stem.removeprefix("bench_") not in args.only:
             continue
-        cmd = [sys.executable, str(script), "--json"] + (["--quick"] if args.quick else [])
+        cmd = [sys.executable, str(script), "--json", "--kernels", args.kernels] + (["--quick"] if args.quick else [])
         print(f"running {script.name} ...", file=sys.stderr, flush=True)
         result = subprocess.run(cmd, capture_output=True, text=True)
         if result.returncode != 0:

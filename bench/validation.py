@@ -162,7 +162,10 @@ def render_benches(rows: list) -> list:
                  if k not in ("bench", "backend", "device", "size", "rate", "unit", "seconds", "machine")}
         case = ", ".join(f"{k} {_cell(v)}" for k, v in {**r.get("size", {}), **extra}.items())
         load = (r.get("machine") or {}).get("load_average")
-        table.append((r["bench"], r["backend"], r["rate"], r["unit"], r["seconds"], case, r.get("device", ""),
+        device = r.get("device", "")
+        if (r.get("machine") or {}).get("kernels") == "avx2":
+            device += " (kernels built for AVX2 on an AVX-512 CPU: --kernels avx2)"
+        table.append((r["bench"], r["backend"], r["rate"], r["unit"], r["seconds"], case, device,
                       load[0] if load else "-"))
     return lines + _table(("bench", "backend", "rate", "unit", "seconds", "case", "device", "load"), table) + [""]
 
