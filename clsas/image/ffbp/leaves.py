@@ -28,7 +28,9 @@ move uniformly, else on the host (which checks that the motion is linear over a 
 past the grid's edge repeat its last sample and are dropped; a tile's groups of LANES range
 samples that miss the spans of their rows (:attr:`PolarGrid.spans`: the ragged wedge, the
 corners of the (r, v) box outside the scene) are not back-projected at all, and the leaf's image
-is zero there.
+is zero there; with an ``aperture``, nor are those no pulse of the leaf sees within it
+(:func:`.polar.within_aperture`: zero there too, bit for bit; they are laid out all the same, so
+the tiles and their references are those of the whole grid).
 
 Leaves the batch cannot take go through :func:`clsas.backproject` one by one on the same
 prepared records (the same image up to float32 rounding): a leaf shorter than ``first`` (the
@@ -49,7 +51,7 @@ from ...kernelmath import expj_cycles
 from ...model import Grid
 from ..backprojection import GridPlan, TileKernel, backproject, prepare
 from . import program
-from .polar import PolarGrid, points_at
+from .polar import PolarGrid, points_at, within_aperture
 
 BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~40 bytes each held)
 RECORD_BYTES = 256 * 2**20  # prepared records held at once
@@ -69,14 +71,17 @@ def cl_buffer(array: np.ndarray):
                      hostbuf=np.ascontiguousarray(array))
 
 
-def polar_tiles(grids: list, bv: int, br: int):
+def polar_tiles(grids: list, bv: int, br: int, seen: list | None = None):
     """bp_tile's tiles of polar grids (module docstring), blocks of bv rows x br range samples
     (those at a grid's edge cut to it): their items (I,) :data:`program.ITEM` (leaf, row, the
     first of LANES consecutive range samples of that row, tile; grid by grid, then column of
     tiles by column (their range samples), group of LANES range samples by group, and down all the
     grid's rows of that group, tile after tile; ROWS items, ROWS rows of one group and one tile,
-    make a work-item), the tiles' reference points (T, 3) m (each block's middle sample) and the
-    number of tiles of each grid (L,)."""
+    make a work-item), the tiles' reference points (T, 3) m (each block's middle sample), the
+    number of tiles of each grid (L,) and the number of items to back-project: with ``seen`` (the
+    grids with narrower spans, :func:`.polar.within_aperture`) those meeting them come first, in
+    the same order, and the others after (laid out, so the tiles' budget is checked on every
+    sample as before, but not back-projected: zero); else all of them."""
     tv_of = np.array([-(-g.n_v // bv) for g in grids])
     tr_of = np.array([-(-g.n_r // br) for g in grids])
     tv, tr = int(tv_of.max()), int(tr_of.max())
@@ -100,9 +105,29 @@ def polar_tiles(grids: list, bv: int, br: int):
     shape = (len(grids), tr, br // LANES, tv, bv // ROWS)
     l, b, q, a, j = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij", sparse=True)
     n_v, n_r = n_v[:, None, None, None, None], n_r[:, None, None, None, None]
-    # a group of LANES samples is kept where it meets the span of its block of ROWS rows (the union
-    # of the rows' spans: a work-item's ROWS items then stay in one tile)
-    blocks = -(-tv * bv // ROWS)
+    block = a * (bv // ROWS) + j  # the work-item's block of ROWS rows within its grid
+    start = b * br + q * LANES
+    real, tile = (x.transpose(0, 2, 1)[:, :, None, :, None] for x in (real, tile))  # as (l, b, q, a, j)
+    inside = real & (j < -(-(n_v - a * bv) // ROWS)) & (start < n_r)
+    keep = np.broadcast_to(inside & _meets(grids, -(-tv * bv // ROWS), l, block, start), shape)
+    if seen is not None:  # the work-items meeting the seen spans first, then the others
+        first = keep & _meets(seen, -(-tv * bv // ROWS), l, block, start)
+        order = (first, keep & ~first)
+    else:
+        order = (keep,)
+    picked = [np.broadcast_to(x, shape) for x in (l, block * ROWS, start, tile)]
+    kept = sum(int(np.count_nonzero(k)) for k in order)
+    items = np.zeros(kept * ROWS, program.ITEM)
+    for name, x in zip(program.ITEM.names, picked):
+        items[name] = np.repeat(np.concatenate([x[k] for k in order]), ROWS)
+    items["row"] += np.tile(np.arange(ROWS, dtype=np.int32), kept)  # each work-item's rows
+    return items, centres, tv_of * tr_of, ROWS * int(np.count_nonzero(order[0]))
+
+
+def _meets(grids: list, blocks: int, l, block, start) -> np.ndarray:
+    """Whether a group of LANES samples from ``start`` meets the span of its block ``block`` of ROWS
+    rows of grid ``l`` (the union of the rows' spans: a work-item's ROWS items then stay in one
+    tile), broadcast over polar_tiles' (l, b, q, a, j)."""
     lo = np.full((len(grids), blocks * ROWS), np.iinfo(np.int32).max, np.int64)
     hi = np.zeros((len(grids), blocks * ROWS), np.int64)
     for k, g in enumerate(grids):
@@ -112,17 +137,7 @@ def polar_tiles(grids: list, bv: int, br: int):
         hi[k, :g.n_v] = np.where(empty, 0, spans[:, 1])
     lo = lo.reshape(len(grids), blocks, ROWS).min(axis=2)
     hi = hi.reshape(len(grids), blocks, ROWS).max(axis=2)
-    block = a * (bv // ROWS) + j  # the work-item's block of ROWS rows within its grid
-    start = b * br + q * LANES
-    real, tile = (x.transpose(0, 2, 1)[:, :, None, :, None] for x in (real, tile))  # as (l, b, q, a, j)
-    keep = np.broadcast_to(real & (j < -(-(n_v - a * bv) // ROWS)) & (start < n_r)
-                           & (start + LANES > lo[l, block]) & (start < hi[l, block]), shape)
-    kept = int(np.count_nonzero(keep))
-    items = np.zeros(kept * ROWS, program.ITEM)
-    for name, x in zip(program.ITEM.names, (l, block * ROWS, start, tile)):
-        items[name] = np.repeat(np.broadcast_to(x, shape)[keep], ROWS)
-    items["row"] += np.tile(np.arange(ROWS, dtype=np.int32), kept)  # each work-item's rows
-    return items, centres, tv_of * tr_of
+    return (start + LANES > lo[l, block]) & (start < hi[l, block])
 
 
 def _slots(grids: list, items: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -378,7 +393,10 @@ class FirstStage:
 
         plane = program.plane(grids[batch[0]].plane)
         frames = cl_buffer(program.frames([grids[k] for k in batch]))
-        leaves = [grids[k] for k in batch]
+        leaves, seen = [grids[k] for k in batch], None
+        if self.aperture is not None:  # the samples no pulse sees within the aperture: zero, not back-projected
+            pulses = np.array([self.leaves[k][0] for k in batch])[:, None] + np.arange(self.first)
+            seen = within_aperture(leaves, self.echo.tx_pos[pulses], float(np.sin(self.aperture / 2)))
         step_r, step_v = max(g.dr for g in leaves), max(_row_step(g) for g in leaves)
 
         def halved(bv: int, br: int) -> tuple[int, int]:
@@ -393,7 +411,8 @@ class FirstStage:
         while (bv, br) != (ROWS, LANES) and 0.5 * np.hypot(br * step_r, bv * step_v) > TILE_SLACK * budget:
             bv, br = halved(bv, br)
         while True:  # the largest tiles whose samples all lie within the budget of their references
-            items, centres, n_tiles = polar_tiles(leaves, bv, br)
+            items, centres, n_tiles, n_items = polar_tiles(leaves, bv, br, seen)
+            n_items = max(n_items, ROWS)  # at least one work-item (a launch of none is not allowed)
             fields = np.empty(items.size, tile.pixels)  # one record a item: LANES samples
             pix = cl.Buffer(ctx, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=fields)
             items_buf = cl_buffer(items)
@@ -410,8 +429,9 @@ class FirstStage:
             bv, br = halved(bv, br)
         first_tile = np.cumsum(np.r_[0, n_tiles])
         row_shift = np.repeat(np.array([self.leaves[k][0] for k in batch], np.int32), n_tiles)  # less b0 at launch
-        return _Layout(items.size, centres, first_tile, extent, fields, pix, row_shift,
-                       cl_buffer(items["tile"][::ROWS]), unslotted=(leaves, items))
+        return _Layout(n_items, centres, first_tile, extent, fields, pix, row_shift,
+                       cl_buffer(items["tile"][:n_items:ROWS]), unslotted=(leaves if seen is None else seen,
+                                                                          items[:n_items]))
 
     def _launch(self, records, batch: list, grids: list, b0: int) -> list:
         """The images of the leaves ``batch`` (all ``first`` pulses long) by bp_tile launches into
