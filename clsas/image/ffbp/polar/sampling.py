@@ -217,7 +217,8 @@ def within_aperture(grids: list, transmitters: np.ndarray, half_sin: float) -> l
     n_v = np.array([g.n_v for g in grids])
     grid = np.repeat(np.arange(len(grids)), n_v)  # each row's grid
     row = np.arange(grid.size) - np.repeat(np.cumsum(n_v) - n_v, n_v)
-    v0, dv, r0, dr, n_r = (np.array([getattr(g, k) for g in grids], np.float64) for k in ("v0", "dv", "r0", "dr", "n_r"))
+    v0, dv, r0, dr, n_r = (np.array([getattr(g, k) for g in grids], np.float64)
+                           for k in ("v0", "dv", "r0", "dr", "n_r"))
     excess = np.minimum(np.abs(v0[grid] + dv[grid] * row), 1.0) - tilt[grid] - half_sin
     with np.errstate(divide="ignore"):
         cut = np.where(excess > 0, reach[grid] + (reach[grid] + APERTURE_SLACK) / np.where(excess > 0, excess, 1.0),
