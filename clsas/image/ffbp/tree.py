@@ -227,7 +227,8 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         top = guess
     for _ in range(2):
         rho = oversampling(taps, tolerance, top + 1)
-        grids_for([node for level in pulses for node in level], rho)  # every level's at once (the rule reads most)
+        # the levels the rule reads if the guess holds (up to the one above it), sampled at once
+        grids_for([node for level in pulses[:top + 2] for node in level], rho)
         if all(g is None for g in grids_for(pulses[0], rho)):
             angle = "" if aperture is None else f" and within the integration angle ffbp aperture={aperture!r} rad"
             raise ValueError(f"grid: no pixel lies within the recorded range window{angle} of any sub-aperture: the "
