@@ -203,17 +203,18 @@ def within_aperture(grids: list, transmitters: np.ndarray, half_sin: float) -> l
     not its circle meets the plane; a padding row past |v| = 1 has |D| = r |v| and u . D / |D| =
     +-1, so w = min(|v|, 1) below) and e = T - C, |e| <= E: the gradient of y . z / |z| is at most
     1 / |z| <= 1 / (r - E) along the segment from D to d = D - e, so
-    |y . d / |d| - y . D / |D|| <= E / (r - E); and |y . D / |D| - u . D / |D|| <= |y - u| (u the
-    grid's axis, |u . D / |D|| = w). So every pulse drops X when
-    w - |y - u| - E / (r - E) > h + APERTURE_SLACK / (r - E) (the slack covers the float32
-    test's rounding, as direct back-projection's pulse spans allow), i.e. at the ranges
-    r > E + (E + APERTURE_SLACK) / (w - |y - u| - h) of a row where the denominator is positive
-    (a row's far part outside the cone: its padding rows and the wedge's far corners)."""
+    |y . d / |d| - y . D / |D|| <= E / (r - E); and ||y . D / |D|| - |u . D / |D||| <= t =
+    min(|y - u|, |y + u|) (u the grid's axis, |u . D / |D|| = w; the second for a track heading
+    along -y). So every pulse drops X when w - t - E / (r - E) > h + APERTURE_SLACK / (r - E) (the
+    slack covers the float32 test's rounding, as direct back-projection's pulse spans allow), i.e.
+    at the ranges r > E + (E + APERTURE_SLACK) / (w - t - h) of a row where the denominator is
+    positive (a row's far part outside the cone: its padding rows and the wedge's far corners)."""
     if not grids:
         return []
     centres = np.array([g.centre for g in grids])
     reach = np.sqrt(np.max(np.sum((transmitters - centres[:, None]) ** 2, axis=2), axis=1))  # E (L,)
-    tilt = np.linalg.norm(np.array([g.axis for g in grids]) - [0.0, 1.0, 0.0], axis=1)
+    axes = np.array([g.axis for g in grids])
+    tilt = np.minimum(np.linalg.norm(axes - [0.0, 1.0, 0.0], axis=1), np.linalg.norm(axes + [0.0, 1.0, 0.0], axis=1))
     n_v = np.array([g.n_v for g in grids])
     grid = np.repeat(np.arange(len(grids)), n_v)  # each row's grid
     row = np.arange(grid.size) - np.repeat(np.cumsum(n_v) - n_v, n_v)
