@@ -9,7 +9,7 @@ fit RECORD_BYTES, else once a batch; on OpenCL the whole batch is one bp_tile la
 pulses (kernels/backprojection.cl built with ROW_SHIFT: a tile's pulse j reads record row
 j + row_shift[tile], the first pulse of its leaf), so a leaf costs its kernel work and no call of
 its own (a :func:`clsas.backproject` call a leaf costs many times the leaf's kernel time in host work).
-A batch's *layout* (its tiles, work-items, pixel fields and slots, :class:`_Layout`) and its
+A batch's *layout* (its tiles, work-items, pixel fields and slots, :class:`.layout.Layout`) and its
 references depend only on the tree and the echo's geometry: a call on a kept tree (:mod:`.reuse`)
 takes them from the last call's, so its first stage is the bp_tile launches alone.
 
@@ -28,7 +28,9 @@ move uniformly, else on the host (which checks that the motion is linear over a 
 past the grid's edge repeat its last sample and are dropped; a tile's groups of LANES range
 samples that miss the spans of their rows (:attr:`PolarGrid.spans`: the ragged wedge, the
 corners of the (r, v) box outside the scene) are not back-projected at all, and the leaf's image
-is zero there.
+is zero there; with an ``aperture``, nor are those no pulse of the leaf sees within it
+(:func:`.polar.within_aperture`: zero there too, bit for bit; they are laid out all the same, so
+the tiles and their references are those of the whole grid).
 
 Leaves the batch cannot take go through :func:`clsas.backproject` one by one on the same
 prepared records (the same image up to float32 rounding): a leaf shorter than ``first`` (the
@@ -40,8 +42,6 @@ budget (back-projection tiles those points its own way). The NumPy backend alway
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from ... import opencl
@@ -49,140 +49,14 @@ from ...kernelmath import expj_cycles
 from ...model import Grid
 from ..backprojection import GridPlan, TileKernel, backproject, prepare
 from . import program
-from .polar import PolarGrid, points_at
+from .layout import LANES, ROWS, Layout, cl_buffer, polar_tiles, row_step
+from .polar import PolarGrid, points_at, within_aperture
 
 BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~40 bytes each held)
 RECORD_BYTES = 256 * 2**20  # prepared records held at once
 TILE_ROWS, TILE_SAMPLES = 16, 128  # the largest tile tried (rows x range samples)
 TILE_SLACK = 1.1  # a tile shape is tried when its estimated half-diagonal is within this of the budget
 REF_CHUNK = 2**18  # (pulse, tile) pairs whose references are computed at once (~100 bytes each held)
-
-
-LANES, ROWS = TileKernel.LANES, TileKernel.ROWS  # bp_tile's work-item: ROWS rows of LANES samples
-
-
-def cl_buffer(array: np.ndarray):
-    """A read-only device buffer holding a copy of ``array``."""
-    import pyopencl as cl
-
-    return cl.Buffer(opencl.runtime().context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                     hostbuf=np.ascontiguousarray(array))
-
-
-def polar_tiles(grids: list, bv: int, br: int):
-    """bp_tile's tiles of polar grids (module docstring), blocks of bv rows x br range samples
-    (those at a grid's edge cut to it): their items (I,) :data:`program.ITEM` (leaf, row, the
-    first of LANES consecutive range samples of that row, tile; grid by grid, then column of
-    tiles by column (their range samples), group of LANES range samples by group, and down all the
-    grid's rows of that group, tile after tile; ROWS items, ROWS rows of one group and one tile,
-    make a work-item), the tiles' reference points (T, 3) m (each block's middle sample) and the
-    number of tiles of each grid (L,)."""
-    tv_of = np.array([-(-g.n_v // bv) for g in grids])
-    tr_of = np.array([-(-g.n_r // br) for g in grids])
-    tv, tr = int(tv_of.max()), int(tr_of.max())
-    real = (np.arange(tv)[None, :, None] < tv_of[:, None, None]) & (np.arange(tr)[None, None, :] < tr_of[:, None, None])
-    tile = np.cumsum(real.reshape(-1)).reshape(real.shape) - 1  # grid by grid, row-major within a grid
-    n_v = np.array([g.n_v for g in grids])
-    n_r = np.array([g.n_r for g in grids])
-    # each tile's reference point: its block's middle sample (a block at the grid's edge cut to it)
-    which, a, b = np.nonzero(real)  # the tiles in that order
-    centres = points_at(grids, which, (a * bv + np.minimum(a * bv + bv, n_v[which]) - 1) // 2,
-                        (b * br + np.minimum(b * br + br, n_r[which]) - 1) // 2)
-    # items group by group of LANES range samples, within a group row by row down the whole grid
-    # (its tiles of that column one after another): a work-item is ROWS rows of the same LANES
-    # ranges, and the work-items after it the next rows of them (a short sub-aperture's delay
-    # hardly depends on the angle, so they read the same records' samples, still in cache: bp_tile
-    # is bound by those reads; tile by tile, the rows of a group came back only after the tile's
-    # other groups); a tile at the grid's edge keeps only its rows inside the grid (rounded up to
-    # whole work-items of ROWS rows) and its sixteen-sample groups that start inside it
-    # (every item of a work-item, its ROWS rows, is kept or dropped alike: the selection is made a
-    # work-item at a time, j its group of ROWS rows within the tile, and expanded to its rows after)
-    shape = (len(grids), tr, br // LANES, tv, bv // ROWS)
-    l, b, q, a, j = np.meshgrid(*(np.arange(n) for n in shape), indexing="ij", sparse=True)
-    n_v, n_r = n_v[:, None, None, None, None], n_r[:, None, None, None, None]
-    # a group of LANES samples is kept where it meets the span of its block of ROWS rows (the union
-    # of the rows' spans: a work-item's ROWS items then stay in one tile)
-    blocks = -(-tv * bv // ROWS)
-    lo = np.full((len(grids), blocks * ROWS), np.iinfo(np.int32).max, np.int64)
-    hi = np.zeros((len(grids), blocks * ROWS), np.int64)
-    for k, g in enumerate(grids):
-        spans = g.row_spans.astype(np.int64)
-        empty = spans[:, 1] <= spans[:, 0]
-        lo[k, :g.n_v] = np.where(empty, lo[k, 0], spans[:, 0])
-        hi[k, :g.n_v] = np.where(empty, 0, spans[:, 1])
-    lo = lo.reshape(len(grids), blocks, ROWS).min(axis=2)
-    hi = hi.reshape(len(grids), blocks, ROWS).max(axis=2)
-    block = a * (bv // ROWS) + j  # the work-item's block of ROWS rows within its grid
-    start = b * br + q * LANES
-    real, tile = (x.transpose(0, 2, 1)[:, :, None, :, None] for x in (real, tile))  # as (l, b, q, a, j)
-    keep = np.broadcast_to(real & (j < -(-(n_v - a * bv) // ROWS)) & (start < n_r)
-                           & (start + LANES > lo[l, block]) & (start < hi[l, block]), shape)
-    kept = int(np.count_nonzero(keep))
-    items = np.zeros(kept * ROWS, program.ITEM)
-    for name, x in zip(program.ITEM.names, (l, block * ROWS, start, tile)):
-        items[name] = np.repeat(np.broadcast_to(x, shape)[keep], ROWS)
-    items["row"] += np.tile(np.arange(ROWS, dtype=np.int32), kept)  # each work-item's rows
-    return items, centres, tv_of * tr_of
-
-
-def _slots(grids: list, items: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The work-item of ``items`` (:func:`polar_tiles`) that holds each group of LANES range samples
-    of each grid's rows, or -1 (a group no tile computed: zero): (sum of n_v x ceil(n_r / LANES),)
-    int32, grid by grid and row by row, and where each grid's groups start (len(grids) + 1,)."""
-    groups = np.array([-(-g.n_r // LANES) for g in grids])
-    first = np.cumsum(np.r_[0, groups * np.array([g.n_v for g in grids])])
-    slots = np.full(int(first[-1]), -1, np.int32)
-    leaf, row, sample = (items[name].astype(np.int64) for name in ("leaf", "row", "sample"))  # contiguous copies
-    inside = row < np.array([g.n_v for g in grids])[leaf]  # rows past a grid's edge (whole work-items) dropped
-    at = first[leaf] + row * groups[leaf] + sample // LANES
-    slots[at[inside]] = np.flatnonzero(inside)
-    return slots, first
-
-
-def _row_step(grid: PolarGrid) -> float:
-    """The largest distance (m) between neighbouring angle rows of a polar grid: at its far range r,
-    r dv / cos(theta) with the largest |v| = sin(theta) (cos(theta) bounded below by 1e-3)."""
-    sine = max(abs(grid.v0), abs(grid.v0 + (grid.n_v - 1) * grid.dv))
-    return (grid.r0 + (grid.n_r - 1) * grid.dr) * grid.dv / np.sqrt(max(1.0 - sine * sine, 1e-6))
-
-
-@dataclasses.dataclass(eq=False)
-class _Layout:
-    """What a batch's bp_tile launch needs besides its records and references, the same for every
-    echo of one geometry (:meth:`FirstStage._layout`; kept between calls by :mod:`.reuse`): its
-    work-items' count, the tiles' reference points (T, 3) m and each leaf's first tile (L + 1,),
-    the tiles' largest half-extent (m), the pixel fields (host array and the device buffer using
-    it), each tile's first pulse (int32, from the echo's first), the work-items' tiles, the
-    images' slots and each leaf's first slot, the rows' spans and each leaf's first row (made by
-    :meth:`slot` once bp_tile is launched); and its references by records (``refs``: a device
-    buffer a receiver, filled by :meth:`FirstStage._launch`)."""
-
-    n_items: int
-    centres: np.ndarray
-    first_tile: np.ndarray
-    extent: float
-    fields: np.ndarray
-    pix: object
-    row_shift: np.ndarray
-    tile_of: object
-    slots: object = None
-    slot_first: np.ndarray | None = None
-    spans: object = None
-    span_first: np.ndarray | None = None
-    refs: dict = dataclasses.field(default_factory=dict)
-    unslotted: tuple | None = None  # (the leaves' grids, the items) until :meth:`slot`
-
-    def slot(self) -> None:
-        """The images' slots and the rows' spans (device buffers) from the items."""
-        leaves, items = self.unslotted
-        slots, self.slot_first = _slots(leaves, items)
-        self.slots, self.spans = cl_buffer(slots), cl_buffer(np.concatenate([g.row_spans for g in leaves]))
-        self.span_first = np.cumsum([0] + [g.n_v for g in leaves])
-        self.unslotted = None
-
-    @property
-    def nbytes(self) -> int:
-        return int(self.fields.nbytes + self.tile_of.size + self.slots.size + self.spans.size)
 
 
 class FirstStage:
@@ -282,21 +156,28 @@ class FirstStage:
             batch.append(k)
             points += grids[k].size
             last = k
-        e = self.echo
-        if e.n_pulses * self.per_pulse <= RECORD_BYTES:  # every leaf's records prepared once, kept for all batches
-            if self.records is None:
-                self.records = self._prepare(e, [k for k, g in enumerate(grids) if g is not None], grids)
-            b0, records = 0, self.records
-        else:  # each batch its pulses' records (a copy of the echo's pulses, validated)
-            b0, b1 = self.leaves[node][0], self.leaves[last][1]
-            sub = e.replace(data=e.data[:, b0:b1], eta=e.eta[b0:b1], tx_pos=e.tx_pos[b0:b1], rx_pos=e.rx_pos[:, b0:b1])
-            records = self._prepare(sub, batch, grids)
+        e, made = self.echo, []
+        b0 = 0 if e.n_pulses * self.per_pulse <= RECORD_BYTES else self.leaves[node][0]
+
+        def records_of():
+            """The batch's records, prepared on first use (while the device lays out a new batch)."""
+            if not made and b0 == 0:  # every leaf's records prepared once, kept for all batches
+                if self.records is None:
+                    self.records = self._prepare(e, [k for k, g in enumerate(grids) if g is not None], grids)
+                made.append(self.records)
+            elif not made:  # each batch its pulses' records (a copy of the echo's pulses, validated)
+                b1 = self.leaves[last][1]
+                made.append(self._prepare(e.replace(data=e.data[:, b0:b1], eta=e.eta[b0:b1], tx_pos=e.tx_pos[b0:b1],
+                                                    rx_pos=e.rx_pos[:, b0:b1]), batch, grids))
+            return made[0]
+
         alone = [k for k in batch if self.leaves[k][1] - self.leaves[k][0] != self.first]
         if self.backend == "opencl":
             together = [k for k in batch if k not in alone]
-            alone += self._launch(records, together, grids, b0) if together else []
+            alone += self._launch(records_of, together, grids, b0) if together else []
         else:
             alone = batch
+        records = records_of() if alone else None
         for k in alone:
             p0, p1 = self.leaves[k]
             self.ready[k] = backproject(records, GridPlan(Grid.points(grids[k].points())), pulses=(p0 - b0, p1 - b0),
@@ -367,10 +248,11 @@ class FirstStage:
             refs.append(np.concatenate(parts))
         return refs
 
-    def _layout(self, tile: TileKernel, batch: list, grids: list, budget: float) -> _Layout | None:
+    def _layout(self, tile: TileKernel, batch: list, grids: list, budget: float, meanwhile) -> Layout | None:
         """The batch's tiles (the largest whose samples all lie within ``budget`` of their
         references), their pixel fields on the device and the images' slots; None when even a
-        tile of ROWS x LANES samples spans more than the budget."""
+        tile of ROWS x LANES samples spans more than the budget. ``meanwhile()`` is called once
+        while the device computes the first fields (the host's own work: the records)."""
         import pyopencl as cl
 
         rt = opencl.runtime()
@@ -378,8 +260,11 @@ class FirstStage:
 
         plane = program.plane(grids[batch[0]].plane)
         frames = cl_buffer(program.frames([grids[k] for k in batch]))
-        leaves = [grids[k] for k in batch]
-        step_r, step_v = max(g.dr for g in leaves), max(_row_step(g) for g in leaves)
+        leaves, seen = [grids[k] for k in batch], None
+        if self.aperture is not None:  # the samples no pulse sees within the aperture: zero, not back-projected
+            pulses = np.array([self.leaves[k][0] for k in batch])[:, None] + np.arange(self.first)
+            seen = within_aperture(leaves, self.echo.tx_pos[pulses], float(np.sin(self.aperture / 2)))
+        step_r, step_v = max(g.dr for g in leaves), max(row_step(g) for g in leaves)
 
         def halved(bv: int, br: int) -> tuple[int, int]:
             """The tiles' longer side halved."""
@@ -393,7 +278,8 @@ class FirstStage:
         while (bv, br) != (ROWS, LANES) and 0.5 * np.hypot(br * step_r, bv * step_v) > TILE_SLACK * budget:
             bv, br = halved(bv, br)
         while True:  # the largest tiles whose samples all lie within the budget of their references
-            items, centres, n_tiles = polar_tiles(leaves, bv, br)
+            items, centres, n_tiles, n_items = polar_tiles(leaves, bv, br, seen)
+            n_items = max(n_items, ROWS)  # at least one work-item (a launch of none is not allowed)
             fields = np.empty(items.size, tile.pixels)  # one record a item: LANES samples
             pix = cl.Buffer(ctx, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=fields)
             items_buf = cl_buffer(items)
@@ -401,7 +287,11 @@ class FirstStage:
             largest_buf = cl.Buffer(ctx, mf.WRITE_ONLY, largest.nbytes)
             program.kernel("ffbp_fields")(queue, *opencl.work_groups(items.size), items_buf, frames, plane,
                                           cl_buffer(centres), np.int32(items.size), pix, largest_buf)
-            cl.enqueue_copy(queue, largest, largest_buf)
+            copied = cl.enqueue_copy(queue, largest, largest_buf, is_blocking=False)
+            if meanwhile is not None:
+                meanwhile()
+                meanwhile = None
+            copied.wait()
             extent = float(np.sqrt(largest.max()))
             if extent <= budget:
                 break
@@ -410,31 +300,34 @@ class FirstStage:
             bv, br = halved(bv, br)
         first_tile = np.cumsum(np.r_[0, n_tiles])
         row_shift = np.repeat(np.array([self.leaves[k][0] for k in batch], np.int32), n_tiles)  # less b0 at launch
-        return _Layout(items.size, centres, first_tile, extent, fields, pix, row_shift,
-                       cl_buffer(items["tile"][::ROWS]), unslotted=(leaves, items))
+        return Layout(n_items, centres, first_tile, extent, fields, pix, row_shift,
+                       cl_buffer(items["tile"][:n_items:ROWS]), unslotted=(leaves if seen is None else seen,
+                                                                          items[:n_items]))
 
-    def _launch(self, records, batch: list, grids: list, b0: int) -> list:
+    def _launch(self, records_of, batch: list, grids: list, b0: int) -> list:
         """The images of the leaves ``batch`` (all ``first`` pulses long) by bp_tile launches into
         self.ready; returns the leaves it left to :func:`clsas.backproject` (a receiver's motion not
         linear over a tile, or polar samples so far apart that even a tile of ROWS x LANES of them
         spans more than bp_tile's float32 geometry allows). The batch's layout and references come
-        from :attr:`layouts` when a call on the same tree made them (:mod:`.reuse`)."""
+        from :attr:`layouts` when a call on the same tree made them (:mod:`.reuse`); ``records_of()``
+        its records (prepared while the device computes a new layout's fields)."""
         import pyopencl as cl
 
         rt = opencl.runtime()
         ctx, queue, mf = rt.context, rt.queue, cl.mem_flags
-        echo = records.echo
-        f0, c = echo.waveform.f0, echo.medium.sound_speed
-        tile = TileKernel(records.interp, self.aperture, stop_and_go=self.stop_and_go, row_shift=True)
+        f0, c = self.echo.waveform.f0, self.echo.medium.sound_speed
+        tile = TileKernel(self.options["interp"], self.aperture, stop_and_go=self.stop_and_go, row_shift=True)
         budget = tile.half_extent(f0, c)
 
         key = (ctx.int_ptr, tuple(batch), budget, TILE_ROWS, TILE_SAMPLES, TILE_SLACK)
         layout = self.layouts.get(key) if self.layouts is not None else None
         new = layout is None
         if new:
-            layout = self._layout(tile, batch, grids, budget)
+            layout = self._layout(tile, batch, grids, budget, records_of)
             if layout is None:
                 return batch
+        records = records_of()
+        echo = records.echo
         refs_key = (b0, records.fs, tuple(int(o) for o in records.offset), tuple(records.receivers))
         refs = layout.refs.get(refs_key)
         if refs is None:

@@ -3,7 +3,7 @@
 - :data:`FRAME` (``ffbp_frame_t``): a polar grid's frame and samples (:func:`frames`);
 - :data:`PLANE` (``ffbp_plane_t``): the reference plane normal . X = offset (:func:`plane`);
 - :data:`ITEM` (``ffbp_item_t``): a first-stage work-item, sixteen consecutive range samples of one
-  row of one leaf's polar grid in one of bp_tile's tiles (:func:`.leaves.polar_tiles`);
+  row of one leaf's polar grid in one of bp_tile's tiles (:func:`.layout.polar_tiles`);
 - bp_tile's pixel fields (``bp_pixels_t``), which ffbp_fields writes for the first stage: the
   record :class:`clsas.image.backprojection.TileKernel` declares for pixels at rest.
 """

@@ -19,8 +19,9 @@ a node of level l + 1 is ``factor`` consecutive nodes of level l. A node's frame
 
 Its polar grid covers the scene within the recorded range window widened by L + max |T - R| / 2
 and, with an ``aperture``, the angles
-|v| <= sin(aperture / 2) + |u - y| + L / r_near (a pixel that some pulse of the node sees within
-the aperture, whose sine is taken off the y axis);
+|v| <= sin(aperture / 2) + min(|u - y|, |u + y|) + L / r_near (a pixel that some pulse of the node
+sees within the aperture, whose |sine| is taken off the y axis: a track heading along -y is limited
+as one along +y);
 :func:`clsas.image.ffbp.polar.extents` bounds it and :meth:`~clsas.image.ffbp.polar.Extent.sample`
 samples it.
 
@@ -145,8 +146,9 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
             return
         centres, axes, halves, bases = frames.frames(nodes)
         widen = halves + bases / 2
-        limits = None if sine is None else np.minimum(1.0, sine + np.linalg.norm(axes - [0.0, 1.0, 0.0], axis=1)
-                                                      + halves / frames.r_near)
+        y = np.array([0.0, 1.0, 0.0])  # the sine off broadside is taken off the y axis, either way along it
+        tilt = np.minimum(np.linalg.norm(axes - y, axis=1), np.linalg.norm(axes + y, axis=1))
+        limits = None if sine is None else np.minimum(1.0, sine + tilt + halves / frames.r_near)
         found = extents(centres, axes, halves, scene, window + np.stack([-widen, widen], axis=1), bw, f0, c, limits,
                         taps if device else None)
         extents_of.update(zip(nodes, found))
@@ -227,6 +229,8 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         top = guess
     for _ in range(2):
         rho = oversampling(taps, tolerance, top + 1)
+        # the levels the rule reads if the guess holds (up to the one above it), sampled at once
+        grids_for([node for level in pulses[:top + 2] for node in level], rho)
         if all(g is None for g in grids_for(pulses[0], rho)):
             angle = "" if aperture is None else f" and within the integration angle ffbp aperture={aperture!r} rad"
             raise ValueError(f"grid: no pixel lies within the recorded range window{angle} of any sub-aperture: the "

@@ -185,3 +185,48 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
                             float(v_hi[k]), float(w_r[k]), float(w_v[k]), float(reach[k]), scene.margin,
                             envelope[k], (float(start[k]), float(width[k]))))
     return found + [None] * (len(centres) - len(found))
+
+
+APERTURE_SLACK = 0.01  # m: the float32 aperture mask's rounding allowance (as backprojection.tiles.aperture_spans)
+
+
+def within_aperture(grids: list, transmitters: np.ndarray, half_sin: float) -> list:
+    """The leaves' polar ``grids`` with their rows' spans cut to the samples that one of their
+    pulses may see within the integration angle (the others are zero in a leaf's image: bp_tile's
+    mask drops every pulse there), so the first stage does not back-project them;
+    ``transmitters`` (L, P, 3) m the transmitter of each leaf's P pulses at emission, ``half_sin``
+    = sin(aperture / 2).
+
+    bp_tile keeps a pulse of transmitter T at a sample X when |y . d| <= h |d|, d = X - T (the
+    sine off broadside taken off the y axis, h = half_sin), in float32. With C the grid's centre,
+    D = X - C (|D| = r, the sample's range, where |v| <= 1: X(r, v) is at range r from C whether or
+    not its circle meets the plane; a padding row past |v| = 1 has |D| = r |v| and u . D / |D| =
+    +-1, so w = min(|v|, 1) below) and e = T - C, |e| <= E: the gradient of y . z / |z| is at most
+    1 / |z| <= 1 / (r - E) along the segment from D to d = D - e, so
+    |y . d / |d| - y . D / |D|| <= E / (r - E); and ||y . D / |D|| - |u . D / |D||| <= t =
+    min(|y - u|, |y + u|) (u the grid's axis, |u . D / |D|| = w; the second for a track heading
+    along -y). So every pulse drops X when w - t - E / (r - E) > h + APERTURE_SLACK / (r - E) (the
+    slack covers the float32 test's rounding, as direct back-projection's pulse spans allow), i.e.
+    at the ranges r > E + (E + APERTURE_SLACK) / (w - t - h) of a row where the denominator is
+    positive (a row's far part outside the cone: its padding rows and the wedge's far corners)."""
+    if not grids:
+        return []
+    centres = np.array([g.centre for g in grids])
+    reach = np.sqrt(np.max(np.sum((transmitters - centres[:, None]) ** 2, axis=2), axis=1))  # E (L,)
+    axes = np.array([g.axis for g in grids])
+    tilt = np.minimum(np.linalg.norm(axes - [0.0, 1.0, 0.0], axis=1), np.linalg.norm(axes + [0.0, 1.0, 0.0], axis=1))
+    n_v = np.array([g.n_v for g in grids])
+    grid = np.repeat(np.arange(len(grids)), n_v)  # each row's grid
+    row = np.arange(grid.size) - np.repeat(np.cumsum(n_v) - n_v, n_v)
+    v0, dv, r0, dr, n_r = (np.array([getattr(g, k) for g in grids], np.float64)
+                           for k in ("v0", "dv", "r0", "dr", "n_r"))
+    excess = np.minimum(np.abs(v0[grid] + dv[grid] * row), 1.0) - tilt[grid] - half_sin
+    with np.errstate(divide="ignore"):
+        cut = np.where(excess > 0, reach[grid] + (reach[grid] + APERTURE_SLACK) / np.where(excess > 0, excess, 1.0),
+                       np.inf)
+        # the samples i <= (cut - r0) / dr may be seen (one more for the rounding of r0 + i dr)
+        last = np.floor(np.minimum((cut - r0[grid]) / dr[grid], n_r[grid])) + 2
+    spans = np.concatenate([g.row_spans for g in grids])
+    spans[:, 1] = np.minimum(spans[:, 1], np.maximum(last, 0.0)).astype(np.int32)
+    spans[spans[:, 1] <= spans[:, 0]] = 0
+    return [dataclasses.replace(g, spans=s) for g, s in zip(grids, np.split(spans, np.cumsum(n_v)[:-1]))]
