@@ -394,3 +394,20 @@ def test_window_options_are_bounded_whatever_the_window(small_echo, option, valu
     for window in ("taylor", "kaiser", "hamming"):
         with pytest.raises(error, match=option):
             range_compress(small_echo, window=window, **{option: value})
+
+
+def test_negative_workers_count_back_from_the_cores_or_are_refused_by_name(monkeypatch):
+    """scipy.fft's rule (-1: every core, -2: all but one) resolved by check_workers, so that a count
+    past the cores is refused naming the parameter instead of by scipy ("workers value out of range")."""
+    import os
+
+    from clsas.image.rangecomp import check_workers, upsample_records
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    assert [check_workers(w, "x workers") for w in (-1, -2, 1, 3, None)] == [2, 1, 1, 3, 2]
+    for bad in (-3, -1024):
+        with pytest.raises(ValueError, match=r"x workers: .* between -2 and -1, got " + str(bad)):
+            check_workers(bad, "x workers")
+    with pytest.raises(ValueError, match="upsample_records workers"):  # before scipy sees it
+        upsample_records(np.ones((2, 64), np.complex64), 2, workers=-3)
+    assert upsample_records(np.ones((2, 64), np.complex64), 2, workers=-2).shape == (2, 128)

@@ -45,6 +45,12 @@ def check_workers(workers, name: str) -> int:
     count = v.integer(name, workers, low=-1024, high=1024, why="not 0; negative counts back from the cores")
     if count == 0:
         raise ValueError(f"{name}: must be a non-zero integer (or None), got 0")
+    if count < 0:  # scipy.fft's rule (-1: every core), resolved here so that scipy never refuses it unnamed
+        cores = os.cpu_count() or 1
+        if cores + 1 + count < 1:
+            raise ValueError(f"{name}: a negative count goes back from this machine's {cores} cores, so it must be "
+                             f"between -{cores} and -1, got {count}")
+        count = cores + 1 + count
     return count
 
 

@@ -9,7 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft
 
-from ... import validate
+from ... import budget, validate
+from ...image.rangecomp import check_workers
 from ...model import EchoData
 from ...scene.scenario import Array, Platform, Scenario
 from .geometry import pairing, scenario_extent
@@ -216,6 +217,7 @@ def compensate(echo: EchoData, trajectory: Trajectory, scenario: Scenario, worke
     h = scenario.array.n_receivers
     if trajectory.eta.shape != echo.eta.shape:
         raise ValueError("compensate: the trajectory must have one value per ping of the echo")
+    workers = check_workers(workers, "compensate workers")
     c = echo.medium.sound_speed
     lever = scenario.array.rx_offsets[:, 1] - scenario.array.tx_offset[1]
     dt = (-2 * trajectory.cross[None, :] - lever[:, None] * np.sin(trajectory.heading)[None, :]) / c  # (h, pulse)
@@ -232,6 +234,9 @@ def compensate(echo: EchoData, trajectory: Trajectory, scenario: Scenario, worke
             raise ValueError(f"compensate depth: the plane z = {depth:g} m lies {abs(below) * r_mid:.4g} m from the track, "
                              f"beyond the records' mid range {r_mid:.4g} m; give the z of a plane the beam reaches")
         dt = dt * np.sqrt(1 - below**2)
+    per_ping = echo.n_pulses * echo.n_samples  # the copy (complex64, 8 bytes a sample) and delay_records' work (48)
+    budget.check_bytes(f"compensate of {h} hydrophones x {echo.n_pulses} pings x {echo.n_samples} samples",
+                       8 * echo.n_rx * per_ping + 48 * h * per_ping, "fewer pings or samples at a time")
     data = echo.data.copy()
     data[:h] = delay_records(echo.data[:h], -dt, echo.waveform.f0, echo.fs, workers)
     straight = scenario.replace(platform=Platform(speed=scenario.platform.speed, start=scenario.platform.start))
