@@ -127,13 +127,13 @@ def machine_brief(m: dict) -> str:
 
 
 def device_name(backend: str) -> str:
+    """What ran the figure: the OpenCL device, or the backend (numpy, embree, a peer such as
+    torchbp-cpu) on this CPU."""
     if backend == "opencl":
         from clsas import opencl
 
         return opencl.runtime().device.name
-    import platform
-
-    return f"numpy on {platform.processor() or platform.machine()}"
+    return f"{backend} on {platform.processor() or platform.machine()}"
 
 
 def report(args, bench: str, backend: str, size: dict, rate: float, unit: str, seconds: float, **extra) -> dict:

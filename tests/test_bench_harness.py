@@ -45,3 +45,15 @@ def test_kernels_avx2_builds_for_an_avx2_cpu_and_says_so(opencl_device, tmp_path
     assert (tmp_path / "cache" / "clsas-bench" / "pocl-avx2").is_dir()  # its own PoCL kernel cache
     if "avx512f" in Path("/proc/cpuinfo").read_text():
         assert "haswell" not in native["device"]  # on an AVX-512 CPU the native build is not the AVX2 one
+
+
+def test_a_figure_not_run_by_opencl_names_what_ran_it():
+    """A peer's or Embree's row names them, not NumPy (the torchbp and occlusion rows said
+    "numpy on x86_64")."""
+    sys.path.insert(0, str(BENCH))
+    try:
+        import _harness
+    finally:
+        sys.path.remove(str(BENCH))
+    for backend in ("numpy", "embree", "torchbp-cpu"):
+        assert _harness.device_name(backend).startswith(f"{backend} on ")
