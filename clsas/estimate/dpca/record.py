@@ -40,7 +40,7 @@ from ...image.rangecomp import check_workers
 from ...image.record import LineRecord
 from ...kernelmath import unit_phasor
 from ...scene.scenario import Scenario
-from .track import Trajectory, compensate
+from .track import DELAY_BYTES, Trajectory, compensate
 
 
 def displacement(trajectory: Trajectory, scenario: Scenario, eta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -125,7 +125,7 @@ def _check_budget(echo: EchoData, hydrophones: int, chosen: int, subaperture: in
     over twice its rows); ``chosen`` receivers interleaved."""
     per_ping = echo.n_pulses * echo.n_samples
     rows = scipy.fft.next_fast_len(2 * subaperture) * echo.n_samples
-    peak = max(48 * hydrophones * per_ping, BYTES_PER_SAMPLE * chosen * per_ping + 64 * per_ping,
+    peak = max(DELAY_BYTES * hydrophones * per_ping, BYTES_PER_SAMPLE * chosen * per_ping + 64 * per_ping,
                48 * chosen * per_ping + 32 * subaperture * echo.n_samples + 80 * rows)
     budget.check_bytes(f"compensate_record of {chosen} receivers x {echo.n_pulses} pings x {echo.n_samples} samples",
                        8 * echo.n_rx * per_ping + peak, "fewer pings or samples at a time")

@@ -164,6 +164,9 @@ def with_track(echo: EchoData, scenario: Scenario) -> EchoData:
     return echo.replace(tx_pos=tx, rx_pos=rx, provenance={**echo.provenance, "track": "replaced (dpca.with_track)"})
 
 
+DELAY_BYTES = 48  # bytes delay_records holds a sample: the spectra, the phase ramp in complex128 and its argument, the copy
+
+
 def delay_records(data: np.ndarray, dt: np.ndarray, f0: float, fs: float, workers: int | None = -1) -> np.ndarray:
     """Baseband records ``data`` (complex, (n_rx, n_pulses, n_samples), carrier ``f0`` Hz,
     sampled at ``fs`` Hz) with receiver h's ping p delayed by ``dt[h, p]`` s (negative: advanced):
@@ -234,9 +237,9 @@ def compensate(echo: EchoData, trajectory: Trajectory, scenario: Scenario, worke
             raise ValueError(f"compensate depth: the plane z = {depth:g} m lies {abs(below) * r_mid:.4g} m from the track, "
                              f"beyond the records' mid range {r_mid:.4g} m; give the z of a plane the beam reaches")
         dt = dt * np.sqrt(1 - below**2)
-    per_ping = echo.n_pulses * echo.n_samples  # the copy (complex64, 8 bytes a sample) and delay_records' work (48)
+    per_ping = echo.n_pulses * echo.n_samples  # the copy (complex64, 8 bytes a sample) and delay_records' work
     budget.check_bytes(f"compensate of {h} hydrophones x {echo.n_pulses} pings x {echo.n_samples} samples",
-                       8 * echo.n_rx * per_ping + 48 * h * per_ping, "fewer pings or samples at a time")
+                       8 * echo.n_rx * per_ping + DELAY_BYTES * h * per_ping, "fewer pings or samples at a time")
     data = echo.data.copy()
     data[:h] = delay_records(echo.data[:h], -dt, echo.waveform.f0, echo.fs, workers)
     straight = scenario.replace(platform=Platform(speed=scenario.platform.speed, start=scenario.platform.start))

@@ -43,7 +43,7 @@ import dataclasses
 import numpy as np
 
 from ...model import EchoData
-from .polar import Scene, extents, oversampling, sample_grids
+from .polar import Scene, axis_tilt, extents, oversampling, sample_grids
 
 LEAF_SAMPLES = 16  # the default first stage: the fewest pulses whose leaf grid is at least this wide in angle
 MAX_LEAVES = 64  # ... and no more leaves than this (a leaf's launches and host work cost alike however short it is)
@@ -146,9 +146,7 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
             return
         centres, axes, halves, bases = frames.frames(nodes)
         widen = halves + bases / 2
-        y = np.array([0.0, 1.0, 0.0])  # the sine off broadside is taken off the y axis, either way along it
-        tilt = np.minimum(np.linalg.norm(axes - y, axis=1), np.linalg.norm(axes + y, axis=1))
-        limits = None if sine is None else np.minimum(1.0, sine + tilt + halves / frames.r_near)
+        limits = None if sine is None else np.minimum(1.0, sine + axis_tilt(axes) + halves / frames.r_near)
         found = extents(centres, axes, halves, scene, window + np.stack([-widen, widen], axis=1), bw, f0, c, limits,
                         taps if device else None)
         extents_of.update(zip(nodes, found))

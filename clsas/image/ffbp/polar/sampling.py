@@ -190,6 +190,15 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
 APERTURE_SLACK = 0.01  # m: the float32 aperture mask's rounding allowance (as backprojection.tiles.aperture_spans)
 
 
+def axis_tilt(axes: np.ndarray) -> np.ndarray:
+    """min(|u - y|, |u + y|) of each unit axis u (N, 3): how far a sub-aperture's axis turns from the
+    y axis, either way along it, which bounds how far a direction's |sine| off u departs from its
+    |sine| off y (bp_tile's aperture mask takes the sine off y; a track heading along -y is limited
+    as one along +y)."""
+    y = np.array([0.0, 1.0, 0.0])
+    return np.minimum(np.linalg.norm(axes - y, axis=1), np.linalg.norm(axes + y, axis=1))
+
+
 def within_aperture(grids: list, transmitters: np.ndarray, half_sin: float) -> list:
     """The leaves' polar ``grids`` with their rows' spans cut to the samples that one of their
     pulses may see within the integration angle (the others are zero in a leaf's image: bp_tile's
@@ -213,8 +222,7 @@ def within_aperture(grids: list, transmitters: np.ndarray, half_sin: float) -> l
         return []
     centres = np.array([g.centre for g in grids])
     reach = np.sqrt(np.max(np.sum((transmitters - centres[:, None]) ** 2, axis=2), axis=1))  # E (L,)
-    axes = np.array([g.axis for g in grids])
-    tilt = np.minimum(np.linalg.norm(axes - [0.0, 1.0, 0.0], axis=1), np.linalg.norm(axes + [0.0, 1.0, 0.0], axis=1))
+    tilt = axis_tilt(np.array([g.axis for g in grids]))
     n_v = np.array([g.n_v for g in grids])
     grid = np.repeat(np.arange(len(grids)), n_v)  # each row's grid
     row = np.arange(grid.size) - np.repeat(np.cumsum(n_v) - n_v, n_v)
