@@ -3,7 +3,7 @@
  * NumPy twin: clsas/image/upsample.py (upsample_reference; the tap table and the launcher are
  * there too). Defines: FACTOR (the upsampling factor, 2..64), TAPS (even: the original samples
  * each output reads), PHASE_VECS = ceil(FACTOR / 8) (the float16 vectors of one original
- * sample's outputs).
+ * sample's outputs), MIRROR (1 for FACTOR <= 8: the mirrored phases' pass, below).
  *
  * Output q = FACTOR (j - first) + p of a row is the record at original position j + p / FACTOR:
  * p = 0 is the sample itself (copied), p > 0 is sum_t taps[p][t] s[j - HALF + t], samples outside
@@ -22,6 +22,15 @@
  * as before. Explicit float16 vectors (PoCL does not vectorise a looping kernel across
  * work-items: POCL_NOTES.md). ``taps``: phase_vectors' table (vector v at step t, lane 2 q, is
  * phase 8 v + q's tap), read a lane at a time.
+ *
+ * MIRROR (FACTOR <= 8, one phase vector): phase FACTOR - q's taps are phase q's reversed
+ * (h_{FACTOR - q}[t] = h_q[TAPS - 1 - t]: the windowed sinc is even), so both come from one pass over
+ * the sample pairs a = s[j - HALF + t], b = s[j - HALF + TAPS - 1 - t], t < TAPS / 2: S_q (a + b) and
+ * D_q (a - b) summed by fma() in t's order (S_q, D_q = (h_q[t] +- h_q[TAPS - 1 - t]) / 2, rounded
+ * from double: mirror_vectors' table, lane 2 q and 2 q + 1 of row t), phase q their sum, phase
+ * FACTOR - q their difference, phase FACTOR / 2 the S sum alone: half the FMAs (within float
+ * rounding of the direct form and of the twin, and still the same operations for an output whichever
+ * work-item computes it).
  */
 #include "loads.h"
 
@@ -61,12 +70,40 @@ __kernel void upsample_fir(__global const float2 *src, const int n_src, const in
         const int phases = min(8, FACTOR - 8 * v); /* phases of this vector that are outputs */
         float16 acc[8];
         _Pragma("unroll") for (int q = 0; q < 8; ++q) acc[q] = (float16)0.0f;
+#if MIRROR
+        /* phases q and FACTOR - q read the same samples with mirrored taps: a step pairs samples t
+         * and TAPS - 1 - t (a = s[s0 + t], b = s[s0 + TAPS - 1 - t]) and sums S_q (a + b) and
+         * D_q (a - b); phase q is their sum, FACTOR - q their difference (FACTOR / 2: S alone) */
+        float16 acc_s[5], acc_d[5];
+        _Pragma("unroll") for (int q = 0; q < 5; ++q) acc_s[q] = acc_d[q] = (float16)0.0f;
+        (void)phases;
+        for (int t = 0; t < TAPS / 2; ++t) {
+            const float16 a = eight_samples(row, pairs, inside, s0 + t, s0, n_src);
+            const float16 b = eight_samples(row, pairs, inside, s0 + TAPS - 1 - t, s0, n_src);
+            const float16 sum = a + b, dif = a - b;
+            _Pragma("unroll") for (int q = 1; q < 5; ++q) {
+                if (2 * q <= FACTOR)
+                    acc_s[q] = fma((float16)taps[16 * t + 2 * q], sum, acc_s[q]);
+                if (2 * q < FACTOR)
+                    acc_d[q] = fma((float16)taps[16 * t + 2 * q + 1], dif, acc_d[q]);
+            }
+        }
+        _Pragma("unroll") for (int q = 1; q < 5; ++q) {
+            if (2 * q < FACTOR) {
+                acc[q] = acc_s[q] + acc_d[q];
+                acc[FACTOR - q] = acc_s[q] - acc_d[q];
+            } else if (2 * q == FACTOR) {
+                acc[q] = acc_s[q];
+            }
+        }
+#else
         __global const float *h = taps + 16 * v * TAPS;
         for (int t = 0; t < TAPS; ++t) {
             const float16 x = eight_samples(row, pairs, inside, s0 + t, s0, n_src);
             _Pragma("unroll") for (int q = 0; q < 8; ++q) if ((v > 0 || q > 0) && q < phases)
                 acc[q] = fma((float16)h[16 * t + 2 * q], x, acc[q]);
         }
+#endif
         if (v == 0) /* phase 0: the sample itself */
             acc[0] = eight_samples(row, pairs, inside, s0 + HALF, s0, n_src);
         /* transpose: a[q].sk (phase q, sample k) -> o[k].sq */
