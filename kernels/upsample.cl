@@ -36,6 +36,11 @@
 
 #define HALF (TAPS / 2 - 1) /* an output between j and j + 1 reads samples j - HALF .. j - HALF + TAPS - 1 */
 #define TAIL (2 * FACTOR - 16 * (PHASE_VECS - 1)) /* floats of the last vector that are outputs */
+#if defined(__AVX512F__)
+#define MIRROR_PASS 4 /* mirrored pairs a pass: all seven accumulators, in 32 vector registers */
+#else
+#define MIRROR_PASS 2 /* 16 vector registers (AVX2: a float16 is two): two pairs a pass, no spills */
+#endif
 
 /* samples i .. i + 7 of a row of n_src as (re, im) pairs: pairs[i - s0] in place when the work-item's
  * samples all lie inside the row, else one at a time, zero outside [0, n_src) */
@@ -74,26 +79,35 @@ __kernel void upsample_fir(__global const float2 *src, const int n_src, const in
         /* phases q and FACTOR - q read the same samples with mirrored taps: a step pairs samples t
          * and TAPS - 1 - t (a = s[s0 + t], b = s[s0 + TAPS - 1 - t]) and sums S_q (a + b) and
          * D_q (a - b); phase q is their sum, FACTOR - q their difference (FACTOR / 2: S alone) */
-        float16 acc_s[5], acc_d[5];
-        _Pragma("unroll") for (int q = 0; q < 5; ++q) acc_s[q] = acc_d[q] = (float16)0.0f;
         (void)phases;
-        for (int t = 0; t < TAPS / 2; ++t) {
-            const float16 a = eight_samples(row, pairs, inside, s0 + t, s0, n_src);
-            const float16 b = eight_samples(row, pairs, inside, s0 + TAPS - 1 - t, s0, n_src);
-            const float16 sum = a + b, dif = a - b;
-            _Pragma("unroll") for (int q = 1; q < 5; ++q) {
-                if (2 * q <= FACTOR)
-                    acc_s[q] = fma((float16)taps[16 * t + 2 * q], sum, acc_s[q]);
-                if (2 * q < FACTOR)
-                    acc_d[q] = fma((float16)taps[16 * t + 2 * q + 1], dif, acc_d[q]);
+        /* MIRROR_PASS pairs (q, FACTOR - q) a pass over the samples: one pass of all of them where
+         * the target has 32 vector registers, two (q = 1, 2 then 3, 4) with 16 (AVX2, where one pass
+         * spilled and was slower than the direct form) */
+        _Pragma("unroll") for (int pass = 0; pass < 4 / MIRROR_PASS; ++pass) {
+            if (2 * MIRROR_PASS * pass + 2 > FACTOR)
+                continue;
+            float16 acc_s[MIRROR_PASS], acc_d[MIRROR_PASS];
+            _Pragma("unroll") for (int k = 0; k < MIRROR_PASS; ++k) acc_s[k] = acc_d[k] = (float16)0.0f;
+            for (int t = 0; t < TAPS / 2; ++t) {
+                const float16 a = eight_samples(row, pairs, inside, s0 + t, s0, n_src);
+                const float16 b = eight_samples(row, pairs, inside, s0 + TAPS - 1 - t, s0, n_src);
+                const float16 sum = a + b, dif = a - b;
+                _Pragma("unroll") for (int k = 0; k < MIRROR_PASS; ++k) {
+                    const int q = MIRROR_PASS * pass + k + 1;
+                    if (2 * q <= FACTOR)
+                        acc_s[k] = fma((float16)taps[16 * t + 2 * q], sum, acc_s[k]);
+                    if (2 * q < FACTOR)
+                        acc_d[k] = fma((float16)taps[16 * t + 2 * q + 1], dif, acc_d[k]);
+                }
             }
-        }
-        _Pragma("unroll") for (int q = 1; q < 5; ++q) {
-            if (2 * q < FACTOR) {
-                acc[q] = acc_s[q] + acc_d[q];
-                acc[FACTOR - q] = acc_s[q] - acc_d[q];
-            } else if (2 * q == FACTOR) {
-                acc[q] = acc_s[q];
+            _Pragma("unroll") for (int k = 0; k < MIRROR_PASS; ++k) {
+                const int q = MIRROR_PASS * pass + k + 1;
+                if (2 * q < FACTOR) {
+                    acc[q] = acc_s[k] + acc_d[k];
+                    acc[FACTOR - q] = acc_s[k] - acc_d[k];
+                } else if (2 * q == FACTOR) {
+                    acc[q] = acc_s[k];
+                }
             }
         }
 #else
