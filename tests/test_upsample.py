@@ -40,7 +40,7 @@ def band_limited(rng, rows, n, band):
 
 # ---------------------------------------------------------------- kernel vs twin
 
-@pytest.mark.parametrize("factor", [2, 3, 8, 64])
+@pytest.mark.parametrize("factor", [2, 3, 5, 6, 8, 64])
 @pytest.mark.parametrize("span", [(0, 203), (3, 200), (190, 203), (0, 5)])
 def test_kernel_matches_its_twin(opencl_device, rng, factor, span):
     """Every output within float32 rounding of the twin (measured <= 9.4e-8 relative L2 and
