@@ -3,7 +3,7 @@
  * NumPy twin: clsas/image/upsample.py (upsample_reference; the tap table and the launcher are
  * there too). Defines: FACTOR (the upsampling factor, 2..64), TAPS (even: the original samples
  * each output reads), PHASE_VECS = ceil(FACTOR / 8) (the float16 vectors of one original
- * sample's outputs).
+ * sample's outputs), MIRROR (1 for FACTOR <= 8: the mirrored phases' pass, below).
  *
  * Output q = FACTOR (j - first) + p of a row is the record at original position j + p / FACTOR:
  * p = 0 is the sample itself (copied), p > 0 is sum_t taps[p][t] s[j - HALF + t], samples outside
@@ -22,11 +22,25 @@
  * as before. Explicit float16 vectors (PoCL does not vectorise a looping kernel across
  * work-items: POCL_NOTES.md). ``taps``: phase_vectors' table (vector v at step t, lane 2 q, is
  * phase 8 v + q's tap), read a lane at a time.
+ *
+ * MIRROR (FACTOR <= 8, one phase vector): phase FACTOR - q's taps are phase q's reversed
+ * (h_{FACTOR - q}[t] = h_q[TAPS - 1 - t]: the windowed sinc is even), so both come from one pass over
+ * the sample pairs a = s[j - HALF + t], b = s[j - HALF + TAPS - 1 - t], t < TAPS / 2: S_q (a + b) and
+ * D_q (a - b) summed by fma() in t's order (S_q, D_q = (h_q[t] +- h_q[TAPS - 1 - t]) / 2, rounded
+ * from double: mirror_vectors' table, lane 2 q and 2 q + 1 of row t), phase q their sum, phase
+ * FACTOR - q their difference, phase FACTOR / 2 the S sum alone: half the FMAs (within float
+ * rounding of the direct form and of the twin, and still the same operations for an output whichever
+ * work-item computes it).
  */
 #include "loads.h"
 
 #define HALF (TAPS / 2 - 1) /* an output between j and j + 1 reads samples j - HALF .. j - HALF + TAPS - 1 */
 #define TAIL (2 * FACTOR - 16 * (PHASE_VECS - 1)) /* floats of the last vector that are outputs */
+#if defined(__AVX512F__)
+#define MIRROR_PASS 4 /* mirrored pairs a pass: all seven accumulators, in 32 vector registers */
+#else
+#define MIRROR_PASS 2 /* 16 vector registers (AVX2: a float16 is two): two pairs a pass, no spills */
+#endif
 
 /* samples i .. i + 7 of a row of n_src as (re, im) pairs: pairs[i - s0] in place when the work-item's
  * samples all lie inside the row, else one at a time, zero outside [0, n_src) */
@@ -61,12 +75,49 @@ __kernel void upsample_fir(__global const float2 *src, const int n_src, const in
         const int phases = min(8, FACTOR - 8 * v); /* phases of this vector that are outputs */
         float16 acc[8];
         _Pragma("unroll") for (int q = 0; q < 8; ++q) acc[q] = (float16)0.0f;
+#if MIRROR
+        /* phases q and FACTOR - q read the same samples with mirrored taps: a step pairs samples t
+         * and TAPS - 1 - t (a = s[s0 + t], b = s[s0 + TAPS - 1 - t]) and sums S_q (a + b) and
+         * D_q (a - b); phase q is their sum, FACTOR - q their difference (FACTOR / 2: S alone) */
+        (void)phases;
+        /* MIRROR_PASS pairs (q, FACTOR - q) a pass over the samples: one pass of all of them where
+         * the target has 32 vector registers, two (q = 1, 2 then 3, 4) with 16 (AVX2, where one pass
+         * spilled and was slower than the direct form) */
+        _Pragma("unroll") for (int pass = 0; pass < 4 / MIRROR_PASS; ++pass) {
+            if (2 * MIRROR_PASS * pass + 2 > FACTOR)
+                continue;
+            float16 acc_s[MIRROR_PASS], acc_d[MIRROR_PASS];
+            _Pragma("unroll") for (int k = 0; k < MIRROR_PASS; ++k) acc_s[k] = acc_d[k] = (float16)0.0f;
+            for (int t = 0; t < TAPS / 2; ++t) {
+                const float16 a = eight_samples(row, pairs, inside, s0 + t, s0, n_src);
+                const float16 b = eight_samples(row, pairs, inside, s0 + TAPS - 1 - t, s0, n_src);
+                const float16 sum = a + b, dif = a - b;
+                _Pragma("unroll") for (int k = 0; k < MIRROR_PASS; ++k) {
+                    const int q = MIRROR_PASS * pass + k + 1;
+                    if (2 * q <= FACTOR)
+                        acc_s[k] = fma((float16)taps[16 * t + 2 * q], sum, acc_s[k]);
+                    if (2 * q < FACTOR)
+                        acc_d[k] = fma((float16)taps[16 * t + 2 * q + 1], dif, acc_d[k]);
+                }
+            }
+            _Pragma("unroll") for (int k = 0; k < MIRROR_PASS; ++k) {
+                const int q = MIRROR_PASS * pass + k + 1;
+                if (2 * q < FACTOR) {
+                    acc[q] = acc_s[k] + acc_d[k];
+                    acc[FACTOR - q] = acc_s[k] - acc_d[k];
+                } else if (2 * q == FACTOR) {
+                    acc[q] = acc_s[k];
+                }
+            }
+        }
+#else
         __global const float *h = taps + 16 * v * TAPS;
         for (int t = 0; t < TAPS; ++t) {
             const float16 x = eight_samples(row, pairs, inside, s0 + t, s0, n_src);
             _Pragma("unroll") for (int q = 0; q < 8; ++q) if ((v > 0 || q > 0) && q < phases)
                 acc[q] = fma((float16)h[16 * t + 2 * q], x, acc[q]);
         }
+#endif
         if (v == 0) /* phase 0: the sample itself */
             acc[0] = eight_samples(row, pairs, inside, s0 + HALF, s0, n_src);
         /* transpose: a[q].sk (phase q, sample k) -> o[k].sq */

@@ -61,15 +61,22 @@ FFT_BATCH_BYTES = 32 * 2**20  # upsampled spectra in memory at once
 
 
 @lru_cache(maxsize=16)
-def fir_taps(factor: int) -> np.ndarray:
-    """(factor, TAPS) float32: phase p's taps on samples j - HALF .. j - HALF + TAPS - 1 (row 0,
-    the sample itself, is the unit impulse at t = HALF). Read-only (cached)."""
+def _taps64(factor: int) -> np.ndarray:
+    """:func:`fir_taps` in float64 (read-only, cached)."""
     p = np.arange(factor)[:, None] / factor
     t = np.arange(TAPS)[None, :] - HALF
     table = kaiser_sinc_tap(p - t, TAPS / 2, BETA)
     table[0] = 0.0
     table[0, HALF] = 1.0
-    table = table.astype(np.float32)
+    table.flags.writeable = False
+    return table
+
+
+@lru_cache(maxsize=16)
+def fir_taps(factor: int) -> np.ndarray:
+    """(factor, TAPS) float32: phase p's taps on samples j - HALF .. j - HALF + TAPS - 1 (row 0,
+    the sample itself, is the unit impulse at t = HALF). Read-only (cached)."""
+    table = _taps64(factor).astype(np.float32)
     table.flags.writeable = False
     return table
 
@@ -81,6 +88,24 @@ def phase_vectors(factor: int) -> np.ndarray:
     table = np.zeros((8 * n_vec, TAPS), np.float32)
     table[:factor] = fir_taps(factor)
     return np.ascontiguousarray(np.repeat(table.reshape(n_vec, 8, TAPS).transpose(0, 2, 1), 2, axis=2))
+
+
+def mirror_vectors(factor: int) -> np.ndarray:
+    """(TAPS / 2, 16) float32: the kernel's tap table for factors up to 8 (MIRROR: phases q and
+    factor - q, whose taps are mirror images, h_{factor - q}[t] = h_q[TAPS - 1 - t], from one pass
+    over the sample pairs t, TAPS - 1 - t): lane 2 q of row t is S_q[t] = (h_q[t] + h_q[TAPS - 1 - t]) / 2,
+    lane 2 q + 1 is D_q[t] = (h_q[t] - h_q[TAPS - 1 - t]) / 2, for 1 <= q <= factor / 2 (computed in
+    float64, then rounded: phase q is S_q (a + b) + D_q (a - b) over the pairs a, b, phase factor - q
+    S_q (a + b) - D_q (a - b), phase factor / 2 S (a + b) alone)."""
+    if factor > 8:
+        raise ValueError(f"mirror_vectors factor: at most 8 (one phase vector), got {factor}")
+    h = _taps64(factor)
+    table = np.zeros((TAPS // 2, 16))
+    for q in range(1, factor // 2 + 1):
+        a, b = h[q, :TAPS // 2], h[q, TAPS - 1:TAPS // 2 - 1:-1]
+        table[:, 2 * q] = 0.5 * (a + b)
+        table[:, 2 * q + 1] = 0.5 * (a - b) if 2 * q < factor else 0.0
+    return np.ascontiguousarray(table, dtype=np.float32)
 
 
 def worst_tone_error(factor: int, band: float = MAX_BAND, n_freq: int = 801) -> float:
@@ -130,7 +155,8 @@ def enqueue(queue, src, n_src: int, n_rows: int, first: int, stop: int, factor: 
     (stop - first) factor complex64); returns its event."""
     taps = _taps_buffer(queue.context, factor)
     kern = opencl.kernel("upsample", "upsample_fir", defines={"FACTOR": factor, "TAPS": TAPS,
-                                                              "PHASE_VECS": -(-factor // 8)})
+                                                              "PHASE_VECS": -(-factor // 8),
+                                                              "MIRROR": int(factor <= 8)})
     global_size, local_size = opencl.work_groups_2d(-(-(stop - first) // 8), n_rows, ROWS_GROUP)
     return kern(queue, global_size, local_size, src, np.int32(n_src), np.int32(n_rows), np.int32(first),
                 np.int32(stop - first), taps, dst)
@@ -145,7 +171,7 @@ def _taps_buffer(ctx, factor: int):
         import pyopencl as cl
 
         _TAP_BUFFERS[key] = cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                                      hostbuf=phase_vectors(factor))
+                                      hostbuf=mirror_vectors(factor) if factor <= 8 else phase_vectors(factor))
     return _TAP_BUFFERS[key]
 
 

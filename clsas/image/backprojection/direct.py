@@ -140,7 +140,8 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
     """
     _check_call(grid, aperture, stop_and_go)
     plan = _plan_of(grid)
-    records, velocity, span = records_for(echo, plan.grid, receivers, interp, upsample, target_velocity, pulses)
+    records, velocity, span = records_for(echo, plan.grid, receivers, interp, upsample, target_velocity, pulses,
+                                          plan.box)
     double = _backend.check_precision(precision)
     name = _backend.resolve(backend)
     g, source = plan.grid, records.echo

@@ -108,6 +108,11 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     ctx, queue = rt.context, rt.queue
     mf = cl.mem_flags
     START, END = cl.profiling_info.START, cl.profiling_info.END
+    upload = records.upload_pulses()
+    # the first job's records (jobs[0] below: chunk 0, receiver 0, the first upload block) before
+    # anything else: their upsampling runs on the device while the host makes the call's kernels,
+    # tiling and groups, which otherwise left the device idle
+    early = records.buffer(ctx, 0, np.arange(span[0], min(span[0] + upload, span[1])), double)
     echo, fs = records.echo, records.fs
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
     pixels = np.ascontiguousarray(plan.grid.positions.reshape(-1, 3), np.float64)
@@ -119,7 +124,6 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     taps = tile.taps(ctx)
     params = tile.params(c, f0, fs)
     chunk = PIXEL_CHUNK // (tile.LANES * tile.rows) * (tile.LANES * tile.rows)
-    upload = records.upload_pulses()
     job_bytes = 16 * max(1, int(np.max(records.length))) * min(upload, span[1] - span[0])  # as upload_pulses counts
     keep = int(min(MAX_IN_FLIGHT, max(2, IN_FLIGHT_BYTES // job_bytes))) - 1  # jobs left in flight by retire
     jobs = [(first, i, np.arange(s, min(s + upload, span[1]))) for first in range(0, tiles.order.size, chunk)
@@ -146,7 +150,10 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     for first, i, pulses in jobs:
         h, offset = records.receivers[i], int(records.offset[i])
         kernel_seconds += retire(keep)
-        records_buf, n_samples, base = records.buffer(ctx, i, pulses, double)
+        if early is not None:  # jobs[0]
+            (records_buf, n_samples, base), early = early, None
+        else:
+            records_buf, n_samples, base = records.buffer(ctx, i, pulses, double)
         if chunk_state is None or chunk_state.first != first:
             if chunk_state is not None:
                 kernel_seconds += retire(0)

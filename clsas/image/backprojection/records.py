@@ -50,6 +50,7 @@ from ...model import EchoData, Grid
 from .. import upsample as fir
 from ..rangecomp import check_workers
 from ..upsample import FFT_BATCH_BYTES, UPSAMPLE_BLOCK, upsample_blocks  # noqa: F401 (FFT_BATCH_BYTES: ffbp's budget)
+from .tiles import pixel_box
 
 INTERPOLATORS = ("linear", "sinc8")
 # samples an interpolator reads around floor(k) (before, after), in samples of the records it reads
@@ -105,9 +106,11 @@ def _box_distances(a_lo, a_hi, b_lo, b_hi):
     return np.sqrt(np.sum(gap * gap, axis=-1)), np.sqrt(np.sum(far * far, axis=-1))
 
 
-def reach(echo: EchoData, receivers, positions: np.ndarray, target_velocity=None) -> np.ndarray:
+def reach(echo: EchoData, receivers, positions: np.ndarray, target_velocity=None, box=None) -> np.ndarray:
     """(len(receivers), 2) s: a fast-time span per receiver that holds the two-way delay of every
-    pixel of ``positions`` (..., 3) m at every pulse whose delay falls inside the record.
+    pixel of ``positions`` (..., 3) m at every pulse whose delay falls inside the record (``box``:
+    their :func:`.tiles.pixel_box` when already known, e.g. a GridPlan's; ``positions`` is then
+    not read).
 
     A bound, not the exact extremes: the pixels' bounding box (moved to each pulse by the
     velocity, and grown by |v| times the record's end for the motion during the legs) and the
@@ -118,19 +121,18 @@ def reach(echo: EchoData, receivers, positions: np.ndarray, target_velocity=None
     samples' slack on a small patch.
     """
     c = echo.medium.sound_speed
-    pts = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
     v = np.zeros(3) if target_velocity is None else np.asarray(target_velocity, dtype=np.float64)
     t_end = float(np.max(echo.t0)) + echo.n_samples / echo.fs
     grow = np.linalg.norm(v) * t_end
-    # the pixels' box a coordinate at a time (NumPy's reduction over the first axis of (M, 3) is slow)
-    box_lo = np.array([pts[:, k].min() for k in range(3)])
-    box_hi = np.array([pts[:, k].max() for k in range(3)])
+    box_lo, box_hi = pixel_box(positions) if box is None else box
     lo = box_lo + echo.eta[:, None] * v - grow  # (P, 3)
     hi = box_hi + echo.eta[:, None] * v + grow
     near1, far1 = _box_distances(echo.tx_pos, echo.tx_pos, lo, hi)  # (P,)
     h = np.asarray(receivers, dtype=np.intp)
     nodes, pos = echo.rx_tau[h], echo.rx_pos[h]  # (H, N), (H, P, N, 3): every receiver at once
-    r_lo, r_hi = pos.min(axis=2), pos.max(axis=2)  # (H, P, 3)
+    r_lo, r_hi = pos[:, :, 0], pos[:, :, 0]  # (H, P, 3): node by node (a reduction over axis 2 is slow)
+    for k in range(1, pos.shape[2]):
+        r_lo, r_hi = np.minimum(r_lo, pos[:, :, k]), np.maximum(r_hi, pos[:, :, k])
     if nodes.shape[1] > 1:  # rx_position extrapolates linearly beyond the nodes
         speed = np.max(np.linalg.norm(np.diff(pos, axis=2), axis=-1) / np.diff(nodes)[:, None, :], axis=2)  # (H, P)
         extra = speed * (np.maximum(t_end - nodes[:, -1], 0.0) + np.maximum(nodes[:, 0], 0.0))[:, None]
@@ -408,13 +410,14 @@ def upsampler_for(echo: EchoData, factor: int):
     return "fir" if echo.waveform.bandwidth / (2.0 * echo.fs) <= fir.MAX_BAND * (1 + 1e-9) else "fft"
 
 
-def fast_time_spans(echo: EchoData, chosen, grid, velocity) -> np.ndarray:
-    """(len(chosen), 2) s: the spans to prepare for ``grid`` (see :func:`prepare`)."""
+def fast_time_spans(echo: EchoData, chosen, grid, velocity, box=None) -> np.ndarray:
+    """(len(chosen), 2) s: the spans to prepare for ``grid`` (see :func:`prepare`; ``box``: a
+    Grid's pixel box when known, :func:`reach`)."""
     if grid is None:
         t0 = np.asarray(echo.t0)[list(chosen)]
         return np.column_stack([t0, t0 + echo.n_samples / echo.fs])
     if isinstance(grid, Grid):
-        return reach(echo, chosen, grid.positions, velocity)
+        return reach(echo, chosen, grid.positions, velocity, box)
     try:
         spans = np.asarray(grid, dtype=np.float64)
     except (TypeError, ValueError):
@@ -445,11 +448,12 @@ def _pulse_span(pulses, n_pulses: int) -> tuple[int, int]:
     return int(start), int(stop)
 
 
-def records_for(echo, grid: Grid, receivers, interp, upsample, target_velocity, pulses) -> tuple:
+def records_for(echo, grid: Grid, receivers, interp, upsample, target_velocity, pulses, box=None) -> tuple:
     """What one :func:`clsas.backproject` call reads: (records, the pixels' velocity (3,), the
     pulses (start, stop) to sum). ``echo`` an EchoData (its records are then prepared for
     ``grid``'s reach block by block during the call) or :class:`PreparedRecords` (checked
-    against the options and the grid); ValueError/TypeError naming the parameter."""
+    against the options and the grid; ``box``: the grid's pixel box when known, :func:`reach`);
+    ValueError/TypeError naming the parameter."""
     if isinstance(echo, PreparedRecords):
         records = echo
         for name, asked, held in (("interp", interp, records.interp), ("upsample", upsample, records.upsample)):
@@ -465,7 +469,7 @@ def records_for(echo, grid: Grid, receivers, interp, upsample, target_velocity, 
                                  f"{[records.echo.receivers[h] for h in records.receivers]}")
             records = records.subset(chosen)
         covered = [True] if records.whole else records.covers(reach(records.echo, records.receivers,
-                                                                    grid.positions, velocity))
+                                                                    grid.positions, velocity, box))
         if not np.all(covered):
             names = [records.echo.receivers[h] for h, ok in zip(records.receivers, covered) if not ok]
             raise ValueError(f"grid: the prepared records do not cover the fast times this grid reaches "
@@ -474,6 +478,6 @@ def records_for(echo, grid: Grid, receivers, interp, upsample, target_velocity, 
         interp = "linear" if interp is None else interp
         upsample = 8 if upsample is None else upsample
         chosen, velocity = check_options(echo, receivers, interp, upsample, target_velocity)
-        records = PreparedRecords(echo, chosen, interp, int(upsample), fast_time_spans(echo, chosen, grid, velocity),
-                                  materialise=False)
+        records = PreparedRecords(echo, chosen, interp, int(upsample),
+                                  fast_time_spans(echo, chosen, grid, velocity, box), materialise=False)
     return records, velocity, _pulse_span(pulses, records.echo.n_pulses)

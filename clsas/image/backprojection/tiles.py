@@ -183,6 +183,13 @@ def plan_tiles(positions: np.ndarray, f0: float, c: float, half_extent: float | 
     return Tiling(order, tile, 0.5 * (low + high), extent, float(bound), rows)
 
 
+def pixel_box(positions: np.ndarray) -> np.ndarray:
+    """(2, 3) m: the smallest and largest coordinates of the pixels ``positions`` (..., 3) (a
+    coordinate at a time: NumPy's reduction over the first axis of (M, 3) is slow)."""
+    pts = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    return np.array([[pts[:, k].min() for k in range(3)], [pts[:, k].max() for k in range(3)]])
+
+
 class GridPlan:
     """A grid and its tile plan (:func:`plan_tiles`), made on first use for a carrier and sound
     speed and kept. Pass it to :func:`backproject` in place of the grid to image the same grid
@@ -196,6 +203,15 @@ class GridPlan:
         self.rows = validate.integer("rows", rows, 1, 16, why="rows of 16 pixels a bp_tile work-item")
         self.grid = grid
         self._tilings = {}
+        self._box = None
+
+    @property
+    def box(self) -> np.ndarray:
+        """The grid's :func:`pixel_box` (2, 3) m, made on first use and kept (read-only)."""
+        if self._box is None:
+            self._box = pixel_box(self.grid.positions)
+            self._box.flags.writeable = False
+        return self._box
 
     def tiling(self, f0: float, c: float) -> Tiling:
         key = (float(f0), float(c))
