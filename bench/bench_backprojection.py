@@ -26,7 +26,9 @@ speed through its carrier argument), timed interleaved (clsas, torchbp, clsas, .
 median, for clsas with ``stop_and_go=True`` (the same delays) and with its default exact
 non-stop-and-go delays; the relative L2 difference of the stop-and-go images is reported.
 torchbp is built from source against torch (CPU) in its own environment, which must also hold
-clsas to run this bench.
+clsas to run this bench; the rows' ``torchbp`` note names the ``-march`` its extension was compiled
+with (from the compiler's command line its debug information keeps), so that a row says which build
+it timed.
 
 NumPy (the float64 reference) runs on fewer pulses (its rate does not depend on the pulse
 count). Each figure is the median of several timed runs; the fastest run is reported as
@@ -154,7 +156,22 @@ def torchbp_call(echo, grid):
     def run():
         return torchbp.ops.backprojection_cart_2d(data, spec, **args).numpy()[0].T
 
-    return run, f"torch {torch.__version__}, {torch.get_num_threads()} threads"
+    return run, f"torch {torch.__version__}, {torch.get_num_threads()} threads, torchbp {torchbp_build(torchbp)}"
+
+
+def torchbp_build(torchbp) -> str:
+    """The ``-march`` torchbp's compiled extension was built with, as the compiler's command line
+    in its debug information records it, or that it is not recorded."""
+    import glob
+    import os
+    import re
+
+    for path in sorted(glob.glob(os.path.join(os.path.dirname(torchbp.__file__), "_C*.so"))):
+        with open(path, "rb") as f:
+            found = re.search(rb"-march=[\w.-]+", f.read())
+        if found:
+            return found.group(0).decode()
+    return "(-march not recorded)"
 
 
 def versus_torchbp(args) -> None:

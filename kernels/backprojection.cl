@@ -153,6 +153,37 @@ typedef float16 realv16_t;
         *(cs_out) = fma(-s_, s_, 1.0f);                                                                       \
     } while (0)
 
+/* Linear interpolation's samples of eight lanes: lane L's four floats w_L = (re, im of sample i,
+ * re, im of sample i + 1) -> four float8 (a_re, a_im, b_re, b_im) of lanes 0-7. Lanes L and L + 4
+ * share an 8-lane vector (y_L, its 128-bit halves; two 4-wide loads), then two stages of unpacks
+ * within 128-bit halves (unpcklps/unpckhps, then unpcklpd/unpckhpd: eight one-uop shuffles). On
+ * AVX2, two-source permutes across halves become vpermps + vblendps pairs, and AVX-512 codes the
+ * unpacks as fast as its vpermt2ps. CLSAS_OPAQUE (an empty asm that holds y_L in a register) keeps
+ * LLVM from folding the loads into the unpacks: it then makes scalar broadcast loads and blends. */
+#if defined(__clang__) && defined(__x86_64__) && defined(__AVX__)
+#define CLSAS_OPAQUE(v) __asm__("" : "+v"(v))
+#else
+#define CLSAS_OPAQUE(v) ((void)0)
+#endif
+#define UNPACK_LO(x, y) (float8)(x.s0, y.s0, x.s1, y.s1, x.s4, y.s4, x.s5, y.s5)
+#define UNPACK_HI(x, y) (float8)(x.s2, y.s2, x.s3, y.s3, x.s6, y.s6, x.s7, y.s7)
+#define UNPACK_LO2(x, y) (float8)(x.s01, y.s01, x.s45, y.s45)
+#define UNPACK_HI2(x, y) (float8)(x.s23, y.s23, x.s67, y.s67)
+#define TRANSPOSE8(w0, w1, w2, w3, w4, w5, w6, w7, a_re, a_im, b_re, b_im)                                     \
+    do {                                                                                                     \
+        float8 y0 = (float8)(w0, w4), y1 = (float8)(w1, w5), y2 = (float8)(w2, w6), y3 = (float8)(w3, w7);   \
+        CLSAS_OPAQUE(y0);                                                                                    \
+        CLSAS_OPAQUE(y1);                                                                                    \
+        CLSAS_OPAQUE(y2);                                                                                    \
+        CLSAS_OPAQUE(y3);                                                                                    \
+        const float8 t0 = UNPACK_LO(y0, y1), t1 = UNPACK_HI(y0, y1);                                         \
+        const float8 t2 = UNPACK_LO(y2, y3), t3 = UNPACK_HI(y2, y3);                                         \
+        *(a_re) = UNPACK_LO2(t0, t2);                                                                        \
+        *(a_im) = UNPACK_HI2(t0, t2);                                                                        \
+        *(b_re) = UNPACK_LO2(t1, t3);                                                                        \
+        *(b_im) = UNPACK_HI2(t1, t3);                                                                        \
+    } while (0)
+
 /* A pixel row's fields: loaded where used (the pulse loop then holds no more than they need) */
 #define FIELD(f) LOAD_F16(px[r].f)
 
@@ -266,19 +297,14 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
         FOR_ROWS {
             const volatile int *i = (const volatile int *)&first[r][0];
 #ifdef INTERP_LINEAR
-            /* samples i and i + 1 of each lane in one 4-wide load, transposed in registers */
+            /* samples i and i + 1 of each lane in one 4-wide load, transposed in registers (TRANSPOSE8) */
+            float8 ar[2], ai[2], br[2], bi[2];
 #define W(L) LOAD_F4(rec + 2 * i[0x##L])
-            const float16 w0 = (float16)(W(0), W(1), W(2), W(3)), w1 = (float16)(W(4), W(5), W(6), W(7));
-            const float16 w2 = (float16)(W(8), W(9), W(a), W(b)), w3 = (float16)(W(c), W(d), W(e), W(f));
+            TRANSPOSE8(W(0), W(1), W(2), W(3), W(4), W(5), W(6), W(7), &ar[0], &ai[0], &br[0], &bi[0]);
+            TRANSPOSE8(W(8), W(9), W(a), W(b), W(c), W(d), W(e), W(f), &ar[1], &ai[1], &br[1], &bi[1]);
 #undef W
-            /* two stages of two-source permutes (8, not 12): lanes 0-7 (w0, w1) and 8-15 (w2, w3) of
-             * each part, then the halves joined */
-            const float16 a01 = (float16)(w0.s048c, w1.s048c, w0.s159d, w1.s159d);
-            const float16 b01 = (float16)(w0.s26ae, w1.s26ae, w0.s37bf, w1.s37bf);
-            const float16 a23 = (float16)(w2.s048c, w3.s048c, w2.s159d, w3.s159d);
-            const float16 b23 = (float16)(w2.s26ae, w3.s26ae, w2.s37bf, w3.s37bf);
-            const float16 a_re = (float16)(a01.lo, a23.lo), a_im = (float16)(a01.hi, a23.hi);
-            const float16 b_re = (float16)(b01.lo, b23.lo), b_im = (float16)(b01.hi, b23.hi);
+            const float16 a_re = (float16)(ar[0], ar[1]), a_im = (float16)(ai[0], ai[1]);
+            const float16 b_re = (float16)(br[0], br[1]), b_im = (float16)(bi[0], bi[1]);
             const float16 dr = select((float16)0.0f, fma(b_re - a_re, frac[r], a_re), keep[r]);
             const float16 di = select((float16)0.0f, fma(b_im - a_im, frac[r], a_im), keep[r]);
 #else
