@@ -67,9 +67,10 @@ class Extent:
         return sample_grids([self], rho, taps)[0]
 
 
-def sample_grids(found: list, rho: float, taps: int) -> list:
-    """The polar grids of extents ``found`` at oversampling ``rho`` (:meth:`Extent.sample`), their
-    rows' spans computed together (:data:`RAGGED`; extents without an envelope get none).
+def sample_grids(found: list, rho, taps: int) -> list:
+    """The polar grids of extents ``found`` at oversampling ``rho`` (:meth:`Extent.sample`; one for all
+    or one an extent), their rows' spans computed together (:data:`RAGGED`; extents without an
+    envelope get none).
 
     Row j's span [lo, hi) of a grid r0 + i dr, v0 + j dv: the ranges of the scene's skeleton points
     whose sines lie within margin / r_lo + pad dv of the row's (the rectangle's own padding in
@@ -79,7 +80,8 @@ def sample_grids(found: list, rho: float, taps: int) -> list:
     window up to one bin wider (more kept, never less). The nearest and farthest range over a
     window of bins come from a sparse table of each envelope (extrema over 2^k bins from every
     bin; two overlapping windows of 2^k bins cover any window), all the grids' rows at once."""
-    shapes = [e._sampling(rho, taps) for e in found]
+    rhos = [rho] * len(found) if np.ndim(rho) == 0 else rho
+    shapes = [e._sampling(float(r), taps) for e, r in zip(found, rhos, strict=True)]
     ragged = [k for k, e in enumerate(found) if RAGGED and e.envelope is not None]
     spans = dict(zip(ragged, _spans([found[k] for k in ragged], [shapes[k] for k in ragged]))) if ragged else {}
     return [PolarGrid(e.centre, e.axis, e.e1, e.e2, e.plane, r0, dr, n_r, v0, dv, n_v, spans.get(k))
