@@ -18,10 +18,10 @@ a node of level l + 1 is ``factor`` consecutive nodes of level l. A node's frame
   <= |T - R|^2 / (4 |X - M|) (r_near the nearest scene range).
 
 Its polar grid covers the scene within the recorded range window widened by L + max |T - R| / 2
-and, with an ``aperture``, the angles
-|v| <= sin(aperture / 2) + min(|u - y|, |u + y|) + L / r_near (a pixel that some pulse of the node
-sees within the aperture, whose |sine| is taken off the y axis: a track heading along -y is limited
-as one along +y);
+and, with an ``aperture``, the angles |v| <= sin(aperture / 2) + min(|u - y|, |u + y|) + (E + slack)
+/ (r_near - E), E = max |T - C| over the node's transmitters T (the pixels that some pulse of the node
+sees within the aperture: bp_tile's mask takes the |sine| off the y axis at the transmitter, so a
+track heading along -y is limited as one along +y; :func:`clsas.image.ffbp.polar.sampling.aperture_sines`);
 :func:`clsas.image.ffbp.polar.extents` bounds it and :meth:`~clsas.image.ffbp.polar.Extent.sample`
 samples it.
 
@@ -53,6 +53,7 @@ import numpy as np
 
 from ...model import EchoData
 from .polar import Scene, axis_tilt, extents, oversampling, sample_grids
+from .polar.sampling import aperture_sines
 
 _log = logging.getLogger("clsas")
 
@@ -148,6 +149,20 @@ class _Frames:
                              + base ** 2 / (4 * self.r_near))
         return centres, axes, halves, bases
 
+    def transmitters_reach(self, nodes: list, centres: np.ndarray) -> np.ndarray:
+        """max |T - C| (n,) m over the transmitter's positions T at the emissions of each node (p0, p1)'s
+        pulses, C its centre (``centres`` (n, 3), :meth:`frames`): how far from C bp_tile's aperture
+        mask takes its angles."""
+        reach = np.empty(len(nodes))
+        by_length = {}
+        for i, (p0, p1) in enumerate(nodes):
+            by_length.setdefault(p1 - p0, []).append(i)
+        for length, which in by_length.items():
+            pulses = np.array([nodes[i][0] for i in which])[:, None] + np.arange(length)  # (m, length)
+            d = self.tx[pulses] - centres[which][:, None]
+            reach[which] = np.sqrt(np.einsum("mki,mki->mk", d, d).max(axis=1))
+        return reach
+
 
 def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: float, taps: int,
          first: int | None, aperture: float | None, device: bool = False, first_guess: int | None = None) -> Tree:
@@ -174,7 +189,8 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
             return
         centres, axes, halves, bases = frames.frames(nodes)
         widen = halves + bases / 2
-        limits = None if sine is None else np.minimum(1.0, sine + axis_tilt(axes) + halves / frames.r_near)
+        limits = None if sine is None else aperture_sines(sine, axis_tilt(axes),
+                                                          frames.transmitters_reach(nodes, centres), frames.r_near)
         found = extents(centres, axes, halves, scene, window + np.stack([-widen, widen], axis=1), bw, f0, c, limits,
                         taps if device else None)
         extents_of.update(zip(nodes, found))

@@ -201,6 +201,20 @@ def axis_tilt(axes: np.ndarray) -> np.ndarray:
     return np.minimum(np.linalg.norm(axes - y, axis=1), np.linalg.norm(axes + y, axis=1))
 
 
+def aperture_sines(half_sin: float, tilt: np.ndarray, reach: np.ndarray, r_near: float) -> np.ndarray:
+    """The largest |v| (n,) (the sine off a sub-aperture's axis, seen from its centre C) of a point at
+    a range of at least ``r_near`` m from C that a pulse of the sub-aperture sees within the
+    integration angle, its transmitters within ``reach`` (n,) m of C and its axis turned ``tilt``
+    (n,) from the y axis (:func:`axis_tilt`): half_sin + tilt + (E + APERTURE_SLACK) / (r_near - E),
+    E = reach (the bound of :func:`within_aperture`'s docstring, solved for the sine), at most 1 (1
+    where r_near <= E)."""
+    reach = np.asarray(reach, np.float64)
+    gap = r_near - reach
+    with np.errstate(divide="ignore"):
+        turn = np.where(gap > 0, (reach + APERTURE_SLACK) / np.where(gap > 0, gap, 1.0), np.inf)
+    return np.minimum(1.0, half_sin + tilt + turn)
+
+
 def within_aperture(grids: list, transmitters: np.ndarray, half_sin: float) -> list:
     """The leaves' polar ``grids`` with their rows' spans cut to the samples that one of their
     pulses may see within the integration angle (the others are zero in a leaf's image: bp_tile's
