@@ -222,8 +222,9 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         """The tree of ``n``-pulse leaves estimated from its spine (:func:`_spine`: each level's samples
         and reach taken as its node count x those of its node holding the middle pulse): its spine's
         nodes, their levels' node counts and reach, and the top the rule (:func:`stop`'s) settles on
-        the spine's boxes (as the plan's first guess is) with its oversampling; None when the middle
-        leaf sees nothing or the tree's stages cannot meet the tolerance."""
+        the spine's boxes (as the plan's first guess is) with its oversampling and the levels' box
+        samples up to it; None when the middle leaf sees nothing or the tree's stages cannot meet the
+        tolerance."""
         nodes, counts = _spine(echo.n_pulses, n, factor)
         found = [extents_of[node] for node in nodes]
         if found[0] is None:
@@ -243,20 +244,22 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
             if guess == top:
                 break
             top = guess
-        return nodes[:top + 1], counts[:top + 1], covered[top], rho
+        return nodes[:top + 1], counts[:top + 1], covered[top], rho, sizes[:top + 1]
 
     def estimated_costs(near: list, guessed: list) -> dict:
         """The estimated cost, in merge interpolations, of the trees of each of ``near``'s leaf lengths
         (:func:`spine`; inf for None): its leaves' (LEAF_SAMPLE_COST a sample besides LEAF_PULSE_COST a
         sample, pulse and receiver), its merges' (factor a sample of each merged level) and its final
-        stage's (a read a pixel and top node whose grid covers it), on the spine's sampled grids (the
-        rows' spans: the samples computed). The grids of the levels of the ``guessed`` tree (pulses
-        of each level's nodes, or none) that its first sampled round reads if its spine's top is
-        right are sampled with the spines' (one call; the same grids whatever the choice)."""
+        stage's (a read a pixel and top node whose grid covers it), in the samples computed (the rows'
+        spans): the middle leaf's sampled grid's, and the merged levels' boxes x the share of its box
+        that leaf computes (its upper levels, whose grids are the largest, not sampled). The grids of
+        the levels of the ``guessed`` tree (pulses of each level's nodes, or none) that its first
+        sampled round reads if its spine's top is right are sampled with the leaves' (one call; the
+        same grids whatever the choice)."""
         spines = {n: spine(n) for n in near}
-        pairs = [(node, s[3]) for s in spines.values() if s is not None for node in s[0]]
+        pairs = [(s[0][0], s[3]) for s in spines.values() if s is not None]
         if guessed and spines.get(guessed[0][0][1] - guessed[0][0][0]) is not None:
-            nodes, _, _, rho = spines[guessed[0][0][1] - guessed[0][0][0]]
+            nodes, _, _, rho, _ = spines[guessed[0][0][1] - guessed[0][0][0]]
             pairs += [(node, rho) for level in guessed[:len(nodes) + 1] for node in level]
         sample(pairs)
         costs = {}
@@ -264,11 +267,11 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
             if s is None:
                 costs[n] = np.inf
                 continue
-            nodes, counts, covered, rho = s
-            samples = [count * sum(g.computed for g in grids_for([node], rho) if g is not None)
-                       for node, count in zip(nodes, counts)]
-            costs[n] = ((LEAF_SAMPLE_COST + LEAF_PULSE_COST * len(chosen) * n) * samples[0]
-                        + factor * sum(samples[1:]) + n_pixels * covered)
+            nodes, counts, covered, rho, sizes = s
+            leaf = grids_for(nodes[:1], rho)[0]
+            share = leaf.computed / max(leaf.size, 1)
+            costs[n] = ((LEAF_SAMPLE_COST + LEAF_PULSE_COST * len(chosen) * n) * counts[0] * leaf.computed
+                        + factor * share * sum(sizes[1:]) + n_pixels * covered)
         return costs
 
     if first is None:
