@@ -649,7 +649,7 @@ def test_the_planners_reductions_on_the_device_are_numpys(opencl_device, monkeyp
     windows = np.tile(window, (len(nodes), 1))
     if case == "narrow_window":  # every other sub-aperture's window ends before the scene: no extent
         windows[::2] = [1.0, 2.0]
-    limits = None if aperture is None else np.full(len(nodes), np.sin(aperture / 2))
+    limits = None if aperture is None else np.tile([-np.sin(aperture / 2), np.sin(aperture / 2)], (len(nodes), 1))
     found = [polar.extents(centres, axes, halves, scene, windows, w.bandwidth, w.f0, c, limits, device_taps=taps)
              for taps in (None, 8)]
     assert _same_extents(*found) >= (len(nodes) // 2 if case == "narrow_window" else len(nodes))

@@ -21,7 +21,9 @@ Its polar grid covers the scene within the recorded range window widened by L + 
 and, with an ``aperture``, the angles |v| <= sin(aperture / 2) + min(|u - y|, |u + y|) + (E + slack)
 / (r_near - E), E = max |T - C| over the node's transmitters T (the pixels that some pulse of the node
 sees within the aperture: bp_tile's mask takes the |sine| off the y axis at the transmitter, so a
-track heading along -y is limited as one along +y; :func:`clsas.image.ffbp.polar.sampling.aperture_sines`);
+track heading along -y is limited as one along +y; :func:`clsas.image.ffbp.polar.sampling.aperture_sines`),
+and for an axis turned from y within the window :func:`clsas.image.ffbp.polar.sampling.aperture_windows`
+derives from the scene's extremes across y (a yawed track's |u - y| leaves the first bound near 1);
 :func:`clsas.image.ffbp.polar.extents` bounds it and :meth:`~clsas.image.ffbp.polar.Extent.sample`
 samples it.
 
@@ -52,8 +54,8 @@ import logging
 import numpy as np
 
 from ...model import EchoData
-from .polar import Scene, axis_tilt, extents, oversampling, sample_grids
-from .polar.sampling import aperture_sines
+from .polar import Scene, extents, oversampling, sample_grids
+from .polar.sampling import aperture_windows
 
 _log = logging.getLogger("clsas")
 
@@ -189,8 +191,9 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
             return
         centres, axes, halves, bases = frames.frames(nodes)
         widen = halves + bases / 2
-        limits = None if sine is None else aperture_sines(sine, axis_tilt(axes),
-                                                          frames.transmitters_reach(nodes, centres), frames.r_near)
+        limits = None if sine is None else aperture_windows(scene, centres, axes, sine,
+                                                            frames.transmitters_reach(nodes, centres), frames.r_near,
+                                                            taps if device else None)
         found = extents(centres, axes, halves, scene, window + np.stack([-widen, widen], axis=1), bw, f0, c, limits,
                         taps if device else None)
         extents_of.update(zip(nodes, found))

@@ -130,7 +130,7 @@ def extents(centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray, sce
             device_taps: int | None = None) -> list:
     """The extents of the polar grids of sub-apertures with frames (centres (n, 3) m, unit axes
     (n, 3)) and half-lengths L (n,) m, each covering the scene within its recorded range window
-    ``windows`` (n, 2) m (min, max) and, with ``sine_limits`` (n,), the sines |v| <= its limit
+    ``windows`` (n, 2) m (min, max) and, with ``sine_limits`` (n, 2), the sines lo <= v <= hi
     (the integration angle); a range span is that of the pixels within its sines (a sector of a
     long scene is nearer than the scene's far corners). A list of Extent, None where the scene
     lies wholly outside the window or the angular limit. The skeleton's ranges and sines are
@@ -156,7 +156,7 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
     v_hi = np.minimum(v_max + v_margin, 1.0)
     alive = r_lo > 0
     if sine_limits is not None:
-        v_lo, v_hi = np.maximum(v_lo, -sine_limits), np.minimum(v_hi, sine_limits)
+        v_lo, v_hi = np.maximum(v_lo, sine_limits[:, 0]), np.minimum(v_hi, sine_limits[:, 1])
         r_min, r_max, any_seen, reach = reduced.seen(v_lo - v_margin, v_hi + v_margin, v_lo, v_hi)
         alive &= (v_hi > v_lo) & any_seen
     else:
@@ -213,6 +213,38 @@ def aperture_sines(half_sin: float, tilt: np.ndarray, reach: np.ndarray, r_near:
     with np.errstate(divide="ignore"):
         turn = np.where(gap > 0, (reach + APERTURE_SLACK) / np.where(gap > 0, gap, 1.0), np.inf)
     return np.minimum(1.0, half_sin + tilt + turn)
+
+
+def aperture_windows(scene: Scene, centres: np.ndarray, axes: np.ndarray, half_sin: float, reach: np.ndarray,
+                     r_near: float, device_taps: int | None = None) -> np.ndarray:
+    """The sines [lo, hi] (n, 2) off each sub-aperture's axis u (centres C (n, 3), unit axes (n, 3))
+    of the scene's points that a pulse of it sees within the integration angle (transmitters within
+    ``reach`` (n,) m of C; points at ranges of at least ``r_near`` m): |v| <= :func:`aperture_sines`
+    and, for an axis off the y axis, the tighter window from u = (u . y) y + w: v = (u . y) s + |w| t,
+    s = y . d the point's sine off y seen from C (|s| <= the sine of aperture_sines without tilt) and
+    t = (w / |w|) . d within the skeleton's extremes along w / |w| widened by scene.margin / r_near
+    (a reduction as :func:`extents`', ``device_taps`` as there). A track heading along y gets the
+    first alone (w = 0); one yawed 45 deg the second (the first bounds |v| by nearly 1 there)."""
+    limit = aperture_sines(half_sin, axis_tilt(axes), reach, r_near)
+    window = np.stack([-limit, limit], axis=1)
+    off_y = axes.copy()
+    off_y[:, 1] = 0.0
+    w = np.linalg.norm(off_y, axis=1)
+    yawed = np.flatnonzero(w > 0)
+    if yawed.size:
+        across = off_y[yawed] / w[yawed, None]
+        step = CHUNK_NODES if device_taps is None else DEVICE_CHUNK_NODES
+        t_min, t_max = np.empty(yawed.size), np.empty(yawed.size)
+        for s in range(0, yawed.size, step):
+            part, nodes = slice(s, s + step), yawed[s:s + step]
+            reduced = (HostOffsets(scene, centres[nodes], across[part]) if device_taps is None
+                       else DeviceOffsets(scene, centres[nodes], across[part], device_taps))
+            _, _, t_min[part], t_max[part] = reduced.extremes(far=False)
+        margin = scene.margin / r_near
+        sine = np.abs(axes[yawed, 1]) * aperture_sines(half_sin, np.zeros(yawed.size), reach[yawed], r_near)
+        window[yawed, 0] = np.maximum(window[yawed, 0], -sine + w[yawed] * (t_min - margin))
+        window[yawed, 1] = np.minimum(window[yawed, 1], sine + w[yawed] * (t_max + margin))
+    return window
 
 
 def within_aperture(grids: list, transmitters: np.ndarray, half_sin: float) -> list:
