@@ -190,6 +190,8 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
 
 
 APERTURE_SLACK = 0.01  # m: the float32 aperture mask's rounding allowance (as backprojection.tiles.aperture_spans)
+YAWED = 1e-3  # |w| (an axis' part off y) above which aperture_windows reduces the scene across y (below: at most
+# that much sine to gain, not worth a reduction)
 
 
 def axis_tilt(axes: np.ndarray) -> np.ndarray:
@@ -224,13 +226,13 @@ def aperture_windows(scene: Scene, centres: np.ndarray, axes: np.ndarray, half_s
     s = y . d the point's sine off y seen from C (|s| <= the sine of aperture_sines without tilt) and
     t = (w / |w|) . d within the skeleton's extremes along w / |w| widened by scene.margin / r_near
     (a reduction as :func:`extents`', ``device_taps`` as there). A track heading along y gets the
-    first alone (w = 0); one yawed 45 deg the second (the first bounds |v| by nearly 1 there)."""
+    first alone (|w| <= YAWED); one yawed 45 deg the second (the first bounds |v| by nearly 1 there)."""
     limit = aperture_sines(half_sin, axis_tilt(axes), reach, r_near)
     window = np.stack([-limit, limit], axis=1)
     off_y = axes.copy()
     off_y[:, 1] = 0.0
     w = np.linalg.norm(off_y, axis=1)
-    yawed = np.flatnonzero(w > 0)
+    yawed = np.flatnonzero(w > YAWED)
     if yawed.size:
         across = off_y[yawed] / w[yawed, None]
         step = CHUNK_NODES if device_taps is None else DEVICE_CHUNK_NODES
