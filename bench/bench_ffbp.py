@@ -54,7 +54,9 @@ the aperture case for the same pulses on a fixed 512^2 grid.
 warm), with the device's queue finished around each stage, and reports the process CPU seconds of
 each (``stages_cpu``: the tree's planning, the leaves (their batches and demodulation; of which
 ``leaf_bp_tile``, back-projection's kernel itself), the merges, the final stage, and the rest),
-the cost breakdown that says where a case's time goes.
+the cost breakdown that says where a case's time goes, and from it the CPU ns of a leaf's
+lane-pulse, of a leaf sample's other work and of a merge interpolation (``op_ns``, :func:`op_costs`:
+the ratios tree.py's leaf-length estimate takes).
 
 Every run is timed twice: wall time and the process's CPU time (``time.process_time``: PoCL's
 worker threads run in this process, so it is the CPU-seconds the call used). On a loaded machine the
@@ -213,6 +215,24 @@ def stages(run) -> dict:
     return {k: round(v, 4) for k, v in parts.items()}
 
 
+def op_costs(parts: dict, provenance: dict) -> dict:
+    """CPU ns of ffbp's operations from a call's stages (:func:`stages`) and its tree (the image's
+    provenance; one receiver): ``leaf_lane_pulse``, bp_tile's a leaf sample and pulse;
+    ``leaf_sample``, the rest of the leaves' a sample (fields, demodulation, batches);
+    ``merge_interpolation``, a merge's an (output sample, child) pair; and the first two over the
+    third (``leaf_pulse_to_merge``, ``leaf_sample_to_merge``: tree.py's LEAF_PULSE_COST and
+    LEAF_SAMPLE_COST measure these). The leaves' samples are the tree's, before the aperture's cut
+    (leaves.py), so with an ``aperture`` the leaves' figures are low by the samples cut."""
+    samples, first, factor = provenance["polar_samples"], provenance["first"], provenance["factor"]
+    out = {"leaf_lane_pulse": 1e9 * parts["leaf_bp_tile"] / (samples[0] * first),
+           "leaf_sample": 1e9 * (parts["leaves"] - parts["leaf_bp_tile"]) / samples[0]}
+    if len(samples) > 1:
+        out["merge_interpolation"] = 1e9 * parts["merges"] / (factor * sum(samples[1:]))
+        out["leaf_pulse_to_merge"] = out["leaf_lane_pulse"] / out["merge_interpolation"]
+        out["leaf_sample_to_merge"] = out["leaf_sample"] / out["merge_interpolation"]
+    return {k: round(v, 4) for k, v in out.items()}
+
+
 def main() -> None:
     flags = {flag: flag in sys.argv for flag in ("--scan", "--big", "--factors", "--stages")}
     sys.argv = [a for a in sys.argv if a not in flags]
@@ -263,6 +283,7 @@ def main() -> None:
                 if flags["--stages"] and name in ("ffbp", "ffbp_warm"):  # a geometry not seen yet: cold, then warm
                     e = moved(echo, reps + 1)
                     extra["stages_cpu"] = stages(lambda: runs[name](e))
+                    extra["op_ns"] = op_costs(extra["stages_cpu"], made.provenance)
             report(args, "ffbp", "opencl", {"pixels": grid.size, "pulses": pulses, "receivers": 1},
                    work / medians[name], "BP/s", medians[name], **extra)
         print(summary(case, times, cpu), file=sys.stderr if args.json else sys.stdout, flush=True)

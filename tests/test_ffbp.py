@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import importlib
+import logging
 
 import numpy as np
 import pytest
@@ -26,6 +27,7 @@ from clsas.image.ffbp.leaves import FirstStage
 from clsas.image.ffbp.merge import merge_opencl, merge_reference
 from clsas.image.ffbp import polar, reuse
 from clsas.image.ffbp.polar import Scene, interpolation_error, oversampling
+from clsas.image.ffbp import tree as ffbp_tree
 from clsas.image.ffbp.tree import _Frames, plan
 from clsas.scene import presets
 from clsas.scene.targets import PointTargets
@@ -647,7 +649,7 @@ def test_the_planners_reductions_on_the_device_are_numpys(opencl_device, monkeyp
     windows = np.tile(window, (len(nodes), 1))
     if case == "narrow_window":  # every other sub-aperture's window ends before the scene: no extent
         windows[::2] = [1.0, 2.0]
-    limits = None if aperture is None else np.full(len(nodes), np.sin(aperture / 2))
+    limits = None if aperture is None else np.tile([-np.sin(aperture / 2), np.sin(aperture / 2)], (len(nodes), 1))
     found = [polar.extents(centres, axes, halves, scene, windows, w.bandwidth, w.f0, c, limits, device_taps=taps)
              for taps in (None, 8)]
     assert _same_extents(*found) >= (len(nodes) // 2 if case == "narrow_window" else len(nodes))
@@ -681,6 +683,48 @@ def test_a_leaf_length_guess_changes_no_tree(aperture):
     assert unguessed.first == 16
     for guess in (1, 4, 8, 16, 32, 3, echo.n_pulses, 4096):
         _same_trees(plan(echo, [0], scene, 2, 0.1, 8, None, aperture, first_guess=guess), unguessed)
+
+
+def _tree_cost(tree, pixels: np.ndarray, factor: int) -> float:
+    """A one-receiver tree's cost in merge interpolations as tree.py's estimate counts it, on the
+    tree's own grids (every node, not the spine): its leaves' samples x (LEAF_SAMPLE_COST +
+    LEAF_PULSE_COST x pulses a leaf), factor x the samples of each merged level, and the pixels
+    inside each top node's (r, v) box (the final stage's reads)."""
+    samples = tree.samples()
+    reads = 0
+    for g in tree.grids[tree.top]:
+        if g is not None:
+            r, v = g.coordinates(pixels)
+            reads += np.count_nonzero((r >= g.r0) & (r <= g.r0 + g.dr * (g.n_r - 1)) & (v >= g.v0)
+                                      & (v <= g.v0 + g.dv * (g.n_v - 1)))
+    leaf = ffbp_tree.LEAF_SAMPLE_COST + ffbp_tree.LEAF_PULSE_COST * tree.first
+    return leaf * samples[0] + factor * sum(samples[1:]) + reads
+
+
+@pytest.mark.parametrize("step, aperture", [(0.005, None), (0.025, None), (0.025, 0.2)])
+def test_the_leaf_length_is_the_cheapest_tree_of_its_candidates(step, aperture, caplog):
+    """With first=None, plan weighs the angle rule's leaf length and its neighbours (half, double) by
+    their trees' costs estimated from each level's middle node, and takes the cheapest: here that is
+    the cheapest by the trees' costs counted on all their grids (:func:`_tree_cost`), which differ by
+    more than 10 % (an inverted choice fails). On the 5 mm track the rule's length (256) loses to
+    half of it (counted 2.59 M against 3.39 M interpolations)."""
+    n = 1024 if aperture is None else 512
+    echo = _geometry_only_echo(n, step)
+    half = n * step / 4
+    grid = Grid.plane(np.linspace(40.0, 60.0, 192 if aperture is None else 128), np.linspace(-half, half, 160),
+                      DEPTH)
+    scene = Scene.of(grid.positions)
+    with caplog.at_level(logging.DEBUG, logger="clsas"):
+        chosen = plan(echo, [0], scene, 4, 0.1, 8, None, aperture)
+    [record] = [r for r in caplog.records if r.msg.startswith("ffbp: leaf lengths' estimated costs")]
+    candidates = sorted(record.args[0])
+    assert len(candidates) >= 2 and chosen.first in candidates
+    counted = {n: _tree_cost(plan(echo, [0], scene, 4, 0.1, 8, n, aperture), grid.positions.reshape(-1, 3), 4)
+               for n in candidates}
+    assert chosen.first == min(counted, key=counted.get)
+    assert max(counted.values()) > 1.1 * min(counted.values())
+    if step == 0.005:
+        assert (candidates, chosen.first) == ([128, 256, 512], 128)
 
 
 def test_ragged_grids_skip_the_wedge_and_change_nothing(opencl_device, monkeypatch):

@@ -2,8 +2,8 @@
 
 Level 0 holds the leaves, blocks of ``first`` consecutive pulses (the last one shorter; by
 default the fewest, doubling from one, whose polar grid at the track's middle spans LEAF_SAMPLES
-angles besides its padding and that make at most MAX_LEAVES leaves: bench_ffbp found fewer,
-longer leaves faster in every case where the angle rule alone gave more);
+angles besides its padding and that make at most MAX_LEAVES leaves, or half or twice as many
+pulses, whichever tree costs least by the estimate below);
 a node of level l + 1 is ``factor`` consecutive nodes of level l. A node's frame:
 
 - centre C: the mean of its phase centres, the midpoints of the transmitter at emission and
@@ -18,10 +18,12 @@ a node of level l + 1 is ``factor`` consecutive nodes of level l. A node's frame
   <= |T - R|^2 / (4 |X - M|) (r_near the nearest scene range).
 
 Its polar grid covers the scene within the recorded range window widened by L + max |T - R| / 2
-and, with an ``aperture``, the angles
-|v| <= sin(aperture / 2) + min(|u - y|, |u + y|) + L / r_near (a pixel that some pulse of the node
-sees within the aperture, whose |sine| is taken off the y axis: a track heading along -y is limited
-as one along +y);
+and, with an ``aperture``, the angles |v| <= sin(aperture / 2) + min(|u - y|, |u + y|) + (E + slack)
+/ (r_near - E), E = max |T - C| over the node's transmitters T (the pixels that some pulse of the node
+sees within the aperture: bp_tile's mask takes the |sine| off the y axis at the transmitter, so a
+track heading along -y is limited as one along +y; :func:`clsas.image.ffbp.polar.sampling.aperture_sines`),
+and for an axis turned from y within the window :func:`clsas.image.ffbp.polar.sampling.aperture_windows`
+derives from the scene's extremes across y (a yawed track's |u - y| leaves the first bound near 1);
 :func:`clsas.image.ffbp.polar.extents` bounds it and :meth:`~clsas.image.ffbp.polar.Extent.sample`
 samples it.
 
@@ -34,19 +36,35 @@ that pays. The oversampling rho depends on the number of stages
 guess settled by the rule on the grids' (r, v) boxes (unsampled, so cheap) and two rounds on the
 sampled grids settle both, and the oversampling is that of the tree's final number of stages in
 any case (the rule of the error model holds even where the rounds did not settle).
+
+The leaf length by cost: a tree of n-pulse leaves costs about its leaves' samples x (LEAF_SAMPLE_COST
++ LEAF_PULSE_COST x n x receivers) (a leaf sample's fields and demodulation, and bp_tile's work a
+pulse; both in merge interpolations, as bench_ffbp --stages measures them), factor x the samples
+of each level it merges and the pixels' reads of its top nodes, each level's samples and reach
+estimated as its node count x those of the level's node that holds the middle pulse (its spine:
+nodes the rule above probes anyway), its top by the rule on the spine. The estimate only chooses
+among trees: each tree, whatever its leaves, gets its oversampling from its own stages.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import logging
 
 import numpy as np
 
 from ...model import EchoData
-from .polar import Scene, axis_tilt, extents, oversampling, sample_grids
+from .polar import Scene, extents, oversampling, sample_grids
+from .polar.sampling import aperture_windows
+
+_log = logging.getLogger("clsas")
 
 LEAF_SAMPLES = 16  # the default first stage: the fewest pulses whose leaf grid is at least this wide in angle
 MAX_LEAVES = 64  # ... and no more leaves than this (a leaf's launches and host work cost alike however short it is)
+# a leaf sample's back-projection of one pulse of one receiver (a bp_tile lane-pulse), in merge interpolations
+# (bench_ffbp --stages reports both, op_ns: leaf_lane_pulse, merge_interpolation)
+LEAF_PULSE_COST = 0.11
+LEAF_SAMPLE_COST = 1.5  # ... and a leaf sample's own in a cold call (its layout's fields, demodulation: leaf_sample)
 
 
 @dataclasses.dataclass
@@ -65,6 +83,20 @@ class Tree:
     def samples(self) -> list[int]:
         """Polar samples computed (inside their rows' spans) of each level up to the top."""
         return [int(sum(g.computed for g in level if g is not None)) for level in self.grids[:self.top + 1]]
+
+
+def _spine(n_pulses: int, first: int, factor: int) -> tuple[list, list]:
+    """The node (p0, p1) holding the middle pulse at each level of the tree of ``first``-pulse leaves
+    (:func:`_levels`, up to its root), and the number of nodes of each level."""
+    nodes, counts, span = [], [], first
+    while True:
+        count = -(-n_pulses // span)
+        start = (n_pulses // 2) // span * span if count > 1 else 0
+        nodes.append((start, min(start + span, n_pulses)))
+        counts.append(count)
+        if count == 1:
+            return nodes, counts
+        span *= factor
 
 
 def _levels(n_pulses: int, first: int, factor: int):
@@ -119,14 +151,27 @@ class _Frames:
                              + base ** 2 / (4 * self.r_near))
         return centres, axes, halves, bases
 
+    def transmitters_reach(self, nodes: list, centres: np.ndarray) -> np.ndarray:
+        """max |T - C| (n,) m over the transmitter's positions T at the emissions of each node (p0, p1)'s
+        pulses, C its centre (``centres`` (n, 3), :meth:`frames`): how far from C bp_tile's aperture
+        mask takes its angles."""
+        reach = np.empty(len(nodes))
+        by_length = {}
+        for i, (p0, p1) in enumerate(nodes):
+            by_length.setdefault(p1 - p0, []).append(i)
+        for length, which in by_length.items():
+            pulses = np.array([nodes[i][0] for i in which])[:, None] + np.arange(length)  # (m, length)
+            d = self.tx[pulses] - centres[which][:, None]
+            reach[which] = np.sqrt(np.einsum("mki,mki->mk", d, d).max(axis=1))
+        return reach
+
 
 def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: float, taps: int,
          first: int | None, aperture: float | None, device: bool = False, first_guess: int | None = None) -> Tree:
     """The merge tree for ``echo``'s pulses and the scene (see the module docstring); ``device``:
     the extents' reductions over the skeleton on the OpenCL device (the same tree, bit for bit:
     :mod:`.polar.offsets`); ``first_guess``: a likely leaf length for ``first=None`` (checked by the
-    rule, not trusted: the tree is the same whatever it is; a right one spares probing the longer
-    lengths and one round of extents)."""
+    rule, not trusted: the tree is the same whatever it is; a right one spares a round of extents)."""
     frames = _Frames(echo, chosen, scene)
     if frames.r_near <= 0:
         raise ValueError("grid: a pixel lies on the sonar's track (zero range); ffbp's polar grids need every pixel "
@@ -146,55 +191,115 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
             return
         centres, axes, halves, bases = frames.frames(nodes)
         widen = halves + bases / 2
-        limits = None if sine is None else np.minimum(1.0, sine + axis_tilt(axes) + halves / frames.r_near)
+        limits = None if sine is None else aperture_windows(scene, centres, axes, sine,
+                                                            frames.transmitters_reach(nodes, centres), frames.r_near,
+                                                            taps if device else None)
         found = extents(centres, axes, halves, scene, window + np.stack([-widen, widen], axis=1), bw, f0, c, limits,
                         taps if device else None)
         extents_of.update(zip(nodes, found))
 
+    def sample(pairs: list) -> None:
+        """The polar grids of the (node (p0, p1), oversampling) pairs not yet sampled, at once (None: a
+        node that sees nothing)."""
+        new = [pair for pair in dict.fromkeys(pairs) if pair not in grids_at]
+        if not new:
+            return
+        find_extents([node for node, _ in new])
+        seen = [pair for pair in new if extents_of[pair[0]] is not None]
+        grids_at.update({pair: None for pair in new})
+        grids_at.update(zip(seen, sample_grids([extents_of[node] for node, _ in seen], [rho for _, rho in seen],
+                                               taps)))
+
     def grids_for(nodes, rho) -> list:
         """The polar grids of the nodes (p0, p1) at oversampling rho (None: a node that sees nothing),
         those not yet sampled at once."""
-        find_extents(nodes)
-        new = [n for n in dict.fromkeys(nodes) if (n, rho) not in grids_at]
-        seen = [n for n in new if extents_of[n] is not None]
-        grids_at.update({(n, rho): None for n in new})
-        grids_at.update(zip([(n, rho) for n in seen], sample_grids([extents_of[n] for n in seen], rho, taps)))
-        return [grids_at[(n, rho)] for n in nodes]
+        sample([(node, rho) for node in nodes])
+        return [grids_at[(node, rho)] for node in nodes]
 
     def reach(nodes) -> float:
         """Pixels read at the final stage a pixel if these nodes were the top ones (kernels/ffbp.cl skips
         a node whose grid a pixel is not in)."""
         return sum(extents_of[node].reach for node in nodes if extents_of[node] is not None)
 
+    def spine(n: int) -> tuple:
+        """The tree of ``n``-pulse leaves estimated from its spine (:func:`_spine`: each level's samples
+        and reach taken as its node count x those of its node holding the middle pulse): its spine's
+        nodes, their levels' node counts and reach, and the top the rule (:func:`stop`'s) settles on
+        the spine's boxes (as the plan's first guess is) with its oversampling and the levels' box
+        samples up to it; None when the middle leaf sees nothing or the tree's stages cannot meet the
+        tolerance."""
+        nodes, counts = _spine(echo.n_pulses, n, factor)
+        found = [extents_of[node] for node in nodes]
+        if found[0] is None:
+            return None
+        covered = [count * (0.0 if e is None else e.reach) for count, e in zip(counts, found)]
+        top = min(1, len(nodes) - 1)
+        for _ in range(3):
+            try:
+                rho = oversampling(taps, tolerance, top + 1)
+            except ValueError:  # a tree this deep cannot meet the tolerance: not a candidate
+                return None
+            sizes = [count * (0 if e is None else e.size(rho, taps)) for count, e in zip(counts, found)]
+            guess = 0
+            while guess + 1 < len(nodes) and factor * sizes[guess + 1] <= n_pixels * (covered[guess]
+                                                                                       - covered[guess + 1]):
+                guess += 1
+            if guess == top:
+                break
+            top = guess
+        return nodes[:top + 1], counts[:top + 1], covered[top], rho, sizes[:top + 1]
+
+    def estimated_costs(near: list, guessed: list) -> dict:
+        """The estimated cost, in merge interpolations, of the trees of each of ``near``'s leaf lengths
+        (:func:`spine`; inf for None): its leaves' (LEAF_SAMPLE_COST a sample besides LEAF_PULSE_COST a
+        sample, pulse and receiver), its merges' (factor a sample of each merged level) and its final
+        stage's (a read a pixel and top node whose grid covers it), in the samples computed (the rows'
+        spans): the middle leaf's sampled grid's, and the merged levels' boxes x the share of its box
+        that leaf computes (its upper levels, whose grids are the largest, not sampled). The grids of
+        the levels of the ``guessed`` tree (pulses of each level's nodes, or none) that its first
+        sampled round reads if its spine's top is right are sampled with the leaves' (one call; the
+        same grids whatever the choice)."""
+        spines = {n: spine(n) for n in near}
+        pairs = [(s[0][0], s[3]) for s in spines.values() if s is not None]
+        if guessed and spines.get(guessed[0][0][1] - guessed[0][0][0]) is not None:
+            nodes, _, _, rho, _ = spines[guessed[0][0][1] - guessed[0][0][0]]
+            pairs += [(node, rho) for level in guessed[:len(nodes) + 1] for node in level]
+        sample(pairs)
+        costs = {}
+        for n, s in spines.items():
+            if s is None:
+                costs[n] = np.inf
+                continue
+            nodes, counts, covered, rho, sizes = s
+            leaf = grids_for(nodes[:1], rho)[0]
+            share = leaf.computed / max(leaf.size, 1)
+            costs[n] = ((LEAF_SAMPLE_COST + LEAF_PULSE_COST * len(chosen) * n) * counts[0] * leaf.computed
+                        + factor * share * sum(sizes[1:]) + n_pixels * covered)
+        return costs
+
     if first is None:
-        # doubling from one, whatever the factor (a factor of 4 would jump past the best); lengths
-        # that make more than MAX_LEAVES leaves are passed over unprobed, and the rest probed at once.
-        # With a guess (the last tree's length on this grid) only the lengths up to it are probed
-        # first, together with the guessed tree's nodes: the rule's answer is the guess when it
-        # passes and no shorter length does, else the longer lengths are probed as well (the same
-        # answer either way: each node's extent is its own, however many are found at once)
+        # the fewest pulses whose middle leaf is wide enough (doubling from one, whatever the factor: a
+        # factor of 4 would jump past the best; lengths that make more than MAX_LEAVES leaves are
+        # passed over), then that length or a neighbour (half, double) by their estimated costs.
+        # The lengths' middle nodes and the root (every tree's spine, for a factor that is a power of
+        # two) are probed at once, with a guess (the last tree's length on this grid) together with the
+        # guessed tree's nodes (the same answer either way: each node's extent is its own, however
+        # many are found at once; a right guess spares a round of extents)
         rho0 = oversampling(taps, tolerance, 1)
         lengths = [1 << k for k in range(max(echo.n_pulses - 1, 1).bit_length())
                    if -(-echo.n_pulses // (1 << k)) <= MAX_LEAVES]
         middles = [(echo.n_pulses // 2, min(echo.n_pulses // 2 + n, echo.n_pulses)) for n in lengths]
-        if first_guess in lengths:
-            known = lengths.index(first_guess) + 1
-            guessed = _levels(echo.n_pulses, first_guess, factor)[0]
-            find_extents(middles[:known] + [node for level in guessed for node in level])
-        else:
-            known = 0
-
-        def wide(count: int) -> list:
-            """Those of the first ``count`` lengths whose middle node's grid is wide enough (only its rows are
-            needed, not the sampled grid)."""
-            return [n for n, m in zip(lengths[:count], middles[:count])
-                    if extents_of[m] is not None and extents_of[m].rows(rho0, taps) - 2 * taps >= LEAF_SAMPLES]
-
-        passing = wide(known)
-        if not passing:
-            find_extents(middles[known:])
-            passing = wide(len(lengths))
+        guessed = _levels(echo.n_pulses, first_guess, factor)[0] if first_guess in lengths else []
+        find_extents(middles + [(0, echo.n_pulses)] + [node for level in guessed for node in level])
+        passing = [n for n, m in zip(lengths, middles)
+                   if extents_of[m] is not None and extents_of[m].rows(rho0, taps) - 2 * taps >= LEAF_SAMPLES]
         first = passing[0] if passing else echo.n_pulses
+        if first in lengths:
+            near = [n for n in (first // 2, first, 2 * first) if n in lengths]
+            find_extents([node for n in near for node in _spine(echo.n_pulses, n, factor)[0]])
+            costs = estimated_costs(near, guessed)
+            first = min(near, key=lambda n: (costs[n], n != first))  # the rule's length on a tie
+            _log.debug("ffbp: leaf lengths' estimated costs %s (merge interpolations): %d pulses a leaf", costs, first)
     pulses, children = _levels(echo.n_pulses, first, factor)
     find_extents([node for level in pulses for node in level])
 

@@ -67,9 +67,10 @@ class Extent:
         return sample_grids([self], rho, taps)[0]
 
 
-def sample_grids(found: list, rho: float, taps: int) -> list:
-    """The polar grids of extents ``found`` at oversampling ``rho`` (:meth:`Extent.sample`), their
-    rows' spans computed together (:data:`RAGGED`; extents without an envelope get none).
+def sample_grids(found: list, rho, taps: int) -> list:
+    """The polar grids of extents ``found`` at oversampling ``rho`` (:meth:`Extent.sample`; one for all
+    or one an extent), their rows' spans computed together (:data:`RAGGED`; extents without an
+    envelope get none).
 
     Row j's span [lo, hi) of a grid r0 + i dr, v0 + j dv: the ranges of the scene's skeleton points
     whose sines lie within margin / r_lo + pad dv of the row's (the rectangle's own padding in
@@ -79,7 +80,8 @@ def sample_grids(found: list, rho: float, taps: int) -> list:
     window up to one bin wider (more kept, never less). The nearest and farthest range over a
     window of bins come from a sparse table of each envelope (extrema over 2^k bins from every
     bin; two overlapping windows of 2^k bins cover any window), all the grids' rows at once."""
-    shapes = [e._sampling(rho, taps) for e in found]
+    rhos = [rho] * len(found) if np.ndim(rho) == 0 else rho
+    shapes = [e._sampling(float(r), taps) for e, r in zip(found, rhos, strict=True)]
     ragged = [k for k, e in enumerate(found) if RAGGED and e.envelope is not None]
     spans = dict(zip(ragged, _spans([found[k] for k in ragged], [shapes[k] for k in ragged]))) if ragged else {}
     return [PolarGrid(e.centre, e.axis, e.e1, e.e2, e.plane, r0, dr, n_r, v0, dv, n_v, spans.get(k))
@@ -128,7 +130,7 @@ def extents(centres: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray, sce
             device_taps: int | None = None) -> list:
     """The extents of the polar grids of sub-apertures with frames (centres (n, 3) m, unit axes
     (n, 3)) and half-lengths L (n,) m, each covering the scene within its recorded range window
-    ``windows`` (n, 2) m (min, max) and, with ``sine_limits`` (n,), the sines |v| <= its limit
+    ``windows`` (n, 2) m (min, max) and, with ``sine_limits`` (n, 2), the sines lo <= v <= hi
     (the integration angle); a range span is that of the pixels within its sines (a sector of a
     long scene is nearer than the scene's far corners). A list of Extent, None where the scene
     lies wholly outside the window or the angular limit. The skeleton's ranges and sines are
@@ -154,7 +156,7 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
     v_hi = np.minimum(v_max + v_margin, 1.0)
     alive = r_lo > 0
     if sine_limits is not None:
-        v_lo, v_hi = np.maximum(v_lo, -sine_limits), np.minimum(v_hi, sine_limits)
+        v_lo, v_hi = np.maximum(v_lo, sine_limits[:, 0]), np.minimum(v_hi, sine_limits[:, 1])
         r_min, r_max, any_seen, reach = reduced.seen(v_lo - v_margin, v_hi + v_margin, v_lo, v_hi)
         alive &= (v_hi > v_lo) & any_seen
     else:
@@ -188,6 +190,8 @@ def _extents(centres, axes, half_lengths, scene, windows, bandwidth, f0, c, sine
 
 
 APERTURE_SLACK = 0.01  # m: the float32 aperture mask's rounding allowance (as backprojection.tiles.aperture_spans)
+YAWED = 1e-3  # |w| (an axis' part off y) above which aperture_windows reduces the scene across y (below: at most
+# that much sine to gain, not worth a reduction)
 
 
 def axis_tilt(axes: np.ndarray) -> np.ndarray:
@@ -197,6 +201,52 @@ def axis_tilt(axes: np.ndarray) -> np.ndarray:
     as one along +y)."""
     y = np.array([0.0, 1.0, 0.0])
     return np.minimum(np.linalg.norm(axes - y, axis=1), np.linalg.norm(axes + y, axis=1))
+
+
+def aperture_sines(half_sin: float, tilt: np.ndarray, reach: np.ndarray, r_near: float) -> np.ndarray:
+    """The largest |v| (n,) (the sine off a sub-aperture's axis, seen from its centre C) of a point at
+    a range of at least ``r_near`` m from C that a pulse of the sub-aperture sees within the
+    integration angle, its transmitters within ``reach`` (n,) m of C and its axis turned ``tilt``
+    (n,) from the y axis (:func:`axis_tilt`): half_sin + tilt + (E + APERTURE_SLACK) / (r_near - E),
+    E = reach (the bound of :func:`within_aperture`'s docstring, solved for the sine), at most 1 (1
+    where r_near <= E)."""
+    reach = np.asarray(reach, np.float64)
+    gap = r_near - reach
+    with np.errstate(divide="ignore"):
+        turn = np.where(gap > 0, (reach + APERTURE_SLACK) / np.where(gap > 0, gap, 1.0), np.inf)
+    return np.minimum(1.0, half_sin + tilt + turn)
+
+
+def aperture_windows(scene: Scene, centres: np.ndarray, axes: np.ndarray, half_sin: float, reach: np.ndarray,
+                     r_near: float, device_taps: int | None = None) -> np.ndarray:
+    """The sines [lo, hi] (n, 2) off each sub-aperture's axis u (centres C (n, 3), unit axes (n, 3))
+    of the scene's points that a pulse of it sees within the integration angle (transmitters within
+    ``reach`` (n,) m of C; points at ranges of at least ``r_near`` m): |v| <= :func:`aperture_sines`
+    and, for an axis off the y axis, the tighter window from u = (u . y) y + w: v = (u . y) s + |w| t,
+    s = y . d the point's sine off y seen from C (|s| <= the sine of aperture_sines without tilt) and
+    t = (w / |w|) . d within the skeleton's extremes along w / |w| widened by scene.margin / r_near
+    (a reduction as :func:`extents`', ``device_taps`` as there). A track heading along y gets the
+    first alone (|w| <= YAWED); one yawed 45 deg the second (the first bounds |v| by nearly 1 there)."""
+    limit = aperture_sines(half_sin, axis_tilt(axes), reach, r_near)
+    window = np.stack([-limit, limit], axis=1)
+    off_y = axes.copy()
+    off_y[:, 1] = 0.0
+    w = np.linalg.norm(off_y, axis=1)
+    yawed = np.flatnonzero(w > YAWED)
+    if yawed.size:
+        across = off_y[yawed] / w[yawed, None]
+        step = CHUNK_NODES if device_taps is None else DEVICE_CHUNK_NODES
+        t_min, t_max = np.empty(yawed.size), np.empty(yawed.size)
+        for s in range(0, yawed.size, step):
+            part, nodes = slice(s, s + step), yawed[s:s + step]
+            reduced = (HostOffsets(scene, centres[nodes], across[part]) if device_taps is None
+                       else DeviceOffsets(scene, centres[nodes], across[part], device_taps))
+            _, _, t_min[part], t_max[part] = reduced.extremes(far=False)
+        margin = scene.margin / r_near
+        sine = np.abs(axes[yawed, 1]) * aperture_sines(half_sin, np.zeros(yawed.size), reach[yawed], r_near)
+        window[yawed, 0] = np.maximum(window[yawed, 0], -sine + w[yawed] * (t_min - margin))
+        window[yawed, 1] = np.minimum(window[yawed, 1], sine + w[yawed] * (t_max + margin))
+    return window
 
 
 def within_aperture(grids: list, transmitters: np.ndarray, half_sin: float) -> list:
