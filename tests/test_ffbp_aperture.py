@@ -223,3 +223,38 @@ def test_a_yawed_tracks_grids_hold_what_its_pulses_see_in_fewer_angles(monkeypat
     alone = plan(echo, [0], scene, 4, 0.1, 8, None, 0.2)
     print(degrees, "leaf samples", windowed.samples(), "against", alone.samples())
     assert sum(windowed.samples()) < 0.8 * sum(alone.samples())
+
+
+def test_an_arcs_nodes_get_angle_limits_from_ranges_no_pixel_undercuts(monkeypatch):
+    """The aperture's angle limit of a node, (E + slack) / (r - E) and the yawed window's margin / r,
+    holds for pixels at least r from the node's centre C. A node's centre lies between its pulses
+    and, on a turning track, inside the bend, so the nearest range from the sampled phase centres
+    (the scalar the planner passed before review 13 M1) exceeded min |X - C| by up to 5 cm on this
+    arc (60 m radius, 40 deg, the scene 3-8 m inside the turn); each node's r is now its centre's
+    distance to the skeleton less the scene's margin: never above any pixel's |X - C| (measured at
+    least 0.2 m below here), and the grids hold every pixel a pulse sees."""
+    n, radius, aperture = 1024, 60.0, 0.1
+    phi = np.deg2rad(np.linspace(-20.0, 20.0, n))
+    tx = np.column_stack([radius - radius * np.cos(phi), radius * np.sin(phi), np.zeros(n)])
+    heading = np.column_stack([np.sin(phi), np.cos(phi), np.zeros(n)])
+    fs = 200e3
+    echo = EchoData(data=np.broadcast_to(np.zeros(1, np.complex64), (1, n, int(2 * 30.0 / 1500.0 * fs))),
+                    eta=np.arange(n) * 0.05, t0=[0.0], fs=fs, tx_pos=tx, rx_pos=np.stack([tx, tx + 0.05 * heading], 1)[None],
+                    rx_tau=[[0.0, 0.05]], waveform=Waveform(f0=150e3, bandwidth=20e3, duration=2e-3, fs=25e3),
+                    medium=Medium(1500.0), receivers=("h0",), compressed=True)
+    half = 0.5 * radius * np.sin(np.deg2rad(20.0))
+    grid = Grid.plane(np.linspace(3.0, 8.0, 120), np.linspace(-half, half, 120), -1.0)
+    pixels = grid.positions.reshape(-1, 3)
+    windows = tree_module.aperture_windows
+    undercut = []
+
+    def checked(scene, centres, axes, half_sin, reach, r_near, device_taps=None):
+        nearest = np.array([np.linalg.norm(pixels - c, axis=1).min() for c in centres])
+        undercut.append(float((np.asarray(r_near) - nearest).max()))
+        return windows(scene, centres, axes, half_sin, reach, r_near, device_taps)
+
+    monkeypatch.setattr(tree_module, "aperture_windows", checked)
+    tree = plan(echo, [0], Scene.of(grid.positions), 4, 0.1, 8, None, aperture)
+    print("largest r - min |X - C| over the planner's calls", max(undercut))
+    assert max(undercut) < 0.0
+    assert _assert_grids_hold_what_pulses_see(tree, tx, pixels, aperture) >= 16

@@ -19,7 +19,8 @@ a node of level l + 1 is ``factor`` consecutive nodes of level l. A node's frame
 
 Its polar grid covers the scene within the recorded range window widened by L + max |T - R| / 2
 and, with an ``aperture``, the angles |v| <= sin(aperture / 2) + min(|u - y|, |u + y|) + (E + slack)
-/ (r_near - E), E = max |T - C| over the node's transmitters T (the pixels that some pulse of the node
+/ (r_C - E), E = max |T - C| over the node's transmitters T and r_C = the distance from the node's centre C
+to the scene's skeleton less its margin, below every pixel's |X - C| (the pixels that some pulse of the node
 sees within the aperture: bp_tile's mask takes the |sine| off the y axis at the transmitter, so a
 track heading along -y is limited as one along +y; :func:`clsas.image.ffbp.polar.sampling.aperture_sines`),
 and for an axis turned from y within the window :func:`clsas.image.ffbp.polar.sampling.aperture_windows`
@@ -192,7 +193,8 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         centres, axes, halves, bases = frames.frames(nodes)
         widen = halves + bases / 2
         limits = None if sine is None else aperture_windows(scene, centres, axes, sine,
-                                                            frames.transmitters_reach(nodes, centres), frames.r_near,
+                                                            frames.transmitters_reach(nodes, centres),
+                                                            scene.nearest(centres) - scene.margin,
                                                             taps if device else None)
         found = extents(centres, axes, halves, scene, window + np.stack([-widen, widen], axis=1), bw, f0, c, limits,
                         taps if device else None)

@@ -203,9 +203,9 @@ def axis_tilt(axes: np.ndarray) -> np.ndarray:
     return np.minimum(np.linalg.norm(axes - y, axis=1), np.linalg.norm(axes + y, axis=1))
 
 
-def aperture_sines(half_sin: float, tilt: np.ndarray, reach: np.ndarray, r_near: float) -> np.ndarray:
+def aperture_sines(half_sin: float, tilt: np.ndarray, reach: np.ndarray, r_near: np.ndarray) -> np.ndarray:
     """The largest |v| (n,) (the sine off a sub-aperture's axis, seen from its centre C) of a point at
-    a range of at least ``r_near`` m from C that a pulse of the sub-aperture sees within the
+    a range of at least ``r_near`` (n,) m from C that a pulse of the sub-aperture sees within the
     integration angle, its transmitters within ``reach`` (n,) m of C and its axis turned ``tilt``
     (n,) from the y axis (:func:`axis_tilt`): half_sin + tilt + (E + APERTURE_SLACK) / (r_near - E),
     E = reach (the bound of :func:`within_aperture`'s docstring, solved for the sine), at most 1 (1
@@ -218,10 +218,13 @@ def aperture_sines(half_sin: float, tilt: np.ndarray, reach: np.ndarray, r_near:
 
 
 def aperture_windows(scene: Scene, centres: np.ndarray, axes: np.ndarray, half_sin: float, reach: np.ndarray,
-                     r_near: float, device_taps: int | None = None) -> np.ndarray:
+                     r_near: np.ndarray, device_taps: int | None = None) -> np.ndarray:
     """The sines [lo, hi] (n, 2) off each sub-aperture's axis u (centres C (n, 3), unit axes (n, 3))
     of the scene's points that a pulse of it sees within the integration angle (transmitters within
-    ``reach`` (n,) m of C; points at ranges of at least ``r_near`` m): |v| <= :func:`aperture_sines`
+    ``reach`` (n,) m of C; every point at least ``r_near`` (n,) m from C: the planner passes
+    scene.nearest(C) - scene.margin, a bound for every pixel since each lies within the margin of a
+    skeleton point, where the nearest phase centre's range would not bound a centre between the
+    pulses or inside a turned track's bend): |v| <= :func:`aperture_sines`
     and, for an axis off the y axis, the tighter window from u = (u . y) y + w: v = (u . y) s + |w| t,
     s = y . d the point's sine off y seen from C (|s| <= the sine of aperture_sines without tilt) and
     t = (w / |w|) . d within the skeleton's extremes along w / |w| widened by scene.margin / r_near
@@ -242,8 +245,10 @@ def aperture_windows(scene: Scene, centres: np.ndarray, axes: np.ndarray, half_s
             reduced = (HostOffsets(scene, centres[nodes], across[part]) if device_taps is None
                        else DeviceOffsets(scene, centres[nodes], across[part], device_taps))
             _, _, t_min[part], t_max[part] = reduced.extremes(far=False)
-        margin = scene.margin / r_near
-        sine = np.abs(axes[yawed, 1]) * aperture_sines(half_sin, np.zeros(yawed.size), reach[yawed], r_near)
+        near = r_near[yawed]
+        with np.errstate(divide="ignore"):
+            margin = np.where(near > 0, scene.margin / np.where(near > 0, near, 1.0), np.inf)
+        sine = np.abs(axes[yawed, 1]) * aperture_sines(half_sin, np.zeros(yawed.size), reach[yawed], near)
         window[yawed, 0] = np.maximum(window[yawed, 0], -sine + w[yawed] * (t_min - margin))
         window[yawed, 1] = np.minimum(window[yawed, 1], sine + w[yawed] * (t_max + margin))
     return window
