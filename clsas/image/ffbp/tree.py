@@ -55,15 +55,15 @@ import logging
 import numpy as np
 
 from ...model import EchoData
-from .polar import Scene, extents, oversampling, sample_grids
-from .polar.sampling import aperture_windows
+from .polar import Scene, aperture_windows, extents, oversampling, sample_grids
 
 _log = logging.getLogger("clsas")
 
 LEAF_SAMPLES = 16  # the default first stage: the fewest pulses whose leaf grid is at least this wide in angle
 MAX_LEAVES = 64  # ... and no more leaves than this (a leaf's launches and host work cost alike however short it is)
 # a leaf sample's back-projection of one pulse of one receiver (a bp_tile lane-pulse), in merge interpolations
-# (bench_ffbp --stages reports both, op_ns: leaf_lane_pulse, merge_interpolation)
+# (bench_ffbp --stages reports both, op_ns: leaf_lane_pulse, merge_interpolation), as measured with PoCL's
+# AVX-512 kernels (session 13; AVX2 kernels or another device move the ratio: the choice among valid trees only)
 LEAF_PULSE_COST = 0.11
 LEAF_SAMPLE_COST = 1.5  # ... and a leaf sample's own in a cold call (its layout's fields, demodulation: leaf_sample)
 
@@ -235,20 +235,25 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         if found[0] is None:
             return None
         covered = [count * (0.0 if e is None else e.reach) for count, e in zip(counts, found)]
+        def sized(top):  # the oversampling of a tree topped at level top and the levels' box samples at it
+            rho = oversampling(taps, tolerance, top + 1)
+            return rho, [count * (0 if e is None else e.size(rho, taps)) for count, e in zip(counts, found)]
+
         top = min(1, len(nodes) - 1)
-        for _ in range(3):
-            try:
-                rho = oversampling(taps, tolerance, top + 1)
-            except ValueError:  # a tree this deep cannot meet the tolerance: not a candidate
-                return None
-            sizes = [count * (0 if e is None else e.size(rho, taps)) for count, e in zip(counts, found)]
-            guess = 0
-            while guess + 1 < len(nodes) and factor * sizes[guess + 1] <= n_pixels * (covered[guess]
-                                                                                       - covered[guess + 1]):
-                guess += 1
-            if guess == top:
-                break
-            top = guess
+        try:  # ValueError: a tree this deep cannot meet the tolerance: not a candidate
+            for _ in range(3):
+                rho, sizes = sized(top)
+                guess = 0
+                while guess + 1 < len(nodes) and factor * sizes[guess + 1] <= n_pixels * (covered[guess]
+                                                                                           - covered[guess + 1]):
+                    guess += 1
+                if guess == top:
+                    break
+                top = guess
+            else:  # not settled: the last guess's own oversampling and sizes
+                rho, sizes = sized(top)
+        except ValueError:
+            return None
         return nodes[:top + 1], counts[:top + 1], covered[top], rho, sizes[:top + 1]
 
     def estimated_costs(near: list, guessed: list) -> dict:

@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 
-from .grids import PolarGrid, oversampling
+from .grids import PolarGrid
 from .offsets import DeviceOffsets, HostOffsets
 from .scene import Scene, frame_axes
 
