@@ -15,7 +15,7 @@ import importlib
 import numpy as np
 import pytest
 from _tolerances import rel_l2
-from test_ffbp import GRID, echo_of
+from _ffbp_helpers import GRID, echo_of
 
 import clsas
 from clsas import Array, Medium, Platform, PointTargets, PulseSchedule, Scenario, Waveform

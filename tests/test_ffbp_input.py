@@ -1,0 +1,125 @@
+"""ffbp's refusals (issue 27's reproducers): bad input named by parameter, an image that overflows
+complex64, and memory budgets checked before ffbp plans or allocates.
+
+Scenes: tests/_ffbp_helpers.py's (Huang & Yang 2022's sonar over a 4 x 4 m seafloor grid: points or speckle).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _ffbp_helpers import DEPTH, GRID, _geometry_only_echo, echo_of, keep_plans  # noqa: F401 (keep_plans: a fixture)
+
+import clsas
+from clsas.model import Grid
+from clsas.image.backprojection import backproject
+from clsas.image.ffbp import ffbp
+from clsas.scene import presets
+from clsas.scene.targets import PointTargets
+
+pytestmark = pytest.mark.usefixtures("keep_plans")
+
+
+def test_bad_input_is_refused():
+    echo = echo_of("straight")
+    far = Grid.plane(np.arange(900.0, 901.0, 0.1), np.arange(-1.0, 1.0, 0.1), DEPTH)
+    with pytest.raises(ValueError, match="never sees"):
+        ffbp(echo, far, backend="numpy")
+    for tol in (0.0, -0.1, float("nan")):
+        with pytest.raises(ValueError, match="tolerance"):
+            ffbp(echo, GRID, tolerance=tol, backend="numpy")
+    with pytest.raises(ValueError, match="factor"):
+        ffbp(echo, GRID, factor=1, backend="numpy")
+    with pytest.raises(ValueError, match="taps"):
+        ffbp(echo, GRID, taps=6, backend="numpy")
+    with pytest.raises(ValueError, match="aperture"):
+        ffbp(echo, GRID, aperture=0.0, backend="numpy")
+    kiang = presets.kiang2022(n_pulses=4)
+    buoy = clsas.range_compress(clsas.simulate(kiang.replace(targets=(PointTargets([100.0, 0.0, -43.0]),)),
+                                               backend="numpy", progress=False))
+    with pytest.raises(ValueError, match="'C' is stationary"):
+        ffbp(buoy, Grid.plane([100.0, 100.1], [0.0, 0.1], -43.0), backend="numpy")
+
+
+def test_an_overflowing_image_raises(opencl_device):
+    """Finite records near complex64's largest value sum past it: ffbp raises on both backends, as
+    backproject does (review 9 R7), instead of returning inf."""
+    echo = echo_of("straight")
+    grid = Grid.plane(np.arange(43.7, 44.3, 0.015), np.arange(-0.3, 0.3, 0.02), DEPTH)  # around a point
+    peak = np.abs(ffbp(echo, grid, backend="opencl", progress=False).data).max()
+    # the image's peak 1.5 times complex64's largest value (a leaf's image, 8 of the 20 pulses, below
+    # it: the NumPy backend's leaves go through backproject, which would raise first)
+    huge = echo.replace(data=(echo.data * (1.5 * float(np.finfo(np.float32).max) / float(peak))).astype(np.complex64))
+    for backend in ("numpy", "opencl"):
+        with pytest.raises(ValueError, match="ffbp: the image overflows complex64"):
+            ffbp(huge, grid, backend=backend, progress=False)
+
+
+def test_memory_budget_refuses_before_allocating():
+    """ffbp on a 300 x 300 grid under a 2 MB budget refuses with the budget's error before it
+    plans or allocates (it used to allocate ~20 MiB)."""
+    echo = echo_of("straight")
+    grid = Grid.plane(np.linspace(42.0, 46.0, 300), np.linspace(-2.0, 2.0, 300), DEPTH)
+    with clsas.use_memory_budget("2M"):
+        with pytest.raises(clsas.budget.MemoryBudgetError, match="ffbp onto 90000 pixels"):
+            ffbp(echo, grid, backend="opencl")
+
+
+def test_a_string_for_a_flag_is_refused():
+    echo = echo_of("straight")
+    with pytest.raises(TypeError, match="ffbp stop_and_go"):
+        ffbp(echo, GRID, stop_and_go="no", backend="numpy")
+    with pytest.raises(TypeError, match="backproject stop_and_go"):
+        backproject(echo, GRID, stop_and_go="no", backend="numpy")
+
+
+@pytest.mark.parametrize("name, value, error", [("aperture", "a", TypeError), ("factor", 2.5, TypeError),
+                                                 ("tolerance", "0.1", TypeError), ("first", 0, ValueError),
+                                                 ("taps", True, ValueError)])
+def test_messages_name_the_parameter(name, value, error):
+    with pytest.raises(error, match=f"ffbp {name}"):
+        ffbp(echo_of("straight"), GRID, backend="numpy", **{name: value})
+
+
+@pytest.mark.parametrize("options", [dict(first=1, factor=2), dict(first=2), dict(interp="sinc8", first=4), dict()])
+def test_numpy_memory_stays_within_the_plan(options):
+    """The NumPy backend's traced peak (its first stage by back-projection's reference, its merges
+    by merge_reference, the tap tables built afresh) stays within the memory plan the budget is
+    checked against. Measured 8.8-70 MB against plans of 39-178 MB."""
+    import tracemalloc
+
+    from clsas.interp import tap_table
+
+    echo = _geometry_only_echo(64)
+    grid = Grid.plane(np.linspace(45.0, 47.0, 48), np.linspace(-0.4, 0.4, 48), DEPTH)
+    tap_table.cache_clear()
+    tracemalloc.start()
+    try:
+        img = ffbp(echo, grid, backend="numpy", progress=False, **options)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak <= img.provenance["memory_bytes"]
+
+
+@pytest.mark.parametrize("options", [dict(backend="numpy", interp="sinc8"), dict(backend="opencl", tolerance=0.37),
+                                     dict(backend="numpy", first=3)])
+def test_a_small_budget_refuses_before_planning(opencl_device, options):
+    """Under a 64 KiB budget ffbp refuses (the tap tables, the plan's temporaries, the records)
+    before it builds a table or plans (it used to build 1.6-4.1 MB first, issue 27)."""
+    import tracemalloc
+
+    from clsas.interp import tap_table
+
+    echo = echo_of("straight")
+    grid = Grid.plane(np.linspace(43.9, 44.1, 6), np.linspace(-0.1, 0.1, 6), DEPTH)  # its own bytes fit
+    tap_table.cache_clear()
+    with clsas.use_memory_budget(1 << 16):
+        tracemalloc.start()
+        try:
+            with pytest.raises(clsas.budget.MemoryBudgetError, match="tables and plan"):
+                ffbp(echo, grid, progress=False, **options)
+            peak = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+    assert peak < 1 << 16
