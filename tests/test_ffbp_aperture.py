@@ -1,7 +1,7 @@
 """ffbp's first stage with an integration angle: the leaves' samples that no pulse sees within the
 aperture (:func:`clsas.image.ffbp.polar.within_aperture`) are zero and are not back-projected.
 
-Scene: test_ffbp's (Huang & Yang 2022's sonar over a 4 x 4 m grid 42-46 m across track, a speckle
+Scene: tests/_ffbp_helpers.py's (Huang & Yang 2022's sonar over a 4 x 4 m grid 42-46 m across track, a speckle
 of random scatterers), imaged with a narrow integration angle (APERTURE: |sin| <= 0.025, so each
 pulse sees a strip of about 2.2 m of the grid's 4 m along track); on the straight track, with sway
 and yaw, and on the straight track mirrored (y -> -y: heading along -y, the scene mirrored with it).
@@ -240,8 +240,9 @@ def test_an_arcs_nodes_get_angle_limits_from_ranges_no_pixel_undercuts(monkeypat
     tx = np.column_stack([radius - radius * np.cos(phi), radius * np.sin(phi), np.zeros(n)])
     heading = np.column_stack([np.sin(phi), np.cos(phi), np.zeros(n)])
     fs = 200e3
+    rx = np.stack([tx, tx + 0.05 * heading], 1)[None]
     echo = EchoData(data=np.broadcast_to(np.zeros(1, np.complex64), (1, n, int(2 * 30.0 / 1500.0 * fs))),
-                    eta=np.arange(n) * 0.05, t0=[0.0], fs=fs, tx_pos=tx, rx_pos=np.stack([tx, tx + 0.05 * heading], 1)[None],
+                    eta=np.arange(n) * 0.05, t0=[0.0], fs=fs, tx_pos=tx, rx_pos=rx,
                     rx_tau=[[0.0, 0.05]], waveform=Waveform(f0=150e3, bandwidth=20e3, duration=2e-3, fs=25e3),
                     medium=Medium(1500.0), receivers=("h0",), compressed=True)
     half = 0.5 * radius * np.sin(np.deg2rad(20.0))

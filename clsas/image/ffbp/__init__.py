@@ -71,7 +71,7 @@ SAMPLE_BYTES = {"opencl": 8, "numpy": 16}  # a polar or image sample (complex64 
 LEAF_BATCH_BYTES = 40  # held a polar sample of a first-stage batch (leaves.py: device image 16, fields 16, work-items)
 LEAF_BYTES = 200  # transient a sample of the leaf being tiled (points, padded blocks, offsets; float64)
 GRID_BYTES = 2 * 8 + 24 + 3 * 8  # a pixel: the image (device, host), the pixels' copy, the scene's float temporaries
-# NumPy backend (tests/test_ffbp.py holds the traced peaks below these):
+# NumPy backend (tests/test_ffbp_input.py holds the traced peaks below these):
 REFERENCE_PIXEL_PULSE_BYTES = 320  # back-projection's reference (a leaf): a pixel-pulse of its chunk
 REFERENCE_SAMPLE_BYTES = 400  # ... and a leaf sample (its points, their Grid, image, demodulation)
 MERGE_SAMPLE_BYTES = 320  # merge_reference: an output sample of its chunk (merge.CHUNK)

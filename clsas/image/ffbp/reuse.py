@@ -47,7 +47,8 @@ from ...model import EchoData, Grid
 from .polar import Scene
 from .tree import Tree
 
-KEEP_PLANS = True  # trees and layouts kept between calls (tests/test_ffbp.py turns it off: each call plans afresh)
+# trees and layouts kept between calls (tests/_ffbp_helpers.keep_plans turns it off: each call plans afresh)
+KEEP_PLANS = True
 FINGERPRINT = 4096  # pixels compared on every later call (every n-th one): a grid changed since is planned anew
 LAYOUT_BYTES = 256 * 2**20  # device memory of the first-stage layouts kept between calls (one tree's)
 SHARE = 8  # the layouts kept take at most 1/SHARE of the memory budget and of the device's memory
