@@ -28,7 +28,13 @@ non-stop-and-go delays; the relative L2 difference of the stop-and-go images is 
 torchbp is built from source against torch (CPU) in its own environment, which must also hold
 clsas to run this bench; the rows' ``torchbp`` note names the ``-march`` its extension was compiled
 with (from the compiler's command line its debug information keeps), so that a row says which build
-it timed.
+it timed. The clsas rows also carry (medians over the timed calls) ``kernel_seconds``, bp_tile's own
+time in a call (its profiling events, the image's provenance), ``outside_kernels_seconds``, the
+call's wall time less that (the host's work before the first and after the last launch, bp_fields,
+bp_refs and the gaps between commands: what separates the wall-time ratio from the CPU-time ratio),
+and ``host_cpu_seconds``, the calling thread's CPU time over the call (the host's own work; where
+``outside_kernels_seconds`` is much larger the host thread was waiting, e.g. descheduled by the
+device's threads or other processes).
 
 NumPy (the float64 reference) runs on fewer pulses (its rate does not depend on the pulse
 count). Each figure is the median of several timed runs; the fastest run is reported as
@@ -195,11 +201,18 @@ def versus_torchbp(args) -> None:
         run_torchbp()
         times = {"clsas": [], "torchbp": []}
         cpu = {"clsas": [], "torchbp": []}
+        kernels, outside, host = [], [], []  # clsas: bp_tile's time, the wall time outside it, the host thread's CPU
         for _ in range(repeats):
             for name, run in (("clsas", ours), ("torchbp", run_torchbp)):
-                _, wall, used = timed(run)
+                thread = time.thread_time()
+                out, wall, used = timed(run)
+                thread = time.thread_time() - thread
                 times[name].append(wall)
                 cpu[name].append(used)
+                if name == "clsas":
+                    kernels.append(out.provenance["kernel_seconds"])
+                    outside.append(wall - kernels[-1])
+                    host.append(thread)
         med = {k: statistics.median(v) for k, v in times.items()}
         cpu_med = {k: statistics.median(v) for k, v in cpu.items()}
         agree = float(np.linalg.norm(image.data - theirs) / np.linalg.norm(image.data)) if stop_and_go else None
@@ -211,7 +224,9 @@ def versus_torchbp(args) -> None:
                    **({"ratio_median": med["torchbp"] / med["clsas"],
                        "ratio_best": min(times["torchbp"]) / min(times["clsas"]),
                        "ratio_cpu_median": cpu_med["torchbp"] / cpu_med["clsas"], "torchbp": note,
-                       "rel_l2_vs_torchbp": agree} if name == "clsas" else {}))
+                       "rel_l2_vs_torchbp": agree, "kernel_seconds": statistics.median(kernels),
+                       "outside_kernels_seconds": statistics.median(outside),
+                       "host_cpu_seconds": statistics.median(host)} if name == "clsas" else {}))
 
 
 def fixed_cost(args) -> None:

@@ -66,6 +66,7 @@ alpha = 2 c^2 / (c^2 - |v_r|^2) and w = 2 v_r / (c^2 - |v_r|^2): one leg and a d
 from __future__ import annotations
 
 import dataclasses
+import functools
 import threading
 
 import numpy as np
@@ -116,6 +117,17 @@ _OFFSETS = [("dx", "f4", LANES), ("dy", "f4", LANES), ("dz", "f4", LANES), ("dd"
 PIXELS = record_dtype(_OFFSETS)
 MOVING_PIXELS = record_dtype(_OFFSETS + [("dv", "f4", LANES)])
 LEG_DEFINES = {"same": "SAME_LEGS", "mono": "MONO", "two": None}
+
+
+@functools.lru_cache(maxsize=None)
+def _preambles(legs: str, moving: bool) -> tuple[str, str]:
+    """The C text in front of kernels/backprojection.cl for bp_tile and bp_fields (the records of
+    legs ``legs`` and of pixels at rest or ``moving``, LEG_POLY), and for bp_refs (that and its own
+    records): made once a configuration, not in every call's TileKernel (the same strings, so the
+    same programs)."""
+    preamble = declare_all({"tile_ref_t": TILE_REFS[legs], "tile_params_t": TILE_PARAMS,
+                            "bp_pixels_t": MOVING_PIXELS if moving else PIXELS}) + _horner("LEG_POLY", LEG_POLY)
+    return preamble, preamble + declare_all({"bp_ref_pulse_t": REF_PULSE, "bp_ref_params_t": REF_PARAMS})
 
 
 def _at_emission(echo, hs: np.ndarray, pulses: np.ndarray) -> np.ndarray:
@@ -169,13 +181,11 @@ class TileKernel:
                         **({"MOVING": 1} if self.moving else {}), **({"ROW_SHIFT": 1} if row_shift else {}),
                         **({LEG_DEFINES[legs]: 1} if LEG_DEFINES[legs] else {}),
                         **({"PULSE_SPAN": 1} if self.pulse_span else {})}
-        self.preamble = declare_all({"tile_ref_t": self.reference_dtype, "tile_params_t": TILE_PARAMS,
-                                     "bp_pixels_t": self.pixels}) + _horner("LEG_POLY", LEG_POLY)
+        self.preamble, self.ref_preamble = _preambles(legs, self.moving)
         self.field_defines = {"BP_FIELDS": 1, "ROWS": self.rows, "TAP_ROWS": TAP_ROWS, **({"MOVING": 1} if self.moving else {})}
         self.ref_defines = {"BP_REFS": 1, "TAP_ROWS": TAP_ROWS, **({"MOVING": 1} if self.moving else {}),
                             **({"STOP_AND_GO": 1} if self.stop_and_go else {}),
                             **({LEG_DEFINES[legs]: 1} if LEG_DEFINES[legs] else {})}
-        self.ref_preamble = self.preamble + declare_all({"bp_ref_pulse_t": REF_PULSE, "bp_ref_params_t": REF_PARAMS})
         self._variants = {}  # for_receiver's other configurations, by legs
         self._launchers = {}  # launch's kernels: (SCATTER, BP_STORE, CARRY, queue id, thread) -> (queue, kernel)
 
