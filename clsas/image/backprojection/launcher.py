@@ -36,7 +36,7 @@ from .tile_kernel import TileKernel
 from .tiles import GridPlan
 
 PIXEL_CHUNK = 2**22  # slots on the device at once
-REF_PULSES = 64  # pulses whose tile references are computed at once
+REF_PULSES = 1024  # pulses whose tile references are computed at once (a 1024-pulse upload job: one bp_refs launch)
 REF_BYTES = 16 * 2**20  # a group of receivers' references (every pulse of the call) held at once (_groups)
 IN_FLIGHT_BYTES = 2 * UPLOAD_BYTES  # records (records.upload_pulses' bytes a pulse) of the jobs in flight at once
 MAX_IN_FLIGHT = 8  # jobs in flight at most
