@@ -389,6 +389,17 @@ __kernel void bp_fields(__global const double *positions, __global const int *in
     }
 }
 
+/* The image in the grid's order (clsas/image/backprojection/launcher.py, a grid of one chunk): pixel
+ * m's sum, its slot slot_of[m]'s double2 in sums, rounded once to float2 (round to nearest even, as
+ * numpy's astype(complex64); past float's range: inf). */
+__kernel void bp_order(__global const double2 *sums, __global const int *slot_of, const int n,
+                       __global float2 *out)
+{
+    const int m = get_global_id(0);
+    if (m < n)  /* the launch is padded to whole work-groups */
+        out[m] = convert_float2(sums[slot_of[m]]);
+}
+
 #elif defined(BP_REFS)
 /* bp_tile's references (tile_ref_t, TileKernel.reference_dtype) computed on the device, in double,
  * for pixels moving uniformly at v (or at rest) and a receiver of two position nodes (uniform

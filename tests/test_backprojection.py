@@ -801,3 +801,29 @@ def test_reach_from_a_plans_pixel_box_is_the_reach_from_the_pixels(nodes, rng):
     for velocity in (None, [0.3, -0.2, 0.0]):
         assert np.array_equal(reach(echo, [2, 0], grid.positions, velocity, plan.box),
                               reach(echo, [2, 0], grid.positions, velocity))
+
+
+def test_bp_order_puts_the_slot_sums_in_the_grids_order_as_astype_rounds(opencl_device, rng):
+    # a grid of one chunk: bp_order (launcher._Chunk.in_grid_order) against the host's order (made here from the
+    # tiling's order, not from slot_of) and numpy's rounding; padding slots hold values that must not appear
+    import types
+
+    import pyopencl as cl
+
+    from clsas.image.backprojection import launcher
+
+    pixels = rng.uniform(-40.0, 40.0, (5000, 3)) + [2000.0, 0.0, -300.0]
+    tiles = plan_tiles(pixels, 150e3, 1500.0)
+    sums = (rng.standard_normal(2 * tiles.order.size) * 10.0 ** rng.uniform(-30, 40, 2 * tiles.order.size))
+    sums = sums.view(np.complex128)  # some past float's range (inf), some below its normal range
+    sums[~tiles.real] = np.nan
+    expected = np.empty(len(pixels), np.complex128)
+    expected[tiles.order[tiles.real]] = sums[tiles.real]
+    with np.errstate(over="ignore"):
+        expected = expected.astype(np.complex64)
+    buf = cl.Buffer(opencl_device.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=sums)
+    chunk = types.SimpleNamespace(sums=buf)
+    image = launcher._Chunk.in_grid_order(chunk, opencl_device.queue, tiles, TileKernel("linear", rows=tiles.rows))
+    assert image.dtype == np.complex64 and image.shape == (len(pixels),)
+    assert np.isinf(expected.real).any() and np.isfinite(image).sum() > len(pixels) // 2
+    assert image.tobytes() == expected.tobytes()

@@ -67,7 +67,7 @@ __all__ = ["backproject"]
 # what a call adds a pixel (tests/test_backprojection.py measures under 80 where no block is carried), and 8
 # more for bp_tile's carry (one chunk's float sums, for records longer than records.LAUNCH_RECORD_BYTES a block)
 BYTES_PER_PIXEL = 88
-# a Grid's tile plan, kept while the grid lives (16 bytes a pixel: the tiling's slot order and its
+# a Grid's tile plan, kept while the grid lives (12 bytes a pixel: the tiling's slot order and its
 # inverse), so that calls on the same Grid tile it once, as a GridPlan passed in would
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -108,7 +108,7 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
         the one the echo gives with the records' ``interp``, ``upsample`` and ``receivers``.
     grid : Grid (plane, slant plane or any 3-D points), or a :class:`.tiles.GridPlan` of one to image
         the same grid again without redoing its tile plan (a Grid's plan is also kept from its
-        first call while the Grid object lives: 16 bytes a pixel).
+        first call while the Grid object lives: 12 bytes a pixel).
     backend : {"numpy", "opencl", "auto"} or None.
     receivers : indices or names of the receivers to sum coherently (default: all; with prepared
         records: theirs, of which a subset may be chosen).
@@ -156,7 +156,7 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
             flat, fallbacks, kernel_seconds = backproject_opencl(records, plan, aperture, velocity, stop_and_go,
                                                                  progress, span, double)
     with np.errstate(over="ignore"):  # a sum past complex64's range becomes inf: finite_result names the overflow
-        flat = flat.astype(np.complex64)
+        flat = flat.astype(np.complex64, copy=False)  # launcher: complex64 already for a grid of one chunk
     validate.finite_result("backproject: the image", flat, "scale echo.data down", np.complex64)
     if not np.any(flat) and any(np.any(source.data[h]) for h in records.receivers):
         warnings.warn("backproject: the image is all zeros: no pixel of the grid lies within the recorded fast-time "

@@ -6,8 +6,9 @@ Memory: the pixels are processed in chunks of at most ``PIXEL_CHUNK`` (2^22) slo
 whose fields bp_fields computes there (16 bytes a slot, 20 with a target velocity: TileKernel.PIXELS); the kernels
 add into a double image of the chunk's slots (16 bytes a slot: a work-item's rows are contiguous,
 written as whole vectors; with records longer than ``records.LAUNCH_RECORD_BYTES`` a block, also its
-float sums carried between launches, 8 bytes a slot), which the host puts in the grid's order once
-the chunk's kernels have finished; the records a block
+float sums carried between launches, 8 bytes a slot), put in the grid's order once the chunk's
+kernels have finished: by bp_order on the device into the complex64 image for a grid of one chunk,
+by the host into a complex128 image for several; the records a block
 of at most ``records.UPLOAD_BYTES`` at a time (jobs of a receiver's block in flight up to
 IN_FLIGHT_BYTES of records, at least two and at most MAX_IN_FLIGHT: the host waits for the
 kernels of the job that many before; small jobs, a small grid's, then queue up far enough that
@@ -35,7 +36,7 @@ from .tile_kernel import TileKernel
 from .tiles import GridPlan
 
 PIXEL_CHUNK = 2**22  # slots on the device at once
-REF_PULSES = 64  # pulses whose tile references are computed at once
+REF_PULSES = 1024  # pulses whose tile references are computed at once (a 1024-pulse upload job: one bp_refs launch)
 REF_BYTES = 16 * 2**20  # a group of receivers' references (every pulse of the call) held at once (_groups)
 IN_FLIGHT_BYTES = 2 * UPLOAD_BYTES  # records (records.upload_pulses' bytes a pulse) of the jobs in flight at once
 MAX_IN_FLIGHT = 8  # jobs in flight at most
@@ -72,6 +73,24 @@ class _Chunk:
                                   centres=self.centres, n_slots=self.n)
         self._carry = None
 
+    def in_grid_order(self, queue, tiling, tile: TileKernel) -> np.ndarray:
+        """The image (M,) complex64 of a chunk of the whole ``tiling`` (after the chunk's kernels): bp_order
+        puts each pixel's slot sum (:attr:`.tiles.Tiling.slot_of`) in the grid's order on the device,
+        rounded once to float as numpy's astype(complex64) rounds (the host path's image bit for bit)."""
+        import pyopencl as cl
+
+        rt = opencl.runtime()
+        mf = cl.mem_flags
+        slot_of = tiling.slot_of
+        out = np.empty(slot_of.size, np.complex64)
+        out_buf = cl.Buffer(rt.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out)
+        slot_buf = cl.Buffer(rt.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=slot_of)
+        opencl.kernel("backprojection", "bp_order", preamble=tile.preamble, defines=tile.field_defines)(
+            queue, *opencl.work_groups(slot_of.size), self.sums, slot_buf, np.int32(slot_of.size), out_buf)
+        mapped, _ = cl.enqueue_map_buffer(queue, out_buf, cl.map_flags.READ, 0, (out.size,), np.complex64)
+        mapped.base.release()  # the blocking map waits for bp_order; out holds the image
+        return out
+
     @property
     def carry(self):
         """bp_tile's CARRY buffer of the chunk's slots (float sums, 8 bytes a slot), made on first use."""
@@ -99,7 +118,8 @@ class _Chunk:
 
 def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,
                        span: tuple[int, int], double=False):
-    """The kernels/backprojection.cl launcher: image (M,) complex128, how many (chunk, receiver,
+    """The kernels/backprojection.cl launcher: image (M,) complex64 (a grid of one chunk: put in the grid's
+    order on the device, :meth:`_Chunk.in_grid_order`) or complex128 (several chunks: added on the host), how many (chunk, receiver,
     pulse block) jobs ran on the exact double kernel, and the kernels' own time (s, from the
     queue's profiling events)."""
     import pyopencl as cl
@@ -116,7 +136,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     echo, fs = records.echo, records.fs
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
     pixels = np.ascontiguousarray(plan.grid.positions.reshape(-1, 3), np.float64)
-    image = np.zeros(pixels.shape[0], dtype=np.complex128)
+    image = None  # complex128, made when a chunk's sums are added on the host
     positions = cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=pixels)
     tiles = plan.tiling(f0, c)
     tile = TileKernel(records.interp, aperture, velocity, stop_and_go, rows=tiles.rows)
@@ -157,7 +177,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
         if chunk_state is None or chunk_state.first != first:
             if chunk_state is not None:
                 kernel_seconds += retire(0)
-                chunk_state.add_into(queue, image, tiles)
+                image = _added(queue, chunk_state, image, tiles)
             chunk_state = _Chunk(ctx, queue, tiles, tile, positions, first, min(first + chunk, tiles.order.size))
         skip = int(pulses[0] - base)  # the job's first pulse in the buffer (which may hold earlier pulses)
         in_flight.append(events := [])
@@ -214,10 +234,21 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                 events.append(exact.launch(queue, records=records_buf, n_samples=n_samples, taps=taps,
                                            p_first=skip + p0, p_count=count, image=chunk_state.sums))
     kernel_seconds += retire(0)
-    if chunk_state is not None:
-        chunk_state.add_into(queue, image, tiles)
+    if chunk_state is not None and chunk_state.first == 0 and chunk_state.n == tiles.order.size \
+            and tiles.slot_of.dtype == np.int32:  # one chunk: the image in the grid's order on the device
+        image = chunk_state.in_grid_order(queue, tiles, tile)
+    elif chunk_state is not None:
+        image = _added(queue, chunk_state, image, tiles)
     bar.close()
-    return image, fallbacks, kernel_seconds
+    return (np.zeros(pixels.shape[0], np.complex128) if image is None else image), fallbacks, kernel_seconds
+
+
+def _added(queue, chunk_state: _Chunk, image, tiles) -> np.ndarray:
+    """``image`` (M,) complex128 (made zero when None) with ``chunk_state``'s sums added (:meth:`_Chunk.add_into`)."""
+    if image is None:
+        image = np.zeros(tiles.slot_of.size, np.complex128)
+    chunk_state.add_into(queue, image, tiles)
+    return image
 
 
 def _groups(records: PreparedRecords, kernels: dict, tile: TileKernel, tiles, span: tuple[int, int]) -> list[tuple]:

@@ -63,10 +63,11 @@ class Tiling:
 
     @functools.cached_property
     def slot_of(self) -> np.ndarray:
-        """(M,) int64: each pixel's slot (the inverse of ``order`` on its real slots), made on first
-        use and kept (8 bytes a pixel): a launch's slot sums read into the grid's order by one take."""
+        """(M,) int32 (int64 past 2^31 slots): each pixel's slot (the inverse of ``order`` on its real
+        slots), made on first use and kept (4 bytes a pixel): a launch's slot sums read into the grid's
+        order by one take, or on the device by bp_order (launcher: a grid of one chunk)."""
         real = np.flatnonzero(self.order >= 0)
-        slot = np.empty(real.size, np.int64)
+        slot = np.empty(real.size, np.int32 if self.order.size < 2**31 else np.int64)
         slot[self.order[real]] = real
         return slot
 
