@@ -762,20 +762,27 @@ def test_numpy_reference_keeps_its_working_set_within_the_budget():
     np.testing.assert_allclose(images[0], images[1], rtol=0, atol=1e-9 * np.abs(images[1]).max())
 
 
+def _random_echo(nodes, rng, n_pulses: int = 6):
+    """Three receivers' all-zero echo of ``n_pulses`` pulses, the transmitter and the receivers' position
+    ``nodes`` (s from emission) at random places (what the delay bounds and references read)."""
+    from clsas import EchoData, Medium, Waveform
+
+    n_rx, tau = 3, np.asarray(nodes)
+    return EchoData(data=np.zeros((n_rx, n_pulses, 16), np.complex64), eta=np.arange(n_pulses) / 10.0,
+                    t0=np.full(n_rx, 0.1), fs=40e3, tx_pos=rng.normal(size=(n_pulses, 3)),
+                    rx_pos=rng.normal(size=(n_rx, n_pulses, tau.size, 3)), rx_tau=np.tile(tau, (n_rx, 1)),
+                    waveform=Waveform(f0=150e3, bandwidth=20e3, duration=1e-3, fs=40e3), medium=Medium(1500.0),
+                    receivers=("A", "B", "C"), compressed=True)
+
+
 @pytest.mark.parametrize("nodes", [[0.0], [0.0, 0.2], [-0.05, 0.05, 0.1, 0.3], [0.01, 0.2, 0.4]])
 def test_receivers_at_emission_for_the_references(nodes, rng):
     """bp_refs' receiver positions at emission, all receivers at once (tile_kernel._at_emission),
     are EchoData.rx_position(h, 0)'s to the last bit, for one node, two, several from before the
     emission and several all after it (extrapolated)."""
-    from clsas import EchoData, Medium, Waveform
     from clsas.image.backprojection.tile_kernel import _at_emission
 
-    n_rx, n_pulses, tau = 3, 6, np.asarray(nodes)
-    echo = EchoData(data=np.zeros((n_rx, n_pulses, 16), np.complex64), eta=np.arange(n_pulses) / 10.0,
-                    t0=np.full(n_rx, 0.1), fs=40e3, tx_pos=rng.normal(size=(n_pulses, 3)),
-                    rx_pos=rng.normal(size=(n_rx, n_pulses, tau.size, 3)), rx_tau=np.tile(tau, (n_rx, 1)),
-                    waveform=Waveform(f0=150e3, bandwidth=20e3, duration=1e-3, fs=40e3), medium=Medium(1500.0),
-                    receivers=("A", "B", "C"), compressed=True)
+    echo = _random_echo(nodes, rng)
     pulses = np.arange(1, 5)
     want = np.stack([echo.rx_position(h, np.zeros(pulses.size), pulses=pulses) for h in (2, 0)])
     assert np.array_equal(_at_emission(echo, np.array([2, 0]), pulses), want)
@@ -785,22 +792,17 @@ def test_receivers_at_emission_for_the_references(nodes, rng):
 def test_reach_from_a_plans_pixel_box_is_the_reach_from_the_pixels(nodes, rng):
     """reach with the pixel box a GridPlan keeps (what a call on a Grid passes) is reach from the
     pixels, bit for bit, for one, two and several receiver nodes; the box holds every pixel and is
-    attained (the smallest and largest coordinates)."""
-    from clsas import EchoData, Medium, Waveform
-
-    n_rx, n_pulses, tau = 3, 6, np.asarray(nodes)
-    echo = EchoData(data=np.zeros((n_rx, n_pulses, 16), np.complex64), eta=np.arange(n_pulses) / 10.0,
-                    t0=np.full(n_rx, 0.1), fs=40e3, tx_pos=rng.normal(size=(n_pulses, 3)),
-                    rx_pos=rng.normal(size=(n_rx, n_pulses, tau.size, 3)), rx_tau=np.tile(tau, (n_rx, 1)),
-                    waveform=Waveform(f0=150e3, bandwidth=20e3, duration=1e-3, fs=40e3), medium=Medium(1500.0),
-                    receivers=("A", "B", "C"), compressed=True)
+    attained (the smallest and largest coordinates). With the box, positions are not read: one
+    pixel and the box give the reach of all of them."""
+    echo = _random_echo(nodes, rng)
     grid = Grid.points(rng.normal(size=(50, 3)) * [30.0, 10.0, 2.0] + [60.0, 0.0, -5.0])
     plan = GridPlan(grid)
     pts = grid.positions.reshape(-1, 3)
     assert np.array_equal(plan.box, [pts.min(axis=0), pts.max(axis=0)])
     for velocity in (None, [0.3, -0.2, 0.0]):
-        assert np.array_equal(reach(echo, [2, 0], grid.positions, velocity, plan.box),
-                              reach(echo, [2, 0], grid.positions, velocity))
+        every = reach(echo, [2, 0], grid.positions, velocity)
+        assert np.array_equal(reach(echo, [2, 0], grid.positions, velocity, plan.box), every)
+        assert np.array_equal(reach(echo, [2, 0], grid.positions[:1], velocity, plan.box), every)
 
 
 def test_bp_order_puts_the_slot_sums_in_the_grids_order_as_astype_rounds(opencl_device, rng):
