@@ -194,7 +194,8 @@ typedef float16 realv16_t;
  * TRANSPOSE8 takes sixteen 256-bit unpacks and four 512-bit inserts, all on the one shuffle port.
  * The same values (bit-identical images). READ16 is inline assembly because LLVM 15, given the
  * loads in C, builds y_L by inserts from registers (shuffle-port uops) and merges the unpacks
- * into two-source permutes and blends (817 instructions a 96-pixel-pulse iteration against 636).
+ * into two-source permutes and blends (more instructions than TRANSPOSE8: the commit gives the
+ * figures; bench/bench_backprojection.py --only loop counts them).
  * rec_: the records of the pulse (floats, two a sample), i_: the 16 lanes' sample indices
  * (contiguous ints; the "m" input orders the asm after their stores). */
 #if defined(__clang__) && defined(__x86_64__) && defined(__AVX512F__)
