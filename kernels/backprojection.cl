@@ -186,9 +186,10 @@ typedef float16 realv16_t;
         *(b_im) = UNPACK_HI2(t1, t3);                                                                        \
     } while (0)
 
-/* The same on AVX-512 (CLSAS_READ16: clang, x86-64, AVX512F), sixteen lanes at once: lanes L, L + 4,
- * L + 8 and L + 12 share a 16-lane vector y_L (READ16: each lane's index reloaded as a scalar, then
- * one 4-wide load and three 4-wide inserts from memory, which run on either vector port), then the
+/* The same on AVX-512 (CLSAS_READ16: clang, x86-64, AVX512F, and AVX512VL for the xmm16-31 that the
+ * "v" constraint may pick), sixteen lanes at once: lanes L, L + 4, L + 8 and L + 12 share a 16-lane
+ * vector y_L (READ16: each lane's index reloaded as a scalar, then one 4-wide load and three 4-wide
+ * inserts from memory, which run on either vector port), then the
  * two stages of unpacks within 128-bit blocks on whole 512-bit vectors (UNPACK16_*), whose block b
  * then holds lanes 4b .. 4b + 3 in order: eight one-uop shuffles for sixteen lanes, where
  * TRANSPOSE8 takes sixteen 256-bit unpacks and four 512-bit inserts, all on the one shuffle port.
@@ -198,7 +199,7 @@ typedef float16 realv16_t;
  * figures; bench/bench_backprojection.py --only loop counts them).
  * rec_: the records of the pulse (floats, two a sample), i_: the 16 lanes' sample indices
  * (contiguous ints; the "m" input orders the asm after their stores). */
-#if defined(__clang__) && defined(__x86_64__) && defined(__AVX512F__)
+#if defined(__clang__) && defined(__x86_64__) && defined(__AVX512F__) && defined(__AVX512VL__)
 #define CLSAS_READ16 1
 #define READ16_Y(y, L)                                                                                        \
     "movslq " #L "*4(%[idx]), %%rax\n\t"                                                                    \
