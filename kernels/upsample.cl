@@ -3,7 +3,8 @@
  * NumPy twin: clsas/image/upsample.py (upsample_reference; the tap table and the launcher are
  * there too). Defines: FACTOR (the upsampling factor, 2..64), TAPS (even: the original samples
  * each output reads), PHASE_VECS = ceil(FACTOR / 8) (the float16 vectors of one original
- * sample's outputs), MIRROR (1 for FACTOR <= 8: the mirrored phases' pass, below).
+ * sample's outputs), MIRROR (1 for FACTOR <= 8: the mirrored phases' pass, below), MIRROR_PASS (optional:
+ * the mirrored pairs a pass, chosen by the target when not given; the tests force each).
  *
  * Output q = FACTOR (j - first) + p of a row is the record at original position j + p / FACTOR:
  * p = 0 is the sample itself (copied), p > 0 is sum_t taps[p][t] s[j - HALF + t], samples outside
@@ -36,10 +37,12 @@
 
 #define HALF (TAPS / 2 - 1) /* an output between j and j + 1 reads samples j - HALF .. j - HALF + TAPS - 1 */
 #define TAIL (2 * FACTOR - 16 * (PHASE_VECS - 1)) /* floats of the last vector that are outputs */
+#ifndef MIRROR_PASS /* mirrored pairs a pass (1, 2 or 4: the same sums in the same order whichever): by the target */
 #if defined(__AVX512F__)
-#define MIRROR_PASS 4 /* mirrored pairs a pass: all seven accumulators, in 32 vector registers */
+#define MIRROR_PASS 4 /* all seven accumulators, in 32 vector registers */
 #else
 #define MIRROR_PASS 2 /* 16 vector registers (AVX2: a float16 is two): two pairs a pass, no spills */
+#endif
 #endif
 
 /* samples i .. i + 7 of a row of n_src as (re, im) pairs: pairs[i - s0] in place when the work-item's

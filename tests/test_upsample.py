@@ -53,6 +53,21 @@ def test_kernel_matches_its_twin(opencl_device, rng, factor, span):
     assert np.max(np.abs(got - ref)) < 1e-5
 
 
+@pytest.mark.parametrize("factor", [2, 3, 5, 8])
+def test_every_mirrored_pass_width_gives_the_same_samples(opencl_device, rng, factor):
+    """The mirrored pass built with 1, 2 and 4 pairs a pass (the target picks 4 on AVX-512 and 2
+    on AVX2, so one machine's default runs only one of them): the same sums in the same order,
+    hence the same samples bit for bit, and each within float32 rounding of the twin."""
+    records = noise(rng, 3, 61)
+    ref = fir.upsample_reference(records, factor, 2, 59)
+    got = {n: fir.upsample_fir(records, factor, 2, 59, mirror_pass=n) for n in fir.MIRROR_PASSES}
+    for n, samples in got.items():
+        assert np.array_equal(samples, got[4]), n
+        assert rel_l2(samples, ref) < 1e-6, n
+    with pytest.raises(ValueError, match="mirror_pass: must be one of"):
+        fir.upsample_fir(records, factor, 2, 59, mirror_pass=3)
+
+
 @pytest.mark.parametrize("implementation", ["kernel", "twin"])
 def test_any_span_gives_the_same_samples(opencl_device, rng, implementation):
     """An output depends on the samples around it only: a span's samples are the whole record's,

@@ -149,17 +149,33 @@ def upsample_reference(records: np.ndarray, factor: int, first: int, stop: int) 
     return out.reshape(n_rec, m * factor).astype(np.complex64)
 
 
-def enqueue(queue, src, n_src: int, n_rows: int, first: int, stop: int, factor: int, dst):
+#: The mirrored pass's pairs of phases a pass over the samples the kernel can be built with
+#: (MIRROR_PASS; by default the kernel picks 4 on AVX-512 targets and 2 otherwise).
+MIRROR_PASSES = (1, 2, 4)
+
+
+def enqueue(queue, src, n_src: int, n_rows: int, first: int, stop: int, factor: int, dst,
+            mirror_pass: int | None = None):
     """Enqueue ``upsample_fir`` (kernels/upsample.cl): rows of the device buffer ``src`` (n_rows x
     n_src complex64) upsampled over original samples [first, stop) into ``dst`` (n_rows x
-    (stop - first) factor complex64); returns its event."""
+    (stop - first) factor complex64); returns its event. ``mirror_pass``: one of
+    :data:`MIRROR_PASSES` to build the mirrored pass with that many pairs a pass instead of the
+    target's choice (the same sums in the same order: the samples do not change)."""
     taps = _taps_buffer(queue.context, factor)
-    kern = opencl.kernel("upsample", "upsample_fir", defines={"FACTOR": factor, "TAPS": TAPS,
-                                                              "PHASE_VECS": -(-factor // 8),
-                                                              "MIRROR": int(factor <= 8)})
+    defines = {"FACTOR": factor, "TAPS": TAPS, "PHASE_VECS": -(-factor // 8), "MIRROR": int(factor <= 8)}
+    if mirror_pass is not None:
+        defines["MIRROR_PASS"] = _mirror_pass(mirror_pass)
+    kern = opencl.kernel("upsample", "upsample_fir", defines=defines)
     global_size, local_size = opencl.work_groups_2d(-(-(stop - first) // 8), n_rows, ROWS_GROUP)
     return kern(queue, global_size, local_size, src, np.int32(n_src), np.int32(n_rows), np.int32(first),
                 np.int32(stop - first), taps, dst)
+
+
+def _mirror_pass(value) -> int:
+    n = v.integer("upsample mirror_pass", value, low=1, high=max(MIRROR_PASSES))
+    if n not in MIRROR_PASSES:
+        raise ValueError(f"upsample mirror_pass: must be one of {MIRROR_PASSES}, got {n}")
+    return n
 
 
 _TAP_BUFFERS: dict = {}
@@ -175,19 +191,22 @@ def _taps_buffer(ctx, factor: int):
     return _TAP_BUFFERS[key]
 
 
-def upsample_fir(records: np.ndarray, factor: int, first: int, stop: int, out: np.ndarray | None = None) -> np.ndarray:
+def upsample_fir(records: np.ndarray, factor: int, first: int, stop: int, out: np.ndarray | None = None,
+                 mirror_pass: int | None = None) -> np.ndarray:
     """:func:`upsample_reference` on the OpenCL device (``kernels/upsample.cl``): complex64
-    (R, (stop - first) factor), written into ``out`` when given."""
+    (R, (stop - first) factor), written into ``out`` when given; ``mirror_pass`` as in :func:`enqueue`."""
     import pyopencl as cl
 
     _check(records, factor, first, stop, 0.0 if out is not None else 8.0)
+    if mirror_pass is not None:
+        _mirror_pass(mirror_pass)
     rt = opencl.runtime()
     mf = cl.mem_flags
     src = np.ascontiguousarray(records, np.complex64)
     out = np.empty((src.shape[0], (stop - first) * factor), np.complex64) if out is None else out
     src_buf = cl.Buffer(rt.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=src)
     dst_buf = cl.Buffer(rt.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out)
-    enqueue(rt.queue, src_buf, src.shape[1], src.shape[0], first, stop, factor, dst_buf).wait()
+    enqueue(rt.queue, src_buf, src.shape[1], src.shape[0], first, stop, factor, dst_buf, mirror_pass).wait()
     mapped, _ = cl.enqueue_map_buffer(rt.queue, dst_buf, cl.map_flags.READ, 0, out.shape, out.dtype)
     mapped.base.release()  # the result is the host array (read after the map: a GPU copies it back there)
     return out
