@@ -829,3 +829,42 @@ def test_bp_order_puts_the_slot_sums_in_the_grids_order_as_astype_rounds(opencl_
     assert image.dtype == np.complex64 and image.shape == (len(pixels),)
     assert np.isinf(expected.real).any() and np.isfinite(image).sum() > len(pixels) // 2
     assert image.tobytes() == expected.tobytes()
+
+
+def test_a_plans_kept_device_inputs_serve_its_next_calls_and_only_their_own_configuration(opencl_device, kiang_echo,
+                                                                                          monkeypatch):
+    # a grid of one chunk keeps its device inputs (slot indices, bp_fields' pixel fields) with its plan: the next
+    # call makes no bp_fields and gives the image a fresh plan gives, bit for bit; a call at another target velocity
+    # (other fields: dv = delta . v) makes its own and replaces them; release() drops them; a grid of several
+    # chunks keeps none
+    from clsas.image.backprojection import launcher, tile_kernel
+
+    made, fields = [], tile_kernel.TileKernel.fields
+
+    def counted(self, queue, **args):
+        made.append(args["n_slots"])
+        return fields(self, queue, **args)
+
+    monkeypatch.setattr(tile_kernel.TileKernel, "fields", counted)
+    grid = around((30.0, 1.0, -43.0), 0.05, 0.05, 20, 20)
+    plan = GridPlan(grid)
+    kw = dict(backend="opencl", upsample=4, progress=False)
+
+    def image(on, velocity):
+        return backproject(kiang_echo, on, target_velocity=velocity, **kw).data
+
+    for velocity, fresh in ((None, 1), (None, 0), ((0.5, -1.0, 0.0), 1), ((0.5, -1.0, 0.0), 0), ((0.2, 0.3, 0.0), 1),
+                            (None, 1)):
+        before = len(made)
+        got = image(plan, velocity)
+        assert len(made) - before == fresh, (velocity, made)
+        assert np.array_equal(got, image(GridPlan(grid), velocity)), velocity
+    assert plan._kept is not None
+    plan.release()
+    assert plan._kept is None
+    before = len(made)
+    assert np.array_equal(image(plan, None), image(GridPlan(grid), None)) and len(made) - before == 2
+    monkeypatch.setattr(launcher, "PIXEL_CHUNK", 2 * TileKernel.LANES * plan.rows)  # several chunks
+    several = GridPlan(grid)
+    assert np.array_equal(image(several, None), image(plan, None))  # added on the host: the same roundings
+    assert several._kept is None

@@ -3,7 +3,9 @@ in launches of bp_tile (:class:`.tile_kernel.TileKernel`) or, for ``precision="d
 receivers whose motion is not linear over a tile, bp_block (:class:`.exact_kernel.ExactKernel`).
 
 Memory: the pixels are processed in chunks of at most ``PIXEL_CHUNK`` (2^22) slots on the device,
-whose fields bp_fields computes there (16 bytes a slot, 20 with a target velocity: TileKernel.PIXELS); the kernels
+whose fields bp_fields computes there (16 bytes a slot, 20 with a target velocity: TileKernel.PIXELS; a grid
+of one chunk keeps them, with its slots' pixel indices, in its :class:`.tiles.GridPlan` for the calls after its
+first: :class:`_Inputs`); the kernels
 add into a double image of the chunk's slots (16 bytes a slot: a work-item's rows are contiguous,
 written as whole vectors; with records longer than ``records.LAUNCH_RECORD_BYTES`` a block, also its
 float sums carried between launches, 8 bytes a slot), put in the grid's order once the chunk's
@@ -42,22 +44,21 @@ IN_FLIGHT_BYTES = 2 * UPLOAD_BYTES  # records (records.upload_pulses' bytes a pu
 MAX_IN_FLIGHT = 8  # jobs in flight at most
 
 
-class _Chunk:
-    """The device side of slots ``first`` .. ``stop - 1`` of the plan's tiling: their pixel
-    indices (``index``, -1 for padding), the work-items' tiles relative to the chunk's first tile
-    and those tiles (``tiles``, a range of the tiling's), bp_tile's pixel fields (computed on
-    the device by bp_fields) and the slots' sums (``sums``, double2 a slot, zeroed)."""
+class _Inputs:
+    """The device inputs of slots ``first`` .. ``stop - 1`` of a tiling: their pixel indices
+    (``index``, -1 for padding), the work-items' tiles relative to the chunk's first tile
+    (``tile_of``), those tiles (``tiles``, a range of the tiling's) and their reference points
+    (``centres``), and bp_tile's pixel fields (``pixels``, computed on the device by bp_fields:
+    16 bytes a slot, 20 with a target velocity). A grid of one chunk keeps them with its plan
+    (:meth:`.tiles.GridPlan.kept`), so that a call on a grid imaged before makes none of them."""
 
     def __init__(self, ctx, queue, tiling, tile: TileKernel, positions, first: int, stop: int):
         import pyopencl as cl
 
         mf = cl.mem_flags
-        self._new_carry = lambda: cl.Buffer(ctx, mf.READ_WRITE, 8 * self.n)
         width = tile.LANES * tile.rows
         self.first, self.n = first, stop - first
         slots = tiling.order[first:stop]
-        self.sums = cl.Buffer(ctx, mf.READ_WRITE, 16 * self.n)  # the slots' double image
-        cl.enqueue_fill_buffer(queue, self.sums, np.zeros(1, np.complex128), 0, 16 * self.n)
         owner = tiling.tile[first // width:stop // width]
         self.tiles = np.arange(owner[0], owner[-1] + 1)
         self.pixels_here = int(np.count_nonzero(slots >= 0))
@@ -69,8 +70,32 @@ class _Chunk:
         self.index = made(slots.astype(np.int32))
         self.tile_of = made(owner - owner[0])
         self.centres = made(tiling.centres[self.tiles])
-        self.pixels = tile.fields(queue, positions=positions, index=self.index, tile_of=self.tile_of,
+        self.pixels = tile.fields(queue, positions=positions(), index=self.index, tile_of=self.tile_of,
                                   centres=self.centres, n_slots=self.n)
+
+    @staticmethod
+    def key(ctx, tiling, tile: TileKernel, first: int, stop: int) -> tuple:
+        """What the inputs depend on besides the plan's grid: the context, the tiling, the slots
+        and bp_fields' configuration (rows, the pixels' motion)."""
+        return (int(ctx.int_ptr), id(tiling), first, stop, tuple(sorted(tile.field_defines.items())),
+                tuple(float(v) for v in tile.v_k))
+
+
+class _Chunk:
+    """A chunk of slots of the plan's tiling on the device: its :class:`_Inputs` (``first``, ``n``,
+    ``slots``, ``tiles``, ``pixels_here``, ``index``, ``tile_of``, ``centres`` and ``pixels`` as
+    there) and the slots' sums (``sums``, double2 a slot, zeroed)."""
+
+    def __init__(self, ctx, queue, inputs: _Inputs):
+        import pyopencl as cl
+
+        mf = cl.mem_flags
+        self.first, self.n, self.slots, self.tiles = inputs.first, inputs.n, inputs.slots, inputs.tiles
+        self.pixels_here, self.index, self.tile_of = inputs.pixels_here, inputs.index, inputs.tile_of
+        self.centres, self.pixels = inputs.centres, inputs.pixels
+        self._new_carry = lambda: cl.Buffer(ctx, mf.READ_WRITE, 8 * self.n)
+        self.sums = cl.Buffer(ctx, mf.READ_WRITE, 16 * self.n)  # the slots' double image
+        cl.enqueue_fill_buffer(queue, self.sums, np.zeros(1, np.complex128), 0, 16 * self.n)
         self._carry = None
 
     def in_grid_order(self, queue, tiling, tile: TileKernel) -> np.ndarray:
@@ -137,7 +162,9 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
     pixels = np.ascontiguousarray(plan.grid.positions.reshape(-1, 3), np.float64)
     image = None  # complex128, made when a chunk's sums are added on the host
-    positions = cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=pixels)
+
+    def positions():  # bp_fields' input (a buffer of the host array in place), for the chunks not kept
+        return cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=pixels)
     tiles = plan.tiling(f0, c)
     tile = TileKernel(records.interp, aperture, velocity, stop_and_go, rows=tiles.rows)
     kernels = {h: tile.for_receiver(echo, h) for h in records.receivers}  # each receiver's legs (TileKernel.legs_for)
@@ -178,7 +205,13 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
             if chunk_state is not None:
                 kernel_seconds += retire(0)
                 image = _added(queue, chunk_state, image, tiles)
-            chunk_state = _Chunk(ctx, queue, tiles, tile, positions, first, min(first + chunk, tiles.order.size))
+            stop = min(first + chunk, tiles.order.size)
+            if first == 0 and stop == tiles.order.size:  # a grid of one chunk: its inputs kept with the plan
+                inputs = plan.kept(_Inputs.key(ctx, tiles, tile, first, stop),
+                                   lambda: _Inputs(ctx, queue, tiles, tile, positions, first, stop))
+            else:
+                inputs = _Inputs(ctx, queue, tiles, tile, positions, first, stop)
+            chunk_state = _Chunk(ctx, queue, inputs)
         skip = int(pulses[0] - base)  # the job's first pulse in the buffer (which may hold earlier pulses)
         in_flight.append(events := [])
         work.append(chunk_state.pixels_here * pulses.size)

@@ -195,8 +195,11 @@ class GridPlan:
     """A grid and its tile plan (:func:`plan_tiles`), made on first use for a carrier and sound
     speed and kept. Pass it to :func:`backproject` in place of the grid to image the same grid
     again without tiling it again (e.g. re-imaging an echo at several target velocities or after
-    autofocus). It holds 8 bytes a pixel once used (the tile order). ``rows``: the rows of LANES
-    pixels a bp_tile work-item holds (default ROWS; a tuning knob the benches compare)."""
+    autofocus). It holds 12 bytes a pixel once used (the tile order and its inverse) and, after an
+    OpenCL call on a grid of one chunk (at most ``launcher.PIXEL_CHUNK`` slots), that chunk's
+    device inputs (:meth:`kept`: 20 bytes a slot, 24 with a target velocity; on a CPU device in
+    host memory), until :meth:`release`. ``rows``: the rows of LANES pixels a bp_tile work-item
+    holds (default ROWS; a tuning knob the benches compare)."""
 
     def __init__(self, grid: Grid, rows: int = ROWS):
         if not isinstance(grid, Grid):
@@ -205,6 +208,22 @@ class GridPlan:
         self.grid = grid
         self._tilings = {}
         self._box = None
+        self._kept = None  # (key, value): the launcher's device inputs of the latest configuration
+
+    def kept(self, key, make):
+        """``make()``'s value for ``key``, made on first use and kept with the plan: the launcher's
+        device inputs of a grid of one chunk (its slots' pixel indices, tiles and bp_tile's pixel
+        fields), for a key of what else they depend on (the context, the tiling, the pixels'
+        motion). One key at a time: another key's value replaces it (a call at another target
+        velocity makes its own and keeps that one)."""
+        if self._kept is None or self._kept[0] != key:
+            self._kept = None  # the old value goes before the new one is made
+            self._kept = (key, make())
+        return self._kept[1]
+
+    def release(self) -> None:
+        """Drop the device inputs :meth:`kept` holds (the next OpenCL call makes them again)."""
+        self._kept = None
 
     @property
     def box(self) -> np.ndarray:
