@@ -868,3 +868,32 @@ def test_a_plans_kept_device_inputs_serve_its_next_calls_and_only_their_own_conf
     several = GridPlan(grid)
     assert np.array_equal(image(several, None), image(plan, None))  # added on the host: the same roundings
     assert several._kept is None
+
+
+@pytest.mark.parametrize("case", ["plain", "carried", "chunks"])
+def test_two_lanes_of_jobs_give_the_one_lane_image(opencl_device, monkeypatch, case):
+    # a small chunk's jobs alternate between two queues (launcher.TWO_LANES), each lane adding into its own sums, the
+    # second's added into the first's at the end: every receiver's pulses counted once, as one lane counts them
+    # (carried blocks: each lane its own carry; several chunks: each chunk's lanes merged before the host adds)
+    from clsas.image.backprojection import launcher, records, tile_kernel
+
+    echo = compressed(presets.point_scene("huang2022", n_pulses=32))
+    grid = Grid.plane(np.linspace(40.0, 80.0, 40), np.linspace(-4.0, 4.0, 24), 0.0)
+    if case == "carried":
+        monkeypatch.setattr(records, "LAUNCH_RECORD_BYTES", 1)
+    if case == "chunks":
+        monkeypatch.setattr(launcher, "PIXEL_CHUNK", 4 * TileKernel.LANES * GridPlan(grid).rows)
+    queues, launch = [], tile_kernel.TileKernel.launch
+    monkeypatch.setattr(tile_kernel.TileKernel, "launch",
+                        lambda self, queue, **a: queues.append(queue.int_ptr) or launch(self, queue, **a))
+    monkeypatch.setattr(launcher, "TWO_LANES", False)
+    one = backproject(echo, grid, progress=False).data
+    assert len(set(queues)) == 1
+    queues.clear()
+    monkeypatch.setattr(launcher, "TWO_LANES", True)
+    two = backproject(echo, grid, progress=False).data
+    assert len(set(queues)) == 2 and queues.count(queues[0]) == len(queues) // 2  # 32 receivers: 16 jobs a lane
+    assert rel_l2(two, one) < 1e-7  # measured 0 (the double sums' other order rounds to the same floats here)
+    queues.clear()
+    monkeypatch.setattr(launcher, "TWO_LANE_SLOTS", TileKernel.LANES)  # a grid above it: one queue
+    assert np.array_equal(backproject(echo, grid, progress=False).data, one) and len(set(queues)) == 1

@@ -42,6 +42,13 @@ REF_PULSES = 1024  # pulses whose tile references are computed at once (a 1024-p
 REF_BYTES = 16 * 2**20  # a group of receivers' references (every pulse of the call) held at once (_groups)
 IN_FLIGHT_BYTES = 2 * UPLOAD_BYTES  # records (records.upload_pulses' bytes a pulse) of the jobs in flight at once
 MAX_IN_FLIGHT = 8  # jobs in flight at most
+# a chunk of at most TWO_LANE_SLOTS slots with several jobs runs every other job on a second queue (_Chunk.lane), into
+# its own sums and carry (24 bytes a slot: at most 6 MB) and the FIR's scratch buffer of that queue (records.py): a
+# small grid's launches are short, so a thread idle at a launch's end and the ~25 us between commands are a large
+# share of them, and the second queue's next command fills both (the fixed-cost echo's 128^2 call 8 % faster; 512^2
+# unchanged, so left on one queue)
+TWO_LANES, TWO_LANE_SLOTS = True, 2**18
+_SECOND_QUEUES: dict = {}  # context -> the second lane's queue
 
 
 class _Inputs:
@@ -81,22 +88,62 @@ class _Inputs:
                 tuple(float(v) for v in tile.v_k))
 
 
+class _Lane:
+    """One lane of a chunk's bp_tile launches: its queue, the slots' sums it adds into (double2 a
+    slot, zeroed on its queue when made) and bp_tile's CARRY buffer (float sums, 8 bytes a slot,
+    made on first use)."""
+
+    def __init__(self, ctx, queue, n: int):
+        import pyopencl as cl
+
+        self.queue, self._ctx, self._n = queue, ctx, n
+        self.sums = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 16 * n)
+        cl.enqueue_fill_buffer(queue, self.sums, np.zeros(1, np.complex128), 0, 16 * n)
+        self._carry = None
+
+    @property
+    def carry(self):
+        if self._carry is None:
+            import pyopencl as cl
+
+            self._carry = cl.Buffer(self._ctx, cl.mem_flags.READ_WRITE, 8 * self._n)
+        return self._carry
+
+
 class _Chunk:
     """A chunk of slots of the plan's tiling on the device: its :class:`_Inputs` (``first``, ``n``,
     ``slots``, ``tiles``, ``pixels_here``, ``index``, ``tile_of``, ``centres`` and ``pixels`` as
-    there) and the slots' sums (``sums``, double2 a slot, zeroed)."""
+    there) and its lanes (:meth:`lane`): the first lane's sums (``sums``, double2 a slot, zeroed)
+    hold the image once a second lane's, if any, are added into them (:meth:`merged`, before
+    they are read)."""
 
-    def __init__(self, ctx, queue, inputs: _Inputs):
-        import pyopencl as cl
-
-        mf = cl.mem_flags
+    def __init__(self, ctx, queue, inputs: _Inputs, tile: TileKernel):
         self.first, self.n, self.slots, self.tiles = inputs.first, inputs.n, inputs.slots, inputs.tiles
         self.pixels_here, self.index, self.tile_of = inputs.pixels_here, inputs.index, inputs.tile_of
         self.centres, self.pixels = inputs.centres, inputs.pixels
-        self._new_carry = lambda: cl.Buffer(ctx, mf.READ_WRITE, 8 * self.n)
-        self.sums = cl.Buffer(ctx, mf.READ_WRITE, 16 * self.n)  # the slots' double image
-        cl.enqueue_fill_buffer(queue, self.sums, np.zeros(1, np.complex128), 0, 16 * self.n)
-        self._carry = None
+        self._ctx, self._tile = ctx, tile
+        self._lanes = [_Lane(ctx, queue, self.n)]
+        self.sums = self._lanes[0].sums  # the slots' double image
+
+    def lane(self, k: int, queue) -> _Lane:
+        """Lane ``k`` (0, or 1 made on first use on ``queue``): the jobs of a lane run in order on
+        its queue, two lanes side by side (the device's threads take the next command's
+        work-groups while a command's last ones finish, and the next command is ready)."""
+        if k == len(self._lanes):
+            self._lanes.append(_Lane(self._ctx, queue, self.n))
+        return self._lanes[k]
+
+    def merged(self, queue) -> "_Chunk":
+        """The chunk, the second lane's sums, if any, added into the first's (bp_add_sums on ``queue``,
+        the first lane's, once the second lane's queue has finished) and dropped: ``sums`` then
+        hold the chunk's image (:meth:`in_grid_order`, :meth:`add_into`)."""
+        if len(self._lanes) > 1:
+            other = self._lanes.pop()
+            other.queue.finish()
+            opencl.kernel("backprojection", "bp_add_sums", preamble=self._tile.preamble,
+                          defines=self._tile.field_defines)(
+                queue, *opencl.work_groups(self.n), self.sums, other.sums, np.int32(self.n))
+        return self
 
     def in_grid_order(self, queue, tiling, tile: TileKernel) -> np.ndarray:
         """The image (M,) complex64 of a chunk of the whole ``tiling`` (after the chunk's kernels): bp_order
@@ -115,13 +162,6 @@ class _Chunk:
         mapped, _ = cl.enqueue_map_buffer(queue, out_buf, cl.map_flags.READ, 0, (out.size,), np.complex64)
         mapped.base.release()  # the blocking map waits for bp_order; out holds the image
         return out
-
-    @property
-    def carry(self):
-        """bp_tile's CARRY buffer of the chunk's slots (float sums, 8 bytes a slot), made on first use."""
-        if self._carry is None:
-            self._carry = self._new_carry()
-        return self._carry
 
     def add_into(self, queue, image: np.ndarray, tiling) -> None:
         """Add the slots' sums into ``image`` (M,) complex128 at their pixels (after the chunk's
@@ -194,13 +234,18 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
             bar.done(work.pop(0))  # the progress bar counts finished kernels' pixel-pulses
         return seconds
 
-    for first, i, pulses in jobs:
+    per_chunk = len(jobs) // len(range(0, tiles.order.size, chunk))
+    two = TWO_LANES and per_chunk > 1 and not double and min(chunk, tiles.order.size) <= TWO_LANE_SLOTS
+    queues = [queue] + ([_second_queue(ctx)] if two else [])
+    for j, (first, i, pulses) in enumerate(jobs):
         h, offset = records.receivers[i], int(records.offset[i])
+        k = j % per_chunk % len(queues)  # the job's lane: every other job of a chunk on the second queue
+        q = queues[k]
         kernel_seconds += retire(keep)
         if early is not None:  # jobs[0]
             (records_buf, n_samples, base), early = early, None
         else:
-            records_buf, n_samples, base = records.buffer(ctx, i, pulses, double)
+            records_buf, n_samples, base = records.buffer(ctx, i, pulses, double, q)
         if chunk_state is None or chunk_state.first != first:
             if chunk_state is not None:
                 kernel_seconds += retire(0)
@@ -211,7 +256,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                                    lambda: _Inputs(ctx, queue, tiles, tile, positions, first, stop))
             else:
                 inputs = _Inputs(ctx, queue, tiles, tile, positions, first, stop)
-            chunk_state = _Chunk(ctx, queue, inputs)
+            chunk_state = _Chunk(ctx, queue, inputs, tile)
+        lane = chunk_state.lane(k, q)
         skip = int(pulses[0] - base)  # the job's first pulse in the buffer (which may hold earlier pulses)
         in_flight.append(events := [])
         work.append(chunk_state.pixels_here * pulses.size)
@@ -225,13 +271,16 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                 ref_stride, ref_first = part.size * len(group), skip + s - part.size * group.index(i)
                 if len(group) > 1:  # every member's references from one bp_refs launch, (T, members, P)
                     key = (first, group, int(part[0]))
-                    if key not in shared:
-                        shared[key] = kernel.references_on_device(
-                            queue, echo, [records.receivers[m] for m in group], part, chunk_state.centres,
+                    if key not in shared:  # (buffer, the lane that computes it, its end on that lane's queue)
+                        made = kernel.references_on_device(
+                            q, echo, [records.receivers[m] for m in group], part, chunk_state.centres,
                             chunk_state.tiles.size, fs, tiles.half_extent, records.offset[list(group)])
-                    ref_buf = shared[key] if i != group[-1] else shared.pop(key)
+                        shared[key] = (made, k, cl.enqueue_marker(q) if len(queues) > 1 and made else None)
+                    ref_buf, made_on, done = shared[key] if i != group[-1] else shared.pop(key)
+                    if made_on != k and done is not None:  # computed on the other lane's queue: wait for it
+                        cl.enqueue_barrier(q, wait_for=[done])
                 else:
-                    ref_buf = kernel.references_on_device(queue, echo, h, part, chunk_state.centres,
+                    ref_buf = kernel.references_on_device(q, echo, h, part, chunk_state.centres,
                                                           chunk_state.tiles.size, fs, tiles.half_extent, offset)
                 if ref_buf is None:  # a receiver followed between several nodes: on the host
                     ref, linear = kernel.references(echo, h, part, tiles.centres[chunk_state.tiles], fs,
@@ -240,7 +289,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                 if ref_buf is not None:
                     spans = None
                     if tile.pulse_span:
-                        ref, _ = cl.enqueue_map_buffer(queue, ref_buf, cl.map_flags.READ, 0,
+                        ref, _ = cl.enqueue_map_buffer(q, ref_buf, cl.map_flags.READ, 0,
                                                        (chunk_state.tiles.size, ref_stride), kernel.reference_dtype)
                         mine = ref[:, skip + s - ref_first:][:, :part.size]  # this receiver's (T, P)
                         spans = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
@@ -250,10 +299,10 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                                                    tile.PULSE_BLOCK, launch_pulses(n_samples, tile.PULSE_BLOCK)):
                         q0 -= int(pulses[0])  # the job's pulse index
                         events.append(kernel.launch(
-                            queue, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
+                            q, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
                             ref_stride=ref_stride, ref_first=ref_first, records=records_buf, n_samples=n_samples,
-                            taps=taps, params=params, p_first=skip + q0, p_count=n_q, image=chunk_state.sums,
-                            spans=spans, carry=mode and chunk_state.carry, carry_mode=mode or 0))
+                            taps=taps, params=params, p_first=skip + q0, p_count=n_q, image=lane.sums,
+                            spans=spans, carry=mode and lane.carry, carry_mode=mode or 0))
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)
@@ -264,23 +313,33 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                                     velocity, records.interp, aperture, stop_and_go, double)
             for p0 in range(s, end, tile.PULSE_BLOCK):
                 count = min(tile.PULSE_BLOCK, end - p0)
-                events.append(exact.launch(queue, records=records_buf, n_samples=n_samples, taps=taps,
-                                           p_first=skip + p0, p_count=count, image=chunk_state.sums))
+                events.append(exact.launch(q, records=records_buf, n_samples=n_samples, taps=taps,
+                                           p_first=skip + p0, p_count=count, image=lane.sums))
     kernel_seconds += retire(0)
     if chunk_state is not None and chunk_state.first == 0 and chunk_state.n == tiles.order.size \
             and tiles.slot_of.dtype == np.int32:  # one chunk: the image in the grid's order on the device
-        image = chunk_state.in_grid_order(queue, tiles, tile)
+        image = chunk_state.merged(queue).in_grid_order(queue, tiles, tile)
     elif chunk_state is not None:
         image = _added(queue, chunk_state, image, tiles)
     bar.close()
     return (np.zeros(pixels.shape[0], np.complex128) if image is None else image), fallbacks, kernel_seconds
 
 
+def _second_queue(ctx):
+    """A second in-order queue (profiling enabled) of the context ``ctx``, made once."""
+    import pyopencl as cl
+
+    key = int(ctx.int_ptr)
+    if key not in _SECOND_QUEUES:
+        _SECOND_QUEUES[key] = cl.CommandQueue(ctx, properties=cl.command_queue_properties.PROFILING_ENABLE)
+    return _SECOND_QUEUES[key]
+
+
 def _added(queue, chunk_state: _Chunk, image, tiles) -> np.ndarray:
     """``image`` (M,) complex128 (made zero when None) with ``chunk_state``'s sums added (:meth:`_Chunk.add_into`)."""
     if image is None:
         image = np.zeros(tiles.slot_of.size, np.complex128)
-    chunk_state.add_into(queue, image, tiles)
+    chunk_state.merged(queue).add_into(queue, image, tiles)
     return image
 
 
