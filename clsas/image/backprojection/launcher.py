@@ -228,8 +228,10 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
         its event lives)."""
         seconds = 0.0
         while len(in_flight) > keep:
-            for e in in_flight.pop(0):
-                e.wait()
+            done = in_flight.pop(0)
+            if done:  # a job's kernels run in order on its lane's queue: its last one ends last
+                done[-1].wait()
+            for e in done:
                 seconds += 1e-9 * (e.get_profiling_info(END) - e.get_profiling_info(START))
             bar.done(work.pop(0))  # the progress bar counts finished kernels' pixel-pulses
         return seconds
