@@ -897,3 +897,24 @@ def test_two_lanes_of_jobs_give_the_one_lane_image(opencl_device, monkeypatch, c
     queues.clear()
     monkeypatch.setattr(launcher, "TWO_LANE_SLOTS", TileKernel.LANES)  # a grid above it: one queue
     assert np.array_equal(backproject(echo, grid, progress=False).data, one) and len(set(queues)) == 1
+
+
+def test_a_small_chunks_launches_read_more_records(opencl_device, monkeypatch):
+    # a chunk on two lanes (at most TWO_LANE_SLOTS slots) counts its records at 1 / SMALL_LAUNCH_RECORDS against
+    # LAUNCH_RECORD_BYTES: a block whose records are 2.5 times the limit is one launch there, and carried over
+    # launches of fewer pulses on a larger chunk; the same image bit for bit
+    from clsas.image.backprojection import launcher, records, tile_kernel
+
+    echo = compressed(presets.point_scene("huang2022", n_pulses=64))
+    grid = Grid.plane(np.linspace(40.0, 80.0, 40), np.linspace(-4.0, 4.0, 24), 0.0)
+    counts, launch = [], tile_kernel.TileKernel.launch
+    monkeypatch.setattr(tile_kernel.TileKernel, "launch",
+                        lambda self, queue, **a: counts.append(a["p_count"]) or launch(self, queue, **a))
+    n_samples = prepare(echo, grid=grid).length.max()  # a plain call's records (the grid's reach, x8)
+    monkeypatch.setattr(records, "LAUNCH_RECORD_BYTES", int(8 * n_samples * TileKernel.PULSE_BLOCK / 2.5))
+    small = backproject(echo, grid, progress=False).data
+    assert set(counts) == {TileKernel.PULSE_BLOCK}
+    counts.clear()
+    monkeypatch.setattr(launcher, "TWO_LANE_SLOTS", TileKernel.LANES)  # the grid is a large chunk now
+    assert np.array_equal(backproject(echo, grid, progress=False).data, small)
+    assert max(counts) == TileKernel.PULSE_BLOCK // 4
