@@ -918,3 +918,78 @@ def test_a_small_chunks_launches_read_more_records(opencl_device, monkeypatch):
     monkeypatch.setattr(launcher, "TWO_LANE_SLOTS", TileKernel.LANES)  # the grid is a large chunk now
     assert np.array_equal(backproject(echo, grid, progress=False).data, small)
     assert max(counts) == TileKernel.PULSE_BLOCK // 4
+
+
+def test_the_second_lane_waits_for_the_pixel_fields_of_the_first(opencl_device, monkeypatch):
+    # bp_fields runs on the first lane's queue; the second lane's launches read its output: they must wait for it
+    # (review 14 M1). bp_fields is held back by a user event for 0.3 s, on a grid no call imaged before (fresh
+    # memory), with groups of one receiver (no shared references, whose barrier would order them anyway)
+    import threading
+
+    import pyopencl as cl
+
+    from clsas.image.backprojection import launcher, tile_kernel
+
+    monkeypatch.setattr(launcher, "REF_BYTES", 1)
+    echo = compressed(presets.point_scene("huang2022", n_pulses=32))
+    grid = Grid.plane(np.linspace(40.5, 80.5, 40), np.linspace(-4.0, 4.0, 24), 0.0)
+    expected = backproject(echo, grid, progress=False).data
+    fields, queues, launch = tile_kernel.TileKernel.fields, [], tile_kernel.TileKernel.launch
+
+    def held(self, queue, **args):
+        gate = cl.UserEvent(queue.context)
+        cl.enqueue_barrier(queue, wait_for=[gate])
+        threading.Timer(0.3, lambda: gate.set_status(cl.command_execution_status.COMPLETE)).start()
+        return fields(self, queue, **args)
+
+    monkeypatch.setattr(tile_kernel.TileKernel, "fields", held)
+    monkeypatch.setattr(tile_kernel.TileKernel, "launch",
+                        lambda self, queue, **a: queues.append(queue.int_ptr) or launch(self, queue, **a))
+    got = backproject(echo, Grid.plane(np.linspace(40.5, 80.5, 40), np.linspace(-4.0, 4.0, 24), 0.0),
+                      progress=False).data
+    assert len(set(queues)) == 2
+    assert np.array_equal(got, expected)
+
+
+def test_kernel_seconds_count_overlapping_kernels_once(opencl_device):
+    # two lanes' kernels overlap in time: kernel_seconds is the union of their intervals (review 14 L2), so a call's
+    # kernel time is at most its wall time
+    import time
+
+    from clsas.image.backprojection.launcher import _union_seconds
+
+    assert _union_seconds([(20, 25), (0, 10), (5, 15), (6, 9)]) == pytest.approx(20e-9)
+    assert _union_seconds([]) == 0.0
+    echo = compressed(presets.point_scene("huang2022", n_pulses=32))
+    grid = Grid.plane(np.linspace(40.0, 80.0, 40), np.linspace(-4.0, 4.0, 24), 0.0)
+    backproject(echo, grid, progress=False)
+    for _ in range(3):
+        start = time.perf_counter()
+        image = backproject(echo, grid, progress=False)
+        assert 0 < image.provenance["kernel_seconds"] <= time.perf_counter() - start
+
+
+def test_the_plans_kept_inputs_stay_within_their_bound(opencl_device, monkeypatch):
+    # every live Grid's plan may keep its device inputs (review 14 L1): all of them together stay within
+    # tiles.kept_limit, the least recently used let go first; the latest call's are kept; inputs larger than the
+    # bound are not kept at all; a grid imaged again after being let go gives the same image
+    from clsas.image.backprojection import tiles
+
+    echo = compressed(presets.point_scene("huang2022", n_pulses=8))
+    grids = [Grid.plane(np.linspace(40.0 + k, 80.0 + k, 40), np.linspace(-4.0, 4.0, 24), 0.0) for k in range(4)]
+    plans = [GridPlan(g) for g in grids]
+    for other in list(tiles._KEPT.keys()):  # earlier tests' plans, still alive
+        other.release()
+    first = backproject(echo, plans[0], progress=False).data
+    one = tiles.kept_bytes()
+    assert one > 0 and plans[0]._kept is not None
+    monkeypatch.setattr(tiles, "KEPT_BYTES", int(2.5 * one))  # room for two grids' inputs
+    for plan in plans[1:]:
+        backproject(echo, plan, progress=False)
+        assert tiles.kept_bytes() <= tiles.kept_limit() and plan._kept is not None
+    assert [p._kept is not None for p in plans] == [False, False, True, True]
+    assert np.array_equal(backproject(echo, plans[0], progress=False).data, first)
+    assert [p._kept is not None for p in plans] == [True, False, False, True]  # plans[2] the least recently used
+    monkeypatch.setattr(tiles, "KEPT_BYTES", one // 2)  # smaller than one grid's inputs: nothing kept
+    backproject(echo, plans[1], progress=False)
+    assert plans[1]._kept is None and tiles.kept_bytes() <= one

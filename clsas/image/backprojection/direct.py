@@ -67,7 +67,8 @@ __all__ = ["backproject"]
 # what a call adds a pixel (tests/test_backprojection.py measures under 80 where no block is carried), and 8
 # more for bp_tile's carry (one chunk's float sums, for records longer than records.LAUNCH_RECORD_BYTES a block);
 # of these, a grid of one chunk's device inputs (its slots' pixel indices and fields, 20-24 bytes) stay with its
-# plan after an OpenCL call (.tiles.GridPlan.kept), and a call that finds them there does not allocate them again
+# plan after an OpenCL call (.tiles.GridPlan.kept; all plans' within .tiles.kept_limit), and a call that finds them
+# there does not allocate them again
 BYTES_PER_PIXEL = 88
 # a Grid's tile plan, kept while the grid lives (12 bytes a pixel: the tiling's slot order and its
 # inverse; after an OpenCL call on a grid of one chunk also its device inputs, 20-24 bytes a slot:
@@ -140,7 +141,8 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
     Returns
     -------
     Image with the grid's dims and axes, ``positions`` the grid's pixels, complex64; its
-    provenance records the options and, for OpenCL, ``kernel_seconds`` (the kernels' own time).
+    provenance records the options and, for OpenCL, ``kernel_seconds`` (the back-projection kernels' own
+    time: while some ran, kernels running side by side counted once).
     """
     _check_call(grid, aperture, stop_and_go)
     plan = _plan_of(grid)

@@ -3,7 +3,7 @@ in launches of bp_tile (:class:`.tile_kernel.TileKernel`) or, for ``precision="d
 receivers whose motion is not linear over a tile, bp_block (:class:`.exact_kernel.ExactKernel`).
 
 Memory: the pixels are processed in chunks of at most ``PIXEL_CHUNK`` (2^22) slots on the device,
-whose fields bp_fields computes there (16 bytes a slot, 20 with a target velocity: TileKernel.PIXELS; a grid
+whose fields bp_fields computes there (16 bytes a slot, 20 for moving pixels: TileKernel.PIXELS; a grid
 of one chunk keeps them, with its slots' pixel indices, in its :class:`.tiles.GridPlan` for the calls after its
 first: :class:`_Inputs`); the kernels
 add into a double image of the chunk's slots (16 bytes a slot: a work-item's rows are contiguous,
@@ -52,7 +52,7 @@ TWO_LANES, TWO_LANE_SLOTS = True, 2**18
 # launches have few work-groups, which reread the records less than a large grid's: the fixed-cost echo's x8 records,
 # 108 kB a pulse, then go 64 pulses a launch instead of 16 at 128^2, 6 % faster; 256^2 unchanged)
 SMALL_LAUNCH_RECORDS = 4
-_SECOND_QUEUES: dict = {}  # context -> the second lane's queue
+_SECOND_QUEUES: dict = {}  # context -> the second lane's queue (opencl.runtime's contexts, which live as long)
 
 
 class _Inputs:
@@ -60,8 +60,9 @@ class _Inputs:
     (``index``, -1 for padding), the work-items' tiles relative to the chunk's first tile
     (``tile_of``), those tiles (``tiles``, a range of the tiling's) and their reference points
     (``centres``), and bp_tile's pixel fields (``pixels``, computed on the device by bp_fields:
-    16 bytes a slot, 20 with a target velocity). A grid of one chunk keeps them with its plan
-    (:meth:`.tiles.GridPlan.kept`), so that a call on a grid imaged before makes none of them."""
+    16 bytes a slot, 20 for moving pixels). A grid of one chunk keeps them with its plan
+    (:meth:`.tiles.GridPlan.kept`, within a bound for all plans), so that a call on a grid imaged
+    before makes none of them."""
 
     def __init__(self, ctx, queue, tiling, tile: TileKernel, positions, first: int, stop: int):
         import pyopencl as cl
@@ -83,6 +84,15 @@ class _Inputs:
         self.centres = made(tiling.centres[self.tiles])
         self.pixels = tile.fields(queue, positions=positions(), index=self.index, tile_of=self.tile_of,
                                   centres=self.centres, n_slots=self.n)
+
+    @staticmethod
+    def nbytes(tiling, tile: TileKernel, first: int, stop: int) -> int:
+        """Device bytes of the inputs of slots ``first`` .. ``stop - 1``: the pixel indices and
+        fields (4 + 16 bytes a slot, 4 + 20 for moving pixels), the work-items' tiles and the tiles'
+        reference points."""
+        width = tile.LANES * tile.rows
+        n_tiles = int(tiling.tile[(stop - 1) // width]) - int(tiling.tile[first // width]) + 1
+        return (stop - first) * (4 + tile.pixels.itemsize // tile.LANES) + 4 * ((stop - first) // width) + 24 * n_tiles
 
     @staticmethod
     def key(ctx, tiling, tile: TileKernel, first: int, stop: int) -> tuple:
@@ -122,18 +132,26 @@ class _Chunk:
     they are read)."""
 
     def __init__(self, ctx, queue, inputs: _Inputs, tile: TileKernel):
+        import pyopencl as cl
+
         self.first, self.n, self.slots, self.tiles = inputs.first, inputs.n, inputs.slots, inputs.tiles
         self.pixels_here, self.index, self.tile_of = inputs.pixels_here, inputs.index, inputs.tile_of
         self.centres, self.pixels = inputs.centres, inputs.pixels
         self._ctx, self._tile = ctx, tile
         self._lanes = [_Lane(ctx, queue, self.n)]
         self.sums = self._lanes[0].sums  # the slots' double image
+        # the inputs' end on the first lane's queue (bp_fields, when made now), for a second lane to wait for
+        self._ready = cl.enqueue_marker(queue)
 
     def lane(self, k: int, queue) -> _Lane:
-        """Lane ``k`` (0, or 1 made on first use on ``queue``): the jobs of a lane run in order on
-        its queue, two lanes side by side (the device's threads take the next command's
+        """Lane ``k`` (0, or 1 made on first use on ``queue``, whose later commands then wait for the
+        chunk's inputs on the first lane's queue): the jobs of a lane run in order on its queue, two
+        lanes side by side (the device's threads take the next command's
         work-groups while a command's last ones finish, and the next command is ready)."""
         if k == len(self._lanes):
+            import pyopencl as cl
+
+            cl.enqueue_barrier(queue, wait_for=[self._ready])  # the pixel fields the first lane's queue makes
             self._lanes.append(_Lane(self._ctx, queue, self.n))
         return self._lanes[k]
 
@@ -189,8 +207,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                        span: tuple[int, int], double=False):
     """The kernels/backprojection.cl launcher: image (M,) complex64 (a grid of one chunk: put in the grid's
     order on the device, :meth:`_Chunk.in_grid_order`) or complex128 (several chunks: added on the host), how many (chunk, receiver,
-    pulse block) jobs ran on the exact double kernel, and the kernels' own time (s, from the
-    queue's profiling events)."""
+    pulse block) jobs ran on the exact double kernel, and the back-projection kernels' own time (s, from the
+    queues' profiling events: the time some bp_tile or bp_block ran, two lanes' overlapping ones counted once)."""
     import pyopencl as cl
 
     rt = opencl.runtime()
@@ -221,24 +239,21 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
             for i in range(len(records.receivers)) for s in range(span[0], span[1], upload)]
     group_of = {i: g for g in _groups(records, kernels, tile, tiles, span) for i in g}
     shared = {}  # (chunk, group, first pulse of the sub-block): the group's references, until its last member's
-    fallbacks, chunk_state, in_flight, work, kernel_seconds = 0, None, [], [], 0.0
+    fallbacks, chunk_state, in_flight, work, busy = 0, None, [], [], []
     bar = Progress(pixels.shape[0] * len(records.receivers) * (span[1] - span[0]), "pixel-pulses",
                    "back-projection (opencl)", progress)
 
-    def retire(keep: int) -> float:
+    def retire(keep: int) -> None:
         """Wait for all but the last ``keep`` jobs' kernels (so that the host, which prepares
         records faster than the kernels read them, holds at most ``keep`` + 1 upload blocks) and
-        return their time (s); their events are dropped (PoCL keeps a command's buffers while
-        its event lives)."""
-        seconds = 0.0
+        note their (start, end) in ``busy``; their events are dropped (PoCL keeps a command's
+        buffers while its event lives)."""
         while len(in_flight) > keep:
             done = in_flight.pop(0)
             if done:  # a job's kernels run in order on its lane's queue: its last one ends last
                 done[-1].wait()
-            for e in done:
-                seconds += 1e-9 * (e.get_profiling_info(END) - e.get_profiling_info(START))
+            busy.extend((e.get_profiling_info(START), e.get_profiling_info(END)) for e in done)
             bar.done(work.pop(0))  # the progress bar counts finished kernels' pixel-pulses
-        return seconds
 
     per_chunk = len(jobs) // len(range(0, tiles.order.size, chunk))
     two = TWO_LANES and per_chunk > 1 and not double and min(chunk, tiles.order.size) <= TWO_LANE_SLOTS
@@ -247,19 +262,20 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
         h, offset = records.receivers[i], int(records.offset[i])
         k = j % per_chunk % len(queues)  # the job's lane: every other job of a chunk on the second queue
         q = queues[k]
-        kernel_seconds += retire(keep)
+        retire(keep)
         if early is not None:  # jobs[0]
             (records_buf, n_samples, base), early = early, None
         else:
             records_buf, n_samples, base = records.buffer(ctx, i, pulses, double, q)
         if chunk_state is None or chunk_state.first != first:
             if chunk_state is not None:
-                kernel_seconds += retire(0)
+                retire(0)
                 image = _added(queue, chunk_state, image, tiles)
             stop = min(first + chunk, tiles.order.size)
             if first == 0 and stop == tiles.order.size:  # a grid of one chunk: its inputs kept with the plan
                 inputs = plan.kept(_Inputs.key(ctx, tiles, tile, first, stop),
-                                   lambda: _Inputs(ctx, queue, tiles, tile, positions, first, stop))
+                                   lambda: _Inputs(ctx, queue, tiles, tile, positions, first, stop),
+                                   _Inputs.nbytes(tiles, tile, first, stop), rt.device.global_mem_size)
             else:
                 inputs = _Inputs(ctx, queue, tiles, tile, positions, first, stop)
             chunk_state = _Chunk(ctx, queue, inputs, tile)
@@ -323,14 +339,27 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                 count = min(tile.PULSE_BLOCK, end - p0)
                 events.append(exact.launch(q, records=records_buf, n_samples=n_samples, taps=taps,
                                            p_first=skip + p0, p_count=count, image=lane.sums))
-    kernel_seconds += retire(0)
+    retire(0)
     if chunk_state is not None and chunk_state.first == 0 and chunk_state.n == tiles.order.size \
             and tiles.slot_of.dtype == np.int32:  # one chunk: the image in the grid's order on the device
         image = chunk_state.merged(queue).in_grid_order(queue, tiles, tile)
     elif chunk_state is not None:
         image = _added(queue, chunk_state, image, tiles)
     bar.close()
-    return (np.zeros(pixels.shape[0], np.complex128) if image is None else image), fallbacks, kernel_seconds
+    return (np.zeros(pixels.shape[0], np.complex128) if image is None else image), fallbacks, _union_seconds(busy)
+
+
+def _union_seconds(intervals: list) -> float:
+    """The time (s) covered by the (start, end) intervals (ns; the kernels' profiling events): the
+    kernels of two lanes overlap, and their time is counted once."""
+    total, last = 0, None
+    for start, end in sorted(intervals):
+        if last is not None and start < last:
+            start = last
+        if end > start:
+            total += end - start
+        last = end if last is None else max(last, end)
+    return 1e-9 * total
 
 
 def _second_queue(ctx):
