@@ -932,8 +932,7 @@ def test_the_second_lane_waits_for_the_pixel_fields_of_the_first(opencl_device, 
 
     monkeypatch.setattr(launcher, "REF_BYTES", 1)
     echo = compressed(presets.point_scene("huang2022", n_pulses=32))
-    grid = Grid.plane(np.linspace(40.5, 80.5, 40), np.linspace(-4.0, 4.0, 24), 0.0)
-    expected = backproject(echo, grid, progress=False).data
+    backproject(echo, Grid.plane(np.linspace(40.5, 80.5, 40), np.linspace(-4.0, 4.0, 24), 0.0), progress=False)
     fields, queues, launch = tile_kernel.TileKernel.fields, [], tile_kernel.TileKernel.launch
 
     def held(self, queue, **args):
@@ -942,13 +941,14 @@ def test_the_second_lane_waits_for_the_pixel_fields_of_the_first(opencl_device, 
         threading.Timer(0.3, lambda: gate.set_status(cl.command_execution_status.COMPLETE)).start()
         return fields(self, queue, **args)
 
-    monkeypatch.setattr(tile_kernel.TileKernel, "fields", held)
     monkeypatch.setattr(tile_kernel.TileKernel, "launch",
                         lambda self, queue, **a: queues.append(queue.int_ptr) or launch(self, queue, **a))
-    got = backproject(echo, Grid.plane(np.linspace(40.5, 80.5, 40), np.linspace(-4.0, 4.0, 24), 0.0),
-                      progress=False).data
+    shifted = Grid.plane(np.linspace(40.75, 80.75, 40), np.linspace(-4.0, 4.0, 24), 0.0)  # stale fields are wrong
+    expected = backproject(echo, shifted, backend="numpy", progress=False).data
+    monkeypatch.setattr(tile_kernel.TileKernel, "fields", held)
+    got = backproject(echo, shifted, progress=False).data
     assert len(set(queues)) == 2
-    assert np.array_equal(got, expected)
+    assert rel_l2(got, expected) < 7e-3  # measured 7.4e-4 (bp_tile's float32 error against the reference)
 
 
 def test_kernel_seconds_count_overlapping_kernels_once(opencl_device):

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import threading
 import weakref
 
 import numpy as np
@@ -33,6 +34,7 @@ EPS32 = float(np.finfo(np.float32).eps)
 # of the device's memory; a plan keeping more lets go of the others' (least recently used first)
 KEPT_BYTES, KEPT_SHARE = 256 * 2**20, 8
 _KEPT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # plan -> bytes kept, least recently used first
+_KEPT_LOCK = threading.RLock()  # calls on several threads: _KEPT's bookkeeping one at a time
 
 
 def tile_half_extent(f0: float, c: float) -> float:
@@ -224,27 +226,31 @@ class GridPlan:
         call at another target velocity makes its own and keeps that one). All plans' kept values
         stay within :func:`kept_limit` (``device_bytes``: the device's memory): other plans'
         are let go, least recently used first, and a value larger than the limit is not kept."""
-        if self._kept is not None and self._kept[0] == key:
-            _KEPT.pop(self, None)
-            _KEPT[self] = nbytes  # the most recently used
-            return self._kept[1]
-        self.release()  # the old value goes before the new one is made
+        with _KEPT_LOCK:
+            held = self._kept
+            if held is not None and held[0] == key:
+                _KEPT.pop(self, None)
+                _KEPT[self] = nbytes  # the most recently used
+                return held[1]
+            self.release()  # the old value goes before the new one is made
         value = make()
         room = kept_limit(device_bytes)
         keep = nbytes <= room
-        for other in list(_KEPT.keys()):  # least recently used first
-            if kept_bytes() + keep * nbytes <= room:
-                break
-            other.release()
-        if keep:
-            self._kept = (key, value)
-            _KEPT[self] = nbytes
+        with _KEPT_LOCK:
+            for other in list(_KEPT.keys()):  # least recently used first
+                if kept_bytes() + keep * nbytes <= room:
+                    break
+                other.release()
+            if keep:
+                self._kept = (key, value)
+                _KEPT[self] = nbytes
         return value
 
     def release(self) -> None:
         """Drop the device inputs :meth:`kept` holds (the next OpenCL call makes them again)."""
-        self._kept = None
-        _KEPT.pop(self, None)
+        with _KEPT_LOCK:
+            self._kept = None
+            _KEPT.pop(self, None)
 
     @property
     def box(self) -> np.ndarray:
@@ -269,7 +275,8 @@ def kept_limit(device_bytes: float = float("inf")) -> float:
 
 def kept_bytes() -> int:
     """Bytes of device inputs all live GridPlans keep now (:meth:`GridPlan.kept`)."""
-    return int(sum(_KEPT.values()))
+    with _KEPT_LOCK:
+        return int(sum(_KEPT.values()))
 
 
 def aperture_spans(leg1_y: np.ndarray, range1: np.ndarray, half_sin: float, half_extent: float, speed: float,
