@@ -447,6 +447,15 @@ __kernel void bp_order(__global const double2 *sums, __global const int *slot_of
         out[m] = convert_float2(sums[slot_of[m]]);
 }
 
+/* bp developer's (clsas/image/backprojection/launcher.py, _Chunk.lane): the second lane's slot sums
+ * (bp_tile launches of every other job, run on a second queue) added into the first lane's */
+__kernel void bp_add_sums(__global double2 *sums, __global const double2 *other, const int n)
+{
+    const int m = get_global_id(0);
+    if (m < n)  /* the launch is padded to whole work-groups */
+        sums[m] += other[m];
+}
+
 #elif defined(BP_REFS)
 /* bp_tile's references (tile_ref_t, TileKernel.reference_dtype) computed on the device, in double,
  * for pixels moving uniformly at v (or at rest) and a receiver of two position nodes (uniform

@@ -829,3 +829,167 @@ def test_bp_order_puts_the_slot_sums_in_the_grids_order_as_astype_rounds(opencl_
     assert image.dtype == np.complex64 and image.shape == (len(pixels),)
     assert np.isinf(expected.real).any() and np.isfinite(image).sum() > len(pixels) // 2
     assert image.tobytes() == expected.tobytes()
+
+
+def test_a_plans_kept_device_inputs_serve_its_next_calls_and_only_their_own_configuration(opencl_device, kiang_echo,
+                                                                                          monkeypatch):
+    # a grid of one chunk keeps its device inputs (slot indices, bp_fields' pixel fields) with its plan: the next
+    # call makes no bp_fields and gives the image a fresh plan gives, bit for bit; a call at another target velocity
+    # (other fields: dv = delta . v) makes its own and replaces them; release() drops them; a grid of several
+    # chunks keeps none
+    from clsas.image.backprojection import launcher, tile_kernel
+
+    made, fields = [], tile_kernel.TileKernel.fields
+
+    def counted(self, queue, **args):
+        made.append(args["n_slots"])
+        return fields(self, queue, **args)
+
+    monkeypatch.setattr(tile_kernel.TileKernel, "fields", counted)
+    grid = around((30.0, 1.0, -43.0), 0.05, 0.05, 20, 20)
+    plan = GridPlan(grid)
+    kw = dict(backend="opencl", upsample=4, progress=False)
+
+    def image(on, velocity):
+        return backproject(kiang_echo, on, target_velocity=velocity, **kw).data
+
+    for velocity, fresh in ((None, 1), (None, 0), ((0.5, -1.0, 0.0), 1), ((0.5, -1.0, 0.0), 0), ((0.2, 0.3, 0.0), 1),
+                            (None, 1)):
+        before = len(made)
+        got = image(plan, velocity)
+        assert len(made) - before == fresh, (velocity, made)
+        assert np.array_equal(got, image(GridPlan(grid), velocity)), velocity
+    assert plan._kept is not None
+    plan.release()
+    assert plan._kept is None
+    before = len(made)
+    assert np.array_equal(image(plan, None), image(GridPlan(grid), None)) and len(made) - before == 2
+    monkeypatch.setattr(launcher, "PIXEL_CHUNK", 2 * TileKernel.LANES * plan.rows)  # several chunks
+    several = GridPlan(grid)
+    assert np.array_equal(image(several, None), image(plan, None))  # added on the host: the same roundings
+    assert several._kept is None
+
+
+@pytest.mark.parametrize("case", ["plain", "carried", "chunks"])
+def test_two_lanes_of_jobs_give_the_one_lane_image(opencl_device, monkeypatch, case):
+    # a small chunk's jobs alternate between two queues (launcher.TWO_LANES), each lane adding into its own sums, the
+    # second's added into the first's at the end: every receiver's pulses counted once, as one lane counts them
+    # (carried blocks: each lane its own carry; several chunks: each chunk's lanes merged before the host adds)
+    from clsas.image.backprojection import launcher, records, tile_kernel
+
+    echo = compressed(presets.point_scene("huang2022", n_pulses=32))
+    grid = Grid.plane(np.linspace(40.0, 80.0, 40), np.linspace(-4.0, 4.0, 24), 0.0)
+    if case == "carried":
+        monkeypatch.setattr(records, "LAUNCH_RECORD_BYTES", 1)
+    if case == "chunks":
+        monkeypatch.setattr(launcher, "PIXEL_CHUNK", 4 * TileKernel.LANES * GridPlan(grid).rows)
+    queues, launch = [], tile_kernel.TileKernel.launch
+    monkeypatch.setattr(tile_kernel.TileKernel, "launch",
+                        lambda self, queue, **a: queues.append(queue.int_ptr) or launch(self, queue, **a))
+    monkeypatch.setattr(launcher, "TWO_LANES", False)
+    one = backproject(echo, grid, progress=False).data
+    assert len(set(queues)) == 1
+    queues.clear()
+    monkeypatch.setattr(launcher, "TWO_LANES", True)
+    two = backproject(echo, grid, progress=False).data
+    assert len(set(queues)) == 2 and queues.count(queues[0]) == len(queues) // 2  # 32 receivers: 16 jobs a lane
+    assert rel_l2(two, one) < 1e-7  # measured 0 (the double sums' other order rounds to the same floats here)
+    queues.clear()
+    monkeypatch.setattr(launcher, "TWO_LANE_SLOTS", TileKernel.LANES)  # a grid above it: one queue
+    assert np.array_equal(backproject(echo, grid, progress=False).data, one) and len(set(queues)) == 1
+
+
+def test_a_small_chunks_launches_read_more_records(opencl_device, monkeypatch):
+    # a chunk on two lanes (at most TWO_LANE_SLOTS slots) counts its records at 1 / SMALL_LAUNCH_RECORDS against
+    # LAUNCH_RECORD_BYTES: a block whose records are 2.5 times the limit is one launch there, and carried over
+    # launches of fewer pulses on a larger chunk; the same image bit for bit
+    from clsas.image.backprojection import launcher, records, tile_kernel
+
+    echo = compressed(presets.point_scene("huang2022", n_pulses=64))
+    grid = Grid.plane(np.linspace(40.0, 80.0, 40), np.linspace(-4.0, 4.0, 24), 0.0)
+    counts, launch = [], tile_kernel.TileKernel.launch
+    monkeypatch.setattr(tile_kernel.TileKernel, "launch",
+                        lambda self, queue, **a: counts.append(a["p_count"]) or launch(self, queue, **a))
+    n_samples = prepare(echo, grid=grid).length.max()  # a plain call's records (the grid's reach, x8)
+    monkeypatch.setattr(records, "LAUNCH_RECORD_BYTES", int(8 * n_samples * TileKernel.PULSE_BLOCK / 2.5))
+    small = backproject(echo, grid, progress=False).data
+    assert set(counts) == {TileKernel.PULSE_BLOCK}
+    counts.clear()
+    monkeypatch.setattr(launcher, "TWO_LANE_SLOTS", TileKernel.LANES)  # the grid is a large chunk now
+    assert np.array_equal(backproject(echo, grid, progress=False).data, small)
+    assert max(counts) == TileKernel.PULSE_BLOCK // 4
+
+
+def test_the_second_lane_waits_for_the_pixel_fields_of_the_first(opencl_device, monkeypatch):
+    # bp_fields runs on the first lane's queue; the second lane's launches read its output: they must wait for it
+    # (review 14 M1). bp_fields is held back by a user event for 0.3 s, on a grid no call imaged before (fresh
+    # memory), with groups of one receiver (no shared references, whose barrier would order them anyway)
+    import threading
+
+    import pyopencl as cl
+
+    from clsas.image.backprojection import launcher, tile_kernel
+
+    monkeypatch.setattr(launcher, "REF_BYTES", 1)
+    echo = compressed(presets.point_scene("huang2022", n_pulses=32))
+    backproject(echo, Grid.plane(np.linspace(40.5, 80.5, 40), np.linspace(-4.0, 4.0, 24), 0.0), progress=False)
+    fields, queues, launch = tile_kernel.TileKernel.fields, [], tile_kernel.TileKernel.launch
+
+    def held(self, queue, **args):
+        gate = cl.UserEvent(queue.context)
+        cl.enqueue_barrier(queue, wait_for=[gate])
+        threading.Timer(0.3, lambda: gate.set_status(cl.command_execution_status.COMPLETE)).start()
+        return fields(self, queue, **args)
+
+    monkeypatch.setattr(tile_kernel.TileKernel, "launch",
+                        lambda self, queue, **a: queues.append(queue.int_ptr) or launch(self, queue, **a))
+    shifted = Grid.plane(np.linspace(40.75, 80.75, 40), np.linspace(-4.0, 4.0, 24), 0.0)  # stale fields are wrong
+    expected = backproject(echo, shifted, backend="numpy", progress=False).data
+    monkeypatch.setattr(tile_kernel.TileKernel, "fields", held)
+    got = backproject(echo, shifted, progress=False).data
+    assert len(set(queues)) == 2
+    assert rel_l2(got, expected) < 7e-3  # measured 7.4e-4 (bp_tile's float32 error against the reference)
+
+
+def test_kernel_seconds_count_overlapping_kernels_once(opencl_device):
+    # two lanes' kernels overlap in time: kernel_seconds is the union of their intervals (review 14 L2), so a call's
+    # kernel time is at most its wall time
+    import time
+
+    from clsas.image.backprojection.launcher import _union_seconds
+
+    assert _union_seconds([(20, 25), (0, 10), (5, 15), (6, 9)]) == pytest.approx(20e-9)
+    assert _union_seconds([]) == 0.0
+    echo = compressed(presets.point_scene("huang2022", n_pulses=32))
+    grid = Grid.plane(np.linspace(40.0, 80.0, 40), np.linspace(-4.0, 4.0, 24), 0.0)
+    backproject(echo, grid, progress=False)
+    for _ in range(3):
+        start = time.perf_counter()
+        image = backproject(echo, grid, progress=False)
+        assert 0 < image.provenance["kernel_seconds"] <= time.perf_counter() - start
+
+
+def test_the_plans_kept_inputs_stay_within_their_bound(opencl_device, monkeypatch):
+    # every live Grid's plan may keep its device inputs (review 14 L1): all of them together stay within
+    # tiles.kept_limit, the least recently used let go first; the latest call's are kept; inputs larger than the
+    # bound are not kept at all; a grid imaged again after being let go gives the same image
+    from clsas.image.backprojection import tiles
+
+    echo = compressed(presets.point_scene("huang2022", n_pulses=8))
+    grids = [Grid.plane(np.linspace(40.0 + k, 80.0 + k, 40), np.linspace(-4.0, 4.0, 24), 0.0) for k in range(4)]
+    plans = [GridPlan(g) for g in grids]
+    for other in list(tiles._KEPT.keys()):  # earlier tests' plans, still alive
+        other.release()
+    first = backproject(echo, plans[0], progress=False).data
+    one = tiles.kept_bytes()
+    assert one > 0 and plans[0]._kept is not None
+    monkeypatch.setattr(tiles, "KEPT_BYTES", int(2.5 * one))  # room for two grids' inputs
+    for plan in plans[1:]:
+        backproject(echo, plan, progress=False)
+        assert tiles.kept_bytes() <= tiles.kept_limit() and plan._kept is not None
+    assert [p._kept is not None for p in plans] == [False, False, True, True]
+    assert np.array_equal(backproject(echo, plans[0], progress=False).data, first)
+    assert [p._kept is not None for p in plans] == [True, False, False, True]  # plans[2] the least recently used
+    monkeypatch.setattr(tiles, "KEPT_BYTES", one // 2)  # smaller than one grid's inputs: nothing kept
+    backproject(echo, plans[1], progress=False)
+    assert plans[1]._kept is None and tiles.kept_bytes() <= one

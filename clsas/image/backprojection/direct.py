@@ -65,10 +65,14 @@ from .tiles import GridPlan
 __all__ = ["backproject"]
 
 # what a call adds a pixel (tests/test_backprojection.py measures under 80 where no block is carried), and 8
-# more for bp_tile's carry (one chunk's float sums, for records longer than records.LAUNCH_RECORD_BYTES a block)
+# more for bp_tile's carry (one chunk's float sums, for records longer than records.LAUNCH_RECORD_BYTES a block);
+# of these, a grid of one chunk's device inputs (its slots' pixel indices and fields, 20-24 bytes) stay with its
+# plan after an OpenCL call (.tiles.GridPlan.kept; all plans' within .tiles.kept_limit), and a call that finds them
+# there does not allocate them again
 BYTES_PER_PIXEL = 88
 # a Grid's tile plan, kept while the grid lives (12 bytes a pixel: the tiling's slot order and its
-# inverse), so that calls on the same Grid tile it once, as a GridPlan passed in would
+# inverse; after an OpenCL call on a grid of one chunk also its device inputs, 20-24 bytes a slot:
+# GridPlan), so that calls on the same Grid tile it once, as a GridPlan passed in would
 _PLANS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
@@ -108,7 +112,8 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
         the one the echo gives with the records' ``interp``, ``upsample`` and ``receivers``.
     grid : Grid (plane, slant plane or any 3-D points), or a :class:`.tiles.GridPlan` of one to image
         the same grid again without redoing its tile plan (a Grid's plan is also kept from its
-        first call while the Grid object lives: 12 bytes a pixel).
+        first call while the Grid object lives: 12 bytes a pixel, and 20-24 more of device inputs
+        for a grid of one chunk on OpenCL, :class:`.tiles.GridPlan`).
     backend : {"numpy", "opencl", "auto"} or None.
     receivers : indices or names of the receivers to sum coherently (default: all; with prepared
         records: theirs, of which a subset may be chosen).
@@ -136,7 +141,8 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
     Returns
     -------
     Image with the grid's dims and axes, ``positions`` the grid's pixels, complex64; its
-    provenance records the options and, for OpenCL, ``kernel_seconds`` (the kernels' own time).
+    provenance records the options and, for OpenCL, ``kernel_seconds`` (the back-projection kernels' own
+    time: while some ran, kernels running side by side counted once).
     """
     _check_call(grid, aperture, stop_and_go)
     plan = _plan_of(grid)

@@ -3,7 +3,9 @@ in launches of bp_tile (:class:`.tile_kernel.TileKernel`) or, for ``precision="d
 receivers whose motion is not linear over a tile, bp_block (:class:`.exact_kernel.ExactKernel`).
 
 Memory: the pixels are processed in chunks of at most ``PIXEL_CHUNK`` (2^22) slots on the device,
-whose fields bp_fields computes there (16 bytes a slot, 20 with a target velocity: TileKernel.PIXELS); the kernels
+whose fields bp_fields computes there (16 bytes a slot, 20 for moving pixels: TileKernel.PIXELS; a grid
+of one chunk keeps them, with its slots' pixel indices, in its :class:`.tiles.GridPlan` for the calls after its
+first: :class:`_Inputs`); the kernels
 add into a double image of the chunk's slots (16 bytes a slot: a work-item's rows are contiguous,
 written as whole vectors; with records longer than ``records.LAUNCH_RECORD_BYTES`` a block, also its
 float sums carried between launches, 8 bytes a slot), put in the grid's order once the chunk's
@@ -40,24 +42,35 @@ REF_PULSES = 1024  # pulses whose tile references are computed at once (a 1024-p
 REF_BYTES = 16 * 2**20  # a group of receivers' references (every pulse of the call) held at once (_groups)
 IN_FLIGHT_BYTES = 2 * UPLOAD_BYTES  # records (records.upload_pulses' bytes a pulse) of the jobs in flight at once
 MAX_IN_FLIGHT = 8  # jobs in flight at most
+# a chunk of at most TWO_LANE_SLOTS slots with several jobs runs every other job on a second queue (_Chunk.lane), into
+# its own sums and carry (24 bytes a slot: at most 6 MB) and the FIR's scratch buffer of that queue (records.py): a
+# small grid's launches are short, so a thread idle at a launch's end and the ~25 us between commands are a large
+# share of them, and the second queue's next command fills both (the fixed-cost echo's 128^2 call 8 % faster; 512^2
+# unchanged, so left on one queue)
+TWO_LANES, TWO_LANE_SLOTS = True, 2**18
+# such a chunk's bp_tile launches read up to SMALL_LAUNCH_RECORDS x records.LAUNCH_RECORD_BYTES of records (its
+# launches have few work-groups, which reread the records less than a large grid's: the fixed-cost echo's x8 records,
+# 108 kB a pulse, then go 64 pulses a launch instead of 16 at 128^2, 6 % faster; 256^2 unchanged)
+SMALL_LAUNCH_RECORDS = 4
+_SECOND_QUEUES: dict = {}  # context -> the second lane's queue (opencl.runtime's contexts, which live as long)
 
 
-class _Chunk:
-    """The device side of slots ``first`` .. ``stop - 1`` of the plan's tiling: their pixel
-    indices (``index``, -1 for padding), the work-items' tiles relative to the chunk's first tile
-    and those tiles (``tiles``, a range of the tiling's), bp_tile's pixel fields (computed on
-    the device by bp_fields) and the slots' sums (``sums``, double2 a slot, zeroed)."""
+class _Inputs:
+    """The device inputs of slots ``first`` .. ``stop - 1`` of a tiling: their pixel indices
+    (``index``, -1 for padding), the work-items' tiles relative to the chunk's first tile
+    (``tile_of``), those tiles (``tiles``, a range of the tiling's) and their reference points
+    (``centres``), and bp_tile's pixel fields (``pixels``, computed on the device by bp_fields:
+    16 bytes a slot, 20 for moving pixels). A grid of one chunk keeps them with its plan
+    (:meth:`.tiles.GridPlan.kept`, within a bound for all plans), so that a call on a grid imaged
+    before makes none of them."""
 
     def __init__(self, ctx, queue, tiling, tile: TileKernel, positions, first: int, stop: int):
         import pyopencl as cl
 
         mf = cl.mem_flags
-        self._new_carry = lambda: cl.Buffer(ctx, mf.READ_WRITE, 8 * self.n)
         width = tile.LANES * tile.rows
         self.first, self.n = first, stop - first
         slots = tiling.order[first:stop]
-        self.sums = cl.Buffer(ctx, mf.READ_WRITE, 16 * self.n)  # the slots' double image
-        cl.enqueue_fill_buffer(queue, self.sums, np.zeros(1, np.complex128), 0, 16 * self.n)
         owner = tiling.tile[first // width:stop // width]
         self.tiles = np.arange(owner[0], owner[-1] + 1)
         self.pixels_here = int(np.count_nonzero(slots >= 0))
@@ -69,9 +82,90 @@ class _Chunk:
         self.index = made(slots.astype(np.int32))
         self.tile_of = made(owner - owner[0])
         self.centres = made(tiling.centres[self.tiles])
-        self.pixels = tile.fields(queue, positions=positions, index=self.index, tile_of=self.tile_of,
+        self.pixels = tile.fields(queue, positions=positions(), index=self.index, tile_of=self.tile_of,
                                   centres=self.centres, n_slots=self.n)
+
+    @staticmethod
+    def nbytes(tiling, tile: TileKernel, first: int, stop: int) -> int:
+        """Device bytes of the inputs of slots ``first`` .. ``stop - 1``: the pixel indices and
+        fields (4 + 16 bytes a slot, 4 + 20 for moving pixels), the work-items' tiles and the tiles'
+        reference points."""
+        width = tile.LANES * tile.rows
+        n_tiles = int(tiling.tile[(stop - 1) // width]) - int(tiling.tile[first // width]) + 1
+        return (stop - first) * (4 + tile.pixels.itemsize // tile.LANES) + 4 * ((stop - first) // width) + 24 * n_tiles
+
+    @staticmethod
+    def key(ctx, tiling, tile: TileKernel, first: int, stop: int) -> tuple:
+        """What the inputs depend on besides the plan's grid: the context, the tiling, the slots
+        and bp_fields' configuration (rows, the pixels' motion)."""
+        return (int(ctx.int_ptr), id(tiling), first, stop, tuple(sorted(tile.field_defines.items())),
+                tuple(float(v) for v in tile.v_k))
+
+
+class _Lane:
+    """One lane of a chunk's bp_tile launches: its queue, the slots' sums it adds into (double2 a
+    slot, zeroed on its queue when made) and bp_tile's CARRY buffer (float sums, 8 bytes a slot,
+    made on first use)."""
+
+    def __init__(self, ctx, queue, n: int):
+        import pyopencl as cl
+
+        self.queue, self._ctx, self._n = queue, ctx, n
+        self.sums = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 16 * n)
+        cl.enqueue_fill_buffer(queue, self.sums, np.zeros(1, np.complex128), 0, 16 * n)
         self._carry = None
+
+    @property
+    def carry(self):
+        if self._carry is None:
+            import pyopencl as cl
+
+            self._carry = cl.Buffer(self._ctx, cl.mem_flags.READ_WRITE, 8 * self._n)
+        return self._carry
+
+
+class _Chunk:
+    """A chunk of slots of the plan's tiling on the device: its :class:`_Inputs` (``first``, ``n``,
+    ``slots``, ``tiles``, ``pixels_here``, ``index``, ``tile_of``, ``centres`` and ``pixels`` as
+    there) and its lanes (:meth:`lane`): the first lane's sums (``sums``, double2 a slot, zeroed)
+    hold the image once a second lane's, if any, are added into them (:meth:`merged`, before
+    they are read)."""
+
+    def __init__(self, ctx, queue, inputs: _Inputs, tile: TileKernel):
+        import pyopencl as cl
+
+        self.first, self.n, self.slots, self.tiles = inputs.first, inputs.n, inputs.slots, inputs.tiles
+        self.pixels_here, self.index, self.tile_of = inputs.pixels_here, inputs.index, inputs.tile_of
+        self.centres, self.pixels = inputs.centres, inputs.pixels
+        self._ctx, self._tile = ctx, tile
+        self._lanes = [_Lane(ctx, queue, self.n)]
+        self.sums = self._lanes[0].sums  # the slots' double image
+        # the inputs' end on the first lane's queue (bp_fields, when made now), for a second lane to wait for
+        self._ready = cl.enqueue_marker(queue)
+
+    def lane(self, k: int, queue) -> _Lane:
+        """Lane ``k`` (0, or 1 made on first use on ``queue``, whose later commands then wait for the
+        chunk's inputs on the first lane's queue): the jobs of a lane run in order on its queue, two
+        lanes side by side (the device's threads take the next command's
+        work-groups while a command's last ones finish, and the next command is ready)."""
+        if k == len(self._lanes):
+            import pyopencl as cl
+
+            cl.enqueue_barrier(queue, wait_for=[self._ready])  # the pixel fields the first lane's queue makes
+            self._lanes.append(_Lane(self._ctx, queue, self.n))
+        return self._lanes[k]
+
+    def merged(self, queue) -> "_Chunk":
+        """The chunk, the second lane's sums, if any, added into the first's (bp_add_sums on ``queue``,
+        the first lane's, once the second lane's queue has finished) and dropped: ``sums`` then
+        hold the chunk's image (:meth:`in_grid_order`, :meth:`add_into`)."""
+        if len(self._lanes) > 1:
+            other = self._lanes.pop()
+            other.queue.finish()
+            opencl.kernel("backprojection", "bp_add_sums", preamble=self._tile.preamble,
+                          defines=self._tile.field_defines)(
+                queue, *opencl.work_groups(self.n), self.sums, other.sums, np.int32(self.n))
+        return self
 
     def in_grid_order(self, queue, tiling, tile: TileKernel) -> np.ndarray:
         """The image (M,) complex64 of a chunk of the whole ``tiling`` (after the chunk's kernels): bp_order
@@ -90,13 +184,6 @@ class _Chunk:
         mapped, _ = cl.enqueue_map_buffer(queue, out_buf, cl.map_flags.READ, 0, (out.size,), np.complex64)
         mapped.base.release()  # the blocking map waits for bp_order; out holds the image
         return out
-
-    @property
-    def carry(self):
-        """bp_tile's CARRY buffer of the chunk's slots (float sums, 8 bytes a slot), made on first use."""
-        if self._carry is None:
-            self._carry = self._new_carry()
-        return self._carry
 
     def add_into(self, queue, image: np.ndarray, tiling) -> None:
         """Add the slots' sums into ``image`` (M,) complex128 at their pixels (after the chunk's
@@ -120,8 +207,8 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                        span: tuple[int, int], double=False):
     """The kernels/backprojection.cl launcher: image (M,) complex64 (a grid of one chunk: put in the grid's
     order on the device, :meth:`_Chunk.in_grid_order`) or complex128 (several chunks: added on the host), how many (chunk, receiver,
-    pulse block) jobs ran on the exact double kernel, and the kernels' own time (s, from the
-    queue's profiling events)."""
+    pulse block) jobs ran on the exact double kernel, and the back-projection kernels' own time (s, from the
+    queues' profiling events: the time some bp_tile or bp_block ran, two lanes' overlapping ones counted once)."""
     import pyopencl as cl
 
     rt = opencl.runtime()
@@ -137,7 +224,9 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
     pixels = np.ascontiguousarray(plan.grid.positions.reshape(-1, 3), np.float64)
     image = None  # complex128, made when a chunk's sums are added on the host
-    positions = cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=pixels)
+
+    def positions():  # bp_fields' input (a buffer of the host array in place), for the chunks not kept
+        return cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=pixels)
     tiles = plan.tiling(f0, c)
     tile = TileKernel(records.interp, aperture, velocity, stop_and_go, rows=tiles.rows)
     kernels = {h: tile.for_receiver(echo, h) for h in records.receivers}  # each receiver's legs (TileKernel.legs_for)
@@ -150,35 +239,47 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
             for i in range(len(records.receivers)) for s in range(span[0], span[1], upload)]
     group_of = {i: g for g in _groups(records, kernels, tile, tiles, span) for i in g}
     shared = {}  # (chunk, group, first pulse of the sub-block): the group's references, until its last member's
-    fallbacks, chunk_state, in_flight, work, kernel_seconds = 0, None, [], [], 0.0
+    fallbacks, chunk_state, in_flight, work, busy = 0, None, [], [], []
     bar = Progress(pixels.shape[0] * len(records.receivers) * (span[1] - span[0]), "pixel-pulses",
                    "back-projection (opencl)", progress)
 
-    def retire(keep: int) -> float:
+    def retire(keep: int) -> None:
         """Wait for all but the last ``keep`` jobs' kernels (so that the host, which prepares
         records faster than the kernels read them, holds at most ``keep`` + 1 upload blocks) and
-        return their time (s); their events are dropped (PoCL keeps a command's buffers while
-        its event lives)."""
-        seconds = 0.0
+        note their (start, end) in ``busy``; their events are dropped (PoCL keeps a command's
+        buffers while its event lives)."""
         while len(in_flight) > keep:
-            for e in in_flight.pop(0):
-                e.wait()
-                seconds += 1e-9 * (e.get_profiling_info(END) - e.get_profiling_info(START))
+            done = in_flight.pop(0)
+            if done:  # a job's kernels run in order on its lane's queue: its last one ends last
+                done[-1].wait()
+            busy.extend((e.get_profiling_info(START), e.get_profiling_info(END)) for e in done)
             bar.done(work.pop(0))  # the progress bar counts finished kernels' pixel-pulses
-        return seconds
 
-    for first, i, pulses in jobs:
+    per_chunk = len(jobs) // len(range(0, tiles.order.size, chunk))
+    two = TWO_LANES and per_chunk > 1 and not double and min(chunk, tiles.order.size) <= TWO_LANE_SLOTS
+    queues = [queue] + ([_second_queue(ctx)] if two else [])
+    for j, (first, i, pulses) in enumerate(jobs):
         h, offset = records.receivers[i], int(records.offset[i])
-        kernel_seconds += retire(keep)
+        k = j % per_chunk % len(queues)  # the job's lane: every other job of a chunk on the second queue
+        q = queues[k]
+        retire(keep)
         if early is not None:  # jobs[0]
             (records_buf, n_samples, base), early = early, None
         else:
-            records_buf, n_samples, base = records.buffer(ctx, i, pulses, double)
+            records_buf, n_samples, base = records.buffer(ctx, i, pulses, double, q)
         if chunk_state is None or chunk_state.first != first:
             if chunk_state is not None:
-                kernel_seconds += retire(0)
+                retire(0)
                 image = _added(queue, chunk_state, image, tiles)
-            chunk_state = _Chunk(ctx, queue, tiles, tile, positions, first, min(first + chunk, tiles.order.size))
+            stop = min(first + chunk, tiles.order.size)
+            if first == 0 and stop == tiles.order.size:  # a grid of one chunk: its inputs kept with the plan
+                inputs = plan.kept(_Inputs.key(ctx, tiles, tile, first, stop),
+                                   lambda: _Inputs(ctx, queue, tiles, tile, positions, first, stop),
+                                   _Inputs.nbytes(tiles, tile, first, stop), rt.device.global_mem_size)
+            else:
+                inputs = _Inputs(ctx, queue, tiles, tile, positions, first, stop)
+            chunk_state = _Chunk(ctx, queue, inputs, tile)
+        lane = chunk_state.lane(k, q)
         skip = int(pulses[0] - base)  # the job's first pulse in the buffer (which may hold earlier pulses)
         in_flight.append(events := [])
         work.append(chunk_state.pixels_here * pulses.size)
@@ -192,13 +293,16 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                 ref_stride, ref_first = part.size * len(group), skip + s - part.size * group.index(i)
                 if len(group) > 1:  # every member's references from one bp_refs launch, (T, members, P)
                     key = (first, group, int(part[0]))
-                    if key not in shared:
-                        shared[key] = kernel.references_on_device(
-                            queue, echo, [records.receivers[m] for m in group], part, chunk_state.centres,
+                    if key not in shared:  # (buffer, the lane that computes it, its end on that lane's queue)
+                        made = kernel.references_on_device(
+                            q, echo, [records.receivers[m] for m in group], part, chunk_state.centres,
                             chunk_state.tiles.size, fs, tiles.half_extent, records.offset[list(group)])
-                    ref_buf = shared[key] if i != group[-1] else shared.pop(key)
+                        shared[key] = (made, k, cl.enqueue_marker(q) if len(queues) > 1 and made else None)
+                    ref_buf, made_on, done = shared[key] if i != group[-1] else shared.pop(key)
+                    if made_on != k and done is not None:  # computed on the other lane's queue: wait for it
+                        cl.enqueue_barrier(q, wait_for=[done])
                 else:
-                    ref_buf = kernel.references_on_device(queue, echo, h, part, chunk_state.centres,
+                    ref_buf = kernel.references_on_device(q, echo, h, part, chunk_state.centres,
                                                           chunk_state.tiles.size, fs, tiles.half_extent, offset)
                 if ref_buf is None:  # a receiver followed between several nodes: on the host
                     ref, linear = kernel.references(echo, h, part, tiles.centres[chunk_state.tiles], fs,
@@ -207,20 +311,22 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                 if ref_buf is not None:
                     spans = None
                     if tile.pulse_span:
-                        ref, _ = cl.enqueue_map_buffer(queue, ref_buf, cl.map_flags.READ, 0,
+                        ref, _ = cl.enqueue_map_buffer(q, ref_buf, cl.map_flags.READ, 0,
                                                        (chunk_state.tiles.size, ref_stride), kernel.reference_dtype)
                         mine = ref[:, skip + s - ref_first:][:, :part.size]  # this receiver's (T, P)
                         spans = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                                           hostbuf=tile.spans(mine, tiles.half_extent, c, skip + s))
                         ref.base.release()
+                    # (a small chunk's records counted at 1 / SMALL_LAUNCH_RECORDS against LAUNCH_RECORD_BYTES)
+                    sub = launch_pulses(-(-n_samples // SMALL_LAUNCH_RECORDS) if two else n_samples, tile.PULSE_BLOCK)
                     for q0, n_q, mode in _launches(int(pulses[s]), int(pulses[end - 1]) + 1, span,
-                                                   tile.PULSE_BLOCK, launch_pulses(n_samples, tile.PULSE_BLOCK)):
+                                                   tile.PULSE_BLOCK, sub):
                         q0 -= int(pulses[0])  # the job's pulse index
                         events.append(kernel.launch(
-                            queue, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
+                            q, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
                             ref_stride=ref_stride, ref_first=ref_first, records=records_buf, n_samples=n_samples,
-                            taps=taps, params=params, p_first=skip + q0, p_count=n_q, image=chunk_state.sums,
-                            spans=spans, carry=mode and chunk_state.carry, carry_mode=mode or 0))
+                            taps=taps, params=params, p_first=skip + q0, p_count=n_q, image=lane.sums,
+                            spans=spans, carry=mode and lane.carry, carry_mode=mode or 0))
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)
@@ -231,23 +337,46 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                                     velocity, records.interp, aperture, stop_and_go, double)
             for p0 in range(s, end, tile.PULSE_BLOCK):
                 count = min(tile.PULSE_BLOCK, end - p0)
-                events.append(exact.launch(queue, records=records_buf, n_samples=n_samples, taps=taps,
-                                           p_first=skip + p0, p_count=count, image=chunk_state.sums))
-    kernel_seconds += retire(0)
+                events.append(exact.launch(q, records=records_buf, n_samples=n_samples, taps=taps,
+                                           p_first=skip + p0, p_count=count, image=lane.sums))
+    retire(0)
     if chunk_state is not None and chunk_state.first == 0 and chunk_state.n == tiles.order.size \
             and tiles.slot_of.dtype == np.int32:  # one chunk: the image in the grid's order on the device
-        image = chunk_state.in_grid_order(queue, tiles, tile)
+        image = chunk_state.merged(queue).in_grid_order(queue, tiles, tile)
     elif chunk_state is not None:
         image = _added(queue, chunk_state, image, tiles)
     bar.close()
-    return (np.zeros(pixels.shape[0], np.complex128) if image is None else image), fallbacks, kernel_seconds
+    return (np.zeros(pixels.shape[0], np.complex128) if image is None else image), fallbacks, _union_seconds(busy)
+
+
+def _union_seconds(intervals: list) -> float:
+    """The time (s) covered by the (start, end) intervals (ns; the kernels' profiling events): the
+    kernels of two lanes overlap, and their time is counted once."""
+    total, last = 0, None
+    for start, end in sorted(intervals):
+        if last is not None and start < last:
+            start = last
+        if end > start:
+            total += end - start
+        last = end if last is None else max(last, end)
+    return 1e-9 * total
+
+
+def _second_queue(ctx):
+    """A second in-order queue (profiling enabled) of the context ``ctx``, made once."""
+    import pyopencl as cl
+
+    key = int(ctx.int_ptr)
+    if key not in _SECOND_QUEUES:
+        _SECOND_QUEUES[key] = cl.CommandQueue(ctx, properties=cl.command_queue_properties.PROFILING_ENABLE)
+    return _SECOND_QUEUES[key]
 
 
 def _added(queue, chunk_state: _Chunk, image, tiles) -> np.ndarray:
     """``image`` (M,) complex128 (made zero when None) with ``chunk_state``'s sums added (:meth:`_Chunk.add_into`)."""
     if image is None:
         image = np.zeros(tiles.slot_of.size, np.complex128)
-    chunk_state.add_into(queue, image, tiles)
+    chunk_state.merged(queue).add_into(queue, image, tiles)
     return image
 
 

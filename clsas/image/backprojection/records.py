@@ -203,7 +203,7 @@ class PreparedRecords:
         t0 = np.asarray(echo.t0)[list(self.receivers)]
         self.span = np.column_stack([t0 + self.offset / self.fs, t0 + (self.offset + self.length) / self.fs])
         self._device = {}
-        self._scratch = {}  # per context: the device buffer a call's upload blocks are upsampled into, in turn
+        self._scratch = {}  # per (context, queue): the device buffer a call's upload blocks are upsampled into, in turn
         self._host = None
         if materialise and self.factor > 1:  # records not upsampled are views of the echo: nothing to hold
             held = 8.0 * echo.n_pulses * float(np.sum(np.maximum(self.length, MIN_SAMPLES)))
@@ -264,11 +264,12 @@ class PreparedRecords:
             return self._host[i][pulses[0]:pulses[-1] + 1]
         return self._make(i, pulses)
 
-    def buffer(self, ctx, i: int, pulses: np.ndarray, double: bool):
+    def buffer(self, ctx, i: int, pulses: np.ndarray, double: bool, queue=None):
         """(device buffer of receiver ``receivers[i]``'s records (complex128 when ``double``),
         samples per record, the buffer's first pulse). Materialised records keep one buffer of all
         pulses per (receiver, precision); others build one for the consecutive ``pulses`` and drop
-        it with the call."""
+        it with the call (FIR-upsampled on ``queue``, default the runtime's, into that queue's
+        scratch buffer)."""
         import pyopencl as cl
 
         mf = cl.mem_flags
@@ -281,7 +282,7 @@ class PreparedRecords:
                 self._device[key] = (cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=host), host)
             return self._device[key][0], self._host[i].shape[1], 0
         if self.fir_on_device and not double and self._bounds[i, 1] > self._bounds[i, 0]:
-            return self._upsampled_on_device(ctx, i, pulses), int(self.length[i]), int(pulses[0])
+            return self._upsampled_on_device(ctx, i, pulses, queue), int(self.length[i]), int(pulses[0])
         records = self.samples(i, pulses)
         if records.dtype == dtype and records.flags.c_contiguous and records.base is not None:
             # a view of the echo itself (no upsampling, no cut): the device reads it in place; the
@@ -292,10 +293,10 @@ class PreparedRecords:
         records = np.ascontiguousarray(records, dtype=dtype)
         return cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=records), records.shape[1], int(pulses[0])
 
-    def _upsampled_on_device(self, ctx, i: int, pulses: np.ndarray):
+    def _upsampled_on_device(self, ctx, i: int, pulses: np.ndarray, queue=None):
         """A device buffer of receiver ``receivers[i]``'s records of the consecutive ``pulses``,
-        upsampled by the FIR on the device (the kernel enqueued on the runtime's queue, which the
-        back-projection kernels then read in order)."""
+        upsampled by the FIR on the device (the kernel enqueued on ``queue``, default the runtime's,
+        which the back-projection kernels then read in order; one scratch buffer a queue)."""
         import pyopencl as cl
 
         from ... import opencl
@@ -308,13 +309,13 @@ class PreparedRecords:
         # the echo outlives it); a converted copy is copied, as it goes with this function
         flags = mf.USE_HOST_PTR if np.shares_memory(src, self.echo.data) else mf.COPY_HOST_PTR
         src_buf = cl.Buffer(ctx, mf.READ_ONLY | flags, hostbuf=src)
-        queue = opencl.runtime().queue
+        queue = opencl.runtime().queue if queue is None else queue
         size = 8 * src.shape[0] * int(self.length[i])
         # every upload block of the call is upsampled into one buffer (a fresh one costs its page
         # faults each time): on an in-order queue a block's upsampling runs after the kernels
         # enqueued before it, which read the previous block, have finished
         in_order = not queue.properties & cl.command_queue_properties.OUT_OF_ORDER_EXEC_MODE_ENABLE
-        key = int(ctx.int_ptr)
+        key = (int(ctx.int_ptr), int(queue.int_ptr))
         if not in_order or key not in self._scratch or self._scratch[key].size < size:
             size_all = 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))
             self._scratch[key] = cl.Buffer(ctx, mf.READ_WRITE, size=max(size, size_all))

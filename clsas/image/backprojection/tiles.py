@@ -15,10 +15,12 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import threading
+import weakref
 
 import numpy as np
 
-from ... import validate
+from ... import budget, validate
 from ...model import Grid
 
 # bp_tile: a work-item holds rows float16 vectors of LANES pixels (tiles padded to LANES x rows); ROWS for
@@ -28,6 +30,11 @@ LANES, ROWS = 16, 6
 PHASE_BUDGET = 2e-3  # rad: the float32 geometry's share of the 0.01 rad phase budget
 ERROR_FACTOR = 8.0  # float32 roundings per |delta| / c of delay (tile_kernel's docstring)
 EPS32 = float(np.finfo(np.float32).eps)
+# the device inputs GridPlan.kept holds, all plans together: at most KEPT_BYTES, 1/KEPT_SHARE of the memory budget and
+# of the device's memory; a plan keeping more lets go of the others' (least recently used first)
+KEPT_BYTES, KEPT_SHARE = 256 * 2**20, 8
+_KEPT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # plan -> bytes kept, least recently used first
+_KEPT_LOCK = threading.RLock()  # calls on several threads: _KEPT's bookkeeping one at a time
 
 
 def tile_half_extent(f0: float, c: float) -> float:
@@ -195,8 +202,12 @@ class GridPlan:
     """A grid and its tile plan (:func:`plan_tiles`), made on first use for a carrier and sound
     speed and kept. Pass it to :func:`backproject` in place of the grid to image the same grid
     again without tiling it again (e.g. re-imaging an echo at several target velocities or after
-    autofocus). It holds 8 bytes a pixel once used (the tile order). ``rows``: the rows of LANES
-    pixels a bp_tile work-item holds (default ROWS; a tuning knob the benches compare)."""
+    autofocus). It holds 12 bytes a pixel once used (the tile order and its inverse) and, after an
+    OpenCL call on a grid of one chunk (at most ``launcher.PIXEL_CHUNK`` slots), that chunk's
+    device inputs (:meth:`kept`: 20 bytes a slot, 24 for moving pixels, i.e. a target velocity
+    without stop-and-go; on a CPU device in host memory) until :meth:`release`, while all plans'
+    together fit :func:`kept_limit`. ``rows``: the rows of LANES pixels a bp_tile work-item
+    holds (default ROWS; a tuning knob the benches compare)."""
 
     def __init__(self, grid: Grid, rows: int = ROWS):
         if not isinstance(grid, Grid):
@@ -205,6 +216,41 @@ class GridPlan:
         self.grid = grid
         self._tilings = {}
         self._box = None
+        self._kept = None  # (key, value): the launcher's device inputs of the latest configuration
+
+    def kept(self, key, make, nbytes: int, device_bytes: float = float("inf")):
+        """``make()``'s value for ``key``, made on first use and kept with the plan: the launcher's
+        device inputs of a grid of one chunk (its slots' pixel indices, tiles and bp_tile's pixel
+        fields, ``nbytes`` of device memory), for a key of what else they depend on (the context,
+        the tiling, the pixels' motion). One key at a time: another key's value replaces it (a
+        call at another target velocity makes its own and keeps that one). All plans' kept values
+        stay within :func:`kept_limit` (``device_bytes``: the device's memory): other plans'
+        are let go, least recently used first, and a value larger than the limit is not kept."""
+        with _KEPT_LOCK:
+            held = self._kept
+            if held is not None and held[0] == key:
+                _KEPT.pop(self, None)
+                _KEPT[self] = nbytes  # the most recently used
+                return held[1]
+            self.release()  # the old value goes before the new one is made
+        value = make()
+        room = kept_limit(device_bytes)
+        keep = nbytes <= room
+        with _KEPT_LOCK:
+            for other in list(_KEPT.keys()):  # least recently used first
+                if kept_bytes() + keep * nbytes <= room:
+                    break
+                other.release()
+            if keep:
+                self._kept = (key, value)
+                _KEPT[self] = nbytes
+        return value
+
+    def release(self) -> None:
+        """Drop the device inputs :meth:`kept` holds (the next OpenCL call makes them again)."""
+        with _KEPT_LOCK:
+            self._kept = None
+            _KEPT.pop(self, None)
 
     @property
     def box(self) -> np.ndarray:
@@ -219,6 +265,18 @@ class GridPlan:
         if key not in self._tilings:
             self._tilings[key] = plan_tiles(self.grid.positions, f0, c, rows=self.rows)
         return self._tilings[key]
+
+
+def kept_limit(device_bytes: float = float("inf")) -> float:
+    """The most all GridPlans may keep (:meth:`GridPlan.kept`): KEPT_BYTES, 1/KEPT_SHARE of the memory
+    budget (:mod:`clsas.budget`) and of ``device_bytes`` (the device's memory)."""
+    return min(KEPT_BYTES, budget.memory_budget() / KEPT_SHARE, device_bytes / KEPT_SHARE)
+
+
+def kept_bytes() -> int:
+    """Bytes of device inputs all live GridPlans keep now (:meth:`GridPlan.kept`)."""
+    with _KEPT_LOCK:
+        return int(sum(_KEPT.values()))
 
 
 def aperture_spans(leg1_y: np.ndarray, range1: np.ndarray, half_sin: float, half_extent: float, speed: float,
