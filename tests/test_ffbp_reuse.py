@@ -264,3 +264,37 @@ def test_an_image_on_a_grid_equals_the_one_its_constructor_makes():
             assert type(a) is type(b) and np.array_equal(a, b), field.name
     with pytest.raises(TypeError, match="positions"):
         Image._checked(data=data, dims=GRID.dims, axes=GRID.axes, provenance={})
+
+
+def test_scratch_buffers_go_to_the_next_call_within_the_budget(opencl_device, monkeypatch):
+    """The scratch device buffers a call gives back (clsas.image.ffbp.scratch: the first batch's
+    sums, the levels' groups) are taken by the next call on the same tree, which allocates none
+    (the image bit for bit the same); they are kept only within what the memory budget leaves
+    beside a call's plan and the layouts' room (a budget of the plan alone keeps none), and
+    release() lets go of them."""
+    from clsas.image.ffbp import scratch
+
+    reuse.release()
+    echo = echo_of("straight")
+    grid = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(-2.0, 2.0, 0.04), DEPTH)
+    first = ffbp(echo, grid, backend="opencl", progress=False)
+    assert scratch.held_bytes() > 0
+    kept = {id(b) for b in scratch._FREE}
+    taking, taken = scratch.Scratch.take, []
+    monkeypatch.setattr(scratch.Scratch, "take", lambda self, n: taken.append(taking(self, n)) or taken[-1])
+    second = ffbp(echo, grid, backend="opencl", progress=False)
+    assert second.data.tobytes() == first.data.tobytes()
+    assert len(taken) >= 2 and all(id(b) in kept for b in taken)
+    monkeypatch.setattr(importlib.import_module("clsas.image.ffbp"), "PLAN_BYTES", 0)  # the planning's pre-check
+    from clsas.image.ffbp import leaves
+
+    laying_out, held = leaves.FirstStage._layout, []  # kept and not taken while the call runs: none
+    monkeypatch.setattr(leaves.FirstStage, "_layout", lambda self, *a: held.append(scratch.held_bytes())
+                        or laying_out(self, *a))
+    with clsas.use_memory_budget(first.provenance["memory_bytes"] + 1024):  # 1 KiB beside the plan: no room
+        assert ffbp(echo, grid, backend="opencl", progress=False).data.tobytes() == first.data.tobytes()
+        assert held == [0] and scratch.held_bytes() == 0
+    ffbp(echo, grid, backend="opencl", progress=False)
+    assert scratch.held_bytes() > 0
+    importlib.import_module("clsas.image.ffbp").release()
+    assert scratch.held_bytes() == 0

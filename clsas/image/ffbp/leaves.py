@@ -64,9 +64,11 @@ class FirstStage:
     (:meth:`image`; module docstring)."""
 
     def __init__(self, echo, pulses: list, backend: str, chosen, interp: str, upsample: int, aperture,
-                 stop_and_go: bool, layouts=None):
+                 stop_and_go: bool, layouts=None, scratch=None):
         self.echo, self.leaves, self.backend = echo, pulses, backend
         self.layouts = layouts  # the tree's batches' layouts kept between calls (.reuse.Layouts), or None
+        self.scratch = scratch  # the call's .scratch.Scratch: the first batch's sums (later ones: their own)
+        self.sums_taken = False
         self.first = max(p1 - p0 for p0, p1 in pulses)
         self.options = dict(receivers=chosen, interp=interp, upsample=upsample)
         self.aperture, self.stop_and_go = aperture, stop_and_go
@@ -345,7 +347,13 @@ class FirstStage:
             refs = [r if isinstance(r, cl.Buffer) else cl_buffer(r) for r in refs]
         row_shift = cl_buffer(layout.row_shift - np.int32(b0))
         params, taps = tile.params(c, f0, records.fs), tile.taps(ctx)
-        image = cl.Buffer(ctx, mf.READ_WRITE, 16 * LANES * layout.n_items)  # the first launch stores, later ones add
+        # the sums (the first launch stores, later ones add): the first batch's in a scratch buffer (kept
+        # between calls, given back at the call's end), a later batch's its own (the last batch's leaves may
+        # still wait for their flush when the next batch is made)
+        nbytes = 16 * LANES * layout.n_items
+        first = self.scratch is not None and not self.sums_taken
+        image = self.scratch.take(nbytes) if first else cl.Buffer(ctx, mf.READ_WRITE, nbytes)
+        self.sums_taken = self.sums_taken or first
         for i, h in enumerate(records.receivers):
             data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
             kern = tile.for_receiver(echo, h)  # the receiver's legs (TileKernel.legs_for)

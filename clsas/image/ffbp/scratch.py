@@ -1,0 +1,93 @@
+"""Device buffers :func:`clsas.image.ffbp.ffbp` keeps between calls for its scratch images.
+
+A call's largest device buffers hold only its own intermediate results, written before they are
+read: the first batch's bp_tile sums (:mod:`.leaves`) and the merge tree's groups, one buffer a
+level (:class:`.store.DeviceStore`). Fresh ones cost their memory's page faults when the kernels
+first touch them (on PoCL's CPU device: thousands of faults and milliseconds of system time a
+call, bench_ffbp's wide case), so a call takes the buffers the last one gave back when they are
+large enough (:meth:`Scratch.take`), and gives its own back at its end (:meth:`Scratch.give_back`).
+
+Sizes are rounded up to 1/GRAIN of their power of two (a buffer holds up to 1/GRAIN more than
+asked; :func:`clsas.image.ffbp.memory_plan` counts it), so that a call on a slightly different
+tree (a new geometry onto the same grid) finds the last call's buffers large enough. A taken
+buffer is the call's alone until it gives it back (calls on several threads take different
+ones). What is kept between calls is bounded by the room the caller gives (:meth:`Scratch.trim`
+at the call's start, before it allocates, and :meth:`Scratch.give_back` at its end: the memory
+budget beside the call's plan and what :mod:`.reuse` keeps); :func:`release` lets go of it all.
+"""
+
+from __future__ import annotations
+
+import threading
+
+from ... import opencl
+
+GRAIN = 32  # a buffer's size rounded up to a multiple of 1/GRAIN of its power of two
+
+_FREE: list = []  # buffers kept between calls
+_LOCK = threading.Lock()
+
+
+def rounded(nbytes: int) -> int:
+    """``nbytes`` rounded up to a multiple of 1/GRAIN of its power of two (at least 1 byte)."""
+    nbytes = max(int(nbytes), 1)
+    step = max((1 << (nbytes - 1).bit_length()) // GRAIN, 1)
+    return -(-nbytes // step) * step
+
+
+def held_bytes() -> int:
+    """Bytes of the buffers kept now (between calls)."""
+    with _LOCK:
+        return sum(b.size for b in _FREE)
+
+
+def _fit(buffers: list, room: float) -> list:
+    """The buffers to keep within ``room`` bytes: in order, each that still fits."""
+    kept, total = [], 0
+    for b in buffers:
+        if total + b.size <= room:
+            kept.append(b)
+            total += b.size
+    return kept
+
+
+def release() -> None:
+    """Let go of every buffer kept between calls."""
+    with _LOCK:
+        _FREE.clear()
+
+
+class Scratch:
+    """One call's scratch buffers (module docstring)."""
+
+    def __init__(self):
+        self.taken = []
+
+    @staticmethod
+    def trim(room: float) -> None:
+        """Before the call allocates: keep at most ``room`` bytes of the buffers kept between calls."""
+        with _LOCK:
+            _FREE[:] = _fit(sorted(_FREE, key=lambda b: -b.size), room)
+
+    def take(self, nbytes: int):
+        """A READ_WRITE device buffer of at least ``nbytes`` (its contents undefined): the smallest
+        kept one large enough, else a new one of :func:`rounded` bytes."""
+        import pyopencl as cl
+
+        size = rounded(nbytes)
+        with _LOCK:
+            fits = [b for b in _FREE if b.size >= size]
+            buffer = min(fits, key=lambda b: b.size) if fits else None
+            if buffer is not None:
+                _FREE.remove(buffer)
+        if buffer is None:
+            buffer = cl.Buffer(opencl.runtime().context, cl.mem_flags.READ_WRITE, size)
+        self.taken.append(buffer)
+        return buffer
+
+    def give_back(self, room: float) -> None:
+        """At the call's end (its kernels done): keep its buffers, then those kept before, within
+        ``room`` bytes, the largest first; the others are let go."""
+        with _LOCK:
+            _FREE[:] = _fit(sorted(self.taken, key=lambda b: -b.size) + sorted(_FREE, key=lambda b: -b.size), room)
+        self.taken = []
