@@ -298,3 +298,29 @@ def test_scratch_buffers_go_to_the_next_call_within_the_budget(opencl_device, mo
     assert scratch.held_bytes() > 0
     importlib.import_module("clsas.image.ffbp").release()
     assert scratch.held_bytes() == 0
+
+
+def test_a_batchs_scratch_sums_serve_a_later_batch_only_once_its_leaves_are_demodulated(opencl_device, monkeypatch):
+    """With batches of a few leaves (a merge's group of leaves spans batches), the first stage's sums
+    buffers are recycled within the call (scratch.Scratch.recycle) only once no leaf still waits to
+    be demodulated from them: fewer buffers than batches, and the image bit for bit that of a call
+    that takes a new buffer every batch."""
+    from clsas.image.ffbp import leaves, scratch
+
+    reuse.release()
+    echo = echo_of("straight")
+    grid = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(-2.0, 2.0, 0.04), DEPTH)
+    tree = importlib.import_module("clsas.image.ffbp").plan(echo, [0], reuse.kept(grid)[0], 4, 0.1, 8, 2, None)
+    sizes = sorted(g.size for g in tree.grids[0] if g is not None)
+    monkeypatch.setattr(leaves, "BATCH_POINTS", sizes[-1] + sizes[-2])  # at most two leaves a batch
+    batches, taking, taken = [], scratch.Scratch.take, []
+    real_batch = leaves.FirstStage._batch
+    monkeypatch.setattr(leaves.FirstStage, "_batch", lambda self, *a: batches.append(1) or real_batch(self, *a))
+    monkeypatch.setattr(scratch.Scratch, "take", lambda self, n: taken.append(taking(self, n)) or taken[-1])
+    recycled = ffbp(echo, grid, first=2, backend="opencl", progress=False)
+    sums = {id(b) for b in taken} - {id(g) for g in taken[:tree.top + 1]}  # less the levels' groups
+    assert len(batches) >= 4 and len(sums) < len(batches)
+    reuse.release()
+    monkeypatch.setattr(scratch.Scratch, "recycle", lambda self, b: None)  # a new buffer every batch
+    fresh = ffbp(echo, grid, first=2, backend="opencl", progress=False)
+    assert recycled.data.tobytes() == fresh.data.tobytes()

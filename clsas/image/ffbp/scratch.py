@@ -1,8 +1,9 @@
 """Device buffers :func:`clsas.image.ffbp.ffbp` keeps between calls for its scratch images.
 
 A call's largest device buffers hold only its own intermediate results, written before they are
-read: the first batch's bp_tile sums (:mod:`.leaves`) and the merge tree's groups, one buffer a
-level (:class:`.store.DeviceStore`). Fresh ones cost their memory's page faults when the kernels
+read: the first stage's bp_tile sums (:mod:`.leaves`: a batch's, recycled within the call for a
+later batch once its leaves are demodulated, :meth:`Scratch.recycle`) and the merge tree's
+groups, one buffer a level (:class:`.store.DeviceStore`). Fresh ones cost their memory's page faults when the kernels
 first touch them (on PoCL's CPU device: thousands of faults and milliseconds of system time a
 call, bench_ffbp's wide case), so a call takes the buffers the last one gave back when they are
 large enough (:meth:`Scratch.take`), and gives its own back at its end (:meth:`Scratch.give_back`).
@@ -84,6 +85,13 @@ class Scratch:
             buffer = cl.Buffer(opencl.runtime().context, cl.mem_flags.READ_WRITE, size)
         self.taken.append(buffer)
         return buffer
+
+    def recycle(self, buffer) -> None:
+        """Make a buffer this call took (and no longer uses: its kernels done) available to the next
+        :meth:`take`."""
+        self.taken.remove(buffer)
+        with _LOCK:
+            _FREE.append(buffer)
 
     def give_back(self, room: float) -> None:
         """At the call's end (its kernels done): keep its buffers, then those kept before, within
