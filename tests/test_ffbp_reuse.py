@@ -279,7 +279,7 @@ def test_scratch_buffers_go_to_the_next_call_within_the_budget(opencl_device, mo
     grid = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(-2.0, 2.0, 0.04), DEPTH)
     first = ffbp(echo, grid, backend="opencl", progress=False)
     assert scratch.held_bytes() > 0
-    kept = {id(b) for b in scratch._FREE}
+    kept = {id(b) for _, b in scratch._FREE}
     taking, taken = scratch.Scratch.take, []
     monkeypatch.setattr(scratch.Scratch, "take", lambda self, n: taken.append(taking(self, n)) or taken[-1])
     second = ffbp(echo, grid, backend="opencl", progress=False)
@@ -324,3 +324,45 @@ def test_a_batchs_scratch_sums_serve_a_later_batch_only_once_its_leaves_are_demo
     monkeypatch.setattr(scratch.Scratch, "recycle", lambda self, b: None)  # a new buffer every batch
     fresh = ffbp(echo, grid, first=2, backend="opencl", progress=False)
     assert recycled.data.tobytes() == fresh.data.tobytes()
+
+
+def test_scratch_buffers_serve_only_calls_on_the_context_that_made_them(opencl_device, monkeypatch):
+    """A process may image on two OpenCL contexts (the default device is read from the environment
+    at each call): a call on the second context takes none of the scratch buffers the first
+    context's call gave back (review 14 M2: a buffer of another context in a command aborts the
+    process on PoCL), gives the same image, and the first context's next call finds its own again."""
+    import pyopencl as cl
+
+    from clsas import opencl
+    from clsas.image.ffbp import scratch
+
+    reuse.release()
+    echo = echo_of("straight")
+    grid = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(-2.0, 2.0, 0.04), DEPTH)
+    first = ffbp(echo, grid, backend="opencl", progress=False)
+    held = {id(b) for _, b in scratch._FREE}
+    assert held
+    taking, taken = scratch.Scratch.take, []
+
+    def take(self, nbytes):
+        buffer = taking(self, nbytes)
+        # checked before any kernel uses it: a buffer of another context would abort the process
+        assert buffer.context.int_ptr == opencl.runtime().context.int_ptr, "a scratch buffer of another context"
+        taken.append(buffer)
+        return buffer
+
+    monkeypatch.setattr(scratch.Scratch, "take", take)
+    context = cl.Context([opencl_device.device])
+    other = opencl.Runtime(device=opencl_device.device, context=context,
+                           queue=cl.CommandQueue(context, properties=cl.command_queue_properties.PROFILING_ENABLE))
+    with monkeypatch.context() as m:  # the second context, its own programs and kernels
+        m.setattr(opencl, "runtime", lambda device=None: other)
+        for cache in ("_programs", "_kernels", "_kernel_calls"):
+            m.setattr(opencl, cache, {})
+        second = ffbp(echo, grid, backend="opencl", progress=False)
+    assert len(taken) >= 2 and not {id(b) for b in taken} & held
+    assert second.data.tobytes() == first.data.tobytes()
+    taken.clear()
+    assert ffbp(echo, grid, backend="opencl", progress=False).data.tobytes() == first.data.tobytes()
+    assert taken and {id(b) for b in taken} <= held
+    reuse.release()

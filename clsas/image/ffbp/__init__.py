@@ -307,7 +307,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
             flat = store.result()
         finally:  # the first stage's last batch's kernels read host memory it holds
             stage1.settle()
-            if scratch is not None:  # the queue is finished: the scratch buffers are free for the next call
+            if scratch is not None:  # once the queue is finished, the scratch buffers serve the next call
                 scratch.give_back(room)
     with np.errstate(over="ignore"):  # a sum past complex64's range becomes inf: finite_result names the overflow
         flat = flat.astype(np.complex64, copy=False)

@@ -15,6 +15,8 @@ buffer is the call's alone until it gives it back (calls on several threads take
 ones). What is kept between calls is bounded by the room the caller gives (:meth:`Scratch.trim`
 at the call's start, before it allocates, and :meth:`Scratch.give_back` at its end: the memory
 budget beside the call's plan and what :mod:`.reuse` keeps); :func:`release` lets go of it all.
+A buffer serves only calls on the OpenCL context that made it (a process may use several: the
+default device is read from the environment at each call); the room bounds all contexts' together.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from ... import opencl
 
 GRAIN = 32  # a buffer's size rounded up to a multiple of 1/GRAIN of its power of two
 
-_FREE: list = []  # buffers kept between calls
+_FREE: list = []  # (context's int_ptr, buffer) of the buffers kept between calls
 _LOCK = threading.Lock()
 
 
@@ -39,17 +41,22 @@ def rounded(nbytes: int) -> int:
 def held_bytes() -> int:
     """Bytes of the buffers kept now (between calls)."""
     with _LOCK:
-        return sum(b.size for b in _FREE)
+        return sum(b.size for _, b in _FREE)
 
 
 def _fit(buffers: list, room: float) -> list:
-    """The buffers to keep within ``room`` bytes: in order, each that still fits."""
+    """The (context, buffer) pairs to keep within ``room`` bytes: in order, each that still fits."""
     kept, total = [], 0
-    for b in buffers:
+    for key, b in buffers:
         if total + b.size <= room:
-            kept.append(b)
+            kept.append((key, b))
             total += b.size
     return kept
+
+
+def _largest_first(pairs: list) -> list:
+    """(context, buffer) pairs, the largest buffer first."""
+    return sorted(pairs, key=lambda kb: -kb[1].size)
 
 
 def release() -> None:
@@ -59,16 +66,19 @@ def release() -> None:
 
 
 class Scratch:
-    """One call's scratch buffers (module docstring)."""
+    """One call's scratch buffers (module docstring), on the context and queue of
+    :func:`clsas.opencl.runtime` when it is made."""
 
     def __init__(self):
+        rt = opencl.runtime()
+        self.context, self.queue, self.key = rt.context, rt.queue, rt.context.int_ptr
         self.taken = []
 
     @staticmethod
     def trim(room: float) -> None:
         """Before the call allocates: keep at most ``room`` bytes of the buffers kept between calls."""
         with _LOCK:
-            _FREE[:] = _fit(sorted(_FREE, key=lambda b: -b.size), room)
+            _FREE[:] = _fit(_largest_first(_FREE), room)
 
     def take(self, nbytes: int):
         """A READ_WRITE device buffer of at least ``nbytes`` (its contents undefined): the smallest
@@ -77,12 +87,11 @@ class Scratch:
 
         size = rounded(nbytes)
         with _LOCK:
-            fits = [b for b in _FREE if b.size >= size]
-            buffer = min(fits, key=lambda b: b.size) if fits else None
-            if buffer is not None:
-                _FREE.remove(buffer)
-        if buffer is None:
-            buffer = cl.Buffer(opencl.runtime().context, cl.mem_flags.READ_WRITE, size)
+            fits = [kb for kb in _FREE if kb[0] == self.key and kb[1].size >= size]
+            pair = min(fits, key=lambda kb: kb[1].size) if fits else None
+            if pair is not None:
+                _FREE.remove(pair)
+        buffer = cl.Buffer(self.context, cl.mem_flags.READ_WRITE, size) if pair is None else pair[1]
         self.taken.append(buffer)
         return buffer
 
@@ -91,11 +100,13 @@ class Scratch:
         :meth:`take`."""
         self.taken.remove(buffer)
         with _LOCK:
-            _FREE.append(buffer)
+            _FREE.append((self.key, buffer))
 
     def give_back(self, room: float) -> None:
-        """At the call's end (its kernels done): keep its buffers, then those kept before, within
-        ``room`` bytes, the largest first; the others are let go."""
+        """At the call's end: once its queue is finished (no kernel of the call still uses them),
+        keep its buffers, then those kept before, within ``room`` bytes, the largest first; the
+        others are let go."""
+        self.queue.finish()
         with _LOCK:
-            _FREE[:] = _fit(sorted(self.taken, key=lambda b: -b.size) + sorted(_FREE, key=lambda b: -b.size), room)
+            _FREE[:] = _fit(_largest_first([(self.key, b) for b in self.taken]) + _largest_first(_FREE), room)
         self.taken = []
