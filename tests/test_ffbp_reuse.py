@@ -264,3 +264,105 @@ def test_an_image_on_a_grid_equals_the_one_its_constructor_makes():
             assert type(a) is type(b) and np.array_equal(a, b), field.name
     with pytest.raises(TypeError, match="positions"):
         Image._checked(data=data, dims=GRID.dims, axes=GRID.axes, provenance={})
+
+
+def test_scratch_buffers_go_to_the_next_call_within_the_budget(opencl_device, monkeypatch):
+    """The scratch device buffers a call gives back (clsas.image.ffbp.scratch: the first batch's
+    sums, the levels' groups) are taken by the next call on the same tree, which allocates none
+    (the image bit for bit the same); they are kept only within what the memory budget leaves
+    beside a call's plan and the layouts' room (a budget of the plan alone keeps none), and
+    release() lets go of them."""
+    from clsas.image.ffbp import scratch
+
+    reuse.release()
+    echo = echo_of("straight")
+    grid = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(-2.0, 2.0, 0.04), DEPTH)
+    first = ffbp(echo, grid, backend="opencl", progress=False)
+    assert scratch.held_bytes() > 0
+    kept = {id(b) for _, b in scratch._FREE}
+    taking, taken = scratch.Scratch.take, []
+    monkeypatch.setattr(scratch.Scratch, "take", lambda self, n: taken.append(taking(self, n)) or taken[-1])
+    second = ffbp(echo, grid, backend="opencl", progress=False)
+    assert second.data.tobytes() == first.data.tobytes()
+    assert len(taken) >= 2 and all(id(b) in kept for b in taken)
+    monkeypatch.setattr(importlib.import_module("clsas.image.ffbp"), "PLAN_BYTES", 0)  # the planning's pre-check
+    from clsas.image.ffbp import leaves
+
+    laying_out, held = leaves.FirstStage._layout, []  # kept and not taken while the call runs: none
+    monkeypatch.setattr(leaves.FirstStage, "_layout", lambda self, *a: held.append(scratch.held_bytes())
+                        or laying_out(self, *a))
+    with clsas.use_memory_budget(first.provenance["memory_bytes"] + 1024):  # 1 KiB beside the plan: no room
+        assert ffbp(echo, grid, backend="opencl", progress=False).data.tobytes() == first.data.tobytes()
+        assert held == [0] and scratch.held_bytes() == 0
+    ffbp(echo, grid, backend="opencl", progress=False)
+    assert scratch.held_bytes() > 0
+    importlib.import_module("clsas.image.ffbp").release()
+    assert scratch.held_bytes() == 0
+
+
+def test_a_batchs_scratch_sums_serve_a_later_batch_only_once_its_leaves_are_demodulated(opencl_device, monkeypatch):
+    """With batches of a few leaves (a merge's group of leaves spans batches), the first stage's sums
+    buffers are recycled within the call (scratch.Scratch.recycle) only once no leaf still waits to
+    be demodulated from them: fewer buffers than batches, and the image bit for bit that of a call
+    that takes a new buffer every batch."""
+    from clsas.image.ffbp import leaves, scratch
+
+    reuse.release()
+    echo = echo_of("straight")
+    grid = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(-2.0, 2.0, 0.04), DEPTH)
+    tree = importlib.import_module("clsas.image.ffbp").plan(echo, [0], reuse.kept(grid)[0], 4, 0.1, 8, 2, None)
+    sizes = sorted(g.size for g in tree.grids[0] if g is not None)
+    monkeypatch.setattr(leaves, "BATCH_POINTS", sizes[-1] + sizes[-2])  # at most two leaves a batch
+    batches, taking, taken = [], scratch.Scratch.take, []
+    real_batch = leaves.FirstStage._batch
+    monkeypatch.setattr(leaves.FirstStage, "_batch", lambda self, *a: batches.append(1) or real_batch(self, *a))
+    monkeypatch.setattr(scratch.Scratch, "take", lambda self, n: taken.append(taking(self, n)) or taken[-1])
+    recycled = ffbp(echo, grid, first=2, backend="opencl", progress=False)
+    sums = {id(b) for b in taken} - {id(g) for g in taken[:tree.top + 1]}  # less the levels' groups
+    assert len(batches) >= 4 and len(sums) < len(batches)
+    reuse.release()
+    monkeypatch.setattr(scratch.Scratch, "recycle", lambda self, b: None)  # a new buffer every batch
+    fresh = ffbp(echo, grid, first=2, backend="opencl", progress=False)
+    assert recycled.data.tobytes() == fresh.data.tobytes()
+
+
+def test_scratch_buffers_serve_only_calls_on_the_context_that_made_them(opencl_device, monkeypatch):
+    """A process may image on two OpenCL contexts (the default device is read from the environment
+    at each call): a call on the second context takes none of the scratch buffers the first
+    context's call gave back (review 14 M2: a buffer of another context in a command aborts the
+    process on PoCL), gives the same image, and the first context's next call finds its own again."""
+    import pyopencl as cl
+
+    from clsas import opencl
+    from clsas.image.ffbp import scratch
+
+    reuse.release()
+    echo = echo_of("straight")
+    grid = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(-2.0, 2.0, 0.04), DEPTH)
+    first = ffbp(echo, grid, backend="opencl", progress=False)
+    held = {id(b) for _, b in scratch._FREE}
+    assert held
+    taking, taken = scratch.Scratch.take, []
+
+    def take(self, nbytes):
+        buffer = taking(self, nbytes)
+        # checked before any kernel uses it: a buffer of another context would abort the process
+        assert buffer.context.int_ptr == opencl.runtime().context.int_ptr, "a scratch buffer of another context"
+        taken.append(buffer)
+        return buffer
+
+    monkeypatch.setattr(scratch.Scratch, "take", take)
+    context = cl.Context([opencl_device.device])
+    other = opencl.Runtime(device=opencl_device.device, context=context,
+                           queue=cl.CommandQueue(context, properties=cl.command_queue_properties.PROFILING_ENABLE))
+    with monkeypatch.context() as m:  # the second context, its own programs and kernels
+        m.setattr(opencl, "runtime", lambda device=None: other)
+        for cache in ("_programs", "_kernels", "_kernel_calls"):
+            m.setattr(opencl, cache, {})
+        second = ffbp(echo, grid, backend="opencl", progress=False)
+    assert len(taken) >= 2 and not {id(b) for b in taken} & held
+    assert second.data.tobytes() == first.data.tobytes()
+    taken.clear()
+    assert ffbp(echo, grid, backend="opencl", progress=False).data.tobytes() == first.data.tobytes()
+    assert taken and {id(b) for b in taken} <= held
+    reuse.release()

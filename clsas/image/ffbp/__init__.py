@@ -59,6 +59,7 @@ from .merge import CHUNK, KERNEL_TAPS
 from .polar import CHUNK_NODES
 from . import reuse
 from .reuse import kept, planned, release
+from .scratch import GRAIN, Scratch
 from .store import DeviceStore, HostStore
 from .tree import Tree, plan
 
@@ -125,14 +126,17 @@ def memory_plan(tree: Tree, n_pixels: int, factor: int, echo_bytes: float = floa
       (:func:`ffbp` checks it with the fixed parts before planning).
 
     Not counted here: what is kept between calls (:mod:`.reuse`: the first-stage layouts, the
-    grids' Scenes and trees); :func:`ffbp` lets it take only what the budget leaves beside this
-    total (:func:`.reuse.make_room`).
+    grids' Scenes and trees; :mod:`.scratch`: the scratch buffers the last call gave back, which
+    this call takes in place of the groups' and sums' allocations counted above, their sizes
+    rounded up by at most 1/GRAIN, counted too); :func:`ffbp` lets it take only what the budget
+    leaves beside this total (:func:`.reuse.make_room`, :meth:`.scratch.Scratch.trim`).
     """
     largest = [max((g.size for g in level if g is not None), default=0) for level in tree.grids[:tree.top + 1]]
     leaf_batch = min(BATCH_POINTS, sum(g.size for g in tree.grids[0] if g is not None))
     sample = SAMPLE_BYTES[backend]
     parts = _fixed_parts(n_pixels, 0, taps, interp, backend, echo_bytes)
-    parts.update(tree=sample * factor * sum(largest[:-1]), top=sample * (n_pixels + largest[-1]))
+    grain = 1 + 1 / GRAIN if backend == "opencl" else 1  # the groups' buffers' sizes rounded up (.scratch)
+    parts.update(tree=grain * sample * factor * sum(largest[:-1]), top=grain * sample * (n_pixels + largest[-1]))
     if backend == "numpy":
         chunk = min(largest[0], 2**20)  # backproject_reference's chunk of pixels, and its pulses
         pulses = min(tree.first, max(1, 2**22 // max(chunk, 1)))
@@ -141,7 +145,7 @@ def memory_plan(tree: Tree, n_pixels: int, factor: int, echo_bytes: float = floa
         target = max(largest[1:] + [n_pixels])
         parts["merge"] = MERGE_SAMPLE_BYTES * min(target, CHUNK) + (sample + 4) * target  # out, spans' masks
     else:
-        parts["first_stage"] = LEAF_BATCH_BYTES * leaf_batch + LEAF_BYTES * largest[0]
+        parts["first_stage"] = grain * LEAF_BATCH_BYTES * leaf_batch + LEAF_BYTES * largest[0]
         parts["merge"] = 0
     parts["total"] = sum(parts.values())
     return parts
@@ -254,13 +258,19 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
     # what is kept between calls takes only what the budget leaves beside this call (held before: let go)
     device = float(opencl.runtime().device.global_mem_size) if name == "opencl" else float("inf")
     reuse.make_room(grid, entry, made, budget.memory_budget() - memory, device)
+    # the scratch buffers kept between calls (.scratch) take what is left beside the layouts' room
+    room = min(reuse.limit(device), budget.memory_budget() - memory - reuse.host_bytes()
+               - (0 if made.layouts is None else made.layouts.room))
+    scratch = Scratch() if name == "opencl" else None
+    Scratch.trim(room)
     f0, c = echo.waveform.f0, echo.medium.sound_speed
     pixels = grid.positions.reshape(-1, 3)
     leaves = tree.pulses[0]
     bar = Progress(leaves[-1][1] - leaves[0][0], "pulse", "ffbp", progress)  # pulses through the first stage
-    stage1 = FirstStage(echo, tree.pulses[0], name, chosen, interp, upsample, aperture, stop_and_go, made.layouts)
+    stage1 = FirstStage(echo, tree.pulses[0], name, chosen, interp, upsample, aperture, stop_and_go, made.layouts,
+                        scratch)
     store = (HostStore if name == "numpy" else DeviceStore)(stage1, pixels, f0, c, taps, tree.rho,
-                                                           _group_sizes(tree, pixels.shape[0]))
+                                                           _group_sizes(tree, pixels.shape[0]), scratch)
 
     def build(level: int, node: int, group, offset: int) -> bool:
         """Node ``node`` of ``level``'s image into ``group`` from ``offset`` on; False when it has none."""
@@ -297,6 +307,8 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
             flat = store.result()
         finally:  # the first stage's last batch's kernels read host memory it holds
             stage1.settle()
+            if scratch is not None:  # once the queue is finished, the scratch buffers serve the next call
+                scratch.give_back(room)
     with np.errstate(over="ignore"):  # a sum past complex64's range becomes inf: finite_result names the overflow
         flat = flat.astype(np.complex64, copy=False)
     validate.finite_result("ffbp: the image", flat, "scale echo.data down", np.complex64)

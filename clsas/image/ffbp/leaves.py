@@ -64,9 +64,11 @@ class FirstStage:
     (:meth:`image`; module docstring)."""
 
     def __init__(self, echo, pulses: list, backend: str, chosen, interp: str, upsample: int, aperture,
-                 stop_and_go: bool, layouts=None):
+                 stop_and_go: bool, layouts=None, scratch=None):
         self.echo, self.leaves, self.backend = echo, pulses, backend
         self.layouts = layouts  # the tree's batches' layouts kept between calls (.reuse.Layouts), or None
+        self.scratch = scratch  # the call's .scratch.Scratch, for the batches' sums (or None: their own buffers)
+        self.sums = []  # the scratch buffers holding sums that leaves not yet demodulated may still read
         self.first = max(p1 - p0 for p0, p1 in pulses)
         self.options = dict(receivers=chosen, interp=interp, upsample=upsample)
         self.aperture, self.stop_and_go = aperture, stop_and_go
@@ -146,6 +148,12 @@ class FirstStage:
 
     def _batch(self, node: int, grids: list) -> None:
         self.settle()
+        if self.sums:  # the queue is finished: sums no leaf waiting for its demodulation reads go back
+            reading = {id(m[0]) for m in self.ready.values() if not isinstance(m, np.ndarray)}
+            reading |= {id(made[0]) for made, *_ in self.queued}
+            for sums in [b for b in self.sums if id(b) not in reading]:
+                self.sums.remove(sums)
+                self.scratch.recycle(sums)
         batch, points, last = [], 0, node
         for k in range(node, len(self.leaves)):
             if grids[k] is None:
@@ -345,7 +353,14 @@ class FirstStage:
             refs = [r if isinstance(r, cl.Buffer) else cl_buffer(r) for r in refs]
         row_shift = cl_buffer(layout.row_shift - np.int32(b0))
         params, taps = tile.params(c, f0, records.fs), tile.taps(ctx)
-        image = cl.Buffer(ctx, mf.READ_WRITE, 16 * LANES * layout.n_items)  # the first launch stores, later ones add
+        # the sums (the first launch stores, later ones add), in a scratch buffer: kept between calls, and
+        # recycled within the call once no leaf reads it (:meth:`_batch`)
+        nbytes = 16 * LANES * layout.n_items
+        if self.scratch is not None:
+            image = self.scratch.take(nbytes)
+            self.sums.append(image)
+        else:
+            image = cl.Buffer(ctx, mf.READ_WRITE, nbytes)
         for i, h in enumerate(records.receivers):
             data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
             kern = tile.for_receiver(echo, h)  # the receiver's legs (TileKernel.legs_for)

@@ -44,6 +44,7 @@ import numpy as np
 
 from ... import budget
 from ...model import EchoData, Grid
+from . import scratch
 from .polar import Scene
 from .tree import Tree
 
@@ -173,12 +174,13 @@ def make_room(grid: Grid, entry: "Kept | None", made: "Planned", room: float,
 
 
 def release() -> None:
-    """Let go of everything ffbp keeps between calls: every grid's Scene and tree and the held
-    first-stage layouts (their device memory)."""
+    """Let go of everything ffbp keeps between calls: every grid's Scene and tree, the held
+    first-stage layouts and the scratch buffers (:mod:`.scratch`; their device memory)."""
     held = _held()
     if held is not None:
         held.clear()
     _SCENES.clear()
+    scratch.release()
 
 
 @dataclasses.dataclass(eq=False)
