@@ -54,11 +54,15 @@ setup-pip-opencl: $(STAMP)
 demo: setup
 	$(PY) -m clsas demo
 
+# The test modules run on the cores in parallel (pytest-xdist, a module a worker so that its
+# fixtures are built once; at most 4 workers: each opens its own OpenCL context).
+XDIST := -n auto --maxprocesses 4 --dist loadfile
+
 test: setup
-	CLSAS_REQUIRE_OPENCL=1 $(PY) -m pytest -m "not slow" tests
+	CLSAS_REQUIRE_OPENCL=1 $(PY) -m pytest $(XDIST) -m "not slow" tests
 
 test-all: setup
-	CLSAS_REQUIRE_OPENCL=1 $(PY) -m pytest tests
+	CLSAS_REQUIRE_OPENCL=1 $(PY) -m pytest $(XDIST) tests
 
 bench: setup
 	$(PY) bench/run_all.py

@@ -34,7 +34,9 @@
  * N_NODES and SEGMENT_PASSES (geometry.h) and STOP_AND_GO for bp_block; INTERP_LINEAR or
  * INTERP_SINC8 (with TAP_ROWS); APERTURE (keep |sin theta| off broadside <= sin(aperture / 2),
  * theta measured from the x-z plane); CLSAS_DOUBLE (bp_block's data, phases and sums in double:
- * precision="double"). Portable OpenCL C 1.2: no vendor builtins.
+ * precision="double"). Portable OpenCL C 1.2: no vendor builtins (clang's inline assembly and
+ * __builtin_shufflevector only behind the x86-64 guards of CLSAS_OPAQUE and CLSAS_READ16, each with a
+ * portable path).
  */
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #include "common.h"
@@ -184,6 +186,41 @@ typedef float16 realv16_t;
         *(b_im) = UNPACK_HI2(t1, t3);                                                                        \
     } while (0)
 
+/* The same on AVX-512 (CLSAS_READ16: clang, x86-64, AVX512F, and AVX512VL for the xmm16-31 that the
+ * "v" constraint may pick), sixteen lanes at once: lanes L, L + 4, L + 8 and L + 12 share a 16-lane
+ * vector y_L (READ16: each lane's index reloaded as a scalar, then one 4-wide load and three 4-wide
+ * inserts from memory, which run on either vector port), then the
+ * two stages of unpacks within 128-bit blocks on whole 512-bit vectors (UNPACK16_*), whose block b
+ * then holds lanes 4b .. 4b + 3 in order: eight one-uop shuffles for sixteen lanes, where
+ * TRANSPOSE8 takes sixteen 256-bit unpacks and four 512-bit inserts, all on the one shuffle port.
+ * The same values (bit-identical images). READ16 is inline assembly because LLVM 15, given the
+ * loads in C, builds y_L by inserts from registers (shuffle-port uops) and merges the unpacks
+ * into two-source permutes and blends (more instructions than TRANSPOSE8: the commit gives the
+ * figures; bench/bench_backprojection.py --only loop counts them).
+ * rec_: the records of the pulse (floats, two a sample), i_: the 16 lanes' sample indices
+ * (contiguous ints; the "m" input orders the asm after their stores). */
+#if defined(__clang__) && defined(__x86_64__) && defined(__AVX512F__) && defined(__AVX512VL__)
+#define CLSAS_READ16 1
+#define READ16_Y(y, L)                                                                                        \
+    "movslq " #L "*4(%[idx]), %%rax\n\t"                                                                    \
+    "vmovups (%[rec],%%rax,8), %x[" #y "]\n\t"                                                              \
+    "movslq (" #L "+4)*4(%[idx]), %%rax\n\t"                                                                \
+    "vinsertf32x4 $1, (%[rec],%%rax,8), %[" #y "], %[" #y "]\n\t"                                           \
+    "movslq (" #L "+8)*4(%[idx]), %%rax\n\t"                                                                \
+    "vinsertf32x4 $2, (%[rec],%%rax,8), %[" #y "], %[" #y "]\n\t"                                           \
+    "movslq (" #L "+12)*4(%[idx]), %%rax\n\t"                                                               \
+    "vinsertf32x4 $3, (%[rec],%%rax,8), %[" #y "], %[" #y "]\n\t"
+#define READ16(rec_, i_, y0, y1, y2, y3)                                                                      \
+    __asm__(READ16_Y(a, 0) READ16_Y(b, 1) READ16_Y(c, 2) READ16_Y(d, 3)                                       \
+            : [a] "=&v"(y0), [b] "=&v"(y1), [c] "=&v"(y2), [d] "=&v"(y3)                                    \
+            : [rec] "r"(rec_), [idx] "r"(i_), "m"(*(const int(*)[16])(i_))                                   \
+            : "rax")
+#define UNPACK16_LO(x, y) __builtin_shufflevector(x, y, 0, 16, 1, 17, 4, 20, 5, 21, 8, 24, 9, 25, 12, 28, 13, 29)
+#define UNPACK16_HI(x, y) __builtin_shufflevector(x, y, 2, 18, 3, 19, 6, 22, 7, 23, 10, 26, 11, 27, 14, 30, 15, 31)
+#define UNPACK16_LO2(x, y) __builtin_shufflevector(x, y, 0, 1, 16, 17, 4, 5, 20, 21, 8, 9, 24, 25, 12, 13, 28, 29)
+#define UNPACK16_HI2(x, y) __builtin_shufflevector(x, y, 2, 3, 18, 19, 6, 7, 22, 23, 10, 11, 26, 27, 14, 15, 30, 31)
+#endif
+
 /* A pixel row's fields: loaded where used (the pulse loop then holds no more than they need) */
 #define FIELD(f) LOAD_F16(px[r].f)
 
@@ -297,7 +334,16 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
         FOR_ROWS {
             const volatile int *i = (const volatile int *)&first[r][0];
 #ifdef INTERP_LINEAR
-            /* samples i and i + 1 of each lane in one 4-wide load, transposed in registers (TRANSPOSE8) */
+            /* samples i and i + 1 of each lane in one 4-wide load, transposed in registers (READ16 and
+             * UNPACK16 on AVX-512, else TRANSPOSE8) */
+#ifdef CLSAS_READ16
+            float16 y0, y1, y2, y3;
+            READ16(rec, i, y0, y1, y2, y3);
+            const float16 t0 = UNPACK16_LO(y0, y1), t1 = UNPACK16_HI(y0, y1);
+            const float16 t2 = UNPACK16_LO(y2, y3), t3 = UNPACK16_HI(y2, y3);
+            const float16 a_re = UNPACK16_LO2(t0, t2), a_im = UNPACK16_HI2(t0, t2);
+            const float16 b_re = UNPACK16_LO2(t1, t3), b_im = UNPACK16_HI2(t1, t3);
+#else
             float8 ar[2], ai[2], br[2], bi[2];
 #define W(L) LOAD_F4(rec + 2 * i[0x##L])
             TRANSPOSE8(W(0), W(1), W(2), W(3), W(4), W(5), W(6), W(7), &ar[0], &ai[0], &br[0], &bi[0]);
@@ -305,6 +351,7 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
 #undef W
             const float16 a_re = (float16)(ar[0], ar[1]), a_im = (float16)(ai[0], ai[1]);
             const float16 b_re = (float16)(br[0], br[1]), b_im = (float16)(bi[0], bi[1]);
+#endif
             const float16 dr = select((float16)0.0f, fma(b_re - a_re, frac[r], a_re), keep[r]);
             const float16 di = select((float16)0.0f, fma(b_im - a_im, frac[r], a_im), keep[r]);
 #else

@@ -124,16 +124,22 @@ inline double16 polar_points16(const ffbp_frame_t f, const ffbp_plane_t plane, c
  * one row of one tile, items[g] (leaf, row, first range sample, tile; rows and samples past the
  * grid's edge are clamped to it: the launcher drops those slots); frames[leaf], plane, centres
  * (the tiles' reference points, m); dd_max[g] the largest of its sixteen dd (as stored, float:
- * the launcher's tile budget check reads these, not the fields). */
+ * the launcher's tile budget check reads these, not the fields). Also the images' slots
+ * (clsas/image/ffbp/layout.py, _slots is the NumPy twin): for g < n_slotted (the work-items
+ * bp_tile computes) and a row inside its grid, slots[slot_firsts[leaf] + row * ceil(n_r / 16) +
+ * sample / 16] = g; the launcher fills slots with -1 first (groups no work-item holds). */
 __kernel void ffbp_fields(__global const ffbp_item_t *items, __global const ffbp_frame_t *frames,
                           const ffbp_plane_t plane, __global const double *centres, const int n_items,
-                          __global bp_pixels_t *fields, __global float *dd_max)
+                          __global bp_pixels_t *fields, __global float *dd_max, __global int *slots,
+                          __global const long *slot_firsts, const int n_slotted)
 {
     const int g = get_global_id(0);
     if (g >= n_items)  /* the launch is padded to whole work-groups */
         return;
     const ffbp_item_t t = items[g];
     const ffbp_frame_t f = frames[t.leaf];
+    if (g < n_slotted && t.row < f.n_v)
+        slots[slot_firsts[t.leaf] + (long)t.row * ((f.n_r + 15) / 16) + t.sample / 16] = g;
     double16 x, y, z;
     polar_points16(f, plane, min(t.row, f.n_v - 1), fmin(t.sample + LANE_INDEX, (double16)(f.n_r - 1)), &x, &y, &z);
     const double3 centre = vload3(t.tile, centres);

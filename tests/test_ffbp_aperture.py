@@ -261,3 +261,40 @@ def test_an_arcs_nodes_get_angle_limits_from_ranges_no_pixel_undercuts(monkeypat
     print("largest r - min |X - C| over the planner's calls", max(undercut))
     assert max(undercut) < 0.0
     assert _assert_grids_hold_what_pulses_see(tree, tx, pixels, aperture) >= 16
+
+
+@pytest.mark.parametrize("aperture", [None, APERTURE])
+def test_the_slots_ffbp_fields_writes_are_their_numpy_twins(opencl_device, monkeypatch, aperture):
+    """The images' slots (which work-item holds each group of sixteen range samples of a leaf's
+    rows, -1 for none) that kernels/ffbp.cl's ffbp_fields writes beside the pixel fields are those
+    of layout._slots on the items it laid out, every batch (with an aperture, only the items
+    back-projected get slots: the others' samples are zero)."""
+    import pyopencl as cl
+
+    from clsas import opencl
+
+    layout_module = importlib.import_module("clsas.image.ffbp.layout")
+    monkeypatch.setattr(reuse, "KEEP_PLANS", False)
+    laid, made = [], []
+    real_tiles, real_layout = leaves_module.polar_tiles, FirstStage._layout
+
+    def tiles(grids, bv, br, seen=None):
+        out = real_tiles(grids, bv, br, seen)
+        laid.append((grids if seen is None else seen, out[0][:max(out[3], layout_module.ROWS)]))
+        return out
+
+    def layout(self, *args, **kwargs):
+        made.append((real_layout(self, *args, **kwargs), laid[-1]))
+        return made[-1][0]
+
+    monkeypatch.setattr(leaves_module, "polar_tiles", tiles)
+    monkeypatch.setattr(FirstStage, "_layout", layout)
+    ffbp(_echo("motion"), GRID, aperture=aperture, backend="opencl", progress=False)
+    assert made
+    for lay, (grids, items) in made:
+        expected, first = layout_module._slots(grids, items)
+        got = np.empty(expected.size, np.int32)
+        cl.enqueue_copy(opencl.runtime().queue, got, lay.slots)
+        assert np.array_equal(first, lay.slot_first)
+        assert np.array_equal(got, expected), int(np.count_nonzero(got != expected))
+        assert (expected >= 0).any() and (expected < 0).any()

@@ -1,6 +1,7 @@
 """The first stage's layout of a batch of leaves for bp_tile (:mod:`.leaves` makes and launches it):
 its work-items over the leaves' polar grids (:func:`polar_tiles`: tiles of rows x range samples,
-the groups of LANES samples within the rows' spans), the images' slots (:func:`_slots`) and the
+the groups of LANES samples within the rows' spans), the images' slots (written on the device by
+kernels/ffbp.cl's ffbp_fields with the pixel fields; :func:`_slots` is their NumPy twin) and the
 record a batch's launch reads (:class:`Layout`), kept between calls by :mod:`.reuse`."""
 
 from __future__ import annotations
@@ -94,12 +95,20 @@ def _meets(grids: list, blocks: int, l, block, start) -> np.ndarray:
     return (start + LANES > lo[l, block]) & (start < hi[l, block])
 
 
+def slot_firsts(grids: list) -> np.ndarray:
+    """Where each grid's groups of LANES range samples start among the images' slots (grid by grid,
+    row by row: n_v x ceil(n_r / LANES) a grid), and their total: (len(grids) + 1,) int64."""
+    groups = np.array([-(-g.n_r // LANES) for g in grids], np.int64)
+    return np.cumsum(np.r_[0, groups * np.array([g.n_v for g in grids], np.int64)])
+
+
 def _slots(grids: list, items: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The work-item of ``items`` (:func:`polar_tiles`) that holds each group of LANES range samples
     of each grid's rows, or -1 (a group no tile computed: zero): (sum of n_v x ceil(n_r / LANES),)
-    int32, grid by grid and row by row, and where each grid's groups start (len(grids) + 1,)."""
+    int32, grid by grid and row by row, and where each grid's groups start (len(grids) + 1,)
+    (:func:`slot_firsts`). The NumPy twin of the slots ffbp_fields writes (the first stage's)."""
     groups = np.array([-(-g.n_r // LANES) for g in grids])
-    first = np.cumsum(np.r_[0, groups * np.array([g.n_v for g in grids])])
+    first = slot_firsts(grids)
     slots = np.full(int(first[-1]), -1, np.int32)
     leaf, row, sample = (items[name].astype(np.int64) for name in ("leaf", "row", "sample"))  # contiguous copies
     inside = row < np.array([g.n_v for g in grids])[leaf]  # rows past a grid's edge (whole work-items) dropped
@@ -122,8 +131,8 @@ class Layout:
     work-items' count, the tiles' reference points (T, 3) m and each leaf's first tile (L + 1,),
     the tiles' largest half-extent (m), the pixel fields (host array and the device buffer using
     it), each tile's first pulse (int32, from the echo's first), the work-items' tiles, the
-    images' slots and each leaf's first slot, the rows' spans and each leaf's first row (made by
-    :meth:`slot` once bp_tile is launched); and its references by records (``refs``: a device
+    images' slots (a device buffer, ffbp_fields') and each leaf's first slot, the rows' spans (a
+    device buffer) and each leaf's first row; and its references by records (``refs``: a device
     buffer a receiver, filled by :meth:`FirstStage._launch`)."""
 
     n_items: int
@@ -134,20 +143,11 @@ class Layout:
     pix: object
     row_shift: np.ndarray
     tile_of: object
-    slots: object = None
-    slot_first: np.ndarray | None = None
-    spans: object = None
-    span_first: np.ndarray | None = None
+    slots: object
+    slot_first: np.ndarray
+    spans: object
+    span_first: np.ndarray
     refs: dict = dataclasses.field(default_factory=dict)
-    unslotted: tuple | None = None  # (the leaves' grids, the items) until :meth:`slot`
-
-    def slot(self) -> None:
-        """The images' slots and the rows' spans (device buffers) from the items."""
-        leaves, items = self.unslotted
-        slots, self.slot_first = _slots(leaves, items)
-        self.slots, self.spans = cl_buffer(slots), cl_buffer(np.concatenate([g.row_spans for g in leaves]))
-        self.span_first = np.cumsum([0] + [g.n_v for g in leaves])
-        self.unslotted = None
 
     @property
     def nbytes(self) -> int:

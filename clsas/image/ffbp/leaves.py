@@ -49,7 +49,7 @@ from ...kernelmath import expj_cycles
 from ...model import Grid
 from ..backprojection import GridPlan, TileKernel, backproject, prepare
 from . import program
-from .layout import LANES, ROWS, Layout, cl_buffer, polar_tiles, row_step
+from .layout import LANES, ROWS, Layout, cl_buffer, polar_tiles, row_step, slot_firsts
 from .polar import PolarGrid, points_at, within_aperture
 
 BATCH_POINTS = 2**21  # polar samples of a batch of leaves (ffbp.memory_plan: ~40 bytes each held)
@@ -277,6 +277,9 @@ class FirstStage:
         bv, br = TILE_ROWS, TILE_SAMPLES
         while (bv, br) != (ROWS, LANES) and 0.5 * np.hypot(br * step_r, bv * step_v) > TILE_SLACK * budget:
             bv, br = halved(bv, br)
+        slot_first = slot_firsts(leaves)  # the images' slots: ffbp_fields writes those of its items
+        slots = cl.Buffer(ctx, mf.READ_WRITE, 4 * max(int(slot_first[-1]), 1))
+        firsts = cl_buffer(slot_first)
         while True:  # the largest tiles whose samples all lie within the budget of their references
             items, centres, n_tiles, n_items = polar_tiles(leaves, bv, br, seen)
             n_items = max(n_items, ROWS)  # at least one work-item (a launch of none is not allowed)
@@ -285,8 +288,10 @@ class FirstStage:
             items_buf = cl_buffer(items)
             largest = np.empty(items.size, np.float32)  # each item's largest dd (the fields' own, float32)
             largest_buf = cl.Buffer(ctx, mf.WRITE_ONLY, largest.nbytes)
+            cl.enqueue_fill_buffer(queue, slots, np.int32(-1), 0, 4 * max(int(slot_first[-1]), 1))
             program.kernel("ffbp_fields")(queue, *opencl.work_groups(items.size), items_buf, frames, plane,
-                                          cl_buffer(centres), np.int32(items.size), pix, largest_buf)
+                                          cl_buffer(centres), np.int32(items.size), pix, largest_buf, slots, firsts,
+                                          np.int32(n_items))
             copied = cl.enqueue_copy(queue, largest, largest_buf, is_blocking=False)
             if meanwhile is not None:
                 meanwhile()
@@ -300,9 +305,10 @@ class FirstStage:
             bv, br = halved(bv, br)
         first_tile = np.cumsum(np.r_[0, n_tiles])
         row_shift = np.repeat(np.array([self.leaves[k][0] for k in batch], np.int32), n_tiles)  # less b0 at launch
+        spans = cl_buffer(np.concatenate([g.row_spans for g in (leaves if seen is None else seen)]))
         return Layout(n_items, centres, first_tile, extent, fields, pix, row_shift,
-                       cl_buffer(items["tile"][:n_items:ROWS]), unslotted=(leaves if seen is None else seen,
-                                                                          items[:n_items]))
+                      cl_buffer(items["tile"][:n_items:ROWS]), slots, slot_first,
+                      spans, np.cumsum([0] + [g.n_v for g in leaves]))
 
     def _launch(self, records_of, batch: list, grids: list, b0: int) -> list:
         """The images of the leaves ``batch`` (all ``first`` pulses long) by bp_tile launches into
@@ -348,10 +354,8 @@ class FirstStage:
                             ref_first=0, records=data, n_samples=n_samples, taps=taps, params=params, p_first=s,
                             p_count=min(tile.PULSE_BLOCK, self.first - s), image=image, row_shift=row_shift,
                             store=i == 0 and s == 0)
-        if new:  # its slots made while bp_tile runs, then kept with its references (.reuse)
-            layout.slot()
-            if self.layouts is not None:
-                self.layouts.put(key, layout, layout.nbytes)
+        if new and self.layouts is not None:  # kept with its references (.reuse)
+            self.layouts.put(key, layout, layout.nbytes)
         kept = self.layouts is not None and self.layouts.get(key) is layout
         if kept and refs_key not in layout.refs and self.layouts.add(sum(r.size for r in refs)):
             layout.refs[refs_key] = refs

@@ -70,7 +70,10 @@ class DeviceStore:
         self.host_pixels = np.ascontiguousarray(pixels, np.float64)
         self.pixels = DevicePoints(cl.Buffer(self.rt.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=self.host_pixels),
                                    pixels.shape[0])
-        self.flat = cl.Buffer(self.rt.context, mf.READ_WRITE, 8 * pixels.shape[0])
+        # the image: the final stage writes the host array in place (USE_HOST_PTR: on a CPU device no
+        # copy is made, and a blocking map at the end makes it the host's), as direct back-projection's
+        self.image = np.empty(pixels.shape[0], np.complex64)
+        self.flat = cl.Buffer(self.rt.context, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=self.image)
         self.written = False  # the first final stage writes the image (no zero fill), later ones add
         self.sizes, self.levels = sizes, {}
 
@@ -98,6 +101,7 @@ class DeviceStore:
     def result(self) -> np.ndarray:
         if not self.written:  # no top node saw a pixel
             return np.zeros(self.host_pixels.shape[0], np.complex64)
-        flat = np.empty(self.host_pixels.shape[0], np.complex64)
-        self.cl.enqueue_copy(self.rt.queue, flat, self.flat)
-        return flat
+        mapped, _ = self.cl.enqueue_map_buffer(self.rt.queue, self.flat, self.cl.map_flags.READ, 0,
+                                               (self.image.size,), np.complex64)
+        mapped.base.release()  # the blocking map waits for the last final stage; self.image holds the image
+        return self.image
