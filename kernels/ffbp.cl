@@ -124,7 +124,8 @@ inline double16 polar_points16(const ffbp_frame_t f, const ffbp_plane_t plane, c
  * one row of one tile, items[g] (leaf, row, first range sample, tile; rows and samples past the
  * grid's edge are clamped to it: the launcher drops those slots); frames[leaf], plane, centres
  * (the tiles' reference points, m); dd_max[g] the largest of its sixteen dd (as stored, float:
- * the launcher's tile budget check reads these, not the fields). Also the images' slots
+ * the launcher's tile budget check reads these, not the fields; fmax skips a NaN: the geometry is
+ * finite, clsas/image/ffbp/polar/scene.py's Scene.of refuses a non-finite pixel). Also the images' slots
  * (clsas/image/ffbp/layout.py, _slots is the NumPy twin): for g < n_slotted (the work-items
  * bp_tile computes) and a row inside its grid, slots[slot_firsts[leaf] + row * ceil(n_r / 16) +
  * sample / 16] = g; the launcher fills slots with -1 first (groups no work-item holds). */

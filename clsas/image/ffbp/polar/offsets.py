@@ -10,6 +10,10 @@ the range envelope in sine bins). Two implementations giving the same values, bi
   NumPy does (no fused multiply-adds; IEEE sums, products, square roots and quotients in double),
   so the planner's extents, and with them the tree and the image, are the same whichever ran.
   It replaces about twenty NumPy passes over the (n, K) arrays by one loop a reduction.
+
+The skeleton is finite and has at least one point (:meth:`.scene.Scene.of` refuses others): the
+device's maxima and minima (fmax, and selects on < and >) skip a NaN where NumPy's propagate it,
+so the two agree only on finite input.
 """
 
 from __future__ import annotations
