@@ -389,12 +389,15 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
     const double8 v = select(along / r, (double8)0.0, r == 0.0);                                             \
     const long8 valid = (i + (long8)(0, 1, 2, 3, 4, 5, 6, 7)) < (long)K;
 
-/* The smallest and largest lane of a and b (double8) into lo and hi. */
+/* The smallest and largest lane of a and b (double8) into lo and hi, lane 0 first (named lanes: a
+ * vector subscripted by a runtime index is a clang extension, not OpenCL C 1.2). */
+#define LANE_MIN_MAX(a, b, lo, hi, s)                                                                         \
+    lo = a.s < lo ? a.s : lo;                                                                                 \
+    hi = b.s > hi ? b.s : hi;
 #define LANES_MIN_MAX(a, b, lo, hi)                                                                           \
-    for (int k = 0; k < 8; ++k) {                                                                             \
-        lo = a[k] < lo ? a[k] : lo;                                                                           \
-        hi = b[k] > hi ? b[k] : hi;                                                                           \
-    }
+    LANE_MIN_MAX(a, b, lo, hi, s0) LANE_MIN_MAX(a, b, lo, hi, s1) LANE_MIN_MAX(a, b, lo, hi, s2)              \
+    LANE_MIN_MAX(a, b, lo, hi, s3) LANE_MIN_MAX(a, b, lo, hi, s4) LANE_MIN_MAX(a, b, lo, hi, s5)              \
+    LANE_MIN_MAX(a, b, lo, hi, s6) LANE_MIN_MAX(a, b, lo, hi, s7)
 
 /* out[n] = (min r, max r, min v, max v) over the skeleton. */
 __kernel void ffbp_extremes(SKELETON_ARGS, __global double4 *out)
@@ -462,12 +465,18 @@ __kernel void ffbp_envelope(SKELETON_ARGS, __global const double2 *bins, const i
         const double8 t = (v - s.x) / s.y;
         const long8 ok = valid && t >= 0.0 && t < (double)n_bins;
         const int8 bin = convert_int8(select((double8)0.0, t, ok));
+        double r_[8];  /* the lanes in private arrays, indexed in the loop (a vector subscripted by a */
+        int bin_[8];   /* runtime index is a clang extension, not OpenCL C 1.2) */
+        long ok_[8];
+        vstore8(r, 0, r_);
+        vstore8(bin, 0, bin_);
+        vstore8(ok, 0, ok_);
         for (int k = 0; k < 8; ++k) {
-            if (ok[k]) {
-                __global double2 *e = env + bin[k];
+            if (ok_[k]) {
+                __global double2 *e = env + bin_[k];
                 double2 b = *e;
-                b.x = r[k] < b.x ? r[k] : b.x;
-                b.y = r[k] > b.y ? r[k] : b.y;
+                b.x = r_[k] < b.x ? r_[k] : b.x;
+                b.y = r_[k] > b.y ? r_[k] : b.y;
                 *e = b;
             }
         }
