@@ -154,6 +154,9 @@ def test_a_leaf_length_guess_changes_no_tree(aperture):
     assert unguessed.first == 16
     for guess in (1, 4, 8, 16, 32, 3, echo.n_pulses, 4096):
         _same_trees(plan(echo, [0], scene, 2, 0.1, 8, None, aperture, first_guess=guess), unguessed)
+    if aperture is None:  # device and first_guess by keyword only (review 11 S3: two trailing positionals swap easily)
+        with pytest.raises(TypeError):
+            plan(echo, [0], scene, 2, 0.1, 8, None, aperture, False, 16)
 
 
 def _tree_cost(tree, pixels: np.ndarray, factor: int) -> float:

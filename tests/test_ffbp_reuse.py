@@ -169,7 +169,7 @@ def test_kept_scenes_and_trees_count_against_the_memory_budget(opencl_device, mo
     monkeypatch.setattr(reuse, "KEEP_PLANS", True)
     reuse.release()
     plans, planning = [], ffbp_package.plan
-    monkeypatch.setattr(ffbp_package, "plan", lambda *a: plans.append(1) or planning(*a))
+    monkeypatch.setattr(ffbp_package, "plan", lambda *a, **k: plans.append(1) or planning(*a, **k))
     echo = echo_of("straight")
     a = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(-2.0, 0.0, 0.04), DEPTH)
     b = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(0.0, 2.0, 0.04), DEPTH)
@@ -220,9 +220,9 @@ def test_a_tree_is_used_again_only_for_its_geometry(opencl_device, monkeypatch):
     counts = {"plan": 0, "layout": 0}
     planning, laying_out = ffbp_package.plan, leaves.FirstStage._layout
 
-    def plan_counted(*args):
+    def plan_counted(*args, **kwargs):
         counts["plan"] += 1
-        return planning(*args)
+        return planning(*args, **kwargs)
 
     def layout_counted(self, *args):
         counts["layout"] += 1

@@ -265,7 +265,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
     options = (int(factor), float(tolerance), int(taps), first, aperture, interp, int(upsample), bool(stop_and_go))
     made = planned(entry, echo, chosen, options,  # the tree kept for this geometry onto this grid, or a new one
                    lambda guess: plan(echo, chosen, scene, int(factor), float(tolerance), taps, first, aperture,
-                                      name == "opencl", guess))  # reductions on the device; the last tree's first
+                                      device=name == "opencl", first_guess=guess))
     tree = made.tree
     memory = memory_plan(tree, grid.size, int(factor), echo_bytes, taps=taps, interp=interp, backend=name)["total"]
     budget.check_bytes(f"ffbp of {echo.n_pulses} pulses onto {grid.size} pixels ({tree.top + 1} levels)", memory,

@@ -168,7 +168,7 @@ class _Frames:
 
 
 def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: float, taps: int,
-         first: int | None, aperture: float | None, device: bool = False, first_guess: int | None = None) -> Tree:
+         first: int | None, aperture: float | None, *, device: bool = False, first_guess: int | None = None) -> Tree:
     """The merge tree for ``echo``'s pulses and the scene (see the module docstring); ``device``:
     the extents' reductions over the skeleton on the OpenCL device (the same tree, bit for bit:
     :mod:`.polar.offsets`); ``first_guess``: a likely leaf length for ``first=None`` (checked by the
