@@ -250,6 +250,28 @@ def test_a_tree_is_used_again_only_for_its_geometry(opencl_device, monkeypatch):
     assert not np.array_equal(kept_moved, first)
 
 
+def test_the_next_plans_guess_is_the_leaf_length_the_rule_chose(opencl_device, monkeypatch):
+    """A new geometry on a grid plans with the last tree's leaf length as first_guess only when the
+    rule chose it (first=None): a length the caller gave is no hint for the rule (review 11 S5)."""
+    ffbp_package = importlib.import_module("clsas.image.ffbp")
+    monkeypatch.setattr(reuse, "KEEP_PLANS", True)
+    reuse.release()
+    guesses, planning = [], ffbp_package.plan
+    monkeypatch.setattr(ffbp_package, "plan", lambda *a, **k: guesses.append(k.get("first_guess")) or planning(*a, **k))
+    grid = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(-2.0, 2.0, 0.04), DEPTH)
+    echo = echo_of("straight")
+
+    def moved(mm):
+        return echo.replace(tx_pos=echo.tx_pos + [mm * 1e-3, 0.0, 0.0], rx_pos=echo.rx_pos + [mm * 1e-3, 0.0, 0.0])
+
+    given = ffbp(echo, grid, first=2, backend="opencl", progress=False)
+    ruled = ffbp(moved(1), grid, backend="opencl", progress=False)
+    ffbp(moved(2), grid, backend="opencl", progress=False)
+    assert given.provenance["first"] == 2 != ruled.provenance["first"]
+    assert guesses == [None, None, ruled.provenance["first"]]
+    reuse.release()
+
+
 def test_an_image_on_a_grid_equals_the_one_its_constructor_makes():
     """Image.on_grid (the imagers' path, no second pass over the positions) sets every field as the
     constructor does, and the private path it takes refuses a set of fields that is not complete."""
