@@ -46,23 +46,23 @@
 
 /* One lane's read of a child image: its TAPS rows of TAPS samples (re, im interleaved) from s
  * (the window's first sample, rows n_r complex samples apart) summed over the rows weighted by
- * the angle taps of row row_v; zero for a lane outside the image. TAPS = 8: the lane's eight
+ * the angle taps (TAPS = 8: tv, the lane's row of the table; the lanes' offsets of s and tv are
+ * formed as int16 vectors and taken lane by lane, fewer extracts than four ints a lane; TAPS = 4:
+ * row row_v); zero for a lane outside the image. TAPS = 8: the lane's eight
  * complex samples of the range window (a float16), which interp.h's sinc8_lanes weights by the
  * range taps and sums eight lanes at a time; TAPS = 4: the lane's complex sum, range taps
  * applied. */
 #if TAPS == 8
-inline float16 lane_window(const int ok, __global const float *s, const int n_r, __global const float *taps,
-                           const int row_v)
+inline float16 lane_window(const int ok, __global const float *s, const int n_r, __global const float *tv)
 {
     float16 p = (float16)0.0f;
     if (ok) {
-        __global const float *tv = taps + 8 * row_v;
         for (int a = 0; a < 8; ++a)
             p += tv[a] * LOAD_F16(s + 2 * a * n_r);
     }
     return p;
 }
-#define LANE_WINDOW(L) lane_window(ok.s##L, img + 2 * (iv.s##L * n_r + ir.s##L), n_r, taps, row_v.s##L)
+#define LANE_WINDOW(L) lane_window(ok.s##L, img + at.s##L, n_r, taps + tap_at.s##L)
 #elif TAPS == 4
 inline float2 lane_products(const int ok, __global const float *s, const int n_r, __global const float *taps,
                             const int row_v, const int row_r)
@@ -304,6 +304,9 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
          * may lie outside the table) */
         const int16 row_r = select((int16)0, NEAREST_TAP_ROW(convert_int16, pr - convert_double16(fr)), ok);
         __global const float *img = (__global const float *)(images + offsets[k]);
+#if TAPS == 8
+        const int16 at = 2 * (iv * n_r + ir), tap_at = 8 * row_v;  /* each lane's window and angle taps, as vectors */
+#endif
         const double16 cycles = cycles_per_m * (rc - r_p);
         float16 cs, sn;
         expj_fraction16(convert_float16(cycles - convert_double16(convert_int16(cycles))), &cs, &sn);
