@@ -46,23 +46,23 @@
 
 /* One lane's read of a child image: its TAPS rows of TAPS samples (re, im interleaved) from s
  * (the window's first sample, rows n_r complex samples apart) summed over the rows weighted by
- * the angle taps of row row_v; zero for a lane outside the image. TAPS = 8: the lane's eight
+ * the angle taps (TAPS = 8: tv, the lane's row of the table; the lanes' offsets of s and tv are
+ * formed as int16 vectors and taken lane by lane, fewer extracts than four ints a lane; TAPS = 4:
+ * row row_v); zero for a lane outside the image. TAPS = 8: the lane's eight
  * complex samples of the range window (a float16), which interp.h's sinc8_lanes weights by the
  * range taps and sums eight lanes at a time; TAPS = 4: the lane's complex sum, range taps
  * applied. */
 #if TAPS == 8
-inline float16 lane_window(const int ok, __global const float *s, const int n_r, __global const float *taps,
-                           const int row_v)
+inline float16 lane_window(const int ok, __global const float *s, const int n_r, __global const float *tv)
 {
     float16 p = (float16)0.0f;
     if (ok) {
-        __global const float *tv = taps + 8 * row_v;
         for (int a = 0; a < 8; ++a)
             p += tv[a] * LOAD_F16(s + 2 * a * n_r);
     }
     return p;
 }
-#define LANE_WINDOW(L) lane_window(ok.s##L, img + 2 * (iv.s##L * n_r + ir.s##L), n_r, taps, row_v.s##L)
+#define LANE_WINDOW(L) lane_window(ok.s##L, img + at.s##L, n_r, taps + tap_at.s##L)
 #elif TAPS == 4
 inline float2 lane_products(const int ok, __global const float *s, const int n_r, __global const float *taps,
                             const int row_v, const int row_r)
@@ -124,7 +124,8 @@ inline double16 polar_points16(const ffbp_frame_t f, const ffbp_plane_t plane, c
  * one row of one tile, items[g] (leaf, row, first range sample, tile; rows and samples past the
  * grid's edge are clamped to it: the launcher drops those slots); frames[leaf], plane, centres
  * (the tiles' reference points, m); dd_max[g] the largest of its sixteen dd (as stored, float:
- * the launcher's tile budget check reads these, not the fields). Also the images' slots
+ * the launcher's tile budget check reads these, not the fields; fmax skips a NaN: the geometry is
+ * finite, clsas/image/ffbp/polar/scene.py's Scene.of refuses a non-finite pixel). Also the images' slots
  * (clsas/image/ffbp/layout.py, _slots is the NumPy twin): for g < n_slotted (the work-items
  * bp_tile computes) and a row inside its grid, slots[slot_firsts[leaf] + row * ceil(n_r / 16) +
  * sample / 16] = g; the launcher fills slots with -1 first (groups no work-item holds). */
@@ -303,6 +304,9 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
          * may lie outside the table) */
         const int16 row_r = select((int16)0, NEAREST_TAP_ROW(convert_int16, pr - convert_double16(fr)), ok);
         __global const float *img = (__global const float *)(images + offsets[k]);
+#if TAPS == 8
+        const int16 at = 2 * (iv * n_r + ir), tap_at = 8 * row_v;  /* each lane's window and angle taps, as vectors */
+#endif
         const double16 cycles = cycles_per_m * (rc - r_p);
         float16 cs, sn;
         expj_fraction16(convert_float16(cycles - convert_double16(convert_int16(cycles))), &cs, &sn);
@@ -388,12 +392,15 @@ __kernel void ffbp_merge(__global const float2 *images, __global const long *off
     const double8 v = select(along / r, (double8)0.0, r == 0.0);                                             \
     const long8 valid = (i + (long8)(0, 1, 2, 3, 4, 5, 6, 7)) < (long)K;
 
-/* The smallest and largest lane of a and b (double8) into lo and hi. */
+/* The smallest and largest lane of a and b (double8) into lo and hi, lane 0 first (named lanes: a
+ * vector subscripted by a runtime index is a clang extension, not OpenCL C 1.2). */
+#define LANE_MIN_MAX(a, b, lo, hi, s)                                                                         \
+    lo = a.s < lo ? a.s : lo;                                                                                 \
+    hi = b.s > hi ? b.s : hi;
 #define LANES_MIN_MAX(a, b, lo, hi)                                                                           \
-    for (int k = 0; k < 8; ++k) {                                                                             \
-        lo = a[k] < lo ? a[k] : lo;                                                                           \
-        hi = b[k] > hi ? b[k] : hi;                                                                           \
-    }
+    LANE_MIN_MAX(a, b, lo, hi, s0) LANE_MIN_MAX(a, b, lo, hi, s1) LANE_MIN_MAX(a, b, lo, hi, s2)              \
+    LANE_MIN_MAX(a, b, lo, hi, s3) LANE_MIN_MAX(a, b, lo, hi, s4) LANE_MIN_MAX(a, b, lo, hi, s5)              \
+    LANE_MIN_MAX(a, b, lo, hi, s6) LANE_MIN_MAX(a, b, lo, hi, s7)
 
 /* out[n] = (min r, max r, min v, max v) over the skeleton. */
 __kernel void ffbp_extremes(SKELETON_ARGS, __global double4 *out)
@@ -461,12 +468,18 @@ __kernel void ffbp_envelope(SKELETON_ARGS, __global const double2 *bins, const i
         const double8 t = (v - s.x) / s.y;
         const long8 ok = valid && t >= 0.0 && t < (double)n_bins;
         const int8 bin = convert_int8(select((double8)0.0, t, ok));
+        double r_[8];  /* the lanes in private arrays, indexed in the loop (a vector subscripted by a */
+        int bin_[8];   /* runtime index is a clang extension, not OpenCL C 1.2) */
+        long ok_[8];
+        vstore8(r, 0, r_);
+        vstore8(bin, 0, bin_);
+        vstore8(ok, 0, ok_);
         for (int k = 0; k < 8; ++k) {
-            if (ok[k]) {
-                __global double2 *e = env + bin[k];
+            if (ok_[k]) {
+                __global double2 *e = env + bin_[k];
                 double2 b = *e;
-                b.x = r[k] < b.x ? r[k] : b.x;
-                b.y = r[k] > b.y ? r[k] : b.y;
+                b.x = r_[k] < b.x ? r_[k] : b.x;
+                b.y = r_[k] > b.y ? r_[k] : b.y;
                 *e = b;
             }
         }

@@ -55,6 +55,77 @@ def test_an_overflowing_image_raises(opencl_device):
             ffbp(huge, grid, backend=backend, progress=False)
 
 
+@pytest.mark.parametrize("pixels", ["all in the skeleton", "a strided skeleton"])
+@pytest.mark.parametrize("value", [np.nan, np.inf])
+def test_a_non_finite_position_written_under_a_grid_is_refused(opencl_device, pixels, value):
+    """A Grid on the caller's array images what the array holds now (tests/test_ffbp_reuse.py): a NaN
+    or inf written there after the Grid was made is refused by name on both backends, whichever
+    pixel holds it (a skeleton point, or one the planner's strided skeleton skips), before the
+    planner's reductions (review 11 R5: the device maxima skip a NaN that NumPy's propagate; it
+    used to end in a LinAlgError, an IndexError or an overflow error)."""
+    echo = echo_of("straight")
+    step = 0.05 if pixels == "all in the skeleton" else 0.03  # 80 x 80 pixels <= polar.SKELETON < 133 x 133
+    x, y = np.arange(42.0, 46.0, step), np.arange(-2.0, 2.0, step)
+    yy, xx = np.meshgrid(y, x, indexing="ij")
+    for backend in ("numpy", "opencl"):
+        positions = np.stack([xx, yy, np.full_like(xx, DEPTH)], axis=-1)
+        alias = positions[:]  # a writable view made before the Grid (which makes its array read-only)
+        grid = Grid(positions, ("y", "x"), {"y": y, "x": x})
+        alias[1, 1, 0] = value  # not a strided skeleton point (stride 2), nor the last row or column
+        with pytest.raises(ValueError, match="Grid.positions: must be finite"):
+            ffbp(echo, grid, backend=backend, progress=False)
+
+
+def test_a_scene_of_no_pixel_is_refused():
+    """A Grid has at least one pixel, and Scene.of says so by name if ever given none (review 11 R5)."""
+    from clsas.image.ffbp.polar import Scene
+
+    with pytest.raises(ValueError, match="Grid.positions: no pixel"):
+        Scene.of(np.zeros((0, 3)))
+
+
+@pytest.mark.parametrize("aperture", [None, 0.2])
+def test_the_planners_device_buffers_are_within_the_planning_part(opencl_device, monkeypatch, aperture):
+    """The planner's device reductions (polar.offsets.DeviceOffsets) run before the call's memory plan
+    is checked, so the planning part the budget checks first counts them (review 11 R4): each
+    DeviceOffsets allocates at most offsets.device_bytes of device buffers (all its reductions
+    together: the envelope's (n, ENVELOPE_BINS, 2) the largest), and the planning part on OpenCL
+    holds PLAN_BYTES a skeleton point plus twice the bound (the results' host copies)."""
+    import pyopencl as cl
+
+    import importlib
+
+    from clsas.image.ffbp.polar import offsets, sampling
+
+    ffbp_package = importlib.import_module("clsas.image.ffbp")
+
+    echo = echo_of("motion")  # yawed: with an aperture, aperture_windows' reductions across y too
+    scene = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(-2.0, 2.0, 0.03), DEPTH)
+    scene = ffbp_package.reuse.kept(scene)[0]
+    k = scene.skeleton.shape[0]
+    made = []  # [sub-apertures, bytes of device buffers] of each DeviceOffsets
+    buffer, starting = cl.Buffer, offsets.DeviceOffsets.__init__
+
+    def counted(context, flags, size=0, hostbuf=None):
+        made[-1][1] += hostbuf.nbytes if hostbuf is not None else size
+        return buffer(context, flags, size, hostbuf)
+
+    def start(self, scene_, origins, *args):
+        made.append([origins.shape[0], 0])
+        starting(self, scene_, origins, *args)
+
+    monkeypatch.setattr(offsets.DeviceOffsets, "__init__", start)
+    with monkeypatch.context() as m:
+        m.setattr(cl, "Buffer", counted)
+        ffbp_package.plan(echo, [0], scene, 4, 0.1, 8, None, aperture, device=True)
+    assert made and all(0 < n <= sampling.DEVICE_CHUNK_NODES for n, _ in made)
+    assert all(0 < nbytes <= offsets.device_bytes(k, n, sampling.ENVELOPE_BINS) for n, nbytes in made)
+    largest = max(nbytes for _, nbytes in made)
+    planning = ffbp_package._fixed_parts(GRID.size, k, 8, "linear", "opencl", 1.0)["planning"]
+    assert planning >= ffbp_package.PLAN_BYTES * k + 2 * largest
+    assert ffbp_package._fixed_parts(GRID.size, k, 8, "linear", "numpy", 1.0)["planning"] == ffbp_package.PLAN_BYTES * k
+
+
 def test_memory_budget_refuses_before_allocating():
     """ffbp on a 300 x 300 grid under a 2 MB budget refuses with the budget's error before it
     plans or allocates (it used to allocate ~20 MiB)."""

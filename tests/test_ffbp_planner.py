@@ -154,6 +154,25 @@ def test_a_leaf_length_guess_changes_no_tree(aperture):
     assert unguessed.first == 16
     for guess in (1, 4, 8, 16, 32, 3, echo.n_pulses, 4096):
         _same_trees(plan(echo, [0], scene, 2, 0.1, 8, None, aperture, first_guess=guess), unguessed)
+    if aperture is None:  # device and first_guess by keyword only (review 11 S3: two trailing positionals swap easily)
+        with pytest.raises(TypeError):
+            plan(echo, [0], scene, 2, 0.1, 8, None, aperture, False, 16)
+
+
+def test_polar_tiles_refuses_tiles_of_part_work_items():
+    """bp_tile's work-item is ROWS rows of LANES samples: layout.polar_tiles lays out tiles of whole
+    work-items and refuses others (review 11 S4: a row count not a multiple of ROWS silently
+    dropped the tiles' last rows)."""
+    from clsas.image.ffbp import layout
+
+    echo = _geometry_only_echo(64)
+    scene = Scene.of(Grid.plane(np.linspace(40.0, 44.0, 40), np.linspace(-1.0, 1.0, 40), DEPTH).positions)
+    leaves = [g for g in plan(echo, [0], scene, 2, 0.1, 8, 8, None).grids[0] if g is not None]
+    items = layout.polar_tiles(leaves, 2 * layout.ROWS, 2 * layout.LANES)[0]
+    assert items.size > 0 and items.size % layout.ROWS == 0
+    for bv, br in [(2 * layout.ROWS + 1, layout.LANES), (layout.ROWS, layout.LANES + 1), (0, layout.LANES)]:
+        with pytest.raises(ValueError, match="polar_tiles: tiles of"):
+            layout.polar_tiles(leaves, bv, br)
 
 
 def _tree_cost(tree, pixels: np.ndarray, factor: int) -> float:

@@ -169,7 +169,7 @@ def test_kept_scenes_and_trees_count_against_the_memory_budget(opencl_device, mo
     monkeypatch.setattr(reuse, "KEEP_PLANS", True)
     reuse.release()
     plans, planning = [], ffbp_package.plan
-    monkeypatch.setattr(ffbp_package, "plan", lambda *a: plans.append(1) or planning(*a))
+    monkeypatch.setattr(ffbp_package, "plan", lambda *a, **k: plans.append(1) or planning(*a, **k))
     echo = echo_of("straight")
     a = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(-2.0, 0.0, 0.04), DEPTH)
     b = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(0.0, 2.0, 0.04), DEPTH)
@@ -220,9 +220,9 @@ def test_a_tree_is_used_again_only_for_its_geometry(opencl_device, monkeypatch):
     counts = {"plan": 0, "layout": 0}
     planning, laying_out = ffbp_package.plan, leaves.FirstStage._layout
 
-    def plan_counted(*args):
+    def plan_counted(*args, **kwargs):
         counts["plan"] += 1
-        return planning(*args)
+        return planning(*args, **kwargs)
 
     def layout_counted(self, *args):
         counts["layout"] += 1
@@ -248,6 +248,28 @@ def test_a_tree_is_used_again_only_for_its_geometry(opencl_device, monkeypatch):
     assert np.array_equal(ffbp(moved, grid, backend="opencl", progress=False).data, kept_moved)
     assert np.array_equal(ffbp(moved, grid, backend="opencl", tolerance=0.05, progress=False).data, kept_tight)
     assert not np.array_equal(kept_moved, first)
+
+
+def test_the_next_plans_guess_is_the_leaf_length_the_rule_chose(opencl_device, monkeypatch):
+    """A new geometry on a grid plans with the last tree's leaf length as first_guess only when the
+    rule chose it (first=None): a length the caller gave is no hint for the rule (review 11 S5)."""
+    ffbp_package = importlib.import_module("clsas.image.ffbp")
+    monkeypatch.setattr(reuse, "KEEP_PLANS", True)
+    reuse.release()
+    guesses, planning = [], ffbp_package.plan
+    monkeypatch.setattr(ffbp_package, "plan", lambda *a, **k: guesses.append(k.get("first_guess")) or planning(*a, **k))
+    grid = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(-2.0, 2.0, 0.04), DEPTH)
+    echo = echo_of("straight")
+
+    def moved(mm):
+        return echo.replace(tx_pos=echo.tx_pos + [mm * 1e-3, 0.0, 0.0], rx_pos=echo.rx_pos + [mm * 1e-3, 0.0, 0.0])
+
+    given = ffbp(echo, grid, first=2, backend="opencl", progress=False)
+    ruled = ffbp(moved(1), grid, backend="opencl", progress=False)
+    ffbp(moved(2), grid, backend="opencl", progress=False)
+    assert given.provenance["first"] == 2 != ruled.provenance["first"]
+    assert guesses == [None, None, ruled.provenance["first"]]
+    reuse.release()
 
 
 def test_an_image_on_a_grid_equals_the_one_its_constructor_makes():

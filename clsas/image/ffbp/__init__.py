@@ -57,6 +57,8 @@ from ..backprojection.records import FFT_BATCH_BYTES, check_options
 from .leaves import BATCH_POINTS, RECORD_BYTES, FirstStage
 from .merge import CHUNK, KERNEL_TAPS
 from .polar import CHUNK_NODES
+from .polar.offsets import device_bytes
+from .polar.sampling import DEVICE_CHUNK_NODES, ENVELOPE_BINS
 from . import reuse
 from .reuse import kept, planned, release
 from .scratch import GRAIN, Scratch
@@ -69,7 +71,8 @@ DEFAULT_FACTOR = 4  # children a merge (bench_ffbp --factors compares 2)
 __all__ = ["DEFAULT_FACTOR", "DEFAULT_TOLERANCE", "ffbp", "memory_plan", "release"]
 
 SAMPLE_BYTES = {"opencl": 8, "numpy": 16}  # a polar or image sample (complex64 on the device, complex128 on NumPy)
-LEAF_BATCH_BYTES = 40  # held a polar sample of a first-stage batch (leaves.py: device image 16, fields 16, work-items)
+LEAF_BATCH_BYTES = 40  # held a polar sample of a first-stage batch (leaves.py: device image 16, fields 16, work-items:
+# a work-item of 16 samples holds its item 16 B, its slot 4 B and its largest dd 4 B on the device and 4 B on the host)
 LEAF_BYTES = 200  # transient a sample of the leaf being tiled (points, padded blocks, offsets; float64)
 GRID_BYTES = 2 * 8 + 24 + 3 * 8  # a pixel: the image (device, host), the pixels' copy, the scene's float temporaries
 # NumPy backend (tests/test_ffbp_input.py holds the traced peaks below these):
@@ -80,6 +83,9 @@ MERGE_SAMPLE_BYTES = 320  # merge_reference: an output sample of its chunk (merg
 # kept since tree._Frames takes the nearest range from the skeleton's k-d tree, polar.Scene.nearest,
 # ~40 bytes a point) and CHUNK_NODES sub-apertures' ranges, sines and bins (polar.sampling._extents), float64
 PLAN_BYTES = 8 * (2 * 66 + 6 * CHUNK_NODES)
+# ... and on OpenCL the planner's device reductions' buffers and their results' host copies, at most
+# (polar.offsets.device_bytes: DEVICE_CHUNK_NODES sub-apertures' envelopes of ENVELOPE_BINS bins, ~2 MiB)
+PLAN_DEVICE_COPIES = 2
 TABLE_COPIES = {"knab": 8, "kaiser": 16}  # float64 temporaries of building a tap table (interp.tap_table)
 
 
@@ -99,7 +105,16 @@ def _fixed_parts(n_pixels: int, skeleton: int, taps: int, interp: str, backend: 
     return {"image": 2 * SAMPLE_BYTES[backend] * n_pixels,
             "records": min(RECORD_BYTES, echo_bytes) + 3 * min(FFT_BATCH_BYTES, 2 * echo_bytes),
             "tables": _tables(taps, interp),
-            "planning": PLAN_BYTES * skeleton}
+            "planning": _planning(skeleton, backend)}
+
+
+def _planning(skeleton: int, backend: str) -> float:
+    """Bytes of the tree's plan over a skeleton of ``skeleton`` points (0: none counted)."""
+    if skeleton == 0:
+        return 0.0
+    device = (PLAN_DEVICE_COPIES * device_bytes(skeleton, DEVICE_CHUNK_NODES, ENVELOPE_BINS)
+              if backend == "opencl" else 0)
+    return PLAN_BYTES * skeleton + device
 
 
 def memory_plan(tree: Tree, n_pixels: int, factor: int, echo_bytes: float = float("inf"), *, taps: int = 8,
@@ -250,7 +265,7 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
     options = (int(factor), float(tolerance), int(taps), first, aperture, interp, int(upsample), bool(stop_and_go))
     made = planned(entry, echo, chosen, options,  # the tree kept for this geometry onto this grid, or a new one
                    lambda guess: plan(echo, chosen, scene, int(factor), float(tolerance), taps, first, aperture,
-                                      name == "opencl", guess))  # reductions on the device; the last tree's first
+                                      device=name == "opencl", first_guess=guess))
     tree = made.tree
     memory = memory_plan(tree, grid.size, int(factor), echo_bytes, taps=taps, interp=interp, backend=name)["total"]
     budget.check_bytes(f"ffbp of {echo.n_pulses} pulses onto {grid.size} pixels ({tree.top + 1} levels)", memory,

@@ -36,7 +36,11 @@ def polar_tiles(grids: list, bv: int, br: int, seen: list | None = None):
     number of tiles of each grid (L,) and the number of items to back-project: with ``seen`` (the
     grids with narrower spans, :func:`.polar.within_aperture`) those meeting them come first, in
     the same order, and the others after (laid out, so the tiles' budget is checked on every
-    sample as before, but not back-projected: zero); else all of them."""
+    sample as before, but not back-projected: zero); else all of them. ``bv`` must be a positive
+    multiple of ROWS and ``br`` of LANES (a work-item's rows and samples; ValueError otherwise)."""
+    if bv <= 0 or br <= 0 or bv % ROWS or br % LANES:
+        raise ValueError(f"polar_tiles: tiles of {bv} rows x {br} range samples; the rows must be a positive "
+                         f"multiple of ROWS ({ROWS}) and the samples of LANES ({LANES})")
     tv_of = np.array([-(-g.n_v // bv) for g in grids])
     tr_of = np.array([-(-g.n_r // br) for g in grids])
     tv, tr = int(tv_of.max()), int(tr_of.max())

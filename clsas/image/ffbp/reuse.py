@@ -254,14 +254,15 @@ def geometry(echo: EchoData, chosen: list, options: tuple) -> tuple[tuple, tuple
 def planned(entry: Kept | None, echo: EchoData, chosen: list, options: tuple, make) -> Planned:
     """The tree kept for this geometry and these options (:func:`geometry`) on the grid of
     ``entry``, or a new one from ``make(guess)`` (kept in its place when the grid may keep one and
-    the geometry's copies fit :func:`host_limit`); ``guess``: the leaf length of the grid's last
-    tree (a hint for the new plan, :func:`.tree.plan`'s first_guess), or None."""
+    the geometry's copies fit :func:`host_limit`); ``guess``: the leaf length the rule chose for the
+    grid's last tree (a hint for the new plan, :func:`.tree.plan`'s first_guess), or None (no last
+    tree, or its length was the caller's)."""
     if not KEEP_PLANS or entry is None:
         return Planned((), (), make(None), None)  # nothing kept: no copies, no layouts
     scalars, arrays = geometry(echo, chosen, options)
     if entry.planned is not None and entry.planned.matches(scalars, arrays):
         return entry.planned
-    guess = None if entry.planned is None else entry.planned.tree.first
+    guess = entry.planned.tree.first if entry.planned is not None and entry.planned.tree.ruled else None
     entry.planned = None  # the last tree is let go before the new one is planned
     if sum(a.nbytes for a in arrays) > host_limit():
         return Planned((), (), make(guess), None)  # a geometry too large to keep a copy of

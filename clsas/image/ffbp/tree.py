@@ -72,7 +72,8 @@ LEAF_SAMPLE_COST = 1.5  # ... and a leaf sample's own in a cold call (its layout
 class Tree:
     """pulses[l][n] = (p0, p1) of node n of level l; children[l][n] its children (level l - 1);
     grids[l][n] its PolarGrid (None: it sees no pixel); ``top`` the last level merged (its nodes
-    go to the pixels), ``rho`` the oversampling, ``first`` pulses a leaf."""
+    go to the pixels), ``rho`` the oversampling, ``first`` pulses a leaf (``ruled``: the rule chose
+    it, plan's first=None; False: the caller gave it)."""
 
     pulses: list
     children: list
@@ -80,6 +81,7 @@ class Tree:
     top: int
     rho: float
     first: int
+    ruled: bool = True
 
     def samples(self) -> list[int]:
         """Polar samples computed (inside their rows' spans) of each level up to the top."""
@@ -168,7 +170,7 @@ class _Frames:
 
 
 def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: float, taps: int,
-         first: int | None, aperture: float | None, device: bool = False, first_guess: int | None = None) -> Tree:
+         first: int | None, aperture: float | None, *, device: bool = False, first_guess: int | None = None) -> Tree:
     """The merge tree for ``echo``'s pulses and the scene (see the module docstring); ``device``:
     the extents' reductions over the skeleton on the OpenCL device (the same tree, bit for bit:
     :mod:`.polar.offsets`); ``first_guess``: a likely leaf length for ``first=None`` (checked by the
@@ -284,6 +286,7 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
                         + factor * share * sum(sizes[1:]) + n_pixels * covered)
         return costs
 
+    ruled = first is None
     if first is None:
         # the fewest pulses whose middle leaf is wide enough (doubling from one, whatever the factor: a
         # factor of 4 would jump past the best; lengths that make more than MAX_LEAVES leaves are
@@ -351,4 +354,4 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         top = new_top
     rho = oversampling(taps, tolerance, top + 1)  # the stages of the tree as it stands, settled or not
     grids = [grids_for(pulses[level], rho) if level <= top else [] for level in range(len(pulses))]
-    return Tree(pulses, children, grids, top, rho, first)
+    return Tree(pulses, children, grids, top, rho, first, ruled)

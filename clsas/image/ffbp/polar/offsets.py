@@ -10,6 +10,10 @@ the range envelope in sine bins). Two implementations giving the same values, bi
   NumPy does (no fused multiply-adds; IEEE sums, products, square roots and quotients in double),
   so the planner's extents, and with them the tree and the image, are the same whichever ran.
   It replaces about twenty NumPy passes over the (n, K) arrays by one loop a reduction.
+
+The skeleton is finite and has at least one point (:meth:`.scene.Scene.of` refuses others): the
+device's maxima and minima (fmax, and selects on < and >) skip a NaN where NumPy's propagate it,
+so the two agree only on finite input.
 """
 
 from __future__ import annotations
@@ -64,10 +68,31 @@ class HostOffsets:
         return np.stack([near, far], axis=1).reshape(n, n_bins, 2)
 
 
+def device_bytes(k: int, n: int, n_bins: int) -> int:
+    """Bytes of every device buffer one :class:`DeviceOffsets` of ``n`` sub-apertures over a
+    skeleton of ``k`` points allocates, all its reductions together (``n_bins`` envelope bins): the
+    padded skeleton (3, k + 7 at most) and the frames' centres, axes and dots; each reduction's
+    parameters and result (the envelope's (n, n_bins, 2) the largest). float64 throughout. A bound on
+    what it holds at once, which :func:`clsas.image.ffbp.memory_plan`'s planning part counts (with
+    the results' host copies) before the plan runs."""
+    padded = 3 * (k + 7)
+    common = n * (3 + 3 + 1)  # centred, axes, dots
+    results = n * 4 + (n * 4 + n * 4) + (n * 2 + n * n_bins * 2)  # extremes; seen's limits and out; envelope's
+    return 8 * (padded + common + results)
+
+
 class DeviceOffsets:
     """:class:`HostOffsets`' reductions on the OpenCL device (module docstring), for any number of
     sub-apertures at once (each reduction one launch and one read of its (n, ...) result), by
-    kernels/ffbp.cl as built for ``taps`` merge taps (:func:`..program.kernel`)."""
+    kernels/ffbp.cl as built for ``taps`` merge taps (:func:`..program.kernel`). Its device buffers
+    are bounded (:func:`device_bytes`: the caller takes at most DEVICE_CHUNK_NODES sub-apertures and
+    ENVELOPE_BINS bins at a time, over a skeleton of about polar.SKELETON points).
+
+    A work-item a sub-aperture, each its own work-group, looping over the skeleton with a global
+    read-modify-write of the envelope's bin a point: shaped for a CPU device (PoCL: a work-group a
+    core at a time, the envelope in cache). On a GPU that is one busy lane a warp and serialised
+    global updates; measure before using it there (the NumPy reductions give the same values).
+    """
 
     def __init__(self, scene: Scene, origins: np.ndarray, axes: np.ndarray, taps: int = 8):
         import pyopencl as cl

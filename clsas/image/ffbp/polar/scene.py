@@ -8,16 +8,23 @@ import functools
 
 import numpy as np
 
+from .... import validate
 from .grids import Plane
 
 SKELETON = 8192  # at most about this many pixels stand for the grid when extents are computed
 OFFSET_ROWS = 4  # origins whose distances to the skeleton are computed at once (Scene.offsets: in cache)
 
 
+def _not_finite() -> ValueError:
+    return ValueError("Grid.positions: must be finite everywhere; it has NaN or inf (written into the caller's "
+                      "array under the Grid after the Grid was made?)")
+
+
 def _largest_step(positions: np.ndarray, axis: int) -> float:
     """The largest distance (m) between neighbouring pixels along grid axis ``axis`` of positions
     (..., 3), a block of about 2^16 pixels at a time (a 4096^2 grid's whole difference array
-    would be 400 MB)."""
+    would be 400 MB). Every pixel is in a difference (when the axis has two or more): a NaN or
+    inf among them raises ValueError."""
     moved = np.moveaxis(positions, axis, 0)
     rows = max(2, (2**16) // max(1, moved[0].size // 3))  # blocks that stay in cache
     largest = 0.0
@@ -25,7 +32,10 @@ def _largest_step(positions: np.ndarray, axis: int) -> float:
         part = moved[start:start + rows]
         step = part[1:] - part[:-1]
         step *= step
-        largest = max(largest, float((step[..., 0] + step[..., 1] + step[..., 2]).max()))
+        block = float((step[..., 0] + step[..., 1] + step[..., 2]).max())
+        if not np.isfinite(block):
+            raise _not_finite()
+        largest = max(largest, block)
     return float(np.sqrt(largest))
 
 
@@ -89,9 +99,17 @@ class Scene:
 
     @classmethod
     def of(cls, positions: np.ndarray) -> "Scene":
+        """The Scene of a grid's positions (..., 3) m (at least one pixel: a Grid has one). Raises
+        ValueError when a position is NaN or inf: a Grid checks its positions when made, but one on
+        the caller's array (read again every call, :mod:`..reuse`) images what the array holds now,
+        and the planner's device maxima would skip a NaN where NumPy's propagate it."""
         shape = positions.shape[:-1]
         flat = positions.reshape(-1, 3)
+        if flat.shape[0] == 0:
+            raise ValueError("Grid.positions: no pixel; a Scene needs at least one")
         if flat.shape[0] <= SKELETON:
+            if not validate.all_finite(flat):
+                raise _not_finite()
             return cls(flat.copy(), 0.0, Plane.fit(flat), flat.shape[0])
         stride = int(np.ceil((flat.shape[0] / SKELETON) ** (1 / len(shape))))
         strided = tuple(np.unique(np.r_[np.arange(0, n, stride), n - 1]) for n in shape)
@@ -99,7 +117,7 @@ class Scene:
         # a pixel's index is within stride // 2 of a strided one along each axis; walking there one
         # neighbour at a time moves at most stride // 2 of that axis's largest step per axis
         steps = [_largest_step(positions, k) for k in range(len(shape)) if shape[k] > 1]
-        margin = (stride // 2) * float(np.sum(steps)) if steps else 0.0
+        margin = (stride // 2) * float(np.sum(steps)) if steps else 0.0  # (finite: every pixel checked)
         return cls(skeleton, margin, Plane.fit(skeleton), flat.shape[0])
 
 
