@@ -20,7 +20,7 @@ each, min and median, with the relative L2 difference of the two images:
 - ``wide``: the wide sonar, every pulse and angle.
 - ``aperture``: the narrow sonar, both with ``aperture=0.2`` (the same hard integration-angle
   mask). Direct back-projection then sums for each tile only the pulses that can see it
-  (kernels/backprojection.cl PULSE_SPAN), so its cost a pixel is the beam's footprint (~400
+  (kernels/bp_tile.cl PULSE_SPAN), so its cost a pixel is the beam's footprint (~400
   pulses), not the track; ffbp's polar grids cover only what each sub-aperture sees.
 - ``full``: the narrow sonar over every pulse and angle (the pixels then sample the image far
   more coarsely than its resolution along track, which limits how far merging pays).

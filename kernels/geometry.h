@@ -1,5 +1,5 @@
 /* clsas kernels: exact two-way geometry for eight lanes at once (double8), shared by
- * kernels/echo.cl (eight scatterers a work-item) and kernels/backprojection.cl (eight pixels).
+ * kernels/echo.cl (eight scatterers a work-item) and kernels/bp_block.cl (eight pixels).
  * NumPy twin: clsas/geometry.py (fixed-point iteration; the closed forms here agree
  * with it to its 1e-6-period tolerance, tests/test_echo.py and tests/test_backprojection.py).
  *

@@ -4,8 +4,8 @@
  *
  * NumPy twin: clsas/interp.py (tap_table, resample_rows; the launchers and the definitions are
  * there). Used by kernels/interp.cl (resample_map), kernels/stolt.cl (stolt_map),
- * kernels/backprojection.cl (its records read at the pixels' delays) and kernels/ffbp.cl (the
- * merge's range taps).
+ * kernels/bp_tile.cl and kernels/bp_block.cl (their records read at the pixels' delays) and
+ * kernels/ffbp.cl (the merge's range taps).
  *
  * Defines: TAP_ROWS (rows of the tap table over the fractional offset [0, 1]); for the row
  * kernels (ROW_ITEM, interpolate16, interpolate_blocks) INTERP_LINEAR or TAPS (8 or 16), and

@@ -1,6 +1,6 @@
 """bp_block, back-projection's exact double kernel, and :class:`ExactKernel`, the object that owns it.
 
-bp_block (kernels/backprojection.cl) computes every pixel's exact delay in double per pulse
+bp_block (kernels/bp_block.cl) computes every pixel's exact delay in double per pulse
 (kernels/geometry.h: the meeting time in closed form, the receiver followed between its
 position nodes): ``precision="double"`` (data, phases and sums in double too), and the fallback
 of ``precision="single"`` for a receiver whose motion is not linear over a tile's delay span
@@ -66,7 +66,7 @@ class ExactKernel:
         the double ``image``: at pixel ``index[m]`` of pixel m (device int32, -1: dropped) when
         given, else at m. Returns the event."""
         defines = {**self.defines, **({"SCATTER": 1} if index is not None else {})}
-        kern = opencl.kernel("backprojection", "bp_block", double=self.double, preamble=PREAMBLE, defines=defines)
+        kern = opencl.kernel("bp_block", "bp_block", double=self.double, preamble=PREAMBLE, defines=defines)
         n_items = self.points.size // POINTS.itemsize
         return kern(queue, *opencl.work_groups(n_items), self.points, self.pulse, self.nodes, records, taps,
                     self.params, np.int32(p_first), np.int32(p_count), np.int32(n_samples), np.int32(n_items), image,

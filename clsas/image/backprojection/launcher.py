@@ -162,7 +162,7 @@ class _Chunk:
         if len(self._lanes) > 1:
             other = self._lanes.pop()
             other.queue.finish()
-            opencl.kernel("backprojection", "bp_add_sums", preamble=self._tile.preamble,
+            opencl.kernel("bp_fields", "bp_add_sums", preamble=self._tile.preamble,
                           defines=self._tile.field_defines)(
                 queue, *opencl.work_groups(self.n), self.sums, other.sums, np.int32(self.n))
         return self
@@ -179,7 +179,7 @@ class _Chunk:
         out = np.empty(slot_of.size, np.complex64)
         out_buf = cl.Buffer(rt.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out)
         slot_buf = cl.Buffer(rt.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=slot_of)
-        opencl.kernel("backprojection", "bp_order", preamble=tile.preamble, defines=tile.field_defines)(
+        opencl.kernel("bp_fields", "bp_order", preamble=tile.preamble, defines=tile.field_defines)(
             queue, *opencl.work_groups(slot_of.size), self.sums, slot_buf, np.int32(slot_of.size), out_buf)
         mapped, _ = cl.enqueue_map_buffer(queue, out_buf, cl.map_flags.READ, 0, (out.size,), np.complex64)
         mapped.base.release()  # the blocking map waits for bp_order; out holds the image
@@ -205,7 +205,7 @@ class _Chunk:
 
 def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,
                        span: tuple[int, int], double=False):
-    """The kernels/backprojection.cl launcher: image (M,) complex64 (a grid of one chunk: put in the grid's
+    """The kernels/bp_tile.cl launcher: image (M,) complex64 (a grid of one chunk: put in the grid's
     order on the device, :meth:`_Chunk.in_grid_order`) or complex128 (several chunks: added on the host), how many (chunk, receiver,
     pulse block) jobs ran on the exact double kernel, and the back-projection kernels' own time (s, from the
     queues' profiling events: the time some bp_tile or bp_block ran, two lanes' overlapping ones counted once)."""

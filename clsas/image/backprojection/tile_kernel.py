@@ -1,6 +1,6 @@
 """bp_tile, back-projection's float32 kernel, and :class:`TileKernel`, the one object that owns it.
 
-A :class:`TileKernel` holds everything kernels/backprojection.cl's bp_tile reads besides the
+A :class:`TileKernel` holds everything kernels/bp_tile.cl's bp_tile reads besides the
 records and the grid: its options (the ``-D`` defines), its records (declared here once as
 structured dtypes; :mod:`clsas.cstruct` puts them in front of the source as C structs), the
 per-(tile, pulse) references and the parameters it is given, the layout of its pixel fields,
@@ -52,7 +52,7 @@ of the tile). With b1 = c^2 t1_ref and a1 = c^2, s1 = N1 / (b1 + sqrt(b1^2 + a1 
 where the degree-7 polynomial LEG_POLY (the Chebyshev interpolant of g, converted to powers)
 departs from g by at most 2.1e-8 relative (tests/test_backprojection.py checks it), far below
 the float32 roundings of the stable root. The host sets ``poly`` per (tile, pulse) where the bound
-holds (kernels/backprojection.cl keeps the stable root elsewhere).
+holds (kernels/bp_tile.cl keeps the stable root elsewhere).
 
 The return leg of a monostatic sonar with exact delays (``legs="mono"``): the receiver is at the
 transmitter T at emission and moves uniformly at v_r (two position nodes), the pixel D = q - T
@@ -121,7 +121,7 @@ LEG_DEFINES = {"same": "SAME_LEGS", "mono": "MONO", "two": None}
 
 @functools.lru_cache(maxsize=None)
 def _preambles(legs: str, moving: bool) -> tuple[str, str]:
-    """The C text in front of kernels/backprojection.cl for bp_tile and bp_fields (the records of
+    """The C text in front of kernels/bp_tile.cl and kernels/bp_fields.cl (the records of
     legs ``legs`` and of pixels at rest or ``moving``, LEG_POLY), and for bp_refs (that and its own
     records): made once a configuration, not in every call's TileKernel (the same strings, so the
     same programs)."""
@@ -177,13 +177,13 @@ class TileKernel:
         self.pixels = MOVING_PIXELS if self.moving else PIXELS
         self.pulse_span = aperture is not None and not row_shift  # a tile sums only the pulses that can see it
         self.defines = {"INTERP_LINEAR" if interp == "linear" else "INTERP_SINC8": 1, "TAP_ROWS": TAP_ROWS,
-                        "BP_TILE": 1, "ROWS": self.rows, **({"APERTURE": 1} if aperture is not None else {}),
+                        "ROWS": self.rows, **({"APERTURE": 1} if aperture is not None else {}),
                         **({"MOVING": 1} if self.moving else {}), **({"ROW_SHIFT": 1} if row_shift else {}),
                         **({LEG_DEFINES[legs]: 1} if LEG_DEFINES[legs] else {}),
                         **({"PULSE_SPAN": 1} if self.pulse_span else {})}
         self.preamble, self.ref_preamble = _preambles(legs, self.moving)
-        self.field_defines = {"BP_FIELDS": 1, "ROWS": self.rows, "TAP_ROWS": TAP_ROWS, **({"MOVING": 1} if self.moving else {})}
-        self.ref_defines = {"BP_REFS": 1, "TAP_ROWS": TAP_ROWS, **({"MOVING": 1} if self.moving else {}),
+        self.field_defines = {"ROWS": self.rows, **({"MOVING": 1} if self.moving else {})}
+        self.ref_defines = {**({"MOVING": 1} if self.moving else {}),
                             **({"STOP_AND_GO": 1} if self.stop_and_go else {}),
                             **({LEG_DEFINES[legs]: 1} if LEG_DEFINES[legs] else {})}
         self._variants = {}  # for_receiver's other configurations, by legs
@@ -347,7 +347,7 @@ class TileKernel:
         if tile_first is not None:
             extra = (cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=tile_first),)
             defines = {**defines, "TILE_FIRST": 1}
-        opencl.kernel("backprojection", "bp_refs", preamble=self.ref_preamble, defines=defines)(
+        opencl.kernel("bp_refs", "bp_refs", preamble=self.ref_preamble, defines=defines)(
             queue, *opencl.work_groups(n_refs), centres, pulse_buf, params[()], np.int32(per_tile),
             np.int32(n_refs), out, *extra)
         return out
@@ -369,7 +369,7 @@ class TileKernel:
         rt = opencl.runtime()
         fields = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, self.pixels.itemsize * (n_slots // LANES))
         rows = n_slots // LANES
-        opencl.kernel("backprojection", "bp_fields", preamble=self.preamble, defines=self.field_defines)(
+        opencl.kernel("bp_fields", "bp_fields", preamble=self.preamble, defines=self.field_defines)(
             queue, *opencl.work_groups(rows), positions, index, tile_of, centres, *(np.float64(v) for v in self.v_k),
             np.int32(rows), fields)
         return fields
@@ -404,7 +404,7 @@ class TileKernel:
         if held is None or held[0] is not queue:  # (the queue is held: its id is not reused)
             defines = {**self.defines, **({"SCATTER": 1} if index is not None else {}),
                        **({"BP_STORE": 1} if store else {}), **({"CARRY": 1} if carry is not None else {})}
-            held = self._launchers[key] = (queue, opencl.kernel("backprojection", "bp_tile", preamble=self.preamble,
+            held = self._launchers[key] = (queue, opencl.kernel("bp_tile", "bp_tile", preamble=self.preamble,
                                                                 defines=defines))
         kern = held[1]
         return kern(queue, *opencl.work_groups(n_items), pixels, tile_of, refs, np.int32(ref_stride),

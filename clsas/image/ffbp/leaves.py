@@ -6,7 +6,7 @@ J = I exp(-j 4 pi f0 r / c), a *batch* of consecutive leaves at a time (at most 
 samples and RECORD_BYTES of prepared samples). Records are prepared
 (:func:`clsas.image.backprojection.prepare`) once for every leaf when all pulses' prepared records
 fit RECORD_BYTES, else once a batch; on OpenCL the whole batch is one bp_tile launch a receiver and block of
-pulses (kernels/backprojection.cl built with ROW_SHIFT: a tile's pulse j reads record row
+pulses (kernels/bp_tile.cl built with ROW_SHIFT: a tile's pulse j reads record row
 j + row_shift[tile], the first pulse of its leaf), so a leaf costs its kernel work and no call of
 its own (a :func:`clsas.backproject` call a leaf costs many times the leaf's kernel time in host work).
 A batch's *layout* (its tiles, work-items, pixel fields and slots, :class:`.layout.Layout`) and its

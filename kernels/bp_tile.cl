@@ -1,10 +1,12 @@
-/* Time-domain back-projection of range-compressed echoes, one receiver and one block of
- * pulses a launch. Two kernels, each owned by one object of clsas/image/backprojection/ that
- * declares its records (the -D options, the structs in its preamble, its parameters and the
- * layout of its pixel fields) and launches it: bp_tile by tile_kernel.TileKernel, bp_block by
- * exact_kernel.ExactKernel. NumPy twin of both: clsas/image/backprojection/reference.py.
+/* Time-domain back-projection of range-compressed echoes by tiles, one receiver and one block of
+ * pulses a launch: bp_tile, owned by clsas/image/backprojection/tile_kernel.TileKernel (which
+ * declares its records: the -D options, the structs in its preamble, its parameters and the layout of
+ * its pixel fields) and launched by clsas/image/backprojection/launcher.py and clsas/image/ffbp/leaves.py.
+ * NumPy twin: clsas/image/backprojection/reference.py. Its inputs are made by kernels/bp_fields.cl
+ * (pixel fields) and kernels/bp_refs.cl (references); bp_block (kernels/bp_block.cl) is the exact
+ * double path. Interpolation, phase and sums: kernels/bp_common.h.
  *
- * bp_tile (built with BP_TILE; precision="single"): float32 geometry relative to a reference
+ * bp_tile (precision="single"): float32 geometry relative to a reference
  *   point per (tile, pulse). One work-item: ROWS vectors of 16 pixels (float16 lanes) of one
  *   spatial tile. The host gives, per (tile, pulse), the exact legs of the tile's reference
  *   point in double (rounded to float): B = q_ref - tx, C = R_ref - q_ref, the receiver
@@ -17,63 +19,15 @@
  *     N2 = 2 C.e + |e|^2,  b2 = c^2 t2_ref - (C + e).v_r,  a1 = c^2 - |v|^2,  a2 = c^2 - |v_r|^2,
  *   so that every float error scales with |delta|, not with the range (derivation:
  *   clsas/image/backprojection/tile_kernel.py).
- * bp_block (otherwise): the exact delays in double per pixel and pulse (geometry.h), eight
- *   pixels (double8 lanes) a work-item; precision="double" (with CLSAS_DOUBLE) and the
- *   fallback of precision="single" when a receiver's motion is not linear over a tile.
  *
- * Both: the range-compressed sample at the delay by linear interpolation of the (upsampled)
- * record (INTERP_LINEAR) or by the 8-tap Kaiser-windowed sinc of interp.h on the original
- * samples (INTERP_SINC8, taps from the nearest row of the table over the fractional offset); a
- * record reads as zero where the interpolator would need samples outside it; the phase rotation
- * exp(+j 2 pi f0 tau) from cycles reduced to a fraction (polynomial sin/cos, common.h);
- * accumulation in float (double with CLSAS_DOUBLE) over the launch's pulses, added once into
- * the double image at the end (blocked sum).
- *
- * Defines: BP_TILE (with ROWS, PULSES, MOVING when the pixels move, SAME_LEGS, ROW_SHIFT, PULSE_SPAN, BP_STORE,
- * CARRY), or
- * N_NODES and SEGMENT_PASSES (geometry.h) and STOP_AND_GO for bp_block; INTERP_LINEAR or
- * INTERP_SINC8 (with TAP_ROWS); APERTURE (keep |sin theta| off broadside <= sin(aperture / 2),
- * theta measured from the x-z plane); CLSAS_DOUBLE (bp_block's data, phases and sums in double:
- * precision="double"). Portable OpenCL C 1.2: no vendor builtins (clang's inline assembly and
- * __builtin_shufflevector only behind the x86-64 guards of CLSAS_OPAQUE and CLSAS_READ16, each with a
- * portable path).
+ * Defines: ROWS, PULSES, MOVING when the pixels move, SAME_LEGS or MONO, ROW_SHIFT, PULSE_SPAN, BP_STORE, CARRY,
+ * SCATTER; INTERP_LINEAR or INTERP_SINC8 (with TAP_ROWS); APERTURE (keep |sin theta| off broadside <=
+ * sin(aperture / 2), theta measured from the x-z plane).
+ * Portable OpenCL C 1.2: no vendor builtins (clang's inline assembly and __builtin_shufflevector
+ * only behind the x86-64 guards of CLSAS_OPAQUE and CLSAS_READ16, each with a portable path).
  */
-#pragma OPENCL EXTENSION cl_khr_fp64 : enable
-#include "common.h"
-#include "interp.h"
+#include "bp_common.h"
 
-/* Data, interpolation and sums in float, or in double with CLSAS_DOUBLE (precision="double"). */
-#ifdef CLSAS_DOUBLE
-typedef double2 sample_t;
-typedef double2 realv2_t;
-typedef double4 realv4_t;
-typedef double8 realv8;
-typedef double16 realv16_t;
-#define convert_realv8 convert_double8
-#define SINC8_LANES sinc8_lanes_double
-#define LOAD_R16 LOAD_D16
-#define LOAD_R4 LOAD_D4
-#else
-typedef float2 sample_t;
-typedef float2 realv2_t;
-typedef float4 realv4_t;
-typedef float8 realv8;
-typedef float16 realv16_t;
-#define convert_realv8 convert_float8
-#define SINC8_LANES sinc8_lanes
-#define LOAD_R16 LOAD_F16
-#define LOAD_R4 LOAD_F4
-#endif
-
-/* SCATTER (bp_tile and bp_block in direct back-projection, clsas/image/backprojection/launcher.py): slot m's sum goes to
- * image[index[m]], its pixel in the grid's order (-1: padding, dropped), not to image[m]. */
-#ifdef SCATTER
-#define SCATTER_PARAM , __global const int *index
-#else
-#define SCATTER_PARAM
-#endif
-
-#ifdef BP_TILE
 #define FOR_ROWS _Pragma("unroll") for (int r = 0; r < ROWS; ++r)
 
 /* The return leg (TileKernel.legs):
@@ -407,238 +361,3 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
 #endif
     }
 }
-
-#elif defined(BP_FIELDS)
-/* bp_tile's pixel fields (bp_pixels_t) of a grid's tiles (clsas/image/backprojection/tiles.py):
- * work-item g fills fields[g], row g of sixteen slots, whose pixels are index[16 g + lane] among
- * positions (x, y, z, m; -1: padding, which gets its tile's reference point), of work-item
- * g / ROWS's tile tile_of[g / ROWS] with reference point centres[tile]: delta = pixel - centre
- * (rounded to float after the subtraction in double), dd = |delta|^2 and (MOVING) dv = delta . v. */
-__kernel void bp_fields(__global const double *positions, __global const int *index, __global const int *tile_of,
-                        __global const double *centres, const double vx, const double vy, const double vz,
-                        const int n_rows, __global bp_pixels_t *fields)
-{
-    const int g = get_global_id(0);
-    if (g >= n_rows)  /* the launch is padded to whole work-groups */
-        return;
-    const double3 centre = vload3(tile_of[g / ROWS], centres);
-    __global bp_pixels_t *o = fields + g;
-    for (int l = 0; l < 16; ++l) {
-        const int m = index[16 * g + l];
-        const double3 d = (m >= 0 ? vload3(m, positions) : centre) - centre;
-        o->dx[l] = (float)d.x;
-        o->dy[l] = (float)d.y;
-        o->dz[l] = (float)d.z;
-        o->dd[l] = (float)dot(d, d);
-#ifdef MOVING
-        o->dv[l] = (float)(d.x * vx + d.y * vy + d.z * vz);
-#endif
-    }
-}
-
-/* The image in the grid's order (clsas/image/backprojection/launcher.py, a grid of one chunk): pixel
- * m's sum, its slot slot_of[m]'s double2 in sums, rounded once to float2 (round to nearest even, as
- * numpy's astype(complex64); past float's range: inf). */
-__kernel void bp_order(__global const double2 *sums, __global const int *slot_of, const int n,
-                       __global float2 *out)
-{
-    const int m = get_global_id(0);
-    if (m < n)  /* the launch is padded to whole work-groups */
-        out[m] = convert_float2(sums[slot_of[m]]);
-}
-
-/* bp developer's (clsas/image/backprojection/launcher.py, _Chunk.lane): the second lane's slot sums
- * (bp_tile launches of every other job, run on a second queue) added into the first lane's */
-__kernel void bp_add_sums(__global double2 *sums, __global const double2 *other, const int n)
-{
-    const int m = get_global_id(0);
-    if (m < n)  /* the launch is padded to whole work-groups */
-        sums[m] += other[m];
-}
-
-#elif defined(BP_REFS)
-/* bp_tile's references (tile_ref_t, TileKernel.reference_dtype) computed on the device, in double,
- * for pixels moving uniformly at v (or at rest) and a receiver of two position nodes (uniform
- * motion) or with stop-and-go: the closed forms of clsas/geometry.py's legs (meet_time), then the
- * record's fields as TileKernel.references (its NumPy twin) makes them. Work-item i: tile
- * t = i / n_pulses, pulse p = i % n_pulses of the job; ref[i] its reference.
- * pulse[p] (bp_ref_pulse_t): tx, eta, rx0 = the receiver at emission, v_rx = its velocity, t0 =
- * its window start and offset = the first sample of its records (samples at fs from t0): the
- * pulses of several receivers in one launch (clsas/image/backprojection/launcher.py: receiver
- * after receiver, each over the same pulses); centres[t]: the tile's reference point at t = 0;
- * TILE_FIRST (ffbp's first stage: many sub-apertures a launch): tile t's references are of
- * pulses pulse[tile_first[t] + j], j < n_pulses (one receiver), work-item i = t n_pulses + j;
- * params (bp_ref_params_t): c, f0, fs, velocity v, half_extent, rho_max and bias (samples). */
-inline double meet_time(const double3 d, const double3 w, const double c)
-{
-    const double a = c * c - dot(w, w), b = dot(d, w);
-    return (b + sqrt(b * b + a * dot(d, d))) / a;
-}
-
-#ifdef TILE_FIRST
-#define TILE_FIRST_PARAM , __global const int *tile_first
-#define PULSE_OF(i) (tile_first[(i) / n_pulses] + (i) % n_pulses)
-#else
-#define TILE_FIRST_PARAM
-#define PULSE_OF(i) ((i) % n_pulses)
-#endif
-
-__kernel void bp_refs(__global const double *centres, __global const bp_ref_pulse_t *pulse, const bp_ref_params_t params,
-                      const int n_pulses, const int n_refs, __global tile_ref_t *ref TILE_FIRST_PARAM)
-{
-    const int i = get_global_id(0);
-    if (i >= n_refs)  /* the launch is padded to whole work-groups */
-        return;
-    const bp_ref_pulse_t pl = pulse[PULSE_OF(i)];
-    const double c = params.c;
-    const double3 v = vload3(0, params.velocity), tx = vload3(0, pl.tx), rx0 = vload3(0, pl.rx0);
-    const double3 v_r = vload3(0, pl.v_rx), q_emit = vload3(i / n_pulses, centres) + v * pl.eta;
-#ifdef STOP_AND_GO
-    const double3 q = q_emit, r = rx0;
-    const double t1 = length(q - tx) / c, t2 = length(r - q) / c;
-    const double3 v_k = (double3)(0.0);  /* the legs see no motion */
-#else
-    const double t1 = meet_time(q_emit - tx, v, c);
-    const double3 q = q_emit + v * t1, r_scatter = rx0 + v_r * t1;
-    const double t2 = meet_time(r_scatter - q, v_r, c);
-    const double3 r = r_scatter + v_r * t2, v_k = v;
-#endif
-    const double big_t = t1 + t2, k = (big_t - pl.t0) * params.fs, cycles = params.f0 * big_t;
-    const double k_int = clamp(floor(k), -1073741824.0, 1073741824.0);
-    const double3 b = q - tx;
-    const double b1 = c * c * t1 - dot(b, v_k), a1 = c * c - dot(v_k, v_k);
-    tile_ref_t o;
-    vstore3(convert_float3(b), 0, o.leg1);
-    o.b1 = (float)b1;
-    o.k1 = (float)(0.5 / b1);
-    o.k2 = (float)(a1 / (b1 * b1));
-#ifdef MOVING
-    o.poly = 0;
-#else
-    o.poly = params.half_extent <= params.rho_max * c * t1;
-#endif
-    o.k_ref = (int)k_int - pl.offset - params.bias;
-    o.k_frac = (float)(fmin(k - k_int, 0.99999994) + params.bias);
-    o.cycles = (float)(cycles - rint(cycles));
-    o.range1 = (float)(c * t1);
-#if defined(MONO)
-    const double a2 = c * c - dot(v_r, v_r);
-    vstore3(convert_float3(2.0 * v_r / a2), 0, o.w);
-    o.alpha = (float)(2.0 * c * c / a2);
-#elif !defined(SAME_LEGS)
-    const double3 cc = r - q;
-    vstore3(convert_float3(cc), 0, o.leg2);
-    o.b2 = (float)(c * c * t2 - dot(cc, v_r));
-    vstore3(convert_float3(v_r), 0, o.v_rx);
-    o.a2 = (float)(c * c - dot(v_r, v_r));
-#endif
-    ref[i] = o;
-}
-
-#else /* bp_block: exact double geometry */
-#include "geometry.h"
-
-/* pix[g] (bp_points_t, ExactKernel.POINTS): work-item g's eight pixels m = 8 g + lane at t = 0 (x, y, z);
- * pulse[p] (bp_pulse_t): tx, the transmitter at emission; eta; t0_fs, the window start in
- * samples of the data; first, the records' first sample (counted from t0 at the data's rate);
- * nodes[p N_NODES + k] (node_t): the receiver's position at fast time k dtau;
- * params (bp_block_params_t): c, f0, fs (of the data), dtau (node spacing), velocity (of the
- * pixels), half_sin = sin(aperture / 2) (APERTURE);
- * data[p n + i]: the receiver's range-compressed record of pulse p;
- * pulses p_first .. p_first + p_count - 1 of the buffers are summed by this launch;
- * taps: the 8-tap table (interp.h);
- * image[m] += the block's sum. */
-__kernel void bp_block(__global const bp_points_t *pix, __global const bp_pulse_t *pulse,
-                       __global const node_t *nodes, __global const sample_t *data,
-                       __global const float *taps, const bp_block_params_t params,
-                       const int p_first, const int p_count, const int n, const int n_items,
-                       __global double2 *image SCATTER_PARAM)
-{
-    const int g = get_global_id(0);
-    if (g >= n_items)  /* the launch is padded to whole work-groups */
-        return;
-    const int m0 = 8 * g;
-    const double c = params.c, f0 = params.f0, fs = params.fs, dtau = params.dtau;
-    const vec8 p0 = v8(vload8(0, pix[g].x), vload8(0, pix[g].y), vload8(0, pix[g].z));
-    const double3 velocity = vload3(0, params.velocity);
-    const vec8 vel = v8_splat(velocity);
-    realv8 acc_re = (realv8)0, acc_im = (realv8)0;
-    for (int p = p_first; p < p_first + p_count; ++p) {
-        const bp_pulse_t pl = pulse[p];
-        const vec8 tx = v8_splat(vload3(0, pl.tx));
-        const vec8 q_emit = v8_add(p0, v8_scale(vel, (double8)pl.eta));
-        __global const node_t *nd = nodes + (size_t)p * N_NODES;
-#ifndef STOP_AND_GO
-        const double8 t1 = meet_time8_uniform(v8_sub(q_emit, tx), velocity, c);
-        const vec8 q = v8_add(q_emit, v8_scale(vel, t1));
-        const double8 tau = reception8(nd, t1, q, c, dtau);
-#else
-        const vec8 q = q_emit;
-        const vec8 out = v8_sub(q, tx), back = v8_sub(q, node_field(nd, (double8)0.0, dtau, 0));
-        const double8 tau = (sqrt(v8_dot(out, out)) + sqrt(v8_dot(back, back))) / c;
-#endif
-        /* fractional sample index in the record, split in double into integer and fraction */
-        const double8 k = tau * fs - pl.t0_fs;
-        long8 kl = convert_long8(k);
-        kl += (k < convert_double8(kl));  /* floor (a true compare is -1) */
-        const realv8 frac = convert_realv8(k - convert_double8(kl));
-        kl -= (long)pl.first;  /* the records start pl.first samples into the window (after the split: exact) */
-        /* carrier exp(+j 2 pi f0 tau), cycles reduced in double */
-        double8 cyc = f0 * tau;
-        cyc -= convert_double8(convert_long8(cyc));
-#ifdef CLSAS_DOUBLE
-        realv8 cs = cospi(2.0 * cyc), sn = sinpi(2.0 * cyc);
-#else
-        realv8 cs, sn;
-        expj_fraction8(convert_float8(cyc), &cs, &sn);
-#endif
-#ifdef APERTURE
-        {
-            const vec8 d = v8_sub(q, tx);
-            const double8 s = d.y / sqrt(v8_dot(d, d));  /* sin of the angle off broadside (y: heading) */
-            const realv8 keep = convert_realv8(select((double8)0.0, (double8)1.0, fabs(s) <= params.half_sin));
-            cs *= keep;
-            sn *= keep;
-        }
-#endif
-        __global const real_t *rec = (__global const real_t *)(data + (size_t)p * n);
-#ifdef INTERP_LINEAR
-        /* samples i and i + 1 of each lane in one 4-wide load (lanes unrolled, no branches);
-         * outside [0, n - 1) the record reads as zero */
-        const long8 ic = clamp(kl, (long8)0, (long8)(n - 2));
-        const realv8 keep = convert_realv8(select((double8)0.0, (double8)1.0, kl >= 0 && kl < (long8)(n - 1)));
-#define LOAD2(L) const realv4_t w##L = LOAD_R4(rec + 2 * ic.s##L);
-        LOAD2(0) LOAD2(1) LOAD2(2) LOAD2(3) LOAD2(4) LOAD2(5) LOAD2(6) LOAD2(7)
-#undef LOAD2
-        const realv8 a_re = (realv8)(w0.s0, w1.s0, w2.s0, w3.s0, w4.s0, w5.s0, w6.s0, w7.s0);
-        const realv8 a_im = (realv8)(w0.s1, w1.s1, w2.s1, w3.s1, w4.s1, w5.s1, w6.s1, w7.s1);
-        const realv8 b_re = (realv8)(w0.s2, w1.s2, w2.s2, w3.s2, w4.s2, w5.s2, w6.s2, w7.s2);
-        const realv8 b_im = (realv8)(w0.s3, w1.s3, w2.s3, w3.s3, w4.s3, w5.s3, w6.s3, w7.s3);
-        const realv8 dr = keep * mix(a_re, b_re, frac), di = keep * mix(a_im, b_im, frac);
-#else
-        /* samples i - 3 .. i + 4 of each lane in one 16-wide load, the taps of the nearest
-         * fractional-offset row; zero unless all eight samples exist */
-        const long8 ic = clamp(kl - 3, (long8)0, (long8)(n - 8));
-        const realv8 keep = convert_realv8(select((double8)0.0, (double8)1.0, kl >= 3 && kl < (long8)(n - 4)));
-        const int8 row = NEAREST_TAP_ROW(convert_int8, frac);
-#define W(L) LOAD_R16(rec + 2 * ic.s##L)
-        const realv16_t vv = SINC8_LANES(taps, row, W(0), W(1), W(2), W(3), W(4), W(5), W(6), W(7));
-#undef W
-        const realv8 dr = keep * vv.even, di = keep * vv.odd;
-#endif
-        acc_re += dr * cs - di * sn;
-        acc_im += dr * sn + di * cs;
-    }
-    real_t re[8], im[8];
-    vstore8(acc_re, 0, re);
-    vstore8(acc_im, 0, im);
-    for (int l = 0; l < 8; ++l) {
-#ifdef SCATTER
-        if (index[m0 + l] >= 0)
-            image[index[m0 + l]] += (double2)(re[l], im[l]);
-#else
-        image[m0 + l] += (double2)(re[l], im[l]);
-#endif
-    }
-}
-#endif /* BP_TILE */
