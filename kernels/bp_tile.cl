@@ -22,7 +22,8 @@
  *
  * Defines: ROWS, PULSES, MOVING when the pixels move, SAME_LEGS or MONO, ROW_SHIFT, PULSE_SPAN, BP_STORE, CARRY,
  * SCATTER; INTERP_LINEAR or INTERP_SINC8 (with TAP_ROWS); APERTURE (keep |sin theta| off broadside <=
- * sin(aperture / 2), theta measured from the x-z plane).
+ * sin(aperture / 2), theta measured from the x-z plane); CLSAS_NO_READ16 (the portable reads where
+ * CLSAS_READ16 would be built: the tests build both on an AVX-512 machine).
  * Portable OpenCL C 1.2: no vendor builtins (clang's inline assembly and __builtin_shufflevector
  * only behind the x86-64 guards of CLSAS_OPAQUE and CLSAS_READ16, each with a portable path).
  */
@@ -153,7 +154,7 @@
  * figures; bench/bench_backprojection.py --only loop counts them).
  * rec_: the records of the pulse (floats, two a sample), i_: the 16 lanes' sample indices
  * (contiguous ints; the "m" input orders the asm after their stores). */
-#if defined(__clang__) && defined(__x86_64__) && defined(__AVX512F__) && defined(__AVX512VL__)
+#if !defined(CLSAS_NO_READ16) && defined(__clang__) && defined(__x86_64__) && defined(__AVX512F__) && defined(__AVX512VL__)
 #define CLSAS_READ16 1
 #define READ16_Y(y, L)                                                                                        \
     "movslq " #L "*4(%[idx]), %%rax\n\t"                                                                    \

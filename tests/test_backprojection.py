@@ -74,6 +74,33 @@ def test_kernel_matches_reference_options(opencl_device, kiang_echo, options):
     assert rel_l2(got.data, ref.data) < 2e-4  # measured 1.3e-5 to 2.2e-5
 
 
+@pytest.mark.parametrize("stop_and_go", [False, True])
+def test_the_avx512_and_the_portable_reads_give_the_same_image(opencl_device, kiang_echo, monkeypatch, stop_and_go):
+    """bp_tile's linear interpolation reads its samples by CLSAS_READ16 (inline assembly, built
+    where the target has AVX512F and AVX512VL) or by TRANSPOSE8 (AVX2 and every other target):
+    the same floats moved, so the same image bit for bit. An AVX-512 machine builds only READ16 by
+    default: the second image is built with CLSAS_NO_READ16, so both paths run here (a lane
+    swapped in either fails this or test_kernel_matches_reference)."""
+    from clsas import opencl
+
+    grid = around((30.0, 1.0, -43.0), 0.02, 0.05, 12, 12)
+    kw = dict(interp="linear", upsample=4, target_velocity=(0.5, -1.0, 0.0), stop_and_go=stop_and_go,
+              progress=False)
+    default = backproject(kiang_echo, grid, backend="opencl", **kw)
+    build = opencl.kernel
+
+    def portable(name, kernel_name, defines=None, **options):
+        if name == "bp_tile":
+            defines = {**(defines or {}), "CLSAS_NO_READ16": 1}
+        return build(name, kernel_name, defines=defines, **options)
+
+    monkeypatch.setattr(opencl, "kernel", portable)
+    got = backproject(kiang_echo, grid, backend="opencl", **kw)
+    assert np.array_equal(got.data, default.data)
+    ref = backproject(kiang_echo, grid, backend="numpy", **kw)
+    assert rel_l2(got.data, ref.data) < 5e-5  # as test_kernel_matches_reference
+
+
 def test_aperture_sums_only_the_pulses_that_see_a_tile(opencl_device):
     """With an aperture, bp_tile sums for each tile only the pulses of its PULSE_SPAN
     (TileKernel.spans): a track 4x longer than the beam's footprint, a grid
