@@ -1020,3 +1020,43 @@ def test_the_plans_kept_inputs_stay_within_their_bound(opencl_device, monkeypatc
     monkeypatch.setattr(tiles, "KEPT_BYTES", one // 2)  # smaller than one grid's inputs: nothing kept
     backproject(echo, plans[1], progress=False)
     assert plans[1]._kept is None and tiles.kept_bytes() <= one
+
+
+def test_a_call_that_raises_finishes_the_commands_it_queued(opencl_device, kiang_echo, monkeypatch):
+    """backproject_opencl queues the first job's upload and upsampling before its set-up (review 13
+    L4): when the set-up raises, the call waits for those commands (they read host arrays that
+    unwind with it) before the error leaves it. The queue is held shut by a user event that a
+    timer opens 0.3 s later: the error may leave only after that."""
+    import threading
+    import time
+
+    import pyopencl as cl
+
+    from clsas import opencl
+    from clsas.image.backprojection import launcher
+
+    grid = around((30.0, 1.0, -43.0), 0.02, 0.05, 12, 12)
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("set-up failed")
+
+    monkeypatch.setattr(launcher.TileKernel, "for_receiver", broken)
+    rt = opencl.runtime()
+    gate = cl.UserEvent(rt.context)
+    cl.enqueue_barrier(rt.queue, wait_for=[gate])
+    opened = []
+
+    def open_gate():
+        opened.append(time.monotonic())
+        gate.set_status(cl.command_execution_status.COMPLETE)
+
+    timer = threading.Timer(0.3, open_gate)
+    timer.start()
+    try:
+        with pytest.raises(RuntimeError, match="set-up failed"):
+            backproject(kiang_echo, grid, backend="opencl", interp="linear", upsample=4, progress=False)
+        raised = time.monotonic()
+    finally:
+        timer.join()
+    assert opened and raised >= opened[0]
+

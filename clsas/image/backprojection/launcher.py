@@ -208,10 +208,24 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
     """The kernels/bp_tile.cl launcher: image (M,) complex64 (a grid of one chunk: put in the grid's
     order on the device, :meth:`_Chunk.in_grid_order`) or complex128 (several chunks: added on the host), how many (chunk, receiver,
     pulse block) jobs ran on the exact double kernel, and the back-projection kernels' own time (s, from the
-    queues' profiling events: the time some bp_tile or bp_block ran, two lanes' overlapping ones counted once)."""
+    queues' profiling events: the time some bp_tile or bp_block ran, two lanes' overlapping ones counted once).
+    When the call raises, the commands it queued are finished first: they read host arrays
+    (USE_HOST_PTR) that unwind with the call."""
+    rt = opencl.runtime()
+    try:
+        return _launched(rt, records, plan, aperture, velocity, stop_and_go, progress, span, double)
+    except BaseException:
+        rt.queue.finish()
+        if int(rt.context.int_ptr) in _SECOND_QUEUES:
+            _SECOND_QUEUES[int(rt.context.int_ptr)].finish()
+        raise
+
+
+def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,
+              span: tuple[int, int], double):
+    """:func:`backproject_opencl` on the runtime ``rt``."""
     import pyopencl as cl
 
-    rt = opencl.runtime()
     ctx, queue = rt.context, rt.queue
     mf = cl.mem_flags
     START, END = cl.profiling_info.START, cl.profiling_info.END
