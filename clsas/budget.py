@@ -93,6 +93,12 @@ class use_memory_budget(ThreadSetting):
         return f"use_memory_budget({self.nbytes!r})"
 
 
+def kept_limit(cap: float, share: float, device_bytes: float = float("inf")) -> float:
+    """The most a cache kept between calls may hold (bytes): ``cap``, 1/``share`` of the memory
+    budget and of ``device_bytes`` (the device's memory, for a cache of device buffers)."""
+    return min(cap, memory_budget() / share, device_bytes / share)
+
+
 def _size(nbytes: float) -> str:
     for unit, scale in (("TiB", 2**40), ("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
         if nbytes >= scale:

@@ -125,20 +125,17 @@ class _Lane:
 
 
 class _Chunk:
-    """A chunk of slots of the plan's tiling on the device: its :class:`_Inputs` (``first``, ``n``,
-    ``slots``, ``tiles``, ``pixels_here``, ``index``, ``tile_of``, ``centres`` and ``pixels`` as
-    there) and its lanes (:meth:`lane`): the first lane's sums (``sums``, double2 a slot, zeroed)
+    """A chunk of slots of the plan's tiling on the device: its :class:`_Inputs` (``inputs``) and
+    its lanes (:meth:`lane`): the first lane's sums (``sums``, double2 a slot, zeroed)
     hold the image once a second lane's, if any, are added into them (:meth:`merged`, before
     they are read)."""
 
     def __init__(self, ctx, queue, inputs: _Inputs, tile: TileKernel):
         import pyopencl as cl
 
-        self.first, self.n, self.slots, self.tiles = inputs.first, inputs.n, inputs.slots, inputs.tiles
-        self.pixels_here, self.index, self.tile_of = inputs.pixels_here, inputs.index, inputs.tile_of
-        self.centres, self.pixels = inputs.centres, inputs.pixels
+        self.inputs = inputs
         self._ctx, self._tile = ctx, tile
-        self._lanes = [_Lane(ctx, queue, self.n)]
+        self._lanes = [_Lane(ctx, queue, self.inputs.n)]
         self.sums = self._lanes[0].sums  # the slots' double image
         # the inputs' end on the first lane's queue (bp_fields, when made now), for a second lane to wait for
         self._ready = cl.enqueue_marker(queue)
@@ -152,7 +149,7 @@ class _Chunk:
             import pyopencl as cl
 
             cl.enqueue_barrier(queue, wait_for=[self._ready])  # the pixel fields the first lane's queue makes
-            self._lanes.append(_Lane(self._ctx, queue, self.n))
+            self._lanes.append(_Lane(self._ctx, queue, self.inputs.n))
         return self._lanes[k]
 
     def merged(self, queue) -> "_Chunk":
@@ -164,7 +161,7 @@ class _Chunk:
             other.queue.finish()
             opencl.kernel("bp_fields", "bp_add_sums", preamble=self._tile.preamble,
                           defines=self._tile.field_defines)(
-                queue, *opencl.work_groups(self.n), self.sums, other.sums, np.int32(self.n))
+                queue, *opencl.work_groups(self.inputs.n), self.sums, other.sums, np.int32(self.inputs.n))
         return self
 
     def in_grid_order(self, queue, tiling, tile: TileKernel) -> np.ndarray:
@@ -173,12 +170,11 @@ class _Chunk:
         rounded once to float as numpy's astype(complex64) rounds (the host path's image bit for bit)."""
         import pyopencl as cl
 
-        rt = opencl.runtime()
         mf = cl.mem_flags
         slot_of = tiling.slot_of
         out = np.empty(slot_of.size, np.complex64)
-        out_buf = cl.Buffer(rt.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out)
-        slot_buf = cl.Buffer(rt.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=slot_of)
+        out_buf = cl.Buffer(queue.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out)
+        slot_buf = cl.Buffer(queue.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=slot_of)
         opencl.kernel("bp_fields", "bp_order", preamble=tile.preamble, defines=tile.field_defines)(
             queue, *opencl.work_groups(slot_of.size), self.sums, slot_buf, np.int32(slot_of.size), out_buf)
         mapped, _ = cl.enqueue_map_buffer(queue, out_buf, cl.map_flags.READ, 0, (out.size,), np.complex64)
@@ -192,13 +188,13 @@ class _Chunk:
         part of it scatters its real slots."""
         import pyopencl as cl
 
-        sums, _ = cl.enqueue_map_buffer(queue, self.sums, cl.map_flags.READ, 0, (self.n,), np.complex128)
+        sums, _ = cl.enqueue_map_buffer(queue, self.sums, cl.map_flags.READ, 0, (self.inputs.n,), np.complex128)
         try:
-            if self.first == 0 and self.n == tiling.order.size:
+            if self.inputs.first == 0 and self.inputs.n == tiling.order.size:
                 image += sums[tiling.slot_of]
             else:
-                real = self.slots >= 0
-                image[self.slots[real]] += sums[real]
+                real = self.inputs.slots >= 0
+                image[self.inputs.slots[real]] += sums[real]
         finally:
             sums.base.release()
 
@@ -281,7 +277,7 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
             (records_buf, n_samples, base), early = early, None
         else:
             records_buf, n_samples, base = records.buffer(ctx, i, pulses, double, q)
-        if chunk_state is None or chunk_state.first != first:
+        if chunk_state is None or chunk_state.inputs.first != first:
             if chunk_state is not None:
                 retire(0)
                 image = _added(queue, chunk_state, image, tiles)
@@ -296,7 +292,7 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
         lane = chunk_state.lane(k, q)
         skip = int(pulses[0] - base)  # the job's first pulse in the buffer (which may hold earlier pulses)
         in_flight.append(events := [])
-        work.append(chunk_state.pixels_here * pulses.size)
+        work.append(inputs.pixels_here * pulses.size)
         exact = None
         for s in range(0, pulses.size, REF_PULSES):
             # a sub-block's references are computed while the previous sub-block's kernels run
@@ -309,24 +305,24 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
                     key = (first, group, int(part[0]))
                     if key not in shared:  # (buffer, the lane that computes it, its end on that lane's queue)
                         made = kernel.references_on_device(
-                            q, echo, [records.receivers[m] for m in group], part, chunk_state.centres,
-                            chunk_state.tiles.size, fs, tiles.half_extent, records.offset[list(group)])
+                            q, echo, [records.receivers[m] for m in group], part, inputs.centres,
+                            inputs.tiles.size, fs, tiles.half_extent, records.offset[list(group)])
                         shared[key] = (made, k, cl.enqueue_marker(q) if len(queues) > 1 and made else None)
                     ref_buf, made_on, done = shared[key] if i != group[-1] else shared.pop(key)
                     if made_on != k and done is not None:  # computed on the other lane's queue: wait for it
                         cl.enqueue_barrier(q, wait_for=[done])
                 else:
-                    ref_buf = kernel.references_on_device(q, echo, h, part, chunk_state.centres,
-                                                          chunk_state.tiles.size, fs, tiles.half_extent, offset)
+                    ref_buf = kernel.references_on_device(q, echo, h, part, inputs.centres,
+                                                          inputs.tiles.size, fs, tiles.half_extent, offset)
                 if ref_buf is None:  # a receiver followed between several nodes: on the host
-                    ref, linear = kernel.references(echo, h, part, tiles.centres[chunk_state.tiles], fs,
+                    ref, linear = kernel.references(echo, h, part, tiles.centres[inputs.tiles], fs,
                                                     tiles.half_extent, offset)
                     ref_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=ref) if linear else None
                 if ref_buf is not None:
                     spans = None
                     if tile.pulse_span:
                         ref, _ = cl.enqueue_map_buffer(q, ref_buf, cl.map_flags.READ, 0,
-                                                       (chunk_state.tiles.size, ref_stride), kernel.reference_dtype)
+                                                       (inputs.tiles.size, ref_stride), kernel.reference_dtype)
                         mine = ref[:, skip + s - ref_first:][:, :part.size]  # this receiver's (T, P)
                         spans = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                                           hostbuf=tile.spans(mine, tiles.half_extent, c, skip + s))
@@ -337,7 +333,7 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
                                                    tile.PULSE_BLOCK, sub):
                         q0 -= int(pulses[0])  # the job's pulse index
                         events.append(kernel.launch(
-                            q, pixels=chunk_state.pixels, tile_of=chunk_state.tile_of, refs=ref_buf,
+                            q, pixels=inputs.pixels, tile_of=inputs.tile_of, refs=ref_buf,
                             ref_stride=ref_stride, ref_first=ref_first, records=records_buf, n_samples=n_samples,
                             taps=taps, params=params, p_first=skip + q0, p_count=n_q, image=lane.sums,
                             spans=spans, carry=mode and lane.carry, carry_mode=mode or 0))
@@ -346,7 +342,7 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
             if exact is None:  # the exact double kernel (precision="double", or the fallback)
                 # pulse and node buffers indexed like the records buffer (from its first pulse); a
                 # padding slot images pixel 0 and is dropped
-                slot_pixels = pixels[np.maximum(chunk_state.slots, 0)]
+                slot_pixels = pixels[np.maximum(inputs.slots, 0)]
                 exact = ExactKernel(ctx, slot_pixels, echo, h, np.arange(base, pulses[-1] + 1), fs, offset,
                                     velocity, records.interp, aperture, stop_and_go, double)
             for p0 in range(s, end, tile.PULSE_BLOCK):
@@ -354,7 +350,7 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
                 events.append(exact.launch(q, records=records_buf, n_samples=n_samples, taps=taps,
                                            p_first=skip + p0, p_count=count, image=lane.sums))
     retire(0)
-    if chunk_state is not None and chunk_state.first == 0 and chunk_state.n == tiles.order.size \
+    if chunk_state is not None and chunk_state.inputs.first == 0 and chunk_state.inputs.n == tiles.order.size \
             and tiles.slot_of.dtype == np.int32:  # one chunk: the image in the grid's order on the device
         image = chunk_state.merged(queue).in_grid_order(queue, tiles, tile)
     elif chunk_state is not None:

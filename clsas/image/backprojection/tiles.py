@@ -270,7 +270,7 @@ class GridPlan:
 def kept_limit(device_bytes: float = float("inf")) -> float:
     """The most all GridPlans may keep (:meth:`GridPlan.kept`): KEPT_BYTES, 1/KEPT_SHARE of the memory
     budget (:mod:`clsas.budget`) and of ``device_bytes`` (the device's memory)."""
-    return min(KEPT_BYTES, budget.memory_budget() / KEPT_SHARE, device_bytes / KEPT_SHARE)
+    return budget.kept_limit(KEPT_BYTES, KEPT_SHARE, device_bytes)
 
 
 def kept_bytes() -> int:

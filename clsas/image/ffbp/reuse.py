@@ -113,13 +113,13 @@ def held_bytes() -> int:
 def limit(device_bytes: float = float("inf")) -> float:
     """The most the layouts may keep: LAYOUT_BYTES, 1/SHARE of the memory budget and of
     ``device_bytes`` (the device's global memory)."""
-    return min(LAYOUT_BYTES, budget.memory_budget() / SHARE, device_bytes / SHARE)
+    return budget.kept_limit(LAYOUT_BYTES, SHARE, device_bytes)
 
 
 def host_limit() -> float:
     """The most the Scenes and trees kept (every grid's) may hold: HOST_BYTES, 1/SHARE of the
     memory budget."""
-    return min(HOST_BYTES, budget.memory_budget() / SHARE)
+    return budget.kept_limit(HOST_BYTES, SHARE)
 
 
 def host_bytes() -> int:
