@@ -32,13 +32,23 @@ __kernel void bp_fields(__global const double *positions, __global const int *in
 
 /* The image in the grid's order (clsas/image/backprojection/launcher.py, a grid of one chunk): pixel
  * m's sum, its slot slot_of[m]'s double2 in sums, rounded once to float2 (round to nearest even, as
- * numpy's astype(complex64); past float's range: inf). */
-__kernel void bp_order(__global const double2 *sums, __global const int *slot_of, const int n,
-                       __global float2 *out)
+ * numpy's astype(complex64); past float's range: inf). Work-item g orders pixels run g .. run (g + 1) - 1
+ * and writes seen[g]: bit 1 when one of them is not zero, bit 2 when one is not finite (the call's
+ * checks of the image, without another pass over it on the host). */
+__kernel void bp_order(__global const double2 *sums, __global const int *slot_of, const int n, const int run,
+                       __global float2 *out, __global int *seen)
 {
-    const int m = get_global_id(0);
-    if (m < n)  /* the launch is padded to whole work-groups */
-        out[m] = convert_float2(sums[slot_of[m]]);
+    const int g = get_global_id(0), first = run * g;
+    if (first >= n)  /* the launch is padded to whole work-groups */
+        return;
+    const int stop = min(first + run, n);
+    int flags = 0;
+    for (int m = first; m < stop; ++m) {
+        const float2 v = convert_float2(sums[slot_of[m]]);
+        out[m] = v;
+        flags |= (v.x != 0.0f || v.y != 0.0f) | ((!isfinite(v.x) || !isfinite(v.y)) << 1);
+    }
+    seen[g] = flags;
 }
 
 /* The second lane's slot sums (clsas/image/backprojection/launcher.py, _Chunk.lane: bp_tile

@@ -1060,3 +1060,66 @@ def test_a_call_that_raises_finishes_the_commands_it_queued(opencl_device, kiang
         timer.join()
     assert opened and raised >= opened[0]
 
+
+
+def test_bp_order_sees_the_pixels_not_zero_and_not_finite(opencl_device, rng):
+    # bp_order's checks (launcher._Chunk.in_grid_order's seen, which replace the call's passes of np.any and
+    # finite_result over a grid of one chunk's image): bit 1 when a pixel is not zero, bit 2 when one is not finite
+    # (past float's range or NaN), padding slots (NaN here) not counted; each pixel tried alone, at the ends of the
+    # work-items' runs of pixels and past them
+    import types
+
+    import pyopencl as cl
+
+    from clsas.image.backprojection import launcher
+
+    pixels = rng.uniform(-40.0, 40.0, (5000, 3)) + [2000.0, 0.0, -300.0]
+    tiles = plan_tiles(pixels, 150e3, 1500.0)
+    tile = TileKernel("linear", rows=tiles.rows)
+
+    def seen_of(sums):
+        sums = sums.copy()
+        sums[~tiles.real] = np.nan
+        buf = cl.Buffer(opencl_device.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=sums)
+        seen = []
+        image = launcher._Chunk.in_grid_order(types.SimpleNamespace(sums=buf), opencl_device.queue, tiles, tile, seen)
+        expected = np.any(image) | 2 * (not np.all(np.isfinite(image)))
+        assert seen == [expected]
+        return seen[0]
+
+    zeros = np.zeros(tiles.order.size, np.complex128)
+    assert seen_of(zeros) == 0 and seen_of(zeros - 0.0 - 0.0j * 0) == 0
+    assert seen_of(np.full_like(zeros, -0.0)) == 0
+    run = launcher.ORDER_RUN
+    for m in sorted({0, run - 1, run, 2 * run + 5, len(pixels) - 1, int(rng.integers(len(pixels)))}):
+        for value, bits in ((1e-30 + 0j, 1), (-3j, 1), (1e-46 + 0j, 0), (1e39 + 0j, 3), (complex(0, np.nan), 3),
+                            (complex(-np.inf, 0), 3)):
+            one = zeros.copy()
+            one[tiles.slot_of[m]] = value  # pixel m alone (1e-46 rounds to float 0; 1e39 past float's range)
+            assert seen_of(one) == bits, (m, value)
+
+
+def test_records_not_upsampled_are_read_whole_without_the_grids_reach(opencl_device, kiang_echo, monkeypatch):
+    # a call whose records are not upsampled (upsample=1, or sinc8) reads them whole in place without computing the
+    # grid's reach (records.records_for): the same image as records prepared with the grid's reach, bit for bit; a
+    # grid outside every record still images zeros, with the coverage warning
+    from clsas.image.backprojection import records as bp_records
+    from clsas.validate import CoverageWarning
+
+    calls = []
+    reach_of = bp_records.reach
+    monkeypatch.setattr(bp_records, "reach", lambda *a, **k: calls.append(1) or reach_of(*a, **k))
+    grid = around((1989.0, 0.0, -350.0), 0.02, 0.05, 16, 16)
+    for interp, upsample in (("linear", 1), ("sinc8", None)):
+        got = backproject(kiang_echo, grid, backend="opencl", interp=interp, upsample=upsample, progress=False)
+        assert not calls
+        held = prepare(kiang_echo, upsample=upsample or 8, interp=interp, grid=grid)
+        assert calls  # prepare's reach, as before
+        calls.clear()
+        assert got.data.tobytes() == backproject(held, grid, backend="opencl", progress=False).data.tobytes()
+        with pytest.warns(CoverageWarning, match="all zeros"):
+            far = backproject(kiang_echo, around((20000.0, 0.0, -350.0), 0.02, 0.05, 8, 8), backend="opencl",
+                              interp=interp, upsample=upsample, progress=False)
+        assert not np.any(far.data) and not calls
+    backproject(kiang_echo, grid, backend="opencl", interp="linear", upsample=2, progress=False)
+    assert calls  # upsampled records: only the span the grid reaches

@@ -158,13 +158,15 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
         if name == "numpy":
             flat, fallbacks, kernel_seconds = backproject_reference(records, plan, aperture, velocity, stop_and_go,
                                                                     progress, span)
-        else:
-            flat, fallbacks, kernel_seconds = backproject_opencl(records, plan, aperture, velocity, stop_and_go,
-                                                                 progress, span, double)
+            seen = None
+        else:  # seen: bp_order's checks of a grid of one chunk's image (bit 1: a pixel not zero, 2: not finite)
+            flat, fallbacks, kernel_seconds, seen = backproject_opencl(records, plan, aperture, velocity, stop_and_go,
+                                                                       progress, span, double)
     with np.errstate(over="ignore"):  # a sum past complex64's range becomes inf: finite_result names the overflow
         flat = flat.astype(np.complex64, copy=False)  # launcher: complex64 already for a grid of one chunk
-    validate.finite_result("backproject: the image", flat, "scale echo.data down", np.complex64)
-    if not np.any(flat) and any(np.any(source.data[h]) for h in records.receivers):
+    if seen is None or seen & 2:  # (bp_order saw every pixel finite: no second pass over the image)
+        validate.finite_result("backproject: the image", flat, "scale echo.data down", np.complex64)
+    if not (np.any(flat) if seen is None else seen & 1) and any(np.any(source.data[h]) for h in records.receivers):
         warnings.warn("backproject: the image is all zeros: no pixel of the grid lies within the recorded fast-time "
                       "windows of the selected receivers (the swath); move the grid", validate.CoverageWarning,
                       stacklevel=2)

@@ -52,6 +52,7 @@ TWO_LANES, TWO_LANE_SLOTS = True, 2**18
 # launches have few work-groups, which reread the records less than a large grid's: the fixed-cost echo's x8 records,
 # 108 kB a pulse, then go 64 pulses a launch instead of 16 at 128^2, 6 % faster; 256^2 unchanged)
 SMALL_LAUNCH_RECORDS = 4
+ORDER_RUN = 64  # pixels a bp_order work-item puts in the grid's order (and checks: _Chunk.in_grid_order's seen)
 _SECOND_QUEUES: dict = {}  # context -> the second lane's queue (opencl.runtime's contexts, which live as long)
 
 
@@ -164,21 +165,29 @@ class _Chunk:
                 queue, *opencl.work_groups(self.inputs.n), self.sums, other.sums, np.int32(self.inputs.n))
         return self
 
-    def in_grid_order(self, queue, tiling, tile: TileKernel) -> np.ndarray:
+    def in_grid_order(self, queue, tiling, tile: TileKernel, seen=None) -> np.ndarray:
         """The image (M,) complex64 of a chunk of the whole ``tiling`` (after the chunk's kernels): bp_order
         puts each pixel's slot sum (:attr:`.tiles.Tiling.slot_of`) in the grid's order on the device,
-        rounded once to float as numpy's astype(complex64) rounds (the host path's image bit for bit)."""
+        rounded once to float as numpy's astype(complex64) rounds (the host path's image bit for bit).
+        ``seen``, a list when given, gets what bp_order saw on the way (one int): bit 1 set when a pixel
+        is not zero, bit 2 when one is not finite (numpy's ``np.any`` and ``np.isfinite`` of the image)."""
         import pyopencl as cl
 
         mf = cl.mem_flags
         slot_of = tiling.slot_of
         out = np.empty(slot_of.size, np.complex64)
+        flags = np.empty(-(-slot_of.size // ORDER_RUN), np.int32)  # bp_order's, a work-item's run of pixels each
         out_buf = cl.Buffer(queue.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=out)
+        flags_buf = cl.Buffer(queue.context, mf.WRITE_ONLY | mf.USE_HOST_PTR, hostbuf=flags)
         slot_buf = cl.Buffer(queue.context, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=slot_of)
         opencl.kernel("bp_fields", "bp_order", preamble=tile.preamble, defines=tile.field_defines)(
-            queue, *opencl.work_groups(slot_of.size), self.sums, slot_buf, np.int32(slot_of.size), out_buf)
-        mapped, _ = cl.enqueue_map_buffer(queue, out_buf, cl.map_flags.READ, 0, (out.size,), np.complex64)
-        mapped.base.release()  # the blocking map waits for bp_order; out holds the image
+            queue, *opencl.work_groups(flags.size), self.sums, slot_buf, np.int32(slot_of.size), np.int32(ORDER_RUN),
+            out_buf, flags_buf)
+        for buf, host in ((out_buf, out), (flags_buf, flags)):  # the blocking maps wait for bp_order
+            mapped, _ = cl.enqueue_map_buffer(queue, buf, cl.map_flags.READ, 0, host.shape, host.dtype)
+            mapped.base.release()
+        if seen is not None:
+            seen.append(int(np.bitwise_or.reduce(flags)) if flags.size else 0)
         return out
 
     def add_into(self, queue, image: np.ndarray, tiling) -> None:
@@ -203,8 +212,10 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
                        span: tuple[int, int], double=False):
     """The kernels/bp_tile.cl launcher: image (M,) complex64 (a grid of one chunk: put in the grid's
     order on the device, :meth:`_Chunk.in_grid_order`) or complex128 (several chunks: added on the host), how many (chunk, receiver,
-    pulse block) jobs ran on the exact double kernel, and the back-projection kernels' own time (s, from the
-    queues' profiling events: the time some bp_tile or bp_block ran, two lanes' overlapping ones counted once).
+    pulse block) jobs ran on the exact double kernel, the back-projection kernels' own time (s, from the
+    queues' profiling events: the time some bp_tile or bp_block ran, two lanes' overlapping ones counted once),
+    and what bp_order saw of a grid of one chunk's image (bit 1: a pixel not zero, bit 2: one not finite;
+    None for several chunks: :meth:`_Chunk.in_grid_order`).
     When the call raises, the commands it queued are finished first: they read host arrays
     (USE_HOST_PTR) that unwind with the call."""
     rt = opencl.runtime()
@@ -350,13 +361,15 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
                 events.append(exact.launch(q, records=records_buf, n_samples=n_samples, taps=taps,
                                            p_first=skip + p0, p_count=count, image=lane.sums))
     retire(0)
+    seen: list = []  # what bp_order saw (a grid of one chunk)
     if chunk_state is not None and chunk_state.inputs.first == 0 and chunk_state.inputs.n == tiles.order.size \
             and tiles.slot_of.dtype == np.int32:  # one chunk: the image in the grid's order on the device
-        image = chunk_state.merged(queue).in_grid_order(queue, tiles, tile)
+        image = chunk_state.merged(queue).in_grid_order(queue, tiles, tile, seen)
     elif chunk_state is not None:
         image = _added(queue, chunk_state, image, tiles)
     bar.close()
-    return (np.zeros(pixels.shape[0], np.complex128) if image is None else image), fallbacks, _union_seconds(busy)
+    image = np.zeros(pixels.shape[0], np.complex128) if image is None else image
+    return image, fallbacks, _union_seconds(busy), (seen[0] if seen else None)
 
 
 def _union_seconds(intervals: list) -> float:

@@ -479,6 +479,9 @@ def records_for(echo, grid: Grid, receivers, interp, upsample, target_velocity, 
         interp = "linear" if interp is None else interp
         upsample = 8 if upsample is None else upsample
         chosen, velocity = check_options(echo, receivers, interp, upsample, target_velocity)
+        # records not upsampled are read whole, in place (_blocks_of): the grid's reach would only tell a record
+        # it misses entirely, whose samples the kernels then never read (they read none outside a record)
+        reached = grid if (int(upsample) if interp == "linear" else 1) > 1 else None
         records = PreparedRecords(echo, chosen, interp, int(upsample),
-                                  fast_time_spans(echo, chosen, grid, velocity, box), materialise=False)
+                                  fast_time_spans(echo, chosen, reached, velocity, box), materialise=False)
     return records, velocity, _pulse_span(pulses, records.echo.n_pulses)
