@@ -137,32 +137,46 @@ def test_aperture_sums_only_the_pulses_that_see_a_tile(opencl_device):
 
 @pytest.mark.parametrize("stop_and_go", [True, False])
 def test_bp_tile_store_starts_the_image(opencl_device, kiang_echo, monkeypatch, stop_and_go):
-    """bp_tile with store=True (BP_STORE: ffbp's first stage) stores a launch's sums instead of
-    adding them: a call whose image buffers start as NaN and whose first launch into each stores
-    gives the plain call's image (zeroed buffers, every launch adding) bit for bit; store with a
+    """bp_tile with store=True (BP_STORE: ffbp's first stage, and each lane's first launch without CARRY in the
+    launcher, launcher.FIRST_LAUNCH_STORES) stores a launch's sums instead of adding them: calls whose image
+    buffers (the lanes' sums) start as NaN give the image of calls that zero them and add every launch, bit for
+    bit, on one lane, on two and with carried blocks (whose first launch adds into zeroed sums); store with a
     scatter index is refused."""
     import pyopencl as cl
 
-    from clsas.image.backprojection import tile_kernel
+    from clsas.image.backprojection import launcher, records, tile_kernel
 
     grid = around((1989.0, 0.0, -350.0), 0.02, 0.05, 40, 40)
     kw = dict(backend="opencl", stop_and_go=stop_and_go, progress=False)
-    expected = backproject(kiang_echo, grid, **kw).data
-    fill, launch, started = cl.enqueue_fill_buffer, tile_kernel.TileKernel.launch, []
+    lane_init, launch, stored = launcher._Lane.__init__, tile_kernel.TileKernel.launch, []
 
-    def nan_fill(queue, buf, pattern, offset, size, **options):
-        return fill(queue, buf, np.full(1, np.nan, np.complex128), offset, size, **options)
+    def poisoned(self, ctx, queue, n):  # the sums as NaN where the call made them
+        lane_init(self, ctx, queue, n)
+        cl.enqueue_fill_buffer(queue, self.sums, np.full(1, np.nan, np.complex128), 0, 16 * n)
 
-    def storing(self, queue, **args):
-        first = args["image"].int_ptr not in started
-        started.append(args["image"].int_ptr)
-        return launch(self, queue, store=first, **args)
+    def recording(self, queue, **args):
+        stored.append((args["image"].int_ptr, args["store"], args["carry_mode"]))
+        return launch(self, queue, **args)
 
-    monkeypatch.setattr(cl, "enqueue_fill_buffer", nan_fill)
-    monkeypatch.setattr(tile_kernel.TileKernel, "launch", storing)
-    got = backproject(kiang_echo, grid, **kw).data
-    assert len(started) > len(set(started))  # later launches added into what the first stored
-    assert np.array_equal(got, expected)
+    monkeypatch.setattr(launcher._Lane, "__init__", poisoned)
+    monkeypatch.setattr(tile_kernel.TileKernel, "launch", recording)
+    for two_lanes, record_bytes in ((False, 2**40), (True, 2**40), (False, 1)):
+        monkeypatch.setattr(launcher, "TWO_LANES", two_lanes)
+        monkeypatch.setattr(records, "LAUNCH_RECORD_BYTES", record_bytes)
+        monkeypatch.setattr(launcher, "FIRST_LAUNCH_STORES", False)
+        expected = backproject(kiang_echo, grid, **kw).data
+        assert not np.isnan(expected).any()
+        stored.clear()
+        monkeypatch.setattr(launcher, "FIRST_LAUNCH_STORES", True)
+        got = backproject(kiang_echo, grid, **kw).data
+        launches = {}  # image buffer -> its launches' (store, carry_mode)
+        for image, store, mode in stored:
+            launches.setdefault(image, []).append((store, mode))
+        assert len(launches) == 1 + two_lanes and len(stored) > len(launches)  # later launches added
+        for first, *later in launches.values():
+            assert first == ((True, 0) if record_bytes > 1 else (False, 2))  # carried: zeroed sums, added into
+            assert not any(store for store, _ in later)
+        assert np.array_equal(got, expected)
     with pytest.raises(ValueError, match="store=True"):
         launch(TileKernel("linear"), opencl_device.queue, pixels=None, tile_of=None, refs=None, ref_stride=0,
                ref_first=0, records=None, n_samples=0, taps=None, params=None, p_first=0, p_count=0, image=None,
@@ -1123,3 +1137,36 @@ def test_records_not_upsampled_are_read_whole_without_the_grids_reach(opencl_dev
         assert not np.any(far.data) and not calls
     backproject(kiang_echo, grid, backend="opencl", interp="linear", upsample=2, progress=False)
     assert calls  # upsampled records: only the span the grid reaches
+
+
+def test_held_records_staged_for_their_kernels_give_the_same_image(opencl_device, kiang_echo, monkeypatch):
+    # a call on prepared (held) records copies each job's rows, up to records.STAGE_BYTES, into its queue's scratch
+    # buffer before the kernels read them (PreparedRecords.buffer(staged=True)): the same image bit for bit as the
+    # held buffer read in place and as the plain call, on one lane and two, for all pulses and for a sub-aperture
+    # (rows copied from a pulse after the first); double precision reads the held buffer
+    import pyopencl as cl
+
+    from clsas.image.backprojection import launcher, records
+
+    grid = around((1989.0, 0.0, -350.0), 0.02, 0.05, 24, 24)
+    held = prepare(kiang_echo, upsample=4, grid=grid)
+    copy, copies = cl.enqueue_copy, []
+    monkeypatch.setattr(cl, "enqueue_copy", lambda *a, **k: copies.append(k.get("src_offset")) or copy(*a, **k))
+    for two_lanes in (False, True):
+        monkeypatch.setattr(launcher, "TWO_LANES", two_lanes)
+        for pulses in (None, (7, 21)):
+            kw = dict(backend="opencl", pulses=pulses, progress=False)
+            plain = backproject(kiang_echo, grid, upsample=4, **kw).data
+            copies.clear()
+            staged = backproject(held, grid, **kw).data
+            first = 0 if pulses is None else pulses[0]
+            assert sorted(copies) == sorted(8 * first * int(n) for n in held.length)  # each receiver's rows, once
+            monkeypatch.setattr(records, "STAGE_BYTES", 8 * int(held.length.min()) - 1)  # no job fits: in place
+            copies.clear()
+            in_place = backproject(held, grid, **kw).data
+            monkeypatch.setattr(records, "STAGE_BYTES", 16 * 2**20)
+            assert not copies
+            assert staged.tobytes() == in_place.tobytes() == plain.tobytes()
+    copies.clear()
+    backproject(held, grid, backend="opencl", precision="double", progress=False)
+    assert not copies

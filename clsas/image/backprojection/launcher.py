@@ -52,6 +52,8 @@ TWO_LANES, TWO_LANE_SLOTS = True, 2**18
 # launches have few work-groups, which reread the records less than a large grid's: the fixed-cost echo's x8 records,
 # 108 kB a pulse, then go 64 pulses a launch instead of 16 at 128^2, 6 % faster; 256^2 unchanged)
 SMALL_LAUNCH_RECORDS = 4
+# a lane's first bp_tile launch without CARRY stores its sums (BP_STORE) where they were zeroed first (_Lane.start)
+FIRST_LAUNCH_STORES = True
 ORDER_RUN = 64  # pixels a bp_order work-item puts in the grid's order (and checks: _Chunk.in_grid_order's seen)
 _SECOND_QUEUES: dict = {}  # context -> the second lane's queue (opencl.runtime's contexts, which live as long)
 
@@ -105,16 +107,31 @@ class _Inputs:
 
 class _Lane:
     """One lane of a chunk's bp_tile launches: its queue, the slots' sums it adds into (double2 a
-    slot, zeroed on its queue when made) and bp_tile's CARRY buffer (float sums, 8 bytes a slot,
-    made on first use)."""
+    slot: started by its first launch, :meth:`start`) and bp_tile's CARRY buffer (float sums, 8 bytes
+    a slot, made on first use)."""
 
     def __init__(self, ctx, queue, n: int):
         import pyopencl as cl
 
         self.queue, self._ctx, self._n = queue, ctx, n
         self.sums = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 16 * n)
-        cl.enqueue_fill_buffer(queue, self.sums, np.zeros(1, np.complex128), 0, 16 * n)
+        self.started = False
         self._carry = None
+
+    def start(self, stores: bool) -> bool:
+        """Before a kernel into the sums on the lane's queue: whether it is the lane's first and
+        ``stores`` (a bp_tile launch that may store its sums, BP_STORE: one without CARRY), so that
+        it stores them and the sums need no zeroing (FIRST_LAUNCH_STORES); the first of any other
+        kind finds them zeroed (a fill queued before it)."""
+        if self.started:
+            return False
+        self.started = True
+        if stores and FIRST_LAUNCH_STORES:
+            return True
+        import pyopencl as cl
+
+        cl.enqueue_fill_buffer(self.queue, self.sums, np.zeros(1, np.complex128), 0, 16 * self._n)
+        return False
 
     @property
     def carry(self):
@@ -127,7 +144,7 @@ class _Lane:
 
 class _Chunk:
     """A chunk of slots of the plan's tiling on the device: its :class:`_Inputs` (``inputs``) and
-    its lanes (:meth:`lane`): the first lane's sums (``sums``, double2 a slot, zeroed)
+    its lanes (:meth:`lane`): the first lane's sums (``sums``, double2 a slot, started by its first kernel)
     hold the image once a second lane's, if any, are added into them (:meth:`merged`, before
     they are read)."""
 
@@ -155,14 +172,16 @@ class _Chunk:
 
     def merged(self, queue) -> "_Chunk":
         """The chunk, the second lane's sums, if any, added into the first's (bp_add_sums on ``queue``,
-        the first lane's, once the second lane's queue has finished) and dropped: ``sums`` then
-        hold the chunk's image (:meth:`in_grid_order`, :meth:`add_into`)."""
-        if len(self._lanes) > 1:
+        the first lane's, once the second lane's queue has finished) and dropped (first lane's sums
+        no kernel wrote: zeroed): ``sums`` then hold the chunk's image (:meth:`in_grid_order`, :meth:`add_into`)."""
+        self._lanes[0].start(False)  # (zeroed, if no kernel wrote the sums)
+        if len(self._lanes) > 1 and self._lanes[-1].started:
             other = self._lanes.pop()
             other.queue.finish()
             opencl.kernel("bp_fields", "bp_add_sums", preamble=self._tile.preamble,
                           defines=self._tile.field_defines)(
                 queue, *opencl.work_groups(self.inputs.n), self.sums, other.sums, np.int32(self.inputs.n))
+        del self._lanes[1:]  # (a second lane that ran no kernel adds nothing)
         return self
 
     def in_grid_order(self, queue, tiling, tile: TileKernel, seen=None) -> np.ndarray:
@@ -240,7 +259,7 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
     # the first job's records (jobs[0] below: chunk 0, receiver 0, the first upload block) before
     # anything else: their upsampling runs on the device while the host makes the call's kernels,
     # tiling and groups, which otherwise left the device idle
-    early = records.buffer(ctx, 0, np.arange(span[0], min(span[0] + upload, span[1])), double)
+    early = records.buffer(ctx, 0, np.arange(span[0], min(span[0] + upload, span[1])), double, staged=True)
     echo, fs = records.echo, records.fs
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
     pixels = np.ascontiguousarray(plan.grid.positions.reshape(-1, 3), np.float64)
@@ -287,7 +306,7 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
         if early is not None:  # jobs[0]
             (records_buf, n_samples, base), early = early, None
         else:
-            records_buf, n_samples, base = records.buffer(ctx, i, pulses, double, q)
+            records_buf, n_samples, base = records.buffer(ctx, i, pulses, double, q, staged=True)
         if chunk_state is None or chunk_state.inputs.first != first:
             if chunk_state is not None:
                 retire(0)
@@ -344,7 +363,7 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
                                                    tile.PULSE_BLOCK, sub):
                         q0 -= int(pulses[0])  # the job's pulse index
                         events.append(kernel.launch(
-                            q, pixels=inputs.pixels, tile_of=inputs.tile_of, refs=ref_buf,
+                            q, store=lane.start(mode is None), pixels=inputs.pixels, tile_of=inputs.tile_of, refs=ref_buf,
                             ref_stride=ref_stride, ref_first=ref_first, records=records_buf, n_samples=n_samples,
                             taps=taps, params=params, p_first=skip + q0, p_count=n_q, image=lane.sums,
                             spans=spans, carry=mode and lane.carry, carry_mode=mode or 0))
@@ -356,6 +375,7 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
                 slot_pixels = pixels[np.maximum(inputs.slots, 0)]
                 exact = ExactKernel(ctx, slot_pixels, echo, h, np.arange(base, pulses[-1] + 1), fs, offset,
                                     velocity, records.interp, aperture, stop_and_go, double)
+            lane.start(False)
             for p0 in range(s, end, tile.PULSE_BLOCK):
                 count = min(tile.PULSE_BLOCK, end - p0)
                 events.append(exact.launch(q, records=records_buf, n_samples=n_samples, taps=taps,

@@ -45,7 +45,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import backend as _backend
-from ... import budget, validate
+from ... import budget, opencl, validate
 from ...model import EchoData, Grid
 from .. import upsample as fir
 from ..rangecomp import check_workers
@@ -62,6 +62,7 @@ MIN_SAMPLES = 8  # samples of the shortest prepared record (sinc8 loads eight at
 # stay in cache while the launch's work-items read them (long upsampled records on a small grid:
 # 6.9 MB a block of 64 pulses x8 otherwise come from L3 for every work-group)
 LAUNCH_RECORD_BYTES = 2 * 2**20
+STAGE_BYTES = 16 * 2**20  # held records a call job copies to a scratch buffer before its kernels read them (buffer)
 
 
 def launch_pulses(n_samples: int, block: int) -> int:
@@ -264,12 +265,13 @@ class PreparedRecords:
             return self._host[i][pulses[0]:pulses[-1] + 1]
         return self._make(i, pulses)
 
-    def buffer(self, ctx, i: int, pulses: np.ndarray, double: bool, queue=None):
+    def buffer(self, ctx, i: int, pulses: np.ndarray, double: bool, queue=None, staged: bool = False):
         """(device buffer of receiver ``receivers[i]``'s records (complex128 when ``double``),
         samples per record, the buffer's first pulse). Materialised records keep one buffer of all
-        pulses per (receiver, precision); others build one for the consecutive ``pulses`` and drop
-        it with the call (FIR-upsampled on ``queue``, default the runtime's, into that queue's
-        scratch buffer)."""
+        pulses per (receiver, precision) (``staged``: the complex64 rows of ``pulses``, up to STAGE_BYTES,
+        copied from it in order into ``queue``'s scratch buffer, where the kernels' scattered reads
+        find them in cache instead of memory); others build one for the consecutive ``pulses`` (FIR-
+        upsampled on ``queue``, default the runtime's, into that queue's scratch buffer)."""
         import pyopencl as cl
 
         mf = cl.mem_flags
@@ -280,7 +282,15 @@ class PreparedRecords:
                 host = self._host[i] if not double else self._host[i].astype(np.complex128)
                 host.flags.writeable = False
                 self._device[key] = (cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=host), host)
-            return self._device[key][0], self._host[i].shape[1], 0
+            n = self._host[i].shape[1]
+            row = 8 * n  # complex64
+            if not staged or double or row * pulses.size > STAGE_BYTES:
+                return self._device[key][0], n, 0
+            queue = opencl.runtime().queue if queue is None else queue
+            dst = self._scratch_of(ctx, queue, row * pulses.size)
+            cl.enqueue_copy(queue, dst, self._device[key][0], byte_count=row * pulses.size,
+                            src_offset=row * int(pulses[0]), dst_offset=0)
+            return dst, n, int(pulses[0])
         if self.fir_on_device and not double and self._bounds[i, 1] > self._bounds[i, 0]:
             return self._upsampled_on_device(ctx, i, pulses, queue), int(self.length[i]), int(pulses[0])
         records = self.samples(i, pulses)
@@ -299,8 +309,6 @@ class PreparedRecords:
         which the back-projection kernels then read in order; one scratch buffer a queue)."""
         import pyopencl as cl
 
-        from ... import opencl
-
         mf = cl.mem_flags
         first, stop = (int(b) for b in self._bounds[i])
         rows = self.echo.data[self.receivers[i], pulses[0]:pulses[-1] + 1]
@@ -310,18 +318,24 @@ class PreparedRecords:
         flags = mf.USE_HOST_PTR if np.shares_memory(src, self.echo.data) else mf.COPY_HOST_PTR
         src_buf = cl.Buffer(ctx, mf.READ_ONLY | flags, hostbuf=src)
         queue = opencl.runtime().queue if queue is None else queue
-        size = 8 * src.shape[0] * int(self.length[i])
-        # every upload block of the call is upsampled into one buffer (a fresh one costs its page
-        # faults each time): on an in-order queue a block's upsampling runs after the kernels
-        # enqueued before it, which read the previous block, have finished
+        dst = self._scratch_of(ctx, queue, 8 * src.shape[0] * int(self.length[i]))
+        fir.enqueue(queue, src_buf, src.shape[1], src.shape[0], first, stop, self.factor, dst)
+        return dst
+
+    def _scratch_of(self, ctx, queue, size: int):
+        """``queue``'s scratch buffer of at least ``size`` bytes, into which a call's blocks of records
+        are upsampled (or staged) in turn (a fresh one costs its page faults each time): on an in-order
+        queue a block's command runs after the kernels before it, which read the previous block."""
+        import pyopencl as cl
+
         in_order = not queue.properties & cl.command_queue_properties.OUT_OF_ORDER_EXEC_MODE_ENABLE
         key = (int(ctx.int_ptr), int(queue.int_ptr))
         if not in_order or key not in self._scratch or self._scratch[key].size < size:
-            size_all = 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))
-            self._scratch[key] = cl.Buffer(ctx, mf.READ_WRITE, size=max(size, size_all))
-        dst = self._scratch[key]
-        fir.enqueue(queue, src_buf, src.shape[1], src.shape[0], first, stop, self.factor, dst)
-        return dst
+            # a call's largest upsampled block (staged ones: all of a receiver's pulses, the same size each)
+            block = 0 if self._host is not None else 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(
+                np.max(self.length))
+            self._scratch[key] = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=max(size, block))
+        return self._scratch[key]
 
     def subset(self, chosen) -> "PreparedRecords":
         """The same records for the receivers ``chosen`` (echo indices, all prepared), in that
