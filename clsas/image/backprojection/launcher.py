@@ -172,12 +172,14 @@ class _Chunk:
 
     def merged(self, queue) -> "_Chunk":
         """The chunk, the second lane's sums, if any, added into the first's (bp_add_sums on ``queue``,
-        the first lane's, once the second lane's queue has finished) and dropped (first lane's sums
+        the first lane's, queued behind a barrier on the second lane's kernels) and dropped (first lane's sums
         no kernel wrote: zeroed): ``sums`` then hold the chunk's image (:meth:`in_grid_order`, :meth:`add_into`)."""
         self._lanes[0].start(False)  # (zeroed, if no kernel wrote the sums)
         if len(self._lanes) > 1 and self._lanes[-1].started:
+            import pyopencl as cl
+
             other = self._lanes.pop()
-            other.queue.finish()
+            cl.enqueue_barrier(queue, wait_for=[cl.enqueue_marker(other.queue)])  # the second lane's kernels
             opencl.kernel("bp_fields", "bp_add_sums", preamble=self._tile.preamble,
                           defines=self._tile.field_defines)(
                 queue, *opencl.work_groups(self.inputs.n), self.sums, other.sums, np.int32(self.inputs.n))
@@ -380,13 +382,15 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
                 count = min(tile.PULSE_BLOCK, end - p0)
                 events.append(exact.launch(q, records=records_buf, n_samples=n_samples, taps=taps,
                                            p_first=skip + p0, p_count=count, image=lane.sums))
-    retire(0)
     seen: list = []  # what bp_order saw (a grid of one chunk)
+    # the last chunk's sums read (queued behind its kernels, which the blocking map waits for: the device
+    # goes on to bp_order without waiting for the host to see them end), then the kernels' events
     if chunk_state is not None and chunk_state.inputs.first == 0 and chunk_state.inputs.n == tiles.order.size \
             and tiles.slot_of.dtype == np.int32:  # one chunk: the image in the grid's order on the device
         image = chunk_state.merged(queue).in_grid_order(queue, tiles, tile, seen)
     elif chunk_state is not None:
         image = _added(queue, chunk_state, image, tiles)
+    retire(0)
     bar.close()
     image = np.zeros(pixels.shape[0], np.complex128) if image is None else image
     return image, fallbacks, _union_seconds(busy), (seen[0] if seen else None)
