@@ -1150,7 +1150,8 @@ def test_held_records_staged_for_their_kernels_give_the_same_image(opencl_device
 
     grid = around((1989.0, 0.0, -350.0), 0.02, 0.05, 24, 24)
     held = prepare(kiang_echo, upsample=4, grid=grid)
-    copy, copies = cl.enqueue_copy, []
+    assert 8 * kiang_echo.n_pulses * int(held.length.max()) <= records.STAGE_BYTES  # every receiver's job staged
+    copy, copies, stage_bytes = cl.enqueue_copy, [], records.STAGE_BYTES
     monkeypatch.setattr(cl, "enqueue_copy", lambda *a, **k: copies.append(k.get("src_offset")) or copy(*a, **k))
     for two_lanes in (False, True):
         monkeypatch.setattr(launcher, "TWO_LANES", two_lanes)
@@ -1164,7 +1165,7 @@ def test_held_records_staged_for_their_kernels_give_the_same_image(opencl_device
             monkeypatch.setattr(records, "STAGE_BYTES", 8 * int(held.length.min()) - 1)  # no job fits: in place
             copies.clear()
             in_place = backproject(held, grid, **kw).data
-            monkeypatch.setattr(records, "STAGE_BYTES", 16 * 2**20)
+            monkeypatch.setattr(records, "STAGE_BYTES", stage_bytes)
             assert not copies
             assert staged.tobytes() == in_place.tobytes() == plain.tobytes()
     copies.clear()

@@ -365,10 +365,10 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
                                                    tile.PULSE_BLOCK, sub):
                         q0 -= int(pulses[0])  # the job's pulse index
                         events.append(kernel.launch(
-                            q, store=lane.start(mode is None), pixels=inputs.pixels, tile_of=inputs.tile_of, refs=ref_buf,
-                            ref_stride=ref_stride, ref_first=ref_first, records=records_buf, n_samples=n_samples,
-                            taps=taps, params=params, p_first=skip + q0, p_count=n_q, image=lane.sums,
-                            spans=spans, carry=mode and lane.carry, carry_mode=mode or 0))
+                            q, store=lane.start(mode is None), pixels=inputs.pixels, tile_of=inputs.tile_of,
+                            refs=ref_buf, ref_stride=ref_stride, ref_first=ref_first, records=records_buf,
+                            n_samples=n_samples, taps=taps, params=params, p_first=skip + q0, p_count=n_q,
+                            image=lane.sums, spans=spans, carry=mode and lane.carry, carry_mode=mode or 0))
                     continue
                 fallbacks += 1
             if exact is None:  # the exact double kernel (precision="double", or the fallback)

@@ -62,7 +62,7 @@ MIN_SAMPLES = 8  # samples of the shortest prepared record (sinc8 loads eight at
 # stay in cache while the launch's work-items read them (long upsampled records on a small grid:
 # 6.9 MB a block of 64 pulses x8 otherwise come from L3 for every work-group)
 LAUNCH_RECORD_BYTES = 2 * 2**20
-STAGE_BYTES = 16 * 2**20  # held records a call job copies to a scratch buffer before its kernels read them (buffer)
+STAGE_BYTES = 8 * 2**20  # held records staged for a job at most (buffer): here jobs of 6.9-15 MB gained, 27-44 MB lost
 
 
 def launch_pulses(n_samples: int, block: int) -> int:
@@ -330,8 +330,7 @@ class PreparedRecords:
 
         in_order = not queue.properties & cl.command_queue_properties.OUT_OF_ORDER_EXEC_MODE_ENABLE
         key = (int(ctx.int_ptr), int(queue.int_ptr))
-        if not in_order or key not in self._scratch or self._scratch[key].size < size:
-            # a call's largest upsampled block (staged ones: all of a receiver's pulses, the same size each)
+        if not in_order or key not in self._scratch or self._scratch[key].size < size:  # a call's largest block:
             block = 0 if self._host is not None else 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(
                 np.max(self.length))
             self._scratch[key] = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=max(size, block))
