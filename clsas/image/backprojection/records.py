@@ -42,6 +42,8 @@ in place (CL_MEM_USE_HOST_PTR: no copy); on a GPU it is a copy in device memory.
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from ... import backend as _backend
@@ -204,7 +206,7 @@ class PreparedRecords:
         t0 = np.asarray(echo.t0)[list(self.receivers)]
         self.span = np.column_stack([t0 + self.offset / self.fs, t0 + (self.offset + self.length) / self.fs])
         self._device = {}
-        self._scratch = {}  # per (context, queue): the device buffer a call's upload blocks are upsampled into, in turn
+        self._scratch = threading.local()  # a thread's buffers a call's blocks are upsampled (staged) into: _scratch_of
         self._host = None
         if materialise and self.factor > 1:  # records not upsampled are views of the echo: nothing to hold
             held = 8.0 * echo.n_pulses * float(np.sum(np.maximum(self.length, MIN_SAMPLES)))
@@ -323,18 +325,17 @@ class PreparedRecords:
         return dst
 
     def _scratch_of(self, ctx, queue, size: int):
-        """``queue``'s scratch buffer of at least ``size`` bytes, into which a call's blocks of records
-        are upsampled (or staged) in turn (a fresh one costs its page faults each time): on an in-order
-        queue a block's command runs after the kernels before it, which read the previous block."""
+        """The calling thread's buffer on ``queue`` (>= ``size`` bytes) a call's blocks are upsampled or staged
+        into in turn (a fresh one costs page faults): an in-order queue runs a block's command after the kernels
+        reading the previous one; a thread's call on the same (held) records and queue has its own."""
         import pyopencl as cl
 
         in_order = not queue.properties & cl.command_queue_properties.OUT_OF_ORDER_EXEC_MODE_ENABLE
-        key = (int(ctx.int_ptr), int(queue.int_ptr))
-        if not in_order or key not in self._scratch or self._scratch[key].size < size:  # a call's largest block:
-            block = 0 if self._host is not None else 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(
-                np.max(self.length))
-            self._scratch[key] = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=max(size, block))
-        return self._scratch[key]
+        key, mine = (int(ctx.int_ptr), int(queue.int_ptr)), self._scratch.__dict__.setdefault("buffers", {})
+        if not in_order or key not in mine or mine[key].size < size:  # a call's largest block:
+            block = 0 if self._host else 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))
+            mine[key] = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=max(size, block))
+        return mine[key]
 
     def subset(self, chosen) -> "PreparedRecords":
         """The same records for the receivers ``chosen`` (echo indices, all prepared), in that
