@@ -1175,9 +1175,9 @@ def test_held_records_staged_for_their_kernels_give_the_same_image(opencl_device
 
 def test_two_threads_on_the_same_held_records_get_their_own_staging(opencl_device):
     # review 15 M1: calls on two threads with the same prepared (held) records share the runtime's queue; each
-    # stages its jobs' rows into its own thread's scratch buffer (records.PreparedRecords._scratch_of), so that the
-    # other's copy cannot land between its copy and its kernels: every image equals the one-thread image, bit for
-    # bit (with one scratch a queue, 5 of 40 calls came out wrong, rel L2 up to 0.33)
+    # stages its jobs' rows into buffers the call owns (the launcher's staging dict, records.PreparedRecords.buffer),
+    # so that the other's copy cannot land between its copy and its kernels: every image equals the one-thread
+    # image, bit for bit (with one scratch a queue kept on the records, 5 of 40 calls came out wrong, rel L2 0.33)
     import threading
 
     sc = oversampled(presets.kiang2022(n_pulses=96)).replace(targets=(

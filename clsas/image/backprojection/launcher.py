@@ -261,7 +261,8 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
     # the first job's records (jobs[0] below: chunk 0, receiver 0, the first upload block) before
     # anything else: their upsampling runs on the device while the host makes the call's kernels,
     # tiling and groups, which otherwise left the device idle
-    early = records.buffer(ctx, 0, np.arange(span[0], min(span[0] + upload, span[1])), double, staged=True)
+    staging: dict = {}  # the call's buffers held records are staged into (records.PreparedRecords.buffer)
+    early = records.buffer(ctx, 0, np.arange(span[0], min(span[0] + upload, span[1])), double, staged=staging)
     echo, fs = records.echo, records.fs
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
     pixels = np.ascontiguousarray(plan.grid.positions.reshape(-1, 3), np.float64)
@@ -308,7 +309,7 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
         if early is not None:  # jobs[0]
             (records_buf, n_samples, base), early = early, None
         else:
-            records_buf, n_samples, base = records.buffer(ctx, i, pulses, double, q, staged=True)
+            records_buf, n_samples, base = records.buffer(ctx, i, pulses, double, q, staged=staging)
         if chunk_state is None or chunk_state.inputs.first != first:
             if chunk_state is not None:
                 retire(0)

@@ -42,8 +42,6 @@ in place (CL_MEM_USE_HOST_PTR: no copy); on a GPU it is a copy in device memory.
 
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 
 from ... import backend as _backend
@@ -206,7 +204,7 @@ class PreparedRecords:
         t0 = np.asarray(echo.t0)[list(self.receivers)]
         self.span = np.column_stack([t0 + self.offset / self.fs, t0 + (self.offset + self.length) / self.fs])
         self._device = {}
-        self._scratch = threading.local()  # a thread's buffers a call's blocks are upsampled (staged) into: _scratch_of
+        self._scratch = {}  # per (context, queue): the buffer a call's upload blocks are upsampled into, in turn
         self._host = None
         if materialise and self.factor > 1:  # records not upsampled are views of the echo: nothing to hold
             held = 8.0 * echo.n_pulses * float(np.sum(np.maximum(self.length, MIN_SAMPLES)))
@@ -267,12 +265,13 @@ class PreparedRecords:
             return self._host[i][pulses[0]:pulses[-1] + 1]
         return self._make(i, pulses)
 
-    def buffer(self, ctx, i: int, pulses: np.ndarray, double: bool, queue=None, staged: bool = False):
+    def buffer(self, ctx, i: int, pulses: np.ndarray, double: bool, queue=None, staged: dict | None = None):
         """(device buffer of receiver ``receivers[i]``'s records (complex128 when ``double``),
         samples per record, the buffer's first pulse). Materialised records keep one buffer of all
-        pulses per (receiver, precision) (``staged``: the complex64 rows of ``pulses``, up to STAGE_BYTES,
-        copied from it in order into ``queue``'s scratch buffer, where the kernels' scattered reads
-        find them in cache instead of memory); others build one for the consecutive ``pulses`` (FIR-
+        pulses per (receiver, precision) (``staged``, a call's own dict of buffers: the complex64 rows of
+        ``pulses``, up to STAGE_BYTES, copied from it in order into the call's buffer for ``queue``, where the
+        kernels' scattered reads find them in cache instead of memory; the buffers go with the call, as
+        threads share held records and queues); others build one for the consecutive ``pulses`` (FIR-
         upsampled on ``queue``, default the runtime's, into that queue's scratch buffer)."""
         import pyopencl as cl
 
@@ -286,10 +285,10 @@ class PreparedRecords:
                 self._device[key] = (cl.Buffer(ctx, mf.READ_ONLY | mf.USE_HOST_PTR, hostbuf=host), host)
             n = self._host[i].shape[1]
             row = 8 * n  # complex64
-            if not staged or double or row * pulses.size > STAGE_BYTES:
+            if staged is None or double or row * pulses.size > STAGE_BYTES:
                 return self._device[key][0], n, 0
             queue = opencl.runtime().queue if queue is None else queue
-            dst = self._scratch_of(ctx, queue, row * pulses.size)
+            dst = self._scratch_of(ctx, queue, row * pulses.size, staged)
             cl.enqueue_copy(queue, dst, self._device[key][0], byte_count=row * pulses.size,
                             src_offset=row * int(pulses[0]), dst_offset=0)
             return dst, n, int(pulses[0])
@@ -324,14 +323,14 @@ class PreparedRecords:
         fir.enqueue(queue, src_buf, src.shape[1], src.shape[0], first, stop, self.factor, dst)
         return dst
 
-    def _scratch_of(self, ctx, queue, size: int):
-        """The calling thread's buffer on ``queue`` (>= ``size`` bytes) a call's blocks are upsampled or staged
-        into in turn (a fresh one costs page faults): an in-order queue runs a block's command after the kernels
-        reading the previous one; a thread's call on the same (held) records and queue has its own."""
+    def _scratch_of(self, ctx, queue, size: int, mine: dict | None = None):
+        """The buffer on ``queue`` (>= ``size`` bytes) a call's blocks are upsampled (staged) into in turn, kept in
+        ``mine`` (default this object's): an in-order queue runs a block's command after the kernels reading the
+        previous one (a fresh buffer costs its page faults each time)."""
         import pyopencl as cl
 
         in_order = not queue.properties & cl.command_queue_properties.OUT_OF_ORDER_EXEC_MODE_ENABLE
-        key, mine = (int(ctx.int_ptr), int(queue.int_ptr)), self._scratch.__dict__.setdefault("buffers", {})
+        key, mine = (int(ctx.int_ptr), int(queue.int_ptr)), self._scratch if mine is None else mine
         if not in_order or key not in mine or mine[key].size < size:  # a call's largest block:
             block = 0 if self._host else 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))
             mine[key] = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=max(size, block))
