@@ -208,6 +208,14 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
 #endif
     const float3 vel = vload3(0, params.velocity);
     float16 acc_re[ROWS], acc_im[ROWS];
+#ifdef MONO
+    /* w . delta of each row for the w held in w_held: a receiver at constant velocity has the same
+     * w on every pulse, so the rows' dot products are made once (before the first pulse) and again
+     * only on a pulse whose w differs in any bit (the same float operations on the same values: the
+     * same s) */
+    float16 wd[ROWS];
+    uint3 w_held = (uint3)(0);
+#endif
     FOR_ROWS {
         acc_re[r] = (float16)0.0f;
         acc_im[r] = (float16)0.0f;
@@ -221,8 +229,8 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
         }
     }
 #endif
-    const int p_end = TILE_END;
-    for (int p = TILE_BEGIN; p < p_end; ++p) {
+    const int p_begin = TILE_BEGIN, p_end = TILE_END;
+    for (int p = p_begin; p < p_end; ++p) {
         /* each step for all ROWS rows before the next: ROWS independent dependency chains side by
          * side in program order, which the out-of-order core overlaps */
         const tile_ref_t R = tref[p];
@@ -251,11 +259,20 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
                 s1[r] = n1 / (b1 + sqrt(b1 * b1 + a1 * n1));
             }
         }
+#ifdef MONO
+        const uint3 w_bits = (uint3)(as_uint(R.w[0]), as_uint(R.w[1]), as_uint(R.w[2]));
+        if (p == p_begin || any(w_bits != w_held)) {
+            w_held = w_bits;
+            FOR_ROWS {
+                wd[r] = R.w[0] * FIELD(dx) + R.w[1] * FIELD(dy) + R.w[2] * FIELD(dz);
+            }
+        }
+#endif
         FOR_ROWS {
 #if defined(SAME_LEGS)
             s[r] = s1[r];  /* fs and f0s carry the factor 2 */
 #elif defined(MONO)
-            s[r] = R.alpha * s1[r] - (R.w[0] * FIELD(dx) + R.w[1] * FIELD(dy) + R.w[2] * FIELD(dz));
+            s[r] = R.alpha * s1[r] - wd[r];
 #else
             /* leg 2: s2 = t2 - t2_ref, e = (v_r - v) s1 - delta; s = s1 + s2 */
             const float3 v_r = vload3(0, R.v_rx), cc = vload3(0, R.leg2), u = v_r - vel;
