@@ -93,21 +93,24 @@
 #define ROUND_MAGIC 12582912.0f /* 1.5 * 2^23 */
 #define NEAR_FRACTION(x) ((x) - (((x) + ROUND_MAGIC) - ROUND_MAGIC))
 
-/* exp(j 2 pi r) for r in [-1/2, 1/2] cycles by the double angle of pi r: S = sqrt(2) sin(pi r) and
- * C = sqrt(2) cos(pi r) by their polynomials in r (odd of degree 9, even of degree 10; least-squares
- * fits made minimax by Lawson's reweighting, the factors pi and sqrt(2) inside the coefficients),
- * then cos(2 pi r) = 1 - S^2 and sin(2 pi r) = S C: two operations for the doubling and none for
- * pi r. Error in float32 over [-1/2, 1/2] below 8e-7 (sin 2.9e-7, cos 7.7e-7; the polynomials in pi r
- * it replaced: 4.7e-7, 7.1e-7); the kernel-versus-reference tests hold the images to it. */
+/* exp(j 2 pi r) for r in [-1/2, 1/2] cycles by doubling the angle a = pi r / 2 twice: S = k sin(a) and
+ * C = k cos(a), k = 2^(3/4), by their polynomials in r (odd of degree 7, even of degree 6; least-squares
+ * fits made minimax by Lawson's reweighting, the factors pi / 2 and k inside the coefficients), then
+ * P = S C = sqrt(2) sin(2a) and T = sqrt(2) - S^2 = sqrt(2) cos(2a), so that sin(2 pi r) = P T and
+ * cos(2 pi r) = 1 - P^2: four operations for the two doublings and none for pi r / 2, one operation fewer
+ * than one doubling of pi r (whose polynomials need degrees 9 and 10). Error in float32 over [-1/2, 1/2]
+ * below 1.5e-6 (sin 5.1e-7, cos 1.2e-6: float rounding, doubled by the second doubling; one doubling
+ * gave 2.9e-7, 7.7e-7); the kernel-versus-reference tests hold the images to it. */
 #define EXPJ_NEAR16(r_in, cs_out, sn_out)                                                                      \
     do {                                                                                                      \
         const float16 r_ = (r_in), q_ = r_ * r_;                                                              \
-        const float16 s_ = r_ * (4.4428828341e+00f + q_ * (-7.3082411545e+00f + q_ * (3.6062889577e+00f       \
-                           + q_ * (-8.4576359296e-01f + q_ * 1.0920574741e-01f))));                            \
-        const float16 c_ = 1.4142135621e+00f + q_ * (-6.9788641101e+00f + q_ * (5.7398815459e+00f            \
-                           + q_ * (-1.8882749990e+00f + q_ * (3.3225188128e-01f + q_ * -3.4502165919e-02f)))); \
-        *(sn_out) = s_ * c_;                                                                                  \
-        *(cs_out) = fma(-s_, s_, 1.0f);                                                                       \
+        const float16 s_ = r_ * (2.6417539641e+00f + q_ * (-1.0863758382e+00f + q_ * (1.3399836232e-01f       \
+                           + q_ * -7.7232786966e-03f)));                                                       \
+        const float16 c_ = 1.6817927841e+00f + q_ * (-2.0748227936e+00f + q_ * (4.2650038123e-01f            \
+                           + q_ * -3.4322620142e-02f));                                                        \
+        const float16 p_ = s_ * c_, t_ = fma(-s_, s_, 1.4142135624e+00f);                                    \
+        *(sn_out) = p_ * t_;                                                                                  \
+        *(cs_out) = fma(-p_, p_, 1.0f);                                                                       \
     } while (0)
 
 /* Linear interpolation's samples of eight lanes: lane L's four floats w_L = (re, im of sample i,
