@@ -135,9 +135,10 @@ class Layout:
     work-items' count, the tiles' reference points (T, 3) m and each leaf's first tile (L + 1,),
     the tiles' largest half-extent (m), the pixel fields (a device buffer of a
     :attr:`TileKernel.pixels` record a item, one of the call's scratch buffers), each tile's first
-    pulse (int32, from the echo's first), the work-items' tiles, the images' slots (a device buffer, ffbp_fields') and each leaf's first slot, the rows' spans (a
-    device buffer) and each leaf's first row; and its references by records (``refs``: a device
-    buffer a receiver, filled by :meth:`FirstStage._launch`)."""
+    pulse (int32, from the echo's first), the work-items' tiles, the images' slots (a device
+    buffer, ffbp_fields') and each leaf's first slot, the rows' spans (a device buffer) and each
+    leaf's first row; and its references by records (``refs``: a device buffer a receiver, filled
+    by :meth:`FirstStage._launch`)."""
 
     n_items: int
     centres: np.ndarray

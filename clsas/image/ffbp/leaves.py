@@ -78,7 +78,7 @@ class FirstStage:
         self.demodulate = 2 * echo.waveform.f0 / echo.medium.sound_speed
         self.ready = {}
         self.records = None  # every pulse's prepared records, when they fit RECORD_BYTES
-        self.pending = None  # what the last batch's queued kernels read from host memory (settle)
+        self.pending = None  # what the last batch's queued kernels read: its records and layout (settle)
         self.queued = []  # leaves whose demodulation waits for flush(): (made, grid, out, offset)
 
     def image(self, node: int, grid: PolarGrid, grids: list) -> np.ndarray:
@@ -139,10 +139,11 @@ class FirstStage:
         return image * expj_cycles(-self.demodulate * grid.ranges)[None, :] * grid.inside()
 
     def settle(self) -> None:
-        """Wait for the last batch's kernels, then let go of the host memory they read (its
-        records, its pixel fields): the walk enqueues its leaves' merges meanwhile, and the
-        next batch settles the last one before it allocates its own (so one batch's are held at a
-        time, as the memory plan counts). :func:`clsas.image.ffbp.ffbp` settles at its end."""
+        """Wait for the last batch's kernels, then let go of what they read (its records, host
+        memory; its layout, whose pixel fields' scratch buffer may serve others once no one holds
+        it): the walk enqueues its leaves' merges meanwhile, and the next batch settles the last
+        one before it allocates its own (so one batch's are held at a time, as the memory plan
+        counts). :func:`clsas.image.ffbp.ffbp` settles at its end."""
         if self.pending is not None:
             opencl.runtime().queue.finish()
             self.pending = None
