@@ -93,21 +93,24 @@
 #define ROUND_MAGIC 12582912.0f /* 1.5 * 2^23 */
 #define NEAR_FRACTION(x) ((x) - (((x) + ROUND_MAGIC) - ROUND_MAGIC))
 
-/* exp(j 2 pi r) for r in [-1/2, 1/2] cycles by the double angle of pi r: S = sqrt(2) sin(pi r) and
- * C = sqrt(2) cos(pi r) by their polynomials in r (odd of degree 9, even of degree 10; least-squares
- * fits made minimax by Lawson's reweighting, the factors pi and sqrt(2) inside the coefficients),
- * then cos(2 pi r) = 1 - S^2 and sin(2 pi r) = S C: two operations for the doubling and none for
- * pi r. Error in float32 over [-1/2, 1/2] below 8e-7 (sin 2.9e-7, cos 7.7e-7; the polynomials in pi r
- * it replaced: 4.7e-7, 7.1e-7); the kernel-versus-reference tests hold the images to it. */
+/* exp(j 2 pi r) for r in [-1/2, 1/2] cycles by doubling the angle a = pi r / 2 twice: S = k sin(a) and
+ * C = k cos(a), k = 2^(3/4), by their polynomials in r (odd of degree 7, even of degree 6; least-squares
+ * fits made minimax by Lawson's reweighting, the factors pi / 2 and k inside the coefficients), then
+ * P = S C = sqrt(2) sin(2a) and T = sqrt(2) - S^2 = sqrt(2) cos(2a), so that sin(2 pi r) = P T and
+ * cos(2 pi r) = 1 - P^2: four operations for the two doublings and none for pi r / 2, one operation fewer
+ * than one doubling of pi r (whose polynomials need degrees 9 and 10). Error in float32 over [-1/2, 1/2]
+ * below 1.5e-6 (sin 5.1e-7, cos 1.2e-6: float rounding, doubled by the second doubling; one doubling
+ * gave 2.9e-7, 7.7e-7); the kernel-versus-reference tests hold the images to it. */
 #define EXPJ_NEAR16(r_in, cs_out, sn_out)                                                                      \
     do {                                                                                                      \
         const float16 r_ = (r_in), q_ = r_ * r_;                                                              \
-        const float16 s_ = r_ * (4.4428828341e+00f + q_ * (-7.3082411545e+00f + q_ * (3.6062889577e+00f       \
-                           + q_ * (-8.4576359296e-01f + q_ * 1.0920574741e-01f))));                            \
-        const float16 c_ = 1.4142135621e+00f + q_ * (-6.9788641101e+00f + q_ * (5.7398815459e+00f            \
-                           + q_ * (-1.8882749990e+00f + q_ * (3.3225188128e-01f + q_ * -3.4502165919e-02f)))); \
-        *(sn_out) = s_ * c_;                                                                                  \
-        *(cs_out) = fma(-s_, s_, 1.0f);                                                                       \
+        const float16 s_ = r_ * (2.6417539641e+00f + q_ * (-1.0863758382e+00f + q_ * (1.3399836232e-01f       \
+                           + q_ * -7.7232786966e-03f)));                                                       \
+        const float16 c_ = 1.6817927841e+00f + q_ * (-2.0748227936e+00f + q_ * (4.2650038123e-01f            \
+                           + q_ * -3.4322620142e-02f));                                                        \
+        const float16 p_ = s_ * c_, t_ = fma(-s_, s_, 1.4142135624e+00f);                                    \
+        *(sn_out) = p_ * t_;                                                                                  \
+        *(cs_out) = fma(-p_, p_, 1.0f);                                                                       \
     } while (0)
 
 /* Linear interpolation's samples of eight lanes: lane L's four floats w_L = (re, im of sample i,
@@ -208,6 +211,14 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
 #endif
     const float3 vel = vload3(0, params.velocity);
     float16 acc_re[ROWS], acc_im[ROWS];
+#ifdef MONO
+    /* w . delta of each row for the w held in w_held: a receiver at constant velocity has the same
+     * w on every pulse, so the rows' dot products are made once (before the first pulse) and again
+     * only on a pulse whose w differs in any bit (the same float operations on the same values: the
+     * same s) */
+    float16 wd[ROWS];
+    uint3 w_held = (uint3)(0);
+#endif
     FOR_ROWS {
         acc_re[r] = (float16)0.0f;
         acc_im[r] = (float16)0.0f;
@@ -221,8 +232,8 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
         }
     }
 #endif
-    const int p_end = TILE_END;
-    for (int p = TILE_BEGIN; p < p_end; ++p) {
+    const int p_begin = TILE_BEGIN, p_end = TILE_END;
+    for (int p = p_begin; p < p_end; ++p) {
         /* each step for all ROWS rows before the next: ROWS independent dependency chains side by
          * side in program order, which the out-of-order core overlaps */
         const tile_ref_t R = tref[p];
@@ -251,11 +262,20 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
                 s1[r] = n1 / (b1 + sqrt(b1 * b1 + a1 * n1));
             }
         }
+#ifdef MONO
+        const uint3 w_bits = (uint3)(as_uint(R.w[0]), as_uint(R.w[1]), as_uint(R.w[2]));
+        if (p == p_begin || any(w_bits != w_held)) {
+            w_held = w_bits;
+            FOR_ROWS {
+                wd[r] = R.w[0] * FIELD(dx) + R.w[1] * FIELD(dy) + R.w[2] * FIELD(dz);
+            }
+        }
+#endif
         FOR_ROWS {
 #if defined(SAME_LEGS)
             s[r] = s1[r];  /* fs and f0s carry the factor 2 */
 #elif defined(MONO)
-            s[r] = R.alpha * s1[r] - (R.w[0] * FIELD(dx) + R.w[1] * FIELD(dy) + R.w[2] * FIELD(dz));
+            s[r] = R.alpha * s1[r] - wd[r];
 #else
             /* leg 2: s2 = t2 - t2_ref, e = (v_r - v) s1 - delta; s = s1 + s2 */
             const float3 v_r = vload3(0, R.v_rx), cc = vload3(0, R.leg2), u = v_r - vel;

@@ -16,6 +16,7 @@ from _ffbp_helpers import DEPTH, GRID, echo_of, keep_plans  # noqa: F401 (keep_p
 
 import clsas
 from clsas.model import Grid, Image
+from clsas.image.backprojection import TileKernel
 from clsas.image.ffbp import ffbp
 from clsas.image.ffbp import reuse
 from clsas.image.ffbp.polar import Scene
@@ -325,8 +326,9 @@ def test_scratch_buffers_go_to_the_next_call_within_the_budget(opencl_device, mo
 def test_a_batchs_scratch_sums_serve_a_later_batch_only_once_its_leaves_are_demodulated(opencl_device, monkeypatch):
     """With batches of a few leaves (a merge's group of leaves spans batches), the first stage's sums
     buffers are recycled within the call (scratch.Scratch.recycle) only once no leaf still waits to
-    be demodulated from them: fewer buffers than batches, and the image bit for bit that of a call
-    that takes a new buffer every batch."""
+    be demodulated from them, and the pixel fields of layouts not kept once their bp_tile is done:
+    fewer buffers of each than batches, and the image bit for bit that of a call that takes new
+    buffers every batch."""
     from clsas.image.ffbp import leaves, scratch
 
     reuse.release()
@@ -335,13 +337,21 @@ def test_a_batchs_scratch_sums_serve_a_later_batch_only_once_its_leaves_are_demo
     tree = importlib.import_module("clsas.image.ffbp").plan(echo, [0], reuse.kept(grid)[0], 4, 0.1, 8, 2, None)
     sizes = sorted(g.size for g in tree.grids[0] if g is not None)
     monkeypatch.setattr(leaves, "BATCH_POINTS", sizes[-1] + sizes[-2])  # at most two leaves a batch
-    batches, taking, taken = [], scratch.Scratch.take, []
-    real_batch = leaves.FirstStage._batch
+    batches, taking, taken, sums, fields = [], scratch.Scratch.take, [], set(), set()
+    real_batch, launch = leaves.FirstStage._batch, TileKernel.launch
     monkeypatch.setattr(leaves.FirstStage, "_batch", lambda self, *a: batches.append(1) or real_batch(self, *a))
     monkeypatch.setattr(scratch.Scratch, "take", lambda self, n: taken.append(taking(self, n)) or taken[-1])
+
+    def launched(self, *args, **kwargs):  # the bp_tile launches' sums and pixel fields
+        sums.add(id(kwargs["image"]))
+        fields.add(id(kwargs["pixels"]))
+        return launch(self, *args, **kwargs)
+
+    monkeypatch.setattr(TileKernel, "launch", launched)
     recycled = ffbp(echo, grid, first=2, backend="opencl", progress=False)
-    sums = {id(b) for b in taken} - {id(g) for g in taken[:tree.top + 1]}  # less the levels' groups
-    assert len(batches) >= 4 and len(sums) < len(batches)
+    assert sums and fields and sums | fields <= {id(b) for b in taken}  # all scratch buffers
+    # the layouts are not kept (keep_plans: off), so their fields' buffers serve later batches too
+    assert len(batches) >= 4 and len(sums) < len(batches) and len(fields) < len(batches)
     reuse.release()
     monkeypatch.setattr(scratch.Scratch, "recycle", lambda self, b: None)  # a new buffer every batch
     fresh = ffbp(echo, grid, first=2, backend="opencl", progress=False)
@@ -388,3 +398,29 @@ def test_scratch_buffers_serve_only_calls_on_the_context_that_made_them(opencl_d
     assert ffbp(echo, grid, backend="opencl", progress=False).data.tobytes() == first.data.tobytes()
     assert taken and {id(b) for b in taken} <= held
     reuse.release()
+
+
+@pytest.mark.parametrize("keep_plans", [True], indirect=True, ids=["kept"])
+def test_a_kept_layouts_fields_serve_the_next_geometrys_call_once_let_go(opencl_device, monkeypatch, keep_plans):
+    """The first stage's pixel fields are a scratch buffer (clsas.image.ffbp.scratch): a layout that
+    reuse keeps holds its own (not in the pool while kept: no other call can take it), and a call on a
+    new geometry, which lets go of that layout, takes its buffers from the pool and that layout's
+    (no fresh buffer for its fields, the sums or the groups); its image is bit for bit that of a call
+    that kept nothing before it."""
+    from clsas.image.ffbp import scratch
+
+    reuse.release()
+    echo = echo_of("straight")
+    grid = Grid.plane(np.arange(42.0, 46.0, 0.03), np.arange(-2.0, 2.0, 0.04), DEPTH)
+    ffbp(echo, grid, backend="opencl", progress=False)
+    fields = {id(layout.pix) for layout in reuse._held().items.values()}
+    pool = {id(b) for _, b in scratch._FREE}
+    assert fields and not fields & pool
+    taking, taken = scratch.Scratch.take, []
+    monkeypatch.setattr(scratch.Scratch, "take", lambda self, n: taken.append(taking(self, n)) or taken[-1])
+    shifted = echo.replace(tx_pos=echo.tx_pos + [0.002, 0.0, 0.0], rx_pos=echo.rx_pos + [0.002, 0.0, 0.0])
+    second = ffbp(shifted, grid, backend="opencl", progress=False)
+    now = {id(layout.pix) for layout in reuse._held().items.values()}
+    assert now and now <= pool | fields and {id(b) for b in taken} <= pool | fields
+    reuse.release()
+    assert ffbp(shifted, grid, backend="opencl", progress=False).data.tobytes() == second.data.tobytes()

@@ -142,9 +142,9 @@ def memory_plan(tree: Tree, n_pixels: int, factor: int, echo_bytes: float = floa
 
     Not counted here: what is kept between calls (:mod:`.reuse`: the first-stage layouts, the
     grids' Scenes and trees; :mod:`.scratch`: the scratch buffers the last call gave back, which
-    this call takes in place of the groups' and sums' allocations counted above, their sizes
-    rounded up by at most 1/GRAIN, counted too); :func:`ffbp` lets it take only what the budget
-    leaves beside this total (:func:`.reuse.make_room`, :meth:`.scratch.Scratch.trim`).
+    this call takes in place of the groups', sums' and pixel fields' allocations counted above,
+    their sizes rounded up by at most 1/GRAIN, counted too); :func:`ffbp` lets it take only what
+    the budget leaves beside this total (:func:`.reuse.make_room`, :meth:`.scratch.Scratch.trim`).
     """
     largest = [max((g.size for g in level if g is not None), default=0) for level in tree.grids[:tree.top + 1]]
     leaf_batch = min(BATCH_POINTS, sum(g.size for g in tree.grids[0] if g is not None))

@@ -133,17 +133,17 @@ class Layout:
     """What a batch's bp_tile launch needs besides its records and references, the same for every
     echo of one geometry (:meth:`FirstStage._layout`; kept between calls by :mod:`.reuse`): its
     work-items' count, the tiles' reference points (T, 3) m and each leaf's first tile (L + 1,),
-    the tiles' largest half-extent (m), the pixel fields (host array and the device buffer using
-    it), each tile's first pulse (int32, from the echo's first), the work-items' tiles, the
-    images' slots (a device buffer, ffbp_fields') and each leaf's first slot, the rows' spans (a
-    device buffer) and each leaf's first row; and its references by records (``refs``: a device
-    buffer a receiver, filled by :meth:`FirstStage._launch`)."""
+    the tiles' largest half-extent (m), the pixel fields (a device buffer of a
+    :attr:`TileKernel.pixels` record a item, one of the call's scratch buffers), each tile's first
+    pulse (int32, from the echo's first), the work-items' tiles, the images' slots (a device
+    buffer, ffbp_fields') and each leaf's first slot, the rows' spans (a device buffer) and each
+    leaf's first row; and its references by records (``refs``: a device buffer a receiver, filled
+    by :meth:`FirstStage._launch`)."""
 
     n_items: int
     centres: np.ndarray
     first_tile: np.ndarray
     extent: float
-    fields: np.ndarray
     pix: object
     row_shift: np.ndarray
     tile_of: object
@@ -155,4 +155,4 @@ class Layout:
 
     @property
     def nbytes(self) -> int:
-        return int(self.fields.nbytes + self.tile_of.size + self.slots.size + self.spans.size)
+        return int(self.pix.size + self.tile_of.size + self.slots.size + self.spans.size)

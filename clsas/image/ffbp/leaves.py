@@ -67,8 +67,9 @@ class FirstStage:
                  stop_and_go: bool, layouts=None, scratch=None):
         self.echo, self.leaves, self.backend = echo, pulses, backend
         self.layouts = layouts  # the tree's batches' layouts kept between calls (.reuse.Layouts), or None
-        self.scratch = scratch  # the call's .scratch.Scratch, for the batches' sums (or None: their own buffers)
+        self.scratch = scratch  # the call's .scratch.Scratch, for the batches' sums and fields (None: own buffers)
         self.sums = []  # the scratch buffers holding sums that leaves not yet demodulated may still read
+        self.loose = []  # the fields' scratch buffers of layouts not kept, which the last batch's bp_tile reads
         self.first = max(p1 - p0 for p0, p1 in pulses)
         self.options = dict(receivers=chosen, interp=interp, upsample=upsample)
         self.aperture, self.stop_and_go = aperture, stop_and_go
@@ -77,7 +78,7 @@ class FirstStage:
         self.demodulate = 2 * echo.waveform.f0 / echo.medium.sound_speed
         self.ready = {}
         self.records = None  # every pulse's prepared records, when they fit RECORD_BYTES
-        self.pending = None  # what the last batch's queued kernels read from host memory (settle)
+        self.pending = None  # what the last batch's queued kernels read: its records and layout (settle)
         self.queued = []  # leaves whose demodulation waits for flush(): (made, grid, out, offset)
 
     def image(self, node: int, grid: PolarGrid, grids: list) -> np.ndarray:
@@ -138,16 +139,20 @@ class FirstStage:
         return image * expj_cycles(-self.demodulate * grid.ranges)[None, :] * grid.inside()
 
     def settle(self) -> None:
-        """Wait for the last batch's kernels, then let go of the host memory they read (its
-        records, its pixel fields): the walk enqueues its leaves' merges meanwhile, and the
-        next batch settles the last one before it allocates its own (so one batch's are held at a
-        time, as the memory plan counts). :func:`clsas.image.ffbp.ffbp` settles at its end."""
+        """Wait for the last batch's kernels, then let go of what they read (its records, host
+        memory; its layout, whose pixel fields' scratch buffer may serve others once no one holds
+        it): the walk enqueues its leaves' merges meanwhile, and the next batch settles the last
+        one before it allocates its own (so one batch's are held at a time, as the memory plan
+        counts). :func:`clsas.image.ffbp.ffbp` settles at its end."""
         if self.pending is not None:
             opencl.runtime().queue.finish()
             self.pending = None
 
     def _batch(self, node: int, grids: list) -> None:
         self.settle()
+        for fields in self.loose:  # the queue is finished: no bp_tile reads them now
+            self.scratch.recycle(fields)
+        self.loose = []
         if self.sums:  # the queue is finished: sums no leaf waiting for its demodulation reads go back
             reading = {id(m[0]) for m in self.ready.values() if not isinstance(m, np.ndarray)}
             reading |= {id(made[0]) for made, *_ in self.queued}
@@ -291,8 +296,8 @@ class FirstStage:
         while True:  # the largest tiles whose samples all lie within the budget of their references
             items, centres, n_tiles, n_items = polar_tiles(leaves, bv, br, seen)
             n_items = max(n_items, ROWS)  # at least one work-item (a launch of none is not allowed)
-            fields = np.empty(items.size, tile.pixels)  # one record a item: LANES samples
-            pix = cl.Buffer(ctx, mf.READ_WRITE | mf.USE_HOST_PTR, hostbuf=fields)
+            nbytes = tile.pixels.itemsize * items.size  # the pixel fields: one record a item (LANES samples)
+            pix = self.scratch.take(nbytes) if self.scratch is not None else cl.Buffer(ctx, mf.READ_WRITE, nbytes)
             items_buf = cl_buffer(items)
             largest = np.empty(items.size, np.float32)  # each item's largest dd (the fields' own, float32)
             largest_buf = cl.Buffer(ctx, mf.WRITE_ONLY, largest.nbytes)
@@ -308,13 +313,15 @@ class FirstStage:
             extent = float(np.sqrt(largest.max()))
             if extent <= budget:
                 break
+            if self.scratch is not None:  # ffbp_fields is done (the copy after it is): no kernel reads them
+                self.scratch.recycle(pix)
             if br == LANES and bv == ROWS:  # samples too far apart for any tile (a short leaf's coarse angles)
                 return None
             bv, br = halved(bv, br)
         first_tile = np.cumsum(np.r_[0, n_tiles])
         row_shift = np.repeat(np.array([self.leaves[k][0] for k in batch], np.int32), n_tiles)  # less b0 at launch
         spans = cl_buffer(np.concatenate([g.row_spans for g in (leaves if seen is None else seen)]))
-        return Layout(n_items, centres, first_tile, extent, fields, pix, row_shift,
+        return Layout(n_items, centres, first_tile, extent, pix, row_shift,
                       cl_buffer(items["tile"][:n_items:ROWS]), slots, slot_first,
                       spans, np.cumsum([0] + [g.n_v for g in leaves]))
 
@@ -361,6 +368,7 @@ class FirstStage:
             self.sums.append(image)
         else:
             image = cl.Buffer(ctx, mf.READ_WRITE, nbytes)
+        self.pending = (records, layout)  # read in place by the kernels queued below until settle()
         for i, h in enumerate(records.receivers):
             data, n_samples, _ = records.buffer(ctx, i, np.arange(echo.n_pulses), False)  # all pulses: row 0 first
             kern = tile.for_receiver(echo, h)  # the receiver's legs (TileKernel.legs_for)
@@ -372,9 +380,11 @@ class FirstStage:
         if new and self.layouts is not None:  # kept with its references (.reuse)
             self.layouts.put(key, layout, layout.nbytes)
         kept = self.layouts is not None and self.layouts.get(key) is layout
+        if new and self.scratch is not None:  # its fields' buffer goes with it (back once it is let go), or back
+            # to the pool once this batch's bp_tile is done (the next batch's settle)
+            (self.scratch.hand_over(layout.pix, layout) if kept else self.loose.append(layout.pix))
         if kept and refs_key not in layout.refs and self.layouts.add(sum(r.size for r in refs)):
             layout.refs[refs_key] = refs
-        self.pending = (records, layout)  # read in place by the queued kernels until settle()
         for j, k in enumerate(batch):  # the leaf's slots and spans from slot_first[j] and span_first[j] on
             self.ready[k] = (image, layout.slots, int(layout.slot_first[j]), layout.spans, int(layout.span_first[j]))
         return []

@@ -24,13 +24,14 @@ references) after the call returns, so they are kept for one tree at a time and 
 :func:`limit`: LAYOUT_BYTES, at most 1/SHARE of the memory budget (:mod:`clsas.budget`) and of the
 device's memory, and never more than the call's budget leaves beside its own plan and the host
 state kept (:func:`make_room`, before the call allocates: a call of another tree, or one that needs
-the room, lets go of the layouts held before it starts). The Scenes and trees kept (host memory:
-:meth:`Kept.nbytes`, the skeletons with their search trees, the fingerprints, the trees' rows'
-spans and the copies of the echoes' geometry) count against the budget too: all grids' together
-at most :func:`host_limit` (HOST_BYTES, 1/SHARE of the budget) and what a call's budget leaves
-beside its own plan; a call lets go of other grids' trees, then their Scenes, oldest first, then
-of its own tree (used once more, not kept) until they fit, and a geometry whose copies alone
-exceed the limit is not kept at all (:func:`planned`). ``from clsas.image.ffbp import release;
+the room, lets go of the layouts held before it starts; the pixel fields' buffers of the layouts let
+go join :mod:`.scratch`'s pool, which the next call bounds by its own room). The Scenes and trees
+kept (host memory: :meth:`Kept.nbytes`, the skeletons with their search trees, the fingerprints,
+the trees' rows' spans and the copies of the echoes' geometry) count against the budget too: all
+grids' together at most :func:`host_limit` (HOST_BYTES, 1/SHARE of the budget) and what a call's
+budget leaves beside its own plan; a call lets go of other grids' trees, then their Scenes,
+oldest first, then of its own tree (used once more, not kept) until they fit, and a geometry whose
+copies alone exceed the limit is not kept at all (:func:`planned`). ``from clsas.image.ffbp import release;
 release()`` lets go of all of it (every grid's Scene, tree and layouts); dropping the Grid lets go
 of its own.
 """

@@ -2,11 +2,15 @@
 
 A call's largest device buffers hold only its own intermediate results, written before they are
 read: the first stage's bp_tile sums (:mod:`.leaves`: a batch's, recycled within the call for a
-later batch once its leaves are demodulated, :meth:`Scratch.recycle`) and the merge tree's
-groups, one buffer a level (:class:`.store.DeviceStore`). Fresh ones cost their memory's page faults when the kernels
-first touch them (on PoCL's CPU device: thousands of faults and milliseconds of system time a
-call, bench_ffbp's wide case), so a call takes the buffers the last one gave back when they are
-large enough (:meth:`Scratch.take`), and gives its own back at its end (:meth:`Scratch.give_back`).
+later batch once its leaves are demodulated, :meth:`Scratch.recycle`), its batches' pixel fields
+(ffbp_fields' output, which bp_tile reads) and the merge tree's groups, one buffer a level
+(:class:`.store.DeviceStore`). Fresh ones cost their memory's page faults when the kernels first
+touch them (on PoCL's CPU device: thousands of faults and milliseconds of system time a call,
+bench_ffbp's wide case), so a call takes the buffers the last one gave back when they are large
+enough (:meth:`Scratch.take`), and gives its own back at its end (:meth:`Scratch.give_back`). A
+batch's pixel fields belong to its layout when :mod:`.reuse` keeps that (:meth:`Scratch.hand_over`):
+their buffer serves later calls once the layout is let go (a new geometry's call lets go of the
+last one's).
 
 Sizes are rounded up to 1/GRAIN of their power of two (a buffer holds up to 1/GRAIN more than
 asked; :func:`clsas.image.ffbp.memory_plan` counts it), so that a call on a slightly different
@@ -22,13 +26,14 @@ default device is read from the environment at each call); the room bounds all c
 from __future__ import annotations
 
 import threading
+import weakref
 
 from ... import opencl
 
 GRAIN = 32  # a buffer's size rounded up to a multiple of 1/GRAIN of its power of two
 
 _FREE: list = []  # (context's int_ptr, buffer) of the buffers kept between calls
-_LOCK = threading.Lock()
+_LOCK = threading.RLock()  # re-entrant: a buffer handed over comes back when its owner is collected, at any time
 
 
 def rounded(nbytes: int) -> int:
@@ -57,6 +62,13 @@ def _fit(buffers: list, room: float) -> list:
 def _largest_first(pairs: list) -> list:
     """(context, buffer) pairs, the largest buffer first."""
     return sorted(pairs, key=lambda kb: -kb[1].size)
+
+
+def _returned(key: int, buffer) -> None:
+    """A buffer handed over (:meth:`Scratch.hand_over`) whose owner was collected: kept for later calls
+    (within the room at the next call's trim and give_back)."""
+    with _LOCK:
+        _FREE.append((key, buffer))
 
 
 def release() -> None:
@@ -101,6 +113,14 @@ class Scratch:
         self.taken.remove(buffer)
         with _LOCK:
             _FREE.append((self.key, buffer))
+
+    def hand_over(self, buffer, owner) -> None:
+        """A buffer this call took goes to ``owner``, an object kept beyond the call (a first-stage
+        layout :mod:`.reuse` keeps): it is not given back at the call's end, and serves later calls'
+        :meth:`take` once ``owner`` is collected. No kernel reads it then: a call holds the layouts it
+        launched with until its queue has finished them (:meth:`.leaves.FirstStage.settle`)."""
+        self.taken.remove(buffer)
+        weakref.finalize(owner, _returned, self.key, buffer).atexit = False
 
     def give_back(self, room: float) -> None:
         """At the call's end: once its queue is finished (no kernel of the call still uses them),
