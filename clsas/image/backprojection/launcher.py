@@ -204,9 +204,11 @@ class _Chunk:
         opencl.kernel("bp_fields", "bp_order", preamble=tile.preamble, defines=tile.field_defines)(
             queue, *opencl.work_groups(flags.size), self.sums, slot_buf, np.int32(slot_of.size), np.int32(ORDER_RUN),
             out_buf, flags_buf)
-        for buf, host in ((out_buf, out), (flags_buf, flags)):  # the blocking maps wait for bp_order
-            mapped, _ = cl.enqueue_map_buffer(queue, buf, cl.map_flags.READ, 0, host.shape, host.dtype)
-            mapped.base.release()
+        # both mapped (the host arrays in sync) by one wait: the second map blocks, after the first in queue order
+        mapped = [cl.enqueue_map_buffer(queue, buf, cl.map_flags.READ, 0, host.shape, host.dtype, is_blocking=last)[0]
+                  for buf, host, last in ((out_buf, out, False), (flags_buf, flags, True))]
+        for m in mapped:
+            m.base.release()
         if seen is not None:
             seen.append(int(np.bitwise_or.reduce(flags)) if flags.size else 0)
         return out
