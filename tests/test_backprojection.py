@@ -1239,3 +1239,28 @@ def test_one_leg_with_a_constant_or_a_varying_receiver_velocity(opencl_device, v
     ref = backproject(echo, grid, backend="numpy", **kw)
     got = backproject(echo, grid, backend="opencl", **kw)
     assert rel_l2(got.data, ref.data) < 2e-3  # measured 2.3e-4 (constant), 1.7e-4 (along y and three axes)
+
+
+def test_held_records_are_staged_only_where_the_grid_reaches_most_of_them(opencl_device, kiang_echo, monkeypatch):
+    # a patch of records prepared whole reads a narrow span of each row: the call reads them in place (no copy),
+    # and the image is bit for bit the staged one's; records prepared for the grid's reach are staged
+    # (launcher._stage_worth_it, STAGE_SHARE)
+    import pyopencl as cl
+
+    from clsas.image.backprojection import launcher, records
+
+    grid = around((1989.0, 0.0, -350.0), 0.02, 0.05, 24, 24)
+    whole, fitted = prepare(kiang_echo, upsample=4), prepare(kiang_echo, upsample=4, grid=grid)
+    monkeypatch.setattr(records, "STAGE_BYTES", 2**30)  # every job small enough to stage, whole rows too
+    copy, copies = cl.enqueue_copy, []
+    monkeypatch.setattr(cl, "enqueue_copy", lambda *a, **k: copies.append(k.get("src_offset")) or copy(*a, **k))
+    in_place = backproject(whole, grid, backend="opencl", progress=False).data
+    assert not copies
+    monkeypatch.setattr(launcher, "STAGE_SHARE", 0.0)  # stage whatever the grid reaches
+    staged = backproject(whole, grid, backend="opencl", progress=False).data
+    assert len(copies) == len(whole.receivers)
+    assert staged.tobytes() == in_place.tobytes()
+    monkeypatch.setattr(launcher, "STAGE_SHARE", 0.5)
+    copies.clear()
+    backproject(fitted, grid, backend="opencl", progress=False)
+    assert len(copies) == len(fitted.receivers)

@@ -33,7 +33,7 @@ import numpy as np
 from ... import opencl
 from ...progress import Progress
 from .exact_kernel import ExactKernel
-from .records import UPLOAD_BYTES, PreparedRecords, launch_pulses
+from .records import UPLOAD_BYTES, PreparedRecords, launch_pulses, reach
 from .tile_kernel import TileKernel
 from .tiles import GridPlan
 
@@ -231,6 +231,24 @@ class _Chunk:
             sums.base.release()
 
 
+STAGE_SHARE = 0.5  # held records are staged when a grid reaches at least this share of their fast times
+
+
+def _stage_worth_it(records: PreparedRecords, plan: GridPlan, velocity) -> bool:
+    """Whether a call stages its jobs' held records (records.PreparedRecords.buffer): only when the
+    grid reaches at least STAGE_SHARE of the fast times the records hold (:func:`.records.reach`, a
+    bound, over every receiver). A patch reads a narrow span of each row, which stays in cache when
+    read in place, where a copy moves whole rows (bench/bench_backprojection.py's fixed-cost patch rows
+    on records prepared whole). Either way the image is the same bit for bit; records not held are
+    never staged."""
+    if not records.materialised:
+        return False
+    spans = reach(records.echo, records.receivers, None, velocity, plan.box)
+    lo, hi = np.maximum(spans[:, 0], records.span[:, 0]), np.minimum(spans[:, 1], records.span[:, 1])
+    share = np.sum(np.maximum(hi - lo, 0.0)) / max(float(np.sum(records.span[:, 1] - records.span[:, 0])), 1e-30)
+    return bool(share >= STAGE_SHARE)
+
+
 def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,
                        span: tuple[int, int], double=False):
     """The kernels/bp_tile.cl launcher: image (M,) complex64 (a grid of one chunk: put in the grid's
@@ -263,7 +281,8 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
     # the first job's records (jobs[0] below: chunk 0, receiver 0, the first upload block) before
     # anything else: their upsampling runs on the device while the host makes the call's kernels,
     # tiling and groups, which otherwise left the device idle
-    staging: dict = {}  # the call's buffers held records are staged into (records.PreparedRecords.buffer)
+    # the call's buffers held records are staged into (records.PreparedRecords.buffer), or None: read in place
+    staging: dict | None = {} if _stage_worth_it(records, plan, velocity) else None
     early = records.buffer(ctx, 0, np.arange(span[0], min(span[0] + upload, span[1])), double, staged=staging)
     echo, fs = records.echo, records.fs
     c, f0 = echo.medium.sound_speed, echo.waveform.f0
