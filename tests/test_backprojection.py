@@ -1264,3 +1264,36 @@ def test_held_records_are_staged_only_where_the_grid_reaches_most_of_them(opencl
     copies.clear()
     backproject(fitted, grid, backend="opencl", progress=False)
     assert len(copies) == len(fitted.receivers)
+
+
+def test_a_call_on_held_records_computes_the_grids_reach_once(opencl_device, kiang_echo, monkeypatch):
+    # records.records_for computes the reach of a call on held records not prepared whole (their coverage) and hands
+    # it to the launcher's staging choice (launcher._stage_worth_it), which computes its own only for records
+    # prepared whole (no coverage to check): one reach a call either way, and the staging choice unchanged
+    # (records prepared for the grid staged, a patch of records prepared whole read in place)
+    import pyopencl as cl
+
+    from clsas.image.backprojection import launcher, records
+
+    calls = []
+
+    def counted(of):
+        return lambda *a, **k: calls.append(of) or spans_reach(*a, **k)
+
+    spans_reach = records.reach
+    monkeypatch.setattr(records, "reach", counted("records"))
+    monkeypatch.setattr(launcher, "reach", counted("launcher"))
+    monkeypatch.setattr(records, "STAGE_BYTES", 2**30)  # every job small enough to stage, whole rows too
+    copy, copies = cl.enqueue_copy, []
+    monkeypatch.setattr(cl, "enqueue_copy", lambda *a, **k: copies.append(1) or copy(*a, **k))
+    grid = around((1989.0, 0.0, -350.0), 0.02, 0.05, 24, 24)
+    whole, fitted = prepare(kiang_echo, upsample=4), prepare(kiang_echo, upsample=4, grid=grid)
+    calls.clear()
+    backproject(fitted, grid, backend="opencl", progress=False)
+    assert calls == ["records"] and len(copies) == len(fitted.receivers)
+    calls.clear(), copies.clear()
+    backproject(whole, grid, backend="opencl", progress=False)
+    assert calls == ["launcher"] and not copies
+    calls.clear()
+    backproject(fitted, grid, backend="numpy", progress=False)
+    assert calls == ["records"]

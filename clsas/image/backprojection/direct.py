@@ -146,8 +146,8 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
     """
     _check_call(grid, aperture, stop_and_go)
     plan = _plan_of(grid)
-    records, velocity, span = records_for(echo, plan.grid, receivers, interp, upsample, target_velocity, pulses,
-                                          plan.box)
+    records, velocity, span, reached = records_for(echo, plan.grid, receivers, interp, upsample, target_velocity,
+                                                   pulses, plan.box)
     double = _backend.check_precision(precision)
     name = _backend.resolve(backend)
     g, source = plan.grid, records.echo
@@ -161,7 +161,7 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
             seen = None
         else:  # seen: bp_order's checks of a grid of one chunk's image (bit 1: a pixel not zero, 2: not finite)
             flat, fallbacks, kernel_seconds, seen = backproject_opencl(records, plan, aperture, velocity, stop_and_go,
-                                                                       progress, span, double)
+                                                                       progress, span, double, reached)
     with np.errstate(over="ignore"):  # a sum past complex64's range becomes inf: finite_result names the overflow
         flat = flat.astype(np.complex64, copy=False)  # launcher: complex64 already for a grid of one chunk
     if seen is None or seen & 2:  # (bp_order saw every pixel finite: no second pass over the image)

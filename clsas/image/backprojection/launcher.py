@@ -33,7 +33,8 @@ import numpy as np
 from ... import opencl
 from ...progress import Progress
 from .exact_kernel import ExactKernel
-from .records import UPLOAD_BYTES, PreparedRecords, launch_pulses, reach
+from .records import UPLOAD_BYTES, PreparedRecords, launch_pulses
+from .spans import reach
 from .tile_kernel import TileKernel
 from .tiles import GridPlan
 
@@ -234,34 +235,37 @@ class _Chunk:
 STAGE_SHARE = 0.5  # held records are staged when a grid reaches at least this share of their fast times
 
 
-def _stage_worth_it(records: PreparedRecords, plan: GridPlan, velocity) -> bool:
+def _stage_worth_it(records: PreparedRecords, plan: GridPlan, velocity, reached=None) -> bool:
     """Whether a call stages its jobs' held records (records.PreparedRecords.buffer): only when the
-    grid reaches at least STAGE_SHARE of the fast times the records hold (:func:`.records.reach`, a
-    bound, over every receiver). A patch reads a narrow span of each row, which stays in cache when
-    read in place, where a copy moves whole rows (bench/bench_backprojection.py's fixed-cost patch rows
-    on records prepared whole). Either way the image is the same bit for bit; records not held are
-    never staged."""
+    grid reaches at least STAGE_SHARE of the fast times the records hold (:func:`.spans.reach`, a
+    bound, over every receiver: ``reached`` (len(records.receivers), 2) s as records.records_for
+    computed it for the call, or computed here when None). A patch reads a narrow span of each
+    row, which stays in cache when read in place, where a copy moves whole rows
+    (bench/bench_backprojection.py's fixed-cost patch rows on records prepared whole). Either way
+    the image is the same bit for bit; records not held are never staged."""
     if not records.materialised:
         return False
-    spans = reach(records.echo, records.receivers, None, velocity, plan.box)
+    spans = reach(records.echo, records.receivers, None, velocity, plan.box) if reached is None else reached
     lo, hi = np.maximum(spans[:, 0], records.span[:, 0]), np.minimum(spans[:, 1], records.span[:, 1])
     share = np.sum(np.maximum(hi - lo, 0.0)) / max(float(np.sum(records.span[:, 1] - records.span[:, 0])), 1e-30)
     return bool(share >= STAGE_SHARE)
 
 
 def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,
-                       span: tuple[int, int], double=False):
+                       span: tuple[int, int], double=False, reached=None):
     """The kernels/bp_tile.cl launcher: image (M,) complex64 (a grid of one chunk: put in the grid's
-    order on the device, :meth:`_Chunk.in_grid_order`) or complex128 (several chunks: added on the host), how many (chunk, receiver,
-    pulse block) jobs ran on the exact double kernel, the back-projection kernels' own time (s, from the
-    queues' profiling events: the time some bp_tile or bp_block ran, two lanes' overlapping ones counted once),
-    and what bp_order saw of a grid of one chunk's image (bit 1: a pixel not zero, bit 2: one not finite;
-    None for several chunks: :meth:`_Chunk.in_grid_order`).
+    order on the device, :meth:`_Chunk.in_grid_order`) or complex128 (several chunks: added on the
+    host), how many (chunk, receiver, pulse block) jobs ran on the exact double kernel, the
+    back-projection kernels' own time (s, from the queues' profiling events: the time some bp_tile
+    or bp_block ran, two lanes' overlapping ones counted once), and what bp_order saw of a grid of
+    one chunk's image (bit 1: a pixel not zero, bit 2: one not finite; None for several chunks:
+    :meth:`_Chunk.in_grid_order`). ``reached``: the grid's reach over the records' receivers when
+    the caller computed it (records.records_for), for the staging choice (:func:`_stage_worth_it`).
     When the call raises, the commands it queued are finished first: they read host arrays
     (USE_HOST_PTR) that unwind with the call."""
     rt = opencl.runtime()
     try:
-        return _launched(rt, records, plan, aperture, velocity, stop_and_go, progress, span, double)
+        return _launched(rt, records, plan, aperture, velocity, stop_and_go, progress, span, double, reached)
     except BaseException:
         rt.queue.finish()
         if int(rt.context.int_ptr) in _SECOND_QUEUES:
@@ -270,7 +274,7 @@ def backproject_opencl(records: PreparedRecords, plan: GridPlan, aperture, veloc
 
 
 def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,
-              span: tuple[int, int], double):
+              span: tuple[int, int], double, reached):
     """:func:`backproject_opencl` on the runtime ``rt``."""
     import pyopencl as cl
 
@@ -282,7 +286,7 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
     # anything else: their upsampling runs on the device while the host makes the call's kernels,
     # tiling and groups, which otherwise left the device idle
     # the call's buffers held records are staged into (records.PreparedRecords.buffer), or None: read in place
-    staging: dict | None = {} if _stage_worth_it(records, plan, velocity) else None
+    staging: dict | None = {} if _stage_worth_it(records, plan, velocity, reached) else None
     early = records.buffer(ctx, 0, np.arange(span[0], min(span[0] + upload, span[1])), double, staged=staging)
     echo, fs = records.echo, records.fs
     c, f0 = echo.medium.sound_speed, echo.waveform.f0

@@ -10,7 +10,7 @@ gives the bit-identical image, on both backends::
         image = backproject(records, grid)
 
 Spans. With ``grid=`` a Grid, only the fast-time span that grid can reach is prepared (per
-receiver, over all pulses; :func:`reach`), which makes one call on a small patch cheap; with a
+receiver, over all pulses; :func:`.spans.reach`), which makes one call on a small patch cheap; with a
 ``(start, stop)`` fast-time span (seconds), that span; with None, the whole records. Records that
 are not upsampled (sinc8, or upsample=1) are the echo's own, read in place whole.
 ``backproject`` refuses a grid whose reach the records do not cover.
@@ -49,14 +49,12 @@ from ... import budget, opencl, validate
 from ...model import EchoData, Grid
 from .. import upsample as fir
 from ..rangecomp import check_workers
-from ..upsample import FFT_BATCH_BYTES, UPSAMPLE_BLOCK, upsample_blocks  # noqa: F401 (FFT_BATCH_BYTES: ffbp's budget)
-from .tiles import pixel_box
+# (FFT_BATCH_BYTES: ffbp's budget; UPSAMPLE_BLOCK: the tests')
+from ..upsample import FFT_BATCH_BYTES, UPSAMPLE_BLOCK, upsample_blocks  # noqa: F401
+from .spans import MIN_SAMPLES, reach, samples_for_span
 
 INTERPOLATORS = ("linear", "sinc8")
-# samples an interpolator reads around floor(k) (before, after), in samples of the records it reads
-INTERP_REACH = {"linear": (0, 1), "sinc8": (3, 4)}
 UPLOAD_BYTES = 64 * 2**20  # records prepared and uploaded at once when a call prepares its own
-MIN_SAMPLES = 8  # samples of the shortest prepared record (sinc8 loads eight at once)
 # records one bp_tile launch reads at most (about a core's L2): a block of pulses whose records are
 # longer is summed over several launches of fewer pulses (:func:`launch_pulses`), whose records then
 # stay in cache while the launch's work-items read them (long upsampled records on a small grid:
@@ -98,74 +96,6 @@ def check_options(echo, receivers, interp, upsample, target_velocity, who: str =
         raise ValueError(f"{who} target_velocity: must be at most {validate.MAX_SPEED:g} m/s, got "
                          f"{np.linalg.norm(v):g} m/s")
     return chosen, v
-
-
-def _box_distances(a_lo, a_hi, b_lo, b_hi):
-    """Smallest and largest distance (m) between points of boxes a and b (..., 3)."""
-    gap = np.maximum(0.0, np.maximum(a_lo - b_hi, b_lo - a_hi))
-    far = np.maximum(np.abs(a_hi - b_lo), np.abs(b_hi - a_lo))
-    return np.sqrt(np.sum(gap * gap, axis=-1)), np.sqrt(np.sum(far * far, axis=-1))
-
-
-def reach(echo: EchoData, receivers, positions: np.ndarray, target_velocity=None, box=None) -> np.ndarray:
-    """(len(receivers), 2) s: a fast-time span per receiver that holds the two-way delay of every
-    pixel of ``positions`` (..., 3) m at every pulse whose delay falls inside the record (``box``:
-    their :func:`.tiles.pixel_box` when already known, e.g. a GridPlan's; ``positions`` is then
-    not read).
-
-    A bound, not the exact extremes: the pixels' bounding box (moved to each pulse by the
-    velocity, and grown by |v| times the record's end for the motion during the legs) and the
-    box of the receiver's position nodes over the pulse (grown likewise where the record outlasts
-    its nodes) give t1 in [d(T, box), D(T, box)] / c and t2 in [d(box_R, box), D(box_R, box)] / c,
-    d and D the smallest and largest distances. It holds for the exact non-stop-and-go delays and
-    for stop-and-go alike (every position either uses lies in the boxes), at the cost of a few
-    samples' slack on a small patch.
-    """
-    c = echo.medium.sound_speed
-    v = np.zeros(3) if target_velocity is None else np.asarray(target_velocity, dtype=np.float64)
-    t_end = float(np.max(echo.t0)) + echo.n_samples / echo.fs
-    grow = np.linalg.norm(v) * t_end
-    box_lo, box_hi = pixel_box(positions) if box is None else box
-    lo = box_lo + echo.eta[:, None] * v - grow  # (P, 3)
-    hi = box_hi + echo.eta[:, None] * v + grow
-    near1, far1 = _box_distances(echo.tx_pos, echo.tx_pos, lo, hi)  # (P,)
-    h = np.asarray(receivers, dtype=np.intp)
-    nodes, pos = echo.rx_tau[h], echo.rx_pos[h]  # (H, N), (H, P, N, 3): every receiver at once
-    r_lo, r_hi = pos[:, :, 0], pos[:, :, 0]  # (H, P, 3): node by node (a reduction over axis 2 is slow)
-    for k in range(1, pos.shape[2]):
-        r_lo, r_hi = np.minimum(r_lo, pos[:, :, k]), np.maximum(r_hi, pos[:, :, k])
-    if nodes.shape[1] > 1:  # rx_position extrapolates linearly beyond the nodes
-        speed = np.max(np.linalg.norm(np.diff(pos, axis=2), axis=-1) / np.diff(nodes)[:, None, :], axis=2)  # (H, P)
-        extra = speed * (np.maximum(t_end - nodes[:, -1], 0.0) + np.maximum(nodes[:, 0], 0.0))[:, None]
-        r_lo, r_hi = r_lo - extra[..., None], r_hi + extra[..., None]
-    near2, far2 = _box_distances(r_lo, r_hi, lo, hi)  # (H, P)
-    return np.stack([np.min(near1 + near2, axis=1) / c, np.max(far1 + far2, axis=1) / c], axis=1)
-
-
-def _blocks_of(span: np.ndarray, t0: float, fs: float, n: int, interp: str, factor: int,
-               blocks: bool) -> tuple[int, int]:
-    """The original samples [first, stop) to prepare for a fast-time span (s): the span's samples
-    widened by the interpolator's reach (in original samples, plus one for rounding), clipped to
-    the record, and for FFT-upsampled records (``blocks``) rounded out to whole UPSAMPLE_BLOCKs;
-    records that are not upsampled are read in place, whole ((0, n): a view costs nothing, a cut
-    would be a copy), unless the span misses them."""
-    before, after = INTERP_REACH[interp]
-    if factor > 1:  # the linear interpolator's two upsampled samples lie within one original sample
-        before, after = 0, 1
-    first = int(np.floor((span[0] - t0) * fs)) - before - 1
-    stop = int(np.ceil((span[1] - t0) * fs)) + after + 2
-    first, stop = max(first, 0), min(stop, n)
-    if first >= stop:
-        return 0, 0
-    if factor == 1:
-        return 0, n
-    if stop - first < MIN_SAMPLES:  # the kernels load whole windows of a record: keep at least one
-        stop = min(first + MIN_SAMPLES, n)
-        first = max(stop - MIN_SAMPLES, 0)
-    if blocks:
-        first = first // UPSAMPLE_BLOCK * UPSAMPLE_BLOCK
-        stop = min(-(-stop // UPSAMPLE_BLOCK) * UPSAMPLE_BLOCK, n)
-    return first, stop
 
 
 class PreparedRecords:
@@ -219,10 +149,10 @@ class PreparedRecords:
 
     def _samples_for(self, spans: np.ndarray) -> np.ndarray:
         """(len(receivers), 2) int64: the original samples [first, stop) to prepare for the fast-time
-        ``spans`` (len(receivers), 2) s (:func:`_blocks_of`)."""
+        ``spans`` (len(receivers), 2) s (:func:`.spans.samples_for_span`)."""
         echo = self.echo
         blocks = self.upsampler == "fft"
-        bounds = [_blocks_of(spans[i], echo.t0[h], echo.fs, echo.n_samples, self.interp, self.factor, blocks)
+        bounds = [samples_for_span(spans[i], echo.t0[h], echo.fs, echo.n_samples, self.interp, self.factor, blocks)
                   for i, h in enumerate(self.receivers)]
         return np.asarray(bounds, dtype=np.int64).reshape(-1, 2)
 
@@ -395,7 +325,7 @@ def prepare(compressed: EchoData, upsample: int = 8, interp: str = "linear", rec
     receivers : indices or names of the receivers to prepare (default: all).
     grid : None, Grid, or a fast-time span
         Which samples to prepare: None, every sample of the records; a :class:`clsas.model.Grid`,
-        the span it can reach (:func:`reach`; ``target_velocity`` the pixels' velocity); a pair
+        the span it can reach (:func:`.spans.reach`; ``target_velocity`` the pixels' velocity); a pair
         ``(start, stop)`` in seconds (fast time after emission), the same for every receiver, or
         an array (len(receivers), 2), one span per receiver.
     target_velocity : 3-vector, m/s, optional; the velocity the calls will give, for ``grid``'s reach.
@@ -426,7 +356,7 @@ def upsampler_for(echo: EchoData, factor: int):
 
 def fast_time_spans(echo: EchoData, chosen, grid, velocity, box=None) -> np.ndarray:
     """(len(chosen), 2) s: the spans to prepare for ``grid`` (see :func:`prepare`; ``box``: a
-    Grid's pixel box when known, :func:`reach`)."""
+    Grid's pixel box when known, :func:`.spans.reach`)."""
     if grid is None:
         t0 = np.asarray(echo.t0)[list(chosen)]
         return np.column_stack([t0, t0 + echo.n_samples / echo.fs])
@@ -464,10 +394,11 @@ def _pulse_span(pulses, n_pulses: int) -> tuple[int, int]:
 
 def records_for(echo, grid: Grid, receivers, interp, upsample, target_velocity, pulses, box=None) -> tuple:
     """What one :func:`clsas.backproject` call reads: (records, the pixels' velocity (3,), the
-    pulses (start, stop) to sum). ``echo`` an EchoData (its records are then prepared for
-    ``grid``'s reach block by block during the call) or :class:`PreparedRecords` (checked
-    against the options and the grid; ``box``: the grid's pixel box when known, :func:`reach`);
-    ValueError/TypeError naming the parameter."""
+    pulses (start, stop) to sum, the grid's reach (len(records.receivers), 2) s when computed here, else
+    None). ``echo`` an EchoData (its records are then prepared for ``grid``'s reach block by block during
+    the call) or :class:`PreparedRecords` (checked against the options and the grid; ``box``: the grid's
+    pixel box when known, :func:`.spans.reach`: computed once a call, for the coverage of records not
+    whole, and handed on for the launcher's staging choice); ValueError/TypeError naming the parameter."""
     if isinstance(echo, PreparedRecords):
         records = echo
         for name, asked, held in (("interp", interp, records.interp), ("upsample", upsample, records.upsample)):
@@ -482,8 +413,8 @@ def records_for(echo, grid: Grid, receivers, interp, upsample, target_velocity, 
                 raise ValueError(f"receivers {missing} were not prepared; the records hold "
                                  f"{[records.echo.receivers[h] for h in records.receivers]}")
             records = records.subset(chosen)
-        covered = [True] if records.whole else records.covers(reach(records.echo, records.receivers,
-                                                                    grid.positions, velocity, box))
+        reached = None if records.whole else reach(records.echo, records.receivers, grid.positions, velocity, box)
+        covered = [True] if reached is None else records.covers(reached)
         if not np.all(covered):
             names = [records.echo.receivers[h] for h, ok in zip(records.receivers, covered) if not ok]
             raise ValueError(f"grid: the prepared records do not cover the fast times this grid reaches "
@@ -492,9 +423,9 @@ def records_for(echo, grid: Grid, receivers, interp, upsample, target_velocity, 
         interp = "linear" if interp is None else interp
         upsample = 8 if upsample is None else upsample
         chosen, velocity = check_options(echo, receivers, interp, upsample, target_velocity)
-        # records not upsampled are read whole, in place (_blocks_of): the grid's reach would only tell a record
-        # it misses entirely, whose samples the kernels then never read (they read none outside a record)
-        reached = grid if (int(upsample) if interp == "linear" else 1) > 1 else None
-        records = PreparedRecords(echo, chosen, interp, int(upsample),
-                                  fast_time_spans(echo, chosen, reached, velocity, box), materialise=False)
-    return records, velocity, _pulse_span(pulses, records.echo.n_pulses)
+        # records not upsampled are read whole, in place (spans.samples_for_span): the grid's reach would only tell a
+        # record it misses entirely, whose samples the kernels then never read (they read none outside a record)
+        spans = fast_time_spans(echo, chosen, grid if (int(upsample) if interp == "linear" else 1) > 1 else None,
+                                velocity, box)
+        records, reached = PreparedRecords(echo, chosen, interp, int(upsample), spans, materialise=False), None
+    return records, velocity, _pulse_span(pulses, records.echo.n_pulses), reached
