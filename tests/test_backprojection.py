@@ -1297,3 +1297,46 @@ def test_a_call_on_held_records_computes_the_grids_reach_once(opencl_device, kia
     calls.clear()
     backproject(fitted, grid, backend="numpy", progress=False)
     assert calls == ["records"]
+
+
+def test_a_calls_record_buffers_count_against_the_memory_budget(opencl_device, kiang_echo, monkeypatch):
+    # review 14 L3: a call's buffers for its records (records made per call: a job's upsampled records on each of two
+    # lanes, the FIR's scratch buffer a queue; held records: the rows two lanes stage) count with its pixels in the
+    # memory budget (records.PreparedRecords.call_bytes, checked by backproject on both backends): a budget a byte too
+    # small refuses the call, naming it, before any of its records are made; a budget that holds them runs it, the
+    # image as under the default budget bit for bit, its two lanes' buffers as large as counted (held records: the
+    # largest row staged)
+    from clsas.image.backprojection import direct, records
+
+    made, buffers = [], {}
+    for name in ("buffer", "samples"):
+        method = getattr(records.PreparedRecords, name)
+        monkeypatch.setattr(records.PreparedRecords, name,
+                            lambda self, *a, _m=method, _n=name, **k: made.append(_n) or _m(self, *a, **k))
+    scratch_of = records.PreparedRecords._scratch_of
+
+    def kept(self, *a, **k):
+        buf = scratch_of(self, *a, **k)
+        buffers[buf.int_ptr] = buf.size
+        return buf
+
+    monkeypatch.setattr(records.PreparedRecords, "_scratch_of", kept)
+    grid = around((1989.0, 0.0, -350.0), 0.02, 0.05, 4, 4)
+    fitted = prepare(kiang_echo, upsample=8, grid=grid)
+    for echo, phrase in ((kiang_echo, "and its records upsampled by 8 a job at a time"),
+                         (fitted, "and the held records' rows it stages")):
+        plain, _, span, _ = records.records_for(echo, grid, None, None, None, None, None)
+        extra = plain.call_bytes(span[1] - span[0])
+        need = direct.BYTES_PER_PIXEL * grid.size + extra
+        assert extra > 10 * direct.BYTES_PER_PIXEL * grid.size  # the records' buffers, not the pixels, decide here
+        expected = backproject(echo, grid, backend="opencl", progress=False).data
+        for backend in ("opencl", "numpy"):
+            made.clear()
+            with clsas.use_memory_budget(need - 1), pytest.raises(clsas.errors.MemoryBudgetError, match=phrase):
+                backproject(echo, grid, backend=backend, progress=False)
+            assert not made, backend
+        buffers.clear()
+        with clsas.use_memory_budget(need):
+            got = backproject(echo, grid, backend="opencl", progress=False).data
+        assert got.tobytes() == expected.tobytes()
+        assert len(buffers) == 2 and 2 * max(buffers.values()) == extra, (buffers, extra)  # one a lane, the largest

@@ -99,6 +99,21 @@ def _check_call(grid, aperture, stop_and_go):
                        "image fewer pixels at a time (tiles of the grid)")
 
 
+def _check_records(size: int, records, span: tuple[int, int]) -> None:
+    """Refuse a call whose pixels and its records' buffers (:meth:`.records.PreparedRecords.call_bytes`: the
+    upsampled jobs' buffers, or held records' staging) exceed the memory budget, before either is allocated."""
+    extra = records.call_bytes(span[1] - span[0])
+    if not extra:
+        return
+    if records.materialised:
+        what, advice = "and the held records' rows it stages", "image fewer pixels at a time (tiles of the grid)"
+    else:
+        what = (f"and its records upsampled by {records.upsample} a job at a time ({records.upload_pulses()} pulses x "
+                f"up to {int(records.length.max())} samples)")
+        advice = "image a smaller grid at a time (the records' span it reaches shrinks with it), or upsample less"
+    budget.check_bytes(f"backproject onto {size} pixels {what}", BYTES_PER_PIXEL * float(size) + extra, advice)
+
+
 def backproject(echo, grid, backend: str | None = None, receivers=None, interp: str | None = None,
                 upsample: int | None = None, aperture: float | None = None, target_velocity=None,
                 stop_and_go: bool = False, precision: str = "single", progress: bool = True,
@@ -148,6 +163,7 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
     plan = _plan_of(grid)
     records, velocity, span, reached = records_for(echo, plan.grid, receivers, interp, upsample, target_velocity,
                                                    pulses, plan.box)
+    _check_records(plan.grid.size, records, span)
     double = _backend.check_precision(precision)
     name = _backend.resolve(backend)
     g, source = plan.grid, records.echo

@@ -37,7 +37,9 @@ Device memory. A PreparedRecords holds its samples on the host (complex64, read-
 buffers are made on first OpenCL use, one per receiver (and one complex128 copy per receiver for
 ``precision="double"``, made on first use of that precision), and live as long as the object or
 until :meth:`PreparedRecords.release`. On PoCL CPU devices a complex64 buffer uses the host array
-in place (CL_MEM_USE_HOST_PTR: no copy); on a GPU it is a copy in device memory.
+in place (CL_MEM_USE_HOST_PTR: no copy); on a GPU it is a copy in device memory. A call's own
+buffers for its records (a job's upsampled records a lane, or held rows staged: :meth:`PreparedRecords.call_bytes`)
+count with its pixels against the memory budget, checked before the call makes them.
 """
 
 from __future__ import annotations
@@ -277,6 +279,20 @@ class PreparedRecords:
                                                              (self._bounds, self.offset, self.length, self.span))
         part._host = None if self._host is None else [self._host[r] for r in rows]
         return part
+
+    def call_bytes(self, n_pulses: int) -> int:
+        """Bytes a call summing ``n_pulses`` pulses allocates for its records beyond those held (a bound,
+        which the call checks against the memory budget before it allocates: :mod:`.direct`). Records
+        made per call and upsampled: a job's upsampled records on each of two lanes (16 bytes a sample
+        of upload_pulses pulses, as the launcher counts a job: on the device, one FIR scratch buffer a
+        lane's queue, :meth:`_scratch_of`). Held records: the buffers two lanes stage rows into (up to
+        STAGE_BYTES each, :meth:`buffer`). Records read in place (not upsampled): none."""
+        if self._host is not None:
+            rows = [8 * held.shape[1] * int(n_pulses) for held in self._host]
+            return 2 * max([r for r in rows if r <= STAGE_BYTES], default=0)
+        if self.factor == 1:
+            return 0
+        return 16 * min(self.upload_pulses(), self.echo.n_pulses) * max(1, int(np.max(self.length)))
 
     def upload_pulses(self) -> int:
         """Pulses a call's job covers: all for materialised records (their buffers hold every
