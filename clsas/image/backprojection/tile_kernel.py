@@ -106,11 +106,13 @@ TILE_REFS = {"same": record_dtype(_REF),
              "two": record_dtype(_REF + [("leg2", "f4", 3), ("b2", "f4"), ("v_rx", "f4", 3), ("a2", "f4")])}
 TILE_PARAMS = record_dtype([("a1", "f4"), ("fs", "f4"), ("f0", "f4"), ("velocity", "f4", 3), ("half_sin", "f4"),
                             ("c", "f4")])
-# bp_refs' records (the references computed on the device): a pulse of a receiver (transmitter,
-# emission time, the receiver at emission and its velocity, its window start t0 and its records'
-# first sample) and the launch's parameters
-REF_PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("rx0", "f8", 3), ("v_rx", "f8", 3), ("t0", "f8"),
-                          ("offset", "i4")])
+# bp_refs' inputs (the references computed on the device): a pulse of a receiver's fields, a row
+# of doubles each (transmitter, emission time, the receiver at emission and its velocity, its window
+# start t0, its records' first sample, and legs "mono"'s w and alpha), in kernels/bp_refs.cl's order,
+# and the launch's parameters
+REF_FIELDS = ("tx_x", "tx_y", "tx_z", "eta", "rx0_x", "rx0_y", "rx0_z", "v_rx_x", "v_rx_y", "v_rx_z", "t0", "offset",
+              "w_x", "w_y", "w_z", "alpha")
+REF_LANES = 8  # references a bp_refs work-item computes side by side (kernels/bp_refs.cl's REF_LANES)
 REF_PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("velocity", "f8", 3), ("half_extent", "f8"),
                            ("rho_max", "f8"), ("bias", "i4")])
 _OFFSETS = [("dx", "f4", LANES), ("dy", "f4", LANES), ("dz", "f4", LANES), ("dd", "f4", LANES)]
@@ -127,7 +129,7 @@ def _preambles(legs: str, moving: bool) -> tuple[str, str]:
     same programs)."""
     preamble = declare_all({"tile_ref_t": TILE_REFS[legs], "tile_params_t": TILE_PARAMS,
                             "bp_pixels_t": MOVING_PIXELS if moving else PIXELS}) + _horner("LEG_POLY", LEG_POLY)
-    return preamble, preamble + declare_all({"bp_ref_pulse_t": REF_PULSE, "bp_ref_params_t": REF_PARAMS})
+    return preamble, preamble + declare_all({"bp_ref_params_t": REF_PARAMS})
 
 
 def _at_emission(echo, hs: np.ndarray, pulses: np.ndarray) -> np.ndarray:
@@ -327,19 +329,37 @@ class TileKernel:
         if not all(self.on_device(echo, int(k)) for k in hs):
             return None
         rt = opencl.runtime()
-        pulse = np.zeros((hs.size, pulses.size), REF_PULSE)
-        pulse["tx"], pulse["eta"] = echo.tx_pos[pulses], echo.eta[pulses]
-        pulse["rx0"] = _at_emission(echo, hs, pulses)
-        if not self.stop_and_go and echo.rx_tau.shape[-1] == 2:
-            pulse["v_rx"] = (echo.rx_pos[hs[:, None], pulses, 1] - echo.rx_pos[hs[:, None], pulses, 0]) / np.diff(
-                echo.rx_tau[hs], axis=-1)[:, :, None]  # two_node_velocity of every receiver
-        pulse["t0"], pulse["offset"] = np.asarray(echo.t0)[hs][:, None], np.asarray(offsets)[:, None]
+        # the pulses' fields a row each (REF_FIELDS), receiver after receiver, each over
+        # ``pulses``; REF_LANES - 1 columns of padding for the last work-item's vector loads
+        columns = hs.size * pulses.size
+        pulse = np.zeros((len(REF_FIELDS), columns + REF_LANES), np.float64)
+        rows = {name: pulse[k, :columns].reshape(hs.size, pulses.size) for k, name in enumerate(REF_FIELDS)}
         c = echo.medium.sound_speed
+        for k, axis in enumerate("xyz"):
+            rows["tx_" + axis][:] = echo.tx_pos[pulses, k]
+        rows["eta"][:] = echo.eta[pulses]
+        at_emission = _at_emission(echo, hs, pulses)
+        for k, axis in enumerate("xyz"):
+            rows["rx0_" + axis][:] = at_emission[..., k]
+        if not self.stop_and_go and echo.rx_tau.shape[-1] == 2:
+            v_rx = (echo.rx_pos[hs[:, None], pulses, 1] - echo.rx_pos[hs[:, None], pulses, 0]) / np.diff(
+                echo.rx_tau[hs], axis=-1)[:, :, None]  # two_node_velocity of every receiver
+            for k, axis in enumerate("xyz"):
+                rows["v_rx_" + axis][:] = v_rx[..., k]
+            if self.legs == "mono":  # w and alpha of each pulse (the module docstring), as bp_refs made them
+                x, y, z = (rows["v_rx_" + axis] for axis in "xyz")
+                a2 = c * c - ((x * x + y * y) + z * z)
+                for axis in "xyz":
+                    rows["w_" + axis][:] = 2.0 * rows["v_rx_" + axis] / a2
+                rows["alpha"][:] = 2.0 * c * c / a2
+        rows["t0"][:], rows["offset"][:] = np.asarray(echo.t0)[hs][:, None], np.asarray(offsets)[:, None]
         params = np.zeros((), REF_PARAMS)
         params["c"], params["f0"], params["fs"] = c, echo.waveform.f0, fs
         params["velocity"], params["half_extent"], params["rho_max"] = self.velocity, half_extent, RHO_MAX
         params["bias"] = self.bias(half_extent, c, fs)
-        per_tile = pulse.size if tile_first is None else pulses.size - int(tile_first.max(initial=0))
+        per_tile = columns if tile_first is None else pulses.size - int(tile_first.max(initial=0))
+        n_chunks = -(-per_tile // REF_LANES)
+        n_items = n_tiles * n_chunks
         n_refs = n_tiles * per_tile
         out = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, self.reference_dtype.itemsize * max(n_refs, 1))
         pulse_buf = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=pulse)
@@ -348,8 +368,8 @@ class TileKernel:
             extra = (cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=tile_first),)
             defines = {**defines, "TILE_FIRST": 1}
         opencl.kernel("bp_refs", "bp_refs", preamble=self.ref_preamble, defines=defines)(
-            queue, *opencl.work_groups(n_refs), centres, pulse_buf, params[()], np.int32(per_tile),
-            np.int32(n_refs), out, *extra)
+            queue, *opencl.work_groups(n_items), centres, pulse_buf, np.int32(pulse.shape[1]), params[()],
+            np.int32(per_tile), np.int32(n_chunks), np.int32(n_items), out, *extra)
         return out
 
     def spans(self, ref: np.ndarray, half_extent: float, c: float, first: int) -> np.ndarray:
