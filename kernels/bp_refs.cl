@@ -14,7 +14,8 @@
  * pulse (REF_FIELDS rows of `stride` doubles, TileKernel.references_on_device: a row a field, a column a
  * pulse): tx (x, y, z), eta, rx0 = the receiver at emission (x, y, z), v_rx = its velocity (x, y, z),
  * t0 = its window start, offset = the first sample of its records (samples at fs from t0) and (MONO)
- * w = 2 v_rx / a2 (x, y, z) and alpha = 2 c^2 / a2, a2 = c^2 - |v_rx|^2 (per pulse: made once on the host); the
+ * w = 2 v_rx / a2 (x, y, z), alpha = 2 c^2 / a2, a2 = c^2 - |v_rx|^2, and w_run = how many of the receiver's
+ * following pulses have a w of the same float bits (per pulse: made once on the host, tile_kernel.w_runs); the
  * pulses of several receivers in one launch (clsas/image/backprojection/launcher.py: receiver after
  * receiver, each over the same pulses); centres[t]: the tile's reference point at t = 0;
  * TILE_FIRST (ffbp's first stage: many sub-apertures a launch): tile t's references are of the
@@ -98,6 +99,8 @@ __kernel void bp_refs(__global const double *centres, __global const double *pul
 #if defined(MONO)
     const float8 wx = convert_float8(ROW(12)), wy = convert_float8(ROW(13)), wz = convert_float8(ROW(14));
     const float8 alpha = convert_float8(ROW(15));
+    /* within the tile's row of n_pulses (TILE_FIRST: as a launch on the tile's own pulses gives it) */
+    const int8 w_run = min(convert_int8(ROW(16)), n_pulses - 1 - j0 - (int8)(0, 1, 2, 3, 4, 5, 6, 7));
 #elif !defined(SAME_LEGS)
     const dv3 cc = v3_sub(r, q);
     const float8 cx = convert_float8(cc.x), cy = convert_float8(cc.y), cz = convert_float8(cc.z);
@@ -108,7 +111,7 @@ __kernel void bp_refs(__global const double *centres, __global const double *pul
     __global tile_ref_t *out = ref + (size_t)t * n_pulses + j0;
     const int lanes = min(REF_LANES, n_pulses - j0);
 #if defined(MONO)
-#define LEG2(l) o.w[0] = wx.s##l; o.w[1] = wy.s##l; o.w[2] = wz.s##l; o.alpha = alpha.s##l;
+#define LEG2(l) o.w[0] = wx.s##l; o.w[1] = wy.s##l; o.w[2] = wz.s##l; o.alpha = alpha.s##l; o.w_run = w_run.s##l;
 #elif !defined(SAME_LEGS)
 #define LEG2(l)                                                                      \
     o.leg2[0] = cx.s##l; o.leg2[1] = cy.s##l; o.leg2[2] = cz.s##l; o.b2 = b2.s##l; \

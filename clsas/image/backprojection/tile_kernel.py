@@ -102,16 +102,16 @@ def _horner(name: str, coefficients) -> str:
 _REF = [("leg1", "f4", 3), ("b1", "f4"), ("k1", "f4"), ("k2", "f4"), ("poly", "i4"), ("k_ref", "i4"), ("k_frac", "f4"),
         ("cycles", "f4"), ("range1", "f4")]
 TILE_REFS = {"same": record_dtype(_REF),
-             "mono": record_dtype(_REF + [("w", "f4", 3), ("alpha", "f4")]),
+             "mono": record_dtype(_REF + [("w", "f4", 3), ("alpha", "f4"), ("w_run", "i4")]),
              "two": record_dtype(_REF + [("leg2", "f4", 3), ("b2", "f4"), ("v_rx", "f4", 3), ("a2", "f4")])}
 TILE_PARAMS = record_dtype([("a1", "f4"), ("fs", "f4"), ("f0", "f4"), ("velocity", "f4", 3), ("half_sin", "f4"),
                             ("c", "f4")])
 # bp_refs' inputs (the references computed on the device): a pulse of a receiver's fields, a row
 # of doubles each (transmitter, emission time, the receiver at emission and its velocity, its window
-# start t0, its records' first sample, and legs "mono"'s w and alpha), in kernels/bp_refs.cl's order,
+# start t0, its records' first sample, and legs "mono"'s w, alpha and w_run), in kernels/bp_refs.cl's order,
 # and the launch's parameters
 REF_FIELDS = ("tx_x", "tx_y", "tx_z", "eta", "rx0_x", "rx0_y", "rx0_z", "v_rx_x", "v_rx_y", "v_rx_z", "t0", "offset",
-              "w_x", "w_y", "w_z", "alpha")
+              "w_x", "w_y", "w_z", "alpha", "w_run")
 REF_LANES = 8  # references a bp_refs work-item computes side by side (kernels/bp_refs.cl's REF_LANES)
 REF_PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("velocity", "f8", 3), ("half_extent", "f8"),
                            ("rho_max", "f8"), ("bias", "i4")])
@@ -130,6 +130,16 @@ def _preambles(legs: str, moving: bool) -> tuple[str, str]:
     preamble = declare_all({"tile_ref_t": TILE_REFS[legs], "tile_params_t": TILE_PARAMS,
                             "bp_pixels_t": MOVING_PIXELS if moving else PIXELS}) + _horner("LEG_POLY", LEG_POLY)
     return preamble, preamble + declare_all({"bp_ref_params_t": REF_PARAMS})
+
+
+def w_runs(w: np.ndarray) -> np.ndarray:
+    """For each of P pulses' w ((P, 3), rounded to float32 as the references hold it): how many of
+    the pulses that follow it have a w of the same bits (legs "mono"'s ``w_run``: bp_tile makes the
+    rows' w . delta once for such a run of pulses)."""
+    bits = np.ascontiguousarray(w, np.float32).view(np.uint32)
+    breaks = np.flatnonzero(np.any(bits[1:] != bits[:-1], axis=-1))  # the last pulse of each run but the last
+    index = np.arange(bits.shape[0])
+    return np.append(breaks, bits.shape[0] - 1)[np.searchsorted(breaks, index)] - index
 
 
 def _at_emission(echo, hs: np.ndarray, pulses: np.ndarray) -> np.ndarray:
@@ -284,6 +294,8 @@ class TileKernel:
             a2 = c * c - np.einsum("...i,...i->...", v_r, v_r)
             ref["w"] = 2 * v_r / a2[..., None]
             ref["alpha"] = 2 * c * c / a2
+            for t in range(ref.shape[1]):  # the runs of each tile's pulses
+                ref["w_run"][:, t] = w_runs(ref["w"][:, t])
         elif self.legs == "two":
             ref["leg2"] = c_vec
             ref["b2"] = c * c * t2 - np.einsum("...i,...i->...", c_vec, v_r)
@@ -352,6 +364,8 @@ class TileKernel:
                 for axis in "xyz":
                     rows["w_" + axis][:] = 2.0 * rows["v_rx_" + axis] / a2
                 rows["alpha"][:] = 2.0 * c * c / a2
+                for g in range(hs.size):  # each receiver's runs (its pulses are its tiles' rows' columns)
+                    rows["w_run"][g] = w_runs(np.stack([rows["w_" + axis][g] for axis in "xyz"], axis=-1))
         rows["t0"][:], rows["offset"][:] = np.asarray(echo.t0)[hs][:, None], np.asarray(offsets)[:, None]
         params = np.zeros((), REF_PARAMS)
         params["c"], params["f0"], params["fs"] = c, echo.waveform.f0, fs
