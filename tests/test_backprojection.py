@@ -1295,3 +1295,16 @@ def test_references_on_the_device_for_pulse_counts_not_a_multiple_of_eight(openc
     for j, (h, offset) in enumerate(((1, 3), (2, 9))):
         host, _ = tile.references(kiang_echo, h, pulses, centres, kiang_echo.fs, 2.5, offset=offset)
         _same_references(got[:, j], host, h)
+
+
+def test_w_runs_count_the_following_pulses_with_the_same_float_bits():
+    """tile_kernel.w_runs, legs "mono"'s w_run: for each pulse, how many of the pulses that follow
+    it have a w of the same float32 bits (bp_tile makes w . delta once for them). Values that differ
+    only beyond float32 (1 + 1e-12) are the same; -0.0 and 0.0 are not (different bits)."""
+    from clsas.image.backprojection.tile_kernel import w_runs
+
+    w = np.array([[1.0, 2.0, 3.0], [1.0, 2.0, 3.0 + 1e-12], [1.0, 2.0, 4.0], [1.0, 2.0, 4.0], [1.0, 2.0, 4.0],
+                  [0.0, 0.0, 0.0], [-0.0, 0.0, 0.0], [1.0, 2.0, 3.0]])
+    assert w_runs(w).tolist() == [1, 0, 2, 1, 0, 0, 0, 0]
+    assert w_runs(w[:1]).tolist() == [0] and w_runs(np.zeros((0, 3))).tolist() == []
+    assert w_runs(np.ones((5, 3))).tolist() == [4, 3, 2, 1, 0]
