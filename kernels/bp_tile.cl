@@ -255,7 +255,12 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             FOR_ROWS {  /* leg 1 without a square root or a division */
                 const float16 n1 = fma(b2.x, FIELD(dx), fma(b2.y, FIELD(dy), fma(b2.z, FIELD(dz), FIELD(dd))));
                 const float16 x = n1 * R.k2;
+#if defined(MONO) && !defined(APERTURE)
+                /* s = alpha s1 - w . delta, alpha taken into k1 (s1 itself is not needed) */
+                s[r] = fma(n1 * (R.k1 * R.alpha), LEG_POLY(x), -wd[r]);
+#else
                 s1[r] = (n1 * R.k1) * LEG_POLY(x);
+#endif
             }
         } else
 #endif
@@ -268,13 +273,18 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
                 const float16 b1 = (float16)R.b1;
 #endif
                 s1[r] = n1 / (b1 + sqrt(b1 * b1 + a1 * n1));
+#if defined(MONO) && !defined(APERTURE)
+                s[r] = R.alpha * s1[r] - wd[r];  /* each arm makes s (with APERTURE: below, from s1) */
+#endif
             }
         }
         FOR_ROWS {
 #if defined(SAME_LEGS)
             s[r] = s1[r];  /* fs and f0s carry the factor 2 */
 #elif defined(MONO)
+#ifdef APERTURE
             s[r] = R.alpha * s1[r] - wd[r];
+#endif
 #else
             /* leg 2: s2 = t2 - t2_ref, e = (v_r - v) s1 - delta; s = s1 + s2 */
             const float3 v_r = vload3(0, R.v_rx), cc = vload3(0, R.leg2), u = v_r - vel;
