@@ -137,15 +137,23 @@ def w_runs(w: np.ndarray) -> np.ndarray:
     the pulses that follow it have a w of the same bits (legs "mono"'s ``w_run``: bp_tile makes the
     rows' w . delta once for such a run of pulses)."""
     bits = np.ascontiguousarray(w, np.float32).view(np.uint32)
-    breaks = np.flatnonzero(np.any(bits[1:] != bits[:-1], axis=-1))  # the last pulse of each run but the last
     index = np.arange(bits.shape[0])
+    if not np.any(bits != bits[:1]):  # one run (a receiver at constant velocity)
+        return index[::-1].copy()
+    breaks = np.flatnonzero(np.any(bits[1:] != bits[:-1], axis=-1))  # the last pulse of each run but the last
     return np.append(breaks, bits.shape[0] - 1)[np.searchsorted(breaks, index)] - index
 
 
-def _at_emission(echo, hs: np.ndarray, pulses: np.ndarray) -> np.ndarray:
-    """(len(hs), len(pulses), 3) m: receivers ``hs`` at fast time 0 of each pulse, as
-    ``echo.rx_position(h, 0)`` gives them (the same arithmetic), every receiver at once."""
-    nodes, pos = echo.rx_tau[hs], echo.rx_pos[hs[:, None], pulses]  # (G, N), (G, P, N, 3)
+def _rx_nodes(echo, hs: np.ndarray, pulses) -> np.ndarray:
+    """(G, P, N, 3) m: the position nodes of receivers ``hs`` for ``pulses`` (an index array, or a
+    slice: then sliced first, a view, and only the receivers copied)."""
+    return echo.rx_pos[:, pulses][hs] if isinstance(pulses, slice) else echo.rx_pos[hs[:, None], pulses]
+
+
+def _at_emission(echo, hs: np.ndarray, pulses) -> np.ndarray:
+    """(len(hs), len(pulses), 3) m: receivers ``hs`` at fast time 0 of each pulse (an index array
+    or a slice), as ``echo.rx_position(h, 0)`` gives them (the same arithmetic), every receiver at once."""
+    nodes, pos = echo.rx_tau[hs], _rx_nodes(echo, hs, pulses)  # (G, N), (G, P, N, 3)
     if nodes.shape[1] == 1:
         return pos[:, :, 0].copy()
     g = np.arange(hs.size)
@@ -343,30 +351,27 @@ class TileKernel:
         rt = opencl.runtime()
         # the pulses' fields a row each (REF_FIELDS), receiver after receiver, each over
         # ``pulses``; REF_LANES - 1 columns of padding for the last work-item's vector loads
-        columns = hs.size * pulses.size
+        columns, c = hs.size * pulses.size, echo.medium.sound_speed
         pulse = np.zeros((len(REF_FIELDS), columns + REF_LANES), np.float64)
-        rows = {name: pulse[k, :columns].reshape(hs.size, pulses.size) for k, name in enumerate(REF_FIELDS)}
-        c = echo.medium.sound_speed
-        for k, axis in enumerate("xyz"):
-            rows["tx_" + axis][:] = echo.tx_pos[pulses, k]
-        rows["eta"][:] = echo.eta[pulses]
-        at_emission = _at_emission(echo, hs, pulses)
-        for k, axis in enumerate("xyz"):
-            rows["rx0_" + axis][:] = at_emission[..., k]
+        rows = pulse[:, :columns].reshape(len(REF_FIELDS), hs.size, pulses.size)  # (field, receiver, pulse)
+        pick = pulses  # a run of consecutive pulses (the usual job) as a slice: views, not copies
+        if pulses.size > 1 and pulses[-1] - pulses[0] == pulses.size - 1 and np.all(np.diff(pulses) == 1):
+            pick = slice(int(pulses[0]), int(pulses[-1]) + 1)
+        rows[0:3] = echo.tx_pos[pick].T[:, None, :]
+        rows[3] = echo.eta[pick]
+        rows[4:7] = np.moveaxis(_at_emission(echo, hs, pick), -1, 0)
         if not self.stop_and_go and echo.rx_tau.shape[-1] == 2:
-            v_rx = (echo.rx_pos[hs[:, None], pulses, 1] - echo.rx_pos[hs[:, None], pulses, 0]) / np.diff(
-                echo.rx_tau[hs], axis=-1)[:, :, None]  # two_node_velocity of every receiver
-            for k, axis in enumerate("xyz"):
-                rows["v_rx_" + axis][:] = v_rx[..., k]
+            nodes = _rx_nodes(echo, hs, pick)
+            rows[7:10] = np.moveaxis(nodes[:, :, 1] - nodes[:, :, 0], -1, 0)
+            rows[7:10] /= np.diff(echo.rx_tau[hs], axis=-1)  # two_node_velocity of every receiver ((G, 1) s)
             if self.legs == "mono":  # w and alpha of each pulse (the module docstring), as bp_refs made them
-                x, y, z = (rows["v_rx_" + axis] for axis in "xyz")
+                x, y, z = rows[7:10]
                 a2 = c * c - ((x * x + y * y) + z * z)
-                for axis in "xyz":
-                    rows["w_" + axis][:] = 2.0 * rows["v_rx_" + axis] / a2
-                rows["alpha"][:] = 2.0 * c * c / a2
+                rows[12:15] = 2.0 * rows[7:10] / a2
+                rows[15] = 2.0 * c * c / a2
                 for g in range(hs.size):  # each receiver's runs (its pulses are its tiles' rows' columns)
-                    rows["w_run"][g] = w_runs(np.stack([rows["w_" + axis][g] for axis in "xyz"], axis=-1))
-        rows["t0"][:], rows["offset"][:] = np.asarray(echo.t0)[hs][:, None], np.asarray(offsets)[:, None]
+                    rows[16, g] = w_runs(rows[12:15, g].T)
+        rows[10], rows[11] = np.asarray(echo.t0)[hs][:, None], np.asarray(offsets)[:, None]
         params = np.zeros((), REF_PARAMS)
         params["c"], params["f0"], params["fs"] = c, echo.waveform.f0, fs
         params["velocity"], params["half_extent"], params["rho_max"] = self.velocity, half_extent, RHO_MAX
