@@ -57,7 +57,7 @@ def test_kernel_matches_reference(opencl_device, kiang_echo, interp, centre):
     got = backproject(kiang_echo, grid, backend="opencl", **kw)
     # float32 budget: relative L2 < 5e-3, phase at the peak < 0.01 rad; delays and carrier
     # cycles are double in the kernel, so both are met by orders of magnitude: measured relative
-    # L2 1.4e-6 to 4.8e-6 and peak phase 2e-9 to 8e-9 rad over the four cases; bounds ~10x
+    # L2 1.3e-6 to 8.5e-6 and peak phase 2.4e-9 to 9.6e-9 rad over the four cases (session 16); bounds ~6-10x
     assert rel_l2(got.data, ref.data) < 5e-5
     peak = metrics.peak_index(ref.data)
     assert metrics.peak_index(got.data) == peak
