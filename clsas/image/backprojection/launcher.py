@@ -456,8 +456,9 @@ def _added(queue, chunk_state: _Chunk, image, tiles) -> np.ndarray:
 def _groups(records: PreparedRecords, kernels: dict, tile: TileKernel, tiles, span: tuple[int, int]) -> list[tuple]:
     """The receivers (indices into ``records.receivers``, in their order) whose references one
     bp_refs launch computes (a launch a pulse sub-block and chunk instead of one a receiver):
-    consecutive receivers with the same legs whose references bp_refs computes (:meth:`.tile_kernel.TileKernel.on_device`),
-    as many as keep their references for every pulse of the call within REF_BYTES. bp_tile still
+    consecutive receivers with the same legs whose references bp_refs computes
+    (:meth:`.tile_kernel.TileKernel.on_device`), as many as keep their references for every pulse
+    of the call within REF_BYTES. bp_tile still
     runs a receiver a launch: all of its work-items then read the same receiver's records, which
     stay in cache (several receivers a launch, each work-item sweeping their records in turn, was
     slower: the commit d486032 gives the figures)."""

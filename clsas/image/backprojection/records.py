@@ -322,9 +322,9 @@ class PreparedRecords:
 
     def __repr__(self) -> str:
         kind = f"{self.nbytes / 2**20:.1f} MB held" if self.materialised else "prepared per call"
-        return (f"PreparedRecords({len(self.receivers)} receivers x {self.echo.n_pulses} pulses, interp={self.interp!r}, "
-                f"upsample={self.upsample}, samples per record {int(self.length.min())}..{int(self.length.max())}, "
-                f"{kind})")
+        return (f"PreparedRecords({len(self.receivers)} receivers x {self.echo.n_pulses} pulses, "
+                f"interp={self.interp!r}, upsample={self.upsample}, "
+                f"samples per record {int(self.length.min())}..{int(self.length.max())}, {kind})")
 
 
 def prepare(compressed: EchoData, upsample: int = 8, interp: str = "linear", receivers=None, grid=None,
@@ -401,7 +401,8 @@ def _pulse_span(pulses, n_pulses: int) -> tuple[int, int]:
     elif isinstance(pulses, (tuple, list)) and len(pulses) == 2:
         (start, stop), step = pulses, 1
     else:
-        raise ValueError(f"pulses must be None, (start, stop), a range or a slice of consecutive pulses, got {pulses!r}")
+        raise ValueError(f"pulses must be None, (start, stop), a range or a slice of consecutive pulses, "
+                         f"got {pulses!r}")
     ok = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in (start, stop, step))
     if not ok or step != 1 or not 0 <= start < stop <= n_pulses:
         raise ValueError(f"pulses must select consecutive pulses start < stop within [0, {n_pulses}], got {pulses!r}")
