@@ -38,8 +38,8 @@ buffers are made on first OpenCL use, one per receiver (and one complex128 copy 
 ``precision="double"``, made on first use of that precision), and live as long as the object or
 until :meth:`PreparedRecords.release`. On PoCL CPU devices a complex64 buffer uses the host array
 in place (CL_MEM_USE_HOST_PTR: no copy); on a GPU it is a copy in device memory. A call's own
-buffers for its records (a job's upsampled records a lane, or held rows staged: :meth:`PreparedRecords.call_bytes`)
-count with its pixels against the memory budget, checked before the call makes them.
+buffers for its records (a job's upsampled records a lane, held rows staged, complex128 copies:
+:func:`.launcher.record_bytes`) count with its pixels against the memory budget, checked before the call makes them.
 """
 
 from __future__ import annotations
@@ -220,7 +220,7 @@ class PreparedRecords:
             if staged is None or double or row * pulses.size > STAGE_BYTES:
                 return self._device[key][0], n, 0
             queue = opencl.runtime().queue if queue is None else queue
-            dst = self._scratch_of(ctx, queue, row * pulses.size, staged)
+            dst = self._scratch_of(ctx, queue, row * pulses.size, staged, self.staged_bytes(pulses.size))
             cl.enqueue_copy(queue, dst, self._device[key][0], byte_count=row * pulses.size,
                             src_offset=row * int(pulses[0]), dst_offset=0)
             return dst, n, int(pulses[0])
@@ -251,20 +251,22 @@ class PreparedRecords:
         flags = mf.USE_HOST_PTR if np.shares_memory(src, self.echo.data) else mf.COPY_HOST_PTR
         src_buf = cl.Buffer(ctx, mf.READ_ONLY | flags, hostbuf=src)
         queue = opencl.runtime().queue if queue is None else queue
-        dst = self._scratch_of(ctx, queue, 8 * src.shape[0] * int(self.length[i]))
+        block = 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))  # a call's largest
+        dst = self._scratch_of(ctx, queue, 8 * src.shape[0] * int(self.length[i]), block=block)
         fir.enqueue(queue, src_buf, src.shape[1], src.shape[0], first, stop, self.factor, dst)
         return dst
 
-    def _scratch_of(self, ctx, queue, size: int, mine: dict | None = None):
+    def _scratch_of(self, ctx, queue, size: int, mine: dict | None = None, block: int = 0):
         """The buffer on ``queue`` (>= ``size`` bytes) a call's blocks are upsampled (staged) into in turn, kept in
         ``mine`` (default this object's): an in-order queue runs a block's command after the kernels reading the
-        previous one (a fresh buffer costs its page faults each time)."""
+        previous one (a fresh buffer costs its page faults each time). Made at ``block`` bytes at least (the call's
+        largest block), so that it does not grow: a lane then holds one buffer, as the memory budget counts it
+        (:func:`.launcher.record_bytes`)."""
         import pyopencl as cl
 
         in_order = not queue.properties & cl.command_queue_properties.OUT_OF_ORDER_EXEC_MODE_ENABLE
         key, mine = (int(ctx.int_ptr), int(queue.int_ptr)), self._scratch if mine is None else mine
-        if not in_order or key not in mine or mine[key].size < size:  # a call's largest block:
-            block = 0 if self._host else 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))
+        if not in_order or key not in mine or mine[key].size < size:
             mine[key] = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=max(size, block))
         return mine[key]
 
@@ -280,19 +282,17 @@ class PreparedRecords:
         part._host = None if self._host is None else [self._host[r] for r in rows]
         return part
 
-    def call_bytes(self, n_pulses: int) -> int:
-        """Bytes a call summing ``n_pulses`` pulses allocates for its records beyond those held (a bound,
-        which the call checks against the memory budget before it allocates: :mod:`.direct`). Records
-        made per call and upsampled: a job's upsampled records on each of two lanes (16 bytes a sample
-        of upload_pulses pulses, as the launcher counts a job: on the device, one FIR scratch buffer a
-        lane's queue, :meth:`_scratch_of`). Held records: the buffers two lanes stage rows into (up to
-        STAGE_BYTES each, :meth:`buffer`). Records read in place (not upsampled): none."""
-        if self._host is not None:
-            rows = [8 * held.shape[1] * int(n_pulses) for held in self._host]
-            return 2 * max([r for r in rows if r <= STAGE_BYTES], default=0)
-        if self.factor == 1:
-            return 0
-        return 16 * min(self.upload_pulses(), self.echo.n_pulses) * max(1, int(np.max(self.length)))
+    def staged_bytes(self, n_pulses: int) -> int:
+        """Bytes of the buffer a lane stages held rows of ``n_pulses`` pulses into (:meth:`buffer`): the
+        largest receiver's rows within STAGE_BYTES (0 when none fits, or the records are not held)."""
+        rows = [8 * held.shape[1] * int(n_pulses) for held in self._host or ()]
+        return max([r for r in rows if r <= STAGE_BYTES], default=0)
+
+    def double_copy_bytes(self) -> int:
+        """Bytes of the complex128 copies of held records that a ``precision="double"`` call makes and
+        keeps (:meth:`buffer`), for the receivers whose copy is not made yet (0 for records not held)."""
+        made = {h for (_, h, double) in self._device if double}
+        return sum(16 * held.size for h, held in zip(self.receivers, self._host or ()) if h not in made)
 
     def upload_pulses(self) -> int:
         """Pulses a call's job covers: all for materialised records (their buffers hold every
