@@ -79,8 +79,9 @@ upsample 1) on ``GridPlan(grid, rows=r)`` for r = 4, 6 (the default) and 8, inte
 The compiled loop (``bench: "backprojection-loop"``, only with ``--only loop``, which sets
 PoCL's kernel cache to a fresh directory before the device starts): bp_tile for the issue's scene
 (linear, upsample 1; stop-and-go and exact delays) built by PoCL, its pulse loop on the leg
-polynomial's arm (the longest backward jump of the work-group function without a square root)
-disassembled by ``objdump`` and analysed by ``llvm-mca`` for the CPU model given by ``--mcpu``
+polynomial's arm (the shortest cycle of the work-group function's basic blocks without a square root
+through its largest such block; with exact delays, the path that holds w . delta) disassembled by
+``objdump`` and analysed by ``llvm-mca`` for the CPU model given by ``--mcpu``
 (default icelake-server): instructions and uops an iteration, llvm-mca's cycles an iteration and
 per pixel-pulse (an iteration is ROWS rows of 16 pixels and one pulse), the pressure on ports 0
 and 5 (the two 512-bit vector ports) and on the load ports, beside the measured single-thread CPU
@@ -321,8 +322,12 @@ def rows(args) -> None:
 
 def _pulse_loop(asm: str) -> list[str]:
     """The instructions (AT&T, no branches) of bp_tile's pulse loop on the leg polynomial's arm in
-    its work-group function of ``objdump -d`` output ``asm``: the longest backward jump whose span
-    holds no square root or division (the stable root's arm lies outside it)."""
+    its work-group function of ``objdump -d`` output ``asm``: the function's basic blocks, the
+    largest block that lies on a cycle of blocks without a square root or division (the stable
+    root's arm has them), and the shortest such cycle through it (by instructions), in the order
+    its blocks run. With exact delays (MONO) that is the path that holds w . delta (a receiver at constant
+    velocity), not the one that remakes it."""
+    import heapq
     import re
 
     func, found = None, []
@@ -333,15 +338,54 @@ def _pulse_loop(asm: str) -> list[str]:
             continue
         m = re.match(r"^\s+([0-9a-f]+):\s+(\S+)\s*(.*)$", line)
         if m and func and func.endswith("bp_tile_workgroup_fast"):
-            found.append((int(m.group(1), 16), m.group(2), re.sub(r"\s*#.*$", "", m.group(3))))
-    loops = [(a - int(t.group(1), 16), int(t.group(1), 16), a) for a, op, arg in found if op.startswith("j")
-             for t in [re.match(r"([0-9a-f]+) <", arg)] if t and int(t.group(1), 16) < a]
-    plain = [span for span in loops if not any(op.startswith(("vsqrt", "vdiv", "sqrt", "div"))
-                                               for a, op, _ in found if span[1] <= a <= span[2])]
-    if not plain:
+            target = re.match(r"([0-9a-f]+) <", m.group(3))
+            found.append((int(m.group(1), 16), m.group(2), re.sub(r"\s*#.*$", "", m.group(3)),
+                          int(target.group(1), 16) if target and m.group(2).startswith("j") else None))
+    if not found:
         return []
-    _, start, end = max(plain)
-    return [f"{op} {re.sub(r'<[^>]*>', '', arg)}" for a, op, arg in found if start <= a <= end and not op.startswith("j")]
+    # basic blocks: a block starts at a jump's target and after a jump
+    starts = {found[0][0]} | {t for *_, t in found if t is not None}
+    starts |= {found[k + 1][0] for k, (_, op, _, _) in enumerate(found[:-1]) if op.startswith("j")}
+    blocks, index = [], {}
+    for a, op, arg, target in found:
+        if a in starts or not blocks:
+            index[a] = len(blocks)
+            blocks.append([])
+        blocks[-1].append((op, arg, target))
+    succ = []  # each block's successors: its jump's target, and the next block unless it ends in jmp or ret
+    for k, block in enumerate(blocks):
+        op, _, target = block[-1]
+        succ.append(([index[target]] if target in index else [])
+                    + ([k + 1] if k + 1 < len(blocks) and op != "jmp" and not op.startswith("ret") else []))
+    free = [not any(op.startswith(("vsqrt", "vdiv", "sqrt", "div")) for op, _, _ in b) for b in blocks]
+    size = [sum(not op.startswith("j") for op, _, _ in b) for b in blocks]
+
+    def shortest_cycle(k: int):
+        """The sqrt-free cycle through block k with the fewest instructions (Dijkstra back to k)."""
+        heap, best, back = [(size[k], k)], {k: size[k]}, {}
+        while heap:
+            d, u = heapq.heappop(heap)
+            if d > best.get(u, float("inf")):
+                continue
+            for v in succ[u]:
+                if not free[v]:
+                    continue
+                if v == k:
+                    path = [u]
+                    while path[-1] != k:
+                        path.append(back[path[-1]])
+                    return path[::-1]  # in the order they run, from block k
+                if d + size[v] < best.get(v, float("inf")):
+                    best[v], back[v] = d + size[v], u
+                    heapq.heappush(heap, (d + size[v], v))
+        return None
+
+    for k in sorted((k for k in range(len(blocks)) if free[k]), key=lambda k: -size[k]):
+        cycle = shortest_cycle(k)
+        if cycle:
+            return [f"{op} {re.sub(r'<[^>]*>', '', arg)}" for b in cycle for op, arg, _ in blocks[b]
+                    if not op.startswith("j")]
+    return []
 
 
 def loop(args) -> None:

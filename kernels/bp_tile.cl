@@ -51,7 +51,7 @@
  *   the sample index of T_ref in the records (k_ref an integer less BIAS, k_frac its fraction plus
  *   BIAS: k_frac + s fs is positive, so that truncation is the floor), cycles = f0 T_ref reduced,
  *   range1 = c t1_ref; two legs: leg2 = C, b2 = c^2 t2_ref - C.v_r, v_rx = v_r, a2 = c^2 - |v_r|^2;
- *   MONO: alpha, w;
+ *   MONO: alpha, w and w_run (how many of the following pulses have a w of the same bits);
  * params (tile_params_t): a1, fs (of the data), f0, velocity v, half_sin = sin(aperture / 2), c;
  * data[p n + i]: the receiver's range-compressed record of pulse p; taps: the 8-tap table (interp.h);
  * image[m] += the sum over pulses p_first .. p_first + p_count - 1 (BP_STORE, without SCATTER:
@@ -212,12 +212,11 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
     const float3 vel = vload3(0, params.velocity);
     float16 acc_re[ROWS], acc_im[ROWS];
 #ifdef MONO
-    /* w . delta of each row for the w held in w_held: a receiver at constant velocity has the same
-     * w on every pulse, so the rows' dot products are made once (before the first pulse) and again
-     * only on a pulse whose w differs in any bit (the same float operations on the same values: the
-     * same s) */
+    /* w . delta of each row, made once for each run of pulses whose w has the same bits (R.w_run: how
+     * many pulses follow with them; a receiver at constant velocity: one run a launch), so that the
+     * pulse loop itself neither checks w nor remakes the products (the same float operations on the
+     * same values: the same s) */
     float16 wd[ROWS];
-    uint3 w_held = (uint3)(0);
 #endif
     FOR_ROWS {
         acc_re[r] = (float16)0.0f;
@@ -233,7 +232,16 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
     }
 #endif
     const int p_begin = TILE_BEGIN, p_end = TILE_END;
+#ifdef MONO
+    for (int p = p_begin; p < p_end;) {
+        const int run_end = min(p_end, p + 1 + tref[p].w_run);
+        FOR_ROWS {
+            wd[r] = tref[p].w[0] * FIELD(dx) + tref[p].w[1] * FIELD(dy) + tref[p].w[2] * FIELD(dz);
+        }
+    for (; p < run_end; ++p) {
+#else
     for (int p = p_begin; p < p_end; ++p) {
+#endif
         /* each step for all ROWS rows before the next: ROWS independent dependency chains side by
          * side in program order, which the out-of-order core overlaps */
         const tile_ref_t R = tref[p];
@@ -247,7 +255,12 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             FOR_ROWS {  /* leg 1 without a square root or a division */
                 const float16 n1 = fma(b2.x, FIELD(dx), fma(b2.y, FIELD(dy), fma(b2.z, FIELD(dz), FIELD(dd))));
                 const float16 x = n1 * R.k2;
+#if defined(MONO) && !defined(APERTURE)
+                /* s = alpha s1 - w . delta, alpha taken into k1 (s1 itself is not needed) */
+                s[r] = fma(n1 * (R.k1 * R.alpha), LEG_POLY(x), -wd[r]);
+#else
                 s1[r] = (n1 * R.k1) * LEG_POLY(x);
+#endif
             }
         } else
 #endif
@@ -260,22 +273,18 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
                 const float16 b1 = (float16)R.b1;
 #endif
                 s1[r] = n1 / (b1 + sqrt(b1 * b1 + a1 * n1));
-            }
-        }
-#ifdef MONO
-        const uint3 w_bits = (uint3)(as_uint(R.w[0]), as_uint(R.w[1]), as_uint(R.w[2]));
-        if (p == p_begin || any(w_bits != w_held)) {
-            w_held = w_bits;
-            FOR_ROWS {
-                wd[r] = R.w[0] * FIELD(dx) + R.w[1] * FIELD(dy) + R.w[2] * FIELD(dz);
-            }
-        }
+#if defined(MONO) && !defined(APERTURE)
+                s[r] = R.alpha * s1[r] - wd[r];  /* each arm makes s (with APERTURE: below, from s1) */
 #endif
+            }
+        }
         FOR_ROWS {
 #if defined(SAME_LEGS)
             s[r] = s1[r];  /* fs and f0s carry the factor 2 */
 #elif defined(MONO)
+#ifdef APERTURE
             s[r] = R.alpha * s1[r] - wd[r];
+#endif
 #else
             /* leg 2: s2 = t2 - t2_ref, e = (v_r - v) s1 - delta; s = s1 + s2 */
             const float3 v_r = vload3(0, R.v_rx), cc = vload3(0, R.leg2), u = v_r - vel;
@@ -344,6 +353,9 @@ __kernel void bp_tile(__global const bp_pixels_t *pix, __global const int *tile_
             acc_im[r] = acc_im[r] + dr * sn[r] + di * cs[r];
         }
     }
+#ifdef MONO
+    }  /* the run of pulses */
+#endif
 #ifdef CARRY
     if (carry_mode & 2) {
         FOR_ROWS {

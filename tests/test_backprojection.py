@@ -1365,3 +1365,47 @@ def test_a_calls_record_buffers_count_against_the_memory_budget(opencl_device, k
             if held and double:  # the copies made and kept: the count, then nothing more to make
                 assert sum(host.nbytes for (_, _, d), (_, host) in echo._device.items() if d) == extra
                 assert launcher.record_bytes(echo, span, True) == 0
+
+
+@pytest.mark.parametrize("n_pulses", [1, 7, 13])
+def test_references_on_the_device_for_pulse_counts_not_a_multiple_of_eight(opencl_device, kiang_echo, n_pulses):
+    """bp_refs computes eight consecutive pulses of a tile a work-item (double8 lanes, REF_LANES): a
+    job whose pulse count leaves a partial last group still gets every (tile, pulse) reference within
+    float32 rounding of the NumPy twin's, for each receiver's legs and for two receivers in one
+    launch (whose rows of 2 x 13 pulses leave a partial group too). A launch of n_pulses // 8
+    groups a tile (floor instead of ceiling) fails every count here."""
+    import pyopencl as cl
+
+    centres = np.array([[30.0, 1.0, -43.0], [1989.0, 0.0, -350.0], [31.5, -2.0, -41.0], [29.0, 0.5, -44.0],
+                        [33.0, 2.0, -40.0]])
+    pulses = np.arange(5, 5 + n_pulses)
+    buf = cl.Buffer(opencl_device.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=centres)
+    for h in range(kiang_echo.n_rx):
+        tile = TileKernel("linear").for_receiver(kiang_echo, h)
+        host, _ = tile.references(kiang_echo, h, pulses, centres, kiang_echo.fs, 2.5, offset=3)
+        dev = tile.references_on_device(opencl_device.queue, kiang_echo, h, pulses, buf, len(centres), kiang_echo.fs,
+                                        2.5, offset=3)
+        got = np.empty_like(host)
+        cl.enqueue_copy(opencl_device.queue, got, dev)
+        _same_references(got, host, h)
+    tile = TileKernel("linear").for_receiver(kiang_echo, 1)
+    dev = tile.references_on_device(opencl_device.queue, kiang_echo, [1, 2], pulses, buf, len(centres),
+                                    kiang_echo.fs, 2.5, offset=np.array([3, 9]))
+    got = np.empty((len(centres), 2, n_pulses), tile.reference_dtype)
+    cl.enqueue_copy(opencl_device.queue, got, dev)
+    for j, (h, offset) in enumerate(((1, 3), (2, 9))):
+        host, _ = tile.references(kiang_echo, h, pulses, centres, kiang_echo.fs, 2.5, offset=offset)
+        _same_references(got[:, j], host, h)
+
+
+def test_w_runs_count_the_following_pulses_with_the_same_float_bits():
+    """tile_kernel.w_runs, legs "mono"'s w_run: for each pulse, how many of the pulses that follow
+    it have a w of the same float32 bits (bp_tile makes w . delta once for them). Values that differ
+    only beyond float32 (1 + 1e-12) are the same; -0.0 and 0.0 are not (different bits)."""
+    from clsas.image.backprojection.tile_kernel import w_runs
+
+    w = np.array([[1.0, 2.0, 3.0], [1.0, 2.0, 3.0 + 1e-12], [1.0, 2.0, 4.0], [1.0, 2.0, 4.0], [1.0, 2.0, 4.0],
+                  [0.0, 0.0, 0.0], [-0.0, 0.0, 0.0], [1.0, 2.0, 3.0]])
+    assert w_runs(w).tolist() == [1, 0, 2, 1, 0, 0, 0, 0]
+    assert w_runs(w[:1]).tolist() == [0] and w_runs(np.zeros((0, 3))).tolist() == []
+    assert w_runs(np.ones((5, 3))).tolist() == [4, 3, 2, 1, 0]

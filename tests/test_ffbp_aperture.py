@@ -218,7 +218,7 @@ def test_a_yawed_tracks_grids_hold_what_its_pulses_see_in_fewer_angles(monkeypat
     assert _assert_grids_hold_what_pulses_see(windowed, echo.tx_pos, grid.positions.reshape(-1, 3), 0.2) >= 16
 
     def symmetric(scene, centres, axes, half_sin, reach, r_near, device_taps=None):
-        limit = polar.sampling.aperture_sines(half_sin, polar.sampling.axis_tilt(axes), reach, r_near)
+        limit = polar.aperture_sines(half_sin, polar.axis_tilt(axes), reach, r_near)
         return np.stack([-limit, limit], axis=1)
 
     monkeypatch.setattr(tree_module, "aperture_windows", symmetric)

@@ -126,6 +126,66 @@ def test_the_planners_device_buffers_are_within_the_planning_part(opencl_device,
     assert ffbp_package._fixed_parts(GRID.size, k, 8, "linear", "numpy", 1.0)["planning"] == ffbp_package.PLAN_BYTES * k
 
 
+@pytest.mark.parametrize("device", [False, True])
+def test_the_planners_host_memory_is_within_the_planning_part(opencl_device, device):
+    """tree.plan's traced peak on the host stays within the planning part ffbp checks before it plans
+    (PLAN_NODE_BYTES a sub-aperture whose extent it finds, PLAN_PULSE_BYTES a pulse of a receiver's
+    position node): first=1 over 512 pulses, 1023 sub-apertures, each with its envelope and polar
+    grids. Session 15 noted these uncounted; the rows' spans' sparse tables of every grid sampled at
+    once (80 kB a grid) then took a traced 76 MB here against a part of 3.3 MB (sampling.SPAN_GRIDS
+    bounds them now). Measured 19.7 MB against 36.0 MB (NumPy) and 40.4 MB (OpenCL)."""
+    import importlib
+    import tracemalloc
+
+    ffbp_package = importlib.import_module("clsas.image.ffbp")
+
+    echo = _geometry_only_echo(512)
+    grid = Grid.plane(np.linspace(45.0, 47.0, 48), np.linspace(-0.4, 0.4, 48), DEPTH)
+    scene = ffbp_package.polar.Scene.of(grid.positions)
+    scene.nearest(scene.skeleton[:1])  # the Scene's k-d tree (kept with it, PLAN_BYTES) and scipy's import
+    ffbp_package.plan(_geometry_only_echo(64), [0], scene, 2, 0.1, 8, None, None, device=device)  # the program
+    tracemalloc.start()
+    try:
+        tree = ffbp_package.plan(echo, [0], scene, 2, 0.1, 8, 1, None, device=device)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    nodes = ffbp_package._plan_nodes(echo.n_pulses, 1, 2)
+    assert nodes == sum(len(level) for level in tree.pulses) == 1023
+    planning = ffbp_package._fixed_parts(grid.size, scene.skeleton.shape[0], 8, "linear",
+                                         "opencl" if device else "numpy", 1.0, plan_nodes=nodes,
+                                         plan_pulses=echo.n_pulses * echo.rx_pos.shape[2])["planning"]
+    assert peak <= planning
+
+
+@pytest.mark.parametrize("n_pulses", [1, 5, 64, 300, 2048, 5000])
+@pytest.mark.parametrize("factor", [2, 4, 7])
+def test_the_rules_plan_finds_no_more_extents_than_counted(n_pulses, factor):
+    """With first=None the planner finds the extents of the candidates' middle nodes and spines and
+    of the trees it sizes: at most _plan_nodes(n_pulses, None, factor) of them, the count the
+    planning part takes (each distinct node framed once: the planner keeps what it found)."""
+    import importlib
+
+    ffbp_package = importlib.import_module("clsas.image.ffbp")
+    tree_module = importlib.import_module("clsas.image.ffbp.tree")
+
+    echo = _geometry_only_echo(n_pulses)
+    scene = ffbp_package.polar.Scene.of(Grid.plane(np.linspace(45.0, 47.0, 48), np.linspace(-0.4, 0.4, 48),
+                                                   DEPTH).positions)
+    framed, framing = [], tree_module._Frames.frames
+
+    def counted(self, nodes, *args, **kwargs):
+        framed.extend(nodes)
+        return framing(self, nodes, *args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(tree_module._Frames, "frames", counted)
+        tree = ffbp_package.plan(echo, [0], scene, factor, 0.1, 8, None, None)
+    assert len(framed) == len(set(framed))  # each node framed once
+    assert len(framed) <= ffbp_package._plan_nodes(n_pulses, None, factor)
+    assert sum(len(level) for level in tree.pulses) <= ffbp_package._plan_nodes(n_pulses, tree.first, factor)
+
+
 def test_memory_budget_refuses_before_allocating():
     """ffbp on a 300 x 300 grid under a 2 MB budget refuses with the budget's error before it
     plans or allocates (it used to allocate ~20 MiB)."""

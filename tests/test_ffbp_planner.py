@@ -34,7 +34,7 @@ def test_rows_spans_are_the_envelope_over_each_rows_window():
     tree = plan(echo, list(range(echo.n_rx)), scene, 2, 0.1, 8, None, 0.5)
     frames = _Frames(echo, list(range(echo.n_rx)), scene)
     nodes = [node for level in tree.pulses[:tree.top + 1] for node in level]
-    centres, axes, halves, bases = frames.frames(nodes)
+    centres, axes, halves, bases, _ = frames.frames(nodes)
     c = echo.medium.sound_speed
     window = np.array([c * float(echo.t0.min()) / 2, c * (float(echo.t0.max()) + echo.n_samples / echo.fs) / 2])
     found = polar.extents(centres, axes, halves, scene, window + np.stack([-halves - bases / 2, halves + bases / 2], 1),
@@ -95,6 +95,33 @@ def test_a_frame_does_not_depend_on_the_nodes_framed_with_it():
         np.testing.assert_array_equal(b2, e2[:n])
 
 
+def test_a_nodes_centre_half_length_and_reach_do_not_depend_on_the_nodes_framed_with_it():
+    """_Frames.frames gives a node (p0, p1) the same centre, axis, half-length, baseline and
+    transmitters' reach bit for bit alone or among nodes of its length and of others (the planner
+    frames whatever nodes a round needs at once, and a first guess's lists differ from the rule's:
+    the tree must not depend on them); the centre is the mean of the node's phase centres and the
+    reach max |T - C| over its transmitters (the definitions, to rounding); without ``reach`` the
+    same frames and no reach."""
+    echo = echo_of("motion")
+    chosen = list(range(echo.n_rx))
+    frames = _Frames(echo, chosen, Scene.of(GRID.positions))
+    n = echo.n_pulses
+    nodes = [(p, min(p + k, n)) for k in (1, 2, 3, 8) for p in range(0, n, k)] + [(0, n), (n // 3, n)]
+    together = frames.frames(nodes, reach=True)
+    assert frames.frames(nodes)[4] is None
+    for a, b in zip(frames.frames(nodes)[:4], together[:4]):
+        np.testing.assert_array_equal(a, b)
+    rx = np.moveaxis(echo.rx_pos[chosen], 2, 1).reshape(-1, n, 3)  # every receiver's position nodes
+    for k in range(0, len(nodes), 7):
+        (p0, p1), alone = nodes[k], frames.frames([nodes[k]], reach=True)
+        for name, a, b in zip(("centre", "axis", "half-length", "baseline", "reach"), alone, together):
+            np.testing.assert_array_equal(a[0], b[k], err_msg=f"node {nodes[k]}: {name}")
+        mids = 0.5 * (echo.tx_pos[None, p0:p1] + rx[:, p0:p1])
+        np.testing.assert_allclose(together[0][k], mids.reshape(-1, 3).mean(axis=0), rtol=1e-12)
+        reach = np.linalg.norm(echo.tx_pos[p0:p1] - together[0][k], axis=1).max()
+        np.testing.assert_allclose(together[4][k], reach, rtol=1e-12)
+
+
 @pytest.mark.parametrize("case", ["motion", "aperture", "points_off_plane", "one_point", "narrow_window"])
 def test_the_planners_reductions_on_the_device_are_numpys(opencl_device, monkeypatch, case):
     """polar.offsets.DeviceOffsets (kernels/ffbp.cl's ffbp_extremes, ffbp_seen, ffbp_envelope, which
@@ -114,7 +141,7 @@ def test_the_planners_reductions_on_the_device_are_numpys(opencl_device, monkeyp
     scene = Scene.of(grid.positions)
     frames = _Frames(echo, chosen, scene)
     nodes = [(p, min(p + n, echo.n_pulses)) for n in (1, 2, 5, 20) for p in range(0, echo.n_pulses, n)]
-    centres, axes, halves, bases = frames.frames(nodes)
+    centres, axes, halves, bases, _ = frames.frames(nodes)
     c, w = echo.medium.sound_speed, echo.waveform
     window = np.array([c * float(echo.t0.min()) / 2, c * (float(echo.t0.max()) + echo.n_samples / echo.fs) / 2])
     windows = np.tile(window, (len(nodes), 1))

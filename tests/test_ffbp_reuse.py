@@ -140,7 +140,7 @@ def test_kept_layouts_count_against_the_memory_budget(opencl_device, monkeypatch
     monkeypatch.setattr(leaves.FirstStage, "_layout", lambda self, *a: counts.append(1) or laying_out(self, *a))
     room = kept // 2
     ffbp_package = importlib.import_module("clsas.image.ffbp")
-    monkeypatch.setattr(ffbp_package, "PLAN_BYTES", 0)  # the planning's pre-check set aside (plan kept)
+    monkeypatch.setattr(ffbp_package, "_planning", lambda *args: 0.0)  # the planning's pre-check set aside (plan kept)
     with clsas.use_memory_budget(memory + room):
         assert np.array_equal(ffbp(echo, grid, backend="opencl", progress=False).data, image.data)
         assert counts and reuse.held_bytes() <= room
@@ -308,7 +308,8 @@ def test_scratch_buffers_go_to_the_next_call_within_the_budget(opencl_device, mo
     second = ffbp(echo, grid, backend="opencl", progress=False)
     assert second.data.tobytes() == first.data.tobytes()
     assert len(taken) >= 2 and all(id(b) in kept for b in taken)
-    monkeypatch.setattr(importlib.import_module("clsas.image.ffbp"), "PLAN_BYTES", 0)  # the planning's pre-check
+    # the planning's pre-check set aside
+    monkeypatch.setattr(importlib.import_module("clsas.image.ffbp"), "_planning", lambda *args: 0.0)
     from clsas.image.ffbp import leaves
 
     laying_out, held = leaves.FirstStage._layout, []  # kept and not taken while the call runs: none

@@ -102,15 +102,17 @@ def _horner(name: str, coefficients) -> str:
 _REF = [("leg1", "f4", 3), ("b1", "f4"), ("k1", "f4"), ("k2", "f4"), ("poly", "i4"), ("k_ref", "i4"), ("k_frac", "f4"),
         ("cycles", "f4"), ("range1", "f4")]
 TILE_REFS = {"same": record_dtype(_REF),
-             "mono": record_dtype(_REF + [("w", "f4", 3), ("alpha", "f4")]),
+             "mono": record_dtype(_REF + [("w", "f4", 3), ("alpha", "f4"), ("w_run", "i4")]),
              "two": record_dtype(_REF + [("leg2", "f4", 3), ("b2", "f4"), ("v_rx", "f4", 3), ("a2", "f4")])}
 TILE_PARAMS = record_dtype([("a1", "f4"), ("fs", "f4"), ("f0", "f4"), ("velocity", "f4", 3), ("half_sin", "f4"),
                             ("c", "f4")])
-# bp_refs' records (the references computed on the device): a pulse of a receiver (transmitter,
-# emission time, the receiver at emission and its velocity, its window start t0 and its records'
-# first sample) and the launch's parameters
-REF_PULSE = record_dtype([("tx", "f8", 3), ("eta", "f8"), ("rx0", "f8", 3), ("v_rx", "f8", 3), ("t0", "f8"),
-                          ("offset", "i4")])
+# bp_refs' inputs (the references computed on the device): a pulse of a receiver's fields, a row
+# of doubles each (transmitter, emission time, the receiver at emission and its velocity, its window
+# start t0, its records' first sample, and legs "mono"'s w, alpha and w_run), in kernels/bp_refs.cl's order,
+# and the launch's parameters
+REF_FIELDS = ("tx_x", "tx_y", "tx_z", "eta", "rx0_x", "rx0_y", "rx0_z", "v_rx_x", "v_rx_y", "v_rx_z", "t0", "offset",
+              "w_x", "w_y", "w_z", "alpha", "w_run")
+REF_LANES = 8  # references a bp_refs work-item computes side by side (kernels/bp_refs.cl's REF_LANES)
 REF_PARAMS = record_dtype([("c", "f8"), ("f0", "f8"), ("fs", "f8"), ("velocity", "f8", 3), ("half_extent", "f8"),
                            ("rho_max", "f8"), ("bias", "i4")])
 _OFFSETS = [("dx", "f4", LANES), ("dy", "f4", LANES), ("dz", "f4", LANES), ("dd", "f4", LANES)]
@@ -127,13 +129,31 @@ def _preambles(legs: str, moving: bool) -> tuple[str, str]:
     same programs)."""
     preamble = declare_all({"tile_ref_t": TILE_REFS[legs], "tile_params_t": TILE_PARAMS,
                             "bp_pixels_t": MOVING_PIXELS if moving else PIXELS}) + _horner("LEG_POLY", LEG_POLY)
-    return preamble, preamble + declare_all({"bp_ref_pulse_t": REF_PULSE, "bp_ref_params_t": REF_PARAMS})
+    return preamble, preamble + declare_all({"bp_ref_params_t": REF_PARAMS})
 
 
-def _at_emission(echo, hs: np.ndarray, pulses: np.ndarray) -> np.ndarray:
-    """(len(hs), len(pulses), 3) m: receivers ``hs`` at fast time 0 of each pulse, as
-    ``echo.rx_position(h, 0)`` gives them (the same arithmetic), every receiver at once."""
-    nodes, pos = echo.rx_tau[hs], echo.rx_pos[hs[:, None], pulses]  # (G, N), (G, P, N, 3)
+def w_runs(w: np.ndarray) -> np.ndarray:
+    """For each of P pulses' w ((P, 3), rounded to float32 as the references hold it): how many of
+    the pulses that follow it have a w of the same bits (legs "mono"'s ``w_run``: bp_tile makes the
+    rows' w . delta once for such a run of pulses)."""
+    bits = np.ascontiguousarray(w, np.float32).view(np.uint32)
+    index = np.arange(bits.shape[0])
+    if not np.any(bits != bits[:1]):  # one run (a receiver at constant velocity)
+        return index[::-1].copy()
+    breaks = np.flatnonzero(np.any(bits[1:] != bits[:-1], axis=-1))  # the last pulse of each run but the last
+    return np.append(breaks, bits.shape[0] - 1)[np.searchsorted(breaks, index)] - index
+
+
+def _rx_nodes(echo, hs: np.ndarray, pulses) -> np.ndarray:
+    """(G, P, N, 3) m: the position nodes of receivers ``hs`` for ``pulses`` (an index array, or a
+    slice: then sliced first, a view, and only the receivers copied)."""
+    return echo.rx_pos[:, pulses][hs] if isinstance(pulses, slice) else echo.rx_pos[hs[:, None], pulses]
+
+
+def _at_emission(echo, hs: np.ndarray, pulses) -> np.ndarray:
+    """(len(hs), len(pulses), 3) m: receivers ``hs`` at fast time 0 of each pulse (an index array
+    or a slice), as ``echo.rx_position(h, 0)`` gives them (the same arithmetic), every receiver at once."""
+    nodes, pos = echo.rx_tau[hs], _rx_nodes(echo, hs, pulses)  # (G, N), (G, P, N, 3)
     if nodes.shape[1] == 1:
         return pos[:, :, 0].copy()
     g = np.arange(hs.size)
@@ -282,6 +302,8 @@ class TileKernel:
             a2 = c * c - np.einsum("...i,...i->...", v_r, v_r)
             ref["w"] = 2 * v_r / a2[..., None]
             ref["alpha"] = 2 * c * c / a2
+            for t in range(ref.shape[1]):  # the runs of each tile's pulses
+                ref["w_run"][:, t] = w_runs(ref["w"][:, t])
         elif self.legs == "two":
             ref["leg2"] = c_vec
             ref["b2"] = c * c * t2 - np.einsum("...i,...i->...", c_vec, v_r)
@@ -327,19 +349,36 @@ class TileKernel:
         if not all(self.on_device(echo, int(k)) for k in hs):
             return None
         rt = opencl.runtime()
-        pulse = np.zeros((hs.size, pulses.size), REF_PULSE)
-        pulse["tx"], pulse["eta"] = echo.tx_pos[pulses], echo.eta[pulses]
-        pulse["rx0"] = _at_emission(echo, hs, pulses)
+        # the pulses' fields a row each (REF_FIELDS), receiver after receiver, each over
+        # ``pulses``; REF_LANES - 1 columns of padding for the last work-item's vector loads
+        columns, c = hs.size * pulses.size, echo.medium.sound_speed
+        pulse = np.zeros((len(REF_FIELDS), columns + REF_LANES), np.float64)
+        rows = pulse[:, :columns].reshape(len(REF_FIELDS), hs.size, pulses.size)  # (field, receiver, pulse)
+        pick = pulses  # a run of consecutive pulses (the usual job) as a slice: views, not copies
+        if pulses.size > 1 and pulses[-1] - pulses[0] == pulses.size - 1 and np.all(np.diff(pulses) == 1):
+            pick = slice(int(pulses[0]), int(pulses[-1]) + 1)
+        rows[0:3] = echo.tx_pos[pick].T[:, None, :]
+        rows[3] = echo.eta[pick]
+        rows[4:7] = np.moveaxis(_at_emission(echo, hs, pick), -1, 0)
         if not self.stop_and_go and echo.rx_tau.shape[-1] == 2:
-            pulse["v_rx"] = (echo.rx_pos[hs[:, None], pulses, 1] - echo.rx_pos[hs[:, None], pulses, 0]) / np.diff(
-                echo.rx_tau[hs], axis=-1)[:, :, None]  # two_node_velocity of every receiver
-        pulse["t0"], pulse["offset"] = np.asarray(echo.t0)[hs][:, None], np.asarray(offsets)[:, None]
-        c = echo.medium.sound_speed
+            nodes = _rx_nodes(echo, hs, pick)
+            rows[7:10] = np.moveaxis(nodes[:, :, 1] - nodes[:, :, 0], -1, 0)
+            rows[7:10] /= np.diff(echo.rx_tau[hs], axis=-1)  # two_node_velocity of every receiver ((G, 1) s)
+            if self.legs == "mono":  # w and alpha of each pulse (the module docstring), as bp_refs made them
+                x, y, z = rows[7:10]
+                a2 = c * c - ((x * x + y * y) + z * z)
+                rows[12:15] = 2.0 * rows[7:10] / a2
+                rows[15] = 2.0 * c * c / a2
+                for g in range(hs.size):  # each receiver's runs (its pulses are its tiles' rows' columns)
+                    rows[16, g] = w_runs(rows[12:15, g].T)
+        rows[10], rows[11] = np.asarray(echo.t0)[hs][:, None], np.asarray(offsets)[:, None]
         params = np.zeros((), REF_PARAMS)
         params["c"], params["f0"], params["fs"] = c, echo.waveform.f0, fs
         params["velocity"], params["half_extent"], params["rho_max"] = self.velocity, half_extent, RHO_MAX
         params["bias"] = self.bias(half_extent, c, fs)
-        per_tile = pulse.size if tile_first is None else pulses.size - int(tile_first.max(initial=0))
+        per_tile = columns if tile_first is None else pulses.size - int(tile_first.max(initial=0))
+        n_chunks = -(-per_tile // REF_LANES)
+        n_items = n_tiles * n_chunks
         n_refs = n_tiles * per_tile
         out = cl.Buffer(rt.context, cl.mem_flags.READ_WRITE, self.reference_dtype.itemsize * max(n_refs, 1))
         pulse_buf = cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=pulse)
@@ -348,8 +387,8 @@ class TileKernel:
             extra = (cl.Buffer(rt.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=tile_first),)
             defines = {**defines, "TILE_FIRST": 1}
         opencl.kernel("bp_refs", "bp_refs", preamble=self.ref_preamble, defines=defines)(
-            queue, *opencl.work_groups(n_refs), centres, pulse_buf, params[()], np.int32(per_tile),
-            np.int32(n_refs), out, *extra)
+            queue, *opencl.work_groups(n_items), centres, pulse_buf, np.int32(pulse.shape[1]), params[()],
+            np.int32(per_tile), np.int32(n_chunks), np.int32(n_items), out, *extra)
         return out
 
     def spans(self, ref: np.ndarray, half_extent: float, c: float, first: int) -> np.ndarray:

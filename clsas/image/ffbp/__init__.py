@@ -58,12 +58,12 @@ from .leaves import BATCH_POINTS, RECORD_BYTES, FirstStage
 from .merge import CHUNK, KERNEL_TAPS
 from .polar import CHUNK_NODES
 from .polar.offsets import device_bytes
-from .polar.sampling import DEVICE_CHUNK_NODES, ENVELOPE_BINS
+from .polar.sampling import DEVICE_CHUNK_NODES, ENVELOPE_BINS, SPAN_GRID_BYTES, SPAN_GRIDS, SPAN_ROW_BYTES, SPAN_ROWS
 from . import reuse
 from .reuse import kept, planned, release
 from .scratch import GRAIN, Scratch
 from .store import DeviceStore, HostStore
-from .tree import Tree, plan
+from .tree import MAX_LEAVES, Tree, plan
 
 DEFAULT_TOLERANCE = 0.1
 DEFAULT_FACTOR = 4  # children a merge (bench_ffbp --factors compares 2)
@@ -86,6 +86,12 @@ PLAN_BYTES = 8 * (2 * 66 + 6 * CHUNK_NODES)
 # ... and on OpenCL the planner's device reductions' buffers and their results' host copies, at most
 # (polar.offsets.device_bytes: DEVICE_CHUNK_NODES sub-apertures' envelopes of ENVELOPE_BINS bins, ~2 MiB)
 PLAN_DEVICE_COPIES = 2
+# ... and a sub-aperture whose extent the plan finds (_plan_nodes): its envelope (ENVELOPE_BINS x 2 float64, 8 KiB,
+# held to the plan's end), its Extent, frame and polar grids (tests/test_ffbp_input.py holds the traced peak below)
+PLAN_NODE_BYTES = 2 * 16 * ENVELOPE_BINS
+# ... and a pulse of a selected receiver's position node: the phase centres and the frames' offsets from them
+# (float64 (x, y, z): tree._Frames' copies and its frames' temporaries of a level's pulses)
+PLAN_PULSE_BYTES = 8 * 24
 TABLE_COPIES = {"knab": 8, "kaiser": 16}  # float64 temporaries of building a tap table (interp.tap_table)
 
 
@@ -99,22 +105,47 @@ def _tables(taps: int, interp: str) -> float:
     return merge + first
 
 
-def _fixed_parts(n_pixels: int, skeleton: int, taps: int, interp: str, backend: str, echo_bytes: float) -> dict:
+def _fixed_parts(n_pixels: int, skeleton: int, taps: int, interp: str, backend: str, echo_bytes: float, *,
+                 plan_nodes: int = 0, plan_pulses: int = 0) -> dict:
     """The parts of :func:`memory_plan` that do not depend on the tree: ``image``, ``records``,
-    ``tables`` and ``planning`` (the tree's plan, before any other part is allocated)."""
+    ``tables`` and ``planning`` (the tree's plan, before any other part is allocated: :func:`_planning`)."""
     return {"image": 2 * SAMPLE_BYTES[backend] * n_pixels,
             "records": min(RECORD_BYTES, echo_bytes) + 3 * min(FFT_BATCH_BYTES, 2 * echo_bytes),
             "tables": _tables(taps, interp),
-            "planning": _planning(skeleton, backend)}
+            "planning": _planning(skeleton, backend, plan_nodes, plan_pulses)}
 
 
-def _planning(skeleton: int, backend: str) -> float:
-    """Bytes of the tree's plan over a skeleton of ``skeleton`` points (0: none counted)."""
+def _planning(skeleton: int, backend: str, nodes: int = 0, pulses: int = 0) -> float:
+    """Bytes of the tree's plan over a skeleton of ``skeleton`` points (0: none counted), finding the
+    extents of at most ``nodes`` sub-apertures (:func:`_plan_nodes`) of ``pulses`` pulses x selected
+    receivers' position nodes, and sampling their grids' rows' spans (polar.sampling.SPAN_GRIDS grids
+    or SPAN_ROWS rows at a time)."""
     if skeleton == 0:
         return 0.0
     device = (PLAN_DEVICE_COPIES * device_bytes(skeleton, DEVICE_CHUNK_NODES, ENVELOPE_BINS)
               if backend == "opencl" else 0)
-    return PLAN_BYTES * skeleton + device
+    spans = min(nodes, SPAN_GRIDS) * SPAN_GRID_BYTES + (SPAN_ROWS * SPAN_ROW_BYTES if nodes else 0)  # sample_grids'
+    return PLAN_BYTES * skeleton + device + PLAN_NODE_BYTES * nodes + PLAN_PULSE_BYTES * pulses + spans
+
+
+def _plan_nodes(n_pulses: int, first: int | None, factor: int) -> int:
+    """At most how many sub-apertures' extents :func:`.tree.plan` finds: every node of the tree of
+    ``first``-pulse leaves; with ``first=None`` (the rule) twice the nodes of the tree of the shortest
+    leaves it considers (at most MAX_LEAVES of them: its own tree and a guessed one) and the lengths'
+    middle nodes and their neighbours' spines (a few a level)."""
+    def nodes(span: int) -> int:
+        count = 0
+        while True:
+            count += -(-n_pulses // span)
+            if span >= n_pulses:
+                return count
+            span *= factor
+    if first is not None:
+        return nodes(int(first))
+    shortest = 1
+    while -(-n_pulses // shortest) > MAX_LEAVES:
+        shortest *= 2
+    return 2 * nodes(shortest) + 4 * (n_pulses.bit_length() + 1)
 
 
 def memory_plan(tree: Tree, n_pixels: int, factor: int, echo_bytes: float = float("inf"), *, taps: int = 8,
@@ -258,9 +289,11 @@ def ffbp(echo: EchoData, grid: Grid, *, factor: int = DEFAULT_FACTOR, tolerance:
     name = _backend.resolve(backend)
     scene, entry = kept(grid)
     echo_bytes = 8.0 * (upsample if interp == "linear" else 1) * echo.n_samples * echo.n_pulses * len(chosen)
+    plan_pulses = echo.n_pulses * len(chosen) * echo.rx_pos.shape[2]  # a pulse of a receiver's position node
     budget.check_bytes(f"ffbp of {echo.n_pulses} pulses onto {grid.size} pixels (its image, records, tables and "
-                       "plan)", sum(_fixed_parts(grid.size, scene.skeleton.shape[0], taps, interp, name,
-                                                 echo_bytes).values()),
+                       "plan)", sum(_fixed_parts(grid.size, scene.skeleton.shape[0], taps, interp, name, echo_bytes,
+                                                 plan_nodes=_plan_nodes(echo.n_pulses, first, int(factor)),
+                                                 plan_pulses=plan_pulses).values()),
                        "image fewer pixels at a time (tiles of the grid)")
     options = (int(factor), float(tolerance), int(taps), first, aperture, interp, int(upsample), bool(stop_and_go))
     made = planned(entry, echo, chosen, options,  # the tree kept for this geometry onto this grid, or a new one

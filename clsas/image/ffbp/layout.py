@@ -74,26 +74,33 @@ def polar_tiles(grids: list, bv: int, br: int, seen: list | None = None):
         order = (first, keep & ~first)
     else:
         order = (keep,)
+    # each kept work-item's (leaf, first row, first sample, tile), in order, then its ROWS items (its
+    # rows one after another) as one int32 array that the ITEM records view
     picked = [np.broadcast_to(x, shape) for x in (l, block * ROWS, start, tile)]
-    kept = sum(int(np.count_nonzero(k)) for k in order)
-    items = np.zeros(kept * ROWS, program.ITEM)
-    for name, x in zip(program.ITEM.names, picked):
-        items[name] = np.repeat(np.concatenate([x[k] for k in order]), ROWS)
-    items["row"] += np.tile(np.arange(ROWS, dtype=np.int32), kept)  # each work-item's rows
-    return items, centres, tv_of * tr_of, ROWS * int(np.count_nonzero(order[0]))
+    kept = [int(np.count_nonzero(k)) for k in order]
+    work = np.empty((sum(kept), 4), np.int32)
+    for f, x in enumerate(picked):
+        work[:, f] = np.concatenate([x[k] for k in order])
+    fields = np.repeat(work, ROWS, axis=0)
+    fields.reshape(-1, ROWS, 4)[:, :, 1] += np.arange(ROWS, dtype=np.int32)  # each work-item's rows
+    items = fields.view(program.ITEM).reshape(-1)
+    return items, centres, tv_of * tr_of, ROWS * kept[0]
 
 
 def _meets(grids: list, blocks: int, l, block, start) -> np.ndarray:
     """Whether a group of LANES samples from ``start`` meets the span of its block ``block`` of ROWS
     rows of grid ``l`` (the union of the rows' spans: a work-item's ROWS items then stay in one
     tile), broadcast over polar_tiles' (l, b, q, a, j)."""
-    lo = np.full((len(grids), blocks * ROWS), np.iinfo(np.int32).max, np.int64)
+    none = np.iinfo(np.int32).max
+    lo = np.full((len(grids), blocks * ROWS), none, np.int64)
     hi = np.zeros((len(grids), blocks * ROWS), np.int64)
-    for k, g in enumerate(grids):
-        spans = g.row_spans.astype(np.int64)
-        empty = spans[:, 1] <= spans[:, 0]
-        lo[k, :g.n_v] = np.where(empty, lo[k, 0], spans[:, 0])
-        hi[k, :g.n_v] = np.where(empty, 0, spans[:, 1])
+    n_v = np.array([g.n_v for g in grids])
+    grid = np.repeat(np.arange(len(grids)), n_v)  # every grid's rows, grid by grid
+    row = np.arange(grid.size) - np.repeat(np.cumsum(n_v) - n_v, n_v)
+    spans = np.concatenate([g.row_spans for g in grids]).astype(np.int64)
+    empty = spans[:, 1] <= spans[:, 0]
+    lo[grid, row] = np.where(empty, none, spans[:, 0])
+    hi[grid, row] = np.where(empty, 0, spans[:, 1])
     lo = lo.reshape(len(grids), blocks, ROWS).min(axis=2)
     hi = hi.reshape(len(grids), blocks, ROWS).max(axis=2)
     return (start + LANES > lo[l, block]) & (start < hi[l, block])

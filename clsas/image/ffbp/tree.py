@@ -22,8 +22,8 @@ and, with an ``aperture``, the angles |v| <= sin(aperture / 2) + min(|u - y|, |u
 / (r_C - E), E = max |T - C| over the node's transmitters T and r_C = the distance from the node's centre C
 to the scene's skeleton less its margin, below every pixel's |X - C| (the pixels that some pulse of the node
 sees within the aperture: bp_tile's mask takes the |sine| off the y axis at the transmitter, so a
-track heading along -y is limited as one along +y; :func:`clsas.image.ffbp.polar.sampling.aperture_sines`),
-and for an axis turned from y within the window :func:`clsas.image.ffbp.polar.sampling.aperture_windows`
+track heading along -y is limited as one along +y; :func:`clsas.image.ffbp.polar.aperture_sines`),
+and for an axis turned from y within the window :func:`clsas.image.ffbp.polar.aperture_windows`
 derives from the scene's extremes across y (a yawed track's |u - y| leaves the first bound near 1);
 :func:`clsas.image.ffbp.polar.extents` bounds it and :meth:`~clsas.image.ffbp.polar.Extent.sample`
 samples it.
@@ -127,12 +127,17 @@ class _Frames:
         track = np.concatenate([self.mids[ends, ::step].reshape(-1, 3), self.mids[ends, -1]])
         self.r_near = float(scene.nearest(track).min()) - scene.margin
 
-    def frames(self, nodes: list) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(centres (n, 3), axes (n, 3), half-lengths (n,), largest baselines (n,)) of the nodes
-        (p0, p1) (pulses p0..p1-1), vectorised over the nodes of each length."""
+    def frames(self, nodes: list, reach: bool = False) -> tuple:
+        """(centres (n, 3), axes (n, 3), half-lengths (n,), largest baselines (n,), reach) of the nodes
+        (p0, p1) (pulses p0..p1-1), vectorised over the nodes of each length; ``reach``: also max |T - C|
+        (n,) m over the transmitter's positions T at the emissions of each node's pulses, C its centre
+        (how far from C bp_tile's aperture mask takes its angles), else None. A length's nodes are laid
+        out pulse-major, (pulses, nodes, 3): the centre's sum runs over the pulses one after the other
+        as NumPy's mean over a node-major array's pulse axis does, a whole row of nodes at a time."""
         n = self.tx.shape[0]
         centres, axes = np.empty((len(nodes), 3)), np.empty((len(nodes), 3))
         halves, bases = np.empty(len(nodes)), np.empty(len(nodes))
+        reaches = np.empty(len(nodes)) if reach else None
         by_length = {}
         for i, (p0, p1) in enumerate(nodes):
             by_length.setdefault(p1 - p0, []).append(i)
@@ -142,31 +147,20 @@ class _Frames:
             chord = self.tx[hi] - self.tx[lo]
             norm = np.linalg.norm(chord, axis=1)[:, None]
             axis = np.where(norm > 0, chord / np.where(norm > 0, norm, 1.0), [0.0, 1.0, 0.0])
-            pulses = p0[:, None] + np.arange(length)  # (m, length)
-            mids = np.moveaxis(self.mids[:, pulses], 0, 1).reshape(len(which), -1, 3)  # every receiver, pulse
-            centre = mids.mean(axis=1)
-            d = mids - centre[:, None]
-            along = np.einsum("mki,mi->mk", d, axis)
-            off = d - along[..., None] * axis[:, None]
-            base = self.baseline[pulses].max(axis=1)
+            pulses = np.arange(length)[:, None] + p0  # (length, m)
+            mids = np.take(self.mids, pulses, axis=1).reshape(-1, len(which), 3)  # (receivers x length, m, 3)
+            centre = np.add.reduce(mids, axis=0) / mids.shape[0]
+            d = mids - centre
+            along = np.einsum("kmi,mi->km", d, axis)
+            off = d - along[..., None] * axis
+            base = np.take(self.baseline, pulses).max(axis=0)
             centres[which], axes[which], bases[which] = centre, axis, base
-            halves[which] = (np.abs(along).max(axis=1) + np.sqrt(np.einsum("mki,mki->mk", off, off)).max(axis=1)
+            halves[which] = (np.abs(along).max(axis=0) + np.sqrt(np.einsum("kmi,kmi->km", off, off)).max(axis=0)
                              + base ** 2 / (4 * self.r_near))
-        return centres, axes, halves, bases
-
-    def transmitters_reach(self, nodes: list, centres: np.ndarray) -> np.ndarray:
-        """max |T - C| (n,) m over the transmitter's positions T at the emissions of each node (p0, p1)'s
-        pulses, C its centre (``centres`` (n, 3), :meth:`frames`): how far from C bp_tile's aperture
-        mask takes its angles."""
-        reach = np.empty(len(nodes))
-        by_length = {}
-        for i, (p0, p1) in enumerate(nodes):
-            by_length.setdefault(p1 - p0, []).append(i)
-        for length, which in by_length.items():
-            pulses = np.array([nodes[i][0] for i in which])[:, None] + np.arange(length)  # (m, length)
-            d = self.tx[pulses] - centres[which][:, None]
-            reach[which] = np.sqrt(np.einsum("mki,mki->mk", d, d).max(axis=1))
-        return reach
+            if reach:
+                d = np.take(self.tx, pulses, axis=0) - centre
+                reaches[which] = np.sqrt(np.einsum("kmi,kmi->km", d, d).max(axis=0))
+        return centres, axes, halves, bases, reaches
 
 
 def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: float, taps: int,
@@ -192,10 +186,9 @@ def plan(echo: EchoData, chosen: list, scene: Scene, factor: int, tolerance: flo
         nodes = [n for n in dict.fromkeys(nodes) if n not in extents_of]
         if not nodes:
             return
-        centres, axes, halves, bases = frames.frames(nodes)
+        centres, axes, halves, bases, reaches = frames.frames(nodes, reach=sine is not None)
         widen = halves + bases / 2
-        limits = None if sine is None else aperture_windows(scene, centres, axes, sine,
-                                                            frames.transmitters_reach(nodes, centres),
+        limits = None if sine is None else aperture_windows(scene, centres, axes, sine, reaches,
                                                             scene.nearest(centres) - scene.margin,
                                                             taps if device else None)
         found = extents(centres, axes, halves, scene, window + np.stack([-widen, widen], axis=1), bw, f0, c, limits,

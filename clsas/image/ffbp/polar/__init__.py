@@ -60,9 +60,10 @@ exceed its tolerance).
 """
 
 from .grids import RHO_STEPS, Plane, PolarGrid, interpolation_error, oversampling, points_at, points_of
-from .sampling import CHUNK_NODES, Extent, aperture_windows, axis_tilt, extents, sample_grids, within_aperture
+from .sampling import (CHUNK_NODES, Extent, aperture_sines, aperture_windows, axis_tilt, extents, sample_grids,
+                       within_aperture)
 from .scene import Scene, frame_axes
 
-__all__ = ["CHUNK_NODES", "RHO_STEPS", "Extent", "Plane", "PolarGrid", "Scene", "aperture_windows", "extents",
-           "frame_axes", "interpolation_error", "oversampling", "points_at", "points_of", "sample_grids", "axis_tilt",
-           "within_aperture"]
+__all__ = ["CHUNK_NODES", "RHO_STEPS", "Extent", "Plane", "PolarGrid", "Scene", "aperture_sines", "aperture_windows",
+           "axis_tilt", "extents", "frame_axes", "interpolation_error", "oversampling", "points_at", "points_of",
+           "sample_grids", "within_aperture"]

@@ -104,9 +104,11 @@ class PolarGrid:
             return np.tile(np.array([0, self.n_r], np.int32), (self.n_v, 1))
         return self.spans
 
-    @property
+    @functools.cached_property
     def computed(self) -> int:
-        """Samples computed (inside the rows' spans): the work of making or merging this image."""
+        """Samples computed (inside the rows' spans): the work of making or merging this image (counted
+        once a grid: the planner and the call's provenance ask it of every grid again and again; a
+        grid's spans are not changed in place, a grid with other spans is another PolarGrid)."""
         return self.size if self.spans is None else int(np.sum(self.spans[:, 1] - self.spans[:, 0]))
 
     def inside(self) -> np.ndarray:

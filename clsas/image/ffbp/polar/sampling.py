@@ -15,6 +15,13 @@ CHUNK_NODES = 8  # sub-apertures whose extents are computed at once (8 x ~8k ske
 DEVICE_CHUNK_NODES = 256  # ... on the device (one launch a reduction; envelopes of 256 x 8 kB on the device at most)
 ENVELOPE_BINS = 512  # sine bins of a sub-aperture's range envelope of the scene (the ragged rows)
 RAGGED = True  # polar grids computed only within their rows' spans (False: whole rectangles, for comparison)
+# sample_grids' rows' spans this many grids, or rows, at a time (each grid's its own; one call of the bench's
+# plans, as many costs ~0.2 ms more): the sparse tables hold ENVELOPE_BINS x 2 float64 a level and grid
+# (SPAN_GRID_BYTES), the rows' windows SPAN_ROW_BYTES a row (both counted by ffbp's planning part)
+SPAN_GRIDS = 128
+SPAN_ROWS = 1 << 14
+SPAN_GRID_BYTES = 16 * ENVELOPE_BINS * (ENVELOPE_BINS.bit_length() + 1)
+SPAN_ROW_BYTES = 256
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,11 +86,21 @@ def sample_grids(found: list, rho, taps: int) -> list:
     (r, v) box outside the scene's wedge) is not computed. The envelope's bins make the sines'
     window up to one bin wider (more kept, never less). The nearest and farthest range over a
     window of bins come from a sparse table of each envelope (extrema over 2^k bins from every
-    bin; two overlapping windows of 2^k bins cover any window), all the grids' rows at once."""
+    bin; two overlapping windows of 2^k bins cover any window), the rows of SPAN_GRIDS grids (at
+    most SPAN_ROWS rows, or one grid's) at once: the temporaries stay bounded however many grids
+    are sampled, and each grid's spans are its own.""" 
     rhos = [rho] * len(found) if np.ndim(rho) == 0 else rho
     shapes = [e._sampling(float(r), taps) for e, r in zip(found, rhos, strict=True)]
     ragged = [k for k, e in enumerate(found) if RAGGED and e.envelope is not None]
-    spans = dict(zip(ragged, _spans([found[k] for k in ragged], [shapes[k] for k in ragged]))) if ragged else {}
+    spans, start = {}, 0
+    while start < len(ragged):  # SPAN_GRIDS grids or SPAN_ROWS rows at a time (at least one grid)
+        stop, rows = start + 1, shapes[ragged[start]][5]
+        while stop < len(ragged) and stop - start < SPAN_GRIDS and rows + shapes[ragged[stop]][5] <= SPAN_ROWS:
+            rows += shapes[ragged[stop]][5]
+            stop += 1
+        part = ragged[start:stop]
+        spans.update(zip(part, _spans([found[k] for k in part], [shapes[k] for k in part])))
+        start = stop
     return [PolarGrid(e.centre, e.axis, e.e1, e.e2, e.plane, r0, dr, n_r, v0, dv, n_v, spans.get(k))
             for k, (e, (r0, dr, n_r, v0, dv, n_v, _)) in enumerate(zip(found, shapes))]
 
