@@ -1301,7 +1301,7 @@ def test_a_call_on_held_records_computes_the_grids_reach_once(opencl_device, kia
 
 def test_a_calls_record_buffers_count_against_the_memory_budget(opencl_device, kiang_echo, monkeypatch):
     # review 14 L3, review 16 L1: a call's buffers for its records count with its pixels in the memory budget
-    # (launcher.record_bytes, checked by backproject on both backends), single and double precision: records made per
+    # (records.record_bytes, checked by backproject on both backends), single and double precision: records made per
     # call (single: the FIR's scratch buffer of each of two lanes; double: complex128 jobs in flight), held records
     # (single: the rows two lanes stage, each lane's buffer made at the call's largest rows, which here grow from one
     # receiver to the next on a lane; double: the complex128 copies the first double call makes and keeps). A budget a
@@ -1339,7 +1339,7 @@ def test_a_calls_record_buffers_count_against_the_memory_budget(opencl_device, k
             def source():
                 return prepare(kiang_echo, upsample=8, grid=grid) if held else kiang_echo
             plain, _, span, _ = records.records_for(source(), grid, None, None, None, None, None)
-            extra = launcher.record_bytes(plain, span, double)
+            extra = records.record_bytes(plain, span, double)
             need = direct.BYTES_PER_PIXEL * grid.size + extra
             assert extra > direct.BYTES_PER_PIXEL * grid.size  # the records' buffers weigh here
             expected = backproject(source(), grid, backend="opencl", progress=False, precision=precision).data
@@ -1364,7 +1364,7 @@ def test_a_calls_record_buffers_count_against_the_memory_budget(opencl_device, k
             assert (alive[1] <= extra - host) if double else (alive[1] == extra), (precision, held, alive, extra)
             if held and double:  # the copies made and kept: the count, then nothing more to make
                 assert sum(host.nbytes for (_, _, d), (_, host) in echo._device.items() if d) == extra
-                assert launcher.record_bytes(echo, span, True) == 0
+                assert records.record_bytes(echo, span, True) == 0
 
 
 @pytest.mark.parametrize("n_pulses", [1, 7, 13])

@@ -57,8 +57,8 @@ from ... import backend as _backend
 from ... import budget, validate
 from ...model import Grid, Image
 from ...progress import NOMINAL_RATES, stage
-from .launcher import backproject_opencl, record_bytes
-from .records import records_for
+from .launcher import backproject_opencl
+from .records import record_bytes, records_for
 from .reference import backproject_reference
 from .tiles import GridPlan
 
@@ -100,7 +100,7 @@ def _check_call(grid, aperture, stop_and_go):
 
 
 def _check_records(size: int, records, span: tuple[int, int], double: bool) -> None:
-    """Refuse a call whose pixels and its records' buffers (:func:`.launcher.record_bytes`: the upsampled
+    """Refuse a call whose pixels and its records' buffers (:func:`.records.record_bytes`: the upsampled
     jobs' buffers, held records' staging or complex128 copies) exceed the memory budget, before either is
     allocated."""
     extra = record_bytes(records, span, double)

@@ -12,7 +12,7 @@ float sums carried between launches, 8 bytes a slot), put in the grid's order on
 kernels have finished: by bp_order on the device into the complex64 image for a grid of one chunk,
 by the host into a complex128 image for several; the records a block
 of at most ``records.UPLOAD_BYTES`` at a time (jobs of a receiver's block in flight up to
-IN_FLIGHT_BYTES of records, at least two and at most MAX_IN_FLIGHT: the host waits for the
+records.IN_FLIGHT_BYTES of records, at least two and at most records.MAX_IN_FLIGHT: the host waits for the
 kernels of the job that many before; small jobs, a small grid's, then queue up far enough that
 the device does not wait for the host between them), the per-(tile, pulse) references REF_PULSES pulses at a
 time, for consecutive receivers of the same legs at once (one bp_refs launch; a group's references
@@ -33,7 +33,7 @@ import numpy as np
 from ... import opencl
 from ...progress import Progress
 from .exact_kernel import ExactKernel
-from .records import UPLOAD_BYTES, PreparedRecords, launch_pulses
+from .records import PreparedRecords, jobs_in_flight, launch_pulses
 from .spans import reach
 from .tile_kernel import TileKernel
 from .tiles import GridPlan
@@ -41,8 +41,6 @@ from .tiles import GridPlan
 PIXEL_CHUNK = 2**22  # slots on the device at once
 REF_PULSES = 1024  # pulses whose tile references are computed at once (a 1024-pulse upload job: one bp_refs launch)
 REF_BYTES = 16 * 2**20  # a group of receivers' references (every pulse of the call) held at once (_groups)
-IN_FLIGHT_BYTES = 2 * UPLOAD_BYTES  # records (records.upload_pulses' bytes a pulse) of the jobs in flight at once
-MAX_IN_FLIGHT = 8  # jobs in flight at most
 # a chunk of at most TWO_LANE_SLOTS slots with several jobs runs every other job on a second queue (_Chunk.lane), into
 # its own sums and carry (24 bytes a slot: at most 6 MB) and the FIR's scratch buffer of that queue (records.py): a
 # small grid's launches are short, so a thread idle at a launch's end and the ~25 us between commands are a large
@@ -302,7 +300,7 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
     params = tile.params(c, f0, fs)
     chunk = PIXEL_CHUNK // (tile.LANES * tile.rows) * (tile.LANES * tile.rows)
     job_bytes = 16 * max(1, int(np.max(records.length))) * min(upload, span[1] - span[0])  # as upload_pulses counts
-    keep = _in_flight(job_bytes) - 1  # jobs left in flight by retire
+    keep = jobs_in_flight(job_bytes) - 1  # jobs left in flight by retire
     jobs = [(first, i, np.arange(s, min(s + upload, span[1]))) for first in range(0, tiles.order.size, chunk)
             for i in range(len(records.receivers)) for s in range(span[0], span[1], upload)]
     group_of = {i: g for g in _groups(records, kernels, tile, tiles, span) for i in g}
@@ -420,32 +418,6 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
     bar.close()
     image = np.zeros(pixels.shape[0], np.complex128) if image is None else image
     return image, fallbacks, _union_seconds(busy), (seen[0] if seen else None)
-
-
-def _in_flight(job_bytes: int) -> int:
-    """Jobs of ``job_bytes`` (16 bytes a sample, as upload_pulses counts) whose records a call holds at once."""
-    return int(min(MAX_IN_FLIGHT, max(2, IN_FLIGHT_BYTES // job_bytes)))
-
-
-def record_bytes(records: PreparedRecords, span: tuple[int, int], double: bool) -> int:
-    """Bytes a call on pulses ``span`` makes for ``records`` beyond their held samples (a bound, checked
-    against the memory budget before the call: :mod:`.direct`). Held records: the buffers two lanes
-    stage rows into (single), or the complex128 copies a double call makes and keeps, where not made yet.
-    Records made per call: with the FIR on the device (single), one scratch buffer a lane (two), each a
-    job's records; otherwise the jobs in flight (:func:`_in_flight`, at most a chunk's) each in a buffer of its own (16
-    bytes a sample for double), and the host arrays of the one being made (complex64, and its complex128
-    copy for double). Records of the echo read in place (not upsampled, single): none."""
-    if records.materialised:
-        return records.double_copy_bytes() if double else 2 * records.staged_bytes(span[1] - span[0])
-    longest = max(1, int(np.max(records.length)))
-    if records.factor > 1 and not double and records.fir_on_device:
-        return 2 * 8 * min(records.upload_pulses(), records.echo.n_pulses) * longest
-    if records.factor == 1 and not double:
-        return 0
-    upload = records.upload_pulses()
-    job = min(upload, span[1] - span[0]) * longest  # samples
-    jobs = min(_in_flight(16 * job), len(records.receivers) * -(-(span[1] - span[0]) // upload))
-    return jobs * (16 if double else 8) * job + (24 if double else 8) * job
 
 
 def _union_seconds(intervals: list) -> float:

@@ -39,7 +39,7 @@ buffers are made on first OpenCL use, one per receiver (and one complex128 copy 
 until :meth:`PreparedRecords.release`. On PoCL CPU devices a complex64 buffer uses the host array
 in place (CL_MEM_USE_HOST_PTR: no copy); on a GPU it is a copy in device memory. A call's own
 buffers for its records (a job's upsampled records a lane, held rows staged, complex128 copies:
-:func:`.launcher.record_bytes`) count with its pixels against the memory budget, checked before the call makes them.
+:func:`record_bytes`) count with its pixels against the memory budget, checked before the call makes them.
 """
 
 from __future__ import annotations
@@ -62,6 +62,8 @@ UPLOAD_BYTES = 64 * 2**20  # records prepared and uploaded at once when a call p
 # stay in cache while the launch's work-items read them (long upsampled records on a small grid:
 # 6.9 MB a block of 64 pulses x8 otherwise come from L3 for every work-group)
 LAUNCH_RECORD_BYTES = 2 * 2**20
+IN_FLIGHT_BYTES = 2 * UPLOAD_BYTES  # records (upload_pulses' bytes a pulse) of a call's jobs in flight at once
+MAX_IN_FLIGHT = 8  # jobs in flight at most (:func:`jobs_in_flight`)
 STAGE_BYTES = 8 * 2**20  # held records staged for a job at most (buffer): here jobs of 6.9-15 MB gained, 27-44 MB lost
 
 
@@ -220,7 +222,7 @@ class PreparedRecords:
             if staged is None or double or row * pulses.size > STAGE_BYTES:
                 return self._device[key][0], n, 0
             queue = opencl.runtime().queue if queue is None else queue
-            dst = self._scratch_of(ctx, queue, row * pulses.size, staged, self.staged_bytes(pulses.size))
+            dst = self._scratch_of(ctx, queue, row * pulses.size, staged, lambda: self.staged_bytes(pulses.size))
             cl.enqueue_copy(queue, dst, self._device[key][0], byte_count=row * pulses.size,
                             src_offset=row * int(pulses[0]), dst_offset=0)
             return dst, n, int(pulses[0])
@@ -251,23 +253,26 @@ class PreparedRecords:
         flags = mf.USE_HOST_PTR if np.shares_memory(src, self.echo.data) else mf.COPY_HOST_PTR
         src_buf = cl.Buffer(ctx, mf.READ_ONLY | flags, hostbuf=src)
         queue = opencl.runtime().queue if queue is None else queue
-        block = 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))  # a call's largest
-        dst = self._scratch_of(ctx, queue, 8 * src.shape[0] * int(self.length[i]), block=block)
+        dst = self._scratch_of(ctx, queue, 8 * src.shape[0] * int(self.length[i]), block=self._largest_block)
         fir.enqueue(queue, src_buf, src.shape[1], src.shape[0], first, stop, self.factor, dst)
         return dst
 
-    def _scratch_of(self, ctx, queue, size: int, mine: dict | None = None, block: int = 0):
-        """The buffer on ``queue`` (>= ``size`` bytes) a call's blocks are upsampled (staged) into in turn, kept in
-        ``mine`` (default this object's): an in-order queue runs a block's command after the kernels reading the
-        previous one (a fresh buffer costs its page faults each time). Made at ``block`` bytes at least (the call's
-        largest block), so that it does not grow: a lane then holds one buffer, as the memory budget counts it
-        (:func:`.launcher.record_bytes`)."""
+    def _largest_block(self) -> int:
+        """Bytes of a call's largest upload block upsampled (complex64, the longest record)."""
+        return 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))
+
+    def _scratch_of(self, ctx, queue, size: int, mine: dict | None = None, block=None):
+        """The buffer on ``queue`` (>= ``size`` bytes) a call's blocks are upsampled (staged) into in turn, kept
+        in ``mine`` (default this object's): an in-order queue runs a block's command after the kernels reading
+        the previous one (a fresh buffer costs its page faults each time). Made at ``block()`` bytes at least
+        (the call's largest block; asked only when a buffer is made), so that it does not grow: a lane then
+        holds one buffer, as the memory budget counts it (:func:`record_bytes`)."""
         import pyopencl as cl
 
         in_order = not queue.properties & cl.command_queue_properties.OUT_OF_ORDER_EXEC_MODE_ENABLE
         key, mine = (int(ctx.int_ptr), int(queue.int_ptr)), self._scratch if mine is None else mine
         if not in_order or key not in mine or mine[key].size < size:
-            mine[key] = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=max(size, block))
+            mine[key] = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=max(size, block() if block else 0))
         return mine[key]
 
     def subset(self, chosen) -> "PreparedRecords":
@@ -389,6 +394,33 @@ def fast_time_spans(echo: EchoData, chosen, grid, velocity, box=None) -> np.ndar
     if not np.all(np.isfinite(spans)) or np.any(spans[:, 1] <= spans[:, 0]):
         raise ValueError(f"grid as a fast-time span needs finite start < stop (s), got {grid!r:.80}")
     return np.array(spans)
+
+
+def jobs_in_flight(job_bytes: int) -> int:
+    """Jobs of ``job_bytes`` (16 bytes a sample, as upload_pulses counts) whose records a call holds at once."""
+    return int(min(MAX_IN_FLIGHT, max(2, IN_FLIGHT_BYTES // job_bytes)))
+
+
+def record_bytes(records: PreparedRecords, span: tuple[int, int], double: bool) -> int:
+    """Bytes a call on pulses ``span`` makes for ``records`` beyond their held samples (a bound, checked
+    against the memory budget before the call: :mod:`.direct`; the launcher makes them). Held records:
+    the buffers two lanes stage rows into (single), or the complex128 copies a double call makes and
+    keeps, where not made yet. Records made per call: with the FIR on the device (single), one scratch
+    buffer a lane (two), each a job's records; otherwise the jobs in flight (:func:`jobs_in_flight`, at
+    most a chunk's) each in a buffer of its own (16 bytes a sample for double), and the host arrays of
+    the one being made (complex64, and its complex128 copy for double). Records of the echo read in
+    place (not upsampled, single): none."""
+    if records.materialised:
+        return records.double_copy_bytes() if double else 2 * records.staged_bytes(span[1] - span[0])
+    longest = max(1, int(np.max(records.length)))
+    if records.factor > 1 and not double and records.fir_on_device:
+        return 2 * 8 * min(records.upload_pulses(), records.echo.n_pulses) * longest
+    if records.factor == 1 and not double:
+        return 0
+    upload = records.upload_pulses()
+    job = min(upload, span[1] - span[0]) * longest  # samples
+    jobs = min(jobs_in_flight(16 * job), len(records.receivers) * -(-(span[1] - span[0]) // upload))
+    return jobs * (16 if double else 8) * job + (24 if double else 8) * job
 
 
 def _pulse_span(pulses, n_pulses: int) -> tuple[int, int]:
