@@ -1300,46 +1300,71 @@ def test_a_call_on_held_records_computes_the_grids_reach_once(opencl_device, kia
 
 
 def test_a_calls_record_buffers_count_against_the_memory_budget(opencl_device, kiang_echo, monkeypatch):
-    # review 14 L3: a call's buffers for its records (records made per call: a job's upsampled records on each of two
-    # lanes, the FIR's scratch buffer a queue; held records: the rows two lanes stage) count with its pixels in the
-    # memory budget (records.PreparedRecords.call_bytes, checked by backproject on both backends): a budget a byte too
-    # small refuses the call, naming it, before any of its records are made; a budget that holds them runs it, the
-    # image as under the default budget bit for bit, its two lanes' buffers as large as counted (held records: the
-    # largest row staged)
-    from clsas.image.backprojection import direct, records
+    # review 14 L3, review 16 L1: a call's buffers for its records count with its pixels in the memory budget
+    # (records.record_bytes, checked by backproject on both backends), single and double precision: records made per
+    # call (single: the FIR's scratch buffer of each of two lanes; double: complex128 jobs in flight), held records
+    # (single: the rows two lanes stage, each lane's buffer made at the call's largest rows, which here grow from one
+    # receiver to the next on a lane; double: the complex128 copies the first double call makes and keeps). A budget a
+    # byte too small refuses the call, naming it, before any of its records are made; a budget that holds them runs
+    # it, the image as under the default budget bit for bit, the records' device buffers alive at once within the
+    # count (single: equal to it), a held double call's copies the count
+    import weakref
 
-    made, buffers = [], {}
-    for name in ("buffer", "samples"):
-        method = getattr(records.PreparedRecords, name)
-        monkeypatch.setattr(records.PreparedRecords, name,
-                            lambda self, *a, _m=method, _n=name, **k: made.append(_n) or _m(self, *a, **k))
-    scratch_of = records.PreparedRecords._scratch_of
+    import pyopencl as cl
 
-    def kept(self, *a, **k):
-        buf = scratch_of(self, *a, **k)
-        buffers[buf.int_ptr] = buf.size
-        return buf
+    from clsas.image.backprojection import direct, launcher, records
 
-    monkeypatch.setattr(records.PreparedRecords, "_scratch_of", kept)
-    grid = around((1989.0, 0.0, -350.0), 0.02, 0.05, 4, 4)
-    fitted = prepare(kiang_echo, upsample=8, grid=grid)
-    for echo, phrase in ((kiang_echo, "and its records upsampled by 8 a job at a time"),
-                         (fitted, "and the held records' rows it stages")):
-        plain, _, span, _ = records.records_for(echo, grid, None, None, None, None, None)
-        extra = plain.call_bytes(span[1] - span[0])
-        need = direct.BYTES_PER_PIXEL * grid.size + extra
-        assert extra > 10 * direct.BYTES_PER_PIXEL * grid.size  # the records' buffers, not the pixels, decide here
-        expected = backproject(echo, grid, backend="opencl", progress=False).data
-        for backend in ("opencl", "numpy"):
-            made.clear()
-            with clsas.use_memory_budget(need - 1), pytest.raises(clsas.errors.MemoryBudgetError, match=phrase):
-                backproject(echo, grid, backend=backend, progress=False)
-            assert not made, backend
-        buffers.clear()
-        with clsas.use_memory_budget(need):
-            got = backproject(echo, grid, backend="opencl", progress=False).data
-        assert got.tobytes() == expected.tobytes()
-        assert len(buffers) == 2 and 2 * max(buffers.values()) == extra, (buffers, extra)  # one a lane, the largest
+    made, alive, inside, real = [], [0, 0], [0], cl.Buffer
+
+    class Counted(real):  # the buffers records' methods make that are not the host's arrays in place
+        def __init__(self, *a, **k):
+            real.__init__(self, *a, **k)
+            if inside[0] and not (a[1] if len(a) > 1 else k.get("flags", 0)) & cl.mem_flags.USE_HOST_PTR:
+                alive[0] += self.size
+                alive[1] = max(alive)
+                weakref.finalize(self, lambda n=self.size: alive.__setitem__(0, alive[0] - n))
+
+    for name in ("buffer", "samples", "_upsampled_on_device", "_scratch_of"):
+        def counted(self, *a, _m=getattr(records.PreparedRecords, name), _n=name, **k):
+            made.append(_n)
+            inside[0] += 1
+            try:
+                return _m(self, *a, **k)
+            finally:
+                inside[0] -= 1
+        monkeypatch.setattr(records.PreparedRecords, name, counted)
+    grid = around((1989.0, 0.0, -350.0), 0.2, 0.5, 32, 32)
+    for precision, double in (("single", False), ("double", True)):
+        for held in (False, True):
+            def source():
+                return prepare(kiang_echo, upsample=8, grid=grid) if held else kiang_echo
+            plain, _, span, _ = records.records_for(source(), grid, None, None, None, None, None)
+            extra = records.record_bytes(plain, span, double)
+            need = direct.BYTES_PER_PIXEL * grid.size + extra
+            assert extra > direct.BYTES_PER_PIXEL * grid.size  # the records' buffers weigh here
+            expected = backproject(source(), grid, backend="opencl", progress=False, precision=precision).data
+            for backend in ("opencl", "numpy"):
+                echo = source()
+                made.clear()
+                with clsas.use_memory_budget(need - 1), pytest.raises(clsas.errors.MemoryBudgetError,
+                                                                      match=f"backproject onto {grid.size} pixels and"):
+                    backproject(echo, grid, backend=backend, progress=False, precision=precision)
+                assert not made, (precision, held, backend)
+            echo = source()
+            monkeypatch.setattr(cl, "Buffer", Counted)
+            alive[:] = [0, 0]
+            with clsas.use_memory_budget(need):
+                got = backproject(echo, grid, backend="opencl", progress=False, precision=precision).data
+            monkeypatch.setattr(cl, "Buffer", real)
+            assert got.tobytes() == expected.tobytes(), (precision, held)
+            # (records made per call in double: the host arrays of the job being made, complex64 and complex128, are
+            # counted beside the device's jobs)
+            job = min(plain.upload_pulses(), span[1] - span[0]) * int(plain.length.max())
+            host = 24 * job if double and not held else 0
+            assert (alive[1] <= extra - host) if double else (alive[1] == extra), (precision, held, alive, extra)
+            if held and double:  # the copies made and kept: the count, then nothing more to make
+                assert sum(host.nbytes for (_, _, d), (_, host) in echo._device.items() if d) == extra
+                assert records.record_bytes(echo, span, True) == 0
 
 
 @pytest.mark.parametrize("n_pulses", [1, 7, 13])

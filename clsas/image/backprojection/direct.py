@@ -58,7 +58,7 @@ from ... import budget, validate
 from ...model import Grid, Image
 from ...progress import NOMINAL_RATES, stage
 from .launcher import backproject_opencl
-from .records import records_for
+from .records import record_bytes, records_for
 from .reference import backproject_reference
 from .tiles import GridPlan
 
@@ -99,17 +99,20 @@ def _check_call(grid, aperture, stop_and_go):
                        "image fewer pixels at a time (tiles of the grid)")
 
 
-def _check_records(size: int, records, span: tuple[int, int]) -> None:
-    """Refuse a call whose pixels and its records' buffers (:meth:`.records.PreparedRecords.call_bytes`: the
-    upsampled jobs' buffers, or held records' staging) exceed the memory budget, before either is allocated."""
-    extra = records.call_bytes(span[1] - span[0])
+def _check_records(size: int, records, span: tuple[int, int], double: bool) -> None:
+    """Refuse a call whose pixels and its records' buffers (:func:`.records.record_bytes`: the upsampled
+    jobs' buffers, held records' staging or complex128 copies) exceed the memory budget, before either is
+    allocated."""
+    extra = record_bytes(records, span, double)
     if not extra:
         return
     if records.materialised:
-        what, advice = "and the held records' rows it stages", "image fewer pixels at a time (tiles of the grid)"
+        what = "and the held records' complex128 copies" if double else "and the held records' rows it stages"
+        advice = "image fewer pixels at a time (tiles of the grid)"
     else:
-        what = (f"and its records upsampled by {records.upsample} a job at a time ({records.upload_pulses()} pulses x "
-                f"up to {int(records.length.max())} samples)")
+        kind = "in complex128" if double else f"upsampled by {records.upsample}"
+        what = (f"and its records {kind} a job at a time ({records.upload_pulses()} pulses x up to "
+                f"{int(records.length.max())} samples)")
         advice = "image a smaller grid at a time (the records' span it reaches shrinks with it), or upsample less"
     budget.check_bytes(f"backproject onto {size} pixels {what}", BYTES_PER_PIXEL * float(size) + extra, advice)
 
@@ -163,8 +166,8 @@ def backproject(echo, grid, backend: str | None = None, receivers=None, interp: 
     plan = _plan_of(grid)
     records, velocity, span, reached = records_for(echo, plan.grid, receivers, interp, upsample, target_velocity,
                                                    pulses, plan.box)
-    _check_records(plan.grid.size, records, span)
     double = _backend.check_precision(precision)
+    _check_records(plan.grid.size, records, span, double)
     name = _backend.resolve(backend)
     g, source = plan.grid, records.echo
     work = g.size * len(records.receivers) * (span[1] - span[0])

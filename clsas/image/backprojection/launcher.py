@@ -12,7 +12,7 @@ float sums carried between launches, 8 bytes a slot), put in the grid's order on
 kernels have finished: by bp_order on the device into the complex64 image for a grid of one chunk,
 by the host into a complex128 image for several; the records a block
 of at most ``records.UPLOAD_BYTES`` at a time (jobs of a receiver's block in flight up to
-IN_FLIGHT_BYTES of records, at least two and at most MAX_IN_FLIGHT: the host waits for the
+records.IN_FLIGHT_BYTES of records, at least two and at most records.MAX_IN_FLIGHT: the host waits for the
 kernels of the job that many before; small jobs, a small grid's, then queue up far enough that
 the device does not wait for the host between them), the per-(tile, pulse) references REF_PULSES pulses at a
 time, for consecutive receivers of the same legs at once (one bp_refs launch; a group's references
@@ -33,7 +33,7 @@ import numpy as np
 from ... import opencl
 from ...progress import Progress
 from .exact_kernel import ExactKernel
-from .records import UPLOAD_BYTES, PreparedRecords, launch_pulses
+from .records import PreparedRecords, jobs_in_flight, launch_pulses
 from .spans import reach
 from .tile_kernel import TileKernel
 from .tiles import GridPlan
@@ -41,8 +41,6 @@ from .tiles import GridPlan
 PIXEL_CHUNK = 2**22  # slots on the device at once
 REF_PULSES = 1024  # pulses whose tile references are computed at once (a 1024-pulse upload job: one bp_refs launch)
 REF_BYTES = 16 * 2**20  # a group of receivers' references (every pulse of the call) held at once (_groups)
-IN_FLIGHT_BYTES = 2 * UPLOAD_BYTES  # records (records.upload_pulses' bytes a pulse) of the jobs in flight at once
-MAX_IN_FLIGHT = 8  # jobs in flight at most
 # a chunk of at most TWO_LANE_SLOTS slots with several jobs runs every other job on a second queue (_Chunk.lane), into
 # its own sums and carry (24 bytes a slot: at most 6 MB) and the FIR's scratch buffer of that queue (records.py): a
 # small grid's launches are short, so a thread idle at a launch's end and the ~25 us between commands are a large
@@ -302,7 +300,7 @@ def _launched(rt, records: PreparedRecords, plan: GridPlan, aperture, velocity, 
     params = tile.params(c, f0, fs)
     chunk = PIXEL_CHUNK // (tile.LANES * tile.rows) * (tile.LANES * tile.rows)
     job_bytes = 16 * max(1, int(np.max(records.length))) * min(upload, span[1] - span[0])  # as upload_pulses counts
-    keep = int(min(MAX_IN_FLIGHT, max(2, IN_FLIGHT_BYTES // job_bytes))) - 1  # jobs left in flight by retire
+    keep = jobs_in_flight(job_bytes) - 1  # jobs left in flight by retire
     jobs = [(first, i, np.arange(s, min(s + upload, span[1]))) for first in range(0, tiles.order.size, chunk)
             for i in range(len(records.receivers)) for s in range(span[0], span[1], upload)]
     group_of = {i: g for g in _groups(records, kernels, tile, tiles, span) for i in g}
@@ -456,8 +454,9 @@ def _added(queue, chunk_state: _Chunk, image, tiles) -> np.ndarray:
 def _groups(records: PreparedRecords, kernels: dict, tile: TileKernel, tiles, span: tuple[int, int]) -> list[tuple]:
     """The receivers (indices into ``records.receivers``, in their order) whose references one
     bp_refs launch computes (a launch a pulse sub-block and chunk instead of one a receiver):
-    consecutive receivers with the same legs whose references bp_refs computes (:meth:`.tile_kernel.TileKernel.on_device`),
-    as many as keep their references for every pulse of the call within REF_BYTES. bp_tile still
+    consecutive receivers with the same legs whose references bp_refs computes
+    (:meth:`.tile_kernel.TileKernel.on_device`), as many as keep their references for every pulse
+    of the call within REF_BYTES. bp_tile still
     runs a receiver a launch: all of its work-items then read the same receiver's records, which
     stay in cache (several receivers a launch, each work-item sweeping their records in turn, was
     slower: the commit d486032 gives the figures)."""

@@ -38,8 +38,8 @@ buffers are made on first OpenCL use, one per receiver (and one complex128 copy 
 ``precision="double"``, made on first use of that precision), and live as long as the object or
 until :meth:`PreparedRecords.release`. On PoCL CPU devices a complex64 buffer uses the host array
 in place (CL_MEM_USE_HOST_PTR: no copy); on a GPU it is a copy in device memory. A call's own
-buffers for its records (a job's upsampled records a lane, or held rows staged: :meth:`PreparedRecords.call_bytes`)
-count with its pixels against the memory budget, checked before the call makes them.
+buffers for its records (a job's upsampled records a lane, held rows staged, complex128 copies:
+:func:`record_bytes`) count with its pixels against the memory budget, checked before the call makes them.
 """
 
 from __future__ import annotations
@@ -62,6 +62,8 @@ UPLOAD_BYTES = 64 * 2**20  # records prepared and uploaded at once when a call p
 # stay in cache while the launch's work-items read them (long upsampled records on a small grid:
 # 6.9 MB a block of 64 pulses x8 otherwise come from L3 for every work-group)
 LAUNCH_RECORD_BYTES = 2 * 2**20
+IN_FLIGHT_BYTES = 2 * UPLOAD_BYTES  # records (upload_pulses' bytes a pulse) of a call's jobs in flight at once
+MAX_IN_FLIGHT = 8  # jobs in flight at most (:func:`jobs_in_flight`)
 STAGE_BYTES = 8 * 2**20  # held records staged for a job at most (buffer): here jobs of 6.9-15 MB gained, 27-44 MB lost
 
 
@@ -220,7 +222,7 @@ class PreparedRecords:
             if staged is None or double or row * pulses.size > STAGE_BYTES:
                 return self._device[key][0], n, 0
             queue = opencl.runtime().queue if queue is None else queue
-            dst = self._scratch_of(ctx, queue, row * pulses.size, staged)
+            dst = self._scratch_of(ctx, queue, row * pulses.size, staged, lambda: self.staged_bytes(pulses.size))
             cl.enqueue_copy(queue, dst, self._device[key][0], byte_count=row * pulses.size,
                             src_offset=row * int(pulses[0]), dst_offset=0)
             return dst, n, int(pulses[0])
@@ -251,21 +253,26 @@ class PreparedRecords:
         flags = mf.USE_HOST_PTR if np.shares_memory(src, self.echo.data) else mf.COPY_HOST_PTR
         src_buf = cl.Buffer(ctx, mf.READ_ONLY | flags, hostbuf=src)
         queue = opencl.runtime().queue if queue is None else queue
-        dst = self._scratch_of(ctx, queue, 8 * src.shape[0] * int(self.length[i]))
+        dst = self._scratch_of(ctx, queue, 8 * src.shape[0] * int(self.length[i]), block=self._largest_block)
         fir.enqueue(queue, src_buf, src.shape[1], src.shape[0], first, stop, self.factor, dst)
         return dst
 
-    def _scratch_of(self, ctx, queue, size: int, mine: dict | None = None):
-        """The buffer on ``queue`` (>= ``size`` bytes) a call's blocks are upsampled (staged) into in turn, kept in
-        ``mine`` (default this object's): an in-order queue runs a block's command after the kernels reading the
-        previous one (a fresh buffer costs its page faults each time)."""
+    def _largest_block(self) -> int:
+        """Bytes of a call's largest upload block upsampled (complex64, the longest record)."""
+        return 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))
+
+    def _scratch_of(self, ctx, queue, size: int, mine: dict | None = None, block=None):
+        """The buffer on ``queue`` (>= ``size`` bytes) a call's blocks are upsampled (staged) into in turn, kept
+        in ``mine`` (default this object's): an in-order queue runs a block's command after the kernels reading
+        the previous one (a fresh buffer costs its page faults each time). Made at ``block()`` bytes at least
+        (the call's largest block; asked only when a buffer is made), so that it does not grow: a lane then
+        holds one buffer, as the memory budget counts it (:func:`record_bytes`)."""
         import pyopencl as cl
 
         in_order = not queue.properties & cl.command_queue_properties.OUT_OF_ORDER_EXEC_MODE_ENABLE
         key, mine = (int(ctx.int_ptr), int(queue.int_ptr)), self._scratch if mine is None else mine
-        if not in_order or key not in mine or mine[key].size < size:  # a call's largest block:
-            block = 0 if self._host else 8 * min(self.upload_pulses(), self.echo.n_pulses) * int(np.max(self.length))
-            mine[key] = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=max(size, block))
+        if not in_order or key not in mine or mine[key].size < size:
+            mine[key] = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=max(size, block() if block else 0))
         return mine[key]
 
     def subset(self, chosen) -> "PreparedRecords":
@@ -280,19 +287,17 @@ class PreparedRecords:
         part._host = None if self._host is None else [self._host[r] for r in rows]
         return part
 
-    def call_bytes(self, n_pulses: int) -> int:
-        """Bytes a call summing ``n_pulses`` pulses allocates for its records beyond those held (a bound,
-        which the call checks against the memory budget before it allocates: :mod:`.direct`). Records
-        made per call and upsampled: a job's upsampled records on each of two lanes (16 bytes a sample
-        of upload_pulses pulses, as the launcher counts a job: on the device, one FIR scratch buffer a
-        lane's queue, :meth:`_scratch_of`). Held records: the buffers two lanes stage rows into (up to
-        STAGE_BYTES each, :meth:`buffer`). Records read in place (not upsampled): none."""
-        if self._host is not None:
-            rows = [8 * held.shape[1] * int(n_pulses) for held in self._host]
-            return 2 * max([r for r in rows if r <= STAGE_BYTES], default=0)
-        if self.factor == 1:
-            return 0
-        return 16 * min(self.upload_pulses(), self.echo.n_pulses) * max(1, int(np.max(self.length)))
+    def staged_bytes(self, n_pulses: int) -> int:
+        """Bytes of the buffer a lane stages held rows of ``n_pulses`` pulses into (:meth:`buffer`): the
+        largest receiver's rows within STAGE_BYTES (0 when none fits, or the records are not held)."""
+        rows = [8 * held.shape[1] * int(n_pulses) for held in self._host or ()]
+        return max([r for r in rows if r <= STAGE_BYTES], default=0)
+
+    def double_copy_bytes(self) -> int:
+        """Bytes of the complex128 copies of held records that a ``precision="double"`` call makes and
+        keeps (:meth:`buffer`), for the receivers whose copy is not made yet (0 for records not held)."""
+        made = {h for (_, h, double) in self._device if double}
+        return sum(16 * held.size for h, held in zip(self.receivers, self._host or ()) if h not in made)
 
     def upload_pulses(self) -> int:
         """Pulses a call's job covers: all for materialised records (their buffers hold every
@@ -322,9 +327,9 @@ class PreparedRecords:
 
     def __repr__(self) -> str:
         kind = f"{self.nbytes / 2**20:.1f} MB held" if self.materialised else "prepared per call"
-        return (f"PreparedRecords({len(self.receivers)} receivers x {self.echo.n_pulses} pulses, interp={self.interp!r}, "
-                f"upsample={self.upsample}, samples per record {int(self.length.min())}..{int(self.length.max())}, "
-                f"{kind})")
+        return (f"PreparedRecords({len(self.receivers)} receivers x {self.echo.n_pulses} pulses, "
+                f"interp={self.interp!r}, upsample={self.upsample}, "
+                f"samples per record {int(self.length.min())}..{int(self.length.max())}, {kind})")
 
 
 def prepare(compressed: EchoData, upsample: int = 8, interp: str = "linear", receivers=None, grid=None,
@@ -391,6 +396,33 @@ def fast_time_spans(echo: EchoData, chosen, grid, velocity, box=None) -> np.ndar
     return np.array(spans)
 
 
+def jobs_in_flight(job_bytes: int) -> int:
+    """Jobs of ``job_bytes`` (16 bytes a sample, as upload_pulses counts) whose records a call holds at once."""
+    return int(min(MAX_IN_FLIGHT, max(2, IN_FLIGHT_BYTES // job_bytes)))
+
+
+def record_bytes(records: PreparedRecords, span: tuple[int, int], double: bool) -> int:
+    """Bytes a call on pulses ``span`` makes for ``records`` beyond their held samples (a bound, checked
+    against the memory budget before the call: :mod:`.direct`; the launcher makes them). Held records:
+    the buffers two lanes stage rows into (single), or the complex128 copies a double call makes and
+    keeps, where not made yet. Records made per call: with the FIR on the device (single), one scratch
+    buffer a lane (two), each a job's records; otherwise the jobs in flight (:func:`jobs_in_flight`, at
+    most a chunk's) each in a buffer of its own (16 bytes a sample for double), and the host arrays of
+    the one being made (complex64, and its complex128 copy for double). Records of the echo read in
+    place (not upsampled, single): none."""
+    if records.materialised:
+        return records.double_copy_bytes() if double else 2 * records.staged_bytes(span[1] - span[0])
+    longest = max(1, int(np.max(records.length)))
+    if records.factor > 1 and not double and records.fir_on_device:
+        return 2 * 8 * min(records.upload_pulses(), records.echo.n_pulses) * longest
+    if records.factor == 1 and not double:
+        return 0
+    upload = records.upload_pulses()
+    job = min(upload, span[1] - span[0]) * longest  # samples
+    jobs = min(jobs_in_flight(16 * job), len(records.receivers) * -(-(span[1] - span[0]) // upload))
+    return jobs * (16 if double else 8) * job + (24 if double else 8) * job
+
+
 def _pulse_span(pulses, n_pulses: int) -> tuple[int, int]:
     """(start, stop) of the consecutive pulses to sum, or a ValueError naming ``pulses``."""
     if pulses is None:
@@ -401,7 +433,8 @@ def _pulse_span(pulses, n_pulses: int) -> tuple[int, int]:
     elif isinstance(pulses, (tuple, list)) and len(pulses) == 2:
         (start, stop), step = pulses, 1
     else:
-        raise ValueError(f"pulses must be None, (start, stop), a range or a slice of consecutive pulses, got {pulses!r}")
+        raise ValueError(f"pulses must be None, (start, stop), a range or a slice of consecutive pulses, "
+                         f"got {pulses!r}")
     ok = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in (start, stop, step))
     if not ok or step != 1 or not 0 <= start < stop <= n_pulses:
         raise ValueError(f"pulses must select consecutive pulses start < stop within [0, {n_pulses}], got {pulses!r}")

@@ -18,9 +18,10 @@ WORK_BYTES = 400  # the temporaries a pixel-pulse holds at once (tests/test_back
 def backproject_reference(records: PreparedRecords, plan: GridPlan, aperture, velocity, stop_and_go, progress,
                           span: tuple[int, int]):
     """The float64 NumPy reference (vectorised over pixels, at most 2^22 pixel-pulses and as many
-    as WORK_BYTES each leave within the memory budget at a time): image (M,) complex128. The sample index of a delay tau is k = (tau - t0) fs,
-    split into floor(k) and its fraction before the records' offset (an integer) is taken off,
-    as the kernels do, so that records prepared over any span covering the grid read alike. With
+    as WORK_BYTES each leave within the memory budget at a time): image (M,) complex128. The
+    sample index of a delay tau is k = (tau - t0) fs, split into floor(k) and its fraction before
+    the records' offset (an integer) is taken off, as the kernels do, so that records prepared
+    over any span covering the grid read alike. With
     an ``aperture`` a pixel's contribution is kept when it lies, at q where the pulse meets it,
     within the integration angle: |sin theta| <= sin(aperture / 2), theta the angle of
     transmitter -> pixel off broadside (the x-z plane; y is the nominal heading)."""

@@ -170,8 +170,8 @@ def plan_tiles(positions: np.ndarray, f0: float, c: float, half_extent: float | 
                rows: int = ROWS) -> Tiling:
     """The tiles of the pixels ``positions`` (a grid's (..., 3) array, m; see the module docstring)
     whose pixels lie within ``half_extent`` (default :func:`tile_half_extent`) of their reference
-    points, the centres of their bounding boxes, in work-items of ``rows`` x LANES. Raises ValueError when the bound is not met (it
-    is by construction; the check guards the arithmetic)."""
+    points, the centres of their bounding boxes, in work-items of ``rows`` x LANES. Raises
+    ValueError when the bound is not met (it is by construction; the check guards the arithmetic)."""
     positions = np.asarray(positions, dtype=np.float64)
     budget = tile_half_extent(f0, c) if half_extent is None else float(half_extent)
     if not budget > 0:
