@@ -412,9 +412,9 @@ def record_bytes(records: PreparedRecords, span: tuple[int, int], double: bool) 
     place (not upsampled, single): none."""
     if records.materialised:
         return records.double_copy_bytes() if double else 2 * records.staged_bytes(span[1] - span[0])
-    longest = max(1, int(np.max(records.length)))
     if records.factor > 1 and not double and records.fir_on_device:
-        return 2 * 8 * min(records.upload_pulses(), records.echo.n_pulses) * longest
+        return 2 * records._largest_block()  # the lanes' scratch buffers, each made at that size (_scratch_of)
+    longest = max(1, int(np.max(records.length)))
     if records.factor == 1 and not double:
         return 0
     upload = records.upload_pulses()
